@@ -1,0 +1,1 @@
+"""Certificates (schema, hashes), the exact rational re-check and the deployment gate."""

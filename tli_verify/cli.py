@@ -1,0 +1,85 @@
+"""The ``tli`` command line.
+
+Conventions (``DESIGN.md``, "Exit codes"): 0 success; 1 a check said no (unrealizable, invalid
+certificate, gate blocked, property violated); 2 bad input or usage. Errors are one line on
+stderr starting with ``error:``; a traceback only with ``--debug``.
+
+Each subcommand group lives in its own module under :mod:`tli_verify.commands` and exposes
+``register(subparsers)``; the modules are imported only to build the parser, and they import
+their heavy dependencies inside the handlers, so ``tli --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import traceback
+from collections.abc import Sequence
+
+from tli_verify import __version__
+from tli_verify.errors import TliError
+
+__all__ = ["build_parser", "main"]
+
+COMMAND_MODULES: tuple[str, ...] = (
+    "tli_verify.commands.spec",
+    "tli_verify.commands.motion",
+    "tli_verify.commands.experiment",
+    "tli_verify.commands.demo",
+)
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose usage errors are one ``error:`` line and exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the ``tli`` parser with every registered subcommand."""
+    parser = _Parser(
+        prog="tli",
+        description="tli-verify: LTL task automata, certified LPV-DS motion policies, "
+        "cutting-plane modulation and a deployment gate (Temporal Logic Imitation).",
+    )
+    parser.add_argument("--version", action="version", version=f"tli-verify {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``tli`` and return its exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler = getattr(args, "handler", None)
+    if handler is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(handler(args))
+    except TliError as exc:
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"error: {exc}\n")
+        return exc.exit_code
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        return 130
+    except Exception as exc:  # an internal bug: still one line unless --debug
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(
+            f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+            "rerun with --debug for a traceback\n"
+        )
+        return 70
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

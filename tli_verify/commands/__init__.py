@@ -1,0 +1,1 @@
+"""Subcommand groups of the ``tli`` CLI; each module exposes ``register(subparsers)``."""

@@ -1,0 +1,1 @@
+"""Learned dynamical systems: GMM mixing, LPV-DS, Lyapunov SDPs, the BC baseline."""

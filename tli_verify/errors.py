@@ -1,0 +1,74 @@
+"""The one exception hierarchy of tli-verify.
+
+Every error a user can cause is a :class:`TliError`. The CLI turns it into a one-line
+``error: ...`` message on stderr and exit code 2 (bad input) or 1 (a check said no), see
+``DESIGN.md`` ("Exit codes"). Nothing else in the package prints errors or warnings.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CertificateError",
+    "DemoError",
+    "GateError",
+    "ModelError",
+    "SolverError",
+    "SpecError",
+    "TliError",
+    "UnrealizableError",
+]
+
+
+class TliError(Exception):
+    """Base class of every error raised on purpose by tli-verify.
+
+    Parameters
+    ----------
+    message : str
+        One line that names the file, line or field at fault.
+    exit_code : int, optional
+        Exit code the CLI uses: 2 for bad input (default), 1 for "a check said no".
+    """
+
+    exit_code: int = 2
+
+    def __init__(self, message: str, *, exit_code: int | None = None) -> None:
+        super().__init__(" ".join(str(message).split()))
+        if exit_code is not None:
+            self.exit_code = exit_code
+
+
+class SpecError(TliError):
+    """A task specification (TOML, LTL formula) is malformed or outside GR(1)."""
+
+
+class UnrealizableError(TliError):
+    """A strategy was requested from a GR(1) game the system cannot win."""
+
+    exit_code = 1
+
+
+class DemoError(TliError):
+    """A demonstration file is malformed or inconsistent with the spec."""
+
+
+class ModelError(TliError):
+    """A model file (per-mode LPV-DS and cuts) is malformed."""
+
+
+class SolverError(TliError):
+    """A numerical solver failed or returned a status other than optimal."""
+
+    exit_code = 1
+
+
+class CertificateError(TliError):
+    """A certificate is malformed, or does not re-check exactly."""
+
+    exit_code = 1
+
+
+class GateError(TliError):
+    """The deployment gate blocks: something is uncertified or tampered with."""
+
+    exit_code = 1
