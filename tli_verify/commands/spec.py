@@ -1,18 +1,157 @@
-"""Subcommands of this group are registered here as their capability lands."""
+"""``tli spec check`` and ``tli spec automaton``: GR(1) realizability and task automata."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 from pathlib import Path
 from typing import Any
 
+from tli_verify.errors import TliError
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
-    """Register this group's subcommands (none yet)."""
-    del sub
+    """Register ``tli spec ...``."""
+    spec = sub.add_parser("spec", help="check GR(1) task specs and build their task automata")
+    ssub = spec.add_subparsers(dest="spec_command", metavar="SUBCOMMAND",
+                               parser_class=type(spec))
+    spec.set_defaults(handler=lambda _a: _usage(spec))
+
+    check = ssub.add_parser(
+        "check", help="decide realizability of each spec; diagnose unrealizable ones",
+        description="One verdict per file. Exit 0 if all are realizable, 1 if any is "
+        "unrealizable, 2 on any bad input.")
+    check.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    check.add_argument("--json", action="store_true", help="one JSON object per line")
+    check.add_argument("--explain", action="store_true",
+                       help="also print the GR(1) game, including constraints added from [modes]")
+    check.set_defaults(handler=_check)
+
+    aut = ssub.add_parser(
+        "automaton", help="synthesize the task automaton (Mealy machine) of a realizable spec",
+        description="Writes JSON (states, initial, transitions, mode_transitions) or Graphviz "
+        "DOT, by the extension of -o. Exit 1 if the spec is unrealizable.")
+    aut.add_argument("file", type=Path, metavar="FILE")
+    aut.add_argument("-o", "--output", type=Path, default=None,
+                     help="OUT.json or OUT.dot (default: a summary on stdout)")
+    aut.add_argument("--json", action="store_true", help="print the automaton JSON on stdout")
+    aut.set_defaults(handler=_automaton)
+
+
+def _usage(parser: argparse.ArgumentParser) -> int:
+    parser.print_help(sys.stderr)
+    return 2
+
+
+def _explain(check: Any) -> list[str]:
+    spec = check.spec
+    lines = [f"  inputs (environment): {', '.join(spec.inputs)}",
+             f"  outputs (system): {', '.join(spec.outputs)}"]
+    if spec.modes is not None:
+        lines.append("  modes: " + ", ".join(f"{m} = {lab}" for m, lab in spec.modes.items()))
+    for side in (spec.assume, spec.guarantee):
+        for f in side.all():
+            tag = "  [added from [modes]]" if f.origin == "modes" else ""
+            lines.append(f"  {f.label}: {f.text}{tag}")
+    added = spec.added()
+    if added:
+        lines.append(f"  {len(added)} constraint(s) added from [modes]: one mode at a time, a "
+                     "mode only where its label holds, sensors always show a mode label "
+                     "(paper Asm. 3)")
+    return lines
+
+
+def _check(args: argparse.Namespace) -> int:
+    from tli_verify.logic.check import check_spec_file
+
+    worst = 0
+    for path in args.files:
+        try:
+            result = check_spec_file(path)
+        except TliError as exc:
+            sys.stderr.write(f"error: {exc}\n")
+            worst = max(worst, exc.exit_code)
+            continue
+        if not result.realizable:
+            worst = max(worst, 1)
+        if args.json:
+            record = result.to_json()
+            if args.explain:
+                record["explain"] = [line.strip() for line in _explain(result)]
+            sys.stdout.write(json.dumps(record, sort_keys=True) + "\n")
+            continue
+        verdict = "realizable" if result.realizable else "UNREALIZABLE"
+        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms)\n")
+        for w in result.warnings:
+            sys.stdout.write(f"  warning: {w}\n")
+        if result.diagnosis is not None:
+            for line in result.diagnosis.lines():
+                sys.stdout.write(f"  {line}\n")
+        if args.explain:
+            sys.stdout.write("\n".join(_explain(result)) + "\n")
+    return worst
+
+
+def write_automaton(automaton: Any, out: Path) -> None:
+    """Write ``automaton`` as JSON or DOT (by ``out``'s extension), atomically."""
+    from tli_verify.io import atomic_write_text, canonical_json
+
+    if out.suffix == ".dot":
+        atomic_write_text(out, automaton.to_dot())
+    elif out.suffix == ".json":
+        atomic_write_text(out, canonical_json(automaton.to_json()))
+    else:
+        raise TliError(f"{out}: output must end in .json or .dot")
+
+
+def _automaton(args: argparse.Namespace) -> int:
+    from tli_verify.io import canonical_json
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+
+    automaton = synthesize(load_spec(args.file))
+    if args.output is not None:
+        write_automaton(automaton, args.output)
+    if args.json:
+        sys.stdout.write(canonical_json(automaton.to_json()))
+    elif args.output is None:
+        sys.stdout.write(f"{args.file}: {len(automaton.states)} states, "
+                         f"{len(automaton.transitions)} transitions\n")
+        for s in automaton.states:
+            sensors = ",".join(s.inputs) or "-"
+            outs = [f"[{','.join(t.sensors)}]->{t.target}"
+                    for t in automaton.transitions if t.source == s.id]
+            init = "*" if s.id in automaton.initial else " "
+            sys.stdout.write(f" {init}{s.id:3d}  mode {s.mode:8s} sensors [{sensors}]  "
+                             f"{' '.join(outs)}\n")
+        pairs = " ".join(f"{a}->{b}" for a, b in automaton.mode_transitions())
+        sys.stdout.write(f"mode transitions: {pairs}\n")
+    else:
+        sys.stdout.write(f"wrote {args.output}\n")
+    return 0
 
 
 def demo_stage(out: Path) -> list[str]:
-    """Run this group's part of ``make demo``; return one summary line per result."""
-    del out
-    return []
+    """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
+    from tli_verify.logic.check import check_spec_file, synthesize
+
+    specs = sorted(Path("specs").glob("*.toml"))
+    lines = [f"[spec] checking {len(specs)} specs in specs/"]
+    adir = out / "automata"
+    for path in specs:
+        result = check_spec_file(path)
+        verdict = "realizable" if result.realizable else "unrealizable"
+        expected = "as expected" if result.realizable == result.expected_realizable \
+            else "NOT AS EXPECTED"
+        lines.append(f"[spec] {path}: {verdict} ({expected}, {result.seconds * 1000:.1f} ms)")
+        if result.realizable:
+            automaton = synthesize(result.spec)
+            write_automaton(automaton, adir / f"{path.stem}.json")
+            write_automaton(automaton, adir / f"{path.stem}.dot")
+            pairs = " ".join(f"{a}->{b}" for a, b in automaton.mode_transitions() if a != b)
+            lines.append(f"[spec]   automaton: {len(automaton.states)} states; mode changes "
+                         f"{pairs}; wrote {adir / path.stem}.json/.dot")
+        elif result.diagnosis is not None:
+            lines.append(f"[spec]   why: {result.diagnosis.kind}: {result.diagnosis.summary}")
+    return lines

@@ -1,0 +1,382 @@
+"""GR(1) games on BDDs (``dd`` with CUDD): realizability by the 3-nested fixpoint.
+
+Semantics (``DESIGN.md``, "GR(1) semantics"; Piterman, Pnueli and Sa'ar 2006; Bloem et al.,
+JCSS 2012). Variables are the inputs ``X`` (environment) and outputs ``Y`` (system) and their
+primed next copies. A spec ``phi_e -> phi_s`` becomes
+
+* ``theta_e(X)``, ``theta_s(X, Y)``: initial conditions;
+* ``rho_e(X, Y, X')``, ``rho_s(X, Y, X', Y')``: transition relations (the safety formulas with
+  ``X v`` read as ``v'``);
+* ``J_e``, ``J_s``: the liveness goals ``GF(p)``.
+
+Mealy semantics: the system sees the new input ``X'`` before it picks ``Y'``. The controllable
+predecessor is ``cpre(Z) = forall X'. (rho_e -> exists Y'. (rho_s & Z'))`` and the winning set is
+
+    Z = nu Z. /\\_j mu Y. \\/_i nu X. ((J_s^j & cpre(Z)) | cpre(Y) | (!J_e^i & cpre(X)))
+
+The spec is realizable iff ``forall X. theta_e -> exists Y. theta_s & Z``.
+
+A safety formula ``G(phi)`` without ``X`` is read as ``phi'`` in the transition relation plus
+``phi`` in the initial condition when its side controls every variable it mentions (a
+guarantee, or an assumption over inputs only); otherwise (an assumption over outputs) as a
+constraint on the current state, checked when the play leaves it. Both are exact for infinite
+plays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from tli_verify.logic.spec import GR1Spec, SpecFormula
+
+__all__ = ["Game", "Solution", "build_game", "solve"]
+
+PRIME = "'"
+
+
+def _prime(name: str) -> str:
+    return name + PRIME
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Goal:
+    """A liveness goal ``GF(p)`` and its BDD."""
+
+    formula: SpecFormula
+    bdd: Any
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Game:
+    """A GR(1) game on a CUDD manager (built by :func:`build_game`).
+
+    The BDD attributes are ``dd.cudd.Function`` nodes of ``manager``.
+    """
+
+    spec: GR1Spec
+    manager: Any
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    theta_e: Any
+    theta_s: Any
+    rho_e: Any
+    rho_s: Any
+    env_goals: tuple[Goal, ...]
+    sys_goals: tuple[Goal, ...]
+    safety_e: tuple[tuple[SpecFormula, Any], ...] = field(default=())
+    safety_s: tuple[tuple[SpecFormula, Any], ...] = field(default=())
+    init_e: tuple[tuple[SpecFormula, Any], ...] = field(default=())
+    init_s: tuple[tuple[SpecFormula, Any], ...] = field(default=())
+
+    @property
+    def inputs_next(self) -> list[str]:
+        return [_prime(v) for v in self.inputs]
+
+    @property
+    def outputs_next(self) -> list[str]:
+        return [_prime(v) for v in self.outputs]
+
+    @property
+    def true(self) -> Any:
+        return self.manager.true
+
+    @property
+    def false(self) -> Any:
+        return self.manager.false
+
+    def prime(self, u: Any) -> Any:
+        """Rename every unprimed variable of ``u`` to its primed copy."""
+        rename = {v: _prime(v) for v in self.inputs + self.outputs}
+        return self.manager.let(rename, u)
+
+    def cpre(self, z: Any) -> Any:
+        """Controllable predecessor (Mealy): ``forall X'. rho_e -> exists Y'. rho_s & Z'``."""
+        import dd.cudd
+
+        sys_can = dd.cudd.and_exists(self.rho_s, self.prime(z), self.outputs_next)
+        return self.manager.forall(self.inputs_next, ~self.rho_e | sys_can)
+
+    def with_(self, **changes: Any) -> Game:
+        """A copy with some components replaced (same manager)."""
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        fields.update(changes)
+        return Game(**fields)
+
+    def conj(self, parts: Iterable[tuple[SpecFormula, Any]]) -> Any:
+        u = self.true
+        for _, b in parts:
+            u &= b
+        return u
+
+
+def build_game(spec: GR1Spec) -> Game:
+    """Compile ``spec`` to a :class:`Game` on a fresh CUDD manager."""
+    import dd.cudd
+
+    bdd = dd.cudd.BDD()
+    order = []
+    for v in spec.inputs + spec.outputs:
+        order += [v, _prime(v)]
+    bdd.declare(*order)
+    inputs = set(spec.inputs)
+
+    def translate(f: SpecFormula, *, env: bool) -> tuple[Any, Any]:
+        """(initial-state part, transition part) of an init or safety formula."""
+        ltl = f.ltl
+        if f.section.endswith(".init"):
+            return _to_bdd(ltl, bdd, primed=False), bdd.true
+        # safety: conjunction of G(phi)
+        init, trans = bdd.true, bdd.true
+        for g in _conjuncts(ltl):
+            body = g[0]
+            if _has_next(body):
+                trans &= _to_bdd(body, bdd, primed=False)
+            elif not env or _aps(body) <= inputs:
+                init &= _to_bdd(body, bdd, primed=False)
+                trans &= _to_bdd(body, bdd, primed=True)
+            else:
+                trans &= _to_bdd(body, bdd, primed=False)
+        return init, trans
+
+    init_e, init_s, safety_e, safety_s = [], [], [], []
+    for f in spec.assume.init:
+        init_e.append((f, translate(f, env=True)[0]))
+    for f in spec.guarantee.init:
+        init_s.append((f, translate(f, env=False)[0]))
+    for f in spec.assume.safety:
+        i, t = translate(f, env=True)
+        if i != bdd.true:
+            init_e.append((f, i))
+        safety_e.append((f, t))
+    for f in spec.guarantee.safety:
+        i, t = translate(f, env=False)
+        if i != bdd.true:
+            init_s.append((f, i))
+        safety_s.append((f, t))
+
+    def goals(side: Sequence[SpecFormula]) -> tuple[Goal, ...]:
+        out = []
+        for f in side:
+            for g in _conjuncts(f.ltl):
+                out.append(Goal(formula=f, bdd=_to_bdd(g[0][0], bdd, primed=False)))
+        return tuple(out)
+
+    game = Game(
+        spec=spec,
+        manager=bdd,
+        inputs=spec.inputs,
+        outputs=spec.outputs,
+        theta_e=bdd.true,
+        theta_s=bdd.true,
+        rho_e=bdd.true,
+        rho_s=bdd.true,
+        env_goals=goals(spec.assume.liveness),
+        sys_goals=goals(spec.guarantee.liveness),
+        safety_e=tuple(safety_e),
+        safety_s=tuple(safety_s),
+        init_e=tuple(init_e),
+        init_s=tuple(init_s),
+    )
+    return game.with_(
+        theta_e=game.conj(init_e),
+        theta_s=game.conj(init_s),
+        rho_e=game.conj(safety_e),
+        rho_s=game.conj(safety_s),
+    )
+
+
+def _conjuncts(f: Any) -> list[Any]:
+    import spot
+
+    if f.kind() == spot.op_And:
+        out = []
+        for c in f:
+            out += _conjuncts(c)
+        return out
+    return [f]
+
+
+def _has_next(f: Any) -> bool:
+    import spot
+
+    if f.kind() == spot.op_X:
+        return True
+    return any(_has_next(c) for c in f)
+
+
+def _aps(f: Any) -> set[str]:
+    import spot
+
+    return {str(a.ap_name()) for a in spot.atomic_prop_collect(f)}
+
+
+def _to_bdd(f: Any, bdd: Any, *, primed: bool) -> Any:
+    """BDD of a propositional formula with ``X`` at depth <= 1 (``X v`` -> ``v'``)."""
+    import spot
+
+    kind = f.kind()
+    if kind == spot.op_tt:
+        return bdd.true
+    if kind == spot.op_ff:
+        return bdd.false
+    if kind == spot.op_ap:
+        name = str(f.ap_name())
+        return bdd.var(_prime(name) if primed else name)
+    if kind == spot.op_X:
+        return _to_bdd(f[0], bdd, primed=True)
+    args = [_to_bdd(c, bdd, primed=primed) for c in f]
+    if kind == spot.op_Not:
+        return ~args[0]
+    if kind == spot.op_And:
+        u = bdd.true
+        for a in args:
+            u &= a
+        return u
+    if kind == spot.op_Or:
+        u = bdd.false
+        for a in args:
+            u |= a
+        return u
+    if kind == spot.op_Implies:
+        return ~args[0] | args[1]
+    if kind == spot.op_Equiv:
+        return bdd.apply("<->", args[0], args[1])
+    if kind == spot.op_Xor:
+        return bdd.apply("xor", args[0], args[1])
+    raise ValueError(f"unexpected operator {f.kindstr()} in {f}")  # classify() rules this out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Solution:
+    """The solved game: winning set and the iterates the strategy is built from.
+
+    Attributes
+    ----------
+    game : Game
+    winning : BDD
+        ``Z``, the system's winning states.
+    realizable : bool
+        ``forall X. theta_e -> exists Y. theta_s & Z``.
+    rings : tuple of tuple of BDD
+        ``rings[j][r]`` is ``Y^j_{r+1}``, the states that reach goal ``j`` in at most ``r+1``
+        rounds (the mu-iterates of the last outer iteration).
+    traps : tuple of tuple of tuple of BDD
+        ``traps[j][r][i]`` is ``X^j_{r+1,i}``: states that stay until goal ``j`` or a lower ring
+        is forced, while environment goal ``i`` is never met.
+    """
+
+    game: Game
+    winning: Any
+    realizable: bool
+    rings: tuple[tuple[Any, ...], ...]
+    traps: tuple[tuple[tuple[Any, ...], ...], ...]
+
+    def rank(self, j: int, state: Any) -> tuple[int, int] | None:
+        """Lexicographically least ``(r, i)`` with ``state`` (a cube) in ``traps[j][r][i]``."""
+        for r, ring in enumerate(self.traps[j]):
+            for i, trap in enumerate(ring):
+                if (trap & state) != self.game.false:
+                    return (r, i)
+        return None
+
+
+def _goals_or_true(game: Game, goals: tuple[Goal, ...]) -> list[Any]:
+    return [g.bdd for g in goals] or [game.true]
+
+
+def _nu_trap(game: Game, unless: Any, avoid_goal: Any) -> Any:
+    """``nu X. unless | (!J_e^i & cpre(X))``."""
+    x = game.true
+    while True:
+        new = unless | (~avoid_goal & game.cpre(x))
+        if new == x:
+            return x
+        x = new
+
+
+def solve(game: Game, *, keep_iterates: bool = True) -> Solution:
+    """Solve the GR(1) game by the 3-nested fixpoint (Bloem et al. 2012, Sec. 3).
+
+    Parameters
+    ----------
+    game : Game
+    keep_iterates : bool
+        Keep the rings and traps of the final outer iteration (needed for strategies).
+    """
+    env_goals = _goals_or_true(game, game.env_goals)
+    sys_goals = _goals_or_true(game, game.sys_goals)
+    z = game.true
+    rings: list[tuple[Any, ...]] = []
+    traps: list[tuple[tuple[Any, ...], ...]] = []
+    while True:
+        z_old = z
+        rings, traps = [], []
+        for goal in sys_goals:
+            target = goal & game.cpre(z)
+            y = game.false
+            ring_list: list[Any] = []
+            trap_list: list[tuple[Any, ...]] = []
+            while True:
+                unless = target | game.cpre(y)
+                layer = tuple(_nu_trap(game, unless, eg) for eg in env_goals)
+                y_new = game.false
+                for x in layer:
+                    y_new |= x
+                if y_new == y:
+                    break
+                y = y_new
+                ring_list.append(y)
+                trap_list.append(layer)
+            z &= y
+            rings.append(tuple(ring_list))
+            traps.append(tuple(trap_list))
+        if z == z_old:
+            break
+    bdd = game.manager
+    init_ok = bdd.forall(
+        list(game.inputs), ~game.theta_e | bdd.exist(list(game.outputs), game.theta_s & z)
+    )
+    realizable = init_ok == bdd.true
+    if not keep_iterates:
+        rings, traps = [], []
+    return Solution(game=game, winning=z, realizable=realizable, rings=tuple(rings),
+                    traps=tuple(traps))
+
+
+def cube(game: Game, values: Mapping[str, bool]) -> Any:
+    """BDD of the assignment ``values`` (names may be primed)."""
+    u = game.true
+    for name, val in values.items():
+        v = game.manager.var(name)
+        u &= v if val else ~v
+    return u
+
+
+def least_assignment(game: Game, u: Any, names: Sequence[str]) -> dict[str, bool] | None:
+    """Lexicographically least assignment (False < True, in ``names`` order) inside ``u``.
+
+    Returns None when ``u`` is empty. Deterministic: it does not depend on the BDD's variable
+    order or on CUDD's internal choices.
+    """
+    if u == game.false:
+        return None
+    out: dict[str, bool] = {}
+    for name in names:
+        low = game.manager.let({name: False}, u)
+        if low != game.false:
+            out[name] = False
+            u = low
+        else:
+            out[name] = True
+            u = game.manager.let({name: True}, u)
+    return out
+
+
+def assignments(names: Sequence[str]) -> list[dict[str, bool]]:
+    """All assignments of ``names``, in lexicographic order (False < True)."""
+    out: list[dict[str, bool]] = [{}]
+    for name in names:
+        out = [{**a, name: val} for a in out for val in (False, True)]
+    return out

@@ -1,0 +1,190 @@
+"""LTL formulas: parsing with Spot and classification into the GR(1) slots.
+
+A GR(1) specification (paper Sec. 4.2, eq. 3; Piterman, Pnueli and Sa'ar 2006) has three
+slots on each side:
+
+* ``init``: a propositional formula;
+* ``safety``: ``G(phi)`` with ``phi`` propositional over the current state and ``X`` applied
+  to propositional sub-formulas only (``X`` at depth <= 1);
+* ``liveness``: ``GF(p)`` with ``p`` propositional.
+
+Formulas use Spot's LTL syntax (``!``, ``&``, ``|``, ``->``, ``<->``, ``X``, ``G``, ``F``,
+``U``, ``true``) and are parsed by Spot itself (Duret-Lutz et al., ATVA 2016), the library the
+paper used. Anything outside its slot raises :class:`~tli_verify.errors.SpecError` naming the
+offending sub-formula.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any
+
+from tli_verify.errors import SpecError
+
+__all__ = [
+    "AP_PATTERN",
+    "RESERVED",
+    "Slot",
+    "atomic_propositions",
+    "classify",
+    "parse_formula",
+]
+
+AP_PATTERN = re.compile(r"^[a-z_][a-z0-9_]*$")
+"""Allowed names of atomic propositions: lower-case identifiers (Spot reads capitals as
+operators: ``G``, ``F``, ``X``, ``U``, ``W``, ``R``, ``M``)."""
+
+RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
+
+MAX_FORMULA_CHARS = 20_000
+
+
+class Slot(Enum):
+    """The GR(1) slot a formula must fit."""
+
+    INIT = "init"
+    SAFETY = "safety"
+    LIVENESS = "liveness"
+
+
+def _spot() -> Any:
+    import spot
+
+    return spot
+
+
+def parse_formula(text: str, *, where: str) -> Any:
+    """Parse ``text`` with Spot.
+
+    Parameters
+    ----------
+    text : str
+        Formula in Spot's LTL syntax.
+    where : str
+        Location used in error messages (e.g. ``"specs/scoop.toml:23 guarantee.safety[0]"``).
+
+    Returns
+    -------
+    spot.formula
+        The parsed formula.
+
+    Raises
+    ------
+    SpecError
+        On a syntax error, or on PSL/SERE syntax, which GR(1) does not use.
+    """
+    if not isinstance(text, str):
+        raise SpecError(f"{where}: expected a formula string, got {type(text).__name__}")
+    if not text.strip():
+        raise SpecError(f"{where}: empty formula")
+    if len(text) > MAX_FORMULA_CHARS:
+        raise SpecError(f"{where}: formula longer than {MAX_FORMULA_CHARS} characters")
+    if "\x00" in text:
+        raise SpecError(f"{where}: formula contains a NUL character")
+    spot = _spot()
+    try:
+        f = spot.formula(text)
+    except SyntaxError as exc:
+        raise SpecError(f"{where}: cannot parse {text!r}: {_first_message(str(exc))}") from None
+    except (RuntimeError, ValueError, TypeError) as exc:  # Spot's other parser failures
+        raise SpecError(f"{where}: cannot parse {text!r}: {' '.join(str(exc).split())}"
+                        ) from None
+    if not f.is_ltl_formula():
+        raise SpecError(f"{where}: {text!r} uses PSL/SERE operators; GR(1) specs use LTL only")
+    return f
+
+
+def atomic_propositions(f: Any) -> set[str]:
+    """Names of the atomic propositions occurring in ``f``."""
+    spot = _spot()
+    return {str(ap.ap_name()) for ap in spot.atomic_prop_collect(f)}
+
+
+def _first_message(diagnostic: str) -> str:
+    """The first human message of Spot's multi-line parse diagnostic."""
+    for line in diagnostic.splitlines():
+        line = line.strip()
+        if line and not line.startswith(">>>") and set(line) != {"^"}:
+            return line
+    return "syntax error"
+
+
+@dataclass(frozen=True, slots=True)
+class _Offence:
+    sub: str
+    reason: str
+
+
+def _next_depth_offence(f: Any, *, under_x: bool) -> _Offence | None:
+    """Check ``f`` is propositional with ``X`` applied to propositional sub-formulas only."""
+    spot = _spot()
+    kind = f.kind()
+    if kind == spot.op_X:
+        if under_x:
+            return _Offence(str(f), "nested X (X at depth > 1)")
+        return _next_depth_offence(f[0], under_x=True)
+    if f.is_boolean():
+        return None
+    if kind in (spot.op_Not, spot.op_And, spot.op_Or, spot.op_Implies, spot.op_Equiv,
+                spot.op_Xor):
+        for child in f:
+            off = _next_depth_offence(child, under_x=under_x)
+            if off is not None:
+                return off
+        return None
+    return _Offence(str(f), f"temporal operator {f.kindstr()} not allowed here")
+
+
+def _safety_offence(f: Any) -> _Offence | None:
+    spot = _spot()
+    kind = f.kind()
+    if kind == spot.op_And:
+        for child in f:
+            off = _safety_offence(child)
+            if off is not None:
+                return off
+        return None
+    if kind != spot.op_G:
+        return _Offence(str(f), "not G(p) with p propositional and X at depth <= 1")
+    return _next_depth_offence(f[0], under_x=False)
+
+
+def _liveness_offence(f: Any) -> _Offence | None:
+    spot = _spot()
+    if f.kind() == spot.op_And:
+        for child in f:
+            off = _liveness_offence(child)
+            if off is not None:
+                return off
+        return None
+    if f.kind() != spot.op_G or f[0].kind() != spot.op_F:
+        return _Offence(str(f), "not GF(p)")
+    inner = f[0][0]
+    if not inner.is_boolean():
+        return _Offence(str(inner), "not propositional inside GF(p)")
+    return None
+
+
+def classify(f: Any, slot: Slot, *, where: str) -> None:
+    """Check that the parsed formula ``f`` fits its GR(1) ``slot``.
+
+    Raises
+    ------
+    SpecError
+        Naming ``where``, the offending sub-formula and why (e.g. ``F G a``: "not GF(p)").
+    """
+    if slot is Slot.INIT:
+        off = None if f.is_boolean() else _Offence(str(f), "not propositional")
+    elif slot is Slot.SAFETY:
+        off = _safety_offence(f)
+    else:
+        off = _liveness_offence(f)
+    if off is not None:
+        raise SpecError(f"{where}: {off.sub!r}: {off.reason}")
+
+
+def is_ap_name(name: str) -> bool:
+    """True if ``name`` is a valid atomic-proposition name."""
+    return bool(AP_PATTERN.match(name)) and name not in RESERVED
