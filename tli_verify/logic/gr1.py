@@ -16,11 +16,11 @@ predecessor is ``cpre(Z) = forall X'. (rho_e -> exists Y'. (rho_s & Z'))`` and t
 
 The spec is realizable iff ``forall X. theta_e -> exists Y. theta_s & Z``.
 
-A safety formula ``G(phi)`` without ``X`` is read as ``phi'`` in the transition relation plus
-``phi`` in the initial condition when its side controls every variable it mentions (a
-guarantee, or an assumption over inputs only); otherwise (an assumption over outputs) as a
-constraint on the current state, checked when the play leaves it. Both are exact for infinite
-plays.
+A safety formula ``G(phi)`` constrains every step: ``phi`` with ``X v`` read as ``v'`` goes
+into its player's transition relation as written; an ``X``-free ``phi`` thus constrains the
+current state and is checked when the play leaves it. This is exact for the implication
+``phi_e -> phi_s`` on infinite plays (a guarantee broken at the step where the environment
+breaks an assumption does not count), and it is the reading of omega and slugs.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from tli_verify.logic.ltl import Slot, gr1_body
 from tli_verify.logic.spec import GR1Spec, SpecFormula
 
 __all__ = ["Game", "Solution", "build_game", "solve"]
@@ -120,47 +121,25 @@ def build_game(spec: GR1Spec) -> Game:
     for v in spec.inputs + spec.outputs:
         order += [v, _prime(v)]
     bdd.declare(*order)
-    inputs = set(spec.inputs)
 
-    def translate(f: SpecFormula, *, env: bool) -> tuple[Any, Any]:
-        """(initial-state part, transition part) of an init or safety formula."""
-        ltl = f.ltl
-        if f.section.endswith(".init"):
-            return _to_bdd(ltl, bdd, primed=False), bdd.true
-        # safety: conjunction of G(phi)
-        init, trans = bdd.true, bdd.true
-        for g in _conjuncts(ltl):
-            body = g[0]
-            if _has_next(body):
-                trans &= _to_bdd(body, bdd, primed=False)
-            elif not env or _aps(body) <= inputs:
-                init &= _to_bdd(body, bdd, primed=False)
-                trans &= _to_bdd(body, bdd, primed=True)
-            else:
-                trans &= _to_bdd(body, bdd, primed=False)
-        return init, trans
+    def safety(f: SpecFormula) -> Any:
+        """Transition constraint of a conjunction of ``G(phi)``."""
+        trans = bdd.true
+        for g in _conjuncts(f.ltl):
+            trans &= _to_bdd(gr1_body(g, Slot.SAFETY), bdd, primed=False)
+        return trans
 
-    init_e, init_s, safety_e, safety_s = [], [], [], []
-    for f in spec.assume.init:
-        init_e.append((f, translate(f, env=True)[0]))
-    for f in spec.guarantee.init:
-        init_s.append((f, translate(f, env=False)[0]))
-    for f in spec.assume.safety:
-        i, t = translate(f, env=True)
-        if i != bdd.true:
-            init_e.append((f, i))
-        safety_e.append((f, t))
-    for f in spec.guarantee.safety:
-        i, t = translate(f, env=False)
-        if i != bdd.true:
-            init_s.append((f, i))
-        safety_s.append((f, t))
+    init_e = [(f, _to_bdd(f.ltl, bdd, primed=False)) for f in spec.assume.init]
+    init_s = [(f, _to_bdd(f.ltl, bdd, primed=False)) for f in spec.guarantee.init]
+    safety_e = [(f, safety(f)) for f in spec.assume.safety]
+    safety_s = [(f, safety(f)) for f in spec.guarantee.safety]
 
     def goals(side: Sequence[SpecFormula]) -> tuple[Goal, ...]:
         out = []
         for f in side:
             for g in _conjuncts(f.ltl):
-                out.append(Goal(formula=f, bdd=_to_bdd(g[0][0], bdd, primed=False)))
+                out.append(Goal(formula=f, bdd=_to_bdd(gr1_body(g, Slot.LIVENESS), bdd,
+                                                       primed=False)))
         return tuple(out)
 
     game = Game(

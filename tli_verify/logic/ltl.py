@@ -29,6 +29,7 @@ __all__ = [
     "Slot",
     "atomic_propositions",
     "classify",
+    "gr1_body",
     "parse_formula",
 ]
 
@@ -140,6 +141,8 @@ def _next_depth_offence(f: Any, *, under_x: bool) -> _Offence | None:
 def _safety_offence(f: Any) -> _Offence | None:
     spot = _spot()
     kind = f.kind()
+    if kind in (spot.op_tt, spot.op_ff):  # Spot folds e.g. G(a | !a) to true
+        return None
     if kind == spot.op_And:
         for child in f:
             off = _safety_offence(child)
@@ -153,6 +156,8 @@ def _safety_offence(f: Any) -> _Offence | None:
 
 def _liveness_offence(f: Any) -> _Offence | None:
     spot = _spot()
+    if f.kind() in (spot.op_tt, spot.op_ff):  # Spot folds GF(true) to true
+        return None
     if f.kind() == spot.op_And:
         for child in f:
             off = _liveness_offence(child)
@@ -188,3 +193,19 @@ def classify(f: Any, slot: Slot, *, where: str) -> None:
 def is_ap_name(name: str) -> bool:
     """True if ``name`` is a valid atomic-proposition name."""
     return bool(AP_PATTERN.match(name)) and name not in RESERVED
+
+
+def gr1_body(f: Any, slot: Slot) -> Any:
+    """The propositional body of one conjunct of a classified formula.
+
+    ``G(phi)`` gives ``phi``, ``GF(p)`` gives ``p``; a constant (Spot folds ``G(true)`` to
+    ``true``) is its own body.
+    """
+    spot = _spot()
+    if f.kind() in (spot.op_tt, spot.op_ff):
+        return f
+    if slot is Slot.SAFETY:
+        return f[0]
+    if slot is Slot.LIVENESS:
+        return f[0][0]
+    return f

@@ -423,21 +423,32 @@ def _exactly_one(names: Iterable[str]) -> str:
 
 def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assume: SpecSide,
                           guarantee: SpecSide) -> tuple[SpecSide, SpecSide]:
-    """The constraints a ``[modes]`` table stands for (``DESIGN.md``, "Modes are labels")."""
+    """The constraints a ``[modes]`` table stands for (``DESIGN.md``, "Modes are labels").
+
+    Each is stated on the initial state and on every next state (``G(X ...)``), so that it
+    constrains the move that enters a state: a system that runs two modes, or a mode whose
+    label does not hold, has made an illegal move, even where that would also leave the
+    environment without a legal move.
+    """
     names = [o for o in outputs if o in modes]
-    added_g = [f"G({_exactly_one(names)})"]
-    added_g += [f"G({m} -> ({modes[m]}))" for m in names]
-    labels = sorted({modes[m] for m in names})
-    added_a = [f"G({' | '.join(f'({lab})' for lab in labels)})"]
+    one = _exactly_one(names)
+    couple = [f"({m} -> ({modes[m]}))" for m in names]
+    labels = " | ".join(f"({lab})" for lab in sorted({modes[m] for m in names}))
+    g_init = [" & ".join([f"({one})", *couple])]
+    g_safety = [f"G(X({one}))"] + [f"G(X({m} -> ({modes[m]})))" for m in names]
+    a_init = [labels]
+    a_safety = [f"G(X({labels}))"]
 
-    def extend(side: SpecSide, section: str, texts: list[str]) -> SpecSide:
-        base = len(side.safety)
-        extra = tuple(
-            SpecFormula(text=t, section=section, index=base + i, line=None, origin="modes",
-                        ltl=parse_formula(t, where=f"[modes] constraint {t!r}"))
-            for i, t in enumerate(texts)
-        )
-        return SpecSide(init=side.init, safety=side.safety + extra, liveness=side.liveness)
+    def formula(text: str, section: str, index: int) -> SpecFormula:
+        return SpecFormula(text=text, section=section, index=index, line=None, origin="modes",
+                           ltl=parse_formula(text, where=f"[modes] constraint {text!r}"))
 
-    return extend(assume, "assume.safety", added_a), extend(guarantee, "guarantee.safety",
-                                                            added_g)
+    def extend(side: SpecSide, name: str, inits: list[str], safeties: list[str]) -> SpecSide:
+        init = side.init + tuple(formula(t, f"{name}.init", len(side.init) + i)
+                                 for i, t in enumerate(inits))
+        safety = side.safety + tuple(formula(t, f"{name}.safety", len(side.safety) + i)
+                                     for i, t in enumerate(safeties))
+        return SpecSide(init=init, safety=safety, liveness=side.liveness)
+
+    return (extend(assume, "assume", a_init, a_safety),
+            extend(guarantee, "guarantee", g_init, g_safety))

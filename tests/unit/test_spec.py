@@ -1,0 +1,101 @@
+"""Spec files: loading, validation errors naming file/line/field, the [modes] constraints."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from tli_verify.errors import SpecError
+from tli_verify.logic.spec import label_holds, load_spec, parse_spec
+
+MINIMAL = """
+name = "t"
+inputs = ["r"]
+outputs = ["a", "b"]
+[guarantee]
+safety = ["G(a -> X b)"]
+"""
+
+
+def test_shipped_specs_load(specs_dir: Path) -> None:
+    paths = sorted(specs_dir.glob("*.toml"))
+    assert len(paths) >= 10
+    for path in paths:
+        spec = load_spec(path)
+        assert spec.outputs and spec.path == str(path)
+
+
+def test_scoop_modes_and_added_constraints(specs_dir: Path) -> None:
+    spec = load_spec(specs_dir / "scoop.toml")
+    assert spec.mode_names == ("a", "b", "c", "d")
+    added = [f.text for f in spec.added()]
+    assert "G(X(a -> (!r & !s & !t)))" in added
+    assert any(f.section == "assume.safety" for f in spec.added())
+    assert label_holds(spec, "b", {"r": True, "s": False, "t": False})
+    assert not label_holds(spec, "a", {"r": True, "s": False, "t": False})
+
+
+def test_line_numbers_point_at_the_formula(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(MINIMAL)
+    spec = load_spec(path)
+    f = spec.guarantee.safety[0]
+    assert f.line == 6
+    assert f.where(str(path)).endswith(":6 guarantee.safety[0]")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "empty spec file"),
+        ("name = ", "invalid TOML"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nsafety = ["G(a -> X q)"]',
+         "unknown AP 'q'"),
+        ('inputs = ["a"]\noutputs = ["a"]', "both an input and an output"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nliveness = ["F G a"]', "not GF(p)"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nsafety = ["G(a -> X X a)"]', "nested X"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[assume]\nsafety = ["G(r -> X a)"]',
+         "next value of output"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[assume]\ninit = "a"', "mentions output 'a'"),
+        ('inputs = ["R"]\noutputs = ["a"]', "not a valid AP name"),
+        ('inputs = ["r"]\noutputs = ["a"]\nbogus = 1', "unknown top-level key 'bogus'"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[modes]\nz = "r"', "'z' is not an output"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[modes]\na = "a"', "labels are formulas over the"),
+        ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nsafety = "G a"', "list of formula"),
+        ('inputs = ["r"]\noutputs = []', "at least one system AP"),
+        ('inputs = ["r"]\noutputs = ["a"]\nexpect = "maybe"', "'expect'"),
+    ],
+)
+def test_bad_specs_raise_spec_errors_with_the_file(tmp_path: Path, text: str, message: str
+                                                   ) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(SpecError, match=re.escape(message)) as info:
+        load_spec(path)
+    assert str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_binary_and_huge_files(tmp_path: Path) -> None:
+    binary = tmp_path / "bin.toml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(SpecError, match="not a text file"):
+        load_spec(binary)
+    huge = tmp_path / "huge.toml"
+    huge.write_text("# " + "x" * (5 * 1024 * 1024))
+    with pytest.raises(SpecError, match="larger than the limit"):
+        load_spec(huge)
+    with pytest.raises(SpecError, match="cannot read"):
+        load_spec(tmp_path / "missing.toml")
+    with pytest.raises(SpecError, match="is a directory"):
+        load_spec(tmp_path)
+
+
+def test_parse_spec_defaults() -> None:
+    spec = parse_spec(MINIMAL)
+    assert spec.name == "t"
+    assert spec.modes is None
+    assert spec.expect_realizable
+    assert spec.mode_names == ("a", "b")
