@@ -1,16 +1,98 @@
 """Cutting planes that inner-approximate a mode boundary (paper Sec. 5.2, appendix F).
 
 A cut is a hyperplane through a last in-mode state with a unit normal pointing out of the mode.
+It is learned from one *invariance failure* (paper Sec. 5.2): the triple of the mode-entry state
+``x^0``, the last in-mode state ``x^{T_f-1}`` and the first state outside the mode ``x^{T_f}``.
+
+The cut problem (paper appendix F, "QCQP Optimization Details")
+---------------------------------------------------------------
+Write ``l = x^{T_f-1}``, ``d = x* - l``, ``s = x^{T_f} - l`` and ``c_j = q_j - l`` for the points
+``q_j`` that must stay on the inner side (the entry state ``x^0`` and the points of the earlier
+cuts of the mode). The normal ``w`` of the plane through ``l`` solves::
+
+    minimise    (w . d)^2                       (squared distance of the plane to x*)
+    subject to  ||w|| = 1
+                w . d   <= 0                    (x* inside)
+                w . c_j <= 0   for all j        (x^0 and earlier cut points inside)
+                w . s   >  0                    (x^{T_f} outside: the cut separates the failure)
+
+The last constraint is not written in the appendix, but the paper's text requires it ("a cut
+that separates the failure state"). A strict inequality has no minimiser when the infimum lies on
+``w . s = 0``, so we ask for a margin ``w . s_hat >= mu`` (``s_hat = s / ||s||``, ``mu`` =
+``margin``, default ``1e-3``): the failure state lies beyond the plane by at least ``mu ||s||``.
+
+Exact global solution. All constraints but the norm are homogeneous, so the admissible normals
+are the unit vectors of the convex cone ``K = {w : C w <= 0, s_hat . w >= mu ||w||}`` (a
+polyhedral cone cut by one circular cone). On ``K`` we have ``w . d <= 0``, so minimising
+``(w . d)^2`` means maximising ``w . d_hat`` over ``K`` intersected with the unit sphere:
+
+1. *Optimum 0 (the plane passes through x*).* It is attained iff some ``w`` in ``K`` has
+   ``w . d = 0``. The largest separation among such normals is
+   ``max {s_hat . w : C w <= 0, d . w = 0, ||w|| <= 1} = ||Proj_K0(s_hat)||`` where ``K0`` is
+   the polyhedral cone ``{C w <= 0, d . w = 0}`` (Moreau decomposition). The projection is
+   ``s_hat - G^T lambda`` with ``lambda >= 0`` the non-negative least-squares solution over
+   the generators ``G`` of the polar cone (rows of ``C``, ``d`` and ``-d``); Lawson-Hanson NNLS
+   is a finite active-set method, so this is exact up to rounding. If the norm is ``>= mu`` the
+   answer is the normalised projection: the cut through ``x*`` that separates the failure most.
+2. *Otherwise* every admissible ``w`` has ``w . d < 0``. A linear function has no interior
+   local maximum on a sphere restricted to a face of ``K`` (its only critical point on a great
+   sphere is the global maximiser ``+Proj(d)``, which would have ``w . d > 0``), so the maximum
+   lies on a 0-dimensional piece of the boundary of ``K`` on the sphere: either a ray where
+   ``n-1`` independent planes ``c_j . w = 0`` meet, or a point of the circle
+   ``s_hat . w = mu`` where ``k-1`` planes meet, given in closed form by the Lagrange condition
+   on that circle. We enumerate these candidates (at most ``sum_{i < n} C(m, i)`` small linear
+   algebra problems, batched), keep the feasible ones and take the best. This is a global
+   optimum; for the sizes of the paper (``n <= 4``, a handful of cuts per mode) it takes well
+   under a millisecond of linear algebra.
+
+Both branches re-check every constraint of the answer; :class:`~tli_verify.errors.SolverError`
+is raised when no admissible normal exists (the failure direction lies in the cone spanned by
+the inner points: no plane through ``x^{T_f-1}`` separates them).
+
+References
+----------
+.. [1] Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing
+   Motion Policies from Demonstrations", CoRL 2022, Sec. 5.2 and appendix F.
 """
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Cut"]
+from tli_verify.errors import ModelError, SolverError
+
+__all__ = [
+    "Cut",
+    "CutSolution",
+    "InvarianceFailure",
+    "cut_offsets",
+    "inside_cuts",
+    "solve_cut",
+    "solve_cut_detailed",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+_UNIT_TOL = 1e-6
+"""Largest accepted deviation of ``||normal||`` from 1."""
+
+
+def _vector(value: npt.ArrayLike, name: str, *, error: type[Exception] = ModelError) -> FloatArray:
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a vector of numbers") from None
+    if arr.ndim != 1 or arr.size < 1:
+        raise error(f"{name} must be a vector of shape (n,), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise error(f"{name} must be finite")
+    return arr
 
 
 @dataclass(frozen=True, slots=True)
@@ -21,10 +103,402 @@ class Cut:
     Attributes
     ----------
     normal : ndarray, shape (n,)
-        Unit outward normal ``w``.
+        Unit outward normal ``w`` (``| ||w|| - 1 | <= 1e-6`` is enforced; stored as given).
     point : ndarray, shape (n,)
         A point on the plane (the last in-mode state ``x^{T_f - 1}``).
+
+    Raises
+    ------
+    ModelError
+        If the arrays are not finite vectors of one dimension ``n >= 2`` or the normal is not
+        a unit vector.
     """
 
-    normal: npt.NDArray[np.float64]
-    point: npt.NDArray[np.float64]
+    normal: FloatArray
+    point: FloatArray
+
+    def __post_init__(self) -> None:
+        normal = _vector(self.normal, "cut normal")
+        point = _vector(self.point, "cut point")
+        if normal.shape != point.shape:
+            raise ModelError(f"cut normal has shape {normal.shape} but point has {point.shape}")
+        if normal.size < 2:
+            raise ModelError("cuts need dimension n >= 2")
+        norm = float(np.linalg.norm(normal))
+        if abs(norm - 1.0) > _UNIT_TOL:
+            raise ModelError(f"cut normal must be a unit vector, its norm is {norm:.9g}")
+        normal.setflags(write=False)
+        point.setflags(write=False)
+        object.__setattr__(self, "normal", normal)
+        object.__setattr__(self, "point", point)
+
+    @property
+    def dim(self) -> int:
+        """State dimension ``n``."""
+        return int(self.normal.size)
+
+    def offset(self, attractor: npt.ArrayLike) -> float:
+        """``h = w . (p - x*)``: distance of ``x*`` inside the plane (0: the plane holds x*)."""
+        x_star = _vector(attractor, "attractor")
+        if x_star.shape != self.normal.shape:
+            raise ModelError(f"attractor has shape {x_star.shape}, cut has dimension {self.dim}")
+        return float(self.normal @ (self.point - x_star))
+
+    def to_dict(self) -> dict[str, list[float]]:
+        """JSON form ``{"normal": [...], "point": [...]}`` (the model file's cut entry)."""
+        return {"normal": [float(v) for v in self.normal],
+                "point": [float(v) for v in self.point]}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "cut") -> Cut:
+        """Read the JSON form; errors name ``where`` (e.g. ``"modes.reach.cuts[2]"``).
+
+        Raises
+        ------
+        ModelError
+            On a missing or malformed field.
+        """
+        if not isinstance(data, Mapping):
+            raise ModelError(f"{where}: expected an object with 'normal' and 'point'")
+        extra = set(data) - {"normal", "point"}
+        if extra:
+            raise ModelError(f"{where}: unknown field(s) {sorted(extra)}")
+        for key in ("normal", "point"):
+            if key not in data:
+                raise ModelError(f"{where}: missing field '{key}'")
+            value = data[key]
+            if not isinstance(value, list) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in value
+            ):
+                raise ModelError(f"{where}.{key}: expected a list of numbers")
+        try:
+            return cls(normal=np.array(data["normal"], dtype=np.float64),
+                       point=np.array(data["point"], dtype=np.float64))
+        except ModelError as exc:
+            raise ModelError(f"{where}: {exc}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class InvarianceFailure:
+    """An observed mode exit (paper Sec. 5.2).
+
+    Attributes
+    ----------
+    entry : ndarray, shape (n,)
+        Mode-entry state ``x^0``.
+    last_inside : ndarray, shape (n,)
+        Last in-mode state ``x^{T_f - 1}``.
+    outside : ndarray, shape (n,)
+        Failure state ``x^{T_f}``, the first state the sensor reports outside the mode.
+    """
+
+    entry: FloatArray
+    last_inside: FloatArray
+    outside: FloatArray
+
+    def __post_init__(self) -> None:
+        arrays = [_vector(getattr(self, k), f"failure.{k}")
+                  for k in ("entry", "last_inside", "outside")]
+        if len({a.shape for a in arrays}) != 1:
+            raise ModelError("invariance failure states must have one dimension")
+        for key, arr in zip(("entry", "last_inside", "outside"), arrays, strict=True):
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+
+
+@dataclass(frozen=True, slots=True)
+class CutSolution:
+    """A solved cut problem with its diagnostics.
+
+    Attributes
+    ----------
+    cut : Cut
+        The plane through ``x^{T_f-1}``.
+    distance : float
+        Distance of the plane to ``x*`` (``|w . d|``; the square root of the QCQP objective).
+    separation : float
+        ``w . (x^{T_f} - x^{T_f-1})``, > 0.
+    through_attractor : bool
+        True when the optimum is 0: the plane holds ``x*`` (a degenerate cut, see
+        :mod:`tli_verify.boundary.modulation`).
+    candidates : int
+        Number of boundary candidates examined (0 when branch 1 answered).
+    """
+
+    cut: Cut
+    distance: float
+    separation: float
+    through_attractor: bool
+    candidates: int
+
+
+def _previous_points(previous: Sequence[Cut | npt.ArrayLike], n: int) -> list[FloatArray]:
+    points = []
+    for i, item in enumerate(previous):
+        p = item.point if isinstance(item, Cut) else _vector(item, f"previous[{i}]")
+        if p.shape != (n,):
+            raise ModelError(f"previous[{i}] has dimension {p.size}, expected {n}")
+        points.append(p)
+    return points
+
+
+def _nnls_projection(target: FloatArray, generators: FloatArray) -> FloatArray:
+    """Euclidean projection of ``target`` onto the polar of ``cone(generators)``.
+
+    Returns ``target - G^T lambda`` with ``lambda = argmin_{>=0} ||target - G^T lambda||``.
+    """
+    from scipy.optimize import nnls
+
+    if generators.shape[0] == 0:
+        return target.copy()
+    lam, _ = nnls(generators.T, target)
+    return np.asarray(target - generators.T @ lam, dtype=np.float64)
+
+
+def _null_vectors(rows: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    """Batched null spaces of stacked matrices.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (B, r, n)
+
+    Returns
+    -------
+    bases : ndarray, shape (B, n, n)
+        Right singular vectors (columns), last ones span the null space.
+    rank : ndarray, shape (B,)
+    """
+    _, sv, vt = np.linalg.svd(rows, full_matrices=True)
+    rank = np.sum(sv > tol, axis=1)
+    return np.swapaxes(vt, 1, 2), rank
+
+
+def solve_cut_detailed(
+    failure: InvarianceFailure,
+    attractor: npt.ArrayLike,
+    *,
+    previous: Sequence[Cut | npt.ArrayLike] = (),
+    margin: float = 1e-3,
+) -> CutSolution:
+    """Solve the cut QCQP of paper appendix F exactly (see the module docstring).
+
+    Parameters
+    ----------
+    failure : InvarianceFailure
+        ``(x^0, x^{T_f-1}, x^{T_f})``, each of shape (n,), ``n >= 2``.
+    attractor : array_like, shape (n,)
+        The mode's attractor ``x*``.
+    previous : sequence of Cut or array_like, optional
+        Earlier cuts of this mode (their points must stay inside), or the points themselves.
+    margin : float, optional
+        ``mu`` in ``w . (x^{T_f} - x^{T_f-1}) >= mu ||x^{T_f} - x^{T_f-1}||``; in ``(0, 1)``.
+
+    Returns
+    -------
+    CutSolution
+
+    Raises
+    ------
+    SolverError
+        When no unit normal satisfies the constraints (no separating cut exists).
+    ModelError
+        On malformed input (shapes, non-finite values, bad margin).
+
+    References
+    ----------
+    Paper appendix F (the QCQP) and Sec. 5.2 (separation of the failure state).
+    """
+    if not 0.0 < margin < 1.0:
+        raise ModelError(f"margin must be in (0, 1), got {margin}")
+    x_star = _vector(attractor, "attractor")
+    last = failure.last_inside
+    n = last.size
+    if x_star.shape != (n,):
+        raise ModelError(f"attractor has dimension {x_star.size}, failure has {n}")
+    if n < 2:
+        raise ModelError("cuts need dimension n >= 2")
+    inner = [x_star, failure.entry, *_previous_points(previous, n)]
+    vecs = np.array([q - last for q in inner])  # (m0, n)
+    s = failure.outside - last
+    scale = max(float(np.max(np.abs(vecs), initial=0.0)), float(np.max(np.abs(s))), 1e-300)
+    tiny = 1e-12 * scale
+    s_norm = float(np.linalg.norm(s))
+    if s_norm <= tiny:
+        raise SolverError("no separating cut: the failure state equals the last in-mode state")
+    s_hat = s / s_norm
+    norms = np.linalg.norm(vecs, axis=1)
+    keep = norms > tiny  # a point at x^{T_f-1} constrains nothing
+    C = vecs[keep] / norms[keep, None]
+    d_is_zero = not bool(keep[0])
+    d_hat = np.zeros(n) if d_is_zero else vecs[0] / norms[0]
+    feas_tol = 1e-10
+
+    # Branch 1: a normal orthogonal to d (the plane holds x*), most separating.
+    gens = C if d_is_zero else np.vstack([C, d_hat, -d_hat])
+    proj = _nnls_projection(s_hat, gens)
+    pnorm = float(np.linalg.norm(proj))
+    if pnorm >= margin * (1.0 + 1e-9):
+        w = proj / pnorm
+        return _finish(w, C, d_hat, s_hat, s_norm, norms, last, margin, 0, feas_tol,
+                       degenerate=True)
+    if d_is_zero:
+        raise SolverError(
+            "no separating cut: every plane through the last in-mode state that keeps the "
+            "entry state and earlier cut points inside also keeps the failure state inside"
+        )
+
+    # Branch 2: enumerate the 0-dimensional boundary pieces of K on the sphere.
+    m = C.shape[0]
+    cands: list[FloatArray] = []
+    # (i) rays where n-1 constraint planes meet
+    if m >= n - 1:
+        idx = np.array(list(itertools.combinations(range(m), n - 1)), dtype=np.intp)
+        bases, rank = _null_vectors(C[idx], 1e-12)
+        ok = rank == n - 1
+        u = bases[ok, :, -1]
+        cands.extend([u, -u])
+    # (ii) points of the circle s_hat . w = mu where k-1 planes meet (k = dim of null space)
+    for size in range(0, min(n - 1, m + 1)):
+        if size == 0:
+            subsets = [np.eye(n)]
+            dims = [n]
+        else:
+            idx = np.array(list(itertools.combinations(range(m), size)), dtype=np.intp)
+            bases, rank = _null_vectors(C[idx], 1e-12)
+            subsets = [bases[b, :, int(rank[b]):] for b in range(len(idx))]
+            dims = [n - int(r) for r in rank]
+        for B, k in zip(subsets, dims, strict=True):
+            if k < 2:
+                continue
+            a = B.T @ s_hat
+            b = B.T @ d_hat
+            aa = float(a @ a)
+            if aa < margin * margin:
+                continue
+            y0 = (margin / aa) * a
+            rho = np.sqrt(max(0.0, 1.0 - margin * margin / aa))
+            if k == 2:  # the 'circle' is two points: both are candidates
+                z = np.array([-a[1], a[0]]) / np.sqrt(aa)
+                cands.append(np.array([B @ (y0 + rho * z), B @ (y0 - rho * z)]))
+                continue
+            b_perp = b - (float(b @ a) / aa) * a
+            bp = float(np.linalg.norm(b_perp))
+            if bp > 1e-12:  # else d . w is constant there; lower-dimensional pieces cover it
+                cands.append((B @ (y0 + rho * b_perp / bp))[None, :])
+    W = np.vstack(cands) if cands else np.zeros((0, n))
+    if W.shape[0]:
+        W = W / np.linalg.norm(W, axis=1, keepdims=True)
+        feasible = np.all(W @ C.T <= feas_tol, axis=1) & (W @ s_hat >= margin - feas_tol)
+        W_ok = W[feasible]
+    else:
+        W_ok = W
+    if W_ok.shape[0] == 0:
+        raise SolverError(
+            "no separating cut: no plane through the last in-mode state keeps x*, the entry "
+            "state and earlier cut points inside while putting the failure state outside "
+            f"(margin {margin:g})"
+        )
+    obj = W_ok @ d_hat
+    best = float(np.max(obj))
+    ties = obj >= best - 1e-12
+    pick = int(np.argmax(np.where(ties, W_ok @ s_hat, -np.inf)))
+    return _finish(W_ok[pick], C, d_hat, s_hat, s_norm, norms, last, margin, int(W.shape[0]),
+                   feas_tol, degenerate=False)
+
+
+def _finish(
+    w: FloatArray,
+    C: FloatArray,
+    d_hat: FloatArray,
+    s_hat: FloatArray,
+    s_norm: float,
+    norms: FloatArray,
+    last: FloatArray,
+    margin: float,
+    candidates: int,
+    tol: float,
+    *,
+    degenerate: bool,
+) -> CutSolution:
+    """Re-check every constraint of the answer independently of how it was found."""
+    w = w / np.linalg.norm(w)
+    if not np.all(np.isfinite(w)):
+        raise SolverError("cut solver produced a non-finite normal")
+    viol = float(np.max(C @ w, initial=-np.inf))
+    if viol > tol:
+        raise SolverError(f"cut re-check failed: an inner point lies {viol:.3g} outside")
+    sep = float(w @ s_hat)
+    if not sep >= margin - tol or sep <= 0.0:
+        raise SolverError(f"cut re-check failed: failure state not separated ({sep:.3g})")
+    dist = abs(float(w @ d_hat)) * float(norms[0])
+    if degenerate:
+        dist = 0.0
+    return CutSolution(
+        cut=Cut(normal=w, point=last.copy()),
+        distance=dist,
+        separation=sep * s_norm,
+        through_attractor=degenerate,
+        candidates=candidates,
+    )
+
+
+def solve_cut(
+    failure: InvarianceFailure,
+    attractor: npt.ArrayLike,
+    *,
+    previous: Sequence[Cut | npt.ArrayLike] = (),
+    margin: float = 1e-3,
+) -> Cut:
+    """Cut for one invariance failure: :func:`solve_cut_detailed` without the diagnostics.
+
+    Parameters
+    ----------
+    failure : InvarianceFailure
+    attractor : array_like, shape (n,)
+    previous : sequence of Cut or array_like, optional
+    margin : float, optional
+
+    Returns
+    -------
+    Cut
+
+    Raises
+    ------
+    SolverError
+        When no separating cut exists.
+    """
+    return solve_cut_detailed(failure, attractor, previous=previous, margin=margin).cut
+
+
+def cut_offsets(cuts: Sequence[Cut], attractor: npt.ArrayLike) -> FloatArray:
+    """``h_i = w_i . (p_i - x*)`` for every cut, shape (m,).
+
+    ``h_i > 0``: ``x*`` strictly inside cut i; ``h_i = 0``: the plane holds ``x*``.
+    """
+    return np.array([c.offset(attractor) for c in cuts], dtype=np.float64)
+
+
+def inside_cuts(
+    X: npt.ArrayLike, cuts: Sequence[Cut], *, tol: float = 0.0
+) -> npt.NDArray[np.bool_]:
+    """Whether each state lies in the closed region bounded by the cuts.
+
+    Parameters
+    ----------
+    X : array_like, shape (N, n)
+    cuts : sequence of Cut
+    tol : float, optional
+        Accept ``w . (x - p) <= tol``.
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+    """
+    Xa = np.asarray(X, dtype=np.float64)
+    if Xa.ndim != 2:
+        raise ModelError(f"states must have shape (N, n), got {Xa.shape}")
+    if not cuts:
+        return np.ones(Xa.shape[0], dtype=bool)
+    W = np.array([c.normal for c in cuts])
+    b = np.einsum("ij,ij->i", W, np.array([c.point for c in cuts]))
+    return np.asarray(np.all(Xa @ W.T - b <= tol, axis=1))
