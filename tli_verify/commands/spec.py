@@ -20,12 +20,18 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
     check = ssub.add_parser(
         "check", help="decide realizability of each spec; diagnose unrealizable ones",
-        description="One verdict per file. Exit 0 if all are realizable, 1 if any is "
-        "unrealizable, 2 on any bad input.")
+        description="One verdict per file, with a well-separation check. Exit 0 if all are "
+        "realizable (and, with --strict, well-separated), 1 if any is not, 2 on any bad input.")
     check.add_argument("files", nargs="+", type=Path, metavar="FILE")
     check.add_argument("--json", action="store_true", help="one JSON object per line")
     check.add_argument("--explain", action="store_true",
                        help="also print the GR(1) game, including constraints added from [modes]")
+    check.add_argument("--strict", action="store_true",
+                       help="exit 1 also for realizable specs that are not well-separated")
+    check.add_argument("--core", action="store_true",
+                       help="report a minimal unrealizable core of guarantees, with file lines")
+    check.add_argument("--hints", action="store_true",
+                       help="report formulas that do not affect the verdict (vacuity hints)")
     check.set_defaults(handler=_check)
 
     aut = ssub.add_parser(
@@ -68,12 +74,12 @@ def _check(args: argparse.Namespace) -> int:
     worst = 0
     for path in args.files:
         try:
-            result = check_spec_file(path)
+            result = check_spec_file(path, core=args.core, hints=args.hints)
         except TliError as exc:
             sys.stderr.write(f"error: {exc}\n")
             worst = max(worst, exc.exit_code)
             continue
-        if not result.realizable:
+        if not result.realizable or (args.strict and not result.well_separated):
             worst = max(worst, 1)
         if args.json:
             record = result.to_json()
@@ -88,6 +94,17 @@ def _check(args: argparse.Namespace) -> int:
         if result.diagnosis is not None:
             for line in result.diagnosis.lines():
                 sys.stdout.write(f"  {line}\n")
+        if not result.well_separated:
+            for line in result.well_separation.lines():
+                sys.stdout.write(f"  {line}\n")
+        if result.core is not None:
+            sys.stdout.write(f"  unrealizable core ({len(result.core.formulas)} of "
+                             f"{len(result.spec.guarantee.all())} guarantees; removing any one "
+                             "makes the rest realizable):\n")
+            for line in result.core.lines():
+                sys.stdout.write(f"  {line}\n")
+        for hint in result.hints:
+            sys.stdout.write(f"  hint: {hint}\n")
         if args.explain:
             sys.stdout.write("\n".join(_explain(result)) + "\n")
     return worst
@@ -142,9 +159,10 @@ def demo_stage(out: Path) -> list[str]:
     for path in specs:
         result = check_spec_file(path)
         verdict = "realizable" if result.realizable else "unrealizable"
-        expected = "as expected" if result.realizable == result.expected_realizable \
-            else "NOT AS EXPECTED"
-        lines.append(f"[spec] {path}: {verdict} ({expected}, {result.seconds * 1000:.1f} ms)")
+        expected = "as expected" if result.as_expected else "NOT AS EXPECTED"
+        separated = "well-separated" if result.well_separated else "NOT well-separated"
+        lines.append(f"[spec] {path}: {verdict}, {separated} ({expected}, "
+                     f"{result.seconds * 1000:.1f} ms)")
         if result.realizable:
             automaton = synthesize(result.spec)
             write_automaton(automaton, adir / f"{path.stem}.json")

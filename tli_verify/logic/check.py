@@ -15,6 +15,14 @@ from tli_verify.errors import UnrealizableError
 from tli_verify.logic.automaton import TaskAutomaton, extract_automaton
 from tli_verify.logic.diagnose import Diagnosis, diagnose
 from tli_verify.logic.gr1 import build_game, solve
+from tli_verify.logic.sanity import (
+    Core,
+    Hint,
+    WellSeparation,
+    unrealizable_core,
+    vacuity_hints,
+    well_separation,
+)
 from tli_verify.logic.spec import GR1Spec, load_spec
 
 __all__ = ["SpecCheck", "check_spec", "check_spec_file", "synthesize"]
@@ -31,9 +39,16 @@ class SpecCheck:
     diagnosis : Diagnosis or None
         Why not, when unrealizable.
     warnings : tuple of str
-        Things a realizable verdict should not hide (e.g. vacuous assumptions).
+        Things a realizable verdict should not hide (vacuous assumptions, a spec that is not
+        well-separated).
     seconds : float
         Wall time of the check (parse excluded).
+    well_separation : WellSeparation
+        Whether the system can force a violation of the assumptions (Maoz and Ringert 2016).
+    core : Core or None
+        A minimal unrealizable set of guarantees (unrealizable specs, when asked for).
+    hints : tuple of Hint
+        Formulas that do not affect the verdict (when asked for).
     """
 
     spec: GR1Spec
@@ -41,6 +56,24 @@ class SpecCheck:
     diagnosis: Diagnosis | None
     warnings: tuple[str, ...]
     seconds: float
+    well_separation: WellSeparation
+    core: Core | None = None
+    hints: tuple[Hint, ...] = ()
+
+    @property
+    def as_expected(self) -> bool:
+        """The verdict matches the spec's ``expect`` (realizable specs must also be
+        well-separated unless they expect ``"not-well-separated"``)."""
+        if self.realizable != self.expected_realizable:
+            return False
+        if self.realizable:
+            return self.well_separated == (self.spec.expect != "not-well-separated")
+        return True
+
+    @property
+    def well_separated(self) -> bool:
+        """Shorthand for ``well_separation.well_separated``."""
+        return self.well_separation.well_separated
 
     @property
     def expected_realizable(self) -> bool:
@@ -54,14 +87,29 @@ class SpecCheck:
             "name": self.spec.name,
             "realizable": self.realizable,
             "expected_realizable": self.expected_realizable,
+            "expect": self.spec.expect,
+            "as_expected": self.as_expected,
             "diagnosis": None if self.diagnosis is None else self.diagnosis.to_json(),
             "warnings": list(self.warnings),
             "seconds": round(self.seconds, 6),
+            "well_separated": self.well_separated,
+            "well_separation": self.well_separation.to_json(),
+            "core": None if self.core is None else self.core.to_json(),
+            "hints": [h.to_json() for h in self.hints],
         }
 
 
-def check_spec(spec: GR1Spec) -> SpecCheck:
-    """Decide realizability of ``spec`` and diagnose it when unrealizable."""
+def check_spec(spec: GR1Spec, *, core: bool = False, hints: bool = False) -> SpecCheck:
+    """Decide realizability of ``spec``, diagnose it when unrealizable, check well-separation.
+
+    Parameters
+    ----------
+    spec : GR1Spec
+    core : bool
+        Also compute a minimal unrealizable core of guarantees (unrealizable specs).
+    hints : bool
+        Also compute vacuity hints (formulas that do not affect the verdict).
+    """
     start = time.perf_counter()
     game = build_game(spec)
     solution = solve(game, keep_iterates=False)
@@ -75,13 +123,23 @@ def check_spec(spec: GR1Spec) -> SpecCheck:
                    game.theta_e & game.rho_e) == bdd.false:
         warnings.append("no environment move satisfies the safety assumptions from any "
                         "initial state: the spec holds vacuously")
+    separation = well_separation(game)
+    if solution.realizable and not separation.well_separated:
+        warnings.append(f"not well-separated: the system can force a violation of an "
+                        f"environment {separation.kind} assumption, so this realizable verdict "
+                        "may be won vacuously")
+    the_core = unrealizable_core(spec) if core and not solution.realizable else None
+    the_hints = tuple(vacuity_hints(spec, realizable=solution.realizable, core=the_core)) \
+        if hints else ()
     return SpecCheck(spec=spec, realizable=solution.realizable, diagnosis=diagnosis,
-                     warnings=tuple(warnings), seconds=time.perf_counter() - start)
+                     warnings=tuple(warnings), seconds=time.perf_counter() - start,
+                     well_separation=separation, core=the_core, hints=the_hints)
 
 
-def check_spec_file(path: str | os.PathLike[str]) -> SpecCheck:
+def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: bool = False
+                    ) -> SpecCheck:
     """Load and check a spec file (raises :class:`~tli_verify.errors.SpecError` on bad input)."""
-    return check_spec(load_spec(path))
+    return check_spec(load_spec(path), core=core, hints=hints)
 
 
 def synthesize(spec: GR1Spec) -> TaskAutomaton:

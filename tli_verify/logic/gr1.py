@@ -112,11 +112,19 @@ class Game:
         return u
 
 
-def build_game(spec: GR1Spec) -> Game:
-    """Compile ``spec`` to a :class:`Game` on a fresh CUDD manager."""
+def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
+    """Compile ``spec`` to a :class:`Game`.
+
+    Parameters
+    ----------
+    spec : GR1Spec
+    manager : dd.cudd.BDD, optional
+        Reuse this CUDD manager (so that BDDs of several games over the same variables can be
+        compared); a fresh one by default.
+    """
     import dd.cudd
 
-    bdd = dd.cudd.BDD()
+    bdd = dd.cudd.BDD() if manager is None else manager
     order = []
     for v in spec.inputs + spec.outputs:
         order += [v, _prime(v)]

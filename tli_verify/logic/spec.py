@@ -24,8 +24,10 @@ labels of sensor states"): exactly one mode at a time and a mode only where its 
 (guarantees), and sensors that always show some mode's label (an assumption, paper Asm. 3).
 ``tli spec check --explain`` lists them.
 
-``expect = "unrealizable"`` marks a spec shipped on purpose as an unrealizable example; the
-deployment gate checks that every spec's verdict matches its expectation.
+``expect = "unrealizable"`` marks a spec shipped on purpose as an unrealizable example, and
+``expect = "not-well-separated"`` one that is realizable only vacuously; the default is
+``"realizable"`` (and well-separated). The deployment gate checks that every spec's verdict
+matches its expectation.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ _TOP_KEYS = frozenset(
     {"name", "description", "inputs", "outputs", "modes", "assume", "guarantee", "expect"}
 )
 _SIDE_KEYS = frozenset({"init", "safety", "liveness"})
+EXPECTATIONS = ("realizable", "unrealizable", "not-well-separated")
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,8 +132,9 @@ class GR1Spec:
         ``phi^e`` and ``phi^s``, including the formulas added from ``[modes]``.
     path : str or None
         The file it was loaded from.
-    expect_realizable : bool
-        False for specs shipped on purpose as unrealizable examples.
+    expect : str
+        ``"realizable"`` (default: realizable and well-separated), ``"unrealizable"`` or
+        ``"not-well-separated"`` (shipped on purpose as a bad example).
     description : str
         Free text.
     """
@@ -142,8 +146,13 @@ class GR1Spec:
     assume: SpecSide
     guarantee: SpecSide
     path: str | None = None
-    expect_realizable: bool = True
+    expect: str = "realizable"
     description: str = ""
+
+    @property
+    def expect_realizable(self) -> bool:
+        """False for specs shipped on purpose as unrealizable examples."""
+        return self.expect != "unrealizable"
 
     @property
     def mode_names(self) -> tuple[str, ...]:
@@ -194,8 +203,8 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     if not isinstance(description, str):
         raise SpecError(f"{where}: 'description' must be a string")
     expect = data.get("expect", "realizable")
-    if expect not in ("realizable", "unrealizable"):
-        raise SpecError(f"{where}: 'expect' must be \"realizable\" or \"unrealizable\"")
+    if expect not in EXPECTATIONS:
+        raise SpecError(f"{where}: 'expect' must be one of {', '.join(EXPECTATIONS)}")
     inputs = _ap_list(data, "inputs", where, lines)
     outputs = _ap_list(data, "outputs", where, lines)
     both = sorted(set(inputs) & set(outputs))
@@ -217,7 +226,7 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         assume=assume,
         guarantee=guarantee,
         path=path,
-        expect_realizable=expect == "realizable",
+        expect=expect,
         description=description,
     )
 
