@@ -278,6 +278,7 @@ def solve_cut_detailed(
     attractor: npt.ArrayLike,
     *,
     previous: Sequence[Cut | npt.ArrayLike] = (),
+    keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
 ) -> CutSolution:
     """Solve the cut QCQP of paper appendix F exactly (see the module docstring).
@@ -290,6 +291,9 @@ def solve_cut_detailed(
         The mode's attractor ``x*``.
     previous : sequence of Cut or array_like, optional
         Earlier cuts of this mode (their points must stay inside), or the points themselves.
+    keep_inside : array_like, shape (k, n), optional
+        More states that must stay on the inner side (an extension of appendix F: e.g. every
+        observed mode-entry state, not only this failure's ``x^0``). Each adds one row to ``C``.
     margin : float, optional
         ``mu`` in ``w . (x^{T_f} - x^{T_f-1}) >= mu ||x^{T_f} - x^{T_f-1}||``; in ``(0, 1)``.
 
@@ -318,6 +322,11 @@ def solve_cut_detailed(
     if n < 2:
         raise ModelError("cuts need dimension n >= 2")
     inner = [x_star, failure.entry, *_previous_points(previous, n)]
+    if keep_inside is not None:
+        extra = np.asarray(keep_inside, dtype=np.float64)
+        if extra.ndim != 2 or extra.shape[1] != n or not np.all(np.isfinite(extra)):
+            raise ModelError(f"keep_inside must be a finite (k, {n}) array, got {extra.shape}")
+        inner.extend(extra)
     vecs = np.array([q - last for q in inner])  # (m0, n)
     s = failure.outside - last
     scale = max(float(np.max(np.abs(vecs), initial=0.0)), float(np.max(np.abs(s))), 1e-300)
@@ -447,6 +456,7 @@ def solve_cut(
     attractor: npt.ArrayLike,
     *,
     previous: Sequence[Cut | npt.ArrayLike] = (),
+    keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
 ) -> Cut:
     """Cut for one invariance failure: :func:`solve_cut_detailed` without the diagnostics.
@@ -456,6 +466,7 @@ def solve_cut(
     failure : InvarianceFailure
     attractor : array_like, shape (n,)
     previous : sequence of Cut or array_like, optional
+    keep_inside : array_like, shape (k, n), optional
     margin : float, optional
 
     Returns
@@ -467,7 +478,8 @@ def solve_cut(
     SolverError
         When no separating cut exists.
     """
-    return solve_cut_detailed(failure, attractor, previous=previous, margin=margin).cut
+    return solve_cut_detailed(failure, attractor, previous=previous, keep_inside=keep_inside,
+                              margin=margin).cut
 
 
 def cut_offsets(cuts: Sequence[Cut], attractor: npt.ArrayLike) -> FloatArray:

@@ -1,0 +1,1 @@
+"""Reproductions of the paper's experiments (single-mode study: :mod:`.single_mode`)."""
