@@ -299,8 +299,13 @@ def _with(spec: GR1Spec, *, assume: Sequence[SpecFormula] | None = None,
     )
 
 
-def _realizable(spec: GR1Spec) -> bool:
-    return solve(build_game(spec), keep_iterates=False).realizable
+def _realizable(spec: GR1Spec, manager: Any = None) -> bool:
+    return solve(build_game(spec, manager=manager), keep_iterates=False).realizable
+
+
+def _shared_manager(spec: GR1Spec) -> Any:
+    """One CUDD manager for the many games of a core search (its caches carry over)."""
+    return build_game(spec).manager
 
 
 def _ddmin(items: list[SpecFormula], keeps: Callable[[list[SpecFormula]], bool]
@@ -335,9 +340,10 @@ def _ddmin(items: list[SpecFormula], keeps: Callable[[list[SpecFormula]], bool]
 def unrealizable_core(spec: GR1Spec) -> Core:
     """A minimal unrealizable set of guarantees (``spec`` must be unrealizable)."""
     guarantees = list(spec.guarantee.all())
+    manager = _shared_manager(spec)
 
     def unrealizable(subset: list[SpecFormula]) -> bool:
-        return not _realizable(_with(spec, guarantee=subset))
+        return not _realizable(_with(spec, guarantee=subset), manager)
 
     if not unrealizable(guarantees):
         raise ValueError("the spec is realizable; it has no unrealizable core")
@@ -348,9 +354,10 @@ def unrealizable_core(spec: GR1Spec) -> Core:
 def assumption_core(spec: GR1Spec) -> Core:
     """A minimal set of assumptions a realizable ``spec`` needs to stay realizable."""
     assumptions = list(spec.assume.all())
+    manager = _shared_manager(spec)
 
     def realizable(subset: list[SpecFormula]) -> bool:
-        return _realizable(_with(spec, assume=subset))
+        return _realizable(_with(spec, assume=subset), manager)
 
     if not realizable(assumptions):
         raise ValueError("the spec is unrealizable; no assumptions core for realizability")
