@@ -167,9 +167,12 @@ def demo_stage(out: Path) -> list[str]:
             automaton = synthesize(result.spec)
             write_automaton(automaton, adir / f"{path.stem}.json")
             write_automaton(automaton, adir / f"{path.stem}.dot")
+            from tli_verify.plotting import draw_mode_graph
+
+            draw_mode_graph(automaton, adir / f"{path.stem}.png")
             pairs = " ".join(f"{a}->{b}" for a, b in automaton.mode_transitions() if a != b)
             lines.append(f"[spec]   automaton: {len(automaton.states)} states; mode changes "
-                         f"{pairs}; wrote {adir / path.stem}.json/.dot")
+                         f"{pairs}; wrote {adir / path.stem}.json/.dot/.png")
         elif result.diagnosis is not None:
             lines.append(f"[spec]   why: {result.diagnosis.kind}: {result.diagnosis.summary}")
     return lines
