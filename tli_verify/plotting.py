@@ -58,7 +58,8 @@ def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str 
     for k, m in enumerate(modes):
         ax.add_patch(Circle(tuple(pos[m]), r_node, facecolor=cmap(k % 10), alpha=0.35,
                             edgecolor="black", linewidth=2.5 if m in initial else 1.0, zorder=2))
-        ax.text(*pos[m], m, ha="center", va="center", fontsize=13, zorder=3)
+        ax.text(float(pos[m][0]), float(pos[m][1]), m, ha="center", va="center", fontsize=13,
+                zorder=3)
     for a, b in pairs:
         if a == b:
             c = pos[a] + np.array([0.0, r_node + 0.18])
