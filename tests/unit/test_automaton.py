@@ -69,6 +69,18 @@ def test_dot_mentions_every_state_and_edge(scoop: TaskAutomaton) -> None:
     assert dot.count(" -> s") == len(pairs) + len(scoop.initial)
 
 
+def test_dot_parses_as_graphviz(scoop: TaskAutomaton) -> None:
+    """An independent DOT parser (pydot) reads our output with every state and edge."""
+    import pydot
+
+    graphs = pydot.graph_from_dot_data(scoop.to_dot())
+    assert graphs is not None and len(graphs) == 1
+    names = {n.get_name() for n in graphs[0].get_nodes()}
+    assert {f"s{s.id}" for s in scoop.states} <= names
+    edges = {(e.get_source(), e.get_destination()) for e in graphs[0].get_edges()}
+    assert {(f"s{t.source}", f"s{t.target}") for t in scoop.transitions} <= edges
+
+
 def test_unrealizable_spec_has_no_automaton(specs_dir: Path) -> None:
     with pytest.raises(UnrealizableError, match="unrealizable"):
         synthesize(load_spec(specs_dir / "scoop-unrealizable.toml"))
