@@ -1,0 +1,261 @@
+"""The LPV-DS motion policy of one mode and its learning pipeline (paper Sec. 4.3, eqs. 4-5).
+
+``f(x) = sum_k gamma_k(x) A_k (x - x*)`` with ``gamma_k`` the posterior of a position GMM
+(:class:`tli_verify.ds.gmm.GMM`). Writing ``b_k = -A_k x*`` (paper eq. 5) makes ``x*`` an exact
+equilibrium. With ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for all k,
+``V(x) = (x-x*)^T P (x-x*)`` proves global asymptotic stability.
+
+Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
+
+1. mixing: physically-consistent Bayesian non-parametric GMM (:func:`~tli_verify.ds.gmm.fit_pcgmm`),
+   or, as the baseline, EM with K by BIC (:func:`~tli_verify.ds.gmm.fit_em_bic`);
+2. ``P``: the convex P-QLF program (:func:`~tli_verify.ds.lyapunov.estimate_p`), or ``P = I``
+   for the baseline;
+3. ``A_k``: Lyapunov-constrained least squares (:func:`~tli_verify.ds.lyapunov.fit_a`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.ds.gmm import GMM
+from tli_verify.errors import ModelError
+
+__all__ = ["LPVDS", "FitInfo", "learn_lpvds"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LPVDS:
+    """A linear parameter-varying dynamical system (paper eq. 4).
+
+    Attributes
+    ----------
+    attractor : ndarray, shape (n,)
+        ``x*``.
+    priors : ndarray, shape (K,)
+        GMM weights ``pi_k``.
+    means : ndarray, shape (K, n)
+        GMM means ``mu_k``.
+    covs : ndarray, shape (K, n, n)
+        GMM covariances ``Sigma_k``.
+    A : ndarray, shape (K, n, n)
+        Linear systems ``A_k``.
+    P : ndarray, shape (n, n)
+        Lyapunov matrix of ``V(x) = (x - x*)^T P (x - x*)``.
+    """
+
+    attractor: FloatArray
+    priors: FloatArray
+    means: FloatArray
+    covs: FloatArray
+    A: FloatArray
+    P: FloatArray
+    _mix: GMM = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        mix = GMM(priors=self.priors, means=self.means, covs=self.covs)
+        k, n = mix.n_components, mix.dim
+        attractor = np.array(self.attractor, dtype=np.float64)
+        A = np.array(self.A, dtype=np.float64)
+        P = np.array(self.P, dtype=np.float64)
+        if attractor.shape != (n,):
+            raise ModelError(f"attractor must have shape ({n},), got {attractor.shape}")
+        if A.shape != (k, n, n):
+            raise ModelError(f"A must have shape ({k}, {n}, {n}), got {A.shape}")
+        if P.shape != (n, n):
+            raise ModelError(f"P must have shape ({n}, {n}), got {P.shape}")
+        if not (np.all(np.isfinite(attractor)) and np.all(np.isfinite(A))
+                and np.all(np.isfinite(P))):
+            raise ModelError("LPV-DS parameters must be finite")
+        for name, value in (("attractor", attractor), ("A", A), ("P", P)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        for name in ("priors", "means", "covs"):
+            object.__setattr__(self, name, getattr(mix, name))
+        object.__setattr__(self, "_mix", mix)
+
+    @property
+    def dim(self) -> int:
+        """State dimension n."""
+        return int(self.attractor.size)
+
+    @property
+    def n_components(self) -> int:
+        """Number of linear systems K."""
+        return int(self.priors.size)
+
+    def _states(self, X: npt.ArrayLike) -> tuple[FloatArray, bool]:
+        Xa = np.asarray(X, dtype=np.float64)
+        single = Xa.ndim == 1
+        if single:
+            Xa = Xa[None, :]
+        if Xa.ndim != 2 or Xa.shape[1] != self.dim:
+            raise ModelError(f"states must have shape (N, {self.dim}) or ({self.dim},), "
+                             f"got {np.shape(X)}")
+        return Xa, single
+
+    def gamma(self, X: npt.ArrayLike) -> FloatArray:
+        """Mixing weights ``gamma_k(x)``.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n)
+
+        Returns
+        -------
+        ndarray, shape (N, K)
+        """
+        Xa, _ = self._states(X)
+        return self._mix.posterior(Xa)
+
+    def velocity(self, X: npt.ArrayLike) -> FloatArray:
+        """Evaluate ``f(x) = sum_k gamma_k(x) A_k (x - x*)`` (paper eq. 4), vectorised.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n) or (n,)
+
+        Returns
+        -------
+        ndarray, shape (N, n) or (n,)
+            Same leading shape as ``X``.
+        """
+        Xa, single = self._states(X)
+        Z = Xa - self.attractor
+        AZ = np.einsum("kij,nj->nki", self.A, Z)  # (N, K, n)
+        F = np.einsum("nk,nki->ni", self._mix.posterior(Xa), AZ)
+        return F[0] if single else F
+
+    def lyapunov(self, X: npt.ArrayLike) -> FloatArray:
+        """``V(x) = (x - x*)^T P (x - x*)``.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n) or (n,)
+
+        Returns
+        -------
+        ndarray, shape (N,) or ()
+        """
+        Xa, single = self._states(X)
+        Z = Xa - self.attractor
+        V = np.einsum("ni,ij,nj->n", Z, self.P, Z)
+        return V[0] if single else V
+
+
+@dataclass(frozen=True, slots=True)
+class FitInfo:
+    """How an LPV-DS was learned (stored in the model file's ``fit`` field).
+
+    Attributes
+    ----------
+    clustering : str
+        ``"pc-gmm"`` (method) or ``"em-bic"`` (baseline).
+    lyapunov : str
+        ``"p-qlf"`` (P learned) or ``"identity"`` (P = I).
+    n_components : int
+        K.
+    eps : float
+        LMI margin of the A-fit.
+    seed : int
+        Seed of the clustering.
+    solver : str
+        Solver of the SDPs.
+    status : str
+        Status of the last SDP (always ``"optimal"``).
+    seconds : float
+        Total learning time.
+    n_samples : int
+        Number of training samples.
+    """
+
+    clustering: str
+    lyapunov: str
+    n_components: int
+    eps: float
+    seed: int
+    solver: str
+    status: str
+    seconds: float
+    n_samples: int
+
+
+def learn_lpvds(
+    X: npt.ArrayLike,
+    dX: npt.ArrayLike,
+    attractor: npt.ArrayLike,
+    *,
+    seed: int = 0,
+    eps: float = 1e-3,
+    clustering: Literal["pc-gmm", "em-bic"] = "pc-gmm",
+    lyapunov: Literal["p-qlf", "identity"] = "p-qlf",
+    max_components: int = 12,
+) -> tuple[LPVDS, FitInfo]:
+    """Learn a Lyapunov-stable LPV-DS from position/velocity samples (paper Sec. 4.3).
+
+    Parameters
+    ----------
+    X : array_like, shape (N, n)
+        Positions.
+    dX : array_like, shape (N, n)
+        Velocities.
+    attractor : array_like, shape (n,)
+        ``x*`` (paper appendix D: the mean last state of the mode's segments).
+    seed : int, optional
+        Seed of the clustering; same seed, same model.
+    eps : float, optional
+        Margin of ``A_k^T P + P A_k <= -eps I``.
+    clustering : {"pc-gmm", "em-bic"}, optional
+        Mixing model: the Bayesian non-parametric physically-consistent GMM, or the EM+BIC baseline.
+    lyapunov : {"p-qlf", "identity"}, optional
+        Learn ``P`` (convex P-QLF) or fix ``P = I`` (baseline).
+    max_components : int, optional
+        Upper bound on K.
+
+    Returns
+    -------
+    ds : LPVDS
+    info : FitInfo
+
+    Raises
+    ------
+    SolverError
+        When an SDP does not reach status ``optimal``.
+    ModelError
+        When the data cannot define a mixture (too few samples, NaN).
+    """
+    from tli_verify.ds.gmm import fit_em_bic, fit_pcgmm
+    from tli_verify.ds.lyapunov import SOLVER, estimate_p, fit_a
+
+    start = time.perf_counter()
+    Xa = np.asarray(X, dtype=np.float64)
+    dXa = np.asarray(dX, dtype=np.float64)
+    xs = np.asarray(attractor, dtype=np.float64)
+    if Xa.ndim != 2 or dXa.shape != Xa.shape or xs.shape != (Xa.shape[1],):
+        raise ModelError(f"learning data shapes do not match: X {Xa.shape}, dX {dXa.shape}, "
+                         f"attractor {xs.shape}")
+    if clustering == "pc-gmm":
+        mix = fit_pcgmm(Xa, dXa, seed=seed, max_components=max_components)
+    elif clustering == "em-bic":
+        mix = fit_em_bic(Xa, seed=seed, max_components=max_components)
+    else:
+        raise ModelError(f"unknown clustering {clustering!r}")
+    if lyapunov == "p-qlf":
+        P, _ = estimate_p(Xa, dXa, xs)
+    elif lyapunov == "identity":
+        P = np.eye(Xa.shape[1])
+    else:
+        raise ModelError(f"unknown Lyapunov option {lyapunov!r}")
+    A, info = fit_a(Xa, dXa, mix.posterior(Xa), xs, P, eps=eps)
+    ds = LPVDS(attractor=xs, priors=mix.priors, means=mix.means, covs=mix.covs, A=A, P=P)
+    fit = FitInfo(clustering=clustering, lyapunov=lyapunov, n_components=mix.n_components,
+                  eps=float(eps), seed=int(seed), solver=SOLVER, status=info.status,
+                  seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]))
+    return ds, fit

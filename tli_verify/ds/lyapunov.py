@@ -1,0 +1,273 @@
+"""Convex programs for a Lyapunov-stable LPV-DS (paper Sec. 4.3, eqs. 4-5).
+
+Stability of ``f(x) = sum_k gamma_k(x) A_k (x - x*)`` follows from a quadratic Lyapunov function
+``V(x) = (x - x*)^T P (x - x*)`` with
+
+    P = P^T > 0,    A_k^T P + P A_k < 0   for every k          (paper eq. 5, "stability")
+
+because ``dV/dt = sum_k gamma_k (x - x*)^T (A_k^T P + P A_k) (x - x*) < 0`` for ``x != x*``.
+Learning P *and* A_k jointly is not convex (bilinear). Following ds-opt's P-QLF case
+(Figueroa & Billard 2018, Sec. 4.2) we split it into two convex steps, both solved by cvxpy with
+the Clarabel interior-point solver:
+
+1. :func:`estimate_p` picks ``P`` from the data alone: the Lyapunov function should decrease along
+   the demonstrations, ``(x_i - x*)^T P xdot_i < 0``. The condition is linear in ``P``; we minimise
+   the total hinge violation of its normalised form (with a small margin) over
+   ``{P : P >= p_min I, trace P = n}`` -- an SDP. (ds-opt solves a non-convex weighted variant
+   with fmincon; the hinge version is convex and has the same zero set.)
+2. :func:`fit_a` fits the ``A_k`` to the velocities by least squares with ``P`` fixed, under the
+   LMIs ``A_k^T P + P A_k <= -eps I`` -- an SDP with K small semidefinite cones.
+
+:func:`find_p` solves the remaining direction (``A_k`` fixed, search ``P``); ``tli certify`` uses
+it when a model's own ``P`` does not certify.
+
+Any solver status other than ``optimal`` (including ``optimal_inaccurate``) raises
+:class:`~tli_verify.errors.SolverError`: it never yields a model or a certificate.
+
+References
+----------
+.. [1] N. Figueroa and A. Billard, "A Physically-Consistent Bayesian Non-Parametric Mixture Model
+   for Dynamical System Learning", CoRL 2018 (ds-opt: P-QLF estimation, Lyapunov-constrained
+   LPV-DS optimisation).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import SolverError
+
+__all__ = ["SOLVER", "SolveInfo", "estimate_p", "find_p", "fit_a"]
+
+FloatArray = npt.NDArray[np.float64]
+
+SOLVER = "CLARABEL"
+"""The only solver used for the Lyapunov SDPs (SCS misses the LMI margin)."""
+
+
+@dataclass(frozen=True, slots=True)
+class SolveInfo:
+    """What a convex solve reported.
+
+    Attributes
+    ----------
+    problem : str
+        Which program ("P-QLF", "A-fit", "P-search").
+    solver : str
+        Solver name (``"CLARABEL"``).
+    status : str
+        cvxpy status; always ``"optimal"`` for a returned result.
+    objective : float
+        Optimal value.
+    seconds : float
+        Wall-clock time of compile + solve.
+    """
+
+    problem: str
+    solver: str
+    status: str
+    objective: float
+    seconds: float
+
+
+def _solve(problem: Any, what: str) -> SolveInfo:
+    """Solve with Clarabel; anything but ``optimal`` is a :class:`SolverError`."""
+    import cvxpy as cp
+
+    start = time.perf_counter()
+    try:
+        problem.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError as exc:
+        raise SolverError(f"{what}: solver {SOLVER} failed: {exc}") from None
+    status = str(problem.status)
+    if status != cp.OPTIMAL:
+        raise SolverError(f"{what}: solver {SOLVER} returned status {status!r}, not 'optimal'; "
+                          "no model or certificate is produced")
+    return SolveInfo(problem=what, solver=SOLVER, status=status,
+                     objective=float(problem.value), seconds=time.perf_counter() - start)
+
+
+def _as_data(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike
+             ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    Xa = np.asarray(X, dtype=np.float64)
+    dXa = np.asarray(dX, dtype=np.float64)
+    xs = np.asarray(attractor, dtype=np.float64)
+    if Xa.ndim != 2 or dXa.shape != Xa.shape or xs.shape != (Xa.shape[1],):
+        raise SolverError(f"data shapes do not match: X {Xa.shape}, dX {dXa.shape}, "
+                          f"attractor {xs.shape}")
+    return Xa, dXa, xs
+
+
+def estimate_p(
+    X: npt.ArrayLike,
+    dX: npt.ArrayLike,
+    attractor: npt.ArrayLike,
+    *,
+    p_min: float = 0.05,
+    margin: float = 0.1,
+    shrink: float = 1e-2,
+) -> tuple[FloatArray, SolveInfo]:
+    """Convex P-QLF: a Lyapunov matrix under which the demonstrations descend.
+
+    Solves ::
+
+        min_P  mean_i max(0, c_i(P) + margin) + shrink * |P - I|_F^2
+        s.t.   P >= p_min I,  trace P = n,
+        c_i(P) = (x_i - x*)^T P xdot_i / (|x_i - x*| |xdot_i|)
+
+    Parameters
+    ----------
+    X, dX : array_like, shape (N, n)
+        Positions and velocities.
+    attractor : array_like, shape (n,)
+        ``x*``.
+    p_min : float, optional
+        Smallest eigenvalue allowed for ``P`` (with ``trace P = n``): bounds its condition number.
+    margin : float, optional
+        Desired normalised decrease ``-c_i`` on each sample.
+    shrink : float, optional
+        Pull towards ``P = I`` (breaks ties when many ``P`` explain the data).
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+        Symmetric positive definite.
+    info : SolveInfo
+    """
+    import cvxpy as cp
+
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    n = Xa.shape[1]
+    Z = Xa - xs
+    zn = np.linalg.norm(Z, axis=1)
+    vn = np.linalg.norm(dXa, axis=1)
+    use = (zn > 1e-9 * max(1.0, float(zn.max(initial=0.0)))) & (vn > 1e-12)
+    if not np.any(use):
+        return np.eye(n), SolveInfo("P-QLF", "none", "optimal", 0.0, 0.0)
+    zh = Z[use] / zn[use, None]
+    vh = dXa[use] / vn[use, None]
+    # c_i = sum_ab P_ab zh_a vh_b: linear in vec(P)
+    G = np.einsum("ia,ib->iab", zh, vh).reshape(-1, n * n)
+    P = cp.Variable((n, n), symmetric=True)
+    c = G @ cp.reshape(P, (n * n,), order="C")
+    objective = cp.sum(cp.pos(c + margin)) / G.shape[0] + shrink * cp.sum_squares(P - np.eye(n))
+    problem = cp.Problem(cp.Minimize(objective),
+                         [P >> p_min * np.eye(n), cp.trace(P) == n])
+    info = _solve(problem, "P-QLF")
+    value = np.asarray(P.value, dtype=np.float64)
+    return 0.5 * (value + value.T), info
+
+
+def fit_a(
+    X: npt.ArrayLike,
+    dX: npt.ArrayLike,
+    gamma: npt.ArrayLike,
+    attractor: npt.ArrayLike,
+    P: npt.ArrayLike,
+    *,
+    eps: float = 1e-3,
+    ridge: float = 1e-6,
+) -> tuple[FloatArray, SolveInfo]:
+    """Least-squares ``A_k`` under the Lyapunov LMIs for a fixed ``P`` (paper eq. 5).
+
+    Solves ::
+
+        min_{A_1..A_K}  mean_i |xdot_i - sum_k gamma_k(x_i) A_k (x_i - x*)|^2
+                        + ridge * sum_k |A_k|_F^2
+        s.t.            A_k^T P + P A_k <= -eps I    for every k
+
+    The data enter only through the ``K n^2``-dimensional normal equations (Cholesky factor), so
+    the program size does not grow with N.
+
+    Parameters
+    ----------
+    X, dX : array_like, shape (N, n)
+        Positions and velocities.
+    gamma : array_like, shape (N, K)
+        Mixing weights ``gamma_k(x_i)``.
+    attractor : array_like, shape (n,)
+        ``x*``.
+    P : array_like, shape (n, n)
+        Lyapunov matrix (symmetric positive definite).
+    eps : float, optional
+        LMI margin (units of 1/time when ``trace P = n``).
+    ridge : float, optional
+        Tikhonov weight relative to the mean squared data scale.
+
+    Returns
+    -------
+    A : ndarray, shape (K, n, n)
+    info : SolveInfo
+    """
+    import cvxpy as cp
+
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    Ga = np.asarray(gamma, dtype=np.float64)
+    Pa = np.asarray(P, dtype=np.float64)
+    N, n = Xa.shape
+    if Ga.ndim != 2 or Ga.shape[0] != N:
+        raise SolverError(f"gamma must have shape ({N}, K), got {Ga.shape}")
+    K = Ga.shape[1]
+    Z = Xa - xs
+    # design matrix D[(i,a), (k,b,c)] = gamma_ik z_ib delta_ac; columns follow vec_F(A_k)
+    D = np.einsum("ik,ib,ac->iakbc", Ga, Z, np.eye(n)).reshape(N * n, K * n * n)
+    y = dXa.reshape(N * n)
+    H = D.T @ D / N
+    g = D.T @ y / N
+    lam = ridge * max(float(np.trace(H)) / H.shape[0], 1e-12)
+    H[np.diag_indices_from(H)] += lam
+    L = np.linalg.cholesky(H)
+    rhs = np.linalg.solve(L, g)
+    A = [cp.Variable((n, n)) for _ in range(K)]
+    theta = cp.hstack([cp.vec(a, order="F") for a in A])
+    constraints = []
+    for a in A:
+        M = Pa @ a
+        constraints.append(M + M.T << -eps * np.eye(n))
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(L.T @ theta - rhs)), constraints)
+    info = _solve(problem, "A-fit")
+    values = np.stack([np.asarray(a.value, dtype=np.float64) for a in A])
+    return values, info
+
+
+def find_p(A: npt.ArrayLike, *, eps: float = 1e-6) -> tuple[FloatArray, SolveInfo]:
+    """Search a common quadratic Lyapunov matrix for fixed ``A_k``.
+
+    Solves ``min kappa  s.t.  I <= P <= kappa I,  A_k^T P + P A_k <= -eps I`` (every k).
+
+    Parameters
+    ----------
+    A : array_like, shape (K, n, n)
+    eps : float, optional
+        LMI margin.
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+    info : SolveInfo
+
+    Raises
+    ------
+    SolverError
+        If the SDP is infeasible (no common quadratic Lyapunov function) or not solved to
+        ``optimal``.
+    """
+    import cvxpy as cp
+
+    Aa = np.asarray(A, dtype=np.float64)
+    n = Aa.shape[-1]
+    P = cp.Variable((n, n), symmetric=True)
+    kappa = cp.Variable()
+    eye = np.eye(n)
+    constraints = [P >> eye, P << kappa * eye]
+    for a in Aa:
+        M = P @ a
+        constraints.append(M + M.T << -eps * eye)
+    info = _solve(cp.Problem(cp.Minimize(kappa), constraints), "P-search")
+    value = np.asarray(P.value, dtype=np.float64)
+    return 0.5 * (value + value.T), info
