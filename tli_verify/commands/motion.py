@@ -1,18 +1,268 @@
-"""Subcommands of this group are registered here as their capability lands."""
+"""Motion commands: ``tli learn``, ``tli certify``, ``tli check-cert``, ``tli gate``.
+
+Exit codes (``DESIGN.md``): 0 success; 1 a check said no (not certifiable, certificate does not
+re-check, gate blocked, solver status not optimal); 2 bad input or usage. ``--json`` prints one
+JSON object per line on stdout.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import sys
 from pathlib import Path
 from typing import Any
 
+from tli_verify.errors import CertificateError, GateError
+
+__all__ = ["demo_stage", "register"]
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0 or value >= 2**32:
+        raise argparse.ArgumentTypeError(f"must be in [0, 2^32), got {text!r}")
+    return value
+
+
+def _emit(obj: dict[str, Any]) -> None:
+    sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
-    """Register this group's subcommands (none yet)."""
-    del sub
+    """Register ``learn``, ``certify``, ``check-cert`` and ``gate``."""
+    p = sub.add_parser(
+        "learn", help="learn a Lyapunov-stable LPV-DS per mode from demonstration CSVs",
+        description="Segment demonstrations into modes by their sensor columns (through the "
+        "spec's [modes] labels with --spec), then learn one LPV-DS per mode (PC-GMM mixing, "
+        "P-QLF and Lyapunov-constrained SDPs with Clarabel) and write the model JSON.")
+    p.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
+    p.add_argument("--spec", type=Path, default=None, help="spec TOML whose [modes] label "
+                   "the sensor states")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="MODEL.json")
+    p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
+    p.add_argument("--eps", type=_positive_float, default=1e-3,
+                   help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
+    p.add_argument("--baseline", action="store_true",
+                   help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_learn)
+
+    p = sub.add_parser(
+        "certify", help="exactly verify a model's Lyapunov conditions and write a certificate",
+        description="For every mode: P > 0 and A_k^T P + P A_k < 0 decided in exact rational "
+        "arithmetic; writes the certificate JSON. Exit 1 naming the mode and component when "
+        "a model is not certifiable.")
+    p.add_argument("model", type=Path, metavar="MODEL.json")
+    p.add_argument("-o", "--output", type=Path, default=None, metavar="CERT.json",
+                   help="default: certificates/<name>.cert.json")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_certify)
+
+    p = sub.add_parser(
+        "check-cert", help="re-check a certificate from its numbers and the file hashes",
+        description="Recomputes the digest, the model (and spec) SHA-256, the model's P, the "
+        "recorded eigenvalues and the exact rational Lyapunov check. Exit 1 saying what "
+        "differs.")
+    p.add_argument("certificate", type=Path, metavar="CERT.json")
+    p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
+                   help="check against this model file instead of the one the certificate names")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_check_cert)
+
+    p = sub.add_parser(
+        "gate", help="deployment gate: every certificate, model and spec re-checks",
+        description="Exit 0 only when every certificate under DIR/certificates re-checks "
+        "exactly, every model under DIR/models has a valid certificate, and every spec under "
+        "DIR/specs gets its declared verdict. Exit 1 with the list of what blocks.")
+    p.add_argument("directory", nargs="?", type=Path, default=Path("."), metavar="DIR")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_gate)
+
+
+def _learn(args: argparse.Namespace) -> int:
+    from tli_verify.model import learn_model, save_model
+
+    model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
+                        eps=args.eps,
+                        clustering="em-bic" if args.baseline else "pc-gmm",
+                        lyapunov="identity" if args.baseline else "p-qlf")
+    save_model(model, args.output)
+    for key, mm in model.modes.items():
+        fit = mm.fit or {}
+        record = {"model": str(args.output), "key": key, "mode": mm.mode,
+                  "next_mode": mm.next_mode, "components": mm.ds.n_components,
+                  "samples": fit.get("n_samples"), "attractor": mm.ds.attractor.tolist()}
+        if args.json:
+            _emit(record)
+        else:
+            sys.stdout.write(f"{key}: K={mm.ds.n_components} components from "
+                             f"{fit.get('n_samples')} samples, attractor "
+                             f"{[round(v, 4) for v in mm.ds.attractor.tolist()]}\n")
+    if not args.json:
+        sys.stdout.write(f"wrote {args.output} ({len(model.modes)} DS); certify it with: "
+                         f"tli certify {args.output}\n")
+    return 0
+
+
+def default_certificate_path(model: Path) -> Path:
+    """``certificates/<name>.cert.json`` for ``.../<name>.model.json`` or ``<name>.json``."""
+    name = model.name
+    for suffix in (".model.json", ".json"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return Path("certificates") / f"{name}.cert.json"
+
+
+def _certify(args: argparse.Namespace) -> int:
+    from tli_verify.certify.certificate import issue_certificate, write_certificate
+
+    out: Path = args.output or default_certificate_path(args.model)
+    doc = issue_certificate(args.model, cert_path=out)
+    write_certificate(doc, out)
+    for key, entry in doc["modes"].items():
+        record = {"certificate": str(out), "model": str(args.model), "key": key,
+                  "P_source": entry["P_source"], "lambda_min_P": entry["lambda_min_P"],
+                  "max_lambda_max": max(entry["lambda_max"]), "exact": True}
+        if args.json:
+            _emit(record)
+        else:
+            sys.stdout.write(f"{key}: P > 0 (lambda_min {entry['lambda_min_P']:.4g}), "
+                             f"{len(entry['lambda_max'])} components with A_k^T P + P A_k < 0 "
+                             f"(max lambda_max {max(entry['lambda_max']):.4g}); exact: yes\n")
+    if not args.json:
+        sys.stdout.write(f"wrote {out}\n")
+    return 0
+
+
+def _check_cert(args: argparse.Namespace) -> int:
+    from tli_verify.certify.certificate import check_certificate
+
+    check = check_certificate(args.certificate, model_path=args.model)
+    if args.json:
+        for item in check.passed:
+            _emit({"certificate": check.path, "ok": True, "message": item})
+        for item in check.problems:
+            _emit({"certificate": check.path, "ok": False, "message": item})
+        _emit({"certificate": check.path, "model": check.model_path, "valid": check.ok})
+    else:
+        for item in check.passed:
+            sys.stdout.write(f"ok    {item}\n")
+        for item in check.problems:
+            sys.stdout.write(f"FAIL  {item}\n")
+    if not check.ok:
+        raise CertificateError(f"{check.path}: certificate does not re-check "
+                               f"({len(check.problems)} problem(s)): {check.problems[0]}")
+    if not args.json:
+        sys.stdout.write(f"{check.path}: valid (re-checked exactly against {check.model_path})\n")
+    return 0
+
+
+def _gate(args: argparse.Namespace) -> int:
+    from tli_verify.certify.gate import run_gate
+
+    report = run_gate(args.directory)
+    for item in report.items:
+        if args.json:
+            _emit(item.to_json())
+        else:
+            sys.stdout.write(f"{'ok   ' if item.ok else 'BLOCK'} {item.kind:<11} {item.path}: "
+                             f"{item.message}\n")
+    summary = (f"{report.count('certificate')} certificate(s), {report.count('model')} "
+               f"model(s), {report.count('spec')} spec(s)")
+    if args.json:
+        _emit({"gate": "pass" if report.ok else "blocked", "root": report.root,
+               "blockers": len(report.blockers)})
+    if not report.ok:
+        raise GateError(f"gate blocked: {len(report.blockers)} problem(s) in {summary}; first: "
+                        f"{report.blockers[0].path}: {report.blockers[0].message}")
+    if not args.json:
+        sys.stdout.write(f"gate: pass ({summary})\n")
+    return 0
 
 
 def demo_stage(out: Path) -> list[str]:
-    """Run this group's part of ``make demo``; return one summary line per result."""
-    del out
-    return []
+    """``tli demo``: learn the scooping model from the bundled demos, certify and re-check it.
+
+    Writes ``out/motion/scoop.model.json``, ``out/motion/scoop.cert.json`` and a plot
+    ``out/motion/scoop_modes.png``; returns one summary line per result.
+    """
+    from tli_verify.certify.certificate import (
+        check_certificate,
+        issue_certificate,
+        write_certificate,
+    )
+    from tli_verify.model import learn_model, save_model
+
+    root = Path(__file__).resolve().parents[2]
+    demos = sorted((root / "demos").glob("scoop_*.csv"))
+    spec = root / "specs" / "scoop.toml"
+    if not demos:
+        return ["motion: no bundled demos/scoop_*.csv found; skipped"]
+    target = out / "motion"
+    model_path = target / "scoop.model.json"
+    cert_path = target / "scoop.cert.json"
+    model = learn_model(demos, out_path=model_path, spec_path=spec if spec.is_file() else None,
+                        seed=0)
+    save_model(model, model_path)
+    write_certificate(issue_certificate(model_path, cert_path=cert_path), cert_path)
+    check = check_certificate(cert_path)
+    sizes = ", ".join(f"{k}: K={m.ds.n_components}" for k, m in model.modes.items())
+    lines = [f"motion: learned {len(model.modes)} mode DS from {len(demos)} demos -> "
+             f"{model_path} ({sizes})",
+             f"motion: certificate {cert_path}: "
+             f"{'re-checks exactly' if check.ok else 'INVALID: ' + check.problems[0]}"]
+    if model.dim == 2:
+        _plot_model(model, demos, target / "scoop_modes.png")
+        lines.append(f"motion: streamlines of every mode -> {target / 'scoop_modes.png'}")
+    return lines
+
+
+def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
+    """Streamlines of each mode's (modulated) DS with the demonstrations (2D models)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from tli_verify.demos import load_demo
+
+    demos = [load_demo(p) for p in demo_paths]
+    pts = np.concatenate([d.x for d in demos])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.25 * (hi - lo).max()
+    gx, gy = np.meshgrid(np.linspace(lo[0] - pad, hi[0] + pad, 60),
+                         np.linspace(lo[1] - pad, hi[1] + pad, 60))
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    keys = list(model.modes)
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.6 * len(keys), 3.6), squeeze=False)
+    for ax, key in zip(axes[0], keys, strict=True):
+        V = model.modes[key].velocity(grid)
+        ax.streamplot(gx, gy, V[:, 0].reshape(gx.shape), V[:, 1].reshape(gx.shape),
+                      color="0.6", density=1.0, linewidth=0.6)
+        for d in demos:
+            ax.plot(d.x[:, 0], d.x[:, 1], color="k", linewidth=0.8)
+        star = model.modes[key].ds.attractor
+        ax.plot(star[0], star[1], marker="*", color="tab:orange", markersize=12)
+        ax.set_title(f"mode {key}", fontsize=9)
+        ax.set_aspect("equal")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

@@ -77,9 +77,9 @@ class GMM:
     _log_const: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        priors = np.asarray(self.priors, dtype=np.float64)
-        means = np.asarray(self.means, dtype=np.float64)
-        covs = np.asarray(self.covs, dtype=np.float64)
+        priors = np.array(self.priors, dtype=np.float64)
+        means = np.array(self.means, dtype=np.float64)
+        covs = np.array(self.covs, dtype=np.float64)
         if priors.ndim != 1 or priors.size == 0:
             raise ModelError(f"GMM priors must have shape (K,), got {priors.shape}")
         k = priors.size

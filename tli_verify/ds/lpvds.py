@@ -16,6 +16,7 @@ Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Literal
@@ -231,6 +232,19 @@ def learn_lpvds(
     ModelError
         When the data cannot define a mixture (too few samples, NaN).
     """
+    from threadpoolctl import threadpool_limits
+
+    start = time.perf_counter()
+    # small matrices: multi-threaded BLAS only adds contention (20x slower on a busy machine)
+    with threadpool_limits(limits=1, user_api="blas"):
+        ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, clustering=clustering,
+                         lyapunov=lyapunov, max_components=max_components)
+    return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
+
+
+def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
+           eps: float, clustering: str, lyapunov: str, max_components: int
+           ) -> tuple[LPVDS, FitInfo]:
     from tli_verify.ds.gmm import fit_em_bic, fit_pcgmm
     from tli_verify.ds.lyapunov import SOLVER, estimate_p, fit_a
 

@@ -1,0 +1,425 @@
+"""Demonstrations: the CSV format, its validation, and the bundled soup-scooping demos.
+
+Format (one file per demonstration, UTF-8 CSV with a header row)::
+
+    time,x0,x1,dx0,dx1,r,s,t
+    0.0,1.02,8.11,0.0,0.0,0,0,0
+    0.05,1.02,8.10,0.01,-0.03,0,0,0
+    ...
+
+* ``t`` -- time stamps, strictly increasing (seconds). The column may be called ``time``
+  instead; it must be when a sensor is called ``t`` (the scooping task's "at the target"
+  sensor): when a ``time`` column exists, a ``t`` column is a sensor;
+* ``x0 .. x{n-1}`` -- the robot state (``n >= 1``, consecutive indices);
+* ``dx0 .. dx{n-1}`` -- optional velocities; when absent they are computed by second-order finite
+  differences on the (possibly non-uniform) time grid: central differences inside, second-order
+  one-sided differences at both ends (``numpy.gradient(x, t, edge_order=2)``);
+* every other column is a sensor input (an atomic proposition of the spec, paper Sec. 3), with
+  values ``0`` or ``1``. With a spec the sensor columns must be exactly the spec's ``inputs``.
+
+At least 3 data rows. Lines starting with ``#`` are comments; blank lines are skipped. Every
+error names the file, the line (1-based, counting the header and comments) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import DemoError
+from tli_verify.io import atomic_write_text, read_text
+
+__all__ = [
+    "Demonstration",
+    "demo_to_csv",
+    "load_demo",
+    "load_demos",
+    "make_scoop_demos",
+]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+_STATE = re.compile(r"^x(\d+)$")
+_VEL = re.compile(r"^dx(\d+)$")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+MIN_ROWS = 3
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Demonstration:
+    """One validated demonstration.
+
+    Attributes
+    ----------
+    path : str
+        Where it came from (used in messages).
+    t : ndarray, shape (T,)
+        Strictly increasing time stamps.
+    x : ndarray, shape (T, n)
+        States.
+    dx : ndarray, shape (T, n)
+        Velocities (from the file, or finite differences).
+    sensor_names : tuple of str
+        Sensor inputs, in column order.
+    sensors : ndarray of bool, shape (T, m)
+        Sensor readings.
+    velocities_from_file : bool
+        Whether ``dx`` came from ``dx*`` columns.
+    lines : ndarray of int, shape (T,) or None
+        File line number (1-based) of each row, for messages; None for synthetic data.
+    """
+
+    path: str
+    t: FloatArray
+    x: FloatArray
+    dx: FloatArray
+    sensor_names: tuple[str, ...]
+    sensors: BoolArray
+    velocities_from_file: bool = False
+    lines: npt.NDArray[np.int64] | None = None
+
+    @property
+    def dim(self) -> int:
+        """State dimension n."""
+        return int(self.x.shape[1])
+
+    @property
+    def n_samples(self) -> int:
+        """Number of rows T."""
+        return int(self.t.size)
+
+    def where(self, i: int) -> str:
+        """``"<file>: line <L>"`` (or ``row <i>`` without line numbers) of row ``i``."""
+        if self.lines is not None:
+            return f"{self.path}: line {int(self.lines[i])}"
+        return f"{self.path}: row {i + 1}"
+
+    def sensor_reading(self, i: int) -> dict[str, bool]:
+        """The sensor values of row ``i`` as a mapping."""
+        return {name: bool(v) for name, v in zip(self.sensor_names, self.sensors[i], strict=True)}
+
+
+def _header(fields: list[str], where: str, sensor_names: Sequence[str] | None
+            ) -> tuple[int, list[int], list[int], list[int], list[str]]:
+    """Column indices of time, x, dx and sensors; validates the header."""
+    names = [f.strip() for f in fields]
+    seen: set[str] = set()
+    for name in names:
+        if not name:
+            raise DemoError(f"{where}: empty column name in the header")
+        if name in seen:
+            raise DemoError(f"{where}: duplicate column {name!r}")
+        seen.add(name)
+    time_name = "time" if "time" in names else "t"
+    if time_name not in names:
+        raise DemoError(f"{where}: missing column 't' (time)")
+    xs: dict[int, int] = {}
+    dxs: dict[int, int] = {}
+    sensors: list[tuple[int, str]] = []
+    for col, name in enumerate(names):
+        if name == time_name:
+            continue
+        if m := _STATE.match(name):
+            xs[int(m.group(1))] = col
+        elif m := _VEL.match(name):
+            dxs[int(m.group(1))] = col
+        else:
+            if not _NAME.match(name):
+                raise DemoError(f"{where}: column {name!r} is not a valid sensor name "
+                                "(letters, digits and '_', not starting with a digit)")
+            sensors.append((col, name))
+    if not xs:
+        raise DemoError(f"{where}: missing state columns x0, x1, ...")
+    n = len(xs)
+    if sorted(xs) != list(range(n)):
+        missing = min(set(range(max(xs) + 1)) - set(xs))
+        raise DemoError(f"{where}: missing column 'x{missing}' (state columns must be "
+                        "x0..x{n-1})")
+    if dxs and sorted(dxs) != list(range(n)):
+        missing_dx = sorted(set(range(n)) ^ set(dxs))[0]
+        raise DemoError(f"{where}: velocity columns must be dx0..dx{n - 1} to match the state "
+                        f"(problem at 'dx{missing_dx}')")
+    sensor_list = [s for _, s in sensors]
+    if sensor_names is not None:
+        missing_s = [s for s in sensor_names if s not in sensor_list]
+        if missing_s:
+            raise DemoError(f"{where}: missing sensor column {missing_s[0]!r} required by the "
+                            "spec's inputs")
+        extra = [s for s in sensor_list if s not in sensor_names]
+        if extra:
+            raise DemoError(f"{where}: unknown column {extra[0]!r} (not a spec input, not "
+                            "time, x<i> or dx<i>)")
+    return (names.index(time_name), [xs[i] for i in range(n)],
+            [dxs[i] for i in range(n)] if dxs else [], [c for c, _ in sensors], sensor_list)
+
+
+def load_demo(path: str | os.PathLike[str], *,
+              sensor_names: Sequence[str] | None = None) -> Demonstration:
+    """Read and validate one demonstration CSV (format in the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    sensor_names : sequence of str, optional
+        The sensor inputs the columns must be exactly (a spec's ``inputs``).
+
+    Returns
+    -------
+    Demonstration
+
+    Raises
+    ------
+    DemoError
+        Naming the file, line and column: unreadable file, bad header, wrong field count,
+        non-numeric / NaN / Inf value, sensor value other than 0/1, non-increasing ``t``, fewer
+        than 3 rows.
+    """
+    where = str(path)
+    text = read_text(path, what="demonstration", error=DemoError)
+    header: list[str] | None = None
+    rows: list[tuple[int, list[str]]] = []
+    for lineno, line in enumerate(io.StringIO(text), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            fields = next(csv.reader([line]))
+        except csv.Error as exc:
+            raise DemoError(f"{where}: line {lineno}: malformed CSV: {exc}") from None
+        if header is None:
+            header = fields
+        else:
+            rows.append((lineno, fields))
+    if header is None:
+        raise DemoError(f"{where}: empty file (expected a header row: t,x0,...)")
+    t_col, x_cols, dx_cols, s_cols, s_names = _header(header, where, sensor_names)
+    names = [h.strip() for h in header]
+    if len(rows) < MIN_ROWS:
+        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
+                        f"{MIN_ROWS}")
+    numeric = [t_col, *x_cols, *dx_cols]
+    values = np.empty((len(rows), len(numeric)), dtype=np.float64)
+    sensors = np.zeros((len(rows), len(s_cols)), dtype=bool)
+    for r, (lineno, fields) in enumerate(rows):
+        if len(fields) != len(names):
+            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
+                            f"{len(names)}")
+        for j, col in enumerate(numeric):
+            raw = fields[col].strip()
+            try:
+                v = float(raw)
+            except ValueError:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: not a number "
+                                f"({raw!r})") from None
+            if not math.isfinite(v):
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
+                                "finite (NaN/Inf)")
+            values[r, j] = v
+        for j, col in enumerate(s_cols):
+            raw = fields[col].strip()
+            if raw not in ("0", "1"):
+                raise DemoError(f"{where}: line {lineno}: sensor {s_names[j]!r}: value {raw!r} "
+                                "is not 0 or 1")
+            sensors[r, j] = raw == "1"
+    t = values[:, 0]
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        r = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise DemoError(f"{where}: line {rows[r][0]}: t = {t[r]!r} does not increase "
+                        f"(previous row has t = {t[r - 1]!r})")
+    n = len(x_cols)
+    x = values[:, 1:1 + n].copy()
+    if dx_cols:
+        dx = values[:, 1 + n:1 + 2 * n].copy()
+    else:
+        dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
+        if not np.all(np.isfinite(dx)):
+            raise DemoError(f"{where}: finite-difference velocities overflow (time steps too "
+                            "small for the state values)")
+    lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
+    for arr in (t, x, dx, sensors, lines):
+        arr.setflags(write=False)
+    return Demonstration(path=where, t=t, x=x, dx=dx, sensor_names=tuple(s_names),
+                         sensors=sensors, velocities_from_file=bool(dx_cols), lines=lines)
+
+
+def load_demos(paths: Iterable[str | os.PathLike[str]], *,
+               sensor_names: Sequence[str] | None = None) -> list[Demonstration]:
+    """Load several demonstrations and check they agree on dimension and sensors.
+
+    Parameters
+    ----------
+    paths : iterable of path-like
+    sensor_names : sequence of str, optional
+        Required sensor columns (a spec's inputs).
+
+    Returns
+    -------
+    list of Demonstration
+
+    Raises
+    ------
+    DemoError
+        On any per-file problem, no files, or files with a different state dimension or a
+        different set of sensor columns than the first one.
+    """
+    demos = [load_demo(p, sensor_names=sensor_names) for p in paths]
+    if not demos:
+        raise DemoError("no demonstration files given")
+    first = demos[0]
+    for d in demos[1:]:
+        if d.dim != first.dim:
+            raise DemoError(f"{d.path}: state dimension {d.dim} differs from {first.path} "
+                            f"({first.dim})")
+        if set(d.sensor_names) != set(first.sensor_names):
+            raise DemoError(f"{d.path}: sensor columns {sorted(d.sensor_names)} differ from "
+                            f"{first.path} ({sorted(first.sensor_names)})")
+    return demos
+
+
+def _format(v: float) -> str:
+    return repr(float(v))
+
+
+def demo_to_csv(demo: Demonstration, *, velocities: bool = True) -> str:
+    """Serialise a demonstration in the CSV format (floats round-trip exactly).
+
+    Parameters
+    ----------
+    demo : Demonstration
+    velocities : bool, optional
+        Write the ``dx*`` columns.
+
+    Returns
+    -------
+    str
+    """
+    n = demo.dim
+    header = ["time", *(f"x{i}" for i in range(n))]
+    if velocities:
+        header += [f"dx{i}" for i in range(n)]
+    header += list(demo.sensor_names)
+    out = io.StringIO()
+    out.write(",".join(header) + "\n")
+    for i in range(demo.n_samples):
+        row = [_format(demo.t[i]), *(_format(v) for v in demo.x[i])]
+        if velocities:
+            row += [_format(v) for v in demo.dx[i]]
+        row += ["1" if v else "0" for v in demo.sensors[i]]
+        out.write(",".join(row) + "\n")
+    return out.getvalue()
+
+
+# --------------------------------------------------------------------------------------------
+# The bundled 2D soup-scooping demonstrations (paper Sec. 7.2, Fig. 1 and 5).
+# --------------------------------------------------------------------------------------------
+
+SCOOP_SOUP_CENTER = np.array([4.5, 2.5])
+"""Centre of the soup region (sensor ``r``: spoon in contact with the soup)."""
+SCOOP_SOUP_RADIUS = 1.2
+SCOOP_TARGET_CENTER = np.array([8.5, 7.0])
+"""Centre of the target bowl (sensor ``t``: spoon at the target)."""
+SCOOP_TARGET_RADIUS = 0.9
+
+
+def _min_jerk(s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Minimum-jerk timing ``u(s) = 10 s^3 - 15 s^4 + 6 s^5`` and its derivative."""
+    return 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
+
+
+def make_scoop_demos(*, seed: int, n_demos: int = 3, duration: float = 10.0,
+                     dt: float = 0.05) -> list[Demonstration]:
+    """Synthesise 2D soup-scooping demonstrations with sensors ``r, s, t``.
+
+    Each demonstration is a smooth path (a cubic spline through jittered waypoints: start,
+    above the soup, through the soup, out of it, to the target bowl) timed with a minimum-jerk
+    profile, so it starts and ends at rest. Sensors follow the paper's scooping task (Sec. 7.2):
+    ``r`` while the spoon is inside the soup disc, ``s`` once it has left the soup (soup on the
+    spoon) until it reaches the target disc, ``t`` inside the target disc after scooping. The
+    sensor sequence is therefore ``(!r!s!t) -> (r!s!t) -> (!r s!t) -> (!r!s t)``: modes
+    a (reach), b (scoop), c (transport), d (done) of ``specs/scoop.toml``.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the start positions and waypoint jitter.
+    n_demos : int, optional
+    duration : float, optional
+        Seconds per demonstration.
+    dt : float, optional
+        Sampling period.
+
+    Returns
+    -------
+    list of Demonstration
+        With analytic velocities.
+    """
+    from scipy.interpolate import CubicSpline
+
+    rng = np.random.default_rng(seed)
+    demos = []
+    t = np.arange(0.0, duration + 0.5 * dt, dt)
+    for d in range(n_demos):
+        start = np.array([1.0, 8.0]) + rng.uniform(-0.8, 0.8, size=2)
+        jitter = rng.normal(scale=0.15, size=(3, 2))
+        waypoints = np.vstack([
+            start,
+            np.array([3.0, 3.6]) + jitter[0],   # above the soup, approaching
+            np.array([4.5, 1.9]) + jitter[1],   # through the soup
+            np.array([6.2, 3.4]) + jitter[2],   # out of the soup, soup on the spoon
+            np.array([7.6, 6.2]),               # towards the target bowl
+            SCOOP_TARGET_CENTER,
+        ])
+        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0),
+                                                                 axis=1))])
+        spline = CubicSpline(chord / chord[-1], waypoints, bc_type="natural")
+        u, du = _min_jerk(t / duration)
+        x = spline(u)
+        dx = spline(u, 1) * (du / duration)[:, None]
+        in_soup = np.linalg.norm(x - SCOOP_SOUP_CENTER, axis=1) <= SCOOP_SOUP_RADIUS
+        scooped = np.maximum.accumulate(in_soup) & ~in_soup
+        at_target = scooped & (np.linalg.norm(x - SCOOP_TARGET_CENTER, axis=1)
+                               <= SCOOP_TARGET_RADIUS)
+        # once at the target the task is done: t stays on
+        at_target = np.maximum.accumulate(at_target)
+        r = in_soup
+        s = scooped & ~at_target
+        sensors = np.stack([r, s, at_target], axis=1)
+        demos.append(Demonstration(path=f"<scoop demo {d + 1}>", t=t.copy(), x=x, dx=dx,
+                                   sensor_names=("r", "s", "t"), sensors=sensors,
+                                   velocities_from_file=True))
+    return demos
+
+
+def write_scoop_demos(directory: str | os.PathLike[str], *, seed: int = 0,
+                      n_demos: int = 3) -> list[Path]:
+    """Write :func:`make_scoop_demos` as ``scoop_<i>.csv`` files (atomic writes).
+
+    Parameters
+    ----------
+    directory : path-like
+    seed : int, optional
+    n_demos : int, optional
+
+    Returns
+    -------
+    list of Path
+    """
+    out = []
+    for i, demo in enumerate(make_scoop_demos(seed=seed, n_demos=n_demos), start=1):
+        path = Path(directory) / f"scoop_{i}.csv"
+        atomic_write_text(path, f"# soup-scooping demonstration {i} "
+                                f"(tli_verify.demos.make_scoop_demos, seed={seed})\n"
+                          + demo_to_csv(demo))
+        out.append(path)
+    return out

@@ -1,0 +1,501 @@
+"""The model file: one LPV-DS (and its cuts) per mode or mode transition.
+
+Format (JSON, validated against the published schema ``tli_verify/schemas/model.schema.json``
+and then semantically: dimensions, symmetry, positive definite covariances, unit cut normals)::
+
+    {
+      "schema_version": 1,
+      "state_names": ["x0", "x1"],
+      "spec": "../specs/scoop.toml",          # relative to the model file, or null
+      "source": {"tool": "tli-verify 0.1.0", "demos": [{"path": "...", "sha256": "..."}]},
+      "modes": {
+        "a": {
+          "mode": "a", "next_mode": "b",      # optional for plain keys
+          "attractor": [x*_0, x*_1],
+          "P": [[..], [..]],                  # V(x) = (x - x*)^T P (x - x*)
+          "components": [{"prior": pi_k, "mean": [..], "cov": [[..]], "A": [[..]]}, ...],
+          "cuts": [{"normal": [..], "point": [..]}],
+          "fit": {"clustering": "pc-gmm", "lyapunov": "p-qlf", "eps": 0.001, ...}
+        },
+        "b->c": {"mode": "b", "next_mode": "c", ...}   # a per-transition DS (appendix F)
+      }
+    }
+
+The DS of a key is ``f(x) = sum_k gamma_k(x) A_k (x - x*)`` (paper eq. 4) and the policy of the
+mode is the modulated ``M(x) f(x)`` (paper eq. 5, Sec. 5.2) once the mode has cuts.
+Floats are written with ``repr`` precision, so a saved model reloads bit-for-bit -- which the
+certificate's exact check relies on.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.boundary.cuts import Cut
+from tli_verify.ds.lpvds import LPVDS
+from tli_verify.errors import ModelError, TliError
+from tli_verify.io import atomic_write_text, canonical_json, read_text
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "ModeModel",
+    "Model",
+    "field_path",
+    "learn_model",
+    "load_model",
+    "model_from_dict",
+    "model_to_dict",
+    "read_json",
+    "save_model",
+    "validate_schema",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+SCHEMA_VERSION = 1
+TRANSITION = "->"
+_PLAIN_KEY = re.compile(r"^[A-Za-z0-9_]+$")
+
+
+# --------------------------------------------------------------------------------------------
+# JSON helpers shared with the certificate module
+# --------------------------------------------------------------------------------------------
+
+def field_path(parts: Sequence[str | int]) -> str:
+    """Format a JSON location like ``modes.a.components[2].cov`` (odd keys in ``["..."]``)."""
+    out = ""
+    for part in parts:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif _PLAIN_KEY.match(part):
+            out += f".{part}" if out else part
+        else:
+            out += f"[{json.dumps(part)}]"
+    return out or "(top level)"
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not allowed (numbers must be finite)")
+
+
+def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
+    """Read a JSON file; errors name the file, line and column. NaN/Infinity are rejected."""
+    text = read_text(path, what=what, error=error)
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}: line {exc.lineno}, column {exc.colno}: invalid JSON: "
+                    f"{exc.msg}") from None
+    except ValueError as exc:
+        raise error(f"{path}: invalid JSON: {exc}") from None
+
+
+@cache
+def _validator(name: str) -> Any:
+    import jsonschema
+
+    schema = json.loads(resources.files("tli_verify").joinpath("schemas", name).read_text("utf-8"))
+    cls = jsonschema.validators.validator_for(schema)
+    cls.check_schema(schema)
+    return cls(schema)
+
+
+def validate_schema(data: Any, schema: str, *, where: str, error: type[TliError]) -> None:
+    """Validate ``data`` against ``tli_verify/schemas/<schema>``.
+
+    Raises
+    ------
+    error
+        ``"<where>: <field path>: <what is wrong>"`` for the most relevant violation.
+    """
+    from jsonschema.exceptions import best_match
+
+    errors = sorted(_validator(schema).iter_errors(data),
+                    key=lambda e: [str(p) for p in e.absolute_path])
+    if errors:
+        worst = best_match(errors)
+        message = worst.message if len(worst.message) <= 160 else worst.message[:157] + "..."
+        raise error(f"{where}: {field_path(list(worst.absolute_path))}: {message}")
+
+
+# --------------------------------------------------------------------------------------------
+# Model
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ModeModel:
+    """The policy of one mode, or of one mode transition.
+
+    Attributes
+    ----------
+    key : str
+        Key in the model file (``mode`` or ``"mode->next"``).
+    mode : str
+        Mode name.
+    next_mode : str or None
+        Next mode of a per-transition DS (or the unique observed one).
+    ds : LPVDS
+        The nominal DS ``f``.
+    cuts : tuple of Cut
+        Cuts learned online (paper Sec. 5.2); empty after learning.
+    fit : mapping or None
+        How it was learned (informational).
+    """
+
+    key: str
+    mode: str
+    next_mode: str | None
+    ds: LPVDS
+    cuts: tuple[Cut, ...] = ()
+    fit: Mapping[str, Any] | None = None
+
+    def velocity(self, X: npt.ArrayLike) -> FloatArray:
+        """``M(x) f(x)`` (paper eq. 5), or ``f(x)`` without cuts.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n) or (n,)
+
+        Returns
+        -------
+        ndarray, same shape as ``X``
+        """
+        F = self.ds.velocity(X)
+        if not self.cuts:
+            return F
+        from tli_verify.boundary.modulation import modulate
+
+        single = F.ndim == 1
+        Xa = np.atleast_2d(np.asarray(X, dtype=np.float64))
+        out = modulate(Xa, np.atleast_2d(F), self.cuts, self.ds.attractor, lyapunov=self.ds.P)
+        return np.asarray(out[0] if single else out, dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Model:
+    """A loaded model file: per-mode (or per-transition) LPV-DS with cuts.
+
+    Attributes
+    ----------
+    state_names : tuple of str
+        Names of the ``n`` state coordinates.
+    modes : mapping of str to ModeModel
+        Key -> policy.
+    spec : str or None
+        The spec path as written in the file (relative to the model file).
+    path : str or None
+        The file it was loaded from.
+    source : mapping or None
+        Provenance (demonstration files and hashes, tool version).
+    """
+
+    state_names: tuple[str, ...]
+    modes: Mapping[str, ModeModel]
+    spec: str | None = None
+    path: str | None = None
+    source: Mapping[str, Any] | None = field(default=None)
+
+    @property
+    def dim(self) -> int:
+        """State dimension n."""
+        return len(self.state_names)
+
+    @property
+    def spec_path(self) -> Path | None:
+        """The spec file resolved against the model file's directory (None if none)."""
+        if self.spec is None:
+            return None
+        base = Path(self.path).parent if self.path else Path(".")
+        return base / self.spec
+
+    def key(self, mode: str, next_mode: str | None = None) -> str:
+        """The key of the DS to run in ``mode`` (towards ``next_mode`` for per-transition DS).
+
+        Raises
+        ------
+        ModelError
+            If the model has no DS for that mode (or transition).
+        """
+        if next_mode is not None:
+            k = f"{mode}{TRANSITION}{next_mode}"
+            if k in self.modes:
+                return k
+        if mode in self.modes:
+            return mode
+        options = sorted(k for k, m in self.modes.items() if m.mode == mode)
+        what = mode if next_mode is None else f"{mode}{TRANSITION}{next_mode}"
+        hint = (f"; per-transition DS of this mode: {', '.join(options)} (pass next_mode)"
+                if options else f"; known keys: {', '.join(sorted(self.modes))}")
+        raise ModelError(f"{self.path or 'model'}: no DS for {what!r}{hint}")
+
+    def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None) -> FloatArray:
+        """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 5).
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n) or (n,)
+            States.
+        mode : str
+            Mode name or model key (``"a"`` or ``"a->b"``).
+        next_mode : str, optional
+            For per-transition DS: the next mode the automaton plans.
+
+        Returns
+        -------
+        ndarray, shape (N, n) or (n,)
+        """
+        return self.modes[self.key(mode, next_mode)].velocity(X)
+
+    def nominal_velocity(self, X: npt.ArrayLike, mode: str,
+                         next_mode: str | None = None) -> FloatArray:
+        """``f(x)`` of the mode's LPV-DS without modulation (paper eq. 4)."""
+        return self.modes[self.key(mode, next_mode)].ds.velocity(X)
+
+    def with_cuts(self, key: str, cuts: Sequence[Cut]) -> Model:
+        """A copy of the model whose DS ``key`` has the given cuts."""
+        if key not in self.modes:
+            raise ModelError(f"no DS {key!r} in the model")
+        old = self.modes[key]
+        modes = dict(self.modes)
+        modes[key] = ModeModel(key=old.key, mode=old.mode, next_mode=old.next_mode, ds=old.ds,
+                               cuts=tuple(cuts), fit=old.fit)
+        return Model(state_names=self.state_names, modes=MappingProxyType(modes),
+                     spec=self.spec, path=self.path, source=self.source)
+
+
+def _matrix(value: Any, shape: tuple[int, ...], where: str) -> FloatArray:
+    arr = np.array(value, dtype=object)
+    if arr.shape != shape:
+        want = "x".join(str(s) for s in shape)
+        raise ModelError(f"{where}: expected shape {want}, got "
+                         f"{'x'.join(str(s) for s in arr.shape) or 'a scalar'}")
+    return np.array(value, dtype=np.float64)
+
+
+def _symmetric(M: FloatArray, where: str) -> None:
+    bad = np.argwhere(M != M.T)
+    if bad.size:
+        i, j = (int(v) for v in bad[0])
+        raise ModelError(f"{where}: not symmetric (entry [{i}][{j}] != [{j}][{i}])")
+
+
+def model_from_dict(data: Any, *, where: str = "model", path: str | None = None) -> Model:
+    """Validate a parsed model document (schema, then semantics) and build the model.
+
+    Raises
+    ------
+    ModelError
+        ``"<where>: <field path>: <problem>"``.
+    """
+    validate_schema(data, "model.schema.json", where=where, error=ModelError)
+    names = tuple(data["state_names"])
+    n = len(names)
+    modes: dict[str, ModeModel] = {}
+    for key, entry in data["modes"].items():
+        loc = field_path(["modes", key])
+        if TRANSITION in key:
+            head, _, tail = key.partition(TRANSITION)
+            if entry.get("mode") != head or entry.get("next_mode") != tail:
+                raise ModelError(f"{where}: {loc}: a per-transition key '<mode>{TRANSITION}<next>' "
+                                 f"needs \"mode\": {head!r} and \"next_mode\": {tail!r}")
+        mode = entry.get("mode", key)
+        if TRANSITION not in key and mode != key:
+            raise ModelError(f"{where}: {loc}.mode: {mode!r} differs from the key {key!r}")
+        attractor = _matrix(entry["attractor"], (n,), f"{where}: {loc}.attractor")
+        P = _matrix(entry["P"], (n, n), f"{where}: {loc}.P")
+        _symmetric(P, f"{where}: {loc}.P")
+        comps = entry["components"]
+        means, covs, As, priors = [], [], [], []
+        for k, comp in enumerate(comps):
+            cloc = f"{where}: {loc}.components[{k}]"
+            priors.append(float(comp["prior"]))
+            means.append(_matrix(comp["mean"], (n,), f"{cloc}.mean"))
+            cov = _matrix(comp["cov"], (n, n), f"{cloc}.cov")
+            _symmetric(cov, f"{cloc}.cov")
+            try:
+                np.linalg.cholesky(cov)
+            except np.linalg.LinAlgError:
+                raise ModelError(f"{cloc}.cov: not symmetric positive definite") from None
+            covs.append(cov)
+            As.append(_matrix(comp["A"], (n, n), f"{cloc}.A"))
+        total = float(np.sum(priors))
+        if abs(total - 1.0) > 1e-6:
+            raise ModelError(f"{where}: {loc}.components: priors sum to {total!r}, not 1")
+        cuts = []
+        for c, raw in enumerate(entry["cuts"]):
+            cut = Cut.from_dict(raw, where=f"{where}: {loc}.cuts[{c}]")
+            if cut.dim != n:
+                raise ModelError(f"{where}: {loc}.cuts[{c}]: dimension {cut.dim}, the model "
+                                 f"has {n} states")
+            cuts.append(cut)
+        try:
+            ds = LPVDS(attractor=attractor, priors=np.array(priors), means=np.array(means),
+                       covs=np.array(covs), A=np.array(As), P=P)
+        except ModelError as exc:
+            raise ModelError(f"{where}: {loc}: {exc}") from None
+        if cuts:
+            from tli_verify.boundary.modulation import Modulator
+
+            try:
+                Modulator.build(cuts, attractor, lyapunov=P)
+            except ModelError as exc:
+                raise ModelError(f"{where}: {loc}.cuts: {exc}") from None
+        fit = entry.get("fit")
+        modes[key] = ModeModel(key=key, mode=mode, next_mode=entry.get("next_mode"), ds=ds,
+                               cuts=tuple(cuts),
+                               fit=MappingProxyType(dict(fit)) if fit is not None else None)
+    source = data.get("source")
+    return Model(state_names=names, modes=MappingProxyType(modes), spec=data.get("spec"),
+                 path=path, source=MappingProxyType(dict(source)) if source else None)
+
+
+def load_model(path: str | os.PathLike[str]) -> Model:
+    """Load and validate a model file (public API: ``tli_verify.load_model``).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    Model
+        Frozen; ``model.velocity(X, mode="a")`` maps ``(N, n)`` states to ``(N, n)`` velocities.
+
+    Raises
+    ------
+    ModelError
+        Naming the file and the JSON field, e.g.
+        ``models/x.json: modes.a.components[2].cov: not symmetric positive definite``.
+    """
+    data = read_json(path, what="model", error=ModelError)
+    return model_from_dict(data, where=str(path), path=str(path))
+
+
+def _mode_to_dict(m: ModeModel) -> dict[str, Any]:
+    ds = m.ds
+    entry: dict[str, Any] = {
+        "mode": m.mode,
+        "next_mode": m.next_mode,
+        "attractor": ds.attractor.tolist(),
+        "P": ds.P.tolist(),
+        "components": [
+            {"prior": float(ds.priors[k]), "mean": ds.means[k].tolist(),
+             "cov": ds.covs[k].tolist(), "A": ds.A[k].tolist()}
+            for k in range(ds.n_components)
+        ],
+        "cuts": [c.to_dict() for c in m.cuts],
+    }
+    if m.fit is not None:
+        entry["fit"] = dict(m.fit)
+    return entry
+
+
+def model_to_dict(model: Model) -> dict[str, Any]:
+    """The JSON document of a model (inverse of :func:`model_from_dict`)."""
+    doc: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
+        "state_names": list(model.state_names),
+        "spec": model.spec,
+        "modes": {k: _mode_to_dict(m) for k, m in model.modes.items()},
+    }
+    if model.source is not None:
+        doc["source"] = json.loads(json.dumps(dict(model.source)))
+    return doc
+
+
+def save_model(model: Model, path: str | os.PathLike[str]) -> None:
+    """Write a model file atomically (canonical JSON, exact float round-trip)."""
+    doc = model_to_dict(model)
+    model_from_dict(doc, where=str(path))  # never write a file we would refuse to load
+    atomic_write_text(path, canonical_json(doc))
+
+
+def _relpath(target: str | os.PathLike[str], base_dir: Path) -> str:
+    """``target`` relative to ``base_dir`` (POSIX separators), for portable files."""
+    return Path(os.path.relpath(Path(target).resolve(), base_dir.resolve())).as_posix()
+
+
+def learn_model(
+    demo_paths: Sequence[str | os.PathLike[str]],
+    *,
+    out_path: str | os.PathLike[str],
+    spec_path: str | os.PathLike[str] | None = None,
+    seed: int = 0,
+    eps: float = 1e-3,
+    clustering: str = "pc-gmm",
+    lyapunov: str = "p-qlf",
+) -> Model:
+    """Demonstrations -> segments -> one certified-to-be LPV-DS per mode (paper Sec. 5.1).
+
+    Parameters
+    ----------
+    demo_paths : sequence of path-like
+        Demonstration CSV files (:mod:`tli_verify.demos`).
+    out_path : path-like
+        Where the model will be written (relative paths in the file are relative to it).
+    spec_path : path-like, optional
+        Spec whose ``[modes]`` labels define the modes; without it, each distinct sensor
+        reading is a mode (:mod:`tli_verify.segmentation`).
+    seed : int, optional
+        Seed of the clustering (same seed, same model).
+    eps : float, optional
+        LMI margin ``A_k^T P + P A_k <= -eps I``.
+    clustering, lyapunov : str, optional
+        See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+
+    Returns
+    -------
+    Model
+        Not yet written; see :func:`save_model`.
+
+    Raises
+    ------
+    DemoError, SpecError, SolverError
+        Bad demonstrations, a spec without modes, a solver status other than optimal.
+    """
+    from tli_verify import __version__
+    from tli_verify.demos import load_demos
+    from tli_verify.ds.lpvds import learn_lpvds
+    from tli_verify.io import sha256_file
+    from tli_verify.segmentation import segment_demos, spec_labeler
+
+    out_dir = Path(out_path).parent
+    if spec_path is not None:
+        from tli_verify.logic.spec import load_spec
+
+        spec = load_spec(spec_path)
+        labeler, modes, labels = spec_labeler(spec)
+        demos = load_demos(demo_paths, sensor_names=spec.inputs)
+        seg = segment_demos(demos, labeler=labeler, modes=modes, labels=labels)
+    else:
+        demos = load_demos(demo_paths)
+        seg = segment_demos(demos)
+    names = tuple(f"x{i}" for i in range(demos[0].dim))
+    learned: dict[str, ModeModel] = {}
+    for key, data in seg.data.items():
+        ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
+                               clustering=clustering,  # type: ignore[arg-type]
+                               lyapunov=lyapunov)  # type: ignore[arg-type]
+        fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
+               "n_components": info.n_components, "eps": info.eps, "seed": info.seed,
+               "solver": info.solver, "status": info.status, "n_samples": info.n_samples}
+        learned[key] = ModeModel(key=key, mode=data.mode, next_mode=data.next_mode, ds=ds,
+                                 fit=MappingProxyType(fit))
+    source = {"tool": f"tli-verify {__version__}",
+              "demos": [{"path": _relpath(p, out_dir), "sha256": sha256_file(p)}
+                        for p in demo_paths]}
+    return Model(state_names=names, modes=MappingProxyType(learned),
+                 spec=_relpath(spec_path, out_dir) if spec_path is not None else None,
+                 path=str(out_path), source=MappingProxyType(source))
