@@ -18,9 +18,9 @@ from typing import Any
 
 from tli_verify.io import atomic_write_text
 from tli_verify.logic.check import synthesize
-from tli_verify.logic.generate import RandomSpecConfig, random_spec
+from tli_verify.logic.generate import RandomSpecConfig, chain_spec_text, random_spec
 from tli_verify.logic.gr1 import build_game, solve
-from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.logic.spec import GR1Spec, load_spec, parse_spec
 
 REPO = Path(__file__).resolve().parents[1]
 REPEATS = 5
@@ -76,6 +76,13 @@ def main(out_dir: Path) -> str:
             real += int(v1)
         rows.append((f"random, {n_vars} vars", n_vars, SEEDS, statistics.median(ours_t),
                      statistics.median(omega_t), agree, real))
+    # Realizable task chains (like color tracing) of 11 to 41 variables.
+    for n_modes in (5, 10, 15, 20):
+        spec = parse_spec(chain_spec_text(n_modes))
+        t_ours, v_ours = _time(_ours, spec)
+        t_omega, v_omega = _time(omega, spec)
+        rows.append((f"task chain, {n_modes} modes", 2 * n_modes + 1, 1, t_ours, t_omega,
+                     v_ours == v_omega, int(v_ours)))
     # Scoop end to end, warm.
     scoop = REPO / "specs" / "scoop.toml"
     synthesize(load_spec(scoop))

@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.io import atomic_write_text
-from tli_verify.logic.generate import RandomSpecConfig, random_spec
+from tli_verify.logic.generate import RandomSpecConfig, chain_spec_text, random_spec
 from tli_verify.logic.gr1 import build_game, solve
 from tli_verify.logic.sanity import unrealizable_core, vacuity_hints, well_separation
-from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.logic.spec import GR1Spec, load_spec, parse_spec
 
 REPO = Path(__file__).resolve().parents[1]
 REPEATS = 3
@@ -66,6 +66,11 @@ def main(out_dir: Path) -> str:
                      statistics.median(r[2] for r in results),
                      statistics.median(cores) if cores else None,
                      statistics.median(r[4] for r in results)))
+    for n_modes in (5, 10, 15, 20):
+        spec = parse_spec(chain_spec_text(n_modes))
+        r, t1, t2, t3, t4 = _measure(spec)
+        rows.append((f"task chain, {n_modes} modes", 2 * n_modes + 1, "yes" if r else "no",
+                     t1, t2, t3, t4))
     lines = [
         "## Spec sanity checks next to plain realizability",
         "",

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from tests.support.omega_oracle import omega_realizable
 from tli_verify.logic.check import check_spec
-from tli_verify.logic.generate import RandomSpecConfig, random_spec
-from tli_verify.logic.spec import load_spec
+from tli_verify.logic.generate import RandomSpecConfig, chain_spec_text, random_spec
+from tli_verify.logic.spec import load_spec, parse_spec
 
 
 def _omega(spec: object) -> bool:
@@ -39,3 +39,12 @@ def test_shipped_specs_agree_with_omega(specs_dir: Path) -> None:
     for path in sorted(specs_dir.glob("*.toml")):
         spec = load_spec(path)
         assert check_spec(spec).realizable == _omega(spec), path
+
+
+def test_task_chains_agree_with_omega() -> None:
+    for n_modes in range(2, 7):
+        spec = parse_spec(chain_spec_text(n_modes))
+        result = check_spec(spec)
+        assert result.realizable
+        assert result.well_separated
+        assert _omega(spec)

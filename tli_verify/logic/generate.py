@@ -95,3 +95,54 @@ def random_spec_text(config: RandomSpecConfig, seed: int) -> str:
 def random_spec(config: RandomSpecConfig, seed: int) -> GR1Spec:
     """A random GR(1) spec (see :func:`random_spec_text`)."""
     return parse_spec(random_spec_text(config, seed), path=f"<random-{seed}>")
+
+
+def chain_spec_text(n_modes: int) -> str:
+    """A scalable, realizable task spec: a chain of ``n_modes`` modes (like color tracing).
+
+    Sensor ``ti`` says the robot is in region ``i`` (one-hot); mode ``mi`` runs there. The
+    world moves from region ``i`` to ``i+1`` (progress) or back to region 0 (a perturbation);
+    the last region holds. ``p`` marks perturbations and the goal is ``GF(last | p)``.
+    ``2 * n_modes + 1`` variables.
+    """
+    if n_modes < 2:
+        raise ValueError("a chain needs at least 2 modes")
+    ts = [f"t{i}" for i in range(n_modes)]
+    ms = [f"m{i}" for i in range(n_modes)]
+
+    def region(i: int) -> str:
+        return " & ".join(t if k == i else f"!{t}" for k, t in enumerate(ts))
+
+    env_safety = []
+    for i in range(n_modes - 1):
+        nxt = sorted({i, i + 1, 0})
+        env_safety.append(f"G(({region(i)}) -> X(" + " | ".join(f"({region(k)})" for k in nxt)
+                          + "))")
+    env_safety.append(f"G(({region(n_modes - 1)}) -> X({region(n_modes - 1)}))")
+    fairness = [f"GF(!{ms[i]} | !({region(i)}))" for i in range(n_modes - 1)]
+    sys_safety = [f"G({ms[i]} -> X({ms[i]} | {ms[i + 1]} | {ms[0]}))"
+                  for i in range(n_modes - 1)]
+    sys_safety.append(f"G({ms[-1]} -> X {ms[-1]})")
+    perturbed = " | ".join(f"({ms[i]} & X {ms[0]})" for i in range(1, n_modes - 1)) or "false"
+    sys_safety.append(f"G(X p <-> ({perturbed}))")
+
+    def quoted(items: list[str]) -> str:
+        return "[" + ", ".join(f'"{s}"' for s in items) + "]"
+
+    modes = "\n".join(f'{m} = "{region(i)}"' for i, m in enumerate(ms))
+    return "\n".join([
+        f'name = "chain-{n_modes}"',
+        f"inputs = {quoted(ts)}",
+        f"outputs = {quoted([*ms, 'p'])}",
+        "[modes]",
+        modes,
+        "[assume]",
+        f'init = "{region(0)}"',
+        f"safety = {quoted(env_safety)}",
+        f"liveness = {quoted(fairness)}",
+        "[guarantee]",
+        f'init = "{ms[0]} & !p"',
+        f"safety = {quoted(sys_safety)}",
+        f'liveness = ["GF({ms[-1]} | p)"]',
+        "",
+    ])
