@@ -235,8 +235,8 @@ def load_demo(path: str | os.PathLike[str], *,
     steps = np.diff(t)
     if np.any(steps <= 0):
         r = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise DemoError(f"{where}: line {rows[r][0]}: t = {t[r]!r} does not increase "
-                        f"(previous row has t = {t[r - 1]!r})")
+        raise DemoError(f"{where}: line {rows[r][0]}: t = {float(t[r])!r} does not increase "
+                        f"(previous row has t = {float(t[r - 1])!r})")
     n = len(x_cols)
     x = values[:, 1:1 + n].copy()
     if dx_cols:

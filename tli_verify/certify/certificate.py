@@ -302,8 +302,8 @@ def _check_mode(key: str, entry: Mapping[str, Any], mm: Any) -> list[str]:
         diff = np.argwhere(P != mm.ds.P)
         if diff.size:
             i, j = (int(v) for v in diff[0])
-            out.append(f"{tag}: P[{i}][{j}] = {P[i, j]!r} differs from the model's P[{i}][{j}] "
-                       f"= {mm.ds.P[i, j]!r}")
+            out.append(f"{tag}: P[{i}][{j}] = {float(P[i, j])!r} differs from the model's "
+                       f"P[{i}][{j}] = {float(mm.ds.P[i, j])!r}")
     lam = entry["lambda_max"]
     if len(lam) != A.shape[0]:
         out.append(f"{tag}: certificate lists {len(lam)} components, the model has "

@@ -220,6 +220,7 @@ def fit_pcgmm(
     """
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.mixture import BayesianGaussianMixture
+    from threadpoolctl import threadpool_limits
 
     Xa = _check_data(X, 2)
     dXa = np.asarray(dX, dtype=np.float64)
@@ -245,7 +246,7 @@ def fit_pcgmm(
             reg_covar=1e-6,
             random_state=seed,
         )
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):
             warnings.simplefilter("ignore", ConvergenceWarning)
             dp.fit(features)
             resp = dp.predict_proba(features)
@@ -292,19 +293,20 @@ def fit_em_bic(
     """
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.mixture import GaussianMixture
+    from threadpoolctl import threadpool_limits
 
     Xa = _check_data(X, 2)
     n_points, n = Xa.shape
     Z, _, scale = _standardise(Xa)
     best: tuple[float, FloatArray] | None = None
-    for k in range(1, max(1, min(max_components, n_points // (n + 2))) + 1):
-        em = GaussianMixture(n_components=k, covariance_type="full", reg_covar=reg,
-                             random_state=seed, max_iter=200)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ConvergenceWarning)
+    with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        for k in range(1, max(1, min(max_components, n_points // (n + 2))) + 1):
+            em = GaussianMixture(n_components=k, covariance_type="full", reg_covar=reg,
+                                 random_state=seed, max_iter=200)
             em.fit(Z)
-        bic = float(em.bic(Z))
-        if best is None or bic < best[0]:
-            best = (bic, em.predict_proba(Z))
+            bic = float(em.bic(Z))
+            if best is None or bic < best[0]:
+                best = (bic, em.predict_proba(Z))
     assert best is not None
     return _gaussians_from_responsibilities(Xa, best[1], reg * scale**2)

