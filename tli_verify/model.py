@@ -44,7 +44,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut
-from tli_verify.ds.lpvds import LPVDS
+from tli_verify.ds.lpvds import LPVDS, Clustering, LyapunovKind
 from tli_verify.errors import ModelError, TliError
 from tli_verify.io import atomic_write_text, canonical_json, read_text
 
@@ -434,8 +434,8 @@ def learn_model(
     spec_path: str | os.PathLike[str] | None = None,
     seed: int = 0,
     eps: float = 1e-3,
-    clustering: str = "pc-gmm",
-    lyapunov: str = "p-qlf",
+    clustering: Clustering = "pc-gmm",
+    lyapunov: LyapunovKind = "p-qlf",
 ) -> Model:
     """Demonstrations -> segments -> one certified-to-be LPV-DS per mode (paper Sec. 5.1).
 
@@ -486,8 +486,7 @@ def learn_model(
     learned: dict[str, ModeModel] = {}
     for key, data in seg.data.items():
         ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
-                               clustering=clustering,  # type: ignore[arg-type]
-                               lyapunov=lyapunov)  # type: ignore[arg-type]
+                               clustering=clustering, lyapunov=lyapunov)
         fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
                "n_components": info.n_components, "eps": info.eps, "seed": info.seed,
                "solver": info.solver, "status": info.status, "n_samples": info.n_samples}

@@ -27,9 +27,13 @@ import numpy.typing as npt
 from tli_verify.ds.gmm import GMM
 from tli_verify.errors import ModelError
 
-__all__ = ["LPVDS", "FitInfo", "learn_lpvds"]
+__all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
 
 FloatArray = npt.NDArray[np.float64]
+Clustering = Literal["pc-gmm", "em-bic"]
+"""Mixing model: the PC-GMM method or the EM+BIC baseline."""
+LyapunovKind = Literal["p-qlf", "identity"]
+"""``P`` learned by the convex P-QLF program, or fixed to the identity (baseline)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -195,8 +199,8 @@ def learn_lpvds(
     *,
     seed: int = 0,
     eps: float = 1e-3,
-    clustering: Literal["pc-gmm", "em-bic"] = "pc-gmm",
-    lyapunov: Literal["p-qlf", "identity"] = "p-qlf",
+    clustering: Clustering = "pc-gmm",
+    lyapunov: LyapunovKind = "p-qlf",
     max_components: int = 12,
 ) -> tuple[LPVDS, FitInfo]:
     """Learn a Lyapunov-stable LPV-DS from position/velocity samples (paper Sec. 4.3).
