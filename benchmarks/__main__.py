@@ -1,8 +1,9 @@
 """Run every ``benchmarks/bench_*.py`` and collect their Markdown tables.
 
 Each benchmark module exposes ``main(out_dir: Path) -> str`` that runs its side-by-side
-comparison, writes its own files under ``out_dir`` and returns a Markdown section. This runner
-writes them all to ``out_dir/RESULTS.md`` (the table quoted in the README).
+comparison, writes its own files under ``out_dir`` (at least ``<name>.md``) and returns a
+Markdown section. This runner then writes ``out_dir/RESULTS.md`` from every section file in
+``out_dir``, so ``--only`` refreshes some sections and keeps the others.
 
 Usage: ``python -m benchmarks [--out DIR] [--only NAME ...]``.
 """
@@ -42,8 +43,11 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()
         module = importlib.import_module(f"benchmarks.{name}")
         section = module.main(args.out)
-        sections.append(section)
+        atomic_write_text(args.out / f"{name.removeprefix('bench_')}.md", section.rstrip() + "\n")
         sys.stdout.write(section + "\n")
+    for path in sorted(args.out.glob("*.md")):
+        if path.name != "RESULTS.md":
+            sections.append(path.read_text(encoding="utf-8"))
     atomic_write_text(args.out / "RESULTS.md", "\n".join(sections))
     return 0
 
