@@ -20,7 +20,7 @@ demo: $(STAMP)
 	$(VENV)/bin/tli demo --out out
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check tli_verify tests benchmarks
+	$(VENV)/bin/ruff check tli_verify tests benchmarks scripts
 	$(VENV)/bin/mypy
 
 test: $(STAMP) lint
