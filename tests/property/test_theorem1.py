@@ -10,8 +10,9 @@ random cuts that keep ``x*`` strictly inside or on their plane (degenerate cuts,
 :mod:`tli_verify.boundary.modulation`):
 
 (a) no integrated trajectory that starts inside the cuts ever crosses a cut (``Gamma <= 1``
-    at every step of a boundary-aware explicit Euler integration), and at every boundary point (the relative interior of a
-    face of the cut region) the modulated velocity does not point outward;
+    at every step of a boundary-aware explicit Euler integration), and at every boundary point
+    (the relative interior of a face of the cut region) the modulated velocity does not point
+    outward;
 (b) ``dV/dt`` of the modulated DS is at most that of the nominal DS at every sampled state;
 (c) every trajectory reaches ``x*``: ``V(x(T)) <= V(x(0)) exp(-lambda T)`` with the rate
     ``lambda = 2 min_k lambda_min(Q_k) / lambda_max(P)`` that (b) guarantees, and

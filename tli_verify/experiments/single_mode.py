@@ -780,7 +780,8 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
     for name, ok in summary["expected_shape"].items():
         lines.append(f"- [{'x' if ok else ' '}] {name}")
     if summary.get("unsolved_cuts"):
-        lines += ["", f"Failures without a separating cut (skipped): {summary['unsolved_cuts']}"]
+        lines += ["", "Cut attempts that found no separating plane (that failure was skipped): "
+                  f"{summary['unsolved_cuts']}"]
     if summary.get("seconds") is not None:
         lines += ["", f"Wall time {summary['seconds']:.1f} s with {summary['workers']} "
                   "worker process(es)."]

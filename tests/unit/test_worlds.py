@@ -1,0 +1,52 @@
+"""Random convex modes and synthetic demonstrations (paper appendix F)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tli_verify.errors import ModelError
+from tli_verify.worlds.convex import ConvexMode, make_task, random_convex_mode
+
+
+def test_convex_mode_sensor() -> None:
+    mode = ConvexMode.from_vertices([[0, 0], [2, 0], [2, 1], [0, 1]])
+    X = np.array([[1.0, 0.5], [2.0, 0.5], [2.1, 0.5], [-0.1, 0.0]])
+    np.testing.assert_array_equal(mode.contains(X), [True, True, False, False])
+    np.testing.assert_allclose(mode.margin(X), [0.5, 0.0, -0.1, -0.1])
+    with pytest.raises(ModelError, match="convex"):
+        ConvexMode.from_vertices([[0, 0], [2, 0], [1, 0.2], [2, 1], [0, 1]])
+    with pytest.raises(ModelError, match="convex"):
+        ConvexMode.from_vertices([[0, 0], [0, 1], [2, 1], [2, 0]])  # clockwise
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_task(seed: int) -> None:
+    task = make_task(np.random.default_rng(seed))
+    mode = task.mode
+    V = mode.vertices
+    assert np.all((V >= 0) & (V <= task.workspace))
+    assert np.all(mode.b - mode.vertices @ mode.A.T >= -1e-9)  # vertices in all half-planes
+    assert 1 <= len(task.demos) <= 3
+    assert mode.margin(task.attractor[None])[0] > 0
+    for d in task.demos:
+        assert d.X.shape == (200, 2) and d.Xdot.shape == (200, 2)
+        assert mode.contains(d.X).all()
+        np.testing.assert_array_equal(d.X[-1], task.attractor)
+        assert np.linalg.norm(d.Xdot[0]) < 1e-9 and np.linalg.norm(d.Xdot[-1]) == 0.0
+        # velocities integrate to the path (trapezoid rule on the min-jerk timing)
+        steps = np.linalg.norm(np.diff(d.X, axis=0), axis=1)
+        assert np.all(steps < 0.5)
+    assert task.states.shape == (200 * len(task.demos), 2)
+
+
+def test_seeded_and_inside_sampling() -> None:
+    a = make_task(np.random.default_rng(5))
+    b = make_task(np.random.default_rng(5))
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.mode.vertices, b.mode.vertices)
+    mode = random_convex_mode(np.random.default_rng(1))
+    S = mode.sample_inside(np.random.default_rng(2), 500, min_margin=1.0)
+    assert S.shape == (500, 2) and np.all(mode.margin(S) >= 1.0)
+    with pytest.raises(ModelError):
+        mode.sample_inside(np.random.default_rng(2), 5, min_margin=1e3)
