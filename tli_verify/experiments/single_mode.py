@@ -866,11 +866,15 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     for ax, p in zip(axes, ("DS+mod", "BC+mod"), strict=True):
         for k, col in zip(noises, colors, strict=False):
             cur = summary["curve"][p][k]
-            L = min(len(cur["mean"]), 11)
+            L = 11  # a study that stopped early keeps its last value
+
+            def pad(v: list[float], L: int = L) -> FloatArray:
+                return 100 * np.array((v + [v[-1]] * L)[:L])
+
             xs = np.arange(L)
-            ax.plot(xs, 100 * np.array(cur["mean"][:L]), color=col, lw=2, label=f"noise {k}%")
-            ax.fill_between(xs, 100 * np.array(cur["q25"][:L]), 100 * np.array(cur["q75"][:L]),
-                            color=col, alpha=0.2)
+            ax.plot(xs, pad(cur["mean"]), color=col, lw=2, marker="o", ms=3,
+                    label=f"noise {k}%")
+            ax.fill_between(xs, pad(cur["q25"]), pad(cur["q75"]), color=col, alpha=0.2)
         ax.set_title(p)
         ax.set_xlabel("number of cuts")
         ax.grid(alpha=0.3)
