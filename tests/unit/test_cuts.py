@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from tli_verify.boundary.cuts import (
     Cut,
@@ -188,3 +191,17 @@ def test_offsets_and_inside() -> None:
     X = np.array([[0.0, -0.5], [2.0, -0.5], [0.0, 0.5], [1.0, 0.0]])
     np.testing.assert_array_equal(inside_cuts(X, cuts), [True, False, False, True])
     np.testing.assert_array_equal(inside_cuts(X, []), [True] * 4)
+
+
+@settings(max_examples=80)
+@given(data=st.data(), n=st.integers(2, 4), k=st.integers(0, 4))
+def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
+    """Any input: either SolverError, or a unit normal meeting every constraint."""
+    pts = data.draw(hnp.arrays(np.float64, (4 + k, n), elements=st.floats(-3, 3, width=64)))
+    x_star, x0, xl, xf, *prev = pts
+    try:
+        sol = solve_cut_detailed(InvarianceFailure(x0, xl, xf), x_star, previous=prev)
+    except SolverError:
+        return
+    _check_constraints(sol, x_star, x0, xl, xf, prev)
+    assert sol.cut.offset(x_star) >= -1e-9 * (1 + np.linalg.norm(x_star - xl))
