@@ -75,6 +75,10 @@ class GMM:
     covs: FloatArray
     _whiten: FloatArray = field(init=False, repr=False)
     _log_const: FloatArray = field(init=False, repr=False)
+    _center: FloatArray = field(init=False, repr=False)
+    _quad_rows: tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]] = field(init=False,
+                                                                           repr=False)
+    _design: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         priors = np.array(self.priors, dtype=np.float64)
@@ -99,10 +103,23 @@ class GMM:
         whiten = np.linalg.solve(chol, eye)
         logdet = 2.0 * np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
         log_const = np.log(priors / priors.sum()) - 0.5 * (logdet + n * _LOG_2PI)
+        # Fast path (posterior): log pi_k N(x | mu_k, Sigma_k) is a quadratic polynomial in
+        # u = x - c, so all K of them are one matrix product phi(u) @ design, with
+        # phi(u) = [u_i u_j (i <= j), u_i, 1]. c is the mean of the means (less cancellation).
+        center = means.mean(axis=0)
+        prec = np.einsum("kji,kjl->kil", whiten, whiten)  # Sigma_k^{-1}
+        mu = means - center
+        iu, ju = np.triu_indices(n)
+        quad = prec[:, iu, ju] * np.where(iu == ju, 1.0, 2.0)  # (K, n(n+1)/2)
+        lin = np.einsum("kij,kj->ki", prec, mu)  # (K, n)
+        const = log_const - 0.5 * np.einsum("ki,ki->k", mu, lin)
+        design = np.concatenate([-0.5 * quad, lin, const[:, None]], axis=1).T  # (D, K)
         for name, value in (("priors", priors), ("means", means), ("covs", covs),
-                            ("_whiten", whiten), ("_log_const", log_const)):
+                            ("_whiten", whiten), ("_log_const", log_const),
+                            ("_center", center), ("_design", np.ascontiguousarray(design))):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "_quad_rows", (iu, ju))
 
     @property
     def n_components(self) -> int:
@@ -143,9 +160,16 @@ class GMM:
         ndarray, shape (N, K)
             Non-negative rows summing to 1.
         """
-        logp = self.log_joint(X)
+        U = np.asarray(X, dtype=np.float64) - self._center
+        iu, ju = self._quad_rows
+        phi = np.empty((U.shape[0], self._design.shape[0]))
+        nq = iu.size
+        np.multiply(U[:, iu], U[:, ju], out=phi[:, :nq])
+        phi[:, nq:nq + U.shape[1]] = U
+        phi[:, -1] = 1.0
+        logp = phi @ self._design  # (N, K) = log pi_k + log N(x | mu_k, Sigma_k)
         logp -= logp.max(axis=1, keepdims=True)
-        p = np.exp(logp)
+        p = np.exp(logp, out=logp)
         p /= p.sum(axis=1, keepdims=True)
         return p
 

@@ -63,6 +63,7 @@ class LPVDS:
     A: FloatArray
     P: FloatArray
     _mix: GMM = field(init=False, repr=False)
+    _a_stack: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         mix = GMM(priors=self.priors, means=self.means, covs=self.covs)
@@ -85,6 +86,9 @@ class LPVDS:
         for name in ("priors", "means", "covs"):
             object.__setattr__(self, name, getattr(mix, name))
         object.__setattr__(self, "_mix", mix)
+        a_stack = np.ascontiguousarray(np.transpose(A, (0, 2, 1)).reshape(k * n, n))
+        a_stack.setflags(write=False)
+        object.__setattr__(self, "_a_stack", a_stack)  # rows k*n + j: (A_k)[:, j]
 
     @property
     def dim(self) -> int:
@@ -134,8 +138,10 @@ class LPVDS:
         """
         Xa, single = self._states(X)
         Z = Xa - self.attractor
-        AZ = np.einsum("kij,nj->nki", self.A, Z)  # (N, K, n)
-        F = np.einsum("nk,nki->ni", self._mix.posterior(Xa), AZ)
+        gamma = self._mix.posterior(Xa)  # (N, K)
+        # sum_k gamma_k A_k z = [gamma_k z_j]_(k, j) @ [A_k^T stacked]: one matrix product.
+        G = (gamma[:, :, None] * Z[:, None, :]).reshape(Z.shape[0], -1)  # (N, K n)
+        F = G @ self._a_stack
         return F[0] if single else F
 
     def lyapunov(self, X: npt.ArrayLike) -> FloatArray:
