@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -34,3 +35,13 @@ def repo() -> Path:
 def specs_dir() -> Path:
     """The shipped ``specs/`` directory."""
     return REPO / "specs"
+
+
+@pytest.fixture
+def project(tmp_path: Path, repo: Path) -> Path:
+    """A copy of the deployed scoop model, its certificate and spec (a project the gate sees)."""
+    for sub, name in (("models", "scoop.model.json"), ("certificates", "scoop.cert.json"),
+                      ("specs", "scoop.toml")):
+        (tmp_path / sub).mkdir()
+        shutil.copy(repo / sub / name, tmp_path / sub / name)
+    return tmp_path

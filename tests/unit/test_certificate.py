@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -23,16 +22,6 @@ from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import CertificateError
 from tli_verify.io import canonical_json
 from tli_verify.model import load_model
-
-
-@pytest.fixture
-def project(tmp_path: Path, repo: Path) -> Path:
-    """A copy of the deployed scoop model, its certificate and spec."""
-    for sub, name in (("models", "scoop.model.json"), ("certificates", "scoop.cert.json"),
-                      ("specs", "scoop.toml")):
-        (tmp_path / sub).mkdir()
-        shutil.copy(repo / sub / name, tmp_path / sub / name)
-    return tmp_path
 
 
 def small_model(A1: list[list[float]], P: list[list[float]] | None = None,

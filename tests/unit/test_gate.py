@@ -12,15 +12,6 @@ from tli_verify.certify.gate import run_gate
 from tli_verify.errors import GateError
 
 
-@pytest.fixture
-def project(tmp_path: Path, repo: Path) -> Path:
-    for sub, name in (("models", "scoop.model.json"), ("certificates", "scoop.cert.json"),
-                      ("specs", "scoop.toml")):
-        (tmp_path / sub).mkdir()
-        shutil.copy(repo / sub / name, tmp_path / sub / name)
-    return tmp_path
-
-
 def blockers(root: Path) -> list[str]:
     return [f"{b.kind} {b.path}: {b.message}" for b in run_gate(root).blockers]
 
