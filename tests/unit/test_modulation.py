@@ -32,6 +32,27 @@ def _random_setup(n: int, rng: np.random.Generator, *, m: int = 5, degenerate: b
     return x_star, cuts, P
 
 
+def _inside_near_faces(x_star: np.ndarray, cuts: list[Cut], rng: np.random.Generator,
+                       count: int) -> np.ndarray:
+    """States inside the cuts, a third of them next to a face, a third next to two (corners)."""
+    n = x_star.size
+    W = np.array([c.normal for c in cuts])
+    b = np.array([c.normal @ c.point for c in cuts])
+    out: list[np.ndarray] = []
+    while len(out) < count:
+        x = x_star + 2.0 * rng.standard_normal(n)
+        k = int(rng.integers(0, 3))
+        if k:
+            rows = rng.choice(len(cuts), size=k, replace=False)
+            A = W[rows]
+            # onto those planes, then inwards by distinct tiny amounts: no exact ties of the
+            # closest cut, where eq. 5 may legitimately pick either cut
+            x = x - np.linalg.pinv(A) @ (A @ x - b[rows] + rng.uniform(1e-9, 1e-7, k))
+        if np.all(W @ x <= b + 1e-12):
+            out.append(x)
+    return np.array(out)
+
+
 @pytest.mark.parametrize("n", [2, 3, 4])
 @pytest.mark.parametrize("degenerate", [False, True])
 def test_vectorised_matches_literal_eq5(n: int, degenerate: bool) -> None:
@@ -39,10 +60,59 @@ def test_vectorised_matches_literal_eq5(n: int, degenerate: bool) -> None:
     x_star, cuts, P = _random_setup(n, rng, degenerate=degenerate)
     X = x_star + 2.0 * rng.standard_normal((600, n))
     F = rng.standard_normal((600, n))
-    fast = modulate(X, F, cuts, x_star, lyapunov=P)
-    slow = modulate_reference(X, F, cuts, x_star, lyapunov=P)
+    fast = Modulator.build(cuts, x_star, lyapunov=P).eq5(X, F)
+    slow = modulate_reference(X, F, cuts, x_star, lyapunov=P, guard=False)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-9 * (1 + np.abs(slow).max()))
     assert np.any(np.any(fast != F, axis=1)), "the sample must exercise modulation"
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
+@pytest.mark.parametrize("certified", [False, True])
+@pytest.mark.parametrize("dt", [None, 0.05])
+def test_guard_matches_kkt_enumeration(n: int, certified: bool, dt: float | None) -> None:
+    """The vectorised guard (NNLS) equals the per-point reference (KKT active sets)."""
+    rng = np.random.default_rng(100 + n)
+    x_star, cuts, P = _random_setup(n, rng, m=6)
+    X = _inside_near_faces(x_star, cuts, rng, 300)
+    X = np.vstack([X, x_star + 2.0 * rng.standard_normal((300, n))])
+    # random velocities do not vanish at x* as a DS does: keep away from it
+    X = X[np.linalg.norm(X - x_star, axis=1) > 1e-3]
+    F = 3.0 * rng.standard_normal(X.shape)
+    lyap = P if certified else None
+    mod = Modulator.build(cuts, x_star, lyapunov=lyap)
+    fast = mod(X, F, dt=dt)
+    slow = modulate_reference(X, F, cuts, x_star, lyapunov=lyap, dt=dt)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-9 * (1 + np.abs(slow).max()))
+    guarded = np.any(np.abs(fast - mod.eq5(X, F)) > 1e-12, axis=1)
+    assert guarded.sum() >= 5, "the sample must exercise the guard"
+
+
+def test_guard_is_the_projection_cvxpy() -> None:
+    """Where the guard acts, its answer is the P-metric projection of eq. 5 on C(x): an
+    independent solver (cvxpy with Clarabel) finds the same point."""
+    import cvxpy as cp
+
+    rng = np.random.default_rng(5)
+    x_star, cuts, P = _random_setup(3, rng, m=6)
+    X = _inside_near_faces(x_star, cuts, rng, 200)
+    F = 3.0 * rng.standard_normal(X.shape)
+    mod = Modulator.build(cuts, x_star, lyapunov=P)
+    out, ref = mod(X, F, dt=0.05), mod.eq5(X, F)
+    bound, grad, v_bound, _, _ = mod.admissible(X, F, dt=0.05)
+    idx = np.flatnonzero(np.any(np.abs(out - ref) > 1e-12, axis=1))[:8]
+    assert idx.size >= 3
+    L = np.linalg.cholesky(P)
+    for i in idx.tolist():
+        v = cp.Variable(3)
+        prob = cp.Problem(cp.Minimize(cp.sum_squares(L.T @ (v - ref[i]))),
+                          [mod.W @ v <= bound[i], grad[i] @ v <= v_bound[i]])
+        prob.solve(solver=cp.CLARABEL)
+        assert prob.status == "optimal"
+        ours = float(np.sum((L.T @ (out[i] - ref[i])) ** 2))
+        assert np.all(mod.W @ out[i] <= bound[i] + 1e-9)
+        assert grad[i] @ out[i] <= v_bound[i] + 1e-9 * (1 + abs(v_bound[i]))
+        assert ours <= prob.value * (1 + 1e-7) + 1e-9  # feasible and no worse than Clarabel
+        np.testing.assert_allclose(out[i], v.value, atol=1e-4 * (1 + np.abs(v.value).max()))
 
 
 def test_eq5_eigenstructure() -> None:
@@ -118,10 +188,13 @@ def test_degenerate_cut_is_lyapunov_neutral() -> None:
     X = x_star + rng.standard_normal((500, 3)) * np.array([1, 1, 0]) - np.array([0, 0, 1]) * \
         rng.uniform(0, 1, size=(500, 1))
     F = rng.standard_normal((500, 3))
-    out = modulate(X, F, [cut], x_star, lyapunov=P)
+    mod = Modulator.build([cut], x_star, lyapunov=P)
     D = X - x_star
-    np.testing.assert_allclose(np.einsum("ni,ij,nj->n", D, P, out),
-                               np.einsum("ni,ij,nj->n", D, P, F), atol=1e-9)
+    dv_nom = np.einsum("ni,ij,nj->n", D, P, F)
+    np.testing.assert_allclose(np.einsum("ni,ij,nj->n", D, P, mod.eq5(X, F)), dv_nom,
+                               atol=1e-9)  # eq. 5's correction for a cut through x*
+    dv_guarded = np.einsum("ni,ij,nj->n", D, P, mod(X, F))
+    assert np.all(dv_guarded <= dv_nom + 1e-9)  # the guard can only slow V down further
     on_plane = X.copy()
     on_plane[:, 2] = x_star[2]
     out = modulate(on_plane, F, [cut], x_star, lyapunov=P)
@@ -167,26 +240,33 @@ def test_modulated_wrapper_uses_policy_lyapunov() -> None:
     np.testing.assert_array_equal(fn.modulator.P, np.eye(2))
 
 
-def test_known_limitation_mixed_corner() -> None:
-    """Documented limitation (docs/boundary.md): a cut through x* next to a regular cut.
+def test_mixed_corner_eq5_leaves_guard_stays() -> None:
+    """A cut through x* next to a regular cut: eq. 5 alone leaves, the guarded field does not.
 
     Minimal case found by hypothesis (tests/property/test_theorem1.py): P = I, x* = 0, cuts
-    x <= 0.5 and y <= 0 (the latter holds x*). On each face the modulated velocity is tangent
-    (pointwise (a) holds), but the field switches between the radial and the V-neutral
-    correction across Gamma_x = Gamma_y and a Filippov sliding motion along that surface runs
-    into the corner and out of the cuts. If this test starts failing, the corner has been fixed:
-    update the docs and let the property test draw mixed cut sets for trajectories too.
+    x <= 0.5 and y <= 0 (the latter holds x*). On each face eq. 5's velocity is tangent, but the
+    field switches between the radial and the V-neutral correction across Gamma_x = Gamma_y and
+    slides along that surface into the corner and out of the cuts. The corner guard keeps every
+    Euler step inside (Thm. 1 for any cut set, docs/boundary.md) and the state still converges.
     """
     A = np.array([[-0.3, 0.0, -1.0], [0.0, -0.3, -1.0], [1.0, 1.0, -0.3]])
     x_star = np.zeros(3)
     cuts = [Cut([1.0, 0.0, 0.0], [0.5, 0.0, 0.0]), Cut([0.0, 1.0, 0.0], [0.0, 0.0, 0.0])]
-    mod = Modulator.build(cuts, x_star)
-    X = np.array([[-1.0, -1.0, -1.0]]) * 2.999 / np.sqrt(3.0)
-    assert mod.gamma(X)[0] < 1.0
-    dt, worst = 2e-4, 0.0
+    mod = Modulator.build(cuts, x_star, lyapunov=np.eye(3))
+    X0 = np.array([[-1.0, -1.0, -1.0]]) * 2.999 / np.sqrt(3.0)
+    assert mod.gamma(X0)[0] < 1.0
+    dt = 2e-4
+    X, worst = X0.copy(), 0.0
     for _ in range(20_000):
-        X = X + dt * mod(X, X @ A.T)
+        X = X + dt * mod.eq5(X, X @ A.T)
         worst = max(worst, float(mod.gamma(X)[0]))
         if worst > 1.0 + 1e-3:
             break
-    assert worst > 1.0 + 1e-3  # the trajectory leaves the cuts (the limitation is real)
+    assert worst > 1.0 + 1e-3  # paper eq. 5 alone leaves the cuts here
+    for step in (2e-4, 1e-2):
+        X, worst = X0.copy(), 0.0
+        for _ in range(round(8.0 / step)):
+            X = X + step * mod(X, X @ A.T, dt=step)
+            worst = max(worst, float(mod.gamma(X)[0]))
+        assert worst <= 1.0 + 1e-12, f"dt={step}: the guarded field left the cuts"
+        assert np.linalg.norm(X) < 0.05 * np.linalg.norm(X0)

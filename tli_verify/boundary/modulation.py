@@ -45,16 +45,59 @@ A cut counts as degenerate when ``|h_i| <= 1e-9 max(1, ||p_i - x*||)``.
 
 At ``x = x*`` the reference direction is undefined and ``M = I`` (for a DS, ``f(x*) = 0``).
 
+Corner guard (our extension; it makes Thm. 1 hold for *every* cut set). Eq. 5 handles one cut
+at a time: the closest. Where two planes meet it can push the state out through the other one
+-- for regular cuts only by an ``O(dt)`` Euler overshoot, but where a cut through ``x*`` meets
+another cut the exact flow slides into the corner and out (hypothesis found such a case, kept
+in ``tests/unit/test_modulation.py``). So :meth:`Modulator.__call__` keeps eq. 5's velocity
+``g = M f`` only if it lies in the admissible set, and otherwise replaces it by its projection in
+the ``P`` metric (the least change of ``g``)::
+
+    C(x) = { v :  w_i . v <= rho_i(x) b_i(x)   for every cut i with b_i(x) >= 0,
+                  grad V(x) . v <= grad V(x) . f(x)            (only with a Lyapunov P) }
+    v(x) = g                              if g in C(x)
+         = argmin_{v in C(x)} (v - g)^T P (v - g)     otherwise (a small QP, exact: NNLS)
+
+with ``b_i(x) = w_i . (p_i - x)`` the distance to plane ``i`` (``>= 0`` on its inner side) and
+the barrier rate ``rho_i = max(kappa, r_i, t)``: ``kappa`` a floor (``barrier_rate``, 1/s),
+``r_i`` the rate eq. 5 itself uses for that cut (``(w_i . f)^+ / h_i``, or
+``sigma (w_i . f)^+ / (q V)`` for a cut through ``x*``, so eq. 5 always satisfies the row of its
+closest cut) and ``t = (-grad V . f)^+ / V``. Then:
+
+- ``C(x)`` is never empty: ``v = -t (x - x*)`` satisfies every row (for ``w_i . (x - x*) >= 0``
+  the left side is <= 0; otherwise ``t |w_i . (x - x*)| <= rho_i b_i`` because ``b_i >= |w_i .
+  (x - x*)|`` and ``t <= rho_i``; and ``grad V . v = -t V <= grad V . f``). If the QP solver ever
+  returned a point outside ``C(x)`` this witness is used instead.
+- (a) each row gives ``d b_i / dt >= -rho_i b_i``, so ``b_i`` stays ``>= 0`` (Gronwall): no
+  trajectory crosses a cut it starts on the inner side of -- in particular none leaves the
+  region bounded by all cuts, and on a face or corner no velocity points out through any of its
+  planes. This also holds for Filippov solutions (the rows are closed under convex hulls).
+- (b) ``dV/dt`` is at most that of ``f`` by the last row, so (c) a certified DS still converges
+  to ``x*`` at least as fast as without cuts (Thm. 1 (b)-(c)).
+- Sampled data: with the control period ``dt`` (``__call__(..., dt=)``) the rates are capped at
+  ``1/dt`` and the last row relaxed to ``grad V . v <= max(grad V . f, -V/dt)`` (the witness then
+  is ``t = min(t, 1/dt)``). One explicit Euler step gives ``b_i(x + dt v) >= (1 - dt rho_i)
+  b_i(x) >= 0``: no step crosses a cut either.
+
+Where eq. 5's answer is admissible -- everywhere except near corners, or near a face with an
+outward rate above ``1/dt`` -- the guard changes nothing. Unlike eq. 5 (applied only inside all
+cuts), the rows act wherever the state is on the inner side of a cut; the paper's behaviour
+outside the cuts (unmodulated) is kept except that no satisfied cut is crossed.
+
 References
 ----------
 .. [1] Wang et al., "Temporal Logic Imitation", CoRL 2022: Sec. 5.2, eq. 5, Thm. 1, appendix A.
 .. [2] Khansari-Zadeh, Billard, "A dynamical system approach to realtime obstacle avoidance",
    Autonomous Robots 2012; Huber, Billard, Slotine, "Avoidance of convex and concave obstacles
    with convergence ensured through contraction", RA-L 2019.
+.. [3] Ames et al., "Control barrier functions: theory and applications", ECC 2019 (the rows
+   of ``C(x)`` are exponential barrier conditions); Lawson, Hanson, *Solving Least Squares
+   Problems*, 1974, ch. 23 (least-distance programming by NNLS).
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -63,7 +106,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut
-from tli_verify.errors import ModelError
+from tli_verify.errors import ModelError, SolverError
 
 __all__ = [
     "ModulatedPolicy",
@@ -78,11 +121,20 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
+DEFAULT_BARRIER_RATE = 1.0
+"""Least barrier rate ``kappa`` (1/s) of the corner guard (module docstring)."""
+
 DEGENERATE_TOL = 1e-9
 """Relative tolerance below which ``h_i = w_i . (p_i - x*)`` counts as 0 (a degenerate cut)."""
 
 BOUNDARY_TOL = 1e-9
 """States with ``Gamma <= 1 + BOUNDARY_TOL`` count as inside (rounding on the plane)."""
+
+AT_ATTRACTOR_TOL = 1e-12
+"""States within this relative distance of ``x*`` count as ``x*`` for the guard (no-op)."""
+
+GUARD_TOL = 1e-12
+"""Relative slack before the corner guard treats an eq. 5 velocity as inadmissible."""
 
 
 @runtime_checkable
@@ -121,6 +173,9 @@ class Modulator:
     P: FloatArray
     PinvW: FloatArray
     q: FloatArray
+    certified: bool = False
+    metric: FloatArray | None = None
+    barrier_rate: float = DEFAULT_BARRIER_RATE
 
     @classmethod
     def build(
@@ -129,6 +184,7 @@ class Modulator:
         attractor: npt.ArrayLike,
         *,
         lyapunov: npt.ArrayLike | None = None,
+        barrier_rate: float = DEFAULT_BARRIER_RATE,
     ) -> Modulator:
         """Validate the cuts against ``x*`` and precompute.
 
@@ -138,7 +194,12 @@ class Modulator:
         attractor : array_like, shape (n,)
         lyapunov : array_like, shape (n, n), optional
             ``P`` of ``V(x) = (x-x*)^T P (x-x*)``; symmetric positive definite. Identity if
-            omitted. Only degenerate cuts use it.
+            omitted. Degenerate cuts use it, and when it is given the corner guard also keeps
+            ``dV/dt`` at most that of the nominal flow (Thm. 1 (b)).
+        barrier_rate : float, optional
+            The least barrier rate ``kappa`` of the corner guard, in 1/s (see the module
+            docstring). Larger values let the flow approach a face faster; any positive value
+            keeps Thm. 1.
 
         Raises
         ------
@@ -155,6 +216,8 @@ class Modulator:
                 raise ModelError(f"cuts[{i}] is not a Cut")
             if c.dim != n:
                 raise ModelError(f"cuts[{i}] has dimension {c.dim}, attractor has {n}")
+        if not (np.isfinite(barrier_rate) and barrier_rate > 0):
+            raise ModelError(f"barrier_rate must be a positive number, got {barrier_rate!r}")
         if lyapunov is None:
             P = np.eye(n)
         else:
@@ -185,9 +248,12 @@ class Modulator:
         PinvW: FloatArray = (np.asarray(np.linalg.solve(P, W.T).T, dtype=np.float64) if m
                              else np.zeros((0, n)))
         q = np.einsum("ij,ij->i", W, PinvW)
-        for arr in (x_star, W, h, degenerate, P, PinvW, q):
+        metric = np.asarray(np.linalg.inv(np.linalg.cholesky(P)).T, dtype=np.float64)
+        for arr in (x_star, W, h, degenerate, P, PinvW, q, metric):
             arr.setflags(write=False)
-        return cls(attractor=x_star, W=W, h=h, degenerate=degenerate, P=P, PinvW=PinvW, q=q)
+        return cls(attractor=x_star, W=W, h=h, degenerate=degenerate, P=P, PinvW=PinvW, q=q,
+                   certified=lyapunov is not None, metric=metric,
+                   barrier_rate=float(barrier_rate))
 
     @property
     def dim(self) -> int:
@@ -233,8 +299,11 @@ class Modulator:
         G, _, _ = self._gammas(Xa - self.attractor)
         return np.maximum(np.max(G, axis=1), 0.0)
 
-    def __call__(self, X: npt.ArrayLike, F: npt.ArrayLike) -> FloatArray:
-        """Modulated velocities ``M(x) f(x)``, vectorised over N (see the module docstring).
+    def eq5(self, X: npt.ArrayLike, F: npt.ArrayLike) -> FloatArray:
+        """Paper eq. 5 alone, ``M(x) f(x)`` by the closest cut, vectorised over N.
+
+        This is the modulation the paper defines (and :func:`modulate_reference` builds
+        literally); :meth:`__call__` adds the corner guard on top of it.
 
         Parameters
         ----------
@@ -275,6 +344,158 @@ class Modulator:
         out -= cq[:, None] * self.PinvW[a] + (cq * radial)[:, None] * D
         return out
 
+    def __call__(self, X: npt.ArrayLike, F: npt.ArrayLike, *,
+                 dt: float | None = None) -> FloatArray:
+        """Modulated velocities: eq. 5 (:meth:`eq5`) with the corner guard, vectorised over N.
+
+        Parameters
+        ----------
+        X, F : array_like, shape (N, n)
+            States and the nominal velocities ``f(x)`` there, as for :meth:`eq5`.
+        dt : float, optional
+            Control period of a sampled-data loop that holds the velocity for ``dt`` (explicit
+            Euler). With it the barrier rates are capped at ``1 / dt``, so that one step
+            ``x + dt v`` cannot cross a cut either. Omit for the continuous-time field.
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            A velocity in the admissible set ``C(x)`` at every state inside the cuts (module
+            docstring); ``f(x)`` outside them.
+        """
+        out = self.eq5(X, F)
+        _check_dt(dt)
+        if self.W.shape[0] == 0 or out.shape[0] == 0:
+            return out
+        return self._guard(np.asarray(X, dtype=np.float64), np.asarray(F, dtype=np.float64),
+                           out, dt)
+
+    def admissible(self, X: npt.ArrayLike, F: npt.ArrayLike, *, dt: float | None = None
+                   ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
+                              npt.NDArray[np.bool_]]:
+        """The linear constraints ``C(x)`` of the corner guard at each state.
+
+        Parameters
+        ----------
+        X, F : array_like, shape (N, n)
+            States and nominal velocities.
+        dt : float, optional
+            Control period (see :meth:`__call__`).
+
+        Returns
+        -------
+        bound : ndarray, shape (N, m)
+            ``rho_i(x) b_i(x)``: the largest admissible ``w_i . v``.
+        grad : ndarray, shape (N, n)
+            ``P (x - x*)`` (``dV/dt = 2 grad . v``).
+        v_bound : ndarray, shape (N,)
+            The largest admissible ``grad . v`` (``+inf`` without a Lyapunov matrix).
+        witness : ndarray, shape (N, n)
+            A velocity that satisfies every constraint, ``-t (x - x*)``.
+        inside : ndarray of bool, shape (N, m)
+            Whether each state is on the inner side of (or on) each cut, and not at ``x*``:
+            the constraints that apply. ``bound`` is ``+inf`` where they do not.
+        """
+        Xa = self._check(X, "X")
+        Fa = self._check(F, "F")
+        D = Xa - self.attractor
+        S = D @ self.W.T
+        B = self.h - S  # distance to each plane, >= 0 inside
+        nd = np.linalg.norm(D, axis=1)
+        scale = np.maximum(np.maximum(1.0, nd)[:, None], self.h[None, :])
+        inside = ((B >= -BOUNDARY_TOL * scale)
+                  & (nd > AT_ATTRACTOR_TOL * (1.0 + np.linalg.norm(self.attractor)))[:, None])
+        B = np.maximum(B, 0.0)
+        V = np.einsum("ni,ij,nj->n", D, self.P, D)
+        Vs = np.where(V > 0.0, V, 1.0)
+        out_rate = np.maximum(Fa @ self.W.T, 0.0)
+        hs = np.where(self.degenerate, 1.0, self.h)
+        rate = np.where(self.degenerate,
+                        np.maximum(-S, 0.0) * out_rate / (self.q * Vs[:, None]),
+                        out_rate / hs)
+        rho = np.maximum(rate, self.barrier_rate)
+        grad = D @ self.P
+        if self.certified:
+            v_bound = np.einsum("ni,ni->n", grad, Fa)
+            t = np.maximum(-v_bound / Vs, 0.0)
+            rho = np.maximum(rho, t[:, None])
+        else:
+            v_bound = np.full(Xa.shape[0], np.inf)
+            t = np.zeros(Xa.shape[0])
+        if dt is not None:
+            rho = np.minimum(rho, 1.0 / dt)
+            t = np.minimum(t, 1.0 / dt)
+            if self.certified:
+                v_bound = np.maximum(v_bound, -V / dt)
+        return np.where(inside, rho * B, np.inf), grad, v_bound, -t[:, None] * D, inside
+
+    def _guard(self, X: FloatArray, F: FloatArray, out: FloatArray,
+               dt: float | None) -> FloatArray:
+        """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x)."""
+        bound, grad, v_bound, witness, inside = self.admissible(X, F, dt=dt)
+        fn = 1.0 + np.linalg.norm(F, axis=1) + np.linalg.norm(out, axis=1)
+        tol = GUARD_TOL * fn
+        gv = np.einsum("ni,ni->n", grad, out)
+        bad = inside.any(axis=1) & (np.any(out @ self.W.T > bound + tol[:, None], axis=1)
+                                    | (gv > v_bound + tol * (1.0 + np.abs(v_bound))))
+        if not bad.any():
+            return out
+        assert self.metric is not None
+        for i in np.flatnonzero(bad).tolist():
+            on = inside[i]
+            if self.certified:
+                A = np.vstack([self.W[on], grad[i][None, :]])
+                c = np.append(bound[i, on], v_bound[i])
+            else:
+                A, c = self.W[on], bound[i, on]
+            v = _project_polyhedron(out[i], A, c, self.metric)
+            if v is None or np.any(A @ v > c + tol[i] * (1.0 + np.abs(c))):
+                v = witness[i]  # admissible by construction (module docstring)
+            out[i] = v
+        return out
+
+
+def _check_dt(dt: float | None) -> None:
+    if dt is not None and not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+        raise ModelError(f"dt must be a positive number, got {dt!r}")
+
+
+def _project_polyhedron(g: FloatArray, A: FloatArray, c: FloatArray,
+                        metric: FloatArray) -> FloatArray | None:
+    """``argmin ||v - g||_P  s.t.  A v <= c``, exactly, by least-distance programming.
+
+    With ``P = L L^T`` and ``metric = L^-T``, ``v = g + L^-T z`` turns the problem into the
+    least-distance program ``min ||z||  s.t.  G z >= e`` with ``G = -A L^-T``, ``e = A g - c``,
+    which Lawson & Hanson (*Solving Least Squares Problems*, 1974, ch. 23) reduce to one
+    non-negative least squares problem ``min ||[G^T; e^T] y - e_{n+1}||, y >= 0`` (a finite
+    active-set method, :func:`scipy.optimize.nnls`): with the residual ``r``, ``z = -r[:n] /
+    r[n]``. Returns None if the polyhedron is empty (``r = 0``).
+
+    Parameters
+    ----------
+    g : ndarray, shape (n,)
+    A : ndarray, shape (k, n)
+    c : ndarray, shape (k,)
+    metric : ndarray, shape (n, n)
+        ``L^-T``.
+
+    Returns
+    -------
+    ndarray, shape (n,) or None
+    """
+    from scipy.optimize import nnls
+
+    n = g.size
+    AM = A @ metric
+    E = np.vstack([-AM.T, (A @ g - c)[None, :]])
+    rhs = np.zeros(n + 1)
+    rhs[n] = 1.0
+    y, _ = nnls(E, rhs)
+    r = E @ y - rhs
+    if not abs(r[n]) > 1e-14:
+        return None
+    return np.asarray(g + metric @ (-r[:n] / r[n]), dtype=np.float64)
+
 
 def gamma(
     X: npt.ArrayLike,
@@ -306,8 +527,9 @@ def modulate(
     attractor: npt.ArrayLike,
     *,
     lyapunov: npt.ArrayLike | None = None,
+    dt: float | None = None,
 ) -> FloatArray:
-    """Modulate nominal velocities by the cuts (paper eq. 5), vectorised over N.
+    """Modulate nominal velocities by the cuts (paper eq. 5 and the corner guard), vectorised.
 
     Parameters
     ----------
@@ -320,12 +542,15 @@ def modulate(
     attractor : array_like, shape (n,)
         ``x*``, the reference point ``x^r`` of eq. 5.
     lyapunov : array_like, shape (n, n), optional
-        The DS's ``P``; only degenerate cuts (through ``x*``) use it. Identity if omitted.
+        The DS's ``P``: degenerate cuts (through ``x*``) use it, and the guard then keeps
+        ``dV/dt`` at most that of ``f``. Identity (and no ``V`` constraint) if omitted.
+    dt : float, optional
+        Control period of a sampled-data (explicit Euler) loop, see :meth:`Modulator.__call__`.
 
     Returns
     -------
     ndarray, shape (N, n)
-        ``M(x) f(x)`` where modulation applies, ``f(x)`` elsewhere.
+        ``M(x) f(x)`` (guarded) where modulation applies, ``f(x)`` elsewhere.
 
     Raises
     ------
@@ -336,7 +561,7 @@ def modulate(
     ----------
     Paper Sec. 5.2, eq. 5; Thm. 1 (appendix A).
     """
-    return Modulator.build(cuts, attractor, lyapunov=lyapunov)(X, F)
+    return Modulator.build(cuts, attractor, lyapunov=lyapunov)(X, F, dt=dt)
 
 
 def _tangent_basis(w: FloatArray) -> FloatArray:
@@ -400,11 +625,16 @@ def modulate_reference(
     attractor: npt.ArrayLike,
     *,
     lyapunov: npt.ArrayLike | None = None,
+    dt: float | None = None,
+    guard: bool = True,
 ) -> FloatArray:
-    """Straightforward per-point eq. 5 (build ``E``, ``D``, invert, multiply), for checking.
+    """Straightforward per-point modulation, for checking :func:`modulate`.
 
-    Same contract as :func:`modulate`; a Python loop over points. Used as the oracle in tests
-    and as the baseline of ``benchmarks/bench_modulation.py``.
+    Eq. 5 literally (build ``E`` and ``D``, invert, multiply) and, unless ``guard=False``, the
+    corner guard written out constraint by constraint and solved by enumerating the KKT active
+    sets (an independent route to the projection :class:`Modulator` computes by NNLS). Same
+    contract as :func:`modulate`; a Python loop over points. The oracle of the tests and the
+    baseline of ``benchmarks/bench_modulation.py``.
     """
     Xa = np.asarray(X, dtype=np.float64)
     Fa = np.asarray(F, dtype=np.float64)
@@ -412,15 +642,72 @@ def modulate_reference(
     if not cuts:
         return out
     x_star = np.asarray(attractor, dtype=np.float64)
+    P = np.eye(x_star.size) if lyapunov is None else np.asarray(lyapunov, dtype=np.float64)
     for i in range(Xa.shape[0]):
         if np.array_equal(Xa[i], x_star):
             continue
         E, M, g, _ = modulation_matrix(Xa[i], cuts, x_star, lyapunov=lyapunov)
-        if not 0.0 < g <= 1.0 + BOUNDARY_TOL:
-            continue
-        if np.linalg.solve(E, Fa[i])[0] >= 0.0:
+        if 0.0 < g <= 1.0 + BOUNDARY_TOL and np.linalg.solve(E, Fa[i])[0] >= 0.0:
             out[i] = M @ Fa[i]
+        if guard:
+            out[i] = _guard_reference(Xa[i], Fa[i], out[i], cuts, x_star, P,
+                                      certified=lyapunov is not None, dt=dt)
     return out
+
+
+def _guard_reference(x: FloatArray, f: FloatArray, v: FloatArray, cuts: Sequence[Cut],
+                     x_star: FloatArray, P: FloatArray, *, certified: bool,
+                     dt: float | None) -> FloatArray:
+    """The corner guard at one state, written out (see the module docstring)."""
+    d = x - x_star
+    if np.linalg.norm(d) <= AT_ATTRACTOR_TOL * (1.0 + np.linalg.norm(x_star)):
+        return v
+    V = float(d @ P @ d)
+    rows: list[FloatArray] = []
+    bounds: list[float] = []
+    t = max(-float(d @ P @ f) / V, 0.0) if certified else 0.0
+    for c in cuts:
+        w = np.asarray(c.normal)
+        h = float(w @ (c.point - x_star))
+        b = float(w @ (c.point - x))
+        if b < -BOUNDARY_TOL * max(1.0, float(np.linalg.norm(d)), h):
+            continue  # x is beyond this cut: no constraint from it
+        outward = max(float(w @ f), 0.0)
+        if abs(h) <= DEGENERATE_TOL * max(1.0, float(np.linalg.norm(c.point - x_star))):
+            rate = max(-float(w @ d), 0.0) * outward / (float(w @ np.linalg.solve(P, w)) * V)
+        else:
+            rate = outward / h
+        rho = max(rate, DEFAULT_BARRIER_RATE, t)
+        if dt is not None:
+            rho = min(rho, 1.0 / dt)
+        rows.append(w)
+        bounds.append(rho * max(b, 0.0))
+    if certified:
+        rows.append(P @ d)
+        bounds.append(max(float(d @ P @ f), -V / dt) if dt is not None else float(d @ P @ f))
+    if not rows:
+        return v
+    A, c_ = np.array(rows).reshape(len(rows), x.size), np.array(bounds)
+    slack = GUARD_TOL * (1.0 + float(np.linalg.norm(f)) + float(np.linalg.norm(v)))
+    if np.all(A @ v <= c_ + slack * (1.0 + np.abs(c_))):
+        return v
+    best: FloatArray | None = None
+    Pinv = np.linalg.inv(P)
+    for size in range(1, min(len(rows), x.size) + 1):
+        for S in itertools.combinations(range(len(rows)), size):
+            AS = A[list(S)]
+            K = AS @ Pinv @ AS.T
+            if np.linalg.cond(K) > 1e12:
+                continue
+            lam = np.linalg.solve(K, AS @ v - c_[list(S)])
+            cand = v - Pinv @ AS.T @ lam
+            if np.all(lam >= -1e-12) and np.all(A @ cand <= c_ + 1e-9 * (1.0 + np.abs(c_))):
+                if best is None or ((cand - v) @ P @ (cand - v)
+                                    < (best - v) @ P @ (best - v)):
+                    best = cand
+    if best is None:
+        raise SolverError("corner guard: no KKT point found (reference enumeration)")
+    return best
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -432,10 +719,14 @@ class ModulatedPolicy:
     policy : callable
         Nominal ``f``: maps states (N, n) to velocities (N, n).
     modulator : Modulator
+    dt : float or None
+        Control period of the loop that applies the velocities (explicit Euler), or None for
+        the continuous-time field (see :meth:`Modulator.__call__`).
     """
 
     policy: Callable[[FloatArray], FloatArray]
     modulator: Modulator
+    dt: float | None = None
 
     def velocity(self, X: npt.ArrayLike) -> FloatArray:
         """Modulated velocities.
@@ -449,7 +740,7 @@ class ModulatedPolicy:
         ndarray, shape (N, n)
         """
         Xa = np.asarray(X, dtype=np.float64)
-        return self.modulator(Xa, self.policy(Xa))
+        return self.modulator(Xa, self.policy(Xa), dt=self.dt)
 
     def __call__(self, X: npt.ArrayLike) -> FloatArray:
         """Same as :meth:`velocity`."""
@@ -462,6 +753,7 @@ def modulated(
     attractor: npt.ArrayLike,
     *,
     lyapunov: npt.ArrayLike | None = None,
+    dt: float | None = None,
 ) -> ModulatedPolicy:
     """Wrap a state-based policy so that it never leaves the cuts.
 
@@ -475,11 +767,15 @@ def modulated(
     lyapunov : array_like, shape (n, n), optional
         The policy's Lyapunov matrix if it has one (an LPV-DS's ``P``); Thm. 1 needs it for
         cuts through ``x*``. A policy with an attribute ``P`` supplies it automatically.
+    dt : float, optional
+        Control period of the loop that will apply the velocities (explicit Euler); with it
+        no step ``x + dt v`` from inside the cuts crosses one.
 
     Returns
     -------
     ModulatedPolicy
     """
+    _check_dt(dt)
     if isinstance(policy, StatePolicy):
         fn: Callable[[FloatArray], FloatArray] = policy.velocity
         if lyapunov is None and getattr(policy, "P", None) is not None:
@@ -489,4 +785,4 @@ def modulated(
     else:
         raise ModelError("policy must be callable or have a velocity(X) method")
     return ModulatedPolicy(policy=fn, modulator=Modulator.build(cuts, attractor,
-                                                                 lyapunov=lyapunov))
+                                                                 lyapunov=lyapunov), dt=dt)

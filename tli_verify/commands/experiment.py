@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "single-mode",
         help="single-mode study (paper Sec. 7.1): BC / BC+mod / DS / DS+mod vs. start noise",
         description="Random convex modes, 1-3 synthetic demonstrations each, 100 noisy starts "
-        "per noise level (0/5/30%% of the workspace); cuts learned from invariance failures. "
+        "per noise level (0/5/30% of the workspace); cuts learned from invariance failures. "
         "Writes single_mode.json, single_mode.md and PNG figures to --out.",
     )
     s.add_argument("--trials", type=int, default=None,

@@ -394,7 +394,7 @@ def learn_cuts(
     unsolved = 0
     fallback = 0
     while True:
-        pol = modulated(base, cuts, attractor, lyapunov=lyapunov)
+        pol = modulated(base, cuts, attractor, lyapunov=lyapunov, dt=config.dt)
         res = _roll(config, pol.velocity, starts, contains, attractor, record=record)
         curve.append(float(res.success.mean()))
         fails = np.flatnonzero(res.left & (res.exit_step > 0))
@@ -554,7 +554,8 @@ def run_trial(
                 from tli_verify.boundary.modulation import modulated
 
                 h_nom = _roll(config, fn, held, contains, goal)
-                h_mod = _roll(config, modulated(fn, learned.cuts, goal, lyapunov=P).velocity,
+                h_mod = _roll(config, modulated(fn, learned.cuts, goal, lyapunov=P,
+                                                 dt=config.dt).velocity,
                               held, contains, goal)
                 heldout[name][key] = float(h_nom.success.mean())
                 heldout[mod_name][key] = float(h_mod.success.mean())
