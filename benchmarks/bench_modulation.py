@@ -3,11 +3,14 @@
 Side by side in one run (2D, K = 10 components, 10 cuts keeping x* inside):
 
 - batched: :class:`tli_verify.boundary.modulation.ModulatedPolicy` around an LPV-DS on 100,000
-  states (vectorised closed form of eq. 5), against a straightforward per-point implementation
-  (per state: evaluate the DS, build ``E``, ``D``, invert, multiply; see
+  states (vectorised closed form of eq. 5 and the corner guard, control period 1 ms), against a
+  straightforward per-point implementation (per state: evaluate the DS, build ``E``, ``D``,
+  invert, multiply, then the guard's QP by enumerating KKT active sets; see
   :func:`tli_verify.boundary.modulation.modulate_reference`) on 2,000 of the same states; the
   outputs must agree to 1e-9;
-- single-state latency of the modulated DS (what a 1 kHz control loop calls);
+- the guard's worst case: 2,000 states next to corners of two cuts, most of which need the
+  projection (a per-state NNLS);
+- single-state latency of the modulated DS (what a 1 kHz control loop calls), also at a corner;
 - one cut (:func:`tli_verify.boundary.cuts.solve_cut`, 2D, 10 earlier cuts);
 - the full single-mode protocol (50 trials x 3 noise levels x 100 starts, four policies) on
   two worker processes. ``TLI_BENCH_PROTOCOL_TRIALS`` overrides the trial count (0 skips it).
@@ -63,13 +66,32 @@ def _system(rng: np.random.Generator, K: int = 10, m: int = 10) -> tuple[LPVDS, 
     return ds, cuts
 
 
+def _corner_states(cuts: list[Cut], x_star: np.ndarray, rng: np.random.Generator,
+                   count: int) -> np.ndarray:
+    """States a hair inside the corners where two neighbouring cuts meet (2D)."""
+    W = np.array([c.normal for c in cuts])
+    b = np.array([c.normal @ c.point for c in cuts])
+    out = []
+    for i in range(len(cuts)):
+        j = (i + 1) % len(cuts)
+        A = W[[i, j]]
+        corner = np.linalg.solve(A, b[[i, j]])
+        if np.all(W @ corner <= b + 1e-9):
+            out.append(corner)
+    C = np.array(out)
+    pick = C[rng.integers(0, len(C), count)]
+    return pick + 1e-6 * (x_star - pick) * rng.uniform(0.5, 1.0, (count, 1))
+
+
 def main(out_dir: Path) -> str:
     """Run the benchmark, write ``modulation.json`` under ``out_dir``, return Markdown."""
     from threadpoolctl import threadpool_limits
 
     rng = np.random.default_rng(0)
     ds, cuts = _system(rng)
-    pol = modulated(ds, cuts, ds.attractor)
+    dt = 1e-3  # a 1 kHz control loop
+    pol = modulated(ds, cuts, ds.attractor, dt=dt)
+    mod = pol.modulator
     N = 100_000
     X = ds.attractor + rng.uniform(-9, 9, (N, 2))
     results: dict[str, float | int | str] = {}
@@ -78,7 +100,8 @@ def main(out_dir: Path) -> str:
         t_full = _median_time(lambda: pol.velocity(X), 7)
         t_ds = _median_time(lambda: ds.velocity(X), 7)
         F = ds.velocity(X)
-        t_mod = _median_time(lambda: pol.modulator(X, F), 7)
+        t_mod = _median_time(lambda: mod(X, F, dt=dt), 7)
+        t_eq5 = _median_time(lambda: mod.eq5(X, F), 7)
         n_ref = 2000
         Xr = X[:n_ref]
 
@@ -87,17 +110,30 @@ def main(out_dir: Path) -> str:
             for i in range(n_ref):
                 f = ds.velocity(Xr[i])
                 out[i] = modulate_reference(Xr[i][None], f[None], cuts, ds.attractor,
-                                            lyapunov=ds.P)[0]
+                                            lyapunov=ds.P, dt=dt)[0]
             return out
 
         t_ref = _median_time(per_point, 3)
         diff = float(np.max(np.abs(per_point() - pol.velocity(Xr))))
         fast = pol.velocity(X)
-        modulated_share = float(np.mean(np.any(fast != F, axis=1)))
+        eq5 = mod.eq5(X, F)
+        modulated_share = float(np.mean(np.any(eq5 != F, axis=1)))
+        guarded_share = float(np.mean(np.any(np.abs(fast - eq5) > 1e-12, axis=1)))
+        # worst case for the guard: every state next to a corner, most need the projection
+        n_c = 2000
+        Xc = _corner_states(cuts, ds.attractor, rng, n_c)
+        Fc = ds.velocity(Xc)
+        corner_share = float(np.mean(np.any(np.abs(mod(Xc, Fc, dt=dt) - mod.eq5(Xc, Fc))
+                                            > 1e-12, axis=1)))
+        t_corner = _median_time(lambda: mod(Xc, Fc, dt=dt), 5)
         x1 = X[:1].copy()
         pol.velocity(x1)
         t_one = _median_time(lambda: pol.velocity(x1), 7, inner=2000)
-        t_one_mod = _median_time(lambda: pol.modulator(x1, F[:1]), 7, inner=2000)
+        t_one_mod = _median_time(lambda: mod(x1, F[:1], dt=dt), 7, inner=2000)
+        guarded_rows = np.flatnonzero(np.any(np.abs(mod(Xc, Fc, dt=dt) - mod.eq5(Xc, Fc))
+                                             > 1e-12, axis=1))
+        xc1 = Xc[guarded_rows[:1]] if guarded_rows.size else Xc[:1]
+        t_one_corner = _median_time(lambda: pol.velocity(xc1), 7, inner=500)
         # one cut: 2D failure with 10 earlier cut points
         cut_times = []
         for k in range(50):
@@ -119,7 +155,10 @@ def main(out_dir: Path) -> str:
         batched_states=N, full_evals_per_s=N / t_full, ds_only_evals_per_s=N / t_ds,
         modulation_only_evals_per_s=N / t_mod, per_point_evals_per_s=n_ref / t_ref,
         speedup=(n_ref / t_ref) and (N / t_full) / (n_ref / t_ref), max_abs_diff=diff,
-        modulated_share=modulated_share, single_state_latency_us=1e6 * t_one,
+        modulated_share=modulated_share, guarded_share=guarded_share,
+        eq5_only_evals_per_s=N / t_eq5, corner_states=n_c, corner_guarded_share=corner_share,
+        corner_evals_per_s=n_c / t_corner, single_corner_latency_us=1e6 * t_one_corner,
+        single_state_latency_us=1e6 * t_one,
         single_state_modulation_us=1e6 * t_one_mod, cut_ms_median=1e3 * t_cut,
         cut_ms_max=1e3 * t_cut_max,
     )
@@ -141,17 +180,23 @@ def main(out_dir: Path) -> str:
     atomic_write_text(out_dir / "modulation.json", canonical_json(results))
     ok = "yes" if diff <= 1e-9 else "NO"
     return (
-        "## Modulation (paper eq. 5), cuts (appendix F), single-mode protocol\n\n"
-        f"2D LPV-DS with K = 10 components and 10 cuts; {N:,} states, "
-        f"{100 * modulated_share:.0f}% of them modulated; medians of repeats, one core.\n\n"
+        "## Modulation (paper eq. 5 + corner guard), cuts (appendix F), single-mode protocol\n\n"
+        f"2D LPV-DS with K = 10 components and 10 cuts, control period dt = {dt:g} s; {N:,} "
+        f"states in a box around x*: {100 * modulated_share:.0f}% modulated by eq. 5, "
+        f"{100 * guarded_share:.2f}% changed by the guard; medians of repeats, one core.\n\n"
         "| Measure | Result | Goal | Note |\n|---|---|---|---|\n"
         f"| Modulated DS, batched | {N / t_full:,.0f} evals/s | >= 1,000,000/s | DS alone "
-        f"{N / t_ds:,.0f}/s, modulation alone {N / t_mod:,.0f}/s |\n"
-        f"| Per-point eq. 5 (baseline) | {n_ref / t_ref:,.0f} evals/s | - | batched is "
+        f"{N / t_ds:,.0f}/s; modulation alone {N / t_mod:,.0f}/s (eq. 5 without the guard "
+        f"{N / t_eq5:,.0f}/s) |\n"
+        f"| Per-point baseline (literal eq. 5 + guard by KKT enumeration) | "
+        f"{n_ref / t_ref:,.0f} evals/s | - | batched is "
         f"{(N / t_full) / (n_ref / t_ref):,.0f}x faster; max difference {diff:.1e} "
         f"(agree to 1e-9: {ok}) |\n"
         f"| Single-state latency | {1e6 * t_one:.1f} us | < 50 us | modulation part "
-        f"{1e6 * t_one_mod:.1f} us |\n"
+        f"{1e6 * t_one_mod:.1f} us; at a corner where the guard projects: "
+        f"{1e6 * t_one_corner:.1f} us |\n"
+        f"| States next to corners (worst case for the guard) | {n_c / t_corner:,.0f} evals/s "
+        f"| - | {100 * corner_share:.0f}% of them projected (one NNLS each) |\n"
         f"| One cut (2D, 10 earlier cuts) | {1e3 * t_cut:.2f} ms median, {1e3 * t_cut_max:.2f}"
         " ms max | < 2 ms | exact (NNLS + boundary enumeration) |\n"
         + protocol

@@ -161,12 +161,14 @@ class ModeModel:
     cuts: tuple[Cut, ...] = ()
     fit: Mapping[str, Any] | None = None
 
-    def velocity(self, X: npt.ArrayLike) -> FloatArray:
-        """``M(x) f(x)`` (paper eq. 5), or ``f(x)`` without cuts.
+    def velocity(self, X: npt.ArrayLike, *, dt: float | None = None) -> FloatArray:
+        """``M(x) f(x)`` (paper eq. 5 with the corner guard), or ``f(x)`` without cuts.
 
         Parameters
         ----------
         X : array_like, shape (N, n) or (n,)
+        dt : float, optional
+            Control period of a sampled-data loop (see :meth:`Model.velocity`).
 
         Returns
         -------
@@ -179,7 +181,8 @@ class ModeModel:
 
         single = F.ndim == 1
         Xa = np.atleast_2d(np.asarray(X, dtype=np.float64))
-        out = modulate(Xa, np.atleast_2d(F), self.cuts, self.ds.attractor, lyapunov=self.ds.P)
+        out = modulate(Xa, np.atleast_2d(F), self.cuts, self.ds.attractor, lyapunov=self.ds.P,
+                       dt=dt)
         return np.asarray(out[0] if single else out, dtype=np.float64)
 
 
@@ -240,7 +243,8 @@ class Model:
                 if options else f"; known keys: {', '.join(sorted(self.modes))}")
         raise ModelError(f"{self.path or 'model'}: no DS for {what!r}{hint}")
 
-    def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None) -> FloatArray:
+    def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None, *,
+                 dt: float | None = None) -> FloatArray:
         """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 5).
 
         Parameters
@@ -251,12 +255,15 @@ class Model:
             Mode name or model key (``"a"`` or ``"a->b"``).
         next_mode : str, optional
             For per-transition DS: the next mode the automaton plans.
+        dt : float, optional
+            Control period of the loop that applies the velocity; with it no step ``x + dt v``
+            crosses a cut (:meth:`tli_verify.boundary.modulation.Modulator.__call__`).
 
         Returns
         -------
         ndarray, shape (N, n) or (n,)
         """
-        return self.modes[self.key(mode, next_mode)].velocity(X)
+        return self.modes[self.key(mode, next_mode)].velocity(X, dt=dt)
 
     def nominal_velocity(self, X: npt.ArrayLike, mode: str,
                          next_mode: str | None = None) -> FloatArray:

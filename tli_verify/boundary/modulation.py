@@ -53,36 +53,48 @@ in ``tests/unit/test_modulation.py``). So :meth:`Modulator.__call__` keeps eq. 5
 ``g = M f`` only if it lies in the admissible set, and otherwise replaces it by its projection in
 the ``P`` metric (the least change of ``g``)::
 
-    C(x) = { v :  w_i . v <= rho_i(x) b_i(x)   for every cut i with b_i(x) >= 0,
+    C(x) = { v :  w_i . v <= rho_i(x) max(b_i(x), 0)   for every cut i that applies at x,
                   grad V(x) . v <= grad V(x) . f(x)            (only with a Lyapunov P) }
     v(x) = g                              if g in C(x)
          = argmin_{v in C(x)} (v - g)^T P (v - g)     otherwise (a small QP, exact: NNLS)
 
-with ``b_i(x) = w_i . (p_i - x)`` the distance to plane ``i`` (``>= 0`` on its inner side) and
-the barrier rate ``rho_i = max(kappa, r_i, t)``: ``kappa`` a floor (``barrier_rate``, 1/s),
-``r_i`` the rate eq. 5 itself uses for that cut (``(w_i . f)^+ / h_i``, or
-``sigma (w_i . f)^+ / (q V)`` for a cut through ``x*``, so eq. 5 always satisfies the row of its
-closest cut) and ``t = (-grad V . f)^+ / V``. Then:
+with ``b_i(x) = w_i . (p_i - x)`` the distance to plane ``i``. Cut ``i`` *applies* where the
+state is on its inner side or within a rounding band beyond it, ``b_i >= -1e-9 (1 + ||x - x*||
++ h_i)``; in the band its bound is 0. The barrier rate is ``rho_i = max(min(max(kappa, r_i),
+100 kappa), t)``: ``kappa`` a floor (``barrier_rate``, 10/s by default), ``r_i`` the rate eq. 5
+itself uses for that cut (``(w_i . f)^+ / h_i``, or ``sigma (w_i . f)^+ / (q V)`` for a cut
+through ``x*``, so eq. 5 satisfies the row of its closest cut; capped to keep rates bounded) and
+``t = (-grad V . f)^+ / V`` (0 at ``x*``). Then:
 
 - ``C(x)`` is never empty: ``v = -t (x - x*)`` satisfies every row (for ``w_i . (x - x*) >= 0``
   the left side is <= 0; otherwise ``t |w_i . (x - x*)| <= rho_i b_i`` because ``b_i >= |w_i .
-  (x - x*)|`` and ``t <= rho_i``; and ``grad V . v = -t V <= grad V . f``). If the QP solver ever
-  returned a point outside ``C(x)`` this witness is used instead.
-- (a) each row gives ``d b_i / dt >= -rho_i b_i``, so ``b_i`` stays ``>= 0`` (Gronwall): no
-  trajectory crosses a cut it starts on the inner side of -- in particular none leaves the
-  region bounded by all cuts, and on a face or corner no velocity points out through any of its
-  planes. This also holds for Filippov solutions (the rows are closed under convex hulls).
-- (b) ``dV/dt`` is at most that of ``f`` by the last row, so (c) a certified DS still converges
-  to ``x*`` at least as fast as without cuts (Thm. 1 (b)-(c)).
-- Sampled data: with the control period ``dt`` (``__call__(..., dt=)``) the rates are capped at
-  ``1/dt`` and the last row relaxed to ``grad V . v <= max(grad V . f, -V/dt)`` (the witness then
-  is ``t = min(t, 1/dt)``). One explicit Euler step gives ``b_i(x + dt v) >= (1 - dt rho_i)
-  b_i(x) >= 0``: no step crosses a cut either.
+  (x - x*)|`` and ``t <= rho_i``; and ``grad V . v = -t V <= grad V . f``). The QP answer is
+  re-checked against every row; should it fail, this witness is used.
+- (a) Let ``x(t)`` be an absolutely continuous solution of ``x' = v(x)`` with ``b_i(x(0)) >=
+  0``. While ``b_i > 0`` its row gives ``b_i' >= -rho_i b_i`` with ``rho_i`` bounded (LPV-DS:
+  ``t`` is bounded by the largest contraction rate), so ``b_i`` cannot reach 0 in finite time;
+  and on the band ``b_i <= 0`` the row gives ``b_i' >= 0``. So ``b_i`` never becomes negative:
+  no trajectory crosses a cut it starts on the inner side of -- in particular none leaves the
+  region bounded by all cuts -- and at a face or corner no velocity points out through any of
+  its planes. (Existence of solutions of this discontinuous field is not claimed; the sampled-
+  data version below needs none.)
+- (b) ``dV/dt`` at every state is at most that of ``f`` at the same state (last row); for a
+  certified LPV-DS, ``dV/dt <= -lambda V`` with its certified rate ``lambda``, so (c) every
+  trajectory still converges to ``x*`` at least at that exponential rate.
+- Sampled data: with the control period ``dt`` (``__call__(..., dt=)``) every rate is ``1/dt``
+  -- the rows say "no step past a plane": ``b_i(x + dt v) = b_i(x) - dt w_i . v >= 0`` up to
+  rounding, and a state in the band cannot move further out -- and the last row is relaxed to
+  ``grad V . v <= max(grad V . f, -V/dt)`` (the witness then has ``t = min(t, 1/dt)``). Eq. 5's
+  radial coefficient ``w_a . f / h_a`` is also capped at ``1/dt``: near a cut with a tiny
+  offset ``h_a`` it is huge, and one step of it would carry the state far past ``x*``. So no
+  explicit Euler step crosses a cut. This is what a control loop (and the single-mode study)
+  uses; ``V`` itself may still grow over one step if ``dt`` is too long for ``f``, as for any
+  Euler discretisation.
 
-Where eq. 5's answer is admissible -- everywhere except near corners, or near a face with an
-outward rate above ``1/dt`` -- the guard changes nothing. Unlike eq. 5 (applied only inside all
-cuts), the rows act wherever the state is on the inner side of a cut; the paper's behaviour
-outside the cuts (unmodulated) is kept except that no satisfied cut is crossed.
+Where eq. 5's answer is admissible the guard changes nothing: with ``dt``, wherever the next
+step stays inside every cut that applies; in continuous time, wherever the outward speed towards
+each plane but the closest is below ``kappa`` times the distance to it (a braking distance, not
+only at corners). A vectorised screen finds the states that may need the projection.
 
 References
 ----------
@@ -98,6 +110,7 @@ References
 from __future__ import annotations
 
 import itertools
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -121,8 +134,8 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-DEFAULT_BARRIER_RATE = 1.0
-"""Least barrier rate ``kappa`` (1/s) of the corner guard (module docstring)."""
+DEFAULT_BARRIER_RATE = 10.0
+"""Least barrier rate ``kappa`` (1/s) of the continuous-time corner guard (module docstring)."""
 
 DEGENERATE_TOL = 1e-9
 """Relative tolerance below which ``h_i = w_i . (p_i - x*)`` counts as 0 (a degenerate cut)."""
@@ -130,8 +143,10 @@ DEGENERATE_TOL = 1e-9
 BOUNDARY_TOL = 1e-9
 """States with ``Gamma <= 1 + BOUNDARY_TOL`` count as inside (rounding on the plane)."""
 
-AT_ATTRACTOR_TOL = 1e-12
-"""States within this relative distance of ``x*`` count as ``x*`` for the guard (no-op)."""
+RATE_CAP = 100.0
+"""Continuous time: the barrier rates eq. 5 asks for are capped at ``RATE_CAP * kappa`` (a bounded
+rate is what the invariance argument needs; it matters only for cuts through ``x*`` next to
+``x*`` with a policy that does not vanish there, e.g. BC)."""
 
 GUARD_TOL = 1e-12
 """Relative slack before the corner guard treats an eq. 5 velocity as inadmissible."""
@@ -197,9 +212,10 @@ class Modulator:
             omitted. Degenerate cuts use it, and when it is given the corner guard also keeps
             ``dV/dt`` at most that of the nominal flow (Thm. 1 (b)).
         barrier_rate : float, optional
-            The least barrier rate ``kappa`` of the corner guard, in 1/s (see the module
-            docstring). Larger values let the flow approach a face faster; any positive value
-            keeps Thm. 1.
+            The least barrier rate ``kappa`` of the continuous-time corner guard, in 1/s (see
+            the module docstring; with a control period ``dt`` the rate is ``1/dt``). Larger
+            values leave more of eq. 5 untouched and let the flow approach a face faster; any
+            positive value keeps Thm. 1.
 
         Raises
         ------
@@ -316,13 +332,26 @@ class Modulator:
         -------
         ndarray, shape (N, n)
         """
+        return self._eq5(*self._pair(X, F))[0]
+
+    def _pair(self, X: npt.ArrayLike, F: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         Xa = self._check(X, "X")
         Fa = self._check(F, "F")
         if Fa.shape[0] != Xa.shape[0]:
             raise ModelError(f"X has {Xa.shape[0]} rows but F has {Fa.shape[0]}")
+        return Xa, Fa
+
+    def _eq5(self, Xa: FloatArray, Fa: FloatArray, dt: float | None = None
+             ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+        """Eq. 5 on checked arrays: ``(M f, X - x*, S = (X - x*) W^T)`` (None, None: no cuts).
+
+        With a control period ``dt`` the radial coefficient ``w_a . f / h_a`` is capped at
+        ``1 / dt``: one step of the correction never carries the state past ``x*`` (it would
+        near a cut with a tiny offset ``h_a``, where eq. 5's correction is ``|f| |x - x*| / h_a``).
+        """
         m = self.W.shape[0]
         if m == 0 or Xa.shape[0] == 0:
-            return Fa.copy()
+            return Fa.copy(), None, None
         D = Xa - self.attractor
         G, S, V = self._gammas(D)
         rows = np.arange(Xa.shape[0])
@@ -330,19 +359,21 @@ class Modulator:
         g = G[rows, a]
         wf = np.einsum("ni,ni->n", self.W[a], Fa)
         active = (g > 0.0) & (g <= 1.0 + BOUNDARY_TOL) & (wf > 0.0)
+        cap = np.inf if dt is None else 1.0 / dt
         if V is None:
-            coef = np.where(active, wf / self.h[a], 0.0)
-            return Fa - coef[:, None] * D
+            coef = np.where(active, np.minimum(wf / self.h[a], cap), 0.0)
+            return Fa - coef[:, None] * D, D, S
         deg_a = self.degenerate[a]
         reg_act = active & ~deg_a
         deg_act = active & deg_a
         with np.errstate(divide="ignore", invalid="ignore"):
-            coef = np.where(reg_act, wf / np.where(deg_a, 1.0, self.h[a]), 0.0)
+            coef = np.where(reg_act, np.minimum(wf / np.where(deg_a, 1.0, self.h[a]), cap),
+                            0.0)
             out = Fa - coef[:, None] * D
             cq = np.where(deg_act, wf / self.q[a], 0.0)
             radial = np.where(deg_act, -S[rows, a] / np.where(V > 0.0, V, 1.0), 0.0)
         out -= cq[:, None] * self.PinvW[a] + (cq * radial)[:, None] * D
-        return out
+        return out, D, S
 
     def __call__(self, X: npt.ArrayLike, F: npt.ArrayLike, *,
                  dt: float | None = None) -> FloatArray:
@@ -363,12 +394,29 @@ class Modulator:
             A velocity in the admissible set ``C(x)`` at every state inside the cuts (module
             docstring); ``f(x)`` outside them.
         """
-        out = self.eq5(X, F)
         _check_dt(dt)
-        if self.W.shape[0] == 0 or out.shape[0] == 0:
+        Xa, Fa = self._pair(X, F)
+        out, D, S = self._eq5(Xa, Fa, dt)
+        if D is None or S is None:
             return out
-        return self._guard(np.asarray(X, dtype=np.float64), np.asarray(F, dtype=np.float64),
-                           out, dt)
+        # Screen (cheap, conservative): a row can only be violated where w_i . v exceeds
+        # kappa b_i (continuous time, rho_i >= kappa) or b_i / dt (sampled data). The Lyapunov
+        # row needs no screen: eq. 5 never raises dV/dt (Thm. 1 (b)).
+        B = self.h - S
+        rate = self.barrier_rate if dt is None else 1.0 / dt
+        near = out @ self.W.T > rate * np.maximum(B, 0.0)
+        if near.any():
+            cand = np.flatnonzero((near & self._applies(D, B)).any(axis=1))
+            if cand.size:
+                out[cand] = self._guard(Xa[cand], Fa[cand], out[cand], dt)
+        return out
+
+    def _applies(self, D: FloatArray, B: FloatArray) -> npt.NDArray[np.bool_]:
+        """Which rows apply: states on the inner side of each plane, or within the rounding
+        band ``b_i >= -1e-9 (1 + ||x - x*|| + h_i)`` beyond it, (N, m). In the band the row's
+        bound is 0, so the state cannot drift further out (module docstring)."""
+        nd = np.sqrt(np.einsum("ni,ni->n", D, D))
+        return B >= -BOUNDARY_TOL * (1.0 + nd[:, None] + self.h[None, :])
 
     def admissible(self, X: npt.ArrayLike, F: npt.ArrayLike, *, dt: float | None = None
                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
@@ -396,34 +444,30 @@ class Modulator:
             Whether each state is on the inner side of (or on) each cut, and not at ``x*``:
             the constraints that apply. ``bound`` is ``+inf`` where they do not.
         """
-        Xa = self._check(X, "X")
-        Fa = self._check(F, "F")
+        Xa, Fa = self._pair(X, F)
         D = Xa - self.attractor
         S = D @ self.W.T
         B = self.h - S  # distance to each plane, >= 0 inside
-        nd = np.linalg.norm(D, axis=1)
-        scale = np.maximum(np.maximum(1.0, nd)[:, None], self.h[None, :])
-        inside = ((B >= -BOUNDARY_TOL * scale)
-                  & (nd > AT_ATTRACTOR_TOL * (1.0 + np.linalg.norm(self.attractor)))[:, None])
+        inside = self._applies(D, B)
         B = np.maximum(B, 0.0)
         V = np.einsum("ni,ij,nj->n", D, self.P, D)
-        Vs = np.where(V > 0.0, V, 1.0)
+        Vs = np.where(V > 0.0, V, 1.0)  # at x*: sigma = 0 and grad V = 0, rates stay finite
         out_rate = np.maximum(Fa @ self.W.T, 0.0)
         hs = np.where(self.degenerate, 1.0, self.h)
         rate = np.where(self.degenerate,
                         np.maximum(-S, 0.0) * out_rate / (self.q * Vs[:, None]),
                         out_rate / hs)
-        rho = np.maximum(rate, self.barrier_rate)
+        rho = np.clip(rate, self.barrier_rate, RATE_CAP * self.barrier_rate)
         grad = D @ self.P
         if self.certified:
             v_bound = np.einsum("ni,ni->n", grad, Fa)
-            t = np.maximum(-v_bound / Vs, 0.0)
+            t = np.where(V > 0.0, np.maximum(-v_bound / Vs, 0.0), 0.0)
             rho = np.maximum(rho, t[:, None])
         else:
             v_bound = np.full(Xa.shape[0], np.inf)
             t = np.zeros(Xa.shape[0])
-        if dt is not None:
-            rho = np.minimum(rho, 1.0 / dt)
+        if dt is not None:  # sampled data: the rows say "no step past a plane"
+            rho = np.full_like(rho, 1.0 / dt)
             t = np.minimum(t, 1.0 / dt)
             if self.certified:
                 v_bound = np.maximum(v_bound, -V / dt)
@@ -433,30 +477,32 @@ class Modulator:
                dt: float | None) -> FloatArray:
         """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x)."""
         bound, grad, v_bound, witness, inside = self.admissible(X, F, dt=dt)
-        fn = 1.0 + np.linalg.norm(F, axis=1) + np.linalg.norm(out, axis=1)
-        tol = GUARD_TOL * fn
-        gv = np.einsum("ni,ni->n", grad, out)
-        bad = inside.any(axis=1) & (np.any(out @ self.W.T > bound + tol[:, None], axis=1)
-                                    | (gv > v_bound + tol * (1.0 + np.abs(v_bound))))
-        if not bad.any():
-            return out
         assert self.metric is not None
-        for i in np.flatnonzero(bad).tolist():
+        for i in range(X.shape[0]):
             on = inside[i]
             if self.certified:
                 A = np.vstack([self.W[on], grad[i][None, :]])
                 c = np.append(bound[i, on], v_bound[i])
             else:
                 A, c = self.W[on], bound[i, on]
-            v = _project_polyhedron(out[i], A, c, self.metric)
-            if v is None or np.any(A @ v > c + tol[i] * (1.0 + np.abs(c))):
-                v = witness[i]  # admissible by construction (module docstring)
-            out[i] = v
+            g = out[i]
+            if _admits(A, c, g, g):
+                continue
+            v = _project_polyhedron(g, A, c, self.metric)
+            out[i] = v if v is not None and _admits(A, c, v, g) else witness[i]
         return out
 
 
+def _admits(A: FloatArray, c: FloatArray, v: FloatArray, g: FloatArray) -> bool:
+    """``A v <= c`` up to rounding: ``GUARD_TOL`` relative to the terms involved (``v`` was
+    computed from ``g``)."""
+    tol = GUARD_TOL * (np.abs(c) + np.abs(A) @ (np.abs(v) + np.abs(g)))
+    return bool(np.all(A @ v <= c + tol))
+
+
 def _check_dt(dt: float | None) -> None:
-    if dt is not None and not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+    if dt is not None and (isinstance(dt, bool) or not isinstance(dt, numbers.Real)
+                           or not (np.isfinite(dt) and dt > 0)):
         raise ModelError(f"dt must be a positive number, got {dt!r}")
 
 
@@ -487,14 +533,25 @@ def _project_polyhedron(g: FloatArray, A: FloatArray, c: FloatArray,
 
     n = g.size
     AM = A @ metric
-    E = np.vstack([-AM.T, (A @ g - c)[None, :]])
+    e = A @ g - c
+    # The residual's last entry is 1 / (1 + ||z||^2): scale the rows to unit norm and the
+    # problem so that ||z|| = O(1) (both leave the answer unchanged), or it underflows.
+    norms = np.linalg.norm(AM, axis=1)
+    keep = norms > 0.0
+    if np.any(e[~keep] > 0.0):
+        return None  # a row 0 . v <= c_j < 0: empty
+    AM, e = AM[keep] / norms[keep, None], e[keep] / norms[keep]
+    scale = float(np.max(np.abs(e), initial=0.0))
+    if scale == 0.0:
+        return g.copy()
+    E = np.vstack([-AM.T, (e / scale)[None, :]])
     rhs = np.zeros(n + 1)
     rhs[n] = 1.0
     y, _ = nnls(E, rhs)
     r = E @ y - rhs
-    if not abs(r[n]) > 1e-14:
+    if not abs(r[n]) > 1e-12:
         return None
-    return np.asarray(g + metric @ (-r[:n] / r[n]), dtype=np.float64)
+    return np.asarray(g + metric @ (-scale * r[:n] / r[n]), dtype=np.float64)
 
 
 def gamma(
@@ -646,9 +703,17 @@ def modulate_reference(
     for i in range(Xa.shape[0]):
         if np.array_equal(Xa[i], x_star):
             continue
-        E, M, g, _ = modulation_matrix(Xa[i], cuts, x_star, lyapunov=lyapunov)
-        if 0.0 < g <= 1.0 + BOUNDARY_TOL and np.linalg.solve(E, Fa[i])[0] >= 0.0:
+        E, M, g, a = modulation_matrix(Xa[i], cuts, x_star, lyapunov=lyapunov)
+        coef = np.linalg.solve(E, Fa[i])[0]
+        if 0.0 < g <= 1.0 + BOUNDARY_TOL and coef >= 0.0:
             out[i] = M @ Fa[i]
+            d = Xa[i] - x_star
+            h = float(cuts[a].normal @ (cuts[a].point - x_star))
+            radial = g * coef / float(np.linalg.norm(d))  # M f = f - radial (x - x*)
+            if (dt is not None and radial > 1.0 / dt
+                    and h > DEGENERATE_TOL * max(1.0, float(np.linalg.norm(cuts[a].point
+                                                                          - x_star)))):
+                out[i] = Fa[i] - d / dt  # the sampled-data cap of eq. 5's correction
         if guard:
             out[i] = _guard_reference(Xa[i], Fa[i], out[i], cuts, x_star, P,
                                       certified=lyapunov is not None, dt=dt)
@@ -660,26 +725,24 @@ def _guard_reference(x: FloatArray, f: FloatArray, v: FloatArray, cuts: Sequence
                      dt: float | None) -> FloatArray:
     """The corner guard at one state, written out (see the module docstring)."""
     d = x - x_star
-    if np.linalg.norm(d) <= AT_ATTRACTOR_TOL * (1.0 + np.linalg.norm(x_star)):
-        return v
     V = float(d @ P @ d)
     rows: list[FloatArray] = []
     bounds: list[float] = []
-    t = max(-float(d @ P @ f) / V, 0.0) if certified else 0.0
+    t = max(-float(d @ P @ f) / V, 0.0) if certified and V > 0 else 0.0
     for c in cuts:
         w = np.asarray(c.normal)
         h = float(w @ (c.point - x_star))
         b = float(w @ (c.point - x))
-        if b < -BOUNDARY_TOL * max(1.0, float(np.linalg.norm(d)), h):
+        if b < -BOUNDARY_TOL * (1.0 + float(np.linalg.norm(d)) + max(h, 0.0)):
             continue  # x is beyond this cut: no constraint from it
         outward = max(float(w @ f), 0.0)
         if abs(h) <= DEGENERATE_TOL * max(1.0, float(np.linalg.norm(c.point - x_star))):
-            rate = max(-float(w @ d), 0.0) * outward / (float(w @ np.linalg.solve(P, w)) * V)
+            q = float(w @ np.linalg.solve(P, w))
+            rate = max(-float(w @ d), 0.0) * outward / (q * V) if V > 0 else 0.0
         else:
             rate = outward / h
-        rho = max(rate, DEFAULT_BARRIER_RATE, t)
-        if dt is not None:
-            rho = min(rho, 1.0 / dt)
+        rate = min(max(rate, DEFAULT_BARRIER_RATE), RATE_CAP * DEFAULT_BARRIER_RATE)
+        rho = max(rate, t) if dt is None else 1.0 / dt
         rows.append(w)
         bounds.append(rho * max(b, 0.0))
     if certified:
@@ -688,8 +751,7 @@ def _guard_reference(x: FloatArray, f: FloatArray, v: FloatArray, cuts: Sequence
     if not rows:
         return v
     A, c_ = np.array(rows).reshape(len(rows), x.size), np.array(bounds)
-    slack = GUARD_TOL * (1.0 + float(np.linalg.norm(f)) + float(np.linalg.norm(v)))
-    if np.all(A @ v <= c_ + slack * (1.0 + np.abs(c_))):
+    if np.all(A @ v <= c_ + GUARD_TOL * (np.abs(c_) + np.abs(A) @ np.abs(v))):
         return v
     best: FloatArray | None = None
     Pinv = np.linalg.inv(P)

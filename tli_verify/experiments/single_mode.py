@@ -15,7 +15,8 @@ Protocol (one *trial* = one random convex mode):
 5. BC+mod and DS+mod: while some rollout leaves the mode, pick one such *invariance failure*
    at random (seeded), solve its cut (:func:`tli_verify.boundary.cuts.solve_cut`, keeping earlier
    cut points inside), add it, re-roll all starts with the modulated policy
-   (:func:`tli_verify.boundary.modulation.modulated`); stop when no rollout leaves the mode or
+   (:func:`tli_verify.boundary.modulation.modulated`: eq. 5 with the corner guard, told the
+   Euler step ``dt`` so that no step crosses a cut); stop when no rollout leaves the mode or
    after ``max_cuts`` cuts. The success rate after each cut gives the curve of paper Fig. 8
    (right); the rate with the final cuts is the table entry.
 
@@ -700,6 +701,11 @@ def summarize(
     top = noises[-1]
     shape = {
         "DS+mod is 100% at every noise level": all(success["DS+mod"][k] == 1.0 for k in noises),
+        "DS+mod never leaves the mode (0 invariance failures)": all(
+            failures["DS+mod"][k]["invariance"] == 0 for k in noises),
+        "DS+mod has no invariance failure left after at most 5 cuts": all(
+            cuts["DS+mod"][k]["max"] <= 5 and cuts["DS+mod"][k]["converged"] == 1.0
+            for k in noises),
         "DS below 100% at the largest noise": success["DS"][top] < 1.0,
         "BC below DS at every noise level": all(success["BC"][k] <= success["DS"][k]
                                                 for k in noises),
