@@ -55,6 +55,8 @@ def test_quick_json_contract(quick: tuple[subprocess.CompletedProcess[str], Path
     (["--seed", "-3"], "--seed must be >= 0"),
     (["--workers", "0"], "--workers must be >= 1"),
     (["--trials", "two"], "invalid int value"),
+    (["--ds-eps", "0"], "DS stability margin must be positive"),
+    (["--ds-eps", "nan"], "DS stability margin must be positive"),
 ])
 def test_bad_input_exits_2(args: list[str], needle: str, tmp_path: Path) -> None:
     proc = _tli("experiment", "single-mode", *args, "--out", str(tmp_path / "o"), cwd=REPO)

@@ -473,24 +473,58 @@ class Modulator:
                 v_bound = np.maximum(v_bound, -V / dt)
         return np.where(inside, rho * B, np.inf), grad, v_bound, -t[:, None] * D, inside
 
+    def _violations(self, V: FloatArray, ref: FloatArray, bound: FloatArray,
+                    inside: npt.NDArray[np.bool_], grad: FloatArray, v_bound: FloatArray
+                    ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+        """Rows of C(x) that velocities ``V`` (N, n) break beyond rounding: barrier (N, m)
+        and Lyapunov (N,). ``ref`` is what ``V`` was computed from (sets the rounding scale)."""
+        mag = np.abs(V) + np.abs(ref)
+        barrier = inside & (V @ self.W.T > bound + GUARD_TOL * (
+            np.abs(np.where(inside, bound, 0.0)) + mag @ np.abs(self.W).T))
+        if not self.certified:
+            return barrier, np.zeros(V.shape[0], dtype=bool)
+        lyap = np.einsum("ni,ni->n", grad, V) > v_bound + GUARD_TOL * (
+            np.abs(v_bound) + np.einsum("ni,ni->n", np.abs(grad), mag))
+        return barrier, lyap
+
     def _guard(self, X: FloatArray, F: FloatArray, out: FloatArray,
                dt: float | None) -> FloatArray:
-        """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x)."""
+        """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x).
+
+        Most inadmissible velocities break a single row (a state sliding along one face). The
+        projection on that row's half-space has a closed form, ``g - (a . g - c) P^-1 a /
+        (a^T P^-1 a)``, computed for all such states at once; when it satisfies every other row
+        it *is* the projection on ``C(x)`` (the closest point of a superset that lies in the
+        set). The rest go through the exact least-distance program one state at a time.
+        """
         bound, grad, v_bound, witness, inside = self.admissible(X, F, dt=dt)
+        G = out
+        barrier, lyap = self._violations(G, G, bound, inside, grad, v_bound)
+        todo = barrier.any(axis=1) | lyap
+        rows = np.flatnonzero(todo & ~lyap & (barrier.sum(axis=1) == 1))
+        if rows.size:
+            k = np.argmax(barrier[rows], axis=1)
+            excess = np.einsum("ni,ni->n", self.W[k], G[rows]) - bound[rows, k]
+            cand = G[rows] - (excess / self.q[k])[:, None] * self.PinvW[k]
+            b2, l2 = self._violations(cand, G[rows], bound[rows], inside[rows], grad[rows],
+                                      v_bound[rows])
+            ok = ~(b2.any(axis=1) | l2)
+            G[rows[ok]] = cand[ok]
+            todo[rows[ok]] = False
         assert self.metric is not None
-        for i in range(X.shape[0]):
+        for i in np.flatnonzero(todo).tolist():
             on = inside[i]
             if self.certified:
                 A = np.vstack([self.W[on], grad[i][None, :]])
                 c = np.append(bound[i, on], v_bound[i])
             else:
                 A, c = self.W[on], bound[i, on]
-            g = out[i]
+            g = G[i]
             if _admits(A, c, g, g):
                 continue
             v = _project_polyhedron(g, A, c, self.metric)
-            out[i] = v if v is not None and _admits(A, c, v, g) else witness[i]
-        return out
+            G[i] = v if v is not None and _admits(A, c, v, g) else witness[i]
+        return G
 
 
 def _admits(A: FloatArray, c: FloatArray, v: FloatArray, g: FloatArray) -> bool:

@@ -44,6 +44,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     s.add_argument("--cut-constraints", choices=("entries", "paper"), default="entries",
                    help="states a new cut keeps inside: every observed entry state (default) "
                    "or only the failure's own x^0 (appendix F as written)")
+    s.add_argument("--ds-eps", type=float, default=1e-3,
+                   help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default 1e-3)")
     s.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s.set_defaults(handler=_single_mode)
 
@@ -95,7 +97,7 @@ def _config(args: argparse.Namespace) -> Any:
         raise TliError(f"--max-cuts must be >= 0, got {args.max_cuts}")
     cfg = SingleModeConfig(
         trials=trials, seed=args.seed, max_cuts=args.max_cuts,
-        cut_constraints=args.cut_constraints,
+        cut_constraints=args.cut_constraints, ds_eps=args.ds_eps,
         bc_max_epochs=QUICK_BC_EPOCHS if args.quick else 5000,
     )
     cfg.validate()

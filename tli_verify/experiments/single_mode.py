@@ -101,6 +101,9 @@ class SingleModeConfig:
         ``"paper"`` -- the failure's own entry state ``x^0`` (appendix F as written);
         ``"entries"`` -- every observed mode-entry state (all start states of the batch), which
         keeps every start inside the cuts (see ``docs/boundary.md`` for why this matters).
+    ds_eps : float
+        Stability margin of the LPV-DS, ``A_k^T P + P A_k <= -eps I`` (1e-3, the default of
+        :func:`tli_verify.ds.lpvds.learn_lpvds`). A larger margin bounds the convergence time.
     bc_max_epochs : int
         Epoch limit of BC training (5000).
     heldout : bool
@@ -119,6 +122,7 @@ class SingleModeConfig:
     max_cuts: int = 20
     cut_margin: float = 1e-3
     cut_constraints: str = "entries"
+    ds_eps: float = 1e-3
     bc_max_epochs: int = 5000
     heldout: bool = True
 
@@ -138,6 +142,8 @@ class SingleModeConfig:
             (0 < self.cut_margin < 1, "cut margin must be in (0, 1)"),
             (self.cut_constraints in ("entries", "paper"),
              f"cut constraints must be 'entries' or 'paper', got {self.cut_constraints!r}"),
+            (bool(np.isfinite(self.ds_eps)) and self.ds_eps > 0,
+             f"DS stability margin must be positive, got {self.ds_eps}"),
             (self.bc_max_epochs >= 1, "BC epochs must be >= 1"),
         ]
         for ok, message in checks:
@@ -511,7 +517,7 @@ def run_trial(
     task = make_task(task_rng, workspace=config.workspace)
     goal = task.attractor
     contains = task.mode.contains
-    ds, fit = learn_lpvds(task.states, task.velocities, goal, seed=ds_seed)
+    ds, fit = learn_lpvds(task.states, task.velocities, goal, seed=ds_seed, eps=config.ds_eps)
     bc = train_bc(task.states, task.velocities, seed=bc_seed, max_epochs=config.bc_max_epochs)
     bases: dict[str, tuple[Policy, FloatArray | None]] = {
         "BC": (bc.velocity, None), "DS": (ds.velocity, np.asarray(ds.P))}
@@ -742,7 +748,9 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
         "",
         f"{summary['trials_run']} random convex modes, {cfg['starts']} starts per noise level, "
         f"seed {cfg['seed']}; Euler dt {cfg['dt']}, {cfg['steps']} steps, speed cap "
-        f"{cfg['speed_cap']}, goal tolerance {cfg['goal_tolerance']}; noise = percent of the "
+        f"{cfg['speed_cap']}, goal tolerance {cfg['goal_tolerance']}; cuts keep "
+        f"{cfg['cut_constraints']}; DS margin eps {cfg.get('ds_eps', 1e-3):g}; "
+        "noise = percent of the "
         f"{cfg['workspace']:g}-unit workspace side. Success rate in % (mean over trials, "
         "[25th-75th percentile]); paper values in parentheses.",
         "",
