@@ -487,30 +487,75 @@ class Modulator:
             np.abs(v_bound) + np.einsum("ni,ni->n", np.abs(grad), mag))
         return barrier, lyap
 
+    def _most_broken(self, V: FloatArray, barrier: npt.NDArray[np.bool_],
+                     lyap: npt.NDArray[np.bool_], bound: FloatArray, grad: FloatArray,
+                     v_bound: FloatArray) -> npt.NDArray[np.intp]:
+        """Index of the row each velocity breaks by the largest distance (``m``: Lyapunov)."""
+        exc = np.where(barrier, V @ self.W.T - bound, -np.inf)
+        gn = np.linalg.norm(grad, axis=1)
+        lv = np.where(lyap & (gn > 0), (np.einsum("ni,ni->n", grad, V) - v_bound)
+                      / np.where(gn > 0, gn, 1.0), -np.inf)
+        return np.asarray(np.argmax(np.c_[exc, lv], axis=1), dtype=np.intp)
+
+    def _kkt(self, G: FloatArray, A: FloatArray, c: FloatArray, S: npt.NDArray[np.intp]
+             ) -> FloatArray:
+        """Projections of ``G`` (N, n) in the ``P`` metric with the rows ``S`` (N, s) of
+        ``A`` (N, k, n) ``<= c`` (N, k) active: ``v = G - P^-1 A_S^T lam``, ``lam = (A_S P^-1
+        A_S^T)^-1 (A_S G - c_S)``; rows with a negative multiplier (not a KKT point) or
+        dependent active rows get NaN."""
+        AS = np.take_along_axis(A, S[:, :, None], axis=1)  # (N, s, n)
+        cS = np.take_along_axis(c, S, axis=1)
+        PinvAS = np.linalg.solve(self.P, AS.transpose(0, 2, 1))  # (N, n, s)
+        K = AS @ PinvAS
+        rhs = np.einsum("nsi,ni->ns", AS, G) - cS
+        diag = np.prod(np.abs(np.diagonal(K, axis1=1, axis2=2)), axis=1)
+        singular = ~(np.abs(np.linalg.det(K)) > 1e-10 * diag)  # dependent rows (or NaN)
+        K[singular] = np.eye(S.shape[1])
+        lam = np.linalg.solve(K, rhs[:, :, None])[:, :, 0]
+        cand = G - np.einsum("nis,ns->ni", PinvAS, lam)
+        cand[np.any(lam < -1e-12 * (1.0 + np.abs(lam)), axis=1) | singular] = np.nan
+        return np.asarray(cand, dtype=np.float64)
+
     def _guard(self, X: FloatArray, F: FloatArray, out: FloatArray,
                dt: float | None) -> FloatArray:
         """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x).
 
-        Most inadmissible velocities break a single row (a state sliding along one face). The
-        projection on that row's half-space has a closed form, ``g - (a . g - c) P^-1 a /
-        (a^T P^-1 a)``, computed for all such states at once; when it satisfies every other row
-        it *is* the projection on ``C(x)`` (the closest point of a superset that lies in the
-        set). The rest go through the exact least-distance program one state at a time.
+        First a vectorised primal active-set pass: with the rows ``S`` active, the projection
+        has the closed form of :meth:`_kkt`; starting from the most broken row, the row the
+        candidate breaks most is added, up to ``n`` rows. A candidate with non-negative
+        multipliers that satisfies every row is a KKT point of the (convex) QP, hence *the*
+        projection. States that do not settle this way (a negative multiplier, dependent rows)
+        go through the exact least-distance program one at a time.
         """
         bound, grad, v_bound, witness, inside = self.admissible(X, F, dt=dt)
         G = out
         barrier, lyap = self._violations(G, G, bound, inside, grad, v_bound)
         todo = barrier.any(axis=1) | lyap
-        rows = np.flatnonzero(todo & ~lyap & (barrier.sum(axis=1) == 1))
-        if rows.size:
-            k = np.argmax(barrier[rows], axis=1)
-            excess = np.einsum("ni,ni->n", self.W[k], G[rows]) - bound[rows, k]
-            cand = G[rows] - (excess / self.q[k])[:, None] * self.PinvW[k]
+        # rows of C(x) as one array: the m barrier rows, then the Lyapunov row (index m)
+        A_all = np.concatenate([np.broadcast_to(self.W, (G.shape[0], *self.W.shape)),
+                                grad[:, None, :]], axis=1)
+        c_all = np.concatenate([np.where(inside, bound, 0.0), v_bound[:, None]], axis=1)
+        # a vectorised primal active-set pass: start from the most broken row, add the row
+        # the candidate breaks most, up to n rows; what does not settle goes to NNLS below
+        rows = np.flatnonzero(todo)
+        S = self._most_broken(G[rows], barrier[rows], lyap[rows], bound[rows], grad[rows],
+                              v_bound[rows])[:, None]
+        for size in range(1, self.dim + 1):
+            if rows.size == 0:
+                break
+            cand = self._kkt(G[rows], A_all[rows], c_all[rows], S)
             b2, l2 = self._violations(cand, G[rows], bound[rows], inside[rows], grad[rows],
                                       v_bound[rows])
-            ok = ~(b2.any(axis=1) | l2)
+            finite = np.all(np.isfinite(cand), axis=1)
+            ok = finite & ~(b2.any(axis=1) | l2)
             G[rows[ok]] = cand[ok]
             todo[rows[ok]] = False
+            grow = finite & ~ok
+            if size == self.dim or not grow.any():
+                break
+            nxt = self._most_broken(cand[grow], b2[grow], l2[grow], bound[rows[grow]],
+                                    grad[rows[grow]], v_bound[rows[grow]])
+            rows, S = rows[grow], np.c_[S[grow], nxt]
         assert self.metric is not None
         for i in np.flatnonzero(todo).tolist():
             on = inside[i]
