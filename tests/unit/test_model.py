@@ -119,6 +119,28 @@ def test_with_cuts_returns_a_new_model(tmp_path: Path) -> None:
     assert cut_model.modes["a"].cuts == (cut,)
 
 
+def test_velocity_with_cuts_and_control_period(tmp_path: Path) -> None:
+    """A mode with cuts returns the guarded modulation; with dt no Euler step crosses."""
+    from tli_verify.boundary.modulation import modulate
+
+    model = load_model(write(tmp_path, doc()))
+    ds = model.modes["a"].ds
+    w = np.array([0.6, 0.8])
+    cut = Cut(normal=w, point=ds.attractor + 0.5 * w)
+    cut_model = model.with_cuts("a", [cut])
+    rng = np.random.default_rng(0)
+    X = ds.attractor + rng.uniform(-3, 3, (400, 2))
+    X = X[(X - cut.point) @ w <= 0]  # inside the cut
+    for dt in (None, 0.05):
+        V = cut_model.velocity(X, mode="a", dt=dt)
+        np.testing.assert_array_equal(
+            V, modulate(X, ds.velocity(X), [cut], ds.attractor, lyapunov=ds.P, dt=dt))
+    step = X + 0.05 * cut_model.velocity(X, mode="a", dt=0.05)
+    assert np.all((step - cut.point) @ w <= 1e-12)
+    one = cut_model.velocity(X[0], mode="a", dt=0.05)
+    assert one.shape == (2,)
+
+
 def mutate(path: list[str | int], value: Any) -> dict[str, Any]:
     data = copy.deepcopy(doc())
     node: Any = data

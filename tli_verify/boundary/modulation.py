@@ -531,18 +531,19 @@ class Modulator:
         G = out
         barrier, lyap = self._violations(G, G, bound, inside, grad, v_bound)
         todo = barrier.any(axis=1) | lyap
-        # rows of C(x) as one array: the m barrier rows, then the Lyapunov row (index m)
-        A_all = np.concatenate([np.broadcast_to(self.W, (G.shape[0], *self.W.shape)),
-                                grad[:, None, :]], axis=1)
-        c_all = np.concatenate([np.where(inside, bound, 0.0), v_bound[:, None]], axis=1)
         # a vectorised primal active-set pass: start from the most broken row, add the row
         # the candidate breaks most, up to n rows; what does not settle goes to NNLS below
         rows = np.flatnonzero(todo)
-        S = self._most_broken(G[rows], barrier[rows], lyap[rows], bound[rows], grad[rows],
-                              v_bound[rows])[:, None]
-        for size in range(1, self.dim + 1):
-            if rows.size == 0:
-                break
+        # (for one or two states the per-state least-distance program below is faster)
+        for size in range(1, self.dim + 1 if rows.size > 2 else 1):
+            if size == 1:
+                # rows of C(x) as one array: the m barrier rows, then the Lyapunov row (m)
+                A_all = np.concatenate([np.broadcast_to(self.W, (G.shape[0], *self.W.shape)),
+                                        grad[:, None, :]], axis=1)
+                c_all = np.concatenate([np.where(inside, bound, 0.0), v_bound[:, None]],
+                                       axis=1)
+                S = self._most_broken(G[rows], barrier[rows], lyap[rows], bound[rows],
+                                      grad[rows], v_bound[rows])[:, None]
             cand = self._kkt(G[rows], A_all[rows], c_all[rows], S)
             b2, l2 = self._violations(cand, G[rows], bound[rows], inside[rows], grad[rows],
                                       v_bound[rows])
