@@ -43,6 +43,9 @@ def test_quick_json_contract(quick: tuple[subprocess.CompletedProcess[str], Path
         assert s["DS+mod"][k] >= s["DS"][k]
         assert s["DS+mod"][k] >= 0.95
     assert s["DS"]["0"] == 1.0
+    # with the corner guard the modulated DS never leaves the mode (Thm. 1, sampled data)
+    assert all(data["failures"]["DS+mod"][k]["invariance"] == 0 for k in ("0", "5", "30"))
+    assert data["expected_shape"]["DS+mod never leaves the mode (0 invariance failures)"]
     for name in ("single_mode.json", "single_mode.md", "single_mode_cuts.png",
                  "single_mode_rollouts.png"):
         assert (out / name).stat().st_size > 0

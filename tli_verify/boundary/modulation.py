@@ -385,14 +385,14 @@ class Modulator:
             States and the nominal velocities ``f(x)`` there, as for :meth:`eq5`.
         dt : float, optional
             Control period of a sampled-data loop that holds the velocity for ``dt`` (explicit
-            Euler). With it the barrier rates are capped at ``1 / dt``, so that one step
-            ``x + dt v`` cannot cross a cut either. Omit for the continuous-time field.
+            Euler). With it every barrier rate is ``1 / dt``, so that no step ``x + dt v``
+            crosses a cut either. Omit for the continuous-time field.
 
         Returns
         -------
         ndarray, shape (N, n)
-            A velocity in the admissible set ``C(x)`` at every state inside the cuts (module
-            docstring); ``f(x)`` outside them.
+            A velocity in the admissible set ``C(x)`` (module docstring): eq. 5's where that
+            is admissible (inside the cuts), ``f(x)`` where no cut applies.
         """
         _check_dt(dt)
         Xa, Fa = self._pair(X, F)
