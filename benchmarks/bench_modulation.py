@@ -8,8 +8,8 @@ Side by side in one run (2D, K = 10 components, 10 cuts keeping x* inside):
   invert, multiply, then the guard's QP by enumerating KKT active sets; see
   :func:`tli_verify.boundary.modulation.modulate_reference`) on 2,000 of the same states; the
   outputs must agree to 1e-9;
-- the guard's worst case: 2,000 states next to corners of two cuts, most of which need the
-  projection (a per-state NNLS);
+- the guard's worst case: 2,000 states next to corners of two cuts with velocities of the DS's
+  size in random directions (about a third need the projection);
 - single-state latency of the modulated DS (what a 1 kHz control loop calls), also at a corner;
 - one cut (:func:`tli_verify.boundary.cuts.solve_cut`, 2D, 10 earlier cuts);
 - the full single-mode protocol (50 trials x 3 noise levels x 100 starts, four policies) on

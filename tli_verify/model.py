@@ -174,10 +174,12 @@ class ModeModel:
         -------
         ndarray, same shape as ``X``
         """
+        from tli_verify.boundary.modulation import check_control_period, modulate
+
+        check_control_period(dt)
         F = self.ds.velocity(X)
         if not self.cuts:
             return F
-        from tli_verify.boundary.modulation import modulate
 
         single = F.ndim == 1
         Xa = np.atleast_2d(np.asarray(X, dtype=np.float64))

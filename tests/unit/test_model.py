@@ -120,25 +120,32 @@ def test_with_cuts_returns_a_new_model(tmp_path: Path) -> None:
 
 
 def test_velocity_with_cuts_and_control_period(tmp_path: Path) -> None:
-    """A mode with cuts returns the guarded modulation; with dt no Euler step crosses."""
+    """A mode with cuts returns the guarded modulation, and ``dt`` is honoured: a step of the
+    continuous-time field would cross a cut the flow runs into, the ``dt`` one does not."""
     from tli_verify.boundary.modulation import modulate
 
     model = load_model(write(tmp_path, doc()))
     ds = model.modes["a"].ds
-    w = np.array([0.6, 0.8])
-    cut = Cut(normal=w, point=ds.attractor + 0.5 * w)
+    x0 = ds.attractor + np.array([2.0, -1.0])
+    f0 = ds.velocity(x0)
+    w = f0 / np.linalg.norm(f0) + (x0 - ds.attractor) / np.linalg.norm(x0 - ds.attractor)
+    w /= np.linalg.norm(w)  # the flow at x0 runs out through this plane, x* stays inside
+    cut = Cut(normal=w, point=x0 + 1e-3 * w)
     cut_model = model.with_cuts("a", [cut])
-    rng = np.random.default_rng(0)
-    X = ds.attractor + rng.uniform(-3, 3, (400, 2))
-    X = X[(X - cut.point) @ w <= 0]  # inside the cut
-    for dt in (None, 0.05):
-        V = cut_model.velocity(X, mode="a", dt=dt)
-        np.testing.assert_array_equal(
-            V, modulate(X, ds.velocity(X), [cut], ds.attractor, lyapunov=ds.P, dt=dt))
-    step = X + 0.05 * cut_model.velocity(X, mode="a", dt=0.05)
-    assert np.all((step - cut.point) @ w <= 1e-12)
-    one = cut_model.velocity(X[0], mode="a", dt=0.05)
-    assert one.shape == (2,)
+    X = x0[None, :]
+    dt = 10.0 * float(w @ (cut.point - ds.attractor)) / float(w @ f0)
+    np.testing.assert_array_equal(
+        cut_model.velocity(X, mode="a", dt=dt),
+        modulate(X, ds.velocity(X), [cut], ds.attractor, lyapunov=ds.P, dt=dt))
+    crossing = X + dt * cut_model.velocity(X, mode="a")
+    assert (crossing[0] - cut.point) @ w > 0  # the continuous-time field, held for dt, leaves
+    step = X + dt * cut_model.velocity(X, mode="a", dt=dt)
+    assert (step[0] - cut.point) @ w <= 1e-12
+    assert cut_model.velocity(x0, mode="a", dt=dt).shape == (2,)
+    for bad in (-1.0, 0.0, "x"):  # validated with and without cuts
+        for m in (model, cut_model):
+            with pytest.raises(ModelError, match="dt"):
+                m.velocity(X, mode="a", dt=bad)  # type: ignore[arg-type]
 
 
 def mutate(path: list[str | int], value: Any) -> dict[str, Any]:

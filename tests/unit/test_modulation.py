@@ -329,3 +329,29 @@ def test_dt_validation() -> None:
     for bad in (0.0, -1.0, float("nan"), True, "0.1"):
         with pytest.raises(ModelError, match="dt"):
             mod(X, F, dt=bad)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("kappa", [0.5, 200.0])
+def test_barrier_rate_matches_reference(kappa: float) -> None:
+    rng = np.random.default_rng(11)
+    x_star, cuts, P = _random_setup(3, rng, m=5)
+    X = _inside_near_faces(x_star, cuts, rng, 300)
+    X = X[np.linalg.norm(X - x_star, axis=1) > 1e-3]
+    F = 3.0 * rng.standard_normal(X.shape)
+    mod = Modulator.build(cuts, x_star, lyapunov=P, barrier_rate=kappa)
+    fast = mod(X, F)
+    slow = modulate_reference(X, F, cuts, x_star, lyapunov=P, barrier_rate=kappa)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-9 * (1 + np.abs(slow).max()))
+    assert np.any(np.abs(fast - mod.eq5(X, F)) > 1e-9)
+
+
+def test_bad_inputs_are_model_errors() -> None:
+    cut = Cut([1.0, 0.0], [1.0, 0.0])
+    mod = Modulator.build(iter([cut]), np.zeros(2))  # any iterable of cuts
+    with pytest.raises(ModelError, match="X has a NaN"):
+        mod(np.array([[np.nan, 0.0]]), np.zeros((1, 2)))
+    with pytest.raises(ModelError, match="F has a NaN"):
+        mod(np.zeros((1, 2)), np.array([[np.inf, 1.0]]))
+    for bad in ("1", True, 0.0, -2.0, float("inf")):
+        with pytest.raises(ModelError, match="barrier_rate"):
+            Modulator.build([cut], np.zeros(2), barrier_rate=bad)  # type: ignore[arg-type]

@@ -40,7 +40,7 @@ keyword ``lyapunov``; identity by default, e.g. for BC)::
 
 By Cauchy-Schwarz in the ``P`` metric ``sigma^2 <= q V``, so ``w . v = q Gamma_i >= 0``. The
 normal component is again scaled by ``1 - Gamma_i`` (zero on the plane) and ``dV/dt`` is
-*unchanged*, so Thm. 1's conclusions hold (no crossing, V decreases at least as fast, G.A.S.).
+*unchanged*. On a single cut's face Thm. 1's conclusions hold; at corners see the guard below.
 A cut counts as degenerate when ``|h_i| <= 1e-9 max(1, ||p_i - x*||)``.
 
 At ``x = x*`` the reference direction is undefined and ``M = I`` (for a DS, ``f(x*) = 0``).
@@ -125,6 +125,7 @@ __all__ = [
     "ModulatedPolicy",
     "Modulator",
     "StatePolicy",
+    "check_control_period",
     "gamma",
     "modulate",
     "modulate_reference",
@@ -232,8 +233,10 @@ class Modulator:
                 raise ModelError(f"cuts[{i}] is not a Cut")
             if c.dim != n:
                 raise ModelError(f"cuts[{i}] has dimension {c.dim}, attractor has {n}")
-        if not (np.isfinite(barrier_rate) and barrier_rate > 0):
+        if (isinstance(barrier_rate, bool) or not isinstance(barrier_rate, numbers.Real)
+                or not (np.isfinite(barrier_rate) and barrier_rate > 0)):
             raise ModelError(f"barrier_rate must be a positive number, got {barrier_rate!r}")
+        cuts = list(cuts)
         if lyapunov is None:
             P = np.eye(n)
         else:
@@ -280,6 +283,8 @@ class Modulator:
         Xa = np.asarray(X, dtype=np.float64)
         if Xa.ndim != 2 or Xa.shape[1] != self.dim:
             raise ModelError(f"{name} must have shape (N, {self.dim}), got {Xa.shape}")
+        if not np.isfinite(Xa).all():
+            raise ModelError(f"{name} has a NaN or infinite entry")
         return Xa
 
     def _gammas(self, D: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray | None]:
@@ -394,7 +399,7 @@ class Modulator:
             A velocity in the admissible set ``C(x)`` (module docstring): eq. 5's where that
             is admissible (inside the cuts), ``f(x)`` where no cut applies.
         """
-        _check_dt(dt)
+        check_control_period(dt)
         Xa, Fa = self._pair(X, F)
         out, D, S = self._eq5(Xa, Fa, dt)
         if D is None or S is None:
@@ -557,7 +562,8 @@ class Modulator:
             nxt = self._most_broken(cand[grow], b2[grow], l2[grow], bound[rows[grow]],
                                     grad[rows[grow]], v_bound[rows[grow]])
             rows, S = rows[grow], np.c_[S[grow], nxt]
-        assert self.metric is not None
+        metric = (self.metric if self.metric is not None
+                  else np.linalg.inv(np.linalg.cholesky(self.P)).T)
         for i in np.flatnonzero(todo).tolist():
             on = inside[i]
             if self.certified:
@@ -568,7 +574,7 @@ class Modulator:
             g = G[i]
             if _admits(A, c, g, g):
                 continue
-            v = _project_polyhedron(g, A, c, self.metric)
+            v = _project_polyhedron(g, A, c, metric)
             G[i] = v if v is not None and _admits(A, c, v, g) else witness[i]
         return G
 
@@ -580,7 +586,8 @@ def _admits(A: FloatArray, c: FloatArray, v: FloatArray, g: FloatArray) -> bool:
     return bool(np.all(A @ v <= c + tol))
 
 
-def _check_dt(dt: float | None) -> None:
+def check_control_period(dt: float | None) -> None:
+    """Raise :class:`ModelError` unless ``dt`` is None or a positive finite number."""
     if dt is not None and (isinstance(dt, bool) or not isinstance(dt, numbers.Real)
                            or not (np.isfinite(dt) and dt > 0)):
         raise ModelError(f"dt must be a positive number, got {dt!r}")
@@ -764,6 +771,7 @@ def modulate_reference(
     lyapunov: npt.ArrayLike | None = None,
     dt: float | None = None,
     guard: bool = True,
+    barrier_rate: float = DEFAULT_BARRIER_RATE,
 ) -> FloatArray:
     """Straightforward per-point modulation, for checking :func:`modulate`.
 
@@ -781,28 +789,39 @@ def modulate_reference(
     x_star = np.asarray(attractor, dtype=np.float64)
     P = np.eye(x_star.size) if lyapunov is None else np.asarray(lyapunov, dtype=np.float64)
     for i in range(Xa.shape[0]):
-        if np.array_equal(Xa[i], x_star):
-            continue
-        E, M, g, a = modulation_matrix(Xa[i], cuts, x_star, lyapunov=lyapunov)
-        coef = np.linalg.solve(E, Fa[i])[0]
-        if 0.0 < g <= 1.0 + BOUNDARY_TOL and coef >= 0.0:
-            out[i] = M @ Fa[i]
-            d = Xa[i] - x_star
-            h = float(cuts[a].normal @ (cuts[a].point - x_star))
-            radial = g * coef / float(np.linalg.norm(d))  # M f = f - radial (x - x*)
-            if (dt is not None and radial > 1.0 / dt
-                    and h > DEGENERATE_TOL * max(1.0, float(np.linalg.norm(cuts[a].point
-                                                                          - x_star)))):
-                out[i] = Fa[i] - d / dt  # the sampled-data cap of eq. 5's correction
         if guard:
-            out[i] = _guard_reference(Xa[i], Fa[i], out[i], cuts, x_star, P,
-                                      certified=lyapunov is not None, dt=dt)
+            out[i] = _guard_reference(Xa[i], Fa[i], _eq5_reference(Xa[i], Fa[i], cuts, x_star,
+                                                                   lyapunov, dt),
+                                      cuts, x_star, P, certified=lyapunov is not None, dt=dt,
+                                      kappa=barrier_rate)
+        else:
+            out[i] = _eq5_reference(Xa[i], Fa[i], cuts, x_star, lyapunov, dt)
+    return out
+
+
+def _eq5_reference(x: FloatArray, f: FloatArray, cuts: Sequence[Cut], x_star: FloatArray,
+                   lyapunov: npt.ArrayLike | None, dt: float | None) -> FloatArray:
+    """Eq. 5 at one state, literally (``f`` itself at ``x*``, outside, or for inward flow)."""
+    if np.array_equal(x, x_star):
+        return f.copy()
+    E, M, g, a = modulation_matrix(x, cuts, x_star, lyapunov=lyapunov)
+    coef = np.linalg.solve(E, f)[0]
+    out = f.copy()
+    if 0.0 < g <= 1.0 + BOUNDARY_TOL and coef >= 0.0:
+        out = M @ f
+        d = x - x_star
+        h = float(cuts[a].normal @ (cuts[a].point - x_star))
+        radial = g * coef / float(np.linalg.norm(d))  # M f = f - radial (x - x*)
+        if (dt is not None and radial > 1.0 / dt
+                and h > DEGENERATE_TOL * max(1.0, float(np.linalg.norm(cuts[a].point
+                                                                      - x_star)))):
+            out = f - d / dt  # the sampled-data cap of eq. 5's correction
     return out
 
 
 def _guard_reference(x: FloatArray, f: FloatArray, v: FloatArray, cuts: Sequence[Cut],
                      x_star: FloatArray, P: FloatArray, *, certified: bool,
-                     dt: float | None) -> FloatArray:
+                     dt: float | None, kappa: float) -> FloatArray:
     """The corner guard at one state, written out (see the module docstring)."""
     d = x - x_star
     V = float(d @ P @ d)
@@ -821,7 +840,7 @@ def _guard_reference(x: FloatArray, f: FloatArray, v: FloatArray, cuts: Sequence
             rate = max(-float(w @ d), 0.0) * outward / (q * V) if V > 0 else 0.0
         else:
             rate = outward / h
-        rate = min(max(rate, DEFAULT_BARRIER_RATE), RATE_CAP * DEFAULT_BARRIER_RATE)
+        rate = min(max(rate, kappa), RATE_CAP * kappa)
         rho = max(rate, t) if dt is None else 1.0 / dt
         rows.append(w)
         bounds.append(rho * max(b, 0.0))
@@ -917,7 +936,7 @@ def modulated(
     -------
     ModulatedPolicy
     """
-    _check_dt(dt)
+    check_control_period(dt)
     if isinstance(policy, StatePolicy):
         fn: Callable[[FloatArray], FloatArray] = policy.velocity
         if lyapunov is None and getattr(policy, "P", None) is not None:
