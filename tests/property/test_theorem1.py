@@ -32,7 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -195,9 +195,22 @@ def _euler(sys_: System, X: np.ndarray, dt: float, horizon: float
     return worst, np.array(Vs)
 
 
+def _mixed_corner() -> System:
+    """The 3D case hypothesis found where eq. 5 alone leaves (a cut through x* next to a
+    regular cut; ``tests/unit/test_modulation.py``), as an explicit example."""
+    A = np.array([[-0.3, 0.0, -1.0], [0.0, -0.3, -1.0], [1.0, 1.0, -0.3]])
+    ds = LPVDS(attractor=np.zeros(3), priors=np.array([1.0]), means=np.zeros((1, 3)),
+               covs=np.eye(3)[None], A=A[None], P=np.eye(3))
+    cuts = [Cut(np.array([1.0, 0.0, 0.0]), np.array([0.5, 0.0, 0.0])),
+            Cut(np.array([0.0, 1.0, 0.0]), np.zeros(3))]
+    return System(ds=ds, cuts=cuts, modulator=Modulator.build(cuts, np.zeros(3),
+                                                              lyapunov=np.eye(3)), rate=0.6)
+
+
 @settings(max_examples=30)
 @given(sys_=systems(), dirs=st.integers(2, 5).flatmap(
     lambda k: hnp.arrays(np.float64, (k, 4), elements=st.floats(-1, 1, width=64))))
+@example(sys_=_mixed_corner(), dirs=np.array([[-1.0, -1.0, -1.0, 0.0], [-1.0, -0.2, 0.5, 0.0]]))
 def test_trajectories_stay_inside_and_converge(sys_: System, dirs: np.ndarray) -> None:
     """(a) along trajectories and (c): no Euler step leaves the cuts, and V decays to x*.
 
