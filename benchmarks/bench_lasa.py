@@ -140,6 +140,8 @@ def plot(shape: str, results: dict[str, tuple[Any, Any]], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from tli_verify.plotting import save_figure
+
     demos = getattr(_lasa().DataSet, shape).demos
     pts = np.concatenate([d.pos.T for d in demos])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -162,9 +164,7 @@ def plot(shape: str, results: dict[str, tuple[Any, Any]], path: Path) -> None:
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_aspect("equal")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path, dpi=80)
 
 
 def _summary(rows: list[Row], method: str) -> dict[str, float]:

@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tli_verify.io import atomic_write_bytes
+    from tli_verify.plotting import save_figure
 
     parser = argparse.ArgumentParser(prog="plot_corner_guard.py")
     parser.add_argument("--out", type=Path, default=Path("docs/img/corner_guard.png"))
@@ -83,13 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     axv.set_title("V decreases along both (Thm. 1 (b))")
     axv.legend(fontsize=8)
     fig.tight_layout()
-    import io
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(args.out, buf.getvalue())
+    save_figure(fig, args.out, dpi=110)
     print(f"wrote {args.out}")
     return 0
 

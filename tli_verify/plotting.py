@@ -12,7 +12,29 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["draw_mode_graph"]
+__all__ = ["draw_mode_graph", "save_figure"]
+
+
+def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int) -> None:
+    """Write a matplotlib figure as PNG atomically (parent folders created) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : path-like
+    dpi : int
+    """
+    import io
+
+    import matplotlib.pyplot as plt
+
+    from tli_verify.io import atomic_write_bytes
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    plt.close(fig)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    atomic_write_bytes(path, buffer.getvalue())
 
 
 def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str | None = None
@@ -36,7 +58,6 @@ def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str 
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, FancyArrowPatch
 
-    from tli_verify.io import atomic_write_bytes
 
     modes = [m for m in automaton.modes
              if any(s.mode == m for s in automaton.states)] or sorted(
@@ -83,9 +104,4 @@ def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str 
     ax.set_title(title or f"{automaton.name}: {len(automaton.states)} automaton states",
                  fontsize=10)
     fig.tight_layout()
-    import io
-
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=120)
-    plt.close(fig)
-    atomic_write_bytes(path, buffer.getvalue())
+    save_figure(fig, path, dpi=120)

@@ -571,9 +571,7 @@ class Modulator:
                 c = np.append(bound[i, on], v_bound[i])
             else:
                 A, c = self.W[on], bound[i, on]
-            g = G[i]
-            if _admits(A, c, g, g):
-                continue
+            g = G[i]  # breaks a row (``todo``: same test and tolerance as ``_admits``)
             v = _project_polyhedron(g, A, c, metric)
             G[i] = v if v is not None and _admits(A, c, v, g) else witness[i]
         return G

@@ -242,6 +242,7 @@ def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
     import numpy as np
 
     from tli_verify.demos import load_demo
+    from tli_verify.plotting import save_figure
 
     demos = [load_demo(p) for p in demo_paths]
     pts = np.concatenate([d.x for d in demos])
@@ -263,6 +264,4 @@ def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
         ax.set_title(f"mode {key}", fontsize=9)
         ax.set_aspect("equal")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)

@@ -30,7 +30,6 @@ of worker processes.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -811,6 +810,8 @@ def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from tli_verify.plotting import save_figure
+
     noises = list(record["noise"].keys())
     top = noises[-1]
     ncols = len(noises) + 2
@@ -865,8 +866,7 @@ def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     fig.suptitle("Single-mode rollouts (cf. paper Fig. 6): blue = success, red = failure; "
                  "cyan = cuts, yellow = last in-mode state, red x = failure state", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _plot_curve(summary: dict[str, Any], path: Path) -> None:
@@ -874,6 +874,8 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from tli_verify.plotting import save_figure
 
     noises = [str(p) for p in summary["config"]["noise_percent"]]
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.4), sharey=True)
@@ -898,8 +900,7 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     fig.suptitle("Success vs. number of cuts (cf. paper Fig. 8 right): mean, shaded IQR",
                  fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def write_outputs(
@@ -923,25 +924,19 @@ def write_outputs(
     list of Path
         The files written (JSON, Markdown, then figures).
     """
-    from tli_verify.io import atomic_write_bytes, atomic_write_text, canonical_json
+    from tli_verify.io import atomic_write_text, canonical_json
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     figs: list[str] = []
     if figures:
         curve_png = out_dir / "single_mode_cuts.png"
-        tmp = out_dir / f".single_mode_cuts.{os.getpid()}.png"
-        _plot_curve(summary, tmp)
-        atomic_write_bytes(curve_png, tmp.read_bytes())
-        tmp.unlink()
+        _plot_curve(summary, curve_png)
         written.append(curve_png)
         figs.append(curve_png.name)
     if figures and record is not None:
         roll_png = out_dir / "single_mode_rollouts.png"
-        tmp = out_dir / f".single_mode_rollouts.{os.getpid()}.png"
-        _plot_rollouts(record, tmp)
-        atomic_write_bytes(roll_png, tmp.read_bytes())
-        tmp.unlink()
+        _plot_rollouts(record, roll_png)
         written.append(roll_png)
         figs.append(roll_png.name)
     js = out_dir / "single_mode.json"
