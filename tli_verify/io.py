@@ -19,12 +19,24 @@ MAX_INPUT_BYTES = 4 * 1024 * 1024
 """Largest input file (spec, model, certificate) accepted; larger files are bad input."""
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file + rename)."""
+    """Write ``data`` to ``path`` atomically (temp file + rename).
+
+    The file gets the permissions a plain ``open(path, "w")`` would give it (``0o666`` minus the
+    umask), not the private ``0o600`` of the temporary file: certificates and reports are meant
+    to be read by others.
+    """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
             handle.flush()
