@@ -58,6 +58,7 @@ __all__ = [
     "model_from_dict",
     "model_to_dict",
     "read_json",
+    "relocate_model",
     "save_model",
     "validate_schema",
 ]
@@ -434,6 +435,37 @@ def save_model(model: Model, path: str | os.PathLike[str]) -> None:
 def _relpath(target: str | os.PathLike[str], base_dir: Path) -> str:
     """``target`` relative to ``base_dir`` (POSIX separators), for portable files."""
     return Path(os.path.relpath(Path(target).resolve(), base_dir.resolve())).as_posix()
+
+
+def relocate_model(model: Model, out_path: str | os.PathLike[str], *,
+                   modes: Mapping[str, ModeModel] | None = None) -> Model:
+    """The model as it will be written at ``out_path``: relative paths rewritten.
+
+    Parameters
+    ----------
+    model : Model
+    out_path : path-like
+        The new file.
+    modes : mapping of str to ModeModel, optional
+        Replacement DS (default: the model's).
+
+    Returns
+    -------
+    Model
+    """
+    base = Path(model.path).parent if model.path else Path(".")
+    out_dir = Path(out_path).parent
+    spec = _relpath(base / model.spec, out_dir) if model.spec is not None else None
+    source = None
+    if model.source is not None:
+        src = json.loads(json.dumps(dict(model.source)))
+        for demo in src.get("demos") or []:
+            if isinstance(demo, dict) and isinstance(demo.get("path"), str):
+                demo["path"] = _relpath(base / demo["path"], out_dir)
+        source = MappingProxyType(src)
+    return Model(state_names=model.state_names,
+                 modes=modes if modes is not None else model.modes,
+                 spec=spec, path=str(out_path), source=source)
 
 
 def learn_model(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -18,10 +19,11 @@ from tli_verify.certify.certificate import (
     issue_certificate,
     write_certificate,
 )
+from tli_verify.certify.repair import repair_model
 from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import CertificateError
-from tli_verify.io import canonical_json
-from tli_verify.model import load_model
+from tli_verify.io import canonical_json, sha256_file
+from tli_verify.model import load_model, save_model
 
 
 def small_model(A1: list[list[float]], P: list[list[float]] | None = None,
@@ -55,8 +57,11 @@ def test_issue_is_reproducible(project: Path) -> None:
     assert doc["digest"] == certificate_digest(doc)
     assert doc["model"]["path"] == "../models/scoop.model.json"
     assert doc["spec"]["path"] == "../specs/scoop.toml"
-    for entry in doc["modes"].values():
-        assert entry["P_source"] == "model"
+    assert doc["control_period"] == {"dt": "1/1000", "dt_float": 0.001}
+    model = load_model(project / "models" / "scoop.model.json")
+    for key, entry in doc["modes"].items():
+        assert entry["P"] == model.modes[key].ds.P.tolist()  # the runtime's P, bit for bit
+        assert Fraction(entry["decay_rate"]) > 0
         assert entry["solver"]["status"] == "optimal"
         assert entry["lambda_min_P"] > 0
         assert max(entry["lambda_max"]) < 0
@@ -65,30 +70,50 @@ def test_issue_is_reproducible(project: Path) -> None:
 def test_not_certifiable_names_mode_and_component(tmp_path: Path) -> None:
     path = tmp_path / "m.json"
     path.write_text(json.dumps(small_model([[0.1, 0.0], [0.0, -1.0]])), encoding="utf-8")
-    with pytest.raises(CertificateError, match=r"m\.json: mode 'reach': not certifiable: "
-                       r"component 1: A_k\^T P \+ P A_k is not negative definite .*"
-                       r"no common Lyapunov matrix .*status 'infeasible'") as info:
+    with pytest.raises(CertificateError, match=r"m\.json: mode 'reach': the model's P does not "
+                       r"certify: component 1: A_k\^T P \+ P A_k is not negative definite .*"
+                       r"--repair") as info:
         issue_certificate(path, cert_path=tmp_path / "c.json")
     assert info.value.exit_code == 1
     assert not (tmp_path / "c.json").exists()
+    with pytest.raises(CertificateError, match=r"mode 'reach': no common quadratic Lyapunov "
+                       r"function .*infeasible") as info:
+        repair_model(path, tmp_path / "r.json", dt=Fraction(1, 1000))
+    assert info.value.exit_code == 1
 
 
 @pytest.mark.parametrize("fit", [None, {"solver": "CLARABEL", "status": "optimal_inaccurate"}])
-def test_certify_searches_p_when_the_models_p_fails(tmp_path: Path,
-                                                    fit: dict[str, Any] | None) -> None:
-    # stable A_1 whose symmetric part is indefinite: P = I fails, another P certifies
+def test_one_p_certify_refuses_a_failing_p_and_repair_writes_a_new_model(
+        tmp_path: Path, fit: dict[str, Any] | None) -> None:
+    """The issue's reproduction: A = [[-1, 8], [0, -1]] is stable but P = I does not prove it.
+
+    Before, certify silently certified another P (P_source "certify-sdp") while the runtime's
+    guard kept using P = I: V of the certificate then increased along Model.velocity."""
     data = small_model([[-1.0, 8.0], [0.0, -1.0]], fit=fit)
-    if fit is not None:  # a non-optimal solve is never used, even if its P would certify
-        data["modes"]["reach"]["components"][1]["A"] = [[-1.0, 0.0], [0.0, -1.0]]
+    data["modes"]["reach"]["cuts"] = [{"normal": [0.6, 0.8], "point": [1.2, 1.6]},
+                                      {"normal": [-1.0, 0.0], "point": [-0.5, 0.0]}]
     path = tmp_path / "m.json"
     path.write_text(json.dumps(data), encoding="utf-8")
+    with pytest.raises(CertificateError, match="mode 'reach': the model's P does not certify"):
+        issue_certificate(path, cert_path=tmp_path / "c.json")
+    new = tmp_path / "repaired.json"
+    result = repair_model(path, new, dt=Fraction(1, 1000))
+    assert result.repaired == ("reach",)
+    save_model(result.model, new)
     cert = tmp_path / "c.json"
-    doc = issue_certificate(path, cert_path=cert)
-    entry = doc["modes"]["reach"]
-    assert entry["P_source"] == "certify-sdp"
-    assert entry["solver"] == {"name": "CLARABEL", "status": "optimal", "eps": 1e-6}
-    write_certificate(doc, cert)
+    write_certificate(issue_certificate(new, cert_path=cert), cert)
     assert check_certificate(cert).ok
+    P = np.array(json.loads(cert.read_text())["modes"]["reach"]["P"])
+    model = load_model(new)
+    assert np.array_equal(P, model.modes["reach"].ds.P)  # the runtime's P is the certified P
+    assert [c.to_dict() for c in model.modes["reach"].cuts] == data["modes"]["reach"]["cuts"]
+    rng = np.random.default_rng(0)
+    X = np.vstack([[-1.064, -1.551], rng.uniform(-4, 4, size=(4000, 2))])
+    inside = X[(X @ np.array([0.6, 0.8]) <= 2.0) & (X[:, 0] >= -0.5)]
+    for dt in (None, 1e-3):
+        v = model.velocity(inside, "reach", dt=dt)
+        dV = 2 * np.einsum("ni,ij,nj->n", inside, P, v)
+        assert np.all(dV <= 1e-9 * np.linalg.norm(inside, axis=1) ** 2)
 
 
 def test_check_reports_what_differs(project: Path) -> None:
@@ -113,6 +138,48 @@ def test_check_catches_stale_recorded_eigenvalues(project: Path) -> None:
     assert len(problems) == 1
     assert problems[0].startswith("mode 'a': component 0: recorded largest eigenvalue of "
                                   "A_k^T P + P A_k -5.0 differs from the recomputed -")
+
+
+def _forge(cert: Path, edit: Any) -> list[str]:
+    doc = json.loads(cert.read_text())
+    edit(doc)
+    doc["digest"] = certificate_digest(doc)
+    cert.write_text(canonical_json(doc))
+    return list(check_certificate(cert).problems)
+
+
+def test_a_certificate_binds_the_spec_its_model_names(project: Path) -> None:
+    """Class 5: a certificate pointing at another (realizable, same-modes) spec, hashes redone."""
+    other = project / "specs" / "scoop-copy.toml"
+    other.write_text((project / "specs" / "scoop.toml").read_text() + "\n# another spec\n")
+
+    def point_elsewhere(doc: dict[str, Any]) -> None:
+        doc["spec"] = {"path": "../specs/scoop-copy.toml", "sha256": sha256_file(other)}
+
+    problems = _forge(project / "certificates" / "scoop.cert.json", point_elsewhere)
+    assert len(problems) == 1
+    assert "is not the spec the model names" in problems[0]
+
+
+def test_forged_control_period_and_rate_fail_the_exact_check(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    original = cert.read_text()
+
+    def slower(doc: dict[str, Any]) -> None:
+        doc["control_period"] = {"dt": "100", "dt_float": 100.0}
+
+    problems = _forge(cert, slower)
+    assert problems
+    assert all("dt = 100" in p and "(exact re-check)" in p for p in problems)
+    cert.write_text(original)
+
+    def faster_decay(doc: dict[str, Any]) -> None:
+        doc["modes"]["a"]["decay_rate"] = str(
+            Fraction(doc["modes"]["a"]["decay_rate"]) * 2)
+
+    problems = _forge(cert, faster_decay)
+    assert len(problems) >= 1
+    assert all(p.startswith("mode 'a': component") and "decay rate" in p for p in problems)
 
 
 def test_check_with_a_forged_but_valid_p_still_needs_the_models_p(project: Path) -> None:
@@ -150,7 +217,7 @@ def test_malformed_certificates(tmp_path: Path) -> None:
     bad = tmp_path / "c.json"
     bad.write_text("{not json")
     assert "malformed certificate" in check_certificate(bad).problems[0]
-    bad.write_text(json.dumps({"schema_version": 1}))
+    bad.write_text(json.dumps({"schema_version": 2}))
     assert "'kind' is a required property" in check_certificate(bad).problems[0]
     with pytest.raises(CertificateError, match="no such certificate file") as info:
         check_certificate(tmp_path / "missing.json")

@@ -1,21 +1,26 @@
 """Lyapunov certificates of model files: issue (``tli certify``) and re-check (``tli check-cert``).
 
 A certificate (schema ``tli_verify/schemas/certificate.schema.json``) states, for every DS of a
-model, that ``V(x) = (x - x*)^T P (x - x*)`` proves global asymptotic stability (paper eq. 5):
-``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k. It records
+model, that ``V(x) = (x - x*)^T P (x - x*)`` with **the model's own P** -- the P the runtime's
+modulation and corner guard use (paper Thm. 1 needs one P for both) -- proves
 
-* ``schema_version``, ``kind`` and the tool version;
-* the model file (path relative to the certificate, SHA-256) and its spec file if it names one;
-* per DS: ``P``, where it came from (the model's own ``P``, or an SDP solved by ``certify``),
-  the smallest eigenvalue of ``P``, the largest eigenvalue of each ``A_k^T P + P A_k``, the
-  solver and status, the cuts the certificate was issued for, and the exact verdicts;
-* ``digest``: SHA-256 of the canonical JSON of everything else, so any edit of the certificate
-  shows even when the edited numbers would still certify.
+* ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 4);
+* at the declared control period ``dt``: ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` for every k,
+  so each explicit Euler step of the nominal DS decreases ``V`` (and at every shorter period);
+* a decay rate ``lambda > 0``: ``A_k^T P + P A_k + lambda P < 0`` for every k, so
+  ``V(x(t)) <= V(x(0)) exp(-lambda t)`` (the reachability deadline of
+  :mod:`tli_verify.certify.reach`).
 
-Nothing in it is trusted. :func:`check_certificate` recomputes the model hash, reloads the
-model, requires the certificate's ``P`` to be the model's when it claims so, recomputes the
-eigenvalues, and re-runs the exact rational check (:mod:`tli_verify.certify.exact`) on the
-numbers themselves.
+It records the schema version, the model file (path relative to the certificate, SHA-256) and
+the spec the model names, and per DS: ``P``, the smallest eigenvalue of ``P``, the largest
+eigenvalue of each ``A_k^T P + P A_k``, the rate, the learning solver's status, the cuts, and the
+exact verdicts. ``digest`` is the SHA-256 of the canonical JSON of everything else.
+
+Nothing in it is trusted. :func:`check_certificate` recomputes the hashes, requires the spec the
+certificate names to be the file the model names, requires ``P`` to be the model's bit for bit,
+recomputes the eigenvalues and re-runs every exact check (:mod:`tli_verify.certify.exact`).
+A model whose own ``P`` does not certify is refused (exit 1); ``tli certify --repair``
+(:mod:`tli_verify.certify.repair`) writes a new model with a certifying ``P``.
 """
 
 from __future__ import annotations
@@ -24,19 +29,26 @@ import hashlib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.certify.exact import check_lyapunov
-from tli_verify.errors import CertificateError, ModelError, SolverError
+from tli_verify.certify.exact import (
+    LyapunovCheck,
+    certified_decay_rate,
+    check_lyapunov,
+    parse_rational,
+)
+from tli_verify.errors import CertificateError, ModelError
 from tli_verify.io import atomic_write_text, canonical_json, sha256_file
 
 __all__ = [
     "CERT_KIND",
     "CERT_SCHEMA_VERSION",
+    "DEFAULT_DT",
     "EXACT_METHOD",
     "CertCheck",
     "certificate_digest",
@@ -47,10 +59,16 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-CERT_SCHEMA_VERSION = 1
+CERT_SCHEMA_VERSION = 2
 CERT_KIND = "tli-verify/lyapunov-certificate"
-EXACT_METHOD = ("floats converted to exact rationals (fractions.Fraction); P > 0 and "
-                "-(A_k^T P + P A_k) > 0 decided by LDL^T pivots (Sylvester's criterion)")
+DEFAULT_DT = Fraction(1, 1000)
+"""Default control period: 1 ms, a Franka's. A certificate at ``dt`` covers every shorter
+period; loops that run slower (the 2-D worlds at 5-10 ms) declare theirs with ``--dt``."""
+EXACT_METHOD = ("floats converted to exact dyadic rationals (integers times a power of two); "
+                "P > 0, -(A_k^T P + P A_k) > 0, P - (I + dt A_k)^T P (I + dt A_k) > 0 and "
+                "-(A_k^T P + P A_k) - lambda P > 0 decided on integers: an exact congruence to a "
+                "diagonally dominant matrix (Sylvester's law of inertia + Gershgorin), else "
+                "fraction-free elimination (Sylvester's criterion)")
 _REL_TOL = 1e-9
 
 
@@ -70,25 +88,79 @@ def _eigs(P: FloatArray, A: FloatArray) -> tuple[float, list[float]]:
     return lam_p, lam
 
 
-def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any] | None:
-    """The solver record of the model's learning SDP, if its P may be used."""
+def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The learning solver's record (informational; the exact check is the proof)."""
     if fit is None:
-        return {"name": None, "status": "not solved here: P taken from the model file",
-                "eps": None}
-    status = fit.get("status")
-    if status is not None and status != "optimal":
-        return None  # e.g. optimal_inaccurate: never a certificate from that P
-    return {"name": fit.get("solver"), "status": str(status or "unknown"),
+        return {"name": None, "status": "not recorded in the model file", "eps": None}
+    return {"name": fit.get("solver"), "status": str(fit.get("status") or "unknown"),
             "eps": fit.get("eps")}
 
 
-def issue_certificate(model_path: str | os.PathLike[str], *,
-                      cert_path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Verify every DS of a model exactly and build its certificate document.
+def rational_text(q: Fraction) -> str:
+    """``"p"`` or ``"p/q"``: the exact text of a rational in a certificate."""
+    return str(q.numerator) if q.denominator == 1 else f"{q.numerator}/{q.denominator}"
 
-    For each DS the model's own ``P`` is tried first. If it does not certify exactly (or the
-    model records a non-optimal learning status), a common Lyapunov matrix is searched for the
-    fixed ``A_k`` with an SDP (:func:`tli_verify.ds.lyapunov.find_p`) and checked exactly.
+
+def _repair_hint(mpath: Path) -> str:
+    stem = mpath.name.removesuffix(".json").removesuffix(".model")
+    return (f"run 'tli certify {mpath} --repair {mpath.parent / (stem + '.repaired.model.json')}' "
+            "to search a certifying P and write it into a new model (the runtime must use the "
+            "certified P)")
+
+
+def certify_mode(key: str, mm: Any, *, dt: Fraction, where: str) -> dict[str, Any]:
+    """Certify one DS with its own P, or raise naming the mode and what fails.
+
+    Parameters
+    ----------
+    key : str
+        Model key of the DS.
+    mm : ModeModel
+    dt : Fraction
+        Control period of the sampled-data conditions.
+    where : str
+        The model file, for messages.
+
+    Returns
+    -------
+    dict
+        The certificate's entry for the DS.
+
+    Raises
+    ------
+    CertificateError
+        The model's P fails an exact condition (exit 1).
+    """
+    A, P = mm.ds.A, mm.ds.P
+    verdict = check_lyapunov(P, A, dt=dt)
+    if not verdict.ok:
+        raise CertificateError(
+            f"{where}: mode {key!r}: the model's P does not certify: {verdict.failures()[0]}; "
+            f"{_repair_hint(Path(where))}")
+    rate = certified_decay_rate(P, A)
+    if rate <= 0:  # cannot happen when the continuous conditions hold; never certify 0
+        raise CertificateError(f"{where}: mode {key!r}: no positive decay rate verifies "
+                               "exactly")
+    lam_p, lam = _eigs(P, A)
+    return {
+        "P": P.tolist(),
+        "lambda_min_P": lam_p,
+        "lambda_max": lam,
+        "decay_rate": rational_text(rate),
+        "decay_rate_float": float(rate),
+        "solver": _solver_of_fit(mm.fit),
+        "cuts": [c.to_dict() for c in mm.cuts],
+        "exact": {"P_positive_definite": True,
+                  "components_negative_definite": [True] * len(lam),
+                  "sampled_decrease": [True] * len(lam),
+                  "decay_rate": True},
+    }
+
+
+def issue_certificate(model_path: str | os.PathLike[str], *,
+                      cert_path: str | os.PathLike[str],
+                      dt: Fraction | str = DEFAULT_DT) -> dict[str, Any]:
+    """Verify every DS of a model exactly, with the model's own P, and build its certificate.
 
     Parameters
     ----------
@@ -96,6 +168,8 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
         The model file.
     cert_path : path-like
         Where the certificate will be written (paths inside are relative to its directory).
+    dt : Fraction or str, optional
+        Control period of the sampled-data conditions (default 1/1000 s).
 
     Returns
     -------
@@ -105,62 +179,39 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     Raises
     ------
     ModelError
-        The model file does not load (exit 2).
+        The model file does not load, or its spec is missing or does not load (exit 2).
     CertificateError
-        A DS is not certifiable, naming the mode and the component (exit 1).
+        A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
     from tli_verify import __version__
-    from tli_verify.ds.lyapunov import find_p
     from tli_verify.model import load_model
 
+    try:
+        dt_q = parse_rational(dt, what="dt")
+    except ValueError as exc:
+        raise CertificateError(str(exc), exit_code=2) from None
+    if dt_q <= 0:
+        raise CertificateError(f"dt: control period {dt} must be positive", exit_code=2)
     mpath = Path(model_path)
     model = load_model(mpath)
     base = Path(cert_path).parent
-    modes: dict[str, Any] = {}
-    for key, mm in model.modes.items():
-        A = mm.ds.A
-        P = mm.ds.P
-        source = "model"
-        solver = _solver_of_fit(mm.fit)
-        verdict = check_lyapunov(P, A) if solver is not None else None
-        if verdict is None or not verdict.ok:
-            first = (verdict.failures()[0] if verdict is not None
-                     else "the model's P comes from a solve that was not 'optimal'")
-            try:
-                P, info = find_p(A)
-            except SolverError as exc:
-                raise CertificateError(
-                    f"{mpath}: mode {key!r}: not certifiable: {first}; no common Lyapunov "
-                    f"matrix for its A_k either ({exc})") from None
-            source = "certify-sdp"
-            solver = {"name": info.solver, "status": info.status, "eps": 1e-6}
-            verdict = check_lyapunov(P, A)
-            if not verdict.ok:
-                raise CertificateError(
-                    f"{mpath}: mode {key!r}: not certifiable: {first}; the SDP's P fails the "
-                    f"exact check too: {verdict.failures()[0]}")
-        lam_p, lam = _eigs(P, A)
-        modes[key] = {
-            "P": P.tolist(),
-            "P_source": source,
-            "lambda_min_P": lam_p,
-            "lambda_max": lam,
-            "solver": solver,
-            "cuts": [c.to_dict() for c in mm.cuts],
-            "exact": {"P_positive_definite": True,
-                      "components_negative_definite": [True] * len(lam)},
-        }
     spec = None
     if model.spec_path is not None:
         if not model.spec_path.is_file():
             raise ModelError(f"{mpath}: spec: file {model.spec_path} not found")
+        from tli_verify.logic.spec import load_spec
+
+        load_spec(model.spec_path)  # a certificate never binds a spec that does not load
         spec = {"path": _relpath(model.spec_path, base), "sha256": sha256_file(model.spec_path)}
+    modes = {key: certify_mode(key, mm, dt=dt_q, where=str(mpath))
+             for key, mm in model.modes.items()}
     doc: dict[str, Any] = {
         "schema_version": CERT_SCHEMA_VERSION,
         "kind": CERT_KIND,
         "tool": {"name": "tli-verify", "version": __version__},
         "model": {"path": _relpath(mpath, base), "sha256": sha256_file(mpath)},
         "spec": spec,
+        "control_period": {"dt": rational_text(dt_q), "dt_float": float(dt_q)},
         "modes": modes,
         "exact_check": {"passed": True, "method": EXACT_METHOD},
     }
@@ -187,12 +238,15 @@ class CertCheck:
         Everything that differs or fails; empty iff the certificate is valid.
     passed : tuple of str
         What was verified.
+    dt : str or None
+        The control period the certificate states (exact text), when it could be read.
     """
 
     path: str
     model_path: str | None
     problems: tuple[str, ...] = ()
     passed: tuple[str, ...] = field(default=())
+    dt: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -259,35 +313,59 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     except ModelError as exc:
         problems.append(f"model does not load: {exc}")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
-    spec = doc["spec"]
-    spec_path = Path(os.path.normpath(model.spec_path)) if model.spec_path is not None else None
-    if spec_path is not None:
-        if spec is None:
-            problems.append(f"{mpath} names spec {model.spec} but the certificate covers no spec")
-        elif not spec_path.is_file():
-            problems.append(f"spec file {spec_path} not found")
-        elif sha256_file(spec_path) != spec["sha256"]:
-            problems.append(f"{spec_path}: SHA-256 differs from the certificate's: the spec "
-                            "changed after certification")
-        else:
-            passed.append(f"spec {spec_path} matches its SHA-256")
-    elif spec is not None:
-        problems.append(f"the certificate covers spec {spec['path']} but {mpath} names none")
+    problems += _check_spec_binding(doc["spec"], cpath, model, mpath, passed)
+    dt_text = doc["control_period"]["dt"]
+    dt = Fraction(dt_text)
+    if dt <= 0:
+        problems.append(f"{cpath}: control_period.dt {dt_text!r} is not positive")
     cert_modes: Mapping[str, Any] = doc["modes"]
     for key in sorted(set(model.modes) - set(cert_modes)):
         problems.append(f"mode {key!r} of the model is not covered by the certificate")
     for key in sorted(set(cert_modes) - set(model.modes)):
         problems.append(f"mode {key!r} of the certificate does not exist in the model")
     for key in sorted(set(cert_modes) & set(model.modes)):
-        problems += _check_mode(key, cert_modes[key], model.modes[key])
-        if not any(p.startswith(f"mode {key!r}") for p in problems):
-            passed.append(f"mode {key!r}: P > 0 and A_k^T P + P A_k < 0 for all "
-                          f"{model.modes[key].ds.n_components} components (exact)")
-    return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
+        entry = cert_modes[key]
+        found = _check_mode(key, entry, model.modes[key], dt)
+        problems += found
+        if not found:
+            passed.append(f"mode {key!r}: the model's P > 0; A_k^T P + P A_k < 0, "
+                          f"(I + dt A_k)^T P (I + dt A_k) < P at dt = {dt_text} and decay rate "
+                          f"{entry['decay_rate']} for all {model.modes[key].ds.n_components} "
+                          "components (exact)")
+    return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed), dt_text)
 
 
-def _check_mode(key: str, entry: Mapping[str, Any], mm: Any) -> list[str]:
-    """Every discrepancy between one certified mode and the model, and the exact verdict."""
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
+                        passed: list[str]) -> list[str]:
+    """The certificate's spec must be the very file the model names, unchanged."""
+    spec_path = Path(os.path.normpath(model.spec_path)) if model.spec_path is not None else None
+    if spec_path is None:
+        return ([f"the certificate covers spec {spec['path']} but {mpath} names none"]
+                if spec is not None else [])
+    if spec is None:
+        return [f"{mpath} names spec {model.spec} but the certificate covers no spec"]
+    named = Path(os.path.normpath(cpath.parent / spec["path"]))
+    if not spec_path.is_file():
+        return [f"spec file {spec_path} not found"]
+    if not _same_file(named, spec_path):
+        return [f"{cpath}: spec.path {spec['path']!r} ({named}) is not the spec the model "
+                f"names ({spec_path}): the certificate binds another spec"]
+    if sha256_file(spec_path) != spec["sha256"]:
+        return [f"{spec_path}: SHA-256 differs from the certificate's: the spec changed after "
+                "certification"]
+    passed.append(f"spec {spec_path} is the model's and matches its SHA-256")
+    return []
+
+
+def _check_mode(key: str, entry: Mapping[str, Any], mm: Any, dt: Fraction) -> list[str]:
+    """Every discrepancy between one certified DS and the model, and the exact verdicts."""
     out: list[str] = []
     tag = f"mode {key!r}"
     A = mm.ds.A
@@ -298,12 +376,12 @@ def _check_mode(key: str, entry: Mapping[str, Any], mm: Any) -> list[str]:
         return [f"{tag}: P is not a rectangular matrix"]
     if P.shape != (n, n):
         return [f"{tag}: P has shape {P.shape}, the model's DS has dimension {n}"]
-    if entry["P_source"] == "model":
-        diff = np.argwhere(P != mm.ds.P)
-        if diff.size:
-            i, j = (int(v) for v in diff[0])
-            out.append(f"{tag}: P[{i}][{j}] = {float(P[i, j])!r} differs from the model's "
-                       f"P[{i}][{j}] = {float(mm.ds.P[i, j])!r}")
+    diff = np.argwhere(P != mm.ds.P)
+    if diff.size:
+        i, j = (int(v) for v in diff[0])
+        out.append(f"{tag}: P[{i}][{j}] = {float(P[i, j])!r} differs from the model's "
+                   f"P[{i}][{j}] = {float(mm.ds.P[i, j])!r}: the certificate must prove the P "
+                   "the runtime uses")
     lam = entry["lambda_max"]
     if len(lam) != A.shape[0]:
         out.append(f"{tag}: certificate lists {len(lam)} components, the model has "
@@ -312,7 +390,11 @@ def _check_mode(key: str, entry: Mapping[str, Any], mm: Any) -> list[str]:
     if entry["cuts"] != cuts:
         out.append(f"{tag}: the certificate was issued for {len(entry['cuts'])} cut(s) that "
                    f"differ from the model's {len(cuts)}")
-    verdict = check_lyapunov(P, A)
+    rate = Fraction(entry["decay_rate"])
+    if rate <= 0:
+        out.append(f"{tag}: decay_rate {entry['decay_rate']!r} is not positive")
+    verdict: LyapunovCheck = check_lyapunov(P, A, dt=dt if dt > 0 else None,
+                                            rate=rate if rate > 0 else None)
     out += [f"{tag}: {f} (exact re-check)" for f in verdict.failures()]
     if verdict.p.positive:
         lam_p, lam_now = _eigs(P, A)

@@ -1,16 +1,25 @@
-"""The deployment gate (``tli gate [DIR]``): nothing uncertified or tampered with ships.
+"""The deployment gate (``tli gate [DIR]``): nothing uncertified, unbound or tampered with ships.
 
-The gate re-verifies; it never trusts a stored verdict (``DESIGN.md``, "Certificates are
-re-checked, never trusted"). Under a project directory ``DIR`` it requires that
+The gate re-verifies; it never trusts a stored verdict (``docs/design.md``, "Certificates are
+re-checked, never trusted"). Under a project directory ``DIR`` it checks:
 
-1. every certificate under ``DIR/certificates/`` re-checks exactly
+1. every spec under ``DIR/specs/`` re-checks with :func:`tli_verify.logic.check.check_spec_file`
+   and gets the verdict it declares (``expect``; realizable specs must also be well-separated);
+2. every certificate under ``DIR/certificates/`` re-checks exactly
    (:func:`tli_verify.certify.certificate.check_certificate`): digest, model and spec hashes,
-   the model's ``P``, the recorded eigenvalues and the rational Lyapunov check;
-2. every model under ``DIR/models/`` is covered by at least one such valid certificate;
-3. every spec under ``DIR/specs/`` re-checks with :func:`tli_verify.logic.check.check_spec_file`
-   and gets the verdict it declares (``expect``; realizable specs must also be well-separated).
+   the spec it names is the model's, ``P`` is the model's (the runtime's) ``P``, the cuts, the
+   continuous-time, sampled-data and decay-rate conditions;
+3. every model under ``DIR/models/`` -- a *deployed* model -- is bound to its spec and covered:
 
-Any failure blocks.
+   * ``certificate``: a valid certificate covers its exact bytes (SHA-256), cuts included;
+   * ``spec``: it names a spec, which loads and re-checks realizable (well-separated unless it
+     declares otherwise);
+   * ``modes``: it has a DS for every mode the spec's task automaton can run, a per-transition
+     DS for every mode transition the automaton can take out of a mode whose DS is
+     per-transition, and no mode (or next mode) the spec lacks;
+   * ``dimension``: its state names are distinct and every DS and cut has their dimension.
+
+A directory with no model to deploy fails closed ("nothing to gate"). Any failure blocks.
 """
 
 from __future__ import annotations
@@ -21,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tli_verify.certify.certificate import check_certificate
+from tli_verify.certify.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError
 
 __all__ = ["GateItem", "GateReport", "run_gate"]
@@ -29,27 +38,32 @@ __all__ = ["GateItem", "GateReport", "run_gate"]
 
 @dataclass(frozen=True, slots=True)
 class GateItem:
-    """One thing the gate checked.
+    """One check the gate made.
 
     Attributes
     ----------
     kind : str
-        ``"certificate"``, ``"model"`` or ``"spec"``.
+        ``"spec"``, ``"certificate"``, ``"model"`` or ``"project"``.
     path : str
-        The file.
+        The file (relative to the project).
     ok : bool
     message : str
         What passed, or what blocks.
+    check : str
+        Which check of that file (``"re-check"``, ``"certificate"``, ``"spec"``, ``"modes"``,
+        ``"dimension"``, ``"contents"``).
     """
 
     kind: str
     path: str
     ok: bool
     message: str
+    check: str = "re-check"
 
     def to_json(self) -> dict[str, Any]:
         """One ``--json`` record."""
-        return {"kind": self.kind, "path": self.path, "ok": self.ok, "message": self.message}
+        return {"kind": self.kind, "path": self.path, "check": self.check, "ok": self.ok,
+                "message": self.message}
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,8 +81,8 @@ class GateReport:
 
     @property
     def ok(self) -> bool:
-        """True iff nothing blocks."""
-        return all(i.ok for i in self.items)
+        """True iff nothing blocks (and something was checked)."""
+        return bool(self.items) and all(i.ok for i in self.items)
 
     @property
     def blockers(self) -> tuple[GateItem, ...]:
@@ -76,8 +90,8 @@ class GateReport:
         return tuple(i for i in self.items if not i.ok)
 
     def count(self, kind: str) -> int:
-        """Number of items of one kind."""
-        return sum(1 for i in self.items if i.kind == kind)
+        """Number of distinct files of one kind."""
+        return len({i.path for i in self.items if i.kind == kind})
 
 
 def _files(directory: Path, pattern: str) -> list[Path]:
@@ -91,11 +105,31 @@ def _default_spec_checker() -> Callable[[Path], Any]:
     return check_spec_file
 
 
-def _spec_item(path: Path, shown: str, checker: Callable[[Path], Any]) -> GateItem:
-    try:
-        result = checker(path)
-    except TliError as exc:
-        return GateItem("spec", shown, False, f"does not load: {exc}")
+class _Specs:
+    """Spec checks, each file checked once (keyed by resolved path)."""
+
+    def __init__(self, checker: Callable[[Path], Any] | None) -> None:
+        self._checker = checker
+        self._done: dict[Path, Any] = {}
+
+    def check(self, path: Path) -> Any:
+        """The check result, or the ``TliError`` it raised."""
+        key = path.resolve()
+        if key not in self._done:
+            if self._checker is None:
+                self._checker = _default_spec_checker()
+            try:
+                self._done[key] = self._checker(path)
+            except TliError as exc:
+                self._done[key] = exc
+            except RecursionError:
+                self._done[key] = TliError(f"{path}: too deeply nested to check")
+        return self._done[key]
+
+
+def _spec_item(result: Any, shown: str) -> GateItem:
+    if isinstance(result, TliError):
+        return GateItem("spec", shown, False, f"does not load: {result}")
     realizable = bool(result.realizable)
     expected = bool(result.expected_realizable)
     as_expected = bool(getattr(result, "as_expected", realizable == expected))
@@ -109,6 +143,119 @@ def _spec_item(path: Path, shown: str, checker: Callable[[Path], Any]) -> GateIt
                     "vacuously (declare expect = \"not-well-separated\" if intended)")
 
 
+def _certificate_line(check: CertCheck) -> str:
+    rate = f", sampled-data at dt = {check.dt}" if check.dt else ""
+    return (f"re-checked exactly ({len(check.passed)} checks: digest, model and spec SHA-256, "
+            f"P = the model's P, cuts, Lyapunov conditions{rate})")
+
+
+def _model_checks(model_path: Path, shown: Callable[[Path], str],
+                  certified: dict[Path, list[tuple[Path, CertCheck]]],
+                  specs: _Specs) -> list[GateItem]:
+    """The per-model binding checks (certificate, spec, modes, dimension)."""
+    from tli_verify.model import load_model
+
+    name = shown(model_path)
+    try:
+        model = load_model(model_path)
+    except TliError as exc:
+        return [GateItem("model", name, False, f"does not load: {exc}", "load")]
+    except RecursionError:
+        return [GateItem("model", name, False, "does not load: too deeply nested", "load")]
+    items: list[GateItem] = []
+    covering = certified.get(model_path.resolve(), [])
+    if covering:
+        cert, _ = covering[0]
+        items.append(GateItem("model", name, True, f"covered by {shown(cert)}: a valid "
+                              "certificate of its exact bytes (SHA-256), cuts included",
+                              "certificate"))
+    else:
+        items.append(GateItem("model", name, False, "no valid certificate covers it (run: tli "
+                              f"certify {model_path})", "certificate"))
+
+    items.append(_dimension_item(model, name))
+    if model.spec_path is None:
+        items.append(GateItem("model", name, False, "names no spec: a deployed model must name "
+                              "the spec whose automaton runs it (\"spec\" field)", "spec"))
+        return items
+    spec_path = Path(os.path.normpath(model.spec_path))
+    if not spec_path.is_file():
+        items.append(GateItem("model", name, False, f"its spec {spec_path} does not exist",
+                              "spec"))
+        return items
+    result = specs.check(spec_path)
+    if isinstance(result, TliError):
+        items.append(GateItem("model", name, False, f"its spec {shown(spec_path)} does not "
+                              f"load: {result}", "spec"))
+        return items
+    if not result.realizable:
+        items.append(GateItem("model", name, False, f"its spec {shown(spec_path)} is "
+                              "unrealizable: no automaton can run it", "spec"))
+        return items
+    if not result.as_expected:
+        items.append(GateItem("model", name, False, f"its spec {shown(spec_path)} does not "
+                              "re-check as it declares (not well-separated)", "spec"))
+        return items
+    items.append(GateItem("model", name, True, f"names {shown(spec_path)}: realizable"
+                          f"{', well-separated' if result.well_separated else ''}", "spec"))
+    items.append(_modes_item(model, name, result.spec, shown(spec_path)))
+    return items
+
+
+def _dimension_item(model: Any, name: str) -> GateItem:
+    names = list(model.state_names)
+    dupes = sorted({s for s in names if names.count(s) > 1})
+    if dupes or not names or any(not s for s in names):
+        return GateItem("model", name, False, "state names must be distinct and non-empty; "
+                        f"repeated: {', '.join(dupes) or '-'}", "dimension")
+    n = len(names)
+    for key, mm in model.modes.items():
+        if mm.ds.attractor.shape != (n,) or mm.ds.A.shape[1:] != (n, n):
+            return GateItem("model", name, False, f"DS {key!r} has dimension "
+                            f"{mm.ds.attractor.shape[0]}, the state names give {n}", "dimension")
+        for c, cut in enumerate(mm.cuts):
+            if cut.dim != n:
+                return GateItem("model", name, False, f"DS {key!r} cut {c} has dimension "
+                                f"{cut.dim}, the state names give {n}", "dimension")
+    return GateItem("model", name, True, f"n = {n} ({', '.join(names)}) in all "
+                    f"{len(model.modes)} DS and their cuts", "dimension")
+
+
+def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
+    """DS coverage of the task automaton, and no mode the spec lacks."""
+    from tli_verify.logic.check import synthesize
+
+    try:
+        automaton = synthesize(spec)
+    except TliError as exc:
+        return GateItem("model", name, False, f"cannot build the automaton of {spec_shown}: "
+                        f"{exc}", "modes")
+    spec_modes = set(automaton.modes)
+    problems: list[str] = []
+    plain = {mm.mode for mm in model.modes.values() if mm.key == mm.mode}
+    per_transition: dict[str, set[str]] = {}
+    for mm in model.modes.values():
+        for m in (mm.mode, mm.next_mode):
+            if m is not None and m not in spec_modes:
+                problems.append(f"DS {mm.key!r} names mode {m!r}, which {spec_shown} lacks")
+        if mm.key != mm.mode and mm.next_mode is not None:
+            per_transition.setdefault(mm.mode, set()).add(mm.next_mode)
+    runnable = sorted({s.mode for s in automaton.states})
+    for m in runnable:
+        if m not in plain and m not in per_transition:
+            problems.append(f"no DS for mode {m!r}, which the automaton can run")
+    for src, dst in automaton.mode_transitions():
+        if src != dst and src not in plain and src in per_transition \
+                and dst not in per_transition[src]:
+            problems.append(f"no per-transition DS {src}->{dst} for a transition the automaton "
+                            "can take")
+    if problems:
+        return GateItem("model", name, False, "; ".join(problems), "modes")
+    return GateItem("model", name, True, f"a DS for each of the {len(runnable)} modes the "
+                    f"automaton of {spec_shown} can run (and each transition out of "
+                    "per-transition modes); no mode the spec lacks", "modes")
+
+
 def run_gate(root: str | os.PathLike[str] = ".", *,
              spec_checker: Callable[[Path], Any] | None = None) -> GateReport:
     """Run the deployment gate on a project directory.
@@ -118,12 +265,14 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     root : path-like, optional
         Project directory holding ``certificates/``, ``models/`` and ``specs/``.
     spec_checker : callable, optional
-        ``path -> result`` with ``.realizable`` and ``.expected_realizable`` (default:
+        ``path -> result`` with ``.realizable``, ``.expected_realizable``, ``.as_expected``,
+        ``.well_separated`` and ``.spec`` (default:
         :func:`tli_verify.logic.check.check_spec_file`).
 
     Returns
     -------
     GateReport
+        Blocked (``ok`` false) when anything fails or there is no model to deploy.
 
     Raises
     ------
@@ -140,36 +289,35 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         except ValueError:
             return str(p)
 
-    items: list[GateItem] = []
-    covered: set[Path] = set()
+    specs = _Specs(spec_checker)
+    items: list[GateItem] = [_spec_item(specs.check(s), shown(s))
+                             for s in _files(base / "specs", "*.toml")]
+    certified: dict[Path, list[tuple[Path, CertCheck]]] = {}
     for cert in _files(base / "certificates", "*.json"):
-        check = check_certificate(cert)
+        try:
+            check = check_certificate(cert)
+        except TliError as exc:
+            items.append(GateItem("certificate", shown(cert), False, f"unreadable: {exc}"))
+            continue
+        except RecursionError:
+            items.append(GateItem("certificate", shown(cert), False,
+                                  "unreadable: too deeply nested"))
+            continue
         if check.ok:
             model = Path(check.model_path or "").resolve()
-            covered.add(model)
+            certified.setdefault(model, []).append((cert, check))
             items.append(GateItem("certificate", shown(cert), True,
-                                  f"re-checked exactly; covers {shown(model)} "
-                                  f"({len(check.passed)} checks)"))
+                                  f"{_certificate_line(check)}; covers "
+                                  f"{shown(model)}"))
         else:
             items.append(GateItem("certificate", shown(cert), False,
                                   "; ".join(check.problems)))
-    for model in _files(base / "models", "*.json"):
-        if model.resolve() in covered:
-            items.append(GateItem("model", shown(model), True, "covered by a valid certificate"))
-        else:
-            items.append(GateItem("model", shown(model), False,
-                                  f"no valid certificate covers it (run: tli certify {model})"))
-    specs = _files(base / "specs", "*.toml")
-    if specs:
-        checker = spec_checker
-        if checker is None:
-            try:
-                checker = _default_spec_checker()
-            except ImportError as exc:
-                items += [GateItem("spec", shown(s), False,
-                                   f"cannot re-check specs: tli_verify.logic.check is not "
-                                   f"available ({exc})") for s in specs]
-                checker = None
-        if checker is not None:
-            items += [_spec_item(s, shown(s), checker) for s in specs]
+    models = _files(base / "models", "*.json")
+    for model in models:
+        items += _model_checks(model, shown, certified, specs)
+    if not models:
+        items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
+                              f"{shown(base / 'models')}/ to deploy (the gate fails closed)",
+                              "contents"))
     return GateReport(root=str(base), items=tuple(items))
+

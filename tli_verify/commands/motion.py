@@ -11,6 +11,7 @@ import argparse
 import json
 import math
 import sys
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,19 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
+    return value
+
+
+def _rational(text: str) -> Fraction:
+    """A positive exact rational (``0.001``, ``1/200``) for ``--dt``."""
+    from tli_verify.certify.exact import parse_rational
+
+    try:
+        value = parse_rational(text, what="--dt")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"--dt: {text!r} must be positive")
     return value
 
 
@@ -64,12 +78,21 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
     p = sub.add_parser(
         "certify", help="exactly verify a model's Lyapunov conditions and write a certificate",
-        description="For every mode: P > 0 and A_k^T P + P A_k < 0 decided in exact rational "
-        "arithmetic; writes the certificate JSON. Exit 1 naming the mode and component when "
-        "a model is not certifiable.")
+        description="For every mode, with the model's own P (the one the runtime uses): P > 0, "
+        "A_k^T P + P A_k < 0, (I + dt A_k)^T P (I + dt A_k) < P at the control period and a "
+        "certified decay rate, decided in exact rational arithmetic; writes the certificate "
+        "JSON. Exit 1 naming the mode and condition when the model's P does not certify "
+        "(--repair then writes a new model with a certifying P).")
     p.add_argument("model", type=Path, metavar="MODEL.json")
     p.add_argument("-o", "--output", type=Path, default=None, metavar="CERT.json",
-                   help="default: certificates/<name>.cert.json")
+                   help="default: certificates/<name>.cert.json (of the repaired model with "
+                   "--repair)")
+    p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
+                   help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
+                   "1/200; default 0.001); the certificate also covers shorter periods")
+    p.add_argument("--repair", type=Path, default=None, metavar="NEW.model.json",
+                   help="replace each P that does not certify by one found by an SDP (checked "
+                   "exactly), write the new model there, and certify it")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.set_defaults(handler=_certify)
 
@@ -130,21 +153,45 @@ def default_certificate_path(model: Path) -> Path:
 
 
 def _certify(args: argparse.Namespace) -> int:
-    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.certify.certificate import (
+        DEFAULT_DT,
+        issue_certificate,
+        write_certificate,
+    )
 
-    out: Path = args.output or default_certificate_path(args.model)
-    doc = issue_certificate(args.model, cert_path=out)
+    dt = args.dt if args.dt is not None else DEFAULT_DT
+    model_path: Path = args.model
+    if args.repair is not None:
+        from tli_verify.certify.repair import repair_model
+        from tli_verify.model import save_model
+
+        result = repair_model(args.model, args.repair, dt=dt)
+        save_model(result.model, args.repair)
+        model_path = args.repair
+        line = {"repaired_model": str(args.repair), "repaired": list(result.repaired),
+                "kept": list(result.kept)}
+        if args.json:
+            _emit(line)
+        else:
+            sys.stdout.write(f"wrote {args.repair}: new P for "
+                             f"{', '.join(result.repaired) or 'no DS'}; own P kept for "
+                             f"{', '.join(result.kept) or 'no DS'}\n")
+    out: Path = args.output or default_certificate_path(model_path)
+    doc = issue_certificate(model_path, cert_path=out, dt=dt)
     write_certificate(doc, out)
     for key, entry in doc["modes"].items():
-        record = {"certificate": str(out), "model": str(args.model), "key": key,
-                  "P_source": entry["P_source"], "lambda_min_P": entry["lambda_min_P"],
+        record = {"certificate": str(out), "model": str(model_path), "key": key,
+                  "lambda_min_P": entry["lambda_min_P"], "dt": doc["control_period"]["dt"],
+                  "decay_rate": entry["decay_rate"],
                   "max_lambda_max": max(entry["lambda_max"]), "exact": True}
         if args.json:
             _emit(record)
         else:
             sys.stdout.write(f"{key}: P > 0 (lambda_min {entry['lambda_min_P']:.4g}), "
                              f"{len(entry['lambda_max'])} components with A_k^T P + P A_k < 0 "
-                             f"(max lambda_max {max(entry['lambda_max']):.4g}); exact: yes\n")
+                             f"(max lambda_max {max(entry['lambda_max']):.4g}), decrease per "
+                             f"step at dt = {doc['control_period']['dt']}, decay rate "
+                             f"{entry['decay_rate_float']:.4g}/s; exact: yes\n")
     if not args.json:
         sys.stdout.write(f"wrote {out}\n")
     return 0
@@ -182,7 +229,7 @@ def _gate(args: argparse.Namespace) -> int:
             _emit(item.to_json())
         else:
             sys.stdout.write(f"{'ok   ' if item.ok else 'BLOCK'} {item.kind:<11} {item.path}: "
-                             f"{item.message}\n")
+                             f"{item.check}: {item.message}\n")
     summary = (f"{report.count('certificate')} certificate(s), {report.count('model')} "
                f"model(s), {report.count('spec')} spec(s)")
     if args.json:

@@ -235,16 +235,21 @@ def fit_a(
     return values, info
 
 
-def find_p(A: npt.ArrayLike, *, eps: float = 1e-6) -> tuple[FloatArray, SolveInfo]:
+def find_p(A: npt.ArrayLike, *, eps: float = 1e-6,
+           dt: float | None = None) -> tuple[FloatArray, SolveInfo]:
     """Search a common quadratic Lyapunov matrix for fixed ``A_k``.
 
-    Solves ``min kappa  s.t.  I <= P <= kappa I,  A_k^T P + P A_k <= -eps I`` (every k).
+    Solves ``min kappa  s.t.  I <= P <= kappa I,  A_k^T P + P A_k <= -eps I`` (every k), and
+    with ``dt`` also the sampled-data decrease ``(I + dt A_k)^T P (I + dt A_k) - P <= -dt eps I``
+    (linear in ``P`` for fixed ``A_k``).
 
     Parameters
     ----------
     A : array_like, shape (K, n, n)
     eps : float, optional
         LMI margin.
+    dt : float, optional
+        Control period of the sampled-data condition.
 
     Returns
     -------
@@ -268,6 +273,10 @@ def find_p(A: npt.ArrayLike, *, eps: float = 1e-6) -> tuple[FloatArray, SolveInf
     for a in Aa:
         M = P @ a
         constraints.append(M + M.T << -eps * eye)
+        if dt is not None:
+            B = eye + dt * a
+            S = B.T @ P @ B - P
+            constraints.append(0.5 * (S + S.T) << -dt * eps * eye)
     info = _solve(cp.Problem(cp.Minimize(kappa), constraints), "P-search")
     value = np.asarray(P.value, dtype=np.float64)
     return 0.5 * (value + value.T), info
