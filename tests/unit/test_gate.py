@@ -5,9 +5,15 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from tli_verify.certify.certificate import (
+    check_certificate,
+    issue_certificate,
+    write_certificate,
+)
 from tli_verify.certify.gate import run_gate
 from tli_verify.errors import GateError
 
@@ -16,19 +22,80 @@ def blockers(root: Path) -> list[str]:
     return [f"{b.kind} {b.path}: {b.message}" for b in run_gate(root).blockers]
 
 
+def edit_model(project: Path, edit: Any) -> None:
+    """Edit the deployed model and re-certify it (a certificate that is itself valid)."""
+    path = project / "models" / "scoop.model.json"
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    cert = project / "certificates" / "scoop.cert.json"
+    write_certificate(issue_certificate(path, cert_path=cert), cert)
+    assert check_certificate(cert).ok
+
+
 def test_gate_passes_on_a_certified_project(project: Path) -> None:
     report = run_gate(project)
     assert report.ok
-    assert [(i.kind, i.path) for i in report.items] == [
-        ("certificate", "certificates/scoop.cert.json"),
-        ("model", "models/scoop.model.json"),
-        ("spec", "specs/scoop.toml"),
+    assert [(i.kind, i.path, i.check) for i in report.items] == [
+        ("spec", "specs/scoop.toml", "re-check"),
+        ("certificate", "certificates/scoop.cert.json", "re-check"),
+        ("model", "models/scoop.model.json", "certificate"),
+        ("model", "models/scoop.model.json", "dimension"),
+        ("model", "models/scoop.model.json", "spec"),
+        ("model", "models/scoop.model.json", "modes"),
     ]
+
+
+def test_model_missing_modes_and_with_a_foreign_mode_blocks(project: Path) -> None:
+    """Issue reproduction: drop modes c and d, add a mode zzz, re-certify: the gate passed."""
+
+    def edit(doc: dict[str, Any]) -> None:
+        doc["modes"]["zzz"] = dict(doc["modes"].pop("c"), mode="zzz", next_mode=None)
+        del doc["modes"]["d"]
+
+    edit_model(project, edit)
+    found = blockers(project)
+    assert len(found) == 1
+    assert found[0].startswith("model models/scoop.model.json: DS 'zzz' names mode 'zzz', "
+                               "which specs/scoop.toml lacks")
+    assert "no DS for mode 'c', which the automaton can run" in found[0]
+    assert "no DS for mode 'd'" in found[0]
+
+
+def test_per_transition_model_needs_every_transition_out_of_its_mode(project: Path) -> None:
+    def split_b(doc: dict[str, Any]) -> None:  # b's DS only towards c, none towards a
+        doc["modes"]["b->c"] = dict(doc["modes"].pop("b"), mode="b", next_mode="c")
+
+    edit_model(project, split_b)
+    found = blockers(project)
+    assert found == ["model models/scoop.model.json: no per-transition DS b->a for a transition "
+                     "the automaton can take"]
+
+    def add_b_a(doc: dict[str, Any]) -> None:
+        doc["modes"]["b->a"] = dict(doc["modes"]["b->c"], next_mode="a")
+
+    edit_model(project, add_b_a)
+    assert run_gate(project).ok
+
+
+def test_model_without_a_spec_or_with_an_unrealizable_one_blocks(project: Path,
+                                                                 repo: Path) -> None:
+    edit_model(project, lambda doc: doc.update(spec=None))
+    assert blockers(project) == [
+        "model models/scoop.model.json: names no spec: a deployed model must name the spec "
+        "whose automaton runs it (\"spec\" field)"]
+    shutil.copy(repo / "specs" / "scoop-unrealizable.toml", project / "specs")
+    edit_model(project, lambda doc: doc.update(spec="../specs/scoop-unrealizable.toml"))
+    assert blockers(project) == [
+        "model models/scoop.model.json: its spec specs/scoop-unrealizable.toml is "
+        "unrealizable: no automaton can run it"]
 
 
 def test_edited_model_blocks(project: Path) -> None:
     model = project / "models" / "scoop.model.json"
-    model.write_text(model.read_text().replace('"prior": 0.', '"prior": 0.0', 1))
+    doc = json.loads(model.read_text())
+    doc["modes"]["a"]["components"][0]["A"][0][0] *= 1.01  # still a loadable model
+    model.write_text(json.dumps(doc))
     found = blockers(project)
     assert any(b.startswith("certificate certificates/scoop.cert.json:") and "SHA-256" in b
                for b in found)
@@ -45,8 +112,9 @@ def test_uncertified_model_blocks(project: Path) -> None:
 def test_certificate_of_a_missing_model_blocks(project: Path) -> None:
     (project / "models" / "scoop.model.json").unlink()
     found = blockers(project)
-    assert len(found) == 1
+    assert len(found) == 2
     assert "scoop.model.json not found" in found[0]
+    assert found[1].startswith("project .: nothing to gate")
 
 
 def test_spec_with_the_wrong_declared_verdict_blocks(project: Path, repo: Path) -> None:
@@ -74,9 +142,15 @@ def test_tampered_certificate_blocks(project: Path) -> None:
     assert any(b.startswith("model models/scoop.model.json") for b in found)
 
 
-def test_empty_project_passes_and_non_directory_is_usage_error(tmp_path: Path) -> None:
-    assert run_gate(tmp_path).ok
-    assert run_gate(tmp_path).items == ()
+def test_nothing_to_gate_fails_closed_and_non_directory_is_usage_error(tmp_path: Path,
+                                                                       repo: Path) -> None:
+    report = run_gate(tmp_path)
+    assert not report.ok
+    assert [f"{b.kind} {b.path}: {b.message}" for b in report.blockers] == [
+        "project .: nothing to gate: no model under "
+        "models/ to deploy (the gate fails closed)"]
+    shutil.copytree(repo / "specs", tmp_path / "specs")  # specs alone: still nothing to deploy
+    assert [b.kind for b in run_gate(tmp_path).blockers] == ["project"]
     with pytest.raises(GateError, match="not a directory") as info:
         run_gate(tmp_path / "nope")
     assert info.value.exit_code == 2
