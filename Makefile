@@ -6,15 +6,31 @@ STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-all lint bench gate clean venv
+LOCK_VENV := .venv-lock
+
+.PHONY: demo test test-all lint bench gate clean venv constraints
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml
+# Every version comes from constraints.txt (pyproject.toml keeps ranges); a change of either
+# file reinstalls.
+$(STAMP): pyproject.toml constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet -c constraints.txt pip
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[dev]'
 	@touch $(STAMP)
+
+# Re-resolve: the newest versions pyproject.toml allows, installed into a throwaway venv and
+# pinned into constraints.txt (keeps the file's comment header). Run `make test` after it.
+constraints:
+	rm -rf $(LOCK_VENV)
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(LOCK_VENV)/bin/python -m pip install --quiet -e '.[dev]'
+	{ grep '^#' constraints.txt; $(LOCK_VENV)/bin/python -m pip freeze --exclude-editable --all \
+	  | grep -v '^wheel=='; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
+	rm -rf $(LOCK_VENV)
 
 demo: $(STAMP)
 	$(VENV)/bin/tli demo --out out

@@ -40,10 +40,13 @@ polyhedral cone cut by one circular cone). On ``K`` we have ``w . d <= 0``, so m
    lies on a 0-dimensional piece of the boundary of ``K`` on the sphere: either a ray where
    ``n-1`` independent planes ``c_j . w = 0`` meet, or a point of the circle
    ``s_hat . w = mu`` where ``k-1`` planes meet, given in closed form by the Lagrange condition
-   on that circle. We enumerate these candidates (at most ``sum_{i < n} C(m, i)`` small linear
-   algebra problems, batched), keep the feasible ones and take the best. This is a global
-   optimum; for the sizes of the paper (``n <= 4``, a handful of cuts per mode) it takes well
-   under a millisecond of linear algebra.
+   on that circle. Where ``d . w`` is constant on such a circle (``s`` in the span of ``d``
+   and the active planes' normals) all its points tie and one of them is taken: with no further
+   plane meeting the circle, no 0-dimensional piece holds the optimum. We enumerate these
+   candidates (at most ``sum_{i < n} C(m, i)`` small linear algebra problems, batched), keep
+   the feasible ones and take the best. This is a global optimum; for the sizes of the paper
+   (``n <= 4``, a handful of cuts per mode) it takes well under a millisecond of linear
+   algebra.
 
 Both branches re-check every constraint of the answer; :class:`~tli_verify.errors.SolverError`
 is raised when no admissible normal exists (the failure direction lies in the cone spanned by
@@ -342,9 +345,19 @@ def solve_cut_detailed(
     d_hat = np.zeros(n) if d_is_zero else vecs[0] / norms[0]
     feas_tol = 1e-10
 
-    # Branch 1: a normal orthogonal to d (the plane holds x*), most separating.
-    gens = C if d_is_zero else np.vstack([C, d_hat, -d_hat])
-    proj = _nnls_projection(s_hat, gens)
+    # Branch 1: a normal orthogonal to d (the plane holds x*), most separating. The cone
+    # {C w <= 0, d . w = 0} lies in the complement of d: project s and the other rows there
+    # (normalised; a row parallel to d up to rounding constrains nothing there), so that no
+    # +-d generator pair enters the NNLS (with a row nearly parallel to d, such a pair
+    # cancelled digits and the answer violated that row by 1e-4).
+    if d_is_zero:
+        proj = _nnls_projection(s_hat, C)
+    else:
+        perp = np.eye(n) - np.outer(d_hat, d_hat)
+        rows = C[1:] @ perp  # C[0] is d_hat
+        rn = np.linalg.norm(rows, axis=1)
+        proj = _nnls_projection(perp @ s_hat, rows[rn > 1e-12] / rn[rn > 1e-12, None])
+        proj -= float(proj @ d_hat) * d_hat
     pnorm = float(np.linalg.norm(proj))
     if pnorm >= margin * (1.0 + 1e-9):
         w = proj / pnorm
@@ -391,9 +404,22 @@ def solve_cut_detailed(
                 cands.append(np.array([B @ (y0 + rho * z), B @ (y0 - rho * z)]))
                 continue
             b_perp = b - (float(b @ a) / aa) * a
+            # twice: when b is nearly parallel to a the first pass leaves a part along a of
+            # relative size eps / ||b_perp||, enough to move the point off the margin circle
+            b_perp -= (float(b_perp @ a) / aa) * a
             bp = float(np.linalg.norm(b_perp))
-            if bp > 1e-12:  # else d . w is constant there; lower-dimensional pieces cover it
+            if bp > 1e-12:
                 cands.append((B @ (y0 + rho * b_perp / bp))[None, :])
+            else:
+                # d . w is constant on this circle: every point of it is as good. Where other
+                # planes cut the circle, the pieces with more planes hold the feasible points;
+                # where none does (every plane already in the subset, e.g. m < n - 2 inner
+                # points), any point of the circle is one, so offer one.
+                i = int(np.argmin(np.abs(a)))
+                u = -(a[i] / aa) * a
+                u[i] += 1.0
+                u -= (float(u @ a) / aa) * a
+                cands.append((B @ (y0 + rho * u / np.linalg.norm(u)))[None, :])
     W = np.vstack(cands) if cands else np.zeros((0, n))
     if W.shape[0]:
         W = W / np.linalg.norm(W, axis=1, keepdims=True)
