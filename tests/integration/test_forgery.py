@@ -76,8 +76,8 @@ def _forge(root: Path, mode: str, *, A: list[Any] | None = None,
     """Edit the model's mode, then make the certificate consistent with it again.
 
     Everything a hash or a float comparison protects is recomputed the way
-    ``issue_certificate`` computes it: the model's SHA-256, ``P`` (with ``P_source`` "model",
-    so certificate and runtime share it), the eigenvalues, and the digest.
+    ``issue_certificate`` computes it: the model's SHA-256, ``P`` (the model's, so certificate
+    and runtime share it), the eigenvalues, and the digest.
     """
     model_path = root / "models" / "scoop.model.json"
     cert_path = root / "certificates" / "scoop.cert.json"
@@ -96,7 +96,6 @@ def _forge(root: Path, mode: str, *, A: list[Any] | None = None,
     As = np.array([c["A"] for c in entry["components"]], dtype=np.float64)
     rec = cert["modes"][mode]
     rec["P"] = entry["P"]
-    rec["P_source"] = "model"
     rec["lambda_min_P"] = float(np.linalg.eigvalsh(Pm).min())
     rec["lambda_max"] = [float(np.linalg.eigvalsh(a.T @ Pm + Pm @ a).max()) for a in As]
     cert["digest"] = certificate_digest(cert)
