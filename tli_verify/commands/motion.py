@@ -1,6 +1,6 @@
 """Motion commands: ``tli learn``, ``tli certify``, ``tli check-cert``, ``tli gate``.
 
-Exit codes (``DESIGN.md``): 0 success; 1 a check said no (not certifiable, certificate does not
+Exit codes (``docs/design.md``): 0 success; 1 a check said no (not certifiable, certificate does not
 re-check, gate blocked, solver status not optimal); 2 bad input or usage. ``--json`` prints one
 JSON object per line on stdout.
 """
@@ -14,7 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import CertificateError, GateError
+from tli_verify.commands import output_path
+from tli_verify.errors import CertificateError, GateError, ModelError
 
 __all__ = ["demo_stage", "register"]
 
@@ -53,7 +54,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
     p.add_argument("--spec", type=Path, default=None, help="spec TOML whose [modes] label "
                    "the sensor states")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="MODEL.json")
+    p.add_argument("-o", "--output", type=output_path, required=True, metavar="MODEL.json",
+                   help="model file to write (must not be one of the inputs)")
     p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
     p.add_argument("--eps", type=_positive_float, default=1e-3,
                    help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
@@ -68,7 +70,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "arithmetic; writes the certificate JSON. Exit 1 naming the mode and component when "
         "a model is not certifiable.")
     p.add_argument("model", type=Path, metavar="MODEL.json")
-    p.add_argument("-o", "--output", type=Path, default=None, metavar="CERT.json",
+    p.add_argument("-o", "--output", type=output_path, default=None, metavar="CERT.json",
                    help="default: certificates/<name>.cert.json")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.set_defaults(handler=_certify)
@@ -131,8 +133,19 @@ def default_certificate_path(model: Path) -> Path:
 
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.io import check_output_file
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
 
     out: Path = args.output or default_certificate_path(args.model)
+    model = load_model(args.model)
+    spec_path = model.spec_path
+    check_output_file(out, inputs=[args.model, *([spec_path] if spec_path else [])],
+                      what="certificate")
+    if spec_path is not None:
+        if not spec_path.is_file():
+            raise ModelError(f"{args.model}: spec: file {spec_path} not found")
+        load_spec(spec_path)  # a SpecError (exit 2) names the spec file, line and field
     doc = issue_certificate(args.model, cert_path=out)
     write_certificate(doc, out)
     for key, entry in doc["modes"].items():
@@ -207,11 +220,11 @@ def demo_stage(out: Path) -> list[str]:
         issue_certificate,
         write_certificate,
     )
+    from tli_verify.io import bundled_dir
     from tli_verify.model import learn_model, save_model
 
-    root = Path(__file__).resolve().parents[2]
-    demos = sorted((root / "demos").glob("scoop_*.csv"))
-    spec = root / "specs" / "scoop.toml"
+    demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
+    spec = bundled_dir("specs") / "scoop.toml"
     if not demos:
         return ["motion: no bundled demos/scoop_*.csv found; skipped"]
     target = out / "motion"
