@@ -256,7 +256,7 @@ def load_demo(path: str | os.PathLike[str], *,
     if dx_cols:
         dx = values[:, 1 + n:1 + 2 * n].copy()
     else:
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
         bad = np.argwhere(~(np.abs(dx) <= MAX_ABS_VALUE))
         if bad.size:

@@ -129,7 +129,7 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
         if _same_file(p, Path(src)):
             raise OutputError(f"{shown}: the {what} would overwrite the input file {src}; "
                               "choose another output path")
-    if p.is_dir():
+    if p.is_dir() or p.name in ("", ".", ".."):
         raise OutputError(f"{shown}: is a directory, expected a path for the {what}")
     if os.path.lexists(p):
         mode = os.stat(p).st_mode if p.exists() else os.lstat(p).st_mode
@@ -185,7 +185,7 @@ def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     target = Path(path)
     if str(path) == "":
         raise OutputError("empty output path")
-    if target.is_dir():
+    if target.is_dir() or target.name in ("", ".", ".."):
         raise OutputError(f"{target}: is a directory, cannot write a file there")
     if target.exists() and not target.is_file():
         raise OutputError(f"{target}: exists and is not a regular file; refusing to replace it")
