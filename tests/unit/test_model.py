@@ -232,7 +232,7 @@ from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from tli_verify.limits import COV_MAX_CONDITION, COV_MIN_EIGENVALUE, MAX_ABS_VALUE  # noqa: E402
-from tli_verify.model import model_from_dict, numeric_limits  # noqa: E402
+from tli_verify.model import numeric_limits  # noqa: E402
 
 HOSTILE = st.one_of(
     st.floats(min_value=MAX_ABS_VALUE, exclude_min=True, allow_infinity=False),
