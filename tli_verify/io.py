@@ -78,6 +78,17 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _check_dotdot(p: Path, shown: str, what: str) -> None:
+    """Refuse ``..`` after a directory that does not exist yet (``out/new/../x``): creating the
+    missing directories would change what the path names."""
+    cur = Path(p.anchor) if p.is_absolute() else Path(".")
+    for part in p.parts[1:] if p.is_absolute() else p.parts:
+        if part == ".." and not cur.is_dir():
+            raise OutputError(f"{shown}: '..' after {cur}, which is not an existing directory; "
+                              f"give the {what} path without it")
+        cur = cur / part
+
+
 def _check_writable_dir(directory: Path, shown: str, what: str) -> None:
     """Refuse ``directory`` (the nearest existing ancestor of an output) unless we can write in it.
 
@@ -125,6 +136,7 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
         raise OutputError(f"empty path given for the {what}")
     p = Path(path)
     shown = str(path)
+    _check_dotdot(p, shown, what)
     for src in inputs:
         if _same_file(p, Path(src)):
             raise OutputError(f"{shown}: the {what} would overwrite the input file {src}; "
@@ -163,6 +175,7 @@ def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
     if str(path) == "":
         raise OutputError(f"empty path given for the {what}")
     p = Path(path)
+    _check_dotdot(p, str(path), what)
     if os.path.lexists(p) and not p.is_dir():
         raise OutputError(f"{p}: exists and is not a directory, expected the {what}")
     _check_writable_dir(_existing_ancestor(p.absolute()), str(path), what)
