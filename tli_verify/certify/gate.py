@@ -1,6 +1,6 @@
 """The deployment gate (``tli gate [DIR]``): nothing uncertified or tampered with ships.
 
-The gate re-verifies; it never trusts a stored verdict (``DESIGN.md``, "Certificates are
+The gate re-verifies; it never trusts a stored verdict (``docs/design.md``, "Certificates are
 re-checked, never trusted"). Under a project directory ``DIR`` it requires that
 
 1. every certificate under ``DIR/certificates/`` re-checks exactly
