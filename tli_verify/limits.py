@@ -12,8 +12,9 @@ Size and shape of input files (:mod:`tli_verify.io`)
 Demonstrations (:mod:`tli_verify.demos`)
     ``MAX_STATE_DIM``, ``MAX_ABS_VALUE`` for states and velocities.
 Models (:mod:`tli_verify.model`)
-    ``MAX_ABS_VALUE`` for every number, ``COV_MIN_EIGENVALUE`` and ``COV_MAX_CONDITION`` for the
-    GMM covariances, ``PRIOR_SUM_TOL`` for the mixing weights.
+    ``MAX_ABS_VALUE`` for every number but the covariances; ``MAX_ABS_COVARIANCE``,
+    ``COV_MIN_EIGENVALUE`` and ``COV_MAX_CONDITION`` for the GMM covariances; ``PRIOR_SUM_TOL``
+    for the mixing weights.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from __future__ import annotations
 __all__ = [
     "COV_MAX_CONDITION",
     "COV_MIN_EIGENVALUE",
+    "MAX_ABS_COVARIANCE",
     "MAX_ABS_VALUE",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
@@ -48,20 +50,26 @@ n = 32 with 200 samples it takes about 13 s and 460 MB; at n = 200 the solver ex
 and aborts the process. Robot states in the paper are 2D (scooping, LASA) to 7D (joints)."""
 
 MAX_ABS_VALUE = 1.0e6
-"""Largest magnitude of any number in a model, and of any demonstrated state or velocity.
+"""Largest magnitude of a demonstrated state or velocity, and of every number in a model
+except the covariances (attractor, P, means, A_k, cut normals and points).
 
-Within this range every quantity the policy computes stays finite (``docs/design.md``, "Errors
-and limits"): ``A_k (x - x*)`` is at most ``n * 1e6 * 2e6``, and the Mahalanobis terms of the
-mixing weights at most ``n * (2e6)^2 / COV_MIN_EIGENVALUE`` ~ ``n * 4e24``, far below the
-float overflow at 1.8e308; the velocity is finite at every state with ``|x_i| <= 1e6``. States
-in the units the paper uses (metres, millimetres: LASA spans about 50 mm) are 3-6 orders of
-magnitude inside it."""
+States in the units the paper uses (metres, millimetres: LASA spans about 50 mm) are 3-6 orders
+of magnitude inside it. With it, ``|A_k (x - x*)| <= n * 1e6 * 2e6`` at every state with
+``|x_i| <= 1e6`` (``docs/design.md``, "Errors and limits")."""
 
-COV_MIN_EIGENVALUE = 1.0e-12
-"""Smallest eigenvalue allowed for a GMM covariance: ``Sigma_k^{-1}`` has entries <= 1e12.
+MAX_ABS_COVARIANCE = MAX_ABS_VALUE**2
+"""Largest magnitude of a GMM covariance entry (1e12): covariances have squared state units."""
 
-Learning regularises covariances by 1e-3 times the data variance, so learned models are many
-orders above it; a covariance near 1e-320 (subnormal) would make ``Sigma_k^{-1}`` overflow."""
+COV_MIN_EIGENVALUE = 1.0e-100
+"""Smallest eigenvalue allowed for a GMM covariance.
+
+It keeps the mixing weights finite at every state with ``|x_i| <= MAX_ABS_VALUE``: each
+Mahalanobis term is at most ``n * (2e6)^2 / 1e-100 <= 32 * 4e112``, and the terms of the
+quadratic form at most ``1e100 * 4e12`` each, far below the double overflow at 1.8e308; the
+weights are then non-negative and sum to 1, which is all the Lyapunov certificate needs (it holds
+for every convex combination of the ``A_k``). A covariance near 1e-320 (subnormal) has an
+overflowing inverse and is refused. Learned covariances are at least 1e-3 times the data
+variance."""
 
 COV_MAX_CONDITION = 1.0e12
 """Largest condition number ``lambda_max / lambda_min`` of a GMM covariance.

@@ -52,6 +52,7 @@ from tli_verify.io import atomic_write_text, canonical_json, read_text
 from tli_verify.limits import (
     COV_MAX_CONDITION,
     COV_MIN_EIGENVALUE,
+    MAX_ABS_COVARIANCE,
     MAX_ABS_VALUE,
     PRIOR_SUM_TOL,
 )
@@ -135,27 +136,33 @@ def numeric_limits() -> dict[str, float]:
     Returns
     -------
     dict
-        ``max_abs_value`` (every number of the model), ``cov_min_eigenvalue`` and
-        ``cov_max_condition`` (every GMM covariance is symmetric positive definite with these
-        bounds), ``prior_sum_tolerance`` (priors > 0 sum to 1 within it).
+        ``max_abs_value`` (every number of the model but the covariances, and the states at
+        which the velocity is guaranteed finite), ``max_abs_covariance``, ``cov_min_eigenvalue``
+        and ``cov_max_condition`` (every GMM covariance is symmetric positive definite within
+        these bounds), ``prior_sum_tolerance`` (priors > 0 sum to 1 within it).
     """
-    return {"max_abs_value": MAX_ABS_VALUE, "cov_min_eigenvalue": COV_MIN_EIGENVALUE,
-            "cov_max_condition": COV_MAX_CONDITION, "prior_sum_tolerance": PRIOR_SUM_TOL}
+    return {"max_abs_value": MAX_ABS_VALUE, "max_abs_covariance": MAX_ABS_COVARIANCE,
+            "cov_min_eigenvalue": COV_MIN_EIGENVALUE, "cov_max_condition": COV_MAX_CONDITION,
+            "prior_sum_tolerance": PRIOR_SUM_TOL}
 
 
 def _check_range(value: Any, parts: list[str | int], where: str) -> None:
-    """Every number under ``value`` is within ``MAX_ABS_VALUE``; errors name the entry."""
+    """Every number under ``value`` is within ``MAX_ABS_VALUE`` (``MAX_ABS_COVARIANCE`` under a
+    ``cov`` field); errors name the entry."""
     stack: list[tuple[Any, list[str | int]]] = [(value, parts)]
     while stack:
         v, loc = stack.pop()
         if isinstance(v, bool):
             continue
         if isinstance(v, int | float):
-            if not abs(v) <= MAX_ABS_VALUE:  # also NaN
+            cov = "cov" in loc
+            bound = MAX_ABS_COVARIANCE if cov else MAX_ABS_VALUE
+            if not abs(v) <= bound:  # also NaN
                 shown = f"{v:.6g}" if isinstance(v, float) else (
                     str(v) if abs(v) < 10**30 else f"an integer of {len(str(abs(v)))} digits")
+                name = "MAX_ABS_COVARIANCE" if cov else "MAX_ABS_VALUE"
                 raise ModelError(f"{where}: {field_path(loc)}: {shown} is outside the declared "
-                                 f"range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
+                                 f"range |v| <= {bound:g} ({name})")
         elif isinstance(v, list):
             stack.extend((item, [*loc, i]) for i, item in enumerate(v))
         elif isinstance(v, dict):

@@ -103,7 +103,12 @@ def _learn(args: argparse.Namespace) -> int:
                         eps=args.eps,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
-    save_model(model, args.output)
+    try:
+        save_model(model, args.output)
+    except ModelError as exc:  # learned numbers outside the declared limits: name the demos
+        raise ModelError(f"the model learned from {', '.join(str(d) for d in args.demos)} is "
+                         f"outside the declared numeric limits, not written: {exc} (rescale the "
+                         "state or time units of the demonstrations)") from None
     for key, mm in model.modes.items():
         fit = mm.fit or {}
         record = {"model": str(args.output), "key": key, "mode": mm.mode,
