@@ -448,3 +448,36 @@ def test_utf8_byte_order_mark_is_accepted(kind: str, project: Path,
         f.write_bytes(bom + (project / "models" / "scoop.model.json").read_bytes())
         code, _, err = run(capsys, "certify", str(f), "-o", str(project / "c.json"))
     assert code == 0, err
+
+
+@settings(max_examples=8)
+@given(exponent=st.one_of(st.integers(-10, 5), st.integers(6, 150)), seed=st.integers(0, 2**16))
+def test_learning_at_any_unit_scale_writes_a_loadable_model_or_names_the_demo(
+        exponent: int, seed: int, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Demonstrations in any units: inside the limits the learned model is written and loads
+    (the model limits are coherent with the demo limits); outside, exit 2 naming the file --
+    never a solver failure (exit 1), an abort or an internal error."""
+    import io
+    from contextlib import redirect_stderr, redirect_stdout
+
+    import numpy as np
+
+    from tli_verify.model import load_model
+
+    rng = np.random.default_rng(seed)
+    d = tmp_path_factory.mktemp("scale")
+    scale = 10.0**exponent
+    t = np.arange(60) * 0.1
+    x = scale * (np.outer(np.exp(-t / 2), [1.0, -0.5]) + 0.01 * rng.normal(size=(60, 2)))
+    rows = [f"{float(t[i])!r},{float(x[i, 0])!r},{float(x[i, 1])!r},{int(t[i] > 3)}"
+            for i in range(60)]
+    f = d / "demo.csv"
+    f.write_text("t,x0,x1,r\n" + "\n".join(rows) + "\n")
+    err = io.StringIO()
+    with redirect_stderr(err), redirect_stdout(io.StringIO()):
+        code = main(["learn", str(f), "-o", str(d / "m.json")])
+    if exponent <= 5:  # |x| < 1e6: learnable in these units
+        assert code == 0, err.getvalue()
+        assert len(load_model(d / "m.json").modes) == 2
+    else:
+        assert_bad_input(code, err.getvalue(), "demo.csv", "MAX_ABS_VALUE")
