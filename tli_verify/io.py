@@ -351,7 +351,8 @@ def bundled_dir(name: str) -> Path:
     Returns
     -------
     Path
-        Absolute path of the directory.
+        The directory, relative to the working directory when it lies under it (so messages
+        read ``specs/scoop.toml`` in a checkout), absolute otherwise.
 
     Raises
     ------
@@ -362,7 +363,11 @@ def bundled_dir(name: str) -> Path:
     package = Path(__file__).resolve().parent
     for root in (package / "data", package.parent):
         if (root / name).is_dir():
-            return root / name
+            found = root / name
+            try:
+                return found.relative_to(Path.cwd().resolve())
+            except ValueError:
+                return found
     raise TliError(f"the bundled {name}/ directory is not installed next to the tli_verify "
                    f"package ({package.parent / name}): tli demo needs a source checkout of "
                    "tli-verify (pip install -e .)")
