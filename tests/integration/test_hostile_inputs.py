@@ -415,6 +415,9 @@ def test_a_directory_where_a_file_is_expected(project: Path,
     for argv in (["learn", str(project / "demos"), "-o", str(project / "m.json")],
                  ["certify", str(project / "models"), "-o", str(project / "c.json")],
                  ["spec", "automaton", str(project / "specs")],
+                 ["check-cert", str(project / "certificates")],
+                 ["check-cert", str(project / "certificates" / "scoop.cert.json"), "--model",
+                  str(project / "models")],
                  ["learn", str(project / "demos" / "scoop_1.csv"), "--spec",
                   str(project / "specs"), "-o", str(project / "m.json")]):
         code, _, err = run(capsys, *argv)

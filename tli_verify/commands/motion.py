@@ -171,6 +171,10 @@ def _certify(args: argparse.Namespace) -> int:
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certify.certificate import check_certificate
 
+    for path, what, error in ((args.certificate, "certificate", CertificateError),
+                              (args.model, "model", ModelError)):
+        if path is not None and path.is_dir():  # not "no such file": say what it is
+            raise error(f"{path}: is a directory, expected a {what} file", exit_code=2)
     check = check_certificate(args.certificate, model_path=args.model)
     if args.json:
         for item in check.passed:
