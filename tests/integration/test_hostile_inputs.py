@@ -484,3 +484,55 @@ def test_learning_at_any_unit_scale_writes_a_loadable_model_or_names_the_demo(
         assert len(load_model(d / "m.json").modes) == 2
     else:
         assert_bad_input(code, err.getvalue(), "demo.csv", "MAX_ABS_VALUE")
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("cov", 1e-320),          # subnormal covariance: Sigma^-1 overflows, gamma_k = NaN
+    ("cov", 1e-300),
+    ("mean", 1e308),
+    ("attractor", -1e300),
+])
+def test_gate_blocks_a_re_hashed_model_with_hostile_numbers(field: str, value: float,
+                                                            project: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
+    """Forgery: put a hostile number into the certified model, recompute the model hash and the
+    certificate digest. The A_k and P are untouched, so the exact Lyapunov check still passes;
+    only the load-time ranges catch it, and the gate must block."""
+    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.io import canonical_json, sha256_file
+
+    model = project / "models" / "scoop.model.json"
+    doc = json.loads(model.read_text())
+    comp = doc["modes"]["b"]["components"][0]
+    if field == "cov":
+        comp["cov"] = [[value, 0.0], [0.0, value]]
+    elif field == "mean":
+        comp["mean"][0] = value
+    else:
+        doc["modes"]["b"]["attractor"][0] = value
+    model.write_text(canonical_json(doc))
+    cert_path = project / "certificates" / "scoop.cert.json"
+    cert = json.loads(cert_path.read_text())
+    cert["model"]["sha256"] = sha256_file(model)
+    cert["digest"] = certificate_digest(cert)
+    cert_path.write_text(canonical_json(cert))
+    code, out, err = run(capsys, "gate", str(project))
+    assert code == 1, out + err
+    assert "internal error" not in err
+    blocked = [line for line in out.splitlines() if line.startswith("BLOCK")]
+    assert any("scoop.cert.json" in line and "modes.b" in line for line in blocked), out
+
+
+def test_demo_without_a_checkout_says_what_it_needs(tmp_path: Path, repo: Path) -> None:
+    """A bare copy of the package (as a wheel installs it) has no specs/ or demos/ next to it:
+    ``tli demo`` says so (exit 2), instead of silently checking 0 specs."""
+    shutil.copytree(repo / "tli_verify", tmp_path / "site" / "tli_verify",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=str(tmp_path / "site"), MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, "-m", "tli_verify.cli", "demo", "--out",
+                           str(tmp_path / "out")], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("error: the bundled specs/ directory is not installed")
+    assert len(proc.stderr.splitlines()) == 1
