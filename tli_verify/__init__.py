@@ -1,6 +1,6 @@
 """tli-verify: Temporal Logic Imitation (LTL-DS) with certificates anyone can re-check.
 
-The package follows the data flow of ``DESIGN.md``::
+The package follows the data flow of ``docs/design.md``::
 
     spec -> automaton, demos -> modes -> DS -> certificate -> cuts/modulation -> policy -> gate
 

@@ -1,8 +1,11 @@
 """The ``tli`` command line.
 
-Conventions (``DESIGN.md``, "Exit codes"): 0 success; 1 a check said no (unrealizable, invalid
-certificate, gate blocked, property violated); 2 bad input or usage. Errors are one line on
-stderr starting with ``error:``; a traceback only with ``--debug``.
+Conventions (``docs/design.md``, "Exit codes"): 0 success; 1 a check said no (unrealizable,
+invalid certificate, gate blocked, property violated); 2 bad input or usage. Errors are one line
+on stderr starting with ``error:``; a traceback only with ``--debug``.
+
+Before any handler runs, :func:`check_paths` refuses outputs that cannot be written or that
+resolve to one of the command's inputs (conventions in :mod:`tli_verify.commands`).
 
 Each subcommand group lives in its own module under :mod:`tli_verify.commands` and exposes
 ``register(subparsers)``; the modules are imported only to build the parser, and they import
@@ -16,11 +19,12 @@ import importlib
 import sys
 import traceback
 from collections.abc import Sequence
+from pathlib import Path
 
 from tli_verify import __version__
 from tli_verify.errors import TliError
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "check_paths", "main"]
 
 COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.spec",
@@ -53,6 +57,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def check_paths(args: argparse.Namespace) -> None:
+    """Refuse bad output paths of a parsed command line before any work is done.
+
+    ``args.output`` and ``args.repair`` are output files, ``args.out`` an output directory;
+    every other :class:`~pathlib.Path` value (or list of them) is an input file the outputs
+    must not overwrite (:func:`tli_verify.io.check_output_file`).
+
+    Raises
+    ------
+    OutputError
+        (exit 2) Naming the output and what is wrong with it.
+    """
+    from tli_verify.io import check_output_dir, check_output_file
+
+    inputs: list[Path] = []
+    for name, value in vars(args).items():
+        if name in ("output", "out", "repair"):
+            continue
+        if isinstance(value, Path):
+            inputs.append(value)
+        elif isinstance(value, list | tuple):
+            inputs += [v for v in value if isinstance(v, Path)]
+    for name in ("repair", "output"):  # output files: never an input, never each other
+        output = getattr(args, name, None)
+        if isinstance(output, Path):
+            check_output_file(output, inputs=inputs)
+            inputs.append(output)
+    out = getattr(args, "out", None)
+    if isinstance(out, Path):
+        check_output_dir(out)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``tli`` and return its exit code."""
     parser = build_parser()
@@ -62,6 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
+        check_paths(args)
         return int(handler(args))
     except TliError as exc:
         if args.debug:

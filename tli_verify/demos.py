@@ -10,15 +10,17 @@ Format (one file per demonstration, UTF-8 CSV with a header row)::
 * ``t`` -- time stamps, strictly increasing (seconds). The column may be called ``time``
   instead; it must be when a sensor is called ``t`` (the scooping task's "at the target"
   sensor): when a ``time`` column exists, a ``t`` column is a sensor;
-* ``x0 .. x{n-1}`` -- the robot state (``n >= 1``, consecutive indices);
+* ``x0 .. x{n-1}`` -- the robot state (``1 <= n <= 32``, consecutive indices);
 * ``dx0 .. dx{n-1}`` -- optional velocities; when absent they are computed by second-order finite
   differences on the (possibly non-uniform) time grid: central differences inside, second-order
   one-sided differences at both ends (``numpy.gradient(x, t, edge_order=2)``);
 * every other column is a sensor input (an atomic proposition of the spec, paper Sec. 3), with
   values ``0`` or ``1``. With a spec the sensor columns must be exactly the spec's ``inputs``.
 
-At least 3 data rows. Lines starting with ``#`` are comments; blank lines are skipped. Every
-error names the file, the line (1-based, counting the header and comments) and the column.
+At least 3 data rows. Lines starting with ``#`` are comments; blank lines are skipped; a UTF-8
+byte-order mark (as spreadsheets write) is accepted. States and velocities lie within
+``|v| <= 1e6`` and ``n <= 32`` (:mod:`tli_verify.limits`). Every error names the file, the line
+(1-based, counting the header and comments) and the column.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import numpy.typing as npt
 
 from tli_verify.errors import DemoError
 from tli_verify.io import atomic_write_text, read_text
+from tli_verify.limits import MAX_ABS_VALUE, MAX_STATE_DIM
 
 __all__ = [
     "Demonstration",
@@ -138,6 +141,10 @@ def _header(fields: list[str], where: str, sensor_names: Sequence[str] | None
                 raise DemoError(f"{where}: column {name!r} is not a valid sensor name "
                                 "(letters, digits and '_', not starting with a digit)")
             sensors.append((col, name))
+    orphan = sorted(set(dxs) - set(xs))
+    if orphan:
+        raise DemoError(f"{where}: missing state column 'x{orphan[0]}' (the header has its "
+                        f"velocity column 'dx{orphan[0]}'; state columns must be x0..x{{n-1}})")
     if not xs:
         raise DemoError(f"{where}: missing state columns x0, x1, ...")
     n = len(xs)
@@ -145,6 +152,9 @@ def _header(fields: list[str], where: str, sensor_names: Sequence[str] | None
         missing = min(set(range(max(xs) + 1)) - set(xs))
         raise DemoError(f"{where}: missing column 'x{missing}' (state columns must be "
                         "x0..x{n-1})")
+    if n > MAX_STATE_DIM:
+        raise DemoError(f"{where}: {n} state columns, more than the limit of {MAX_STATE_DIM} "
+                        "(MAX_STATE_DIM)")
     if dxs and sorted(dxs) != list(range(n)):
         missing_dx = sorted(set(range(n)) ^ set(dxs))[0]
         raise DemoError(f"{where}: velocity columns must be dx0..dx{n - 1} to match the state "
@@ -182,8 +192,9 @@ def load_demo(path: str | os.PathLike[str], *,
     ------
     DemoError
         Naming the file, line and column: unreadable file, bad header, wrong field count,
-        non-numeric / NaN / Inf value, sensor value other than 0/1, non-increasing ``t``, fewer
-        than 3 rows.
+        non-numeric / NaN / Inf value, a state or velocity outside ``|v| <= MAX_ABS_VALUE``,
+        more than ``MAX_STATE_DIM`` state columns, sensor value other than 0/1,
+        non-increasing ``t``, fewer than 3 rows.
     """
     where = str(path)
     text = read_text(path, what="demonstration", error=DemoError)
@@ -224,6 +235,9 @@ def load_demo(path: str | os.PathLike[str], *,
             if not math.isfinite(v):
                 raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
                                 "finite (NaN/Inf)")
+            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is "
+                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
             values[r, j] = v
         for j, col in enumerate(s_cols):
             raw = fields[col].strip()
@@ -242,10 +256,15 @@ def load_demo(path: str | os.PathLike[str], *,
     if dx_cols:
         dx = values[:, 1 + n:1 + 2 * n].copy()
     else:
-        dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
-        if not np.all(np.isfinite(dx)):
-            raise DemoError(f"{where}: finite-difference velocities overflow (time steps too "
-                            "small for the state values)")
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
+        bad = np.argwhere(~(np.abs(dx) <= MAX_ABS_VALUE))
+        if bad.size:
+            r, j = (int(v) for v in bad[0])
+            raise DemoError(f"{where}: line {rows[r][0]}: column 'dx{j}' (finite difference): "
+                            f"{float(dx[r, j]):.6g} is outside the range |v| <= "
+                            f"{MAX_ABS_VALUE:g} (MAX_ABS_VALUE): time steps too small for the "
+                            "state values")
     lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
     for arr in (t, x, dx, sensors, lines):
         arr.setflags(write=False)

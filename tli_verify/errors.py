@@ -2,7 +2,7 @@
 
 Every error a user can cause is a :class:`TliError`. The CLI turns it into a one-line
 ``error: ...`` message on stderr and exit code 2 (bad input) or 1 (a check said no), see
-``DESIGN.md`` ("Exit codes"). Nothing else in the package prints errors or warnings.
+``docs/design.md`` ("Exit codes"). Nothing else in the package prints errors or warnings.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ __all__ = [
     "DemoError",
     "GateError",
     "ModelError",
+    "OutputError",
     "SolverError",
     "SpecError",
     "TliError",
@@ -54,6 +55,11 @@ class DemoError(TliError):
 
 class ModelError(TliError):
     """A model file (per-mode LPV-DS and cuts) is malformed."""
+
+
+class OutputError(TliError):
+    """An output path cannot be written: a directory, under a regular file, not writable, or one
+    of the command's own input files (which it would overwrite)."""
 
 
 class SolverError(TliError):

@@ -1,7 +1,18 @@
-"""Small file helpers shared by every stage: atomic writes and canonical JSON.
+"""File helpers shared by every stage: bounded input reads, output checks, atomic writes.
 
-Results are written atomically (temporary file in the same directory, fsync, rename), so a
-crash never leaves a half-written certificate, model or automaton (``DESIGN.md``, "Files").
+Inputs
+    :func:`read_text` is the one reader of every input file (spec, demonstration, model,
+    certificate). It reads regular files only (never a device, FIFO or socket, which may never
+    end), at most :data:`~tli_verify.limits.MAX_INPUT_BYTES`, accepts a UTF-8 byte-order mark,
+    and refuses brackets nested deeper than :data:`~tli_verify.limits.MAX_NESTING`, so the JSON
+    and TOML parsers never recurse out of the stack.
+Outputs
+    :func:`check_output_file` / :func:`check_output_dir` refuse, before any work, an output
+    that is a directory (or a file), lies under a regular file, cannot be written, or resolves
+    (symlinks, ``./``, hard links) to one of the command's input files. Results are written
+    atomically (temporary file in the same directory, fsync, rename), so a crash never leaves a
+    half-written certificate, model or automaton (``docs/design.md``, "Files"); every failure is
+    an :class:`~tli_verify.errors.OutputError` (exit 2), never a raw ``OSError``.
 """
 
 from __future__ import annotations
@@ -9,14 +20,31 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
+import stat
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "canonical_json", "read_text", "sha256_file"]
+from tli_verify.errors import OutputError, TliError
+from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
 
-MAX_INPUT_BYTES = 4 * 1024 * 1024
-"""Largest input file (spec, model, certificate) accepted; larger files are bad input."""
+__all__ = [
+    "MAX_INPUT_BYTES",
+    "MAX_NESTING",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "bundled_dir",
+    "canonical_json",
+    "check_nesting",
+    "check_output_dir",
+    "check_output_file",
+    "read_text",
+    "sha256_file",
+]
+
+PathLike = str | os.PathLike[str]
 
 
 def _umask() -> int:
@@ -25,16 +53,161 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+def _why(exc: OSError) -> str:
+    return exc.strerror or type(exc).__name__
+
+
+# --------------------------------------------------------------------------------------------
+# Outputs
+# --------------------------------------------------------------------------------------------
+
+def _existing_ancestor(p: Path) -> Path:
+    """The nearest ancestor of ``p`` (absolute) that exists (``lstat``), or ``p`` itself."""
+    cur = p
+    while not os.path.lexists(cur) and cur != cur.parent:
+        cur = cur.parent
+    return cur
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        if a.resolve() == b.resolve():
+            return True
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except (OSError, RuntimeError):  # RuntimeError: a symlink loop
+        return False
+
+
+def _check_dotdot(p: Path, shown: str, what: str) -> None:
+    """Refuse ``..`` after a directory that does not exist yet (``out/new/../x``): creating the
+    missing directories would change what the path names."""
+    cur = Path(p.anchor) if p.is_absolute() else Path(".")
+    for part in p.parts[1:] if p.is_absolute() else p.parts:
+        if part == ".." and not cur.is_dir():
+            raise OutputError(f"{shown}: '..' after {cur}, which is not an existing directory; "
+                              f"give the {what} path without it")
+        cur = cur / part
+
+
+def _check_writable_dir(directory: Path, shown: str, what: str) -> None:
+    """Refuse ``directory`` (the nearest existing ancestor of an output) unless we can write in it.
+
+    A probe file is created and removed: ``os.access`` is wrong for root and on read-only
+    file systems.
+    """
+    if not directory.is_dir():
+        raise OutputError(f"{shown}: cannot write the {what}: {directory} is not a directory "
+                          "(a path under a regular file)")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".tli-probe.", dir=directory)
+    except OSError as exc:
+        raise OutputError(f"{shown}: cannot write the {what}: directory {directory} is not "
+                          f"writable ({_why(exc)})") from None
+    os.close(fd)
+    Path(probe).unlink(missing_ok=True)
+
+
+def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
+                      what: str = "output file") -> Path:
+    """Refuse an output file path that cannot, or must not, be written; before any work.
+
+    Parameters
+    ----------
+    path : path-like
+        Where the command will write a file (missing parent directories are created later).
+    inputs : iterable of path-like, optional
+        The command's input files: writing over one of them would lose it.
+    what : str, optional
+        What the output is, for messages ("model file", "certificate", ...).
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    OutputError
+        (exit 2) An empty path; an existing directory, device, FIFO or socket; a path under a
+        regular file; a directory we cannot write in; or a path that resolves (symlinks,
+        ``./``, ``..``, hard links) to one of ``inputs``.
+    """
+    if str(path) == "":
+        raise OutputError(f"empty path given for the {what}")
+    p = Path(path)
+    shown = str(path)
+    _check_dotdot(p, shown, what)
+    for src in inputs:
+        if _same_file(p, Path(src)):
+            raise OutputError(f"{shown}: the {what} would overwrite the input file {src}; "
+                              "choose another output path")
+    if p.is_dir() or p.name in ("", ".", ".."):
+        raise OutputError(f"{shown}: is a directory, expected a path for the {what}")
+    if os.path.lexists(p):
+        mode = os.stat(p).st_mode if p.exists() else os.lstat(p).st_mode
+        if not stat.S_ISREG(mode) and not stat.S_ISLNK(mode):
+            raise OutputError(f"{shown}: exists and is not a regular file (a device, FIFO or "
+                              f"socket); refusing to replace it with the {what}")
+    _check_writable_dir(_existing_ancestor(p.absolute().parent), shown, what)
+    return p
+
+
+def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
+    """Refuse an output directory that cannot be created or written; before any work.
+
+    Parameters
+    ----------
+    path : path-like
+        Directory the command writes its results into (created if missing).
+    what : str, optional
+        For messages.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    OutputError
+        (exit 2) An empty path; an existing file; a path under a regular file; a directory we
+        cannot write in.
+    """
+    if str(path) == "":
+        raise OutputError(f"empty path given for the {what}")
+    p = Path(path)
+    _check_dotdot(p, str(path), what)
+    if os.path.lexists(p) and not p.is_dir():
+        raise OutputError(f"{p}: exists and is not a directory, expected the {what}")
+    _check_writable_dir(_existing_ancestor(p.absolute()), str(path), what)
+    return p
+
+
+def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (temp file + rename).
 
     The file gets the permissions a plain ``open(path, "w")`` would give it (``0o666`` minus the
     umask), not the private ``0o600`` of the temporary file: certificates and reports are meant
     to be read by others.
+
+    Raises
+    ------
+    OutputError
+        (exit 2) The path is a directory or a device, lies under a regular file, or cannot be
+        written; nothing is left behind and an existing file at ``path`` is untouched.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    if str(path) == "":
+        raise OutputError("empty output path")
+    if target.is_dir() or target.name in ("", ".", ".."):
+        raise OutputError(f"{target}: is a directory, cannot write a file there")
+    if target.exists() and not target.is_file():
+        raise OutputError(f"{target}: exists and is not a regular file; refusing to replace it")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write: {_why(exc)} ({exc.filename or target.parent})"
+                          ) from None
     try:
         os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as handle:
@@ -42,13 +215,16 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"{target}: cannot write: {_why(exc)}") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
+def atomic_write_text(path: PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_write_bytes`)."""
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
@@ -57,7 +233,7 @@ def canonical_json(obj: Any) -> str:
     return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
 
 
-def sha256_file(path: str | os.PathLike[str]) -> str:
+def sha256_file(path: PathLike) -> str:
     """Hex SHA-256 of a file's bytes."""
     digest = hashlib.sha256()
     with open(path, "rb") as handle:
@@ -66,8 +242,47 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
-def read_text(path: str | os.PathLike[str], *, what: str, error: type[Exception]) -> str:
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+
+# A string (JSON/TOML basic "..." with escapes, TOML literal '...', on one line), a comment
+# (# to the end of the line, TOML and CSV) or a bracket. Brackets inside strings and comments
+# do not nest anything.
+_TOKENS = re.compile(r'"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]')
+
+
+def check_nesting(text: str, *, where: str, error: type[TliError],
+                  limit: int = MAX_NESTING) -> None:
+    """Refuse ``[``/``{`` brackets nested deeper than ``limit`` outside strings and comments.
+
+    Python's JSON and TOML parsers recurse once per level and die with ``RecursionError`` near
+    1000 levels; this check runs first, in linear time.
+
+    Raises
+    ------
+    error
+        ``"<where>: line L, column C: brackets nested deeper than <limit> (limit MAX_NESTING)"``.
+    """
+    depth = 0
+    for m in _TOKENS.finditer(text):
+        tok = m.group()
+        if tok in "[{":
+            depth += 1
+            if depth > limit:
+                line = text.count("\n", 0, m.start()) + 1
+                col = m.start() - (text.rfind("\n", 0, m.start()) + 1) + 1
+                raise error(f"{where}: line {line}, column {col}: brackets nested deeper than "
+                            f"{limit} levels (limit MAX_NESTING)")
+        elif tok in "]}":
+            depth = max(depth - 1, 0)
+
+
+def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     """Read a UTF-8 text input file, turning every failure into ``error`` naming the file.
+
+    Only regular files are read, at most ``MAX_INPUT_BYTES``; a UTF-8 byte-order mark (as
+    spreadsheets write) is dropped; brackets may nest at most ``MAX_NESTING`` deep.
 
     Parameters
     ----------
@@ -77,24 +292,82 @@ def read_text(path: str | os.PathLike[str], *, what: str, error: type[Exception]
         What the file is ("spec", "model", ...), used in messages.
     error : type
         Exception class (a :class:`tli_verify.errors.TliError`) to raise.
+
+    Returns
+    -------
+    str
+        The text, without a leading byte-order mark.
     """
     p = Path(path)
+    if str(path) == "":
+        raise error(f"empty path given for the {what} file")
     try:
-        size = p.stat().st_size
+        st = p.stat()
     except OSError as exc:
-        raise error(f"{p}: cannot read {what} file: {exc.strerror or exc}") from None
-    if p.is_dir():
+        raise error(f"{p}: cannot read {what} file: {_why(exc)}") from None
+    if stat.S_ISDIR(st.st_mode):
         raise error(f"{p}: is a directory, expected a {what} file")
-    if size > MAX_INPUT_BYTES:
-        raise error(f"{p}: {what} file is {size} bytes, larger than the limit of "
-                    f"{MAX_INPUT_BYTES} bytes")
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{p}: not a regular file (a device, FIFO or socket), expected a {what} "
+                    "file")
+    if st.st_size > MAX_INPUT_BYTES:
+        raise error(f"{p}: {what} file is {st.st_size} bytes, larger than the limit of "
+                    f"{MAX_INPUT_BYTES} bytes (MAX_INPUT_BYTES)")
     try:
-        raw = p.read_bytes()
+        with open(p, "rb") as handle:
+            raw = handle.read(MAX_INPUT_BYTES + 1)
     except OSError as exc:
-        raise error(f"{p}: cannot read {what} file: {exc.strerror or exc}") from None
+        raise error(f"{p}: cannot read {what} file: {_why(exc)}") from None
+    if len(raw) > MAX_INPUT_BYTES:  # the file grew, or its size is not what stat said
+        raise error(f"{p}: {what} file is larger than the limit of {MAX_INPUT_BYTES} bytes "
+                    "(MAX_INPUT_BYTES)")
     if b"\x00" in raw:
         raise error(f"{p}: not a text file (contains NUL bytes)")
     try:
-        return raw.decode("utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise error(f"{p}: not UTF-8 text (byte {exc.start})") from None
+    text = text.removeprefix("\ufeff")
+    check_nesting(text, where=str(p), error=error)
+    return text
+
+
+# --------------------------------------------------------------------------------------------
+# Bundled files
+# --------------------------------------------------------------------------------------------
+
+def bundled_dir(name: str) -> Path:
+    """A directory of the bundled files (``"specs"``, ``"demos"``), wherever ``tli`` runs from.
+
+    The bundled specs and demonstrations live at the top of the source tree, next to the
+    ``tli_verify`` package (an editable install or a checkout). Looked up relative to the
+    package, never to the working directory, so ``tli demo`` behaves the same from anywhere.
+
+    Parameters
+    ----------
+    name : str
+        ``"specs"`` or ``"demos"``.
+
+    Returns
+    -------
+    Path
+        The directory, relative to the working directory when it lies under it (so messages
+        read ``specs/scoop.toml`` in a checkout), absolute otherwise.
+
+    Raises
+    ------
+    TliError
+        (exit 2) The directory is not there (a wheel install ships the package only), saying
+        what is needed.
+    """
+    package = Path(__file__).resolve().parent
+    for root in (package / "data", package.parent):
+        if (root / name).is_dir():
+            found = root / name
+            try:
+                return found.relative_to(Path.cwd().resolve())
+            except ValueError:
+                return found
+    raise TliError(f"the bundled {name}/ directory is not installed next to the tli_verify "
+                   f"package ({package.parent / name}): tli demo needs a source checkout of "
+                   "tli-verify (pip install -e .)")

@@ -1,7 +1,9 @@
 """The model file: one LPV-DS (and its cuts) per mode or mode transition.
 
 Format (JSON, validated against the published schema ``tli_verify/schemas/model.schema.json``
-and then semantically: dimensions, symmetry, positive definite covariances, unit cut normals)::
+and then semantically: dimensions, symmetry, every number within ``|v| <= 1e6``, covariances
+positive definite with bounded eigenvalues and condition number, priors summing to 1, unit cut
+normals; the limits are in :mod:`tli_verify.limits` and :func:`numeric_limits`)::
 
     {
       "schema_version": 1,
@@ -47,6 +49,13 @@ from tli_verify.boundary.cuts import Cut
 from tli_verify.ds.lpvds import LPVDS, Clustering, LyapunovKind
 from tli_verify.errors import ModelError, TliError
 from tli_verify.io import atomic_write_text, canonical_json, read_text
+from tli_verify.limits import (
+    COV_MAX_CONDITION,
+    COV_MIN_EIGENVALUE,
+    MAX_ABS_COVARIANCE,
+    MAX_ABS_VALUE,
+    PRIOR_SUM_TOL,
+)
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -57,6 +66,7 @@ __all__ = [
     "load_model",
     "model_from_dict",
     "model_to_dict",
+    "numeric_limits",
     "read_json",
     "relocate_model",
     "save_model",
@@ -91,16 +101,90 @@ def _reject_constant(name: str) -> float:
     raise ValueError(f"{name} is not allowed (numbers must be finite)")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not np.isfinite(value):  # e.g. 1e400, which Python reads as inf
+        raise ValueError(f"number {text} overflows a double (numbers must be finite)")
+    return value
+
+
 def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
-    """Read a JSON file; errors name the file, line and column. NaN/Infinity are rejected."""
+    """Read a JSON file; errors name the file, line and column.
+
+    NaN, Infinity and numbers that overflow a double (``1e400``) are rejected; so are files
+    larger than ``MAX_INPUT_BYTES``, non-regular files and brackets nested deeper than
+    ``MAX_NESTING`` (:func:`tli_verify.io.read_text`).
+    """
     text = read_text(path, what=what, error=error)
     try:
-        return json.loads(text, parse_constant=_reject_constant)
+        return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise error(f"{path}: line {exc.lineno}, column {exc.colno}: invalid JSON: "
                     f"{exc.msg}") from None
     except ValueError as exc:
         raise error(f"{path}: invalid JSON: {exc}") from None
+    except RecursionError:  # not reached after read_text's nesting check; kept as a backstop
+        raise error(f"{path}: invalid JSON: nested too deeply") from None
+
+
+def numeric_limits() -> dict[str, float]:
+    """The numeric ranges every loaded model satisfies (for the certificate to record).
+
+    Within them the velocity ``f(x)`` (paper eq. 4), its mixing weights and ``M(x) f(x)``
+    (eq. 5) are finite and well defined at every state with ``|x_i| <= max_abs_value``
+    (:mod:`tli_verify.limits`).
+
+    Returns
+    -------
+    dict
+        ``max_abs_value`` (every number of the model but the covariances, and the states at
+        which the velocity is guaranteed finite), ``max_abs_covariance``, ``cov_min_eigenvalue``
+        and ``cov_max_condition`` (every GMM covariance is symmetric positive definite within
+        these bounds), ``prior_sum_tolerance`` (priors > 0 sum to 1 within it).
+    """
+    return {"max_abs_value": MAX_ABS_VALUE, "max_abs_covariance": MAX_ABS_COVARIANCE,
+            "cov_min_eigenvalue": COV_MIN_EIGENVALUE, "cov_max_condition": COV_MAX_CONDITION,
+            "prior_sum_tolerance": PRIOR_SUM_TOL}
+
+
+def _check_range(value: Any, parts: list[str | int], where: str) -> None:
+    """Every number under ``value`` is within ``MAX_ABS_VALUE`` (``MAX_ABS_COVARIANCE`` under a
+    ``cov`` field); errors name the entry."""
+    stack: list[tuple[Any, list[str | int]]] = [(value, parts)]
+    while stack:
+        v, loc = stack.pop()
+        if isinstance(v, bool):
+            continue
+        if isinstance(v, int | float):
+            cov = "cov" in loc
+            bound = MAX_ABS_COVARIANCE if cov else MAX_ABS_VALUE
+            if not abs(v) <= bound:  # also NaN
+                shown = f"{v:.6g}" if isinstance(v, float) else (
+                    str(v) if abs(v) < 10**30 else f"an integer of {len(str(abs(v)))} digits")
+                name = "MAX_ABS_COVARIANCE" if cov else "MAX_ABS_VALUE"
+                raise ModelError(f"{where}: {field_path(loc)}: {shown} is outside the declared "
+                                 f"range |v| <= {bound:g} ({name})")
+        elif isinstance(v, list):
+            stack.extend((item, [*loc, i]) for i, item in enumerate(v))
+        elif isinstance(v, dict):
+            stack.extend((item, [*loc, k]) for k, item in v.items())
+
+
+def _check_covariance(cov: FloatArray, where: str) -> None:
+    """Symmetric positive definite, safely invertible: eigenvalues and condition bounded."""
+    _symmetric(cov, where)
+    eig = np.linalg.eigvalsh(cov)
+    lo, hi = float(eig[0]), float(eig[-1])
+    if not lo > 0:
+        raise ModelError(f"{where}: not symmetric positive definite (smallest eigenvalue "
+                         f"{lo:.3g})")
+    if lo < COV_MIN_EIGENVALUE:
+        raise ModelError(f"{where}: smallest eigenvalue {lo:.3g} is below "
+                         f"{COV_MIN_EIGENVALUE:g} (COV_MIN_EIGENVALUE): its inverse would "
+                         "overflow")
+    if hi / lo > COV_MAX_CONDITION:
+        raise ModelError(f"{where}: condition number {hi / lo:.3g} exceeds "
+                         f"{COV_MAX_CONDITION:g} (COV_MAX_CONDITION): not safely invertible")
 
 
 @cache
@@ -307,9 +391,13 @@ def model_from_dict(data: Any, *, where: str = "model", path: str | None = None)
     Raises
     ------
     ModelError
-        ``"<where>: <field path>: <problem>"``.
+        ``"<where>: <field path>: <problem>"``: a schema violation, a number outside
+        :func:`numeric_limits` (``modes.a.components[0].cov[1][1]: 1e+308 is outside ...``),
+        a covariance that is not safely invertible, priors that do not sum to 1.
     """
     validate_schema(data, "model.schema.json", where=where, error=ModelError)
+    for key, entry in data["modes"].items():
+        _check_range({k: v for k, v in entry.items() if k != "fit"}, ["modes", key], where)
     names = tuple(data["state_names"])
     n = len(names)
     modes: dict[str, ModeModel] = {}
@@ -333,16 +421,13 @@ def model_from_dict(data: Any, *, where: str = "model", path: str | None = None)
             priors.append(float(comp["prior"]))
             means.append(_matrix(comp["mean"], (n,), f"{cloc}.mean"))
             cov = _matrix(comp["cov"], (n, n), f"{cloc}.cov")
-            _symmetric(cov, f"{cloc}.cov")
-            try:
-                np.linalg.cholesky(cov)
-            except np.linalg.LinAlgError:
-                raise ModelError(f"{cloc}.cov: not symmetric positive definite") from None
+            _check_covariance(cov, f"{cloc}.cov")
             covs.append(cov)
             As.append(_matrix(comp["A"], (n, n), f"{cloc}.A"))
         total = float(np.sum(priors))
-        if abs(total - 1.0) > 1e-6:
-            raise ModelError(f"{where}: {loc}.components: priors sum to {total!r}, not 1")
+        if not abs(total - 1.0) <= PRIOR_SUM_TOL:
+            raise ModelError(f"{where}: {loc}.components: priors sum to {total!r}, not 1 "
+                             f"(tolerance {PRIOR_SUM_TOL:g}, PRIOR_SUM_TOL)")
         cuts = []
         for c, raw in enumerate(entry["cuts"]):
             cut = Cut.from_dict(raw, where=f"{where}: {loc}.cuts[{c}]")

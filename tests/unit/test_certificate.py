@@ -47,7 +47,7 @@ def small_model(A1: list[list[float]], P: list[list[float]] | None = None,
 def test_bundled_certificate_rechecks(repo: Path) -> None:
     check = check_certificate(repo / "certificates" / "scoop.cert.json")
     assert check.ok, check.problems
-    assert len(check.passed) == 7  # digest, model hash, spec hash, 4 modes
+    assert len(check.passed) == 8  # digest, model hash, ranges, spec hash, 4 modes
 
 
 def test_issue_is_reproducible(project: Path) -> None:

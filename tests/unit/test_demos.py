@@ -165,3 +165,59 @@ def test_missing_file_and_no_files(tmp_path: Path) -> None:
         load_demo(tmp_path / "nope.csv")
     with pytest.raises(DemoError, match="no demonstration files"):
         load_demos([])
+
+
+# --------------------------------------------------------------------------------------------
+# Issue 10: limits and clearer messages
+# --------------------------------------------------------------------------------------------
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from tli_verify.limits import MAX_ABS_VALUE, MAX_STATE_DIM  # noqa: E402
+
+
+@settings(max_examples=60)
+@given(n=st.integers(1, 6), data=st.data())
+def test_missing_state_column_names_it(n: int, data: st.DataObject,
+                                       tmp_path_factory: pytest.TempPathFactory) -> None:
+    """``x<i>`` absent but ``dx<i>`` present: the message names ``x<i>``."""
+    gone = data.draw(st.integers(0, n - 1), label="missing state")
+    header = ["t", *(f"x{i}" for i in range(n) if i != gone), *(f"dx{i}" for i in range(n))]
+    rows = [",".join(["0.1" if c != "t" else str(r) for c in header]) for r in range(4)]
+    path = tmp_path_factory.mktemp("d") / "d.csv"
+    path.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
+    with pytest.raises(DemoError, match=rf"missing state column 'x{gone}'"):
+        load_demo(path)
+
+
+def test_state_dimension_limit(tmp_path: Path) -> None:
+    n = MAX_STATE_DIM + 1
+    header = "t," + ",".join(f"x{i}" for i in range(n))
+    rows = "\n".join(f"{r}," + ",".join("0.5" for _ in range(n)) for r in range(4))
+    with pytest.raises(DemoError, match="MAX_STATE_DIM"):
+        load_demo(write(tmp_path, header + "\n" + rows + "\n"))
+
+
+@settings(max_examples=40)
+@given(step=st.floats(1e-300, 1e-8), scale=st.floats(1.0, MAX_ABS_VALUE))
+def test_finite_difference_velocities_stay_in_range(step: float, scale: float,
+                                                    tmp_path_factory: pytest.TempPathFactory
+                                                    ) -> None:
+    """Tiny time steps with large states: a DemoError naming line and 'dx' column, no
+    overflow warning turned error, no abort."""
+    rows = [f"{i * step!r},{scale * (-1) ** i!r}" for i in range(4)]
+    path = tmp_path_factory.mktemp("d") / "d.csv"
+    path.write_text("t,x0\n" + "\n".join(rows) + "\n")
+    try:
+        demo = load_demo(path)
+    except DemoError as exc:
+        assert "line " in str(exc) and "'dx0'" in str(exc) and "MAX_ABS_VALUE" in str(exc)
+    else:
+        assert np.all(np.abs(demo.dx) <= MAX_ABS_VALUE)
+
+
+def test_byte_order_mark_in_the_header(tmp_path: Path) -> None:
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    assert load_demo(path).n_samples == 4

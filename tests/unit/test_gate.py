@@ -161,3 +161,31 @@ def test_repository_gate_passes(repo: Path) -> None:
     assert report.ok, [f"{b.path}: {b.message}" for b in report.blockers]
     assert report.count("certificate") >= 1
     assert report.count("model") >= 1
+
+
+def test_irregular_files_block_instead_of_being_skipped(project: Path) -> None:
+    import os
+
+    os.mkfifo(project / "models" / "pipe.json")
+    os.symlink(project / "nowhere.json", project / "certificates" / "dangling.json")
+    found = blockers(project)
+    assert sorted(found) == sorted([
+        "model models/pipe.json: not a regular file (a device, FIFO, socket or dangling link): "
+        "refused, never read",
+        "certificate certificates/dangling.json: not a regular file (a "
+        "device, FIFO, socket or dangling link): refused, never read"])
+
+
+def test_certificate_states_the_declared_numeric_ranges(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    assert doc["well_posed"]["velocity_finite"] is True
+    doc["well_posed"]["limits"]["max_abs_value"] = 1e300  # claim a laxer range, digest redone
+    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.io import canonical_json
+
+    doc["digest"] = certificate_digest(doc)
+    cert.write_text(canonical_json(doc))
+    problems = check_certificate(cert).problems
+    assert len(problems) == 1
+    assert "well_posed.limits differ from this tool's declared ranges" in problems[0]

@@ -222,3 +222,113 @@ def test_bundled_model_loads(repo: Path) -> None:
         assert mm.fit is not None
         assert mm.fit["status"] == "optimal"
         np.testing.assert_array_equal(model.velocity(mm.ds.attractor[None], mode=key), [[0, 0]])
+
+
+# --------------------------------------------------------------------------------------------
+# Issue 10, class 4: every number within a declared range, covariances safely invertible
+# --------------------------------------------------------------------------------------------
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from tli_verify.limits import (  # noqa: E402
+    COV_MAX_CONDITION,
+    COV_MIN_EIGENVALUE,
+    MAX_ABS_COVARIANCE,
+    MAX_ABS_VALUE,
+)
+from tli_verify.model import numeric_limits  # noqa: E402
+
+HOSTILE = st.one_of(
+    st.floats(min_value=MAX_ABS_VALUE, exclude_min=True, allow_infinity=False),
+    st.floats(max_value=-MAX_ABS_VALUE, exclude_max=True, allow_infinity=False),
+    st.integers(min_value=10**7, max_value=10**400),
+)
+NUMERIC_FIELDS = [["attractor", 0], ["P", 0, 1], ["components", 0, "mean", 1],
+                  ["components", 0, "cov", 0, 0], ["components", 0, "A", 1, 0],
+                  ["components", 0, "prior"]]
+
+
+@settings(max_examples=60)
+@given(value=HOSTILE, field=st.sampled_from(NUMERIC_FIELDS), sign=st.sampled_from([1, -1]))
+def test_out_of_range_numbers_are_refused_naming_the_field(value: float | int,
+                                                           field: list[str | int],
+                                                           sign: int) -> None:
+    bundled = json.loads((Path(__file__).resolve().parents[2] / "models" /
+                          "scoop.model.json").read_text())
+    key = sorted(bundled["modes"])[0]
+    node: Any = bundled["modes"][key]
+    for part in field[:-1]:
+        node = node[part]
+    if "cov" in field:  # covariances have squared units: their bound is MAX_ABS_VALUE**2
+        value = value * 10**6 if isinstance(value, int) else value * MAX_ABS_VALUE
+    node[field[-1]] = sign * value
+    limit = ("MAX_ABS_COVARIANCE" if "cov" in field else
+             "MAX_ABS_VALUE" if field[-1] != "prior" or sign * value > 0 else "prior")
+    with pytest.raises(ModelError, match=limit) as info:
+        model_from_dict(bundled, where="m.json")
+    shown = ".".join(str(p) for p in field if isinstance(p, str))
+    assert f"modes.{key}." in str(info.value)
+    assert shown.split(".")[-1] in str(info.value)
+
+
+@settings(max_examples=80)
+@given(lam=st.one_of(st.floats(min_value=5e-324, max_value=1e-90),
+                     st.floats(min_value=1e-90, max_value=1e13)),
+       ratio=st.floats(min_value=1.0, max_value=1e20))
+def test_covariances_are_safely_invertible_or_refused(lam: float, ratio: float) -> None:
+    """cov = diag(lam, lam * ratio): loads iff lam >= COV_MIN_EIGENVALUE and ratio <=
+    COV_MAX_CONDITION (and in range); a loaded model has finite velocities at states within
+    the declared range, even at its corners."""
+    bundled = json.loads((Path(__file__).resolve().parents[2] / "models" /
+                          "scoop.model.json").read_text())
+    key = sorted(bundled["modes"])[0]
+    bundled["modes"][key]["components"][0]["cov"] = [[lam, 0.0], [0.0, lam * ratio]]
+    ok = (lam >= COV_MIN_EIGENVALUE and lam * ratio <= MAX_ABS_COVARIANCE
+          and (lam * ratio) / lam <= COV_MAX_CONDITION)
+    if not ok:
+        with pytest.raises(ModelError, match=rf"modes\.{key}\.components\[0\]\.cov"):
+            model_from_dict(bundled, where="m.json")
+        return
+    model = model_from_dict(bundled, where="m.json")
+    corners = np.array([[a, b] for a in (-MAX_ABS_VALUE, 0.0, MAX_ABS_VALUE)
+                        for b in (-MAX_ABS_VALUE, 0.0, MAX_ABS_VALUE)])
+    v = model.velocity(corners, key)
+    assert np.all(np.isfinite(v))
+
+
+@pytest.mark.parametrize("n", [1, 2, 5])
+def test_velocity_is_finite_at_the_extremes_of_the_declared_ranges(n: int) -> None:
+    """The worst model the limits admit -- means and attractor at the range's edge, the
+    thinnest allowed covariances, the largest A_k -- still has finite, well-defined velocities
+    at every corner of the state box |x_i| <= MAX_ABS_VALUE."""
+    from tli_verify.ds.lpvds import LPVDS
+
+    thin = COV_MIN_EIGENVALUE * np.eye(n)
+    wide = np.diag([COV_MIN_EIGENVALUE * COV_MAX_CONDITION] * n)
+    ds = LPVDS(attractor=np.full(n, MAX_ABS_VALUE), priors=np.array([0.5, 0.5]),
+               means=np.stack([np.full(n, MAX_ABS_VALUE), np.full(n, -MAX_ABS_VALUE)]),
+               covs=np.stack([thin, wide]),
+               A=np.stack([-MAX_ABS_VALUE * np.eye(n), -np.eye(n)]), P=np.eye(n))
+    corners = np.array(np.meshgrid(*[[-MAX_ABS_VALUE, 0.0, MAX_ABS_VALUE]] * n)).reshape(n, -1).T
+    gamma = ds._mix.posterior(corners)
+    assert np.all(np.isfinite(gamma)) and np.all(gamma >= 0)
+    np.testing.assert_allclose(gamma.sum(axis=1), 1.0)
+    assert np.all(np.isfinite(ds.velocity(corners)))
+
+
+def test_numeric_limits_are_the_enforced_ones() -> None:
+    limits = numeric_limits()
+    assert limits["max_abs_value"] == MAX_ABS_VALUE
+    assert limits["max_abs_covariance"] == MAX_ABS_COVARIANCE
+    assert limits["cov_min_eigenvalue"] == COV_MIN_EIGENVALUE
+    assert limits["cov_max_condition"] == COV_MAX_CONDITION
+    assert json.loads(json.dumps(limits)) == limits
+
+
+def test_number_overflowing_a_double_is_refused(tmp_path: Path) -> None:
+    text = (Path(__file__).resolve().parents[2] / "models" / "scoop.model.json").read_text()
+    bad = tmp_path / "m.json"
+    bad.write_text(text.replace('"attractor": [', '"attractor": [1e400, ', 1))
+    with pytest.raises(ModelError, match="overflows"):
+        load_model(bad)

@@ -7,6 +7,9 @@ modulation and corner guard use (paper Thm. 1 needs one P for both) -- proves
 * ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 4);
 * at the declared control period ``dt``: ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` for every k,
   so each explicit Euler step of the nominal DS decreases ``V`` (and at every shorter period);
+* well-posedness: every number of the model lies in the declared ranges
+  (:func:`tli_verify.model.numeric_limits`) and every covariance is safely invertible, so the
+  velocity is finite and well defined everywhere the certificate claims stability;
 * a decay rate ``lambda > 0``: ``A_k^T P + P A_k + lambda P < 0`` for every k, so
   ``V(x(t)) <= V(x(0)) exp(-lambda t)`` (the reachability deadline of
   :mod:`tli_verify.certify.reach`).
@@ -184,7 +187,7 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
         A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
     from tli_verify import __version__
-    from tli_verify.model import load_model
+    from tli_verify.model import load_model, numeric_limits
 
     try:
         dt_q = parse_rational(dt, what="dt")
@@ -212,6 +215,7 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
         "model": {"path": _relpath(mpath, base), "sha256": sha256_file(mpath)},
         "spec": spec,
         "control_period": {"dt": rational_text(dt_q), "dt_float": float(dt_q)},
+        "well_posed": {"limits": numeric_limits(), "velocity_finite": True},
         "modes": modes,
         "exact_check": {"passed": True, "method": EXACT_METHOD},
     }
@@ -282,6 +286,9 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     from tli_verify.model import load_model, read_json, validate_schema
 
     cpath = Path(cert_path)
+    if cpath.is_dir():
+        raise CertificateError(f"{cpath}: is a directory, expected a certificate file",
+                               exit_code=2)
     if not cpath.is_file():
         raise CertificateError(f"{cpath}: no such certificate file", exit_code=2)
     problems: list[str] = []
@@ -313,6 +320,14 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     except ModelError as exc:
         problems.append(f"model does not load: {exc}")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
+    from tli_verify.model import numeric_limits
+
+    if doc["well_posed"]["limits"] != numeric_limits():
+        problems.append(f"{cpath}: well_posed.limits differ from this tool's declared ranges "
+                        f"{numeric_limits()}: re-certify with this version")
+    else:
+        passed.append("the model's numbers lie within the declared ranges (velocity finite "
+                      "and well defined)")
     problems += _check_spec_binding(doc["spec"], cpath, model, mpath, passed)
     dt_text = doc["control_period"]["dt"]
     dt = Fraction(dt_text)

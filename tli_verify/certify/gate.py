@@ -95,8 +95,22 @@ class GateReport:
 
 
 def _files(directory: Path, pattern: str) -> list[Path]:
-    return sorted(p for p in directory.rglob(pattern) if p.is_file()) if directory.is_dir() \
-        else []
+    """Every entry matching ``pattern`` that is not a directory (regular or not)."""
+    return sorted(p for p in directory.rglob(pattern) if not p.is_dir()) \
+        if directory.is_dir() else []
+
+
+def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
+    """A blocking item for a device, FIFO, socket or dangling link where a file must be."""
+    if path.is_file() and not path.is_symlink():
+        return None
+    try:
+        if path.is_symlink() and path.resolve(strict=True).is_file():
+            return None
+    except OSError:
+        pass
+    return GateItem(kind, shown, False, "not a regular file (a device, FIFO, socket or "
+                    "dangling link): refused, never read", "load")
 
 
 def _default_spec_checker() -> Callable[[Path], Any]:
@@ -284,16 +298,24 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         raise GateError(f"{base}: not a directory", exit_code=2)
 
     def shown(p: Path) -> str:
-        try:
-            return p.resolve().relative_to(base.resolve()).as_posix()
-        except ValueError:
-            return str(p)
+        for a, b in ((p.absolute(), base.absolute()), (p.resolve(), base.resolve())):
+            try:
+                return Path(os.path.normpath(a)).relative_to(os.path.normpath(b)).as_posix()
+            except ValueError:
+                continue
+        return str(p)
 
     specs = _Specs(spec_checker)
-    items: list[GateItem] = [_spec_item(specs.check(s), shown(s))
-                             for s in _files(base / "specs", "*.toml")]
+    items: list[GateItem] = []
+    for spec in _files(base / "specs", "*.toml"):
+        bad = _irregular(spec, "spec", shown(spec))
+        items.append(bad if bad is not None else _spec_item(specs.check(spec), shown(spec)))
     certified: dict[Path, list[tuple[Path, CertCheck]]] = {}
     for cert in _files(base / "certificates", "*.json"):
+        bad = _irregular(cert, "certificate", shown(cert))
+        if bad is not None:
+            items.append(bad)
+            continue
         try:
             check = check_certificate(cert)
         except TliError as exc:
@@ -314,7 +336,8 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
                                   "; ".join(check.problems)))
     models = _files(base / "models", "*.json")
     for model in models:
-        items += _model_checks(model, shown, certified, specs)
+        bad = _irregular(model, "model", shown(model))
+        items += [bad] if bad is not None else _model_checks(model, shown, certified, specs)
     if not models:
         items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
                               f"{shown(base / 'models')}/ to deploy (the gate fails closed)",

@@ -1,1 +1,21 @@
-"""Subcommand groups of the ``tli`` CLI; each module exposes ``register(subparsers)``."""
+"""Subcommand groups of the ``tli`` CLI; each module exposes ``register(subparsers)``.
+
+Path conventions every command follows (checked once, before the handler runs, by
+:func:`tli_verify.cli.check_paths`): an argument named ``output`` is the output file
+(``-o/--output``), one named ``out`` is the output directory (``--out``); every other
+:class:`~pathlib.Path` argument is an input file. Outputs that cannot be written, or that would
+overwrite an input, are refused with exit 2 before any work. Output arguments use
+:func:`output_path` as their type so an empty string is refused too.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def output_path(text: str) -> Path:
+    """``argparse`` type of ``-o``/``--out``: a non-empty path (``Path("")`` would be ``.``)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path")
+    return Path(text)

@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from tli_verify.commands import output_path
+
 DEMO_STAGES: tuple[str, ...] = (
     "tli_verify.commands.spec",
     "tli_verify.commands.motion",
@@ -18,13 +20,20 @@ DEMO_STAGES: tuple[str, ...] = (
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``tli demo``."""
     p = sub.add_parser("demo", help="run the pipeline on the bundled specs and demos")
-    p.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: out)")
+    p.add_argument("--out", type=output_path, default=Path("out"),
+                   help="output directory (default: out)")
     p.set_defaults(handler=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    from tli_verify.errors import OutputError
+
+    out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot create the output directory: "
+                          f"{exc.strerror or exc}") from None
     for name in DEMO_STAGES:
         for line in importlib.import_module(name).demo_stage(out):
             sys.stdout.write(line + "\n")

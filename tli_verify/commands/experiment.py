@@ -14,6 +14,8 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from tli_verify.commands import output_path
+
 QUICK_TRIALS = 3
 QUICK_BC_EPOCHS = 300
 
@@ -36,7 +38,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     s.add_argument("--quick", action="store_true",
                    help=f"{QUICK_TRIALS} trials and a short BC training (under a minute)")
     s.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    s.add_argument("--out", type=Path, default=Path("out/single-mode"),
+    s.add_argument("--out", type=output_path, default=Path("out/single-mode"),
                    help="output directory (default out/single-mode)")
     s.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
@@ -113,9 +115,7 @@ def _single_mode(args: argparse.Namespace) -> int:
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise TliError(f"--workers must be >= 1, got {workers}")
-    out: Path = args.out
-    if out.exists() and not out.is_dir():
-        raise TliError(f"{out}: exists and is not a directory")
+    out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
     t0 = time.perf_counter()
     trials, record = run(cfg, workers=workers, progress=_Progress(sys.stderr, "single-mode"),
                          record_trial=None if args.no_figures else 0)

@@ -1,6 +1,6 @@
 """Motion commands: ``tli learn``, ``tli certify``, ``tli check-cert``, ``tli gate``.
 
-Exit codes (``DESIGN.md``): 0 success; 1 a check said no (not certifiable, certificate does not
+Exit codes (``docs/design.md``): 0 success; 1 a check said no (not certifiable, certificate does not
 re-check, gate blocked, solver status not optimal); 2 bad input or usage. ``--json`` prints one
 JSON object per line on stdout.
 """
@@ -15,7 +15,8 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import CertificateError, GateError
+from tli_verify.commands import output_path
+from tli_verify.errors import CertificateError, GateError, ModelError
 
 __all__ = ["demo_stage", "register"]
 
@@ -67,7 +68,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
     p.add_argument("--spec", type=Path, default=None, help="spec TOML whose [modes] label "
                    "the sensor states")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="MODEL.json")
+    p.add_argument("-o", "--output", type=output_path, required=True, metavar="MODEL.json",
+                   help="model file to write (must not be one of the inputs)")
     p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
     p.add_argument("--eps", type=_positive_float, default=1e-3,
                    help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
@@ -84,13 +86,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "JSON. Exit 1 naming the mode and condition when the model's P does not certify "
         "(--repair then writes a new model with a certifying P).")
     p.add_argument("model", type=Path, metavar="MODEL.json")
-    p.add_argument("-o", "--output", type=Path, default=None, metavar="CERT.json",
+    p.add_argument("-o", "--output", type=output_path, default=None, metavar="CERT.json",
                    help="default: certificates/<name>.cert.json (of the repaired model with "
                    "--repair)")
     p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
                    help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
                    "1/200; default 0.001); the certificate also covers shorter periods")
-    p.add_argument("--repair", type=Path, default=None, metavar="NEW.model.json",
+    p.add_argument("--repair", type=output_path, default=None, metavar="NEW.model.json",
                    help="replace each P that does not certify by one found by an SDP (checked "
                    "exactly), write the new model there, and certify it")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
@@ -124,7 +126,12 @@ def _learn(args: argparse.Namespace) -> int:
                         eps=args.eps,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
-    save_model(model, args.output)
+    try:
+        save_model(model, args.output)
+    except ModelError as exc:  # learned numbers outside the declared limits: name the demos
+        raise ModelError(f"the model learned from {', '.join(str(d) for d in args.demos)} is "
+                         f"outside the declared numeric limits, not written: {exc} (rescale the "
+                         "state or time units of the demonstrations)") from None
     for key, mm in model.modes.items():
         fit = mm.fit or {}
         record = {"model": str(args.output), "key": key, "mode": mm.mode,
@@ -158,9 +165,18 @@ def _certify(args: argparse.Namespace) -> int:
         issue_certificate,
         write_certificate,
     )
+    from tli_verify.io import check_output_file
+    from tli_verify.model import load_model
 
     dt = args.dt if args.dt is not None else DEFAULT_DT
     model_path: Path = args.model
+    spec_path = load_model(args.model).spec_path
+    inputs = [args.model, *([spec_path] if spec_path else [])]
+    out: Path = args.output or default_certificate_path(args.repair or args.model)
+    if args.repair is not None:
+        check_output_file(args.repair, inputs=inputs, what="repaired model")
+        inputs.append(args.repair)
+    check_output_file(out, inputs=inputs, what="certificate")
     if args.repair is not None:
         from tli_verify.certify.repair import repair_model
         from tli_verify.model import save_model
@@ -176,7 +192,6 @@ def _certify(args: argparse.Namespace) -> int:
             sys.stdout.write(f"wrote {args.repair}: new P for "
                              f"{', '.join(result.repaired) or 'no DS'}; own P kept for "
                              f"{', '.join(result.kept) or 'no DS'}\n")
-    out: Path = args.output or default_certificate_path(model_path)
     doc = issue_certificate(model_path, cert_path=out, dt=dt)
     write_certificate(doc, out)
     for key, entry in doc["modes"].items():
@@ -200,6 +215,10 @@ def _certify(args: argparse.Namespace) -> int:
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certify.certificate import check_certificate
 
+    for path, what, error in ((args.certificate, "certificate", CertificateError),
+                              (args.model, "model", ModelError)):
+        if path is not None and path.is_dir():  # not "no such file": say what it is
+            raise error(f"{path}: is a directory, expected a {what} file", exit_code=2)
     check = check_certificate(args.certificate, model_path=args.model)
     if args.json:
         for item in check.passed:
@@ -254,11 +273,11 @@ def demo_stage(out: Path) -> list[str]:
         issue_certificate,
         write_certificate,
     )
+    from tli_verify.io import bundled_dir
     from tli_verify.model import learn_model, save_model
 
-    root = Path(__file__).resolve().parents[2]
-    demos = sorted((root / "demos").glob("scoop_*.csv"))
-    spec = root / "specs" / "scoop.toml"
+    demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
+    spec = bundled_dir("specs") / "scoop.toml"
     if not demos:
         return ["motion: no bundled demos/scoop_*.csv found; skipped"]
     target = out / "motion"

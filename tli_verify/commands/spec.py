@@ -151,9 +151,10 @@ def _automaton(args: argparse.Namespace) -> int:
 
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
+    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs (issue 10.9)
     from tli_verify.logic.check import check_spec_file, synthesize
 
-    specs = sorted(Path("specs").glob("*.toml"))
+    specs = sorted(bundled_dir("specs").glob("*.toml"))
     lines = [f"[spec] checking {len(specs)} specs in specs/"]
     adir = out / "automata"
     for path in specs:

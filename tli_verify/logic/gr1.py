@@ -1,6 +1,6 @@
 """GR(1) games on BDDs (``dd`` with CUDD): realizability by the 3-nested fixpoint.
 
-Semantics (``DESIGN.md``, "GR(1) semantics"; Piterman, Pnueli and Sa'ar 2006; Bloem et al.,
+Semantics (``docs/design.md``, "GR(1) semantics"; Piterman, Pnueli and Sa'ar 2006; Bloem et al.,
 JCSS 2012). Variables are the inputs ``X`` (environment) and outputs ``Y`` (system) and their
 primed next copies. A spec ``phi_e -> phi_s`` becomes
 

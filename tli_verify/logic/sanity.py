@@ -2,7 +2,7 @@
 
 A "realizable" verdict is worthless when the system can win by breaking the environment's
 assumptions (``phi_e -> phi_s`` then holds vacuously). The paper's own appendix-E scoop formula
-has this flaw (``DESIGN.md``; ``specs/scoop-paper-literal.toml``).
+has this flaw (``docs/design.md``; ``specs/scoop-paper-literal.toml``).
 
 Well-separation (Maoz and Ringert, FSE 2016)
     The system, obeying its own initial condition and safety guarantees, tries to falsify the

@@ -19,7 +19,7 @@ optional ``[modes]`` table (the sensor state that labels each mode, paper Sec. 3
     safety = ["G(a -> X(a | b))"]
     liveness = ["GF d"]
 
-With a ``[modes]`` table the tool adds the mode constraints itself (``DESIGN.md``, "Modes are
+With a ``[modes]`` table the tool adds the mode constraints itself (``docs/design.md``, "Modes are
 labels of sensor states"): exactly one mode at a time and a mode only where its label holds
 (guarantees), and sensors that always show some mode's label (an assumption, paper Asm. 3).
 ``tli spec check --explain`` lists them.
@@ -432,7 +432,7 @@ def _exactly_one(names: Iterable[str]) -> str:
 
 def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assume: SpecSide,
                           guarantee: SpecSide) -> tuple[SpecSide, SpecSide]:
-    """The constraints a ``[modes]`` table stands for (``DESIGN.md``, "Modes are labels").
+    """The constraints a ``[modes]`` table stands for (``docs/design.md``, "Modes are labels").
 
     Each is stated on the initial state and on every next state (``G(X ...)``), so that it
     constrains the move that enters a state: a system that runs two modes, or a mode whose

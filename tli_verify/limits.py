@@ -1,0 +1,81 @@
+"""Every resource and range limit on inputs, in one place.
+
+A hostile or broken input must never crash the tool, exhaust memory, stall it, or get
+certified: it is refused as bad input (exit 2) with one line that names the limit, the file and
+the place (``docs/design.md``, "Errors and limits"; README, "Errors and limits"). These are the
+limits the readers enforce; the certificate records the numeric ones
+(:func:`tli_verify.model.numeric_limits`).
+
+Size and shape of input files (:mod:`tli_verify.io`)
+    ``MAX_INPUT_BYTES``, ``MAX_NESTING``; only regular files are read (no devices, FIFOs or
+    sockets: ``/dev/zero`` or a pipe would never end).
+Demonstrations (:mod:`tli_verify.demos`)
+    ``MAX_STATE_DIM``, ``MAX_ABS_VALUE`` for states and velocities.
+Models (:mod:`tli_verify.model`)
+    ``MAX_ABS_VALUE`` for every number but the covariances; ``MAX_ABS_COVARIANCE``,
+    ``COV_MIN_EIGENVALUE`` and ``COV_MAX_CONDITION`` for the GMM covariances; ``PRIOR_SUM_TOL``
+    for the mixing weights.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "COV_MAX_CONDITION",
+    "COV_MIN_EIGENVALUE",
+    "MAX_ABS_COVARIANCE",
+    "MAX_ABS_VALUE",
+    "MAX_INPUT_BYTES",
+    "MAX_NESTING",
+    "MAX_STATE_DIM",
+    "PRIOR_SUM_TOL",
+]
+
+MAX_INPUT_BYTES = 4 * 1024 * 1024
+"""Largest input file (spec, demonstration, model, certificate) read, in bytes (4 MiB).
+
+The bundled model is 20 kB and a LASA model about 30 kB; 4 MiB is two orders of magnitude
+above any model, spec or demonstration the tool produces or the paper uses."""
+
+MAX_NESTING = 64
+"""Deepest nesting of ``[``/``{`` brackets (outside strings) in an input file.
+
+Models and certificates nest 7 levels deep, specs 3; Python's JSON and TOML parsers recurse
+once per level and die near 1000, so anything deeper than 64 is refused before parsing."""
+
+MAX_STATE_DIM = 32
+"""Largest state dimension ``n`` of a demonstration (and so of a learned model).
+
+Learning solves SDPs with an ``n x n`` matrix variable and K PSD constraints of size n: at
+n = 32 with 200 samples it takes about 13 s and 460 MB; at n = 200 the solver exhausts memory
+and aborts the process. Robot states in the paper are 2D (scooping, LASA) to 7D (joints)."""
+
+MAX_ABS_VALUE = 1.0e6
+"""Largest magnitude of a demonstrated state or velocity, and of every number in a model
+except the covariances (attractor, P, means, A_k, cut normals and points).
+
+States in the units the paper uses (metres, millimetres: LASA spans about 50 mm) are 3-6 orders
+of magnitude inside it. With it, ``|A_k (x - x*)| <= n * 1e6 * 2e6`` at every state with
+``|x_i| <= 1e6`` (``docs/design.md``, "Errors and limits")."""
+
+MAX_ABS_COVARIANCE = MAX_ABS_VALUE**2
+"""Largest magnitude of a GMM covariance entry (1e12): covariances have squared state units."""
+
+COV_MIN_EIGENVALUE = 1.0e-100
+"""Smallest eigenvalue allowed for a GMM covariance.
+
+It keeps the mixing weights finite at every state with ``|x_i| <= MAX_ABS_VALUE``: each
+Mahalanobis term is at most ``n * (2e6)^2 / 1e-100 <= 32 * 4e112``, and the terms of the
+quadratic form at most ``1e100 * 4e12`` each, far below the double overflow at 1.8e308; the
+weights are then non-negative and sum to 1, which is all the Lyapunov certificate needs (it holds
+for every convex combination of the ``A_k``). A covariance near 1e-320 (subnormal) has an
+overflowing inverse and is refused. Learned covariances are at least 1e-3 times the data
+variance."""
+
+COV_MAX_CONDITION = 1.0e12
+"""Largest condition number ``lambda_max / lambda_min`` of a GMM covariance.
+
+Inverting a matrix loses about ``log10(cond)`` of the 16 significant digits of a double; at
+1e12 four digits remain, enough for mixing weights. Learned covariances have cond < 1e4."""
+
+PRIOR_SUM_TOL = 1.0e-6
+"""The GMM priors (all > 0) must sum to 1 within this tolerance."""
