@@ -178,6 +178,30 @@ def learn_bundled(**options: object) -> Model:
                            spec_path=ROOT / "specs" / "scoop.toml", **options)  # type: ignore[arg-type]
 
 
+def sampled_count(model: Model, dt: float = 1e-3, margin: float = 1e-9) -> tuple[int, int]:
+    """Components (over all DS) with ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` (floats).
+
+    Returns
+    -------
+    passing, total : int
+    """
+    from tli_verify.ds.lyapunov import sampled_growth
+
+    passing = total = 0
+    for mm in model.modes.values():
+        for a in mm.ds.A:
+            total += 1
+            passing += sampled_growth(mm.ds.P, a[None], dt) < -margin
+    return passing, total
+
+
+def min_rate(model: Model) -> float:
+    """Smallest certified decay rate over the model's DS (floats)."""
+    from tli_verify.ds.lyapunov import decay_rate
+
+    return min(decay_rate(mm.ds.P, mm.ds.A) for mm in model.modes.values())
+
+
 def table(results: list[EntryResult]) -> str:
     """Markdown table of the results."""
     lines = ["| mode -> next | attractor in next region | entered | fraction | "
@@ -197,14 +221,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--dt", type=float, default=0.01)
     parser.add_argument("--horizon", type=float, default=60.0)
+    parser.add_argument("--rate", type=float, default=None,
+                        help="learner decay rate (default: the learner's; 0: the old margin-only "
+                        "learner)")
     args = parser.parse_args(argv)
-    model = load_model(args.model) if args.model else learn_bundled()
+    options = {} if args.rate is None else {"rate": args.rate}
+    model = load_model(args.model) if args.model else learn_bundled(**options)
     results = check(model, n_starts=args.starts, seed=args.seed, dt=args.dt,
                     horizon=args.horizon)
-    what = str(args.model) if args.model else "learned from demos/scoop_*.csv"
+    what = (str(args.model) if args.model else "learned from demos/scoop_*.csv"
+            + ("" if args.rate is None else f" with rate {args.rate:g}"))
     sys.stdout.write(f"Lemma 2 on the scoop task ({what}; {args.starts} random starts per mode, "
                      f"seed {args.seed}, Euler dt {args.dt} s, horizon {args.horizon} s)\n\n")
     sys.stdout.write(table(results) + "\n")
+    models = {what: model}
+    committed = ROOT / "models" / "scoop.model.json"
+    if args.model is None and committed.is_file():
+        models = {"models/scoop.model.json (committed)": load_model(committed), **models}
+    sys.stdout.write("\n| model | components with (I + dt A_k)^T P (I + dt A_k) < P at dt = 1 ms "
+                     "| smallest certified decay rate (1/s) |\n|---|---|---|\n")
+    for name, m in models.items():
+        passing, total = sampled_count(m)
+        sys.stdout.write(f"| {name} | {passing}/{total} | {min_rate(m):.3g} |\n")
     return 0 if all(r.entered == r.n_starts for r in results) else 1
 
 

@@ -464,9 +464,9 @@ def learn_model(
     eps : float, optional
         LMI margin ``A_k^T P + P A_k <= -eps I``.
     rate : float, optional
-        Certified decay rate of ``V`` imposed on every DS (1/time). Default (None): half the
-        data's own rate, per DS; ``0`` with ``eps=1e-3``: the learner before issue 9 (margin
-        only). See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+        Certified decay rate of ``V`` imposed on every DS (1/time). Default (None): a quarter
+        of the data's own rate (``RATE_FACTOR``), per DS; ``0`` with ``eps=1e-3``: the learner
+        before issue 9 (margin only). See :func:`tli_verify.ds.lpvds.learn_lpvds`.
     control_dt : float, optional
         Control period at which the learned DS must also decrease ``V`` per explicit step
         (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.

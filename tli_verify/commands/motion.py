@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
     p.add_argument("--rate", type=_nonnegative_float, default=None,
                    help="certified decay rate of V per DS, A_k^T P + P A_k <= -rate P (1/s; "
-                   "default: half the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
+                   "default: 0.25 x the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
                    "only, the learner before issue 9)")
     p.add_argument("--control-dt", type=_positive_float, default=1e-3, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "

@@ -16,12 +16,13 @@ Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
 Default constraint of step 3 (issue 9): a *certified decay rate* and a *sampled-data* margin.
 With only the margin ``A_k^T P + P A_k <= -eps I`` (eps = 1e-3, ds-opt's choice), learned models
 sit on the stability boundary: ``V`` decays at ~5e-4 /s away from the data, and the per-step
-decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. The default is
-now ``(I + dt A_k)^T P (I + dt A_k) <= P - dt (eps I + rate P)`` with ``dt = 1 ms`` and
-``rate = 0.5 x`` the data's own rate (:func:`~tli_verify.ds.lyapunov.data_rate`,
-``mean |xdot| / mean |x - x*|``): it implies ``A_k^T P + P A_k <= -rate P`` (``V`` decays at
-least like ``exp(-rate t)``) and the sampled condition at every period up to 1 ms.
-``rate=0`` gives back the old program exactly.
+decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. The default
+(:func:`~tli_verify.ds.lyapunov.fit_a` with ``rate`` and ``dt``) is now
+``A_k^T P + P A_k <= -(eps I + rate P)`` with ``rate = 0.25 x`` the data's own rate
+(:func:`~tli_verify.ds.lyapunov.data_rate`, ``mean |xdot| / mean |x - x*|``), so ``V`` decays at
+least like ``exp(-rate t)``, and the per-step decrease at ``dt = 1 ms``,
+``(I + dt A_k)^T P (I + dt A_k) < P`` with margin at least ``dt rate / 2`` (hence at every
+shorter period too). ``rate=0`` gives back the old program exactly.
 """
 
 from __future__ import annotations
