@@ -81,3 +81,17 @@ def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None
         assert mm.fit is not None and mm.fit["rate"] > 0.05, key
         assert decay_rate(mm.ds.P, mm.ds.A) >= mm.fit["rate"] * (1 - 1e-4), key
         assert sampled_growth(mm.ds.P, mm.ds.A, 1e-3) < -0.5e-3 * mm.fit["rate"], key
+
+
+def test_committed_model_satisfies_lemma2(lemma2: ModuleType, repo: Path) -> None:
+    from tli_verify.model import load_model
+
+    committed = load_model(repo / "models" / "scoop.model.json")
+    fit = committed.modes["a"].fit or {}
+    if "rate" not in fit:
+        pytest.skip("models/scoop.model.json predates issue 9 (appendix-D attractors, no "
+                    "decay rate); relearn it with `tli learn` to run this check")
+    for r in lemma2.check(committed, n_starts=N_STARTS, seed=1, dt=DT, horizon=HORIZON):
+        assert r.attractor_inside and r.entered == N_STARTS, r
+    passing, total = lemma2.sampled_count(committed)
+    assert passing == total
