@@ -131,11 +131,13 @@ def test_fit_a_rate_certifies_a_decay_rate_that_the_plain_margin_does_not() -> N
     assert check_lyapunov(np.eye(2), fast).ok
 
 
-def test_fit_a_sampled_constraint_binds_where_the_continuous_optimum_overshoots() -> None:
+@pytest.mark.parametrize("unit", [1.0, 1000.0])  # metres and millimetres: same program
+def test_fit_a_sampled_constraint_binds_where_the_continuous_optimum_overshoots(
+        unit: float) -> None:
     # a fast rotation: A^T + A = -2 I certifies rate 2, but one explicit step of 10 ms
     # multiplies |x| by |1 + 0.01 (-1 + 300 i)| > 1
     A_true = np.array([[-1.0, 300.0], [-300.0, -1.0]])
-    X, V = trajectories(A_true, np.zeros(2), np.array([[1.0, 0.0], [0.0, 2.0]]),
+    X, V = trajectories(A_true, np.zeros(2), unit * np.array([[1.0, 0.0], [0.0, 2.0]]),
                         np.linspace(0, 0.05, 60))
     gamma = np.ones((len(X), 1))
     dt, rate = 1e-2, 0.5

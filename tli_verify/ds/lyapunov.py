@@ -315,7 +315,9 @@ def fit_a(
     sampled-data LMIs in place of the continuous ones.
 
     The data enter only through the ``K n^2``-dimensional normal equations (Cholesky factor), so
-    the program size does not grow with N.
+    the program size does not grow with N. The objective is divided by the squared norm of the
+    normal equations' right-hand side (same minimiser): without it, data in millimetres drove
+    Clarabel to ``optimal_inaccurate`` on the sampled-data LMIs.
 
     Parameters
     ----------
@@ -369,7 +371,8 @@ def fit_a(
         raise SolverError(f"A-fit: control period dt must be positive, got {dt}")
     Ps = 0.5 * (Pa + Pa.T)
     margin = eps * np.eye(n) + rate * Ps
-    objective = cp.Minimize(cp.sum_squares(L.T @ theta - rhs))
+    scale = max(float(np.linalg.norm(rhs)), 1e-12)  # unit-scale objective (mm or m alike)
+    objective = cp.Minimize(cp.sum_squares((L.T @ theta - rhs) / scale))
     continuous = []
     for a in A:
         M = Ps @ a
