@@ -8,7 +8,10 @@ the scoop model from the bundled demonstrations (``demos/scoop_*.csv`` with ``sp
 *true* region (the scoop generator's discs, :mod:`tli_verify.demos`), integrates the mode's
 nominal DS alone (``f`` of paper eq. 4, no cuts; explicit Euler, vectorised over the starts) and
 prints, per mode: the fraction of starts that enter the next mode's region within the horizon
-and the worst entry time.
+and the worst entry time. A second table counts the components that satisfy the sampled-data
+condition ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` at ``dt = 1 ms`` (floats, margin 1e-9) and
+the smallest certified decay rate, for the learned model and the committed
+``models/scoop.model.json``.
 
 True regions (the scoop generator's sensors, in the box around the demonstrations):
 
@@ -17,8 +20,8 @@ True regions (the scoop generator's sensors, in the box around the demonstration
 * ``c`` (transport, ``s``): outside both discs; next ``d`` (``t``): the target disc.
 
 Usage: ``.venv/bin/python scripts/lemma2_check.py [--model FILE] [--starts 300] [--seed 0]
-[--dt 0.01] [--horizon 60] [--rate R]``. Exit 0 when every start of every mode enters the next
-region, 1 otherwise.
+[--dt 0.01] [--horizon 60] [--rate R]`` (``--rate 0``: learn with the old margin-only
+learner). Exit 0 when every start of every mode enters the next region, 1 otherwise.
 """
 
 from __future__ import annotations
