@@ -39,7 +39,7 @@ def test_each_sensor_state_is_a_mode_and_attractor_is_the_entry_into_the_next_mo
     ]
     # Lemma 2: the mean of the first (up to 3) states of the next segment, over the segments
     # that hand over; the segment ending demo 1 in "!r" does not count
-    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[2.5, 0], [3, 1]], 0))
+    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[2.5, 0.0], [3.0, 1.0]], 0))
     np.testing.assert_allclose(seg.data["r"].attractor, [4, 0])  # only d1 hands over
     one = segment_demos([d1, d2], entry_samples=1)
     np.testing.assert_allclose(one.data["!r"].attractor, np.mean([[2, 0], [3, 1]], 0))
