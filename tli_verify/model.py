@@ -560,6 +560,8 @@ def learn_model(
     spec_path: str | os.PathLike[str] | None = None,
     seed: int = 0,
     eps: float = 1e-3,
+    rate: float | None = None,
+    control_dt: float | None = 1e-3,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
 ) -> Model:
@@ -578,6 +580,13 @@ def learn_model(
         Seed of the clustering (same seed, same model).
     eps : float, optional
         LMI margin ``A_k^T P + P A_k <= -eps I``.
+    rate : float, optional
+        Certified decay rate of ``V`` imposed on every DS (1/time). Default (None): a quarter
+        of the data's own rate (``RATE_FACTOR``), per DS; ``0`` with ``eps=1e-3``: the learner
+        before issue 9 (margin only). See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+    control_dt : float, optional
+        Control period at which the learned DS must also decrease ``V`` per explicit step
+        (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.
     clustering, lyapunov : str, optional
         See :func:`tli_verify.ds.lpvds.learn_lpvds`.
 
@@ -611,11 +620,19 @@ def learn_model(
     names = tuple(f"x{i}" for i in range(demos[0].dim))
     learned: dict[str, ModeModel] = {}
     for key, data in seg.data.items():
-        ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
-                               clustering=clustering, lyapunov=lyapunov)
+        try:
+            ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
+                                   rate=rate, control_dt=control_dt, clustering=clustering,
+                                   lyapunov=lyapunov)
+        except TliError as exc:  # e.g. an infeasible SDP: say which mode's data it was
+            raise type(exc)(f"mode {key!r} ({len(data.x)} samples): {exc}",
+                            exit_code=exc.exit_code) from None
         fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
-               "n_components": info.n_components, "eps": info.eps, "seed": info.seed,
-               "solver": info.solver, "status": info.status, "n_samples": info.n_samples}
+               "n_components": info.n_components, "eps": info.eps, "rate": info.rate,
+               "seed": info.seed, "solver": info.solver, "status": info.status,
+               "n_samples": info.n_samples}
+        if info.control_dt is not None:
+            fit["control_dt"] = info.control_dt
         learned[key] = ModeModel(key=key, mode=data.mode, next_mode=data.next_mode, ds=ds,
                                  fit=MappingProxyType(fit))
     source = {"tool": f"tli-verify {__version__}",

@@ -10,18 +10,49 @@ sensor states, ``sigma = L(alpha)``):
   syntax (``"!r & s & !t"``);
 * without sensor columns, everything is one mode, ``"main"``.
 
-Consecutive samples with the same modes form a *segment*. The attractor of a mode is the mean
-of the last states of its segments (appendix D, Table 3), and every segment is translated so
-that it ends exactly on that attractor before learning (appendix "Generalization", Fig. 7(b):
-"segmented into parts by mode region, which are then shifted to their average attractor
-locations").
+Consecutive samples with the same modes form a *segment*.
+
+Attractors -- a deliberate deviation from appendix D. Appendix D (Table 3) puts the attractor
+``x*_i`` of mode ``i`` at the mean of the *last* states of its segments. Those states read mode
+``i``, so ``x*_i`` lies in ``delta_i``: the DS converges to a state the next sensor never
+reads, and the transition the automaton waits for need not happen (bundled scoop model before
+issue 9: the attractor of ``a`` 0.056 outside the soup disc; only 44 of 300 random mode-``a``
+starts ever entered the disc, ``scripts/lemma2_check.py``). Lemma 2's proof needs ``x*_i``
+*strictly* inside the next region ``delta_j``: an asymptotically stable DS reaches ``x*`` only
+in the limit, but every open neighbourhood of it in finite time, so an interior attractor makes
+every trajectory enter ``delta_j`` in finite time.
+Here, for a segment followed by a segment of mode ``j``, the *entry point* is the mean of the
+first ``entry_samples`` (default :data:`ENTRY_SAMPLES` = 3) states of that following segment,
+and the attractor is the mean of the entry points of the DS's segments:
+
+* every averaged state reads ``j``, so it lies in ``delta_j``; by paper Asm. 1 (``delta_j``
+  convex) so does their mean;
+* it is strictly inside: the mean of points with positive weights lies in the relative interior
+  of their convex hull, which is interior to ``delta_j`` as soon as the points span the state
+  space (three demonstrations in 2-D do) or one of them is interior -- the second and third
+  sample after a crossing are, unless a demonstration runs along the boundary. The first sample
+  alone is less than one sampling step past the boundary (bundled scoop demos at 20 Hz: the
+  attractors of ``a``, ``b``, ``c`` are 0.055, 0.080, 0.030 inside the next region with one
+  sample, 0.160, 0.199, 0.083 with three): the margin sets how soon trajectories enter;
+* it stays close to the demonstrated hand-over: ``entry_samples`` steps past the crossing, not
+  deep in ``delta_j`` (the DS of mode ``i`` is learned from mode-``i`` data only and must not
+  extrapolate far).
+
+A segment that ends its demonstration keeps its end point (the task's final mode, e.g. ``d``);
+a DS whose segments sometimes hand over and sometimes end the demonstration uses only the
+handing-over segments' entry points. With ``shift`` (default), every segment is translated by
+``x* - (its own entry point)`` before learning, so that each demonstration hands over exactly at
+the common attractor (appendix "Generalization", Fig. 7(b): "segmented into parts by mode
+region, which are then shifted to their average attractor locations"); a segment ending its
+demonstration is translated to end on ``x*``, as in appendix D.
 
 Per-transition DS (paper appendix "Generalization", Fig. 7(b)): when the segments of a mode are
 followed by different next modes, a mode-based DS would average conflicting attractors, so one DS
-is learned per transition instead, keyed ``"<mode>-><next>"`` (attractor = mean last state of the
-segments of ``mode`` followed by ``next``). Segments that end a demonstration (no next mode) keep
-the plain key ``"<mode>"``. When modes share a label, every pair of a mode of the group and a
-mode of the next group gets the key (the automaton decides at run time which one it needs).
+is learned per transition instead, keyed ``"<mode>-><next>"`` (attractor from the segments of
+``mode`` followed by ``next``, with the entry-point rule above). Segments that end a
+demonstration (no next mode) keep the plain key ``"<mode>"``. When modes share a label, every
+pair of a mode of the group and a mode of the next group gets the key (the automaton decides at
+run time which one it needs).
 """
 
 from __future__ import annotations
@@ -52,6 +83,9 @@ FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_MODE = "main"
 """The mode name used when the demonstrations have no sensor columns."""
+
+ENTRY_SAMPLES = 3
+"""Default number of next-mode samples averaged into an attractor (see the module docstring)."""
 
 TRANSITION = "->"
 """Separator of per-transition DS keys: ``"<mode>-><next>"``."""
@@ -160,9 +194,10 @@ class ModeData:
         The next mode for a per-transition DS; the unique observed next mode otherwise (None when
         there is none or several).
     attractor : ndarray, shape (n,)
-        Mean of the segments' last states (appendix D).
+        Mean entry point into the next mode (module docstring; appendix D's mean last state
+        only for a DS whose segments all end their demonstration).
     x : ndarray, shape (N, n)
-        Positions, each segment shifted to end on the attractor.
+        Positions, each segment shifted so that its entry point (or end) is the attractor.
     dx : ndarray, shape (N, n)
         Velocities.
     segments : tuple of Segment
@@ -208,8 +243,9 @@ def segment_demos(
     modes: Sequence[str] | None = None,
     labels: Mapping[str, str] | None = None,
     shift: bool = True,
+    entry_samples: int = ENTRY_SAMPLES,
 ) -> Segmentation:
-    """Segment demonstrations by sensor readings and compute per-DS data (appendix D).
+    """Segment demonstrations by sensor readings and compute per-DS data (appendix D, Lemma 2).
 
     Parameters
     ----------
@@ -222,7 +258,10 @@ def segment_demos(
     labels : mapping of str to str, optional
         Mode -> label formula, quoted in messages.
     shift : bool, optional
-        Translate each segment to end on its DS's attractor.
+        Translate each segment so that its entry point into the next mode (its end point, if
+        it ends the demonstration) is its DS's attractor.
+    entry_samples : int, optional
+        Number of states of the next mode averaged into a segment's entry point (>= 1).
 
     Returns
     -------
@@ -232,8 +271,11 @@ def segment_demos(
     ------
     DemoError
         A reading no mode label covers (file and line named); a mode of ``modes`` that no
-        demonstration visits (paper Asm. 3); a DS with fewer than 2 samples.
+        demonstration visits (paper Asm. 3); a DS with fewer than 2 samples; ``entry_samples``
+        below 1.
     """
+    if entry_samples < 1:
+        raise DemoError(f"entry_samples must be >= 1, got {entry_samples}")
     if not demos:
         raise DemoError("no demonstrations to segment")
     label = labeler or sensor_state_labeler(demos[0].sensor_names)
@@ -268,14 +310,25 @@ def segment_demos(
             lab = f" (label {labels[m]!r})" if labels and m in labels else ""
             raise DemoError(f"mode {m!r}{lab} is visited by no demonstration; every mode needs "
                             "demonstration data (paper Asm. 3)")
-    data = _mode_data(demos, segments, shift)
+    data = _mode_data(demos, segments, shift, entry_samples)
     return Segmentation(modes=all_modes, segments=tuple(segments),
                         data=MappingProxyType(data))
 
 
-def _mode_data(demos: Sequence[Demonstration], segments: list[Segment], shift: bool
-               ) -> dict[str, ModeData]:
+def _target(demos: Sequence[Demonstration], seg: Segment, following: Segment | None,
+            entry_samples: int) -> FloatArray:
+    """The point a segment heads for: the mean of the first ``entry_samples`` states of the
+    following segment (all in the next mode), or the segment's last state if none follows."""
+    if following is None:
+        return np.asarray(demos[seg.demo].x[seg.stop - 1], dtype=np.float64)
+    stop = min(following.start + entry_samples, following.stop)
+    return np.asarray(demos[seg.demo].x[following.start:stop].mean(axis=0), dtype=np.float64)
+
+
+def _mode_data(demos: Sequence[Demonstration], segments: list[Segment], shift: bool,
+               entry_samples: int) -> dict[str, ModeData]:
     """Group segments into DS keys (plain or per-transition) and build their data."""
+    after = {(s.demo, s.start): s for s in segments}
     by_group: dict[tuple[str, ...], list[Segment]] = {}
     for seg in segments:
         by_group.setdefault(seg.modes, []).append(seg)
@@ -296,12 +349,16 @@ def _mode_data(demos: Sequence[Demonstration], segments: list[Segment], shift: b
                     buckets.setdefault((mode, mode, nxt_single), []).append(seg)
     out: dict[str, ModeData] = {}
     for (key, mode, nxt), segs in buckets.items():
-        lasts = np.array([demos[s.demo].x[s.stop - 1] for s in segs])
-        attractor = lasts.mean(axis=0)
+        targets = np.array([_target(demos, s, after.get((s.demo, s.stop)), entry_samples)
+                            for s in segs])
+        handing_over = np.array([s.next_modes is not None for s in segs])
+        # Lemma 2: a mode that hands over puts its attractor in the next mode (the mean of
+        # the entry points); only a mode that always ends the demonstration keeps its end point
+        attractor = (targets[handing_over] if handing_over.any() else targets).mean(axis=0)
         xs, dxs = [], []
-        for s, last in zip(segs, lasts, strict=True):
+        for s, target in zip(segs, targets, strict=True):
             x = demos[s.demo].x[s.start:s.stop]
-            xs.append(x + (attractor - last) if shift else x)
+            xs.append(x + (attractor - target) if shift else x)
             dxs.append(demos[s.demo].dx[s.start:s.stop])
         x_all = np.concatenate(xs)
         if x_all.shape[0] < 2:

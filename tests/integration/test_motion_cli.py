@@ -102,9 +102,10 @@ def test_json_output_and_label_free_modes(project: Path,
     assert code == 0
     assert json.loads(out.splitlines()[-1])["valid"] is True
     code, out, _ = run(capsys, "gate", str(project), "--json")
-    assert code == 0  # nothing under certificates/ or models/ here; the spec checks
-    assert json.loads(out.splitlines()[-1]) == {"gate": "pass", "root": str(project),
-                                                 "blockers": 0}
+    assert code == 1  # nothing under models/ here: the gate fails closed
+    records = [json.loads(line) for line in out.splitlines()]
+    assert records[-1] == {"gate": "blocked", "root": str(project), "blockers": 1}
+    assert [r["check"] for r in records if not r.get("ok", True)] == ["contents"]
 
 
 def test_baseline_learning(project: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -178,7 +179,8 @@ def test_certify_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
                        "A": [[0.2, 0.0], [0.0, -1.0]]}]}}}))
     code, _, err = run(capsys, "certify", str(bad), "-o", str(tmp_path / "c.json"))
     assert code == 1
-    assert_one_error_line(err, "mode 'reach'", "component 1", "not certifiable")
+    assert_one_error_line(err, "mode 'reach'", "component 1", "the model's P does not certify",
+                          "--repair")
     assert not (tmp_path / "c.json").exists()
     data = json.loads(bad.read_text())
     data["modes"]["reach"]["components"][1]["cov"] = [[1.0, 3.0], [3.0, 1.0]]

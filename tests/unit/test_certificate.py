@@ -52,12 +52,13 @@ def test_bundled_certificate_rechecks(repo: Path) -> None:
 
 def test_issue_is_reproducible(project: Path) -> None:
     cert = project / "certificates" / "scoop.cert.json"
-    doc = issue_certificate(project / "models" / "scoop.model.json", cert_path=cert)
+    dt = json.loads(cert.read_text())["control_period"]["dt"]
+    doc = issue_certificate(project / "models" / "scoop.model.json", cert_path=cert, dt=dt)
     assert canonical_json(doc) == cert.read_text(encoding="utf-8")
     assert doc["digest"] == certificate_digest(doc)
     assert doc["model"]["path"] == "../models/scoop.model.json"
     assert doc["spec"]["path"] == "../specs/scoop.toml"
-    assert doc["control_period"] == {"dt": "1/1000", "dt_float": 0.001}
+    assert doc["control_period"] == {"dt": "1/100", "dt_float": 0.01}  # the 2-D worlds' rate
     model = load_model(project / "models" / "scoop.model.json")
     for key, entry in doc["modes"].items():
         assert entry["P"] == model.modes[key].ds.P.tolist()  # the runtime's P, bit for bit

@@ -95,3 +95,32 @@ def test_bad_learning_arguments() -> None:
         learn_lpvds(X, V, np.zeros(2), clustering="kmeans")  # type: ignore[arg-type]
     with pytest.raises(ModelError, match="learning data shapes do not match"):
         learn_lpvds(X, V[:-1], np.zeros(2))
+
+
+def test_default_learning_certifies_a_decay_rate_and_one_millisecond_steps() -> None:
+    from tli_verify.ds.lyapunov import RATE_FACTOR, data_rate, decay_rate, sampled_growth
+
+    X, V = arc_data()
+    ds, info = learn_lpvds(X, V, np.zeros(2), seed=3)
+    assert info.rate == pytest.approx(RATE_FACTOR * data_rate(X, V, np.zeros(2)))
+    assert info.rate > 0.1
+    assert info.control_dt == 1e-3
+    assert decay_rate(ds.P, ds.A) >= info.rate * (1 - 1e-4)
+    assert sampled_growth(ds.P, ds.A, 1e-3) < -0.5e-3 * info.rate
+    rmse = np.sqrt(np.mean(np.sum((ds.velocity(X) - V) ** 2, axis=1)))
+    assert rmse < 0.25 * np.sqrt(np.mean(np.sum(V**2, axis=1)))
+
+
+def test_rate_zero_is_the_plain_margin_learner() -> None:
+    from tli_verify.ds.lyapunov import decay_rate, estimate_p, fit_a
+
+    X, V = arc_data()
+    ds, info = learn_lpvds(X, V, np.zeros(2), seed=3, rate=0.0)
+    assert (info.rate, info.control_dt, info.eps) == (0.0, None, 1e-3)
+    P, _ = estimate_p(X, V, np.zeros(2))
+    A, _ = fit_a(X, V, ds.gamma(X), np.zeros(2), P, eps=1e-3)
+    np.testing.assert_allclose(ds.A, A, atol=1e-9)
+    fast, _ = learn_lpvds(X, V, np.zeros(2), seed=3)
+    assert decay_rate(fast.P, fast.A) > 10 * decay_rate(ds.P, ds.A)
+    with pytest.raises(ModelError, match="decay rate must be finite and >= 0"):
+        learn_lpvds(X, V, np.zeros(2), rate=-1.0)

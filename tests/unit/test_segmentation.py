@@ -28,7 +28,7 @@ def demo(x: list[list[float]], sensors: list[list[int]], names: tuple[str, ...] 
                          sensors=np.array(sensors, dtype=bool).reshape(len(X), len(names)))
 
 
-def test_each_sensor_state_is_a_mode_and_attractor_is_mean_last_state() -> None:
+def test_each_sensor_state_is_a_mode_and_attractor_is_the_entry_into_the_next_mode() -> None:
     d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]], [[0], [0], [1], [1], [0]])
     d2 = demo([[0, 1], [1, 1], [2, 1], [3, 1]], [[0], [0], [0], [1]])
     seg = segment_demos([d1, d2])
@@ -37,14 +37,50 @@ def test_each_sensor_state_is_a_mode_and_attractor_is_mean_last_state() -> None:
         (0, 0, 2, ("!r",), ("r",)), (0, 2, 4, ("r",), ("!r",)), (0, 4, 5, ("!r",), None),
         (1, 0, 3, ("!r",), ("r",)), (1, 3, 4, ("r",), None),
     ]
-    # table 3 of appendix D: the attractor averages the last state of every segment
-    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[1, 0], [4, 0], [2, 1]], 0))
-    np.testing.assert_allclose(seg.data["r"].attractor, np.mean([[3, 0], [3, 1]], 0))
+    # Lemma 2: the mean of the first (up to 3) states of the next segment, over the segments
+    # that hand over; the segment ending demo 1 in "!r" does not count
+    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[2.5, 0.0], [3.0, 1.0]], 0))
+    np.testing.assert_allclose(seg.data["r"].attractor, [4, 0])  # only d1 hands over
+    one = segment_demos([d1, d2], entry_samples=1)
+    np.testing.assert_allclose(one.data["!r"].attractor, np.mean([[2, 0], [3, 1]], 0))
     assert seg.data["!r"].next_mode == "r"  # one observed successor: plain key
     assert seg.data["r"].next_mode == "!r"
 
 
-def test_segments_are_shifted_onto_the_attractor() -> None:
+def test_a_mode_that_only_ends_demonstrations_keeps_the_mean_end_point() -> None:
+    d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0]], [[0], [0], [1], [1]])
+    d2 = demo([[0, 1], [1, 1], [2, 1], [3, 3]], [[0], [0], [1], [1]])
+    np.testing.assert_allclose(segment_demos([d1, d2]).data["r"].attractor, [3, 1.5])
+
+
+def test_attractor_is_strictly_inside_the_next_region_appendix_d_is_not() -> None:
+    # delta_r = {x0 >= 2}: three demonstrations cross it at different heights and speeds
+    rows = []
+    for height, speed in ((0.0, 0.7), (1.0, 0.45), (-0.5, 0.9)):
+        X = np.column_stack([np.arange(0.0, 4.0, speed), np.full(len(np.arange(0.0, 4.0, speed)),
+                                                                  height)])
+        rows.append(demo(X.tolist(), (X[:, :1] >= 2).astype(int).tolist()))
+    data = segment_demos(rows).data["!r"]
+    assert data.attractor[0] > 2.0  # in r, strictly
+    lasts = [rows[s.demo].x[s.stop - 1] for s in data.segments]
+    assert np.mean(lasts, axis=0)[0] < 2.0  # appendix D's point reads !r: the DS never leaves
+
+
+def test_segments_are_shifted_so_their_entry_points_meet_at_the_attractor() -> None:
+    d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]], [[0], [0], [1], [1], [1]])
+    d2 = demo([[0, 2], [1, 2], [1, 3], [1, 4]], [[0], [0], [1], [1]])
+    data = segment_demos([d1, d2], entry_samples=2).data["!r"]
+    entries = np.array([[2.5, 0], [1, 3.5]])
+    np.testing.assert_allclose(data.attractor, entries.mean(0))
+    shift = data.attractor - entries
+    np.testing.assert_allclose(data.x[:2], d1.x[:2] + shift[0])
+    np.testing.assert_allclose(data.x[2:], d2.x[:2] + shift[1])
+    np.testing.assert_allclose(data.dx, np.concatenate([d1.dx[:2], d2.dx[:2]]))
+    unshifted = segment_demos([d1, d2], shift=False).data["!r"]
+    np.testing.assert_allclose(unshifted.x, np.concatenate([d1.x[:2], d2.x[:2]]))
+
+
+def test_segments_ending_a_demonstration_are_shifted_onto_the_attractor() -> None:
     d1 = demo([[0, 0], [1, 0], [2, 0]], [[0], [0], [0]])
     d2 = demo([[0, 2], [1, 2], [2, 4]], [[0], [0], [0]])
     data = segment_demos([d1, d2]).data["!r"]
@@ -54,6 +90,12 @@ def test_segments_are_shifted_onto_the_attractor() -> None:
     np.testing.assert_allclose(data.x[:3], [[0, 2], [1, 2], [2, 2]])
     unshifted = segment_demos([d1, d2], shift=False).data["!r"]
     np.testing.assert_allclose(unshifted.x[:3], [[0, 0], [1, 0], [2, 0]])
+
+
+def test_entry_samples_must_be_positive() -> None:
+    d = demo([[0, 0], [1, 0], [2, 0]], [[0], [0], [1]])
+    with pytest.raises(DemoError, match="entry_samples must be >= 1, got 0"):
+        segment_demos([d], entry_samples=0)
 
 
 def test_no_sensor_columns_is_one_mode() -> None:
@@ -74,8 +116,8 @@ def test_per_transition_ds_when_a_mode_has_several_successors() -> None:
     assert sorted(seg.data) == sorted([transition_key(a, b), transition_key(a, c), b, c])
     to_b = seg.data[f"{a}->{b}"]
     assert (to_b.mode, to_b.next_mode) == (a, b)
-    np.testing.assert_allclose(to_b.attractor, [1, 0])  # only the segments heading to b
-    np.testing.assert_allclose(seg.data[f"{a}->{c}"].attractor, [0, 1])
+    np.testing.assert_allclose(to_b.attractor, [2.5, 0])  # only the segments heading to b
+    np.testing.assert_allclose(seg.data[f"{a}->{c}"].attractor, [0, 2.5])
 
 
 def test_shared_labels_share_data_and_every_transition_pair_gets_a_key() -> None:
@@ -93,7 +135,7 @@ def test_shared_labels_share_data_and_every_transition_pair_gets_a_key() -> None
     assert seg.data["w1"].next_mode == "y"
     both = segment_demos([to_y, to_g], labeler=label)
     assert sorted(both.data) == ["g", "w1->g", "w1->y", "w2->g", "w2->y", "y"]
-    np.testing.assert_allclose(both.data["w2->g"].attractor, [0, 1])
+    np.testing.assert_allclose(both.data["w2->g"].attractor, [0, 2.5])
 
 
 def test_reading_without_a_mode_names_file_and_line(repo: Path) -> None:

@@ -44,6 +44,16 @@ def _rational(text: str) -> Fraction:
     return value
 
 
+def _nonnegative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
 def _seed(text: str) -> int:
     try:
         value = int(text)
@@ -73,6 +83,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
     p.add_argument("--eps", type=_positive_float, default=1e-3,
                    help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
+    p.add_argument("--rate", type=_nonnegative_float, default=None,
+                   help="certified decay rate of V per DS, A_k^T P + P A_k <= -rate P (1/s; "
+                   "default: 0.25 x the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
+                   "only, the learner before issue 9)")
+    p.add_argument("--control-dt", type=_positive_float, default=1e-3, metavar="DT",
+                   help="with a rate: V also decreases per explicit step of this period "
+                   "(default 0.001 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
@@ -123,7 +140,7 @@ def _learn(args: argparse.Namespace) -> int:
     from tli_verify.model import learn_model, save_model
 
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
-                        eps=args.eps,
+                        eps=args.eps, rate=args.rate, control_dt=args.control_dt,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
     try:

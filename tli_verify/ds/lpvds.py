@@ -12,6 +12,17 @@ Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
 2. ``P``: the convex P-QLF program (:func:`~tli_verify.ds.lyapunov.estimate_p`), or ``P = I``
    for the baseline;
 3. ``A_k``: Lyapunov-constrained least squares (:func:`~tli_verify.ds.lyapunov.fit_a`).
+
+Default constraint of step 3 (issue 9): a *certified decay rate* and a *sampled-data* margin.
+With only the margin ``A_k^T P + P A_k <= -eps I`` (eps = 1e-3, ds-opt's choice), learned models
+sit on the stability boundary: ``V`` decays at ~5e-4 /s away from the data, and the per-step
+decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. The default
+(:func:`~tli_verify.ds.lyapunov.fit_a` with ``rate`` and ``dt``) is now
+``A_k^T P + P A_k <= -(eps I + rate P)`` with ``rate = 0.25 x`` the data's own rate
+(:func:`~tli_verify.ds.lyapunov.data_rate`, ``mean |xdot| / mean |x - x*|``), so ``V`` decays at
+least like ``exp(-rate t)``, and the per-step decrease at ``dt = 1 ms``,
+``(I + dt A_k)^T P (I + dt A_k) < P`` with margin at least ``dt rate / 2`` (hence at every
+shorter period too). ``rate=0`` gives back the old program exactly.
 """
 
 from __future__ import annotations
@@ -25,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.ds.gmm import GMM
+from tli_verify.ds.lyapunov import DEFAULT_CONTROL_DT
 from tli_verify.errors import ModelError
 
 __all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
@@ -175,6 +187,10 @@ class FitInfo:
         K.
     eps : float
         LMI margin of the A-fit.
+    rate : float
+        Decay rate imposed by the A-fit (``A_k^T P + P A_k <= -rate P``); 0 for none.
+    control_dt : float or None
+        Control period of the sampled-data constraint (None: continuous-time only).
     seed : int
         Seed of the clustering.
     solver : str
@@ -191,6 +207,8 @@ class FitInfo:
     lyapunov: str
     n_components: int
     eps: float
+    rate: float
+    control_dt: float | None
     seed: int
     solver: str
     status: str
@@ -205,6 +223,8 @@ def learn_lpvds(
     *,
     seed: int = 0,
     eps: float = 1e-3,
+    rate: float | None = None,
+    control_dt: float | None = DEFAULT_CONTROL_DT,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
     max_components: int = 12,
@@ -218,11 +238,20 @@ def learn_lpvds(
     dX : array_like, shape (N, n)
         Velocities.
     attractor : array_like, shape (n,)
-        ``x*`` (paper appendix D: the mean last state of the mode's segments).
+        ``x*`` (:mod:`tli_verify.segmentation`: inside the next mode's region).
     seed : int, optional
         Seed of the clustering; same seed, same model.
     eps : float, optional
         Margin of ``A_k^T P + P A_k <= -eps I``.
+    rate : float, optional
+        Decay rate of ``V`` to impose, ``A_k^T P + P A_k <= -(eps I + rate P)`` (1/time).
+        Default (None): ``RATE_FACTOR * data_rate(X, dX, attractor)``
+        (:mod:`tli_verify.ds.lyapunov`). ``0``: the plain ``eps`` margin, without the
+        sampled-data constraint (the learner before issue 9).
+    control_dt : float, optional
+        With ``rate > 0``: impose the sampled-data form at this control period
+        (:func:`~tli_verify.ds.lyapunov.fit_a`), which also certifies every shorter period.
+        None: continuous time only.
     clustering : {"pc-gmm", "em-bic"}, optional
         Mixing model: the Bayesian non-parametric physically-consistent GMM, or the EM+BIC baseline.
     lyapunov : {"p-qlf", "identity"}, optional
@@ -247,16 +276,17 @@ def learn_lpvds(
     start = time.perf_counter()
     # small matrices: multi-threaded BLAS only adds contention (20x slower on a busy machine)
     with threadpool_limits(limits=1, user_api="blas"):
-        ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, clustering=clustering,
-                         lyapunov=lyapunov, max_components=max_components)
+        ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, rate=rate, control_dt=control_dt,
+                         clustering=clustering, lyapunov=lyapunov,
+                         max_components=max_components)
     return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
 
 
 def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
-           eps: float, clustering: str, lyapunov: str, max_components: int
-           ) -> tuple[LPVDS, FitInfo]:
+           eps: float, rate: float | None, control_dt: float | None, clustering: str,
+           lyapunov: str, max_components: int) -> tuple[LPVDS, FitInfo]:
     from tli_verify.ds.gmm import fit_em_bic, fit_pcgmm
-    from tli_verify.ds.lyapunov import SOLVER, estimate_p, fit_a
+    from tli_verify.ds.lyapunov import RATE_FACTOR, SOLVER, data_rate, estimate_p, fit_a
 
     start = time.perf_counter()
     Xa = np.asarray(X, dtype=np.float64)
@@ -277,9 +307,14 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
         P = np.eye(Xa.shape[1])
     else:
         raise ModelError(f"unknown Lyapunov option {lyapunov!r}")
-    A, info = fit_a(Xa, dXa, mix.posterior(Xa), xs, P, eps=eps)
+    lam = RATE_FACTOR * data_rate(Xa, dXa, xs) if rate is None else float(rate)
+    if not (np.isfinite(lam) and lam >= 0.0):
+        raise ModelError(f"decay rate must be finite and >= 0, got {lam}")
+    dt = control_dt if lam > 0.0 else None
+    A, info = fit_a(Xa, dXa, mix.posterior(Xa), xs, P, eps=eps, rate=lam, dt=dt)
     ds = LPVDS(attractor=xs, priors=mix.priors, means=mix.means, covs=mix.covs, A=A, P=P)
     fit = FitInfo(clustering=clustering, lyapunov=lyapunov, n_components=mix.n_components,
-                  eps=float(eps), seed=int(seed), solver=SOLVER, status=info.status,
+                  eps=float(eps), rate=lam, control_dt=None if dt is None else float(dt),
+                  seed=int(seed), solver=SOLVER, status=info.status,
                   seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]))
     return ds, fit

@@ -42,12 +42,120 @@ import numpy.typing as npt
 
 from tli_verify.errors import SolverError
 
-__all__ = ["SOLVER", "SolveInfo", "estimate_p", "find_p", "fit_a"]
+__all__ = [
+    "DEFAULT_CONTROL_DT",
+    "RATE_FACTOR",
+    "SOLVER",
+    "SolveInfo",
+    "data_rate",
+    "decay_rate",
+    "estimate_p",
+    "find_p",
+    "fit_a",
+    "sampled_growth",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
 SOLVER = "CLARABEL"
 """The only solver used for the Lyapunov SDPs (SCS misses the LMI margin)."""
+
+
+RATE_FACTOR = 0.25
+"""Default decay rate of ``V`` imposed by the learner, as a fraction of :func:`data_rate`.
+
+Chosen on the LASA benchmark (``benchmarks/bench_lasa.py``, method PC-GMM + P-QLF, medians over
+26 shapes against the old margin-only learner): factor 0.1 costs nothing measurable (RMSE and
+DTWD within 1%) for a 100x larger certified rate; 0.25 costs +5% RMSE and +14% DTWD for 250x;
+0.5 costs +17% RMSE and +49% DTWD. A quarter of the data's own rate keeps the certified decay
+useful as a reachability deadline (``V`` halves within ``ln 2 / rate``) at a bounded cost."""
+
+DEFAULT_CONTROL_DT = 1e-3
+"""Default control period (s) of the sampled-data constraint of the learner (a Franka's 1 kHz)."""
+
+
+def data_rate(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike) -> float:
+    """The demonstrations' own time scale: ``mean_i |xdot_i| / mean_i |x_i - x*|`` (1/time).
+
+    An exponential approach ``x(t) - x* = e^{-r t} z_0`` has exactly ``r`` here; on the LASA
+    shapes it is 0.5-1.5 /s (durations 2-8 s). Independent of the length unit, so the same
+    factor fits millimetres and metres.
+
+    Parameters
+    ----------
+    X, dX : array_like, shape (N, n)
+    attractor : array_like, shape (n,)
+
+    Returns
+    -------
+    float
+        Positive; 0 when the data do not move or all sit on the attractor.
+    """
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    dist = float(np.mean(np.linalg.norm(Xa - xs, axis=1))) if Xa.size else 0.0
+    speed = float(np.mean(np.linalg.norm(dXa, axis=1))) if dXa.size else 0.0
+    return speed / dist if dist > 0.0 and np.isfinite(speed / dist) else 0.0
+
+
+def decay_rate(P: npt.ArrayLike, A: npt.ArrayLike) -> float:
+    """Largest ``lambda`` with ``A_k^T P + P A_k <= -lambda P`` for every k (float).
+
+    ``lambda = min_k min eig(-(A_k^T P + P A_k), P)``, a generalized symmetric eigenvalue
+    problem; ``dV/dt <= -lambda V`` along every mixture of the ``A_k``. Floating point: a
+    figure for reports and benchmarks, not a certificate (see :mod:`tli_verify.certify.exact`).
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        Symmetric positive definite.
+    A : array_like, shape (K, n, n)
+
+    Returns
+    -------
+    float
+        Negative when some ``A_k^T P + P A_k`` is not negative definite.
+    """
+    from scipy.linalg import eigh
+
+    Pa = np.asarray(P, dtype=np.float64)
+    Ps = 0.5 * (Pa + Pa.T)
+    out = np.inf
+    for a in np.asarray(A, dtype=np.float64):
+        Q = -(a.T @ Ps + Ps @ a)
+        out = min(out, float(eigh(0.5 * (Q + Q.T), Ps, eigvals_only=True)[0]))
+    return float(out)
+
+
+def sampled_growth(P: npt.ArrayLike, A: npt.ArrayLike, dt: float) -> float:
+    """Largest per-step factor ``V(x + dt A_k (x - x*)) / V(x)`` over k and x, minus 1 (float).
+
+    ``max_k max eig((I + dt A_k)^T P (I + dt A_k), P) - 1``: negative iff every
+    ``(I + dt A_k)^T P (I + dt A_k) - P`` is negative definite (the sampled-data condition at
+    control period ``dt``). Floating point, like :func:`decay_rate`.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+    A : array_like, shape (K, n, n)
+    dt : float
+        Control period.
+
+    Returns
+    -------
+    float
+    """
+    from scipy.linalg import eigh
+
+    Pa = np.asarray(P, dtype=np.float64)
+    Ps = 0.5 * (Pa + Pa.T)
+    Aa = np.asarray(A, dtype=np.float64)
+    eye = np.eye(Ps.shape[0])
+    out = -np.inf
+    for a in Aa:
+        F = eye + dt * a
+        Q = F.T @ Ps @ F
+        out = max(out, float(eigh(0.5 * (Q + Q.T), Ps, eigvals_only=True)[-1]) - 1.0)
+    return float(out)
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,6 +279,8 @@ def fit_a(
     P: npt.ArrayLike,
     *,
     eps: float = 1e-3,
+    rate: float = 0.0,
+    dt: float | None = None,
     ridge: float = 1e-6,
 ) -> tuple[FloatArray, SolveInfo]:
     """Least-squares ``A_k`` under the Lyapunov LMIs for a fixed ``P`` (paper eq. 5).
@@ -179,10 +289,35 @@ def fit_a(
 
         min_{A_1..A_K}  mean_i |xdot_i - sum_k gamma_k(x_i) A_k (x_i - x*)|^2
                         + ridge * sum_k |A_k|_F^2
-        s.t.            A_k^T P + P A_k <= -eps I    for every k
+        s.t.            A_k^T P + P A_k <= -M                       for every k   (dt None)
+                        (I + dt A_k)^T P (I + dt A_k) <= P - dt M   for every k   (dt given)
+        with            M = eps I + rate P
+
+    ``rate = 0, dt = None`` is the plain margin ``A_k^T P + P A_k <= -eps I`` (the learner's
+    behaviour before issue 9). With ``rate > 0`` every component contracts ``V`` at rate
+    ``rate``: ``dV/dt <= -rate V`` for every mixture (paper eq. 4), so ``V`` decays at least like
+    ``exp(-rate t)``. The sampled-data form, divided by ``dt``, is
+    ``A_k^T P + P A_k + M + dt A_k^T P A_k <= 0``, imposed as the Schur complement LMI ::
+
+        [[-(A_k^T P + P A_k) - M, sqrt(dt) A_k^T R], [sqrt(dt) R^T A_k, I]] >= 0,  P = R R^T
+
+    (this scaling keeps the program well conditioned at ``dt = 1e-3``). It implies the
+    continuous one (``A_k^T P A_k >= 0``); the per-step decrease
+    ``V(x + dt f(x)) <= (1 - dt rate) V(x)`` of a controller running at period ``dt`` (by
+    convexity of the P-norm it covers every mixture of the ``A_k``); and the same at every
+    shorter period (``I + s A_k`` is a convex combination of ``I`` and ``I + dt A_k`` for
+    ``0 <= s <= dt``).
+
+    With ``dt`` given, the continuous-time program is solved first; its optimum is kept when it
+    already decreases ``V`` per step by at least half the sampled LMI's margin
+    (:func:`sampled_growth` ``<= -dt (rate + eps / lambda_max(P)) / 2``), which is the usual
+    case (``dt |A_k|^2`` far below ``rate``). Otherwise the program is solved again with the
+    sampled-data LMIs in place of the continuous ones.
 
     The data enter only through the ``K n^2``-dimensional normal equations (Cholesky factor), so
-    the program size does not grow with N.
+    the program size does not grow with N. The objective is divided by the squared norm of the
+    normal equations' right-hand side (same minimiser): without it, data in millimetres drove
+    Clarabel to ``optimal_inaccurate`` on the sampled-data LMIs.
 
     Parameters
     ----------
@@ -196,6 +331,10 @@ def fit_a(
         Lyapunov matrix (symmetric positive definite).
     eps : float, optional
         LMI margin (units of 1/time when ``trace P = n``).
+    rate : float, optional
+        Certified decay rate of ``V`` (1/time); 0 for the plain ``eps`` margin.
+    dt : float, optional
+        Control period of the sampled-data constraint; None for the continuous-time LMI only.
     ridge : float, optional
         Tikhonov weight relative to the mean squared data scale.
 
@@ -225,12 +364,36 @@ def fit_a(
     rhs = np.linalg.solve(L, g)
     A = [cp.Variable((n, n)) for _ in range(K)]
     theta = cp.hstack([cp.vec(a, order="F") for a in A])
-    constraints = []
+    if not (eps >= 0.0 and rate >= 0.0 and eps + rate > 0.0):
+        raise SolverError(f"A-fit needs eps >= 0 and rate >= 0, not both 0 (got eps={eps}, "
+                          f"rate={rate})")
+    if dt is not None and not dt > 0.0:
+        raise SolverError(f"A-fit: control period dt must be positive, got {dt}")
+    Ps = 0.5 * (Pa + Pa.T)
+    margin = eps * np.eye(n) + rate * Ps
+    scale = max(float(np.linalg.norm(rhs)), 1e-12)  # unit-scale objective (mm or m alike)
+    objective = cp.Minimize(cp.sum_squares((L.T @ theta - rhs) / scale))
+    continuous = []
     for a in A:
-        M = Pa @ a
-        constraints.append(M + M.T << -eps * np.eye(n))
-    problem = cp.Problem(cp.Minimize(cp.sum_squares(L.T @ theta - rhs)), constraints)
-    info = _solve(problem, "A-fit")
+        M = Ps @ a
+        continuous.append(M + M.T << -margin)
+    info = _solve(cp.Problem(objective, continuous), "A-fit")
+    values = np.stack([np.asarray(a.value, dtype=np.float64) for a in A])
+    if dt is None:
+        return values, info
+    # per-step decrease the sampled LMI guarantees: V(x + dt f) <= (1 - target) V(x)
+    target = dt * (rate + eps / float(np.linalg.eigvalsh(Ps)[-1]))
+    if sampled_growth(Ps, values, dt) <= -0.5 * target:
+        return values, info  # the continuous optimum already steps down at dt: keep it
+    root = np.linalg.cholesky(Ps)  # P = root root^T
+    sampled = []
+    for a in A:
+        M = Ps @ a
+        # A^T P + P A + margin + dt A^T P A <= 0, as a Schur complement with unit scale
+        C = np.sqrt(dt) * (root.T @ a)
+        Z = cp.bmat([[-(M + M.T) - margin, C.T], [C, np.eye(n)]])
+        sampled.append(0.5 * (Z + Z.T) >> 0)  # symmetric by construction
+    info = _solve(cp.Problem(objective, sampled), "A-fit (sampled)")
     values = np.stack([np.asarray(a.value, dtype=np.float64) for a in A])
     return values, info
 

@@ -1,0 +1,58 @@
+"""`tli learn --rate / --control-dt`: the contracting default and the old margin-only learner."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tli_verify.cli import main
+from tli_verify.ds.lyapunov import decay_rate, sampled_growth
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse usage errors
+        code = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _rates(path: Path) -> dict[str, tuple[float, float, float | None]]:
+    """key -> (certified decay rate, growth per 1 ms step, fit rate) of a model file."""
+    out = {}
+    for key, entry in json.loads(path.read_text())["modes"].items():
+        P = np.array(entry["P"])
+        A = np.array([c["A"] for c in entry["components"]])
+        out[key] = (decay_rate(P, A), sampled_growth(P, A, 1e-3), entry["fit"].get("rate"))
+    return out
+
+
+def test_default_contracts_and_rate_zero_is_the_old_learner(
+        repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    demos = [str(p) for p in sorted((repo / "demos").glob("scoop_*.csv"))]
+    spec = str(repo / "specs" / "scoop.toml")
+    new, old = tmp_path / "new.model.json", tmp_path / "old.model.json"
+    assert run(capsys, "learn", *demos, "--spec", spec, "-o", str(new))[0] == 0
+    assert run(capsys, "learn", *demos, "--spec", spec, "-o", str(old), "--rate", "0")[0] == 0
+    fresh, plain = _rates(new), _rates(old)
+    for key, (rate, growth, fit_rate) in fresh.items():
+        assert fit_rate is not None and rate >= fit_rate * (1 - 1e-4) > 0.05, key
+        assert growth < 0, key
+        assert json.loads(new.read_text())["modes"][key]["fit"]["control_dt"] == 1e-3
+    for key, (rate, _, fit_rate) in plain.items():
+        assert fit_rate == 0.0
+        assert "control_dt" not in json.loads(old.read_text())["modes"][key]["fit"]
+        assert rate < 0.01, key  # the margin eps = 1e-3 only: barely contracting
+
+
+def test_rate_and_control_dt_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "learn", "x.csv", "-o", "m.json", "--rate", "-0.5")
+    assert code == 2
+    assert "must be a finite number >= 0" in err and "Traceback" not in err
+    code, _, err = run(capsys, "learn", "x.csv", "-o", "m.json", "--control-dt", "0")
+    assert code == 2
+    assert "must be a positive finite number" in err
