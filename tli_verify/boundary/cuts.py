@@ -42,15 +42,58 @@ polyhedral cone cut by one circular cone). On ``K`` we have ``w . d <= 0``, so m
    ``s_hat . w = mu`` where ``k-1`` planes meet, given in closed form by the Lagrange condition
    on that circle. Where ``d . w`` is constant on such a circle (``s`` in the span of ``d``
    and the active planes' normals) all its points tie and one of them is taken: with no further
-   plane meeting the circle, no 0-dimensional piece holds the optimum. We enumerate these
-   candidates (at most ``sum_{i < n} C(m, i)`` small linear algebra problems, batched), keep
-   the feasible ones and take the best. This is a global optimum; for the sizes of the paper
-   (``n <= 4``, a handful of cuts per mode) it takes well under a millisecond of linear
-   algebra.
+   plane meeting the circle, no 0-dimensional piece holds the optimum.
 
-Both branches re-check every constraint of the answer; :class:`~tli_verify.errors.SolverError`
-is raised when no admissible normal exists (the failure direction lies in the cone spanned by
-the inner points: no plane through ``x^{T_f-1}`` separates them).
+Is branch 2 a convex problem? No. The obvious relaxation, ``max d_hat . w`` over ``K`` cap
+the unit *ball* (a second-order cone program), is useless here: ``d_hat . w <= 0`` on ``K``, so
+its optimum is 0, attained at ``w = 0`` (or, when it has norm 1, by the plane through x* that
+branch 1 already found). Away from branch 1, ``d_hat . w < 0`` on ``K`` minus the origin and
+the section ``S = K cap {d_hat . w = -1}`` is compact and convex; writing ``w = -d_hat + y`` with
+``y . d_hat = 0``, the unit normal is ``w / ||w||`` with ``d_hat . w / ||w|| =
+-1 / sqrt(1 + ||y||^2)``, so the cut problem is *maximising the convex function ||y|| over
+S*, not a convex program: its optimum lies at an extreme point of ``S`` (the 0-dimensional
+pieces above). Norm maximisation over a polytope given by inequalities is NP-hard when the
+dimension is part of the input (Bodlaender, Gritzmann, Klee and van Leeuwen, Combinatorica
+10, 1990), so unless P = NP no polynomial-time method returns the global optimum for every
+``n``; for a fixed ``n`` the faces are polynomially many.
+
+Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
+
+``"enumerate"`` (the baseline)
+    Every subset of planes: at most ``sum_{i < n} C(m, i)`` small linear algebra problems,
+    batched, keeping the feasible candidates and taking the best. A global optimum, but
+    exponential in ``n``: 0.15 s at ``n = 4`` with 40 inner points, about 26 s at ``n = 6``.
+``"hull"``
+    Only the faces of the polyhedral cone ``P0 = {C w <= 0}``: with ``g`` interior to ``P0``
+    (minus the minimum-norm point of the convex hull of the rows, one NNLS), the points
+    ``c_j / (-g . c_j)`` span a polytope in ``n - 1`` dimensions whose faces are polar to those
+    of ``P0`` (Qhull). Its facets give the extreme rays of ``P0``; the subsets of size
+    ``<= n - 2`` of the triangulated facets span every face of ``P0`` of dimension ``>= 2``
+    and so give every margin-circle candidate that can be feasible; redundant rows never
+    enter. The same global optimum as the enumeration, with ``O(m^{floor((n-1)/2)})`` faces
+    (upper bound theorem): a few milliseconds at ``n = 4`` with 40 points. Where it does not
+    apply (``n = 2``, ``P0`` without interior or not pointed) the enumeration runs if it is
+    cheap (``<= 20,000`` subsets).
+``"local"``
+    Polynomial time in ``n`` and ``m``: the most separating normal ``Proj_P0(s_hat)`` (one
+    NNLS; it is admissible exactly when a cut exists), a local maximiser of ``d_hat . w`` from
+    it (SLSQP, bounded iterations) and that point polished to the closed form of its active
+    set. The best admissible one is returned with ``optimal=False``: a verified separating
+    cut, possibly not the closest to x*.
+``"auto"`` (default)
+    ``"hull"`` (or the cheap enumeration) while the candidate count stays within budget
+    (``2^{n-1}`` times the number of hull simplices ``<= 200,000``), ``"local"`` beyond, and
+    ``"local"`` also if no exact candidate survives the re-check.
+
+Existence is decided exactly before branch 2 (except by ``"enumerate"``, which keeps its
+historical rule: refuse iff no candidate is admissible): a cut exists iff ``max {s_hat . w :
+C w <= 0, ||w|| <= 1} = ||Proj_P0(s_hat)|| >= mu`` (Moreau), and the NNLS multipliers are
+the dual certificate of a refusal.
+
+Every answer, from any branch and method, re-checks every constraint (unit norm, each inner
+point, the margin); :class:`~tli_verify.errors.SolverError` is raised when no admissible normal
+exists (the failure direction lies in the cone spanned by the inner points: no plane through
+``x^{T_f-1}`` separates them).
 
 References
 ----------
