@@ -62,7 +62,8 @@ Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
 ``"enumerate"`` (the baseline)
     Every subset of planes: at most ``sum_{i < n} C(m, i)`` small linear algebra problems,
     batched, keeping the feasible candidates and taking the best. A global optimum, but
-    exponential in ``n``: 0.15 s at ``n = 4`` with 40 inner points, about 26 s at ``n = 6``.
+    exponential in ``n``: 0.14 s at ``n = 4`` with 40 inner points, 12 s at ``n = 6``
+    (``benchmarks/bench_cuts.py``; issue 11 measured 26 s on another machine).
 ``"hull"``
     Only the faces of the polyhedral cone ``P0 = {C w <= 0}``: with ``g`` interior to ``P0``
     (minus the minimum-norm point of the convex hull of the rows, one NNLS), the points
@@ -71,9 +72,9 @@ Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
     ``<= n - 2`` of the triangulated facets span every face of ``P0`` of dimension ``>= 2``
     and so give every margin-circle candidate that can be feasible; redundant rows never
     enter. The same global optimum as the enumeration, with ``O(m^{floor((n-1)/2)})`` faces
-    (upper bound theorem): a few milliseconds at ``n = 4`` with 40 points. Where it does not
-    apply (``n = 2``, ``P0`` without interior or not pointed) the enumeration runs if it is
-    cheap (``<= 20,000`` subsets).
+    (upper bound theorem): about 1 ms at ``n = 4`` with 40 points, 30 ms at ``n = 6``.
+    Where it does not apply (``n = 2``, ``P0`` without interior or not pointed) the
+    enumeration runs if it is cheap (``<= 20,000`` subsets).
 ``"local"``
     Polynomial time in ``n`` and ``m``: the most separating normal ``Proj_P0(s_hat)`` (one
     NNLS; it is admissible exactly when a cut exists), a local maximiser of ``d_hat . w`` from
