@@ -81,7 +81,7 @@ Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
     it (SLSQP, bounded iterations) and that point polished to the closed form of its active
     set. The best admissible one is returned with ``optimal=False``: a verified separating
     cut, possibly not the closest to x*.
-``"auto"`` (default)
+``"auto"`` (default; ``"hull"`` is the same)
     ``"hull"`` (or the cheap enumeration) while the candidate count stays within budget
     (``2^{n-1}`` times the number of hull simplices ``<= 200,000``), ``"local"`` beyond, and
     ``"local"`` also if no exact candidate survives the re-check.
@@ -362,10 +362,11 @@ def solve_cut_detailed(
         ``mu`` in ``w . (x^{T_f} - x^{T_f-1}) >= mu ||x^{T_f} - x^{T_f-1}||``; in ``(0, 1)``.
     method : {"auto", "hull", "enumerate", "local"}, optional
         ``"enumerate"``: every subset of planes (the baseline, exponential in ``n``);
-        ``"hull"``: only the faces of the polyhedral cone (Qhull), falling back to the
-        enumeration where the hull does not apply and it is cheap; ``"local"``: the
-        polynomial-time verified separating cut (``optimal=False``); ``"auto"`` (default):
-        ``"hull"``, and ``"local"`` beyond its budget.
+        ``"hull"`` and ``"auto"`` (default): only the faces of the polyhedral cone (Qhull),
+        or the enumeration where the hull does not apply and the enumeration is cheap, and
+        the local answer beyond these budgets; ``"local"``: the polynomial-time verified
+        separating cut. ``CutSolution.method`` tells which ran, ``CutSolution.optimal``
+        whether the answer is proved globally optimal.
 
     Returns
     -------
