@@ -691,7 +691,12 @@ def _hull_candidates(C: FloatArray, d_hat: FloatArray, s_hat: FloatArray, margin
     for size in range(1, n - 1):
         cols = np.array(list(itertools.combinations(range(n - 1), size)), dtype=np.intp)
         sub = np.sort(simplices[:, cols].reshape(-1, size), axis=1)
-        sub = np.unique(sub, axis=0)
+        if float(m) ** size < 2.0**62:  # one integer key per subset: a 1-D unique is faster
+            keys = sub @ (m ** np.arange(size - 1, -1, -1, dtype=np.int64))
+            _, first = np.unique(keys, return_index=True)
+            sub = sub[first]
+        else:
+            sub = np.unique(sub, axis=0)
         parts.append(_circle_candidates(C, sub, d_hat, s_hat, margin))
     return np.vstack(parts)
 
