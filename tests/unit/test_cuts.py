@@ -411,3 +411,195 @@ def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
         return
     _check_constraints(sol, x_star, x0, xl, xf, prev)
     assert sol.cut.offset(x_star) >= -1e-9 * (1 + np.linalg.norm(x_star - xl))
+
+
+# --------------------------------------------------------------------------------------------
+# Methods (issue 11, "cut cost in higher dimensions"): the hull method is exact, the local one
+# is a verified separating cut, the enumeration is the baseline they are compared with.
+# --------------------------------------------------------------------------------------------
+
+
+def _ball_instance(n: int, k: int, rng: np.random.Generator, *, shell: bool = False):
+    """A mode region shaped like the unit ball: x* near the centre, x^{T_f-1} on the rim, the
+    failure state just outside, x^0 and k more states inside (on a sphere of radius 0.97 with
+    ``shell``, like earlier cut points on the boundary). A separating cut always exists."""
+    u = rng.standard_normal(n)
+    u /= np.linalg.norm(u)
+    x_star = rng.standard_normal(n)
+    x_star *= 0.3 * rng.uniform() / np.linalg.norm(x_star)
+    xl = 0.98 * u
+    v = u + 0.5 * rng.standard_normal(n)
+    xf = xl + 0.05 * (v / np.linalg.norm(v) if u @ v > 0 else u)
+    Q = rng.standard_normal((k + 1, n))
+    Q /= np.linalg.norm(Q, axis=1, keepdims=True)
+    Q *= 0.97 if shell else 0.97 * rng.uniform(size=(k + 1, 1)) ** (1.0 / n)
+    return x_star, Q[0], xl, xf, list(Q[1:])
+
+
+def _solve(inst, method: str):
+    x_star, x0, xl, xf, prev = inst
+    try:
+        return solve_cut_detailed(InvarianceFailure(x0, xl, xf), x_star, previous=prev,
+                                  margin=MARGIN, method=method)
+    except SolverError:
+        return None
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5])
+def test_hull_method_agrees_with_enumeration(n: int) -> None:
+    """Where both run, the default method and the baseline enumeration refuse the same
+    problems and reach the same distance; the hull is used wherever it applies."""
+    rng = np.random.default_rng(300 + n)
+    insts = list(_instances(n, 40, rng))
+    insts += [_ball_instance(n, int(rng.integers(3, 12 if n == 5 else 20)), rng, shell=i % 2 == 1)
+              for i in range(16)]
+    methods: dict[str, int] = {}
+    for inst in insts:
+        auto, enum = _solve(inst, "auto"), _solve(inst, "enumerate")
+        assert (auto is None) == (enum is None)
+        if auto is None or enum is None:
+            continue
+        assert auto.optimal and enum.optimal
+        methods[auto.method] = methods.get(auto.method, 0) + 1
+        assert auto.distance == pytest.approx(enum.distance, rel=1e-9, abs=1e-12)
+        assert auto.through_attractor == enum.through_attractor
+        _check_constraints(auto, *inst)
+    if n >= 3:
+        assert methods.get("hull", 0) >= 16, methods
+    assert methods.get("projection", 0) >= 3, methods
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6])
+def test_many_points_optimal_against_an_independent_search(n: int) -> None:
+    """40 inner states (the 4-D / 40-point target): the default answer is the global optimum,
+    checked against the independent multi-start search."""
+    rng = np.random.default_rng(400 + n)
+    off_attractor = 0
+    for i in range(6):
+        inst = _ball_instance(n, 40, rng, shell=i % 2 == 1)
+        sol = _solve(inst, "auto")
+        assert sol is not None, "a separating cut exists for every ball instance"
+        assert sol.optimal
+        assert sol.method in (("enumerate", "projection") if n == 2 else ("hull", "projection"))
+        _check_constraints(sol, *inst)
+        if sol.through_attractor:
+            continue
+        C, d_hat, s_hat = _data(*inst)
+        best = _search_best(C, d_hat, s_hat, rng, starts=8)
+        assert best is not None
+        assert d_hat @ sol.cut.normal >= best - 1e-7
+        off_attractor += 1
+    assert off_attractor >= 3
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6])
+def test_local_method_is_a_verified_separating_cut(n: int) -> None:
+    """The polynomial-time method: the same refusals as the exact one (proved), otherwise an
+    admissible cut no closer to x* than the optimum, flagged as not proved optimal."""
+    rng = np.random.default_rng(500 + n)
+    insts = list(_instances(n, 24, rng)) + [_ball_instance(n, 20, rng) for _ in range(6)]
+    local_answers = equal = 0
+    for inst in insts:
+        loc, exact = _solve(inst, "local"), _solve(inst, "auto")
+        assert (loc is None) == (exact is None)
+        if loc is None or exact is None:
+            assert _refusal_is_proved(*inst)
+            continue
+        _check_constraints(loc, *inst)
+        assert loc.distance >= exact.distance - 1e-9
+        if loc.method == "local":
+            assert not loc.optimal
+            local_answers += 1
+            equal += int(loc.distance <= exact.distance + 1e-9)
+        else:
+            assert loc.method == "projection" and loc.optimal and exact.through_attractor
+    assert local_answers >= 8
+    assert equal >= 1  # the local ascent does reach optima, not only the start point
+
+
+def test_auto_falls_back_to_the_local_method_beyond_budget(monkeypatch) -> None:
+    """Over the candidate budget the default method returns the verified local answer."""
+    import tli_verify.boundary.cuts as cuts
+
+    inst = _ball_instance(4, 40, np.random.default_rng(7))
+    exact = _solve(inst, "auto")
+    assert exact is not None and exact.method == "hull"
+    monkeypatch.setattr(cuts, "_HULL_BUDGET", 0)
+    monkeypatch.setattr(cuts, "_ENUM_BUDGET", 0)
+    sol = _solve(inst, "auto")
+    assert sol is not None and sol.method == "local" and not sol.optimal
+    _check_constraints(sol, *inst)
+    assert sol.distance >= exact.distance - 1e-9
+
+
+def test_local_answer_is_rechecked_against_every_constraint(monkeypatch) -> None:
+    """Forged local candidates closer to x* than the optimum (so each breaks some constraint,
+    checked here): the re-check drops them all and the answer is admissible."""
+    import tli_verify.boundary.cuts as cuts
+
+    inst = _ball_instance(4, 10, np.random.default_rng(8))
+    C, d_hat, s_hat = _data(*inst)
+    exact = _solve(inst, "auto")
+    assert exact is not None and not exact.through_attractor
+    w_opt = exact.cut.normal
+    forged = []
+    for t in (1e-6, 1e-4, 1e-2):
+        w = w_opt + t * d_hat
+        w /= np.linalg.norm(w)
+        assert d_hat @ w > d_hat @ w_opt  # closer to x* than the optimum ...
+        worst = max(float(np.max(C @ w)), MARGIN - float(s_hat @ w))
+        assert worst > 1e-9  # ... hence inadmissible
+        forged.append(w)
+    monkeypatch.setattr(cuts, "_local_candidates",
+                        lambda *args: np.array(forged, dtype=np.float64))
+    sol = _solve(inst, "local")
+    assert sol is not None and sol.method == "local" and not sol.optimal
+    _check_constraints(sol, *inst)
+    assert sol.distance >= exact.distance - 1e-12
+
+
+def test_finish_rejects_a_forged_normal() -> None:
+    """The re-check that closes every method: an inner point 1e-9 outside, or a failure state
+    separated by less than the margin, is refused."""
+    from tli_verify.boundary.cuts import _finish
+
+    C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    d_hat = C[0]
+    s_hat = np.array([0.0, 0.0, 1.0])
+    kw = dict(s_norm=1.0, norms=np.ones(2), last=np.zeros(3), margin=MARGIN, candidates=1,
+              tol=1e-10, degenerate=False, optimal=False, method="local")
+    good = np.array([-0.5, -0.5, np.sqrt(0.5)])
+    assert _finish(good, C, d_hat, s_hat, **kw).cut.normal @ s_hat > MARGIN
+    with pytest.raises(SolverError, match="inner point"):
+        _finish(np.array([1e-9, -0.5, np.sqrt(0.75)]), C, d_hat, s_hat, **kw)
+    with pytest.raises(SolverError, match="not separated"):
+        _finish(np.array([-0.6, -0.8, MARGIN * 0.5]), C, d_hat, s_hat, **kw)
+
+
+def test_unknown_method_is_bad_input() -> None:
+    f = InvarianceFailure(np.zeros(2), np.ones(2), np.array([2.0, 1.0]))
+    with pytest.raises(ModelError, match="method"):
+        solve_cut_detailed(f, np.zeros(2), method="simplex")  # type: ignore[arg-type]
+
+
+@settings(max_examples=60)
+@given(data=st.data(), n=st.integers(2, 5), k=st.integers(0, 6))
+def test_default_method_matches_enumeration_on_any_input(data: st.DataObject, n: int,
+                                                         k: int) -> None:
+    """Any input (duplicates, collinear points, zeros): the default method refuses only where
+    the baseline enumeration does too (with a proof), and otherwise reaches its distance or,
+    where the exact methods give way to the local answer, is flagged as not optimal."""
+    pts = data.draw(hnp.arrays(np.float64, (4 + k, n), elements=st.floats(-3, 3, width=64)))
+    inst = (pts[0], pts[1], pts[2], pts[3], list(pts[4:]))
+    auto, enum = _solve(inst, "auto"), _solve(inst, "enumerate")
+    if auto is None:
+        assert enum is None
+        assert _refusal_is_proved(*inst)
+        return
+    _check_constraints(auto, *inst)
+    if enum is None:  # the baseline's re-check refused; the default still found a cut
+        return
+    if auto.optimal:
+        assert auto.distance == pytest.approx(enum.distance, rel=1e-7, abs=1e-9)
+    else:
+        assert auto.distance >= enum.distance - 1e-9

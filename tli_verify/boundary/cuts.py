@@ -42,15 +42,59 @@ polyhedral cone cut by one circular cone). On ``K`` we have ``w . d <= 0``, so m
    ``s_hat . w = mu`` where ``k-1`` planes meet, given in closed form by the Lagrange condition
    on that circle. Where ``d . w`` is constant on such a circle (``s`` in the span of ``d``
    and the active planes' normals) all its points tie and one of them is taken: with no further
-   plane meeting the circle, no 0-dimensional piece holds the optimum. We enumerate these
-   candidates (at most ``sum_{i < n} C(m, i)`` small linear algebra problems, batched), keep
-   the feasible ones and take the best. This is a global optimum; for the sizes of the paper
-   (``n <= 4``, a handful of cuts per mode) it takes well under a millisecond of linear
-   algebra.
+   plane meeting the circle, no 0-dimensional piece holds the optimum.
 
-Both branches re-check every constraint of the answer; :class:`~tli_verify.errors.SolverError`
-is raised when no admissible normal exists (the failure direction lies in the cone spanned by
-the inner points: no plane through ``x^{T_f-1}`` separates them).
+Is branch 2 a convex problem? No. The obvious relaxation, ``max d_hat . w`` over ``K`` cap
+the unit *ball* (a second-order cone program), is useless here: ``d_hat . w <= 0`` on ``K``, so
+its optimum is 0, attained at ``w = 0`` (or, when it has norm 1, by the plane through x* that
+branch 1 already found). Away from branch 1, ``d_hat . w < 0`` on ``K`` minus the origin and
+the section ``S = K cap {d_hat . w = -1}`` is compact and convex; writing ``w = -d_hat + y`` with
+``y . d_hat = 0``, the unit normal is ``w / ||w||`` with ``d_hat . w / ||w|| =
+-1 / sqrt(1 + ||y||^2)``, so the cut problem is *maximising the convex function ||y|| over
+S*, not a convex program: its optimum lies at an extreme point of ``S`` (the 0-dimensional
+pieces above). Norm maximisation over a polytope given by inequalities is NP-hard when the
+dimension is part of the input (Bodlaender, Gritzmann, Klee and van Leeuwen, Combinatorica
+10, 1990), so unless P = NP no polynomial-time method returns the global optimum for every
+``n``; for a fixed ``n`` the faces are polynomially many.
+
+Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
+
+``"enumerate"`` (the baseline)
+    Every subset of planes: at most ``sum_{i < n} C(m, i)`` small linear algebra problems,
+    batched, keeping the feasible candidates and taking the best. A global optimum, but
+    exponential in ``n``: 0.14 s at ``n = 4`` with 40 inner points, 12-19 s at ``n = 6``
+    (``benchmarks/bench_cuts.py``; issue 11 measured 26 s on another machine).
+``"hull"``
+    Only the faces of the polyhedral cone ``P0 = {C w <= 0}``: with ``g`` interior to ``P0``
+    (minus the minimum-norm point of the convex hull of the rows, one NNLS), the points
+    ``c_j / (-g . c_j)`` span a polytope in ``n - 1`` dimensions whose faces are polar to those
+    of ``P0`` (Qhull). Its facets give the extreme rays of ``P0``; the subsets of size
+    ``<= n - 2`` of the triangulated facets span every face of ``P0`` of dimension ``>= 2``
+    and so give every margin-circle candidate that can be feasible; redundant rows never
+    enter. The same global optimum as the enumeration, with ``O(m^{floor((n-1)/2)})`` faces
+    (upper bound theorem): about 1 ms at ``n = 4`` with 40 points, 30 ms at ``n = 6``.
+    Where it does not apply (``n = 2``, ``P0`` without interior or not pointed) the
+    enumeration runs if it is cheap (``<= 20,000`` subsets).
+``"local"``
+    Polynomial time in ``n`` and ``m``: the most separating normal ``Proj_P0(s_hat)`` (one
+    NNLS; it is admissible exactly when a cut exists), a local maximiser of ``d_hat . w`` from
+    it (SLSQP, bounded iterations) and that point polished to the closed form of its active
+    set. The best admissible one is returned with ``optimal=False``: a verified separating
+    cut, possibly not the closest to x*.
+``"auto"`` (default; ``"hull"`` is the same)
+    ``"hull"`` (or the cheap enumeration) while the candidate count stays within budget
+    (``2^{n-1}`` times the number of hull simplices ``<= 200,000``), ``"local"`` beyond, and
+    ``"local"`` also if no exact candidate survives the re-check.
+
+Existence is decided exactly before branch 2 (except by ``"enumerate"``, which keeps its
+historical rule: refuse iff no candidate is admissible): a cut exists iff ``max {s_hat . w :
+C w <= 0, ||w|| <= 1} = ||Proj_P0(s_hat)|| >= mu`` (Moreau), and the NNLS multipliers are
+the dual certificate of a refusal.
+
+Every answer, from any branch and method, re-checks every constraint (unit norm, each inner
+point, the margin); :class:`~tli_verify.errors.SolverError` is raised when no admissible normal
+exists (the failure direction lies in the cone spanned by the inner points: no plane through
+``x^{T_f-1}`` separates them).
 
 References
 ----------
@@ -61,9 +105,10 @@ References
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -72,6 +117,7 @@ from tli_verify.errors import ModelError, SolverError
 
 __all__ = [
     "Cut",
+    "CutMethod",
     "CutSolution",
     "InvarianceFailure",
     "cut_offsets",
@@ -81,6 +127,11 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+CutMethod = Literal["auto", "hull", "enumerate", "local"]
+"""How :func:`solve_cut_detailed` searches the boundary of K (see the module docstring)."""
+
+_METHODS = ("auto", "hull", "enumerate", "local")
 
 _UNIT_TOL = 1e-6
 """Largest accepted deviation of ``||normal||`` from 1."""
@@ -226,6 +277,13 @@ class CutSolution:
         :mod:`tli_verify.boundary.modulation`).
     candidates : int
         Number of boundary candidates examined (0 when branch 1 answered).
+    optimal : bool
+        True when the cut is the global optimum of the QCQP (branch 1, or a complete candidate
+        set); False for the polynomial-time local answer, which is a verified separating cut
+        (every constraint re-checked) but possibly not the closest to ``x*``.
+    method : str
+        What produced the answer: ``"projection"`` (branch 1), ``"hull"``, ``"enumerate"``
+        or ``"local"``.
     """
 
     cut: Cut
@@ -233,6 +291,8 @@ class CutSolution:
     separation: float
     through_attractor: bool
     candidates: int
+    optimal: bool = True
+    method: str = "enumerate"
 
 
 def _previous_points(previous: Sequence[Cut | npt.ArrayLike], n: int) -> list[FloatArray]:
@@ -283,8 +343,9 @@ def solve_cut_detailed(
     previous: Sequence[Cut | npt.ArrayLike] = (),
     keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
+    method: CutMethod = "auto",
 ) -> CutSolution:
-    """Solve the cut QCQP of paper appendix F exactly (see the module docstring).
+    """Solve the cut QCQP of paper appendix F (see the module docstring).
 
     Parameters
     ----------
@@ -299,10 +360,18 @@ def solve_cut_detailed(
         observed mode-entry state, not only this failure's ``x^0``). Each adds one row to ``C``.
     margin : float, optional
         ``mu`` in ``w . (x^{T_f} - x^{T_f-1}) >= mu ||x^{T_f} - x^{T_f-1}||``; in ``(0, 1)``.
+    method : {"auto", "hull", "enumerate", "local"}, optional
+        ``"enumerate"``: every subset of planes (the baseline, exponential in ``n``);
+        ``"hull"`` and ``"auto"`` (default): only the faces of the polyhedral cone (Qhull),
+        or the enumeration where the hull does not apply and the enumeration is cheap, and
+        the local answer beyond these budgets; ``"local"``: the polynomial-time verified
+        separating cut. ``CutSolution.method`` tells which ran, ``CutSolution.optimal``
+        whether the answer is proved globally optimal.
 
     Returns
     -------
     CutSolution
+        ``optimal`` says whether the answer is the global optimum.
 
     Raises
     ------
@@ -317,6 +386,8 @@ def solve_cut_detailed(
     """
     if not 0.0 < margin < 1.0:
         raise ModelError(f"margin must be in (0, 1), got {margin}")
+    if method not in _METHODS:
+        raise ModelError(f"method must be one of {', '.join(_METHODS)}, got {method!r}")
     x_star = _vector(attractor, "attractor")
     last = failure.last_inside
     n = last.size
@@ -362,15 +433,104 @@ def solve_cut_detailed(
     if pnorm >= margin * (1.0 + 1e-9):
         w = proj / pnorm
         return _finish(w, C, d_hat, s_hat, s_norm, norms, last, margin, 0, feas_tol,
-                       degenerate=True)
+                       degenerate=True, optimal=True, method="projection")
     if d_is_zero:
         raise SolverError(
             "no separating cut: every plane through the last in-mode state that keeps the "
             "entry state and earlier cut points inside also keeps the failure state inside"
         )
 
-    # Branch 2: enumerate the 0-dimensional boundary pieces of K on the sphere.
+    # Branch 2: the optimum is a 0-dimensional boundary piece of K on the sphere.
+    if method == "enumerate":
+        W_all = _enumerated_candidates(C, d_hat, s_hat, margin)
+        W_ok = _feasible(W_all, C, s_hat, margin, feas_tol)
+        if W_ok.shape[0] == 0:
+            raise SolverError(_NO_CUT_MESSAGE.format(margin=margin))
+        return _finish(_best(W_ok, d_hat, s_hat), C, d_hat, s_hat, s_norm, norms, last, margin,
+                       int(W_all.shape[0]), feas_tol, degenerate=False, optimal=True,
+                       method="enumerate")
+
+    # Existence first, exactly: max {s_hat . w : C w <= 0, ||w|| <= 1} = ||Proj_P0(s_hat)||
+    # (Moreau; P0 = {C w <= 0}). Below the margin no cut exists and the NNLS multipliers are
+    # the dual certificate; otherwise the normalised projection is an admissible normal.
+    proj0 = _nnls_projection(s_hat, C)
+    pn0 = float(np.linalg.norm(proj0))
+    if pn0 < margin:
+        raise SolverError(_NO_CUT_MESSAGE.format(margin=margin))
+    w_sep = proj0 / pn0
+
     m = C.shape[0]
+    W: FloatArray | None = None
+    used = str(method)
+    if method in ("auto", "hull"):
+        W = _hull_candidates(C, d_hat, s_hat, margin, budget=_HULL_BUDGET)
+        used = "hull"
+    if W is None and method in ("auto", "hull") and _enumeration_size(m, n) <= _ENUM_BUDGET:
+        W = _enumerated_candidates(C, d_hat, s_hat, margin)
+        used = "enumerate"
+    if W is not None:
+        W_ok = _feasible(W, C, s_hat, margin, feas_tol)
+        if W_ok.shape[0]:
+            try:
+                return _finish(_best(W_ok, d_hat, s_hat), C, d_hat, s_hat, s_norm, norms, last,
+                               margin, int(W.shape[0]), feas_tol, degenerate=False,
+                               optimal=True, method=used)
+            except SolverError:
+                pass  # numerically unsound candidate: fall back to the verified local answer
+    # Polynomial-time fallback: local ascent from the most separating normal, re-checked.
+    W_loc = _local_candidates(C, d_hat, s_hat, margin, w_sep)
+    W_ok = _feasible(W_loc, C, s_hat, margin, feas_tol)
+    if W_ok.shape[0] == 0:  # w_sep is admissible up to rounding; take it as it is
+        W_ok = w_sep[None, :]
+    return _finish(_best(W_ok, d_hat, s_hat), C, d_hat, s_hat, s_norm, norms, last, margin,
+                   int(W_loc.shape[0]), feas_tol, degenerate=False, optimal=False, method="local")
+
+
+_NO_CUT_MESSAGE = (
+    "no separating cut: no plane through the last in-mode state keeps x*, the entry "
+    "state and earlier cut points inside while putting the failure state outside "
+    "(margin {margin:g})"
+)
+
+_HULL_BUDGET = 200_000
+"""Largest number of boundary candidates the hull method generates before giving up."""
+
+_ENUM_BUDGET = 20_000
+"""Largest ``sum_{i<n} C(m, i)`` for which ``method="auto"`` enumerates without the hull."""
+
+
+def _enumeration_size(m: int, n: int) -> int:
+    """Number of subsets the plain enumeration visits: ``sum_{i < n} C(m, i)``."""
+    return sum(math.comb(m, i) for i in range(n))
+
+
+def _feasible(W: FloatArray, C: FloatArray, s_hat: FloatArray, margin: float,
+              tol: float) -> FloatArray:
+    """Rows of ``W`` (normalised) meeting every constraint up to ``tol``."""
+    if W.shape[0] == 0:
+        return W
+    norms = np.linalg.norm(W, axis=1, keepdims=True)
+    W = W[norms[:, 0] > 0] / norms[norms[:, 0] > 0]
+    ok = np.all(W @ C.T <= tol, axis=1) & (W @ s_hat >= margin - tol)
+    return np.asarray(W[ok], dtype=np.float64)
+
+
+def _best(W_ok: FloatArray, d_hat: FloatArray, s_hat: FloatArray) -> FloatArray:
+    """Largest ``d_hat . w``; among ties (1e-12) the most separating."""
+    obj = W_ok @ d_hat
+    best = float(np.max(obj))
+    ties = obj >= best - 1e-12
+    return np.asarray(W_ok[int(np.argmax(np.where(ties, W_ok @ s_hat, -np.inf)))])
+
+
+def _enumerated_candidates(C: FloatArray, d_hat: FloatArray, s_hat: FloatArray,
+                           margin: float) -> FloatArray:
+    """Every 0-dimensional boundary piece of K on the sphere, by plain enumeration.
+
+    The baseline (``method="enumerate"``): ``sum_{i < n} C(m, i)`` subsets of the rows of
+    ``C``, shape (m, n). Returns candidate normals, shape (N, n), not yet checked.
+    """
+    m, n = C.shape
     cands: list[FloatArray] = []
     # (i) rays where n-1 constraint planes meet
     if m >= n - 1:
@@ -420,25 +580,156 @@ def solve_cut_detailed(
                 u[i] += 1.0
                 u -= (float(u @ a) / aa) * a
                 cands.append((B @ (y0 + rho * u / np.linalg.norm(u)))[None, :])
-    W = np.vstack(cands) if cands else np.zeros((0, n))
-    if W.shape[0]:
-        W = W / np.linalg.norm(W, axis=1, keepdims=True)
-        feasible = np.all(W @ C.T <= feas_tol, axis=1) & (W @ s_hat >= margin - feas_tol)
-        W_ok = W[feasible]
+    return np.vstack(cands) if cands else np.zeros((0, n))
+
+
+def _ray_candidates(C: FloatArray, idx: npt.NDArray[np.intp]) -> FloatArray:
+    """``+-u`` for every subset (rows of ``idx``, shape (B, n-1)) whose planes meet in a ray."""
+    n = C.shape[1]
+    if idx.shape[0] == 0:
+        return np.zeros((0, n))
+    bases, rank = _null_vectors(C[idx], 1e-12)
+    u = bases[rank == n - 1, :, -1]
+    return np.vstack([u, -u])
+
+
+def _circle_candidates(C: FloatArray, idx: npt.NDArray[np.intp], d_hat: FloatArray,
+                       s_hat: FloatArray, margin: float) -> FloatArray:
+    """Maximiser of ``d_hat . w`` on the circle ``{s_hat . w = mu, ||w|| = 1}`` of the null
+    space of each subset of planes (rows of ``idx``, shape (B, size)); batched form of the
+    circle branch of :func:`_enumerated_candidates` (same closed forms, same tie rule)."""
+    n = C.shape[1]
+    if idx.shape[1] == 0:
+        bases = np.eye(n)[None, :, :]
+        rank = np.zeros(1)
     else:
-        W_ok = W
-    if W_ok.shape[0] == 0:
-        raise SolverError(
-            "no separating cut: no plane through the last in-mode state keeps x*, the entry "
-            "state and earlier cut points inside while putting the failure state outside "
-            f"(margin {margin:g})"
-        )
-    obj = W_ok @ d_hat
-    best = float(np.max(obj))
-    ties = obj >= best - 1e-12
-    pick = int(np.argmax(np.where(ties, W_ok @ s_hat, -np.inf)))
-    return _finish(W_ok[pick], C, d_hat, s_hat, s_norm, norms, last, margin, int(W.shape[0]),
-                   feas_tol, degenerate=False)
+        bases, rank = _null_vectors(C[idx], 1e-12)
+    out: list[FloatArray] = []
+    for r in np.unique(rank):
+        k = n - int(r)
+        if k < 2:
+            continue
+        B = bases[rank == r][:, :, int(r):]  # (G, n, k)
+        a = np.einsum("gnk,n->gk", B, s_hat)
+        b = np.einsum("gnk,n->gk", B, d_hat)
+        aa = np.einsum("gk,gk->g", a, a)
+        keep = aa >= margin * margin
+        B, a, b, aa = B[keep], a[keep], b[keep], aa[keep]
+        if B.shape[0] == 0:
+            continue
+        y0 = (margin / aa)[:, None] * a
+        rho = np.sqrt(np.maximum(0.0, 1.0 - margin * margin / aa))[:, None]
+        if k == 2:
+            z = np.column_stack([-a[:, 1], a[:, 0]]) / np.sqrt(aa)[:, None]
+            out.append(np.einsum("gnk,gk->gn", B, y0 + rho * z))
+            out.append(np.einsum("gnk,gk->gn", B, y0 - rho * z))
+            continue
+        b_perp = b - (np.einsum("gk,gk->g", b, a) / aa)[:, None] * a
+        b_perp -= (np.einsum("gk,gk->g", b_perp, a) / aa)[:, None] * a
+        bp = np.linalg.norm(b_perp, axis=1)
+        # constant d . w on the circle: one point of it (as in _enumerated_candidates)
+        i = np.argmin(np.abs(a), axis=1)
+        ai = a[np.arange(a.shape[0]), i]
+        u = -(ai / aa)[:, None] * a
+        u[np.arange(a.shape[0]), i] += 1.0
+        u -= (np.einsum("gk,gk->g", u, a) / aa)[:, None] * a
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        direction = np.where((bp > 1e-12)[:, None], b_perp / np.maximum(bp, 1e-300)[:, None], u)
+        out.append(np.einsum("gnk,gk->gn", B, y0 + rho * direction))
+    return np.vstack(out) if out else np.zeros((0, n))
+
+
+def _hull_candidates(C: FloatArray, d_hat: FloatArray, s_hat: FloatArray, margin: float,
+                     *, budget: int) -> FloatArray | None:
+    """The 0-dimensional boundary pieces of K that can hold the optimum, from the face
+    lattice of ``P0 = {C w <= 0}`` (convex hull by Qhull); None where the method does not
+    apply (``n < 3``, ``P0`` without interior or not pointed, Qhull failing, over budget).
+
+    With ``g`` interior to ``P0`` (``C g < 0``), the points ``p_j = c_j / (-g . c_j)`` lie on
+    the hyperplane ``g . x = -1``; the faces of their convex hull (dimension ``n - 1``) are the
+    sections of the faces of ``cone(rows of C)``, which are polar to the faces of ``P0``: a
+    facet gives an extreme ray of ``P0`` (its planes meet in it), a face of dimension
+    ``n - 1 - k`` a face of ``P0`` of dimension ``k`` whose linear span is the null space of
+    the planes of any ``n - k`` affinely independent points of it. Every face of a
+    triangulated facet is spanned by a subset of one simplex, so the simplices of the
+    triangulated hull and their subsets of size ``<= n - 2`` give every candidate of
+    :func:`_enumerated_candidates` that can be feasible, and rows inside the hull (redundant
+    constraints) are never enumerated.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    m, n = C.shape
+    if n < 3 or m < n:
+        return None
+    # g: minus the minimum-norm point p of conv(rows) (c_j . p >= ||p||^2 > 0 for every j)
+    from scipy.optimize import nnls
+
+    weight = 1e3
+    A = np.vstack([C.T, weight * np.ones((1, m))])
+    lam, _ = nnls(A, np.concatenate([np.zeros(n), [weight]]))
+    if lam.sum() <= 0.0:
+        return None
+    g = -(C.T @ lam) / lam.sum()
+    g_norm = float(np.linalg.norm(g))
+    if g_norm < 1e-9:
+        return None
+    g /= g_norm
+    h = -(C @ g)
+    if float(np.min(h)) <= 1e-9:
+        return None
+    _, _, vt = np.linalg.svd(g[None, :])
+    Y = (C / h[:, None]) @ vt[1:].T  # (m, n-1) section coordinates
+    try:
+        hull = ConvexHull(Y)
+    except (QhullError, ValueError):
+        return None
+    simplices = np.asarray(hull.simplices, dtype=np.intp)  # (F, n-1)
+    if simplices.shape[0] * 2 ** (n - 1) > budget:
+        return None
+    parts = [_ray_candidates(C, simplices)]
+    parts.append(_circle_candidates(C, np.zeros((1, 0), dtype=np.intp), d_hat, s_hat, margin))
+    for size in range(1, n - 1):
+        cols = np.array(list(itertools.combinations(range(n - 1), size)), dtype=np.intp)
+        sub = np.sort(simplices[:, cols].reshape(-1, size), axis=1)
+        if float(m) ** size < 2.0**62:  # one integer key per subset: a 1-D unique is faster
+            keys = sub @ (m ** np.arange(size - 1, -1, -1, dtype=np.int64))
+            _, first = np.unique(keys, return_index=True)
+            sub = sub[first]
+        else:
+            sub = np.unique(sub, axis=0)
+        parts.append(_circle_candidates(C, sub, d_hat, s_hat, margin))
+    return np.vstack(parts)
+
+
+def _local_candidates(C: FloatArray, d_hat: FloatArray, s_hat: FloatArray, margin: float,
+                      w_start: FloatArray) -> FloatArray:
+    """Polynomial-time candidates: the most separating normal ``w_start``, a local maximiser
+    of ``d_hat . w`` from it (SLSQP on the sphere) and that point polished to the closed form
+    of its active set (a ray or a margin-circle point). Shape (N, n), not yet checked."""
+    from scipy.optimize import minimize
+
+    n = C.shape[1]
+    cons: list[dict[str, Any]] = [
+        {"type": "eq", "fun": lambda w: w @ w - 1.0, "jac": lambda w: 2.0 * w},
+        {"type": "ineq", "fun": lambda w: s_hat @ w - margin, "jac": lambda w: s_hat},
+        {"type": "ineq", "fun": lambda w: -(C @ w), "jac": lambda w: -C},
+    ]
+    out = [w_start[None, :]]
+    res = minimize(lambda w: -(d_hat @ w), w_start, jac=lambda w: -d_hat, constraints=cons,
+                   method="SLSQP", options={"maxiter": 200, "ftol": 1e-13})
+    w = np.asarray(res.x, dtype=np.float64)
+    if np.all(np.isfinite(w)) and np.linalg.norm(w) > 0:
+        w = w / np.linalg.norm(w)
+        out.append(w[None, :])
+        active = np.flatnonzero(C @ w > -1e-7)
+        if float(s_hat @ w) - margin < 1e-7 and active.size <= n - 2:
+            out.append(_circle_candidates(C, active[None, :], d_hat, s_hat, margin))
+        elif active.size >= n - 1:
+            rows = C[active]
+            _, sv, vt = np.linalg.svd(rows)
+            if sv.size >= n - 1 and sv[n - 2] > 1e-12 and (sv.size < n or sv[-1] <= 1e-9):
+                out.append(np.vstack([vt[-1], -vt[-1]]))
+    return np.vstack(out)
 
 
 def _finish(
@@ -454,6 +745,8 @@ def _finish(
     tol: float,
     *,
     degenerate: bool,
+    optimal: bool,
+    method: str,
 ) -> CutSolution:
     """Re-check every constraint of the answer independently of how it was found."""
     w = w / np.linalg.norm(w)
@@ -474,6 +767,8 @@ def _finish(
         separation=sep * s_norm,
         through_attractor=degenerate,
         candidates=candidates,
+        optimal=optimal,
+        method=method,
     )
 
 
@@ -484,6 +779,7 @@ def solve_cut(
     previous: Sequence[Cut | npt.ArrayLike] = (),
     keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
+    method: CutMethod = "auto",
 ) -> Cut:
     """Cut for one invariance failure: :func:`solve_cut_detailed` without the diagnostics.
 
@@ -494,6 +790,7 @@ def solve_cut(
     previous : sequence of Cut or array_like, optional
     keep_inside : array_like, shape (k, n), optional
     margin : float, optional
+    method : {"auto", "hull", "enumerate", "local"}, optional
 
     Returns
     -------
@@ -505,7 +802,7 @@ def solve_cut(
         When no separating cut exists.
     """
     return solve_cut_detailed(failure, attractor, previous=previous, keep_inside=keep_inside,
-                              margin=margin).cut
+                              margin=margin, method=method).cut
 
 
 def cut_offsets(cuts: Sequence[Cut], attractor: npt.ArrayLike) -> FloatArray:
