@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.logic.diagnose import Step
-from tli_verify.logic.gr1 import Game, build_game, least_assignment, solve
+from tli_verify.logic.gr1 import Game, build_game, closed_relation, least_assignment, solve
 from tli_verify.logic.spec import GR1Spec, SpecFormula, SpecSide
 
 __all__ = [
@@ -168,8 +168,11 @@ def well_separation(game: Game) -> WellSeparation:
     path = game.spec.path
     X = list(game.inputs)
     if bdd.exist(X, game.theta_e) == bdd.false:
+        # No initial reading satisfies the initial assumptions and lets the safety
+        # assumptions hold from time 0 on.
+        named = [f for f, _ in game.init_e] + [f for f, _ in game.safety_e]
         return WellSeparation(False, "initial",
-                              tuple(f"{f.where(path)}: {f.text}" for f, _ in game.init_e))
+                              tuple(f"{f.where(path)}: {f.text}" for f in named))
     env_goals = [g.bdd for g in game.env_goals]
     winning = _env_winning(game, env_goals)
     bad_start = game.theta_e & game.theta_s & ~winning
@@ -206,9 +209,7 @@ def _broken_safety(game: Game, state: dict[str, bool] | None) -> tuple[str, ...]
     k = 0
     while k < len(parts):
         rest = parts[:k] + parts[k + 1:]
-        u = bdd.true
-        for _, b in rest:
-            u &= b
+        u = closed_relation(game, [b for _, b in rest], system=False)
         if bdd.exist(game.inputs_next, bdd.let(state, u)) == bdd.false:
             parts = rest
         else:
