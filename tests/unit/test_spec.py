@@ -6,9 +6,12 @@ import re
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tli_verify.errors import SpecError
-from tli_verify.logic.spec import label_holds, load_spec, parse_spec
+from tli_verify.logic.ltl import MAX_FORMULA_CHARS, MAX_FORMULA_DEPTH
+from tli_verify.logic.spec import MAX_TOML_DEPTH, label_holds, load_spec, parse_spec
 
 MINIMAL = """
 name = "t"
@@ -99,3 +102,74 @@ def test_parse_spec_defaults() -> None:
     assert spec.modes is None
     assert spec.expect_realizable
     assert spec.mode_names == ("a", "b")
+
+
+# --- issue 10, class 3: nesting limits ------------------------------------------------------
+
+def _nest(kind: str, depth: int) -> str:
+    """A formula over ``r`` and ``a`` nested ``depth`` levels by one constructor."""
+    if kind == "paren":
+        return "(" * depth + "a" + ")" * depth
+    if kind == "not":
+        return "!(" * depth + "a" + ")" * depth
+    if kind == "or":
+        return "(a | " * depth + "a" + ")" * depth
+    if kind == "implies":  # right-associative: nests without parentheses
+        return "r -> " * depth + "a"
+    return "(r <-> " * depth + "r" + ")" * depth
+
+
+_FIELDS = {
+    # field -> (spec text around the formula, expected field tag in the message)
+    "init": ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\ninit = "{f}"\n',
+             ":4: guarantee.init[0]"),
+    "safety": ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nsafety = ["G({f})"]\n',
+               ":4: guarantee.safety[0]"),
+    "label": ('inputs = ["r", "s"]\noutputs = ["a", "b"]\n[modes]\na = "{f}"\nb = "!r"\n',
+              ":4: modes.a"),
+}
+
+
+@settings(max_examples=60, deadline=None)
+@given(kind=st.sampled_from(["paren", "not", "or", "implies", "iff"]),
+       field=st.sampled_from(sorted(_FIELDS)), depth=st.integers(101, 4000))
+def test_deep_formulas_are_refused_naming_file_line_field_and_limit(
+        kind: str, field: str, depth: int) -> None:
+    template, tag = _FIELDS[field]
+    formula = _nest(kind, depth)
+    if field == "label":
+        formula = formula.replace("a", "s")
+    text = template.replace("{f}", formula)
+    if len(formula) > MAX_FORMULA_CHARS:
+        with pytest.raises(SpecError, match="longer than"):
+            parse_spec(text, path="deep.toml")
+        return
+    with pytest.raises(SpecError) as info:
+        parse_spec(text, path="deep.toml")
+    message = str(info.value)
+    assert message.startswith("deep.toml" + tag), message
+    assert f"limit of {MAX_FORMULA_DEPTH} levels" in message
+
+
+@pytest.mark.parametrize("kind", ["paren", "not", "or", "implies", "iff"])
+def test_formulas_within_the_depth_limit_load(kind: str) -> None:
+    text = _FIELDS["safety"][0].replace("{f}", _nest(kind, 40))
+    assert parse_spec(text, path="ok.toml").guarantee.safety
+
+
+def test_deep_toml_nesting_is_refused() -> None:
+    for depth in (MAX_TOML_DEPTH + 1, 5000):
+        text = 'inputs = ["r"]\noutputs = ["a"]\nname = ' + "[" * depth + "]" * depth + "\n"
+        with pytest.raises(SpecError, match=f"limit of {MAX_TOML_DEPTH} levels"):
+            parse_spec(text, path="deep.toml")
+
+
+def test_gate_blocks_a_deep_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tli_verify.cli import main
+
+    (tmp_path / "specs").mkdir()
+    (tmp_path / "specs" / "deep.toml").write_text(
+        _FIELDS["init"][0].replace("{f}", _nest("or", 3000)))
+    assert main(["gate", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: gate blocked") and "limit of" in err

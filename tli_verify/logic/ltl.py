@@ -25,6 +25,8 @@ from tli_verify.errors import SpecError
 
 __all__ = [
     "AP_PATTERN",
+    "MAX_FORMULA_CHARS",
+    "MAX_FORMULA_DEPTH",
     "RESERVED",
     "Slot",
     "atomic_propositions",
@@ -40,6 +42,12 @@ operators: ``G``, ``F``, ``X``, ``U``, ``W``, ``R``, ``M``)."""
 RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
 MAX_FORMULA_CHARS = 20_000
+"""Longest formula text accepted (characters)."""
+
+MAX_FORMULA_DEPTH = 100
+"""Deepest nesting accepted: of parentheses in the text, and of operators in the parsed
+formula (``a -> a -> ...`` nests without parentheses). Real task formulas nest a few levels;
+the limit keeps every recursive pass over a formula far from Python's recursion limit."""
 
 
 class Slot(Enum):
@@ -84,6 +92,9 @@ def parse_formula(text: str, *, where: str) -> Any:
         raise SpecError(f"{where}: formula longer than {MAX_FORMULA_CHARS} characters")
     if "\x00" in text:
         raise SpecError(f"{where}: formula contains a NUL character")
+    if _paren_depth(text) > MAX_FORMULA_DEPTH:
+        raise SpecError(f"{where}: formula nests parentheses deeper than the limit of "
+                        f"{MAX_FORMULA_DEPTH} levels")
     spot = _spot()
     try:
         f = spot.formula(text)
@@ -94,7 +105,35 @@ def parse_formula(text: str, *, where: str) -> Any:
                         ) from None
     if not f.is_ltl_formula():
         raise SpecError(f"{where}: {text!r} uses PSL/SERE operators; GR(1) specs use LTL only")
+    if formula_depth(f) > MAX_FORMULA_DEPTH:
+        raise SpecError(f"{where}: formula nests operators deeper than the limit of "
+                        f"{MAX_FORMULA_DEPTH} levels")
     return f
+
+
+def _paren_depth(text: str) -> int:
+    """Deepest nesting of ``(``/``[``/``{`` in ``text`` (unbalanced text is Spot's to reject)."""
+    depth = deepest = 0
+    for ch in text:
+        if ch in "([{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in ")]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def formula_depth(f: Any) -> int:
+    """Operator nesting depth of a parsed formula (an atom has depth 1), without recursion."""
+    deepest = 0
+    stack = [(f, 1)]
+    while stack:
+        g, d = stack.pop()
+        deepest = max(deepest, d)
+        if d > MAX_FORMULA_DEPTH:  # deep enough to reject; no need to walk further
+            return d
+        stack.extend((c, d + 1) for c in g)
+    return deepest
 
 
 def atomic_propositions(f: Any) -> set[str]:

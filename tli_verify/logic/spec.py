@@ -57,6 +57,8 @@ _TOP_KEYS = frozenset(
 )
 _SIDE_KEYS = frozenset({"init", "safety", "liveness"})
 EXPECTATIONS = ("realizable", "unrealizable", "not-well-separated")
+MAX_TOML_DEPTH = 16
+"""Deepest nesting of TOML arrays and tables accepted in a spec (a spec needs 3)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,6 +193,13 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib reads nested arrays recursively
+        raise SpecError(f"{where}:{_deep_line(text)}: arrays or tables nested deeper than "
+                        f"the limit of {MAX_TOML_DEPTH} levels") from None
+    deep = _too_deep(data)
+    if deep is not None:
+        raise SpecError(f"{where}: '{deep}': arrays or tables nested deeper than the limit of "
+                        f"{MAX_TOML_DEPTH} levels")
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise SpecError(f"{where}: unknown top-level key {unknown[0]!r} "
@@ -229,6 +238,31 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         expect=expect,
         description=description,
     )
+
+
+def _too_deep(data: Any) -> str | None:
+    """The top-level key of a value nested deeper than ``MAX_TOML_DEPTH`` (no recursion)."""
+    stack: list[tuple[str, Any, int]] = [(str(k), v, 1) for k, v in data.items()]
+    while stack:
+        key, value, depth = stack.pop()
+        if depth > MAX_TOML_DEPTH:
+            return key
+        if isinstance(value, dict):
+            stack.extend((key, v, depth + 1) for v in value.values())
+        elif isinstance(value, list):
+            stack.extend((key, v, depth + 1) for v in value)
+    return None
+
+
+def _deep_line(text: str) -> int:
+    """Best-effort line where bracket nesting first exceeds ``MAX_TOML_DEPTH``."""
+    depth = 0
+    for number, line in enumerate(text.splitlines(), start=1):
+        for ch in line:
+            depth += (ch in "[{") - (ch in "]}")
+            if depth > MAX_TOML_DEPTH:
+                return number
+    return 1
 
 
 def label_holds(spec: GR1Spec, mode: str, sensors: Mapping[str, bool]) -> bool:
