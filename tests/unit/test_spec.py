@@ -173,3 +173,9 @@ def test_gate_blocks_a_deep_spec(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["gate", str(tmp_path)]) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: gate blocked") and "limit of" in err
+
+
+@pytest.mark.parametrize("name", ["a\\nb", "tab\\tbed", "bell\\u0007", "nul\\u0000"])
+def test_spec_names_with_control_characters_are_refused(name: str) -> None:
+    with pytest.raises(SpecError, match=r"n.toml:1: 'name' must be one line"):
+        parse_spec(f'name = "{name}"\n' + MINIMAL.replace('name = "t"\n', ""), path="n.toml")

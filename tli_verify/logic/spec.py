@@ -208,6 +208,9 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     name = data.get("name", default_name)
     if not isinstance(name, str) or not name:
         raise SpecError(f"{where}: 'name' must be a non-empty string")
+    if any(ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0 for ch in name):
+        raise SpecError(f"{where}:{lines.key('name') or 1}: 'name' must be one line without "
+                        "control characters")
     description = data.get("description", "")
     if not isinstance(description, str):
         raise SpecError(f"{where}: 'description' must be a string")
