@@ -145,3 +145,17 @@ def test_unsatisfiable_safety_assumptions_are_an_initial_failure() -> None:
     assert [f.split(": ", 1)[1] for f in result.well_separation.formulas] == ["G(r)", "G(!r)"]
     assert any("vacuously" in w for w in result.warnings)
     assert not ExplicitGame(s).well_separated()
+
+
+def test_well_separation_with_state_assumptions_matches_explicit() -> None:
+    """X-free assumptions G(p) over inputs and outputs: our verdicts agree with the explicit
+    construction (which applies them at time 0 independently), both verdicts occur."""
+    config = RandomSpecConfig(n_inputs=2, n_outputs=2, n_env_safety=3, n_env_live=1,
+                              env_state_safety=0.5)
+    verdicts = []
+    for seed in range(50):
+        spec = random_spec(config, 60_000 + seed)
+        ours = well_separation(build_game(spec)).well_separated
+        assert ours == ExplicitGame(spec).well_separated(), spec.path
+        verdicts.append(ours)
+    assert 0.1 < sum(verdicts) / len(verdicts) < 0.95
