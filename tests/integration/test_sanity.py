@@ -132,6 +132,13 @@ def test_assumption_safety_applies_at_time_zero(tmp_path: Path,
     assert ExplicitGame(result.spec).well_separated()
     assert main(["spec", "check", "--strict", str(path)]) == 0
     assert "NOT well-separated" not in capsys.readouterr().out
+    # The gate re-checks the spec and does not block it (other gate items may still block
+    # a directory that holds no model).
+    (tmp_path / "specs").mkdir()
+    (tmp_path / "specs" / "ws.toml").write_text(WS_TIME_ZERO)
+    main(["gate", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert "specs/ws.toml" in out and "BLOCK spec" not in out
 
 
 def test_unsatisfiable_safety_assumptions_are_an_initial_failure() -> None:

@@ -171,8 +171,10 @@ def test_gate_blocks_a_deep_spec(tmp_path: Path, capsys: pytest.CaptureFixture[s
     (tmp_path / "specs" / "deep.toml").write_text(
         _FIELDS["init"][0].replace("{f}", _nest("or", 3000)))
     assert main(["gate", str(tmp_path)]) == 1
-    err = capsys.readouterr().err
-    assert err.startswith("error: gate blocked") and "limit of" in err
+    out, err = capsys.readouterr()
+    assert err.startswith("error: gate blocked")
+    blocked = [line for line in out.splitlines() if line.startswith("BLOCK spec")]
+    assert len(blocked) == 1 and "deep.toml" in blocked[0] and "limit of" in blocked[0]
 
 
 @pytest.mark.parametrize("name", ["a\\nb", "tab\\tbed", "bell\\u0007", "nul\\u0000"])
