@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tli_verify.errors import SpecError
-from tli_verify.logic.ltl import MAX_FORMULA_CHARS, MAX_FORMULA_DEPTH
+from tli_verify.logic.ltl import MAX_FORMULA_CHARS, MAX_FORMULA_DEPTH, MAX_FORMULA_NODES
 from tli_verify.logic.spec import MAX_TOML_DEPTH, label_holds, load_spec, parse_spec
 
 MINIMAL = """
@@ -181,3 +181,36 @@ def test_gate_blocks_a_deep_spec(tmp_path: Path, capsys: pytest.CaptureFixture[s
 def test_spec_names_with_control_characters_are_refused(name: str) -> None:
     with pytest.raises(SpecError, match=r"n.toml:1: 'name' must be one line"):
         parse_spec(f'name = "{name}"\n' + MINIMAL.replace('name = "t"\n', ""), path="n.toml")
+
+
+def test_labels_at_the_depth_limit_load_with_their_mode_constraints() -> None:
+    """The constraints the tool builds around a label add a few levels: a label within the
+    limit must not fail there (with a message that names no file line)."""
+    label = "r -> " * (MAX_FORMULA_DEPTH - 1) + "s"
+    spec = parse_spec(f'inputs = ["r", "s"]\noutputs = ["a", "b"]\n[modes]\na = "{label}"\n'
+                      'b = "!r"\n', path="m.toml")
+    assert spec.added()
+
+
+@pytest.mark.parametrize("n", [14, 30])
+def test_formulas_that_expand_exponentially_are_refused(n: int) -> None:
+    """``F[1:3]`` nested n times is a short text but a huge tree: refused at once (ranges are
+    not GR(1) syntax), and a formula that expands past the node limit is refused too."""
+    text = _FIELDS["safety"][0].replace("{f}", "F[1:3] " * n + "a")
+    with pytest.raises(SpecError, match=r"deep.toml:4: guarantee.safety\[0\]: character '\['"):
+        parse_spec(text, path="deep.toml")
+    import spot
+
+    from tli_verify.logic.ltl import formula_stats
+
+    depth, size = formula_stats(spot.formula("F[1:3] " * n + "a"))  # DAG, counted fast
+    assert size > MAX_FORMULA_NODES and depth == 5 * n + 1
+
+
+@pytest.mark.parametrize("text", ["[] [] X X []", "{a;b}", "a*", '"quoted ap"', "F[1:3] a"])
+def test_non_gr1_syntax_is_refused_before_spot(text: str) -> None:
+    """PSL/SERE characters are refused up front (Spot needs ~14 s on ``[] [] X X []``)."""
+    from tli_verify.logic.ltl import parse_formula
+
+    with pytest.raises(SpecError, match=r"^f.toml:2 init: character .* is not allowed"):
+        parse_formula(text, where="f.toml:2 init")

@@ -41,7 +41,14 @@ from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
-from tli_verify.logic.ltl import Slot, atomic_propositions, classify, is_ap_name, parse_formula
+from tli_verify.logic.ltl import (
+    MAX_FORMULA_DEPTH,
+    Slot,
+    atomic_propositions,
+    classify,
+    is_ap_name,
+    parse_formula,
+)
 
 __all__ = [
     "GR1Spec",
@@ -486,8 +493,12 @@ def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assum
     a_safety = [f"G(X({labels}))"]
 
     def formula(text: str, section: str, index: int) -> SpecFormula:
+        # Built from labels already checked against the limits: allow the few levels and
+        # characters the constraint itself adds.
         return SpecFormula(text=text, section=section, index=index, line=None, origin="modes",
-                           ltl=parse_formula(text, where=f"[modes] constraint {text!r}"))
+                           ltl=parse_formula(text, where=f"[modes] constraint {section}",
+                                             max_chars=None,
+                                             max_depth=MAX_FORMULA_DEPTH + 8))
 
     def extend(side: SpecSide, name: str, inits: list[str], safeties: list[str]) -> SpecSide:
         init = side.init + tuple(formula(t, f"{name}.init", len(side.init) + i)
