@@ -18,6 +18,7 @@ from typing import Any
 
 from tli_verify.io import atomic_write_text
 from tli_verify.logic.check import synthesize
+from tli_verify.logic.escape import markdown_text
 from tli_verify.logic.generate import RandomSpecConfig, chain_spec_text, random_spec
 from tli_verify.logic.gr1 import build_game, solve
 from tli_verify.logic.spec import GR1Spec, load_spec, parse_spec
@@ -103,7 +104,7 @@ def main(out_dir: Path) -> str:
         "|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for name, n_vars, n, t1, t2, ok, real in rows:
-        lines.append(f"| {name} | {n_vars} | {n} | {real}/{n} | {t1 * 1000:.2f} | "
+        lines.append(f"| {markdown_text(name)} | {n_vars} | {n} | {real}/{n} | {t1 * 1000:.2f} | "
                      f"{t2 * 1000:.2f} | "
                      f"{t2 / t1:.1f}x | {'yes' if ok else 'NO'} |")
     lines += ["", f"Scoop spec, parse + realizability + automaton, warm: median "

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.io import atomic_write_text
+from tli_verify.logic.escape import markdown_text
 from tli_verify.logic.generate import RandomSpecConfig, chain_spec_text, random_spec
 from tli_verify.logic.gr1 import build_game, solve
 from tli_verify.logic.sanity import unrealizable_core, vacuity_hints, well_separation
@@ -81,7 +82,8 @@ def main(out_dir: Path) -> str:
         "|---|---:|---|---:|---:|---:|---:|",
     ]
     for name, n, r, t1, t2, t3, t4 in rows:
-        lines.append(f"| {name} | {n} | {r} | {_ms(t1)} | {_ms(t2)} | {_ms(t3)} | {_ms(t4)} |")
+        lines.append(f"| {markdown_text(name)} | {n} | {r} | {_ms(t1)} | {_ms(t2)} | "
+                     f"{_ms(t3)} | {_ms(t4)} |")
     section = "\n".join(lines) + "\n"
     atomic_write_text(out_dir / "sanity.md", section)
     return section

@@ -13,7 +13,7 @@ from tli_verify.logic.check import check_spec, check_spec_file
 from tli_verify.logic.generate import RandomSpecConfig, random_spec
 from tli_verify.logic.gr1 import build_game
 from tli_verify.logic.sanity import _realizable, _with, unrealizable_core, well_separation
-from tli_verify.logic.spec import load_spec
+from tli_verify.logic.spec import load_spec, parse_spec
 
 
 def test_well_separation_matches_explicit_construction() -> None:
@@ -115,3 +115,54 @@ def test_cli_strict_core_json(specs_dir: Path, capsys: pytest.CaptureFixture[str
     assert main(["spec", "check", "--core", str(specs_dir / "scoop-unrealizable.toml")]) == 1
     out = capsys.readouterr().out
     assert "unrealizable core" in out and "scoop-unrealizable.toml:26" in out
+
+
+WS_TIME_ZERO = ('inputs = ["r"]\noutputs = ["a"]\n[assume]\nsafety = ["G(!r)"]\n'
+                '[guarantee]\nliveness = ["GF a"]\n')
+
+
+def test_assumption_safety_applies_at_time_zero(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 10: ``G(!r)`` with no ``init`` forbids starting in ``r``: that is the
+    environment's own violation, not one the system forces, so the spec is well-separated."""
+    path = tmp_path / "ws.toml"
+    path.write_text(WS_TIME_ZERO)
+    result = check_spec_file(path)
+    assert result.realizable and result.well_separated
+    assert ExplicitGame(result.spec).well_separated()
+    assert main(["spec", "check", "--strict", str(path)]) == 0
+    assert "NOT well-separated" not in capsys.readouterr().out
+    # The gate re-checks the spec and does not block it (other gate items may still block
+    # a directory that holds no model).
+    (tmp_path / "specs").mkdir()
+    (tmp_path / "specs" / "ws.toml").write_text(WS_TIME_ZERO)
+    main(["gate", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert "specs/ws.toml" in out and "BLOCK spec" not in out
+
+
+def test_unsatisfiable_safety_assumptions_are_an_initial_failure() -> None:
+    """``G(r)`` and ``G(!r)``: no reading lets the assumptions hold at time 0."""
+    s = parse_spec('inputs = ["r"]\noutputs = ["a"]\n[assume]\n'
+                   'safety = ["G(r -> X r)", "G(r)", "G(!r)"]\n', path="u.toml")
+    result = check_spec(s)
+    assert result.realizable and not result.well_separated
+    assert result.well_separation.kind == "initial"
+    # the culprits: a minimal set, naming the two contradictory formulas only
+    assert [f.split(": ", 1)[1] for f in result.well_separation.formulas] == ["G(r)", "G(!r)"]
+    assert any("vacuously" in w for w in result.warnings)
+    assert not ExplicitGame(s).well_separated()
+
+
+def test_well_separation_with_state_assumptions_matches_explicit() -> None:
+    """X-free assumptions G(p) over inputs and outputs: our verdicts agree with the explicit
+    construction (which applies them at time 0 independently), both verdicts occur."""
+    config = RandomSpecConfig(n_inputs=2, n_outputs=2, n_env_safety=3, n_env_live=1,
+                              env_state_safety=0.5)
+    verdicts = []
+    for seed in range(50):
+        spec = random_spec(config, 60_000 + seed)
+        ours = well_separation(build_game(spec)).well_separated
+        assert ours == ExplicitGame(spec).well_separated(), spec.path
+        verdicts.append(ours)
+    assert 0.1 < sum(verdicts) / len(verdicts) < 0.95

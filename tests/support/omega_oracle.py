@@ -1,9 +1,13 @@
 """An independent GR(1) solver for cross-checks: omega (Filippidis), not our fixpoint code.
 
-The translation here is deliberately the textbook one, not ours: every safety formula
-``G(phi)`` goes into the player's action as written (``X v`` -> ``v'``), an ``X``-free ``phi``
-as a constraint on the current state. Our solver reads ``X``-free guarantees as ``phi'`` plus
-an initial constraint; agreement on random specs therefore also checks that reading.
+The translation here is the textbook one, built with omega's own operators (not our code):
+every safety formula ``G(phi)`` goes into the player's action as written (``X v`` -> ``v'``),
+and, since ``G(phi)`` holds at every position the first included, its current-state
+consequence (where the player's actions can continue forever: ``nu C. exists next. action &
+C'``; for the assumptions with the outputs quantified as well) is added to the player's
+initial condition and, primed, to its action. For an ``X``-free ``phi`` this is the textbook
+``init & phi``, ``action & phi'``. The initial conditions given to omega are thus stated the
+way our solver states them (README, "How it works (logic layer)").
 Settings: ``plus_one=False, moore=False, qinit='\\A \\E'`` (Mealy, standard GR(1)).
 """
 
@@ -79,6 +83,7 @@ def omega_automaton(spec: GR1Spec) -> Any:
         conj([_expr(g) for f in spec.assume.safety for g in _strip_g(f.ltl)]))
     aut.action["sys"] = aut.add_expr(
         conj([_expr(g) for f in spec.guarantee.safety for g in _strip_g(f.ltl)]))
+    _time_zero(aut, spec)
     env_live = [_expr(_unf(g)) for f in spec.assume.liveness for g in _strip_g(f.ltl)]
     sys_live = [_expr(_unf(g)) for f in spec.guarantee.liveness for g in _strip_g(f.ltl)]
     aut.win["<>[]"] = aut.bdds_from(*[f"~ ({p})" for p in env_live] or ["FALSE"])
@@ -87,6 +92,28 @@ def omega_automaton(spec: GR1Spec) -> Any:
     aut.moore = False
     aut.plus_one = False
     return aut
+
+
+def _closure(aut: Any, action: Any, current: list[str], quantified: list[str]) -> Any:
+    """``nu C. exists quantified. action & C'`` with ``C`` over ``current`` (omega operators)."""
+    c = aut.true
+    while True:
+        new = aut.exist(quantified, action & aut.replace_with_primed(current, c))
+        if new == c:
+            return c
+        c = new
+
+
+def _time_zero(aut: Any, spec: GR1Spec) -> None:
+    """Add each side's safety consequence to its initial condition and (primed) action."""
+    xs, ys = list(spec.inputs), list(spec.outputs)
+    xp, yp = [v + "'" for v in xs], [v + "'" for v in ys]
+    safe_e = _closure(aut, aut.action["env"], xs, ys + xp)
+    safe_s = _closure(aut, aut.action["sys"], xs + ys, xp + yp)
+    aut.init["env"] = aut.init["env"] & safe_e
+    aut.init["sys"] = aut.init["sys"] & safe_s
+    aut.action["env"] = aut.action["env"] & aut.replace_with_primed(xs, safe_e)
+    aut.action["sys"] = aut.action["sys"] & aut.replace_with_primed(xs + ys, safe_s)
 
 
 def omega_realizable(spec: GR1Spec) -> bool:

@@ -6,9 +6,12 @@ import re
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tli_verify.errors import SpecError
-from tli_verify.logic.spec import label_holds, load_spec, parse_spec
+from tli_verify.logic.ltl import MAX_FORMULA_CHARS, MAX_FORMULA_DEPTH, MAX_FORMULA_NODES
+from tli_verify.logic.spec import MAX_TOML_DEPTH, label_holds, load_spec, parse_spec
 
 MINIMAL = """
 name = "t"
@@ -99,3 +102,115 @@ def test_parse_spec_defaults() -> None:
     assert spec.modes is None
     assert spec.expect_realizable
     assert spec.mode_names == ("a", "b")
+
+
+# --- issue 10, class 3: nesting limits ------------------------------------------------------
+
+def _nest(kind: str, depth: int) -> str:
+    """A formula over ``r`` and ``a`` nested ``depth`` levels by one constructor."""
+    if kind == "paren":
+        return "(" * depth + "a" + ")" * depth
+    if kind == "not":
+        return "!(" * depth + "a" + ")" * depth
+    if kind == "or":
+        return "(a | " * depth + "a" + ")" * depth
+    if kind == "implies":  # right-associative: nests without parentheses
+        return "r -> " * depth + "a"
+    return "(r <-> " * depth + "r" + ")" * depth
+
+
+_FIELDS = {
+    # field -> (spec text around the formula, expected field tag in the message)
+    "init": ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\ninit = "{f}"\n',
+             ":4: guarantee.init[0]"),
+    "safety": ('inputs = ["r"]\noutputs = ["a"]\n[guarantee]\nsafety = ["G({f})"]\n',
+               ":4: guarantee.safety[0]"),
+    "label": ('inputs = ["r", "s"]\noutputs = ["a", "b"]\n[modes]\na = "{f}"\nb = "!r"\n',
+              ":4: modes.a"),
+}
+
+
+@settings(max_examples=60, deadline=None)
+@given(kind=st.sampled_from(["paren", "not", "or", "implies", "iff"]),
+       field=st.sampled_from(sorted(_FIELDS)), depth=st.integers(101, 4000))
+def test_deep_formulas_are_refused_naming_file_line_field_and_limit(
+        kind: str, field: str, depth: int) -> None:
+    template, tag = _FIELDS[field]
+    formula = _nest(kind, depth)
+    if field == "label":
+        formula = formula.replace("a", "s")
+    text = template.replace("{f}", formula)
+    if len(formula) > MAX_FORMULA_CHARS:
+        with pytest.raises(SpecError, match="longer than"):
+            parse_spec(text, path="deep.toml")
+        return
+    with pytest.raises(SpecError) as info:
+        parse_spec(text, path="deep.toml")
+    message = str(info.value)
+    assert message.startswith("deep.toml" + tag), message
+    assert f"limit of {MAX_FORMULA_DEPTH} levels" in message
+
+
+@pytest.mark.parametrize("kind", ["paren", "not", "or", "implies", "iff"])
+def test_formulas_within_the_depth_limit_load(kind: str) -> None:
+    text = _FIELDS["safety"][0].replace("{f}", _nest(kind, 40))
+    assert parse_spec(text, path="ok.toml").guarantee.safety
+
+
+def test_deep_toml_nesting_is_refused() -> None:
+    for depth in (MAX_TOML_DEPTH + 1, 5000):
+        text = 'inputs = ["r"]\noutputs = ["a"]\nname = ' + "[" * depth + "]" * depth + "\n"
+        with pytest.raises(SpecError, match=f"limit of {MAX_TOML_DEPTH} levels"):
+            parse_spec(text, path="deep.toml")
+
+
+def test_gate_blocks_a_deep_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tli_verify.cli import main
+
+    (tmp_path / "specs").mkdir()
+    (tmp_path / "specs" / "deep.toml").write_text(
+        _FIELDS["init"][0].replace("{f}", _nest("or", 3000)))
+    assert main(["gate", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    assert err.startswith("error: gate blocked")
+    blocked = [line for line in out.splitlines() if line.startswith("BLOCK spec")]
+    assert len(blocked) == 1 and "deep.toml" in blocked[0] and "limit of" in blocked[0]
+
+
+@pytest.mark.parametrize("name", ["a\\nb", "tab\\tbed", "bell\\u0007", "nul\\u0000"])
+def test_spec_names_with_control_characters_are_refused(name: str) -> None:
+    with pytest.raises(SpecError, match=r"n.toml:1: 'name' must be one line"):
+        parse_spec(f'name = "{name}"\n' + MINIMAL.replace('name = "t"\n', ""), path="n.toml")
+
+
+def test_labels_at_the_depth_limit_load_with_their_mode_constraints() -> None:
+    """The constraints the tool builds around a label add a few levels: a label within the
+    limit must not fail there (with a message that names no file line)."""
+    label = "r -> " * (MAX_FORMULA_DEPTH - 1) + "s"
+    spec = parse_spec(f'inputs = ["r", "s"]\noutputs = ["a", "b"]\n[modes]\na = "{label}"\n'
+                      'b = "!r"\n', path="m.toml")
+    assert spec.added()
+
+
+@pytest.mark.parametrize("n", [14, 30])
+def test_formulas_that_expand_exponentially_are_refused(n: int) -> None:
+    """``F[1:3]`` nested n times is a short text but a huge tree: refused at once (ranges are
+    not GR(1) syntax), and a formula that expands past the node limit is refused too."""
+    text = _FIELDS["safety"][0].replace("{f}", "F[1:3] " * n + "a")
+    with pytest.raises(SpecError, match=r"deep.toml:4: guarantee.safety\[0\]: character '\['"):
+        parse_spec(text, path="deep.toml")
+    import spot
+
+    from tli_verify.logic.ltl import formula_stats
+
+    depth, size = formula_stats(spot.formula("F[1:3] " * n + "a"))  # DAG, counted fast
+    assert size > MAX_FORMULA_NODES and depth == 5 * n + 1
+
+
+@pytest.mark.parametrize("text", ["[] [] X X []", "{a;b}", "a*", '"quoted ap"', "F[1:3] a"])
+def test_non_gr1_syntax_is_refused_before_spot(text: str) -> None:
+    """PSL/SERE characters are refused up front (Spot needs ~14 s on ``[] [] X X []``)."""
+    from tli_verify.logic.ltl import parse_formula
+
+    with pytest.raises(SpecError, match=r"^f.toml:2 init: character .* is not allowed"):
+        parse_formula(text, where="f.toml:2 init")

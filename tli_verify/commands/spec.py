@@ -137,7 +137,7 @@ def _automaton(args: argparse.Namespace) -> int:
                          f"{len(automaton.transitions)} transitions\n")
         for s in automaton.states:
             sensors = ",".join(s.inputs) or "-"
-            outs = [f"[{','.join(t.sensors)}]->{t.target}"
+            outs = [f"[{t.label(automaton.inputs)}]->{t.target}"
                     for t in automaton.transitions if t.source == s.id]
             init = "*" if s.id in automaton.initial else " "
             sys.stdout.write(f" {init}{s.id:3d}  mode {s.mode:8s} sensors [{sensors}]  "

@@ -40,6 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import SolverError, TliError
+from tli_verify.logic.escape import markdown_text, markdown_url
 
 __all__ = [
     "NOISE_PERCENT",
@@ -763,7 +764,7 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
             paper = PAPER_TABLE.get(p, {}).get(k)
             ref = f" ({paper:g})" if paper is not None else ""
             cells.append(f"{_pct(summary['success'][p][k])} [{_pct(q25)}-{_pct(q75)}]{ref}")
-        lines.append(f"| {p} | " + " | ".join(cells) + " |")
+        lines.append(f"| {markdown_text(p)} | " + " | ".join(cells) + " |")
     lines += ["", "Cuts learned per mode (mean / max; share of trials with no invariance failure "
               "left):", "", "| Policy | " + " | ".join(f"noise {k}%" for k in noises) + " |",
               "|---|" + "---|" * len(noises)]
@@ -800,7 +801,7 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
         lines += ["", f"Wall time {summary['seconds']:.1f} s with {summary['workers']} "
                   "worker process(es)."]
     for fig in figures:
-        lines += ["", f"![{fig}]({fig})"]
+        lines += ["", f"![{markdown_text(fig)}]({markdown_url(fig)})"]
     return "\n".join(lines) + "\n"
 
 

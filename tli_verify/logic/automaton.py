@@ -7,8 +7,18 @@ reading they were entered with and the system goal they pursue (the strategy's m
 The strategy is the standard one for the 3-nested fixpoint (Bloem et al., JCSS 2012, Sec. 5):
 with memory ``j`` the system moves to the lowest ring of goal ``j`` it can force, stays inside
 the trap set of the least ``(ring, environment goal)`` pair otherwise, and advances ``j`` each
-time goal ``j`` is met. Choices are the lexicographically least outputs, so the same spec gives
-the same automaton, byte for byte.
+time goal ``j`` is met. Among those moves it prefers one that leaves the environment a legal
+move (no vacuous dead ends where it can avoid them), then the lowest ring, then the
+lexicographically least outputs, so the same spec gives the same automaton,
+byte for byte.
+
+Transitions are built symbolically (issue 10, class 6): the strategy's choice is computed as a
+BDD over the next readings, and each edge carries a *cube* of readings (inputs required true,
+inputs required false, the rest free), not one edge per valuation. A state records only the
+inputs the strategy ever reads (:attr:`TaskAutomaton.free_inputs` lists the others), so a spec
+with hundreds of unconstrained inputs has as many states as one with none. Automata larger
+than :data:`MAX_AUTOMATON_STATES` states or :data:`MAX_AUTOMATON_EDGES` edges are refused with
+a :class:`~tli_verify.errors.SpecError` naming the limit.
 """
 
 from __future__ import annotations
@@ -18,21 +28,24 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tli_verify.errors import SpecError, TliError
-from tli_verify.logic.gr1 import (
-    Solution,
-    _goals_or_true,
-    assignments,
-    cube,
-    least_assignment,
-)
+from tli_verify.logic.escape import dot_string
+from tli_verify.logic.gr1 import Solution, _goals_or_true, cube
 
 __all__ = [
+    "MAX_AUTOMATON_EDGES",
+    "MAX_AUTOMATON_STATES",
     "AssumptionViolation",
     "AutomatonState",
     "TaskAutomaton",
     "Transition",
     "extract_automaton",
 ]
+
+MAX_AUTOMATON_STATES = 5_000
+"""Most states an extracted task automaton may have."""
+
+MAX_AUTOMATON_EDGES = 50_000
+"""Most edges (reading cubes) an extracted task automaton may have."""
 
 
 class AssumptionViolation(TliError):
@@ -53,7 +66,8 @@ class AutomatonState:
         The mode this state runs (``"a"``; without ``[modes]`` the true outputs joined by
         ``+``, or ``"-"`` when none is true).
     inputs : tuple of str
-        The inputs that are true in this state.
+        The inputs that are true in this state (among those the strategy reads; the
+        automaton's ``free_inputs`` are not recorded).
     outputs : tuple of str
         The outputs that are true in this state.
     goal : int
@@ -69,11 +83,36 @@ class AutomatonState:
 
 @dataclass(frozen=True, slots=True)
 class Transition:
-    """``source --sensors--> target``: on reading ``sensors`` (the true inputs) go to ``target``."""
+    """``source --cube--> target``: on a reading in the cube go to ``target``.
+
+    Attributes
+    ----------
+    source, target : int
+        State ids.
+    sensors : tuple of str
+        Inputs the reading must have true.
+    off : tuple of str
+        Inputs the reading must have false. Inputs in neither list may have any value.
+    """
 
     source: int
     sensors: tuple[str, ...]
     target: int
+    off: tuple[str, ...] = ()
+
+    def matches(self, reading: frozenset[str]) -> bool:
+        """Whether the reading (its set of true inputs) lies in this edge's cube."""
+        return all(v in reading for v in self.sensors) and not any(v in reading
+                                                                  for v in self.off)
+
+    def label(self, inputs: tuple[str, ...]) -> str:
+        """Readable cube: the true inputs (``-`` for none) when it fixes every input, else
+        its literals (``r,!s``; ``*`` for any reading)."""
+        if len(self.sensors) + len(self.off) == len(inputs):
+            return ",".join(self.sensors) or "-"
+        lits = [v if v in self.sensors else f"!{v}" for v in inputs
+                if v in self.sensors or v in self.off]
+        return ",".join(lits) or "*"
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,9 +127,13 @@ class TaskAutomaton:
         Mode names in spec order.
     states : tuple of AutomatonState
     initial : tuple of int
-        Initial state ids, one per initial sensor reading the assumptions allow.
+        Initial state ids, one per class of initial sensor readings the assumptions allow
+        (readings that differ only in ``free_inputs`` share their initial state).
     transitions : tuple of Transition
-        Sorted by source, then sensor reading.
+        Sorted by source, then target, then cube; the cubes of one state are disjoint.
+    free_inputs : tuple of str
+        Inputs the strategy never reads: states do not record them. They may still appear in
+        transition cubes (when the assumptions constrain their next value).
     """
 
     name: str
@@ -100,14 +143,13 @@ class TaskAutomaton:
     states: tuple[AutomatonState, ...]
     initial: tuple[int, ...]
     transitions: tuple[Transition, ...]
-    _index: dict[tuple[int, frozenset[str]], int] = field(
-        default_factory=dict, compare=False, repr=False
-    )
+    free_inputs: tuple[str, ...] = ()
+    _index: dict[int, list[Transition]] = field(default_factory=dict, compare=False,
+                                                repr=False)
 
     def __post_init__(self) -> None:
-        self._index.update(
-            {(t.source, frozenset(t.sensors)): t.target for t in self.transitions}
-        )
+        for t in self.transitions:
+            self._index.setdefault(t.source, []).append(t)
 
     def _reading(self, sensors: Mapping[str, bool] | Iterable[str]) -> frozenset[str]:
         if isinstance(sensors, Mapping):
@@ -129,7 +171,7 @@ class TaskAutomaton:
         AssumptionViolation
             If the environment's initial condition rules the reading out.
         """
-        reading = self._reading(sensors)
+        reading = self._reading(sensors) - frozenset(self.free_inputs)
         for sid in self.initial:
             if frozenset(self.states[sid].inputs) == reading:
                 return sid
@@ -161,7 +203,8 @@ class TaskAutomaton:
         if not 0 <= state < len(self.states):
             raise SpecError(f"no automaton state {state}")
         reading = self._reading(sensors)
-        target = self._index.get((state, reading))
+        target = next((t.target for t in self._index.get(state, ()) if t.matches(reading)),
+                      None)
         if target is None:
             raise AssumptionViolation(
                 f"sensor reading {sorted(reading)} from state {state} (mode "
@@ -189,16 +232,23 @@ class TaskAutomaton:
             ],
             "initial": list(self.initial),
             "transitions": [
-                {"from": t.source, "sensors": list(t.sensors), "to": t.target}
+                {"from": t.source, "sensors": list(t.sensors), "off": list(t.off),
+                 "to": t.target}
                 for t in self.transitions
             ],
+            "free_inputs": list(self.free_inputs),
             "mode_transitions": self.mode_transitions(),
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> TaskAutomaton:
-        """Inverse of :meth:`to_json`."""
+        """Inverse of :meth:`to_json`.
+
+        Files written before transition cubes (no ``"off"``) list full readings: every
+        input not in ``"sensors"`` is false.
+        """
         try:
+            inputs = tuple(str(v) for v in data["inputs"])
             states = tuple(
                 AutomatonState(id=int(s["id"]), mode=str(s["mode"]),
                                inputs=tuple(s["inputs"]), outputs=tuple(s["outputs"]),
@@ -207,36 +257,43 @@ class TaskAutomaton:
             )
             return cls(
                 name=str(data["name"]),
-                inputs=tuple(data["inputs"]),
+                inputs=inputs,
                 outputs=tuple(data["outputs"]),
                 modes=tuple(data["modes"]),
                 states=states,
                 initial=tuple(int(i) for i in data["initial"]),
                 transitions=tuple(
                     Transition(source=int(t["from"]), sensors=tuple(t["sensors"]),
-                               target=int(t["to"]))
+                               target=int(t["to"]),
+                               off=tuple(t["off"]) if "off" in t else
+                               tuple(v for v in inputs if v not in t["sensors"]))
                     for t in data["transitions"]
                 ),
+                free_inputs=tuple(str(v) for v in data.get("free_inputs", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise SpecError(f"malformed automaton JSON: {exc}") from None
 
     def to_dot(self) -> str:
-        """Graphviz DOT text; parallel edges are merged, labelled by their sensor readings."""
-        lines = [f'digraph "{self.name}" {{', "  rankdir=LR;",
+        """Graphviz DOT text; parallel edges are merged, labelled by their sensor readings.
+
+        Every name and label is written with :func:`~tli_verify.logic.escape.dot_string`, so
+        a spec name with quotes or backslashes cannot change the graph's structure.
+        """
+        lines = [f"digraph {dot_string(self.name)} {{", "  rankdir=LR;",
                  '  node [shape=circle, fontname="Helvetica"];',
                  '  edge [fontname="Helvetica", fontsize=9];',
                  '  __init [shape=point];']
         for s in self.states:
-            sensors = ",".join(s.inputs) or "-"
-            lines.append(f'  s{s.id} [label="{s.mode}\\n#{s.id} [{sensors}]"];')
+            label = f"{s.mode}\n#{s.id} [{','.join(s.inputs) or '-'}]"
+            lines.append(f"  s{s.id} [label={dot_string(label)}];")
         for sid in self.initial:
             lines.append(f"  __init -> s{sid};")
         merged: dict[tuple[int, int], list[str]] = {}
         for t in self.transitions:
-            merged.setdefault((t.source, t.target), []).append("".join(t.sensors) or "-")
+            merged.setdefault((t.source, t.target), []).append(t.label(self.inputs))
         for (a, b), labels in sorted(merged.items()):
-            lines.append(f'  s{a} -> s{b} [label="{" | ".join(labels)}"];')
+            lines.append(f"  s{a} -> s{b} [label={dot_string(' | '.join(labels))}];")
         lines.append("}")
         return "\n".join(lines) + "\n"
 
@@ -249,12 +306,15 @@ def _mode_of(outputs: dict[str, bool], mode_names: tuple[str, ...], has_modes: b
 
 
 def extract_automaton(solution: Solution) -> TaskAutomaton:
-    """Extract the task automaton from a realizable solution (explicit over sensor readings).
+    """Extract the task automaton from a realizable solution (symbolic over readings).
 
     Raises
     ------
     ValueError
         If the solution is not realizable (callers check first).
+    SpecError
+        If the automaton would exceed :data:`MAX_AUTOMATON_STATES` states or
+        :data:`MAX_AUTOMATON_EDGES` edges.
     """
     if not solution.realizable:
         raise ValueError("cannot extract a strategy from an unrealizable game")
@@ -272,44 +332,88 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
     cpre_lower = [[game.cpre(rings[r - 1]) if r else game.cpre(game.false)
                    for r in range(len(rings))] for rings in solution.rings]
     z_p = game.prime(z)
+    # Prefer moves after which the environment still has a legal move (no dead ends).
+    alive_p = game.prime(bdd.exist(Xp, game.rho_e))
     mode_names = spec.mode_names
     has_modes = spec.modes is not None
 
-    def choose(cand: Any, j: int) -> dict[str, bool]:
+    # The inputs the strategy reads: the support of every set it consults at a state.
+    consulted = [game.theta_e, game.theta_s, game.rho_e, game.rho_s, z, *goals,
+                 *goal_target, *(r for rings in solution.rings for r in rings),
+                 *(c for row in cpre_lower for c in row),
+                 *(t for ring in solution.traps for layer in ring for t in layer)]
+    support: set[str] = set()
+    for u in consulted:
+        support |= bdd.support(u)
+    read = [v for v in X if v in support]
+    read_p = [v + "'" for v in read]
+    free = tuple(v for v in X if v not in support)
+
+    def resolve(cand: Any, j: int) -> Any:
+        """The strategy's choice as a BDD over (next readings, next outputs): for each
+        reading with a candidate, exactly one next output (a move that leaves the
+        environment a move if there is one, then the lowest ring, then the least outputs).
+        Every candidate is already a winning move (``cand`` lies in the strategy's target),
+        so these preferences never cost the win."""
+        c = cand & alive_p
+        cand = c | (cand & ~bdd.exist(Yp, c))
+        chosen = game.false
+        remaining = game.true
         for ring in rings_p[j]:
             c = cand & ring
-            if c != game.false:
-                cand = c
-                break
-        picked = least_assignment(game, cand, Yp)
-        if picked is None:  # pragma: no cover - the fixpoint guarantees a move
-            raise RuntimeError("internal error: winning state without a winning move")
-        return {k[:-1]: v for k, v in picked.items()}
+            chosen |= c & remaining
+            remaining &= ~bdd.exist(Yp, c)
+        cand = chosen | (cand & remaining)
+        for v in Yp:
+            low = cand & ~bdd.var(v)
+            cand = low | (cand & bdd.var(v) & ~bdd.exist(Yp, low))
+        return cand
 
     keys: dict[tuple[tuple[bool, ...], tuple[bool, ...], int], int] = {}
     order: list[tuple[dict[str, bool], dict[str, bool], int]] = []
 
     def state_id(x: dict[str, bool], y: dict[str, bool], j: int) -> int:
-        key = (tuple(x[v] for v in X), tuple(y[v] for v in Y), j)
+        key = (tuple(x[v] for v in read), tuple(y[v] for v in Y), j)
         if key not in keys:
+            if len(order) >= MAX_AUTOMATON_STATES:
+                raise SpecError(f"{spec.path or spec.name}: the task automaton has more than "
+                                f"{MAX_AUTOMATON_STATES} states (the limit); the strategy "
+                                f"reads {len(read)} of the {len(X)} inputs")
             keys[key] = len(order)
             order.append((x, y, j))
         return keys[key]
 
-    initial: list[int] = []
-    for x in assignments(X):
-        cx = cube(game, x)
-        if (game.theta_e & cx) == game.false:
-            continue
-        cand = game.prime(game.theta_s & z & cx)
-        cand = bdd.let({v: x[v[:-1]] for v in Xp}, cand)
-        initial.append(state_id(x, choose(cand, 0), 0))
+    def targets(choice: Any) -> list[tuple[dict[str, bool], dict[str, bool], Any]]:
+        """Split a resolved choice by target: (read inputs, outputs, the readings' BDD)."""
+        proj = bdd.exist([v for v in Xp if v not in read_p], choice)
+        n_targets = bdd.count(proj, nvars=len(read_p) + len(Yp))
+        if len(transitions) + n_targets > MAX_AUTOMATON_EDGES:
+            raise SpecError(f"{spec.path or spec.name}: the task automaton has more than "
+                            f"{MAX_AUTOMATON_EDGES} edges (the limit); the strategy reads "
+                            f"{len(read)} of the {len(X)} inputs")
+        found = []
+        for a in bdd.pick_iter(proj, care_vars=read_p + Yp):
+            xr = {v: bool(a[v + "'"]) for v in read}
+            yv = {v: bool(a[v + "'"]) for v in Y}
+            readings = bdd.exist(Yp, choice & cube(game, {**{v + "'": b for v, b in xr.items()},
+                                                          **{v + "'": b for v, b in yv.items()}}))
+            found.append((xr, yv, readings))
+        found.sort(key=lambda t: (tuple(t[0][v] for v in read), tuple(t[1][v] for v in Y)))
+        return found
 
     transitions: list[Transition] = []
+    initial: list[int] = []
+    start = resolve(game.prime(game.theta_e & game.theta_s & z), 0)
+    for xr, yv, _ in targets(start):
+        sid = state_id(xr, yv, 0)
+        if sid not in initial:
+            initial.append(sid)
+
     k = 0
     while k < len(order):
         x, y, j = order[k]
-        s = cube(game, {**x, **y})
+        cur = {**x, **y}
+        s = cube(game, cur)
         j2 = (j + 1) % n_goals if (s & goals[j]) != game.false else j
         if (s & goal_target[j2]) != game.false:
             target_p = z_p
@@ -322,23 +426,27 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
                 target_p = rings_p[j2][r - 1] if r else game.false
             else:
                 target_p = game.prime(solution.traps[j2][r][i] & z)
-        cur = {**x, **y}
-        rho_e_s = bdd.let(cur, game.rho_e)
-        move_s = bdd.let(cur, game.rho_s) & target_p
-        for xn in assignments(X):
-            xn_p = {v + "'": val for v, val in xn.items()}
-            if bdd.let(xn_p, rho_e_s) == game.false:
-                continue
-            yn = choose(bdd.let(xn_p, move_s), j2)
-            dst = state_id(xn, yn, j2)
-            transitions.append(Transition(source=k, sensors=tuple(v for v in X if xn[v]),
-                                          target=dst))
+        legal = bdd.let(cur, game.rho_e)
+        choice = resolve(bdd.let(cur, game.rho_s) & target_p & legal, j2)
+        if bdd.exist(Yp, choice) != legal:  # pragma: no cover - the fixpoint guarantees it
+            raise RuntimeError("internal error: winning state without a winning move")
+        for xr, yv, readings in targets(choice):
+            dst = state_id(xr, yv, j2)
+            cubes = _cubes(bdd, readings, Xp, MAX_AUTOMATON_EDGES - len(transitions))
+            if cubes is None:
+                raise SpecError(f"{spec.path or spec.name}: the task automaton has more than "
+                                f"{MAX_AUTOMATON_EDGES} edges (the limit)")
+            for c in cubes:
+                transitions.append(Transition(
+                    source=k, target=dst,
+                    sensors=tuple(v for v in X if c.get(v + "'") is True),
+                    off=tuple(v for v in X if c.get(v + "'") is False)))
         k += 1
 
     states = tuple(
         AutomatonState(id=i, mode=_mode_of(y, mode_names, has_modes),
-                       inputs=tuple(v for v in X if x[v]), outputs=tuple(v for v in Y if y[v]),
-                       goal=j)
+                       inputs=tuple(v for v in read if x[v]),
+                       outputs=tuple(v for v in Y if y[v]), goal=j)
         for i, (x, y, j) in enumerate(order)
     )
     return TaskAutomaton(
@@ -349,4 +457,28 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
         states=states,
         initial=tuple(initial),
         transitions=tuple(transitions),
+        free_inputs=free,
     )
+
+
+def _cubes(bdd: Any, u: Any, names: list[str], budget: int) -> list[dict[str, bool]] | None:
+    """Disjoint cubes covering ``u`` (Shannon expansion in ``names`` order, False first);
+    None if there are more than ``budget``."""
+    out: list[dict[str, bool]] = []
+    stack: list[tuple[Any, dict[str, bool], int]] = [(u, {}, 0)]
+    while stack:
+        w, fixed, k = stack.pop()
+        if w == bdd.false:
+            continue
+        if w == bdd.true:
+            out.append(fixed)
+            if len(out) > budget:
+                return None
+            continue
+        supp = bdd.support(w)
+        while names[k] not in supp:
+            k += 1
+        v = names[k]
+        stack.append((bdd.let({v: True}, w), {**fixed, v: True}, k + 1))
+        stack.append((bdd.let({v: False}, w), {**fixed, v: False}, k + 1))
+    return out

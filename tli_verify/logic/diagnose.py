@@ -26,7 +26,9 @@ from tli_verify.logic.gr1 import (
     Game,
     _goals_or_true,
     assignments,
+    closed_relation,
     least_assignment,
+    safety_closure,
     solve,
 )
 from tli_verify.logic.spec import SpecFormula
@@ -130,16 +132,17 @@ def diagnose(game: Game) -> Diagnosis:
     bdd = game.manager
     X, Y = list(game.inputs), list(game.outputs)
 
-    # 1. Initial condition: some allowed initial reading admits no initial system state.
+    # 1. Initial condition: some allowed initial reading admits no initial system state
+    # (the guarantees' initial condition and their safety formulas at time 0).
     bad_init = game.theta_e & ~bdd.exist(Y, game.theta_s)
     if bad_init != game.false:
         x = least_assignment(game, bad_init, X) or {}
-        faulty = [f for f, _ in game.init_s]
+        faulty = _initial_culprits(game, x)
         return Diagnosis(
             kind="initial",
             summary="for the initial sensor reading "
             f"[{','.join(_true(X, x))}] no system state satisfies the guarantees' initial "
-            "condition",
+            "condition together with the safety guarantees at time 0",
             formulas=tuple(_where(f, path) for f in faulty),
             witness=(Step(inputs=_true(X, x), outputs=()),),
         )
@@ -160,6 +163,37 @@ def diagnose(game: Game) -> Diagnosis:
         summary="each system liveness goal is realizable alone, but not all of them together",
         formulas=tuple(_where(g.formula, path) for g in game.sys_goals),
     )
+
+
+def _initial_culprits(game: Game, x: dict[str, bool]) -> list[SpecFormula]:
+    """A minimal set of guarantees (initial conditions and safety formulas, the latter at
+    time 0) that no system state satisfies for the initial reading ``x``."""
+    bdd = game.manager
+    Y = list(game.outputs)
+    rename = {v: v + "'" for v in game.inputs + game.outputs}
+    nxt = game.inputs_next + game.outputs_next
+    parts: list[tuple[SpecFormula, Any, bool]] = (
+        [(f, b, False) for f, b in game.init_s] + [(f, b, True) for f, b in game.safety_s])
+
+    def empty(subset: list[tuple[SpecFormula, Any, bool]]) -> bool:
+        init = bdd.true
+        trans = bdd.true
+        for _, b, is_safety in subset:
+            if is_safety:
+                trans &= b
+            else:
+                init &= b
+        u = init & safety_closure(bdd, trans, rename, nxt)
+        return bdd.exist(Y, bdd.let(x, u)) == bdd.false
+
+    k = 0
+    while k < len(parts):
+        rest = parts[:k] + parts[k + 1:]
+        if empty(rest):
+            parts = rest
+        else:
+            k += 1
+    return [f for f, _, _ in parts]
 
 
 def _diagnose_safety(game: Game) -> Diagnosis:
@@ -206,22 +240,31 @@ def _diagnose_safety(game: Game) -> Diagnosis:
     k = 0
     while k < len(parts):
         rest = parts[:k] + parts[k + 1:]
-        u = game.true
-        for _, b in rest:
-            u &= b
+        u = closed_relation(game, [b for _, b in rest], system=True)
         if bdd.exist(Yp, bdd.let({**last, **final_p}, u)) == bdd.false:
             parts = rest
         else:
             k += 1
     cur = _state_formula(game, x)
     nxt = _state_formula(game, final_x)
-    hint = (f"the environment may change the sensors from ({cur}) to ({nxt}); if that cannot "
+    # The hint blames the sensor change: its premise is that some other legal sensor change
+    # from the same state leaves the system a legal move. Otherwise the state itself is lost
+    # whatever the sensors do, and no assumption about this change would help.
+    others = bdd.let(last, game.rho_e) & bdd.exist(Yp, bdd.let(last, game.rho_s))
+    if others != game.false:
+        summary = ("the environment can force a sensor change after which every system move "
+                   "violates a safety guarantee")
+        hint: str | None = (
+            f"the environment may change the sensors from ({cur}) to ({nxt}); if that cannot "
             f"happen physically, add the environment safety assumption "
             f"\"G(({cur}) -> X !({nxt}))\"")
+    else:
+        summary = ("the environment can force a state from which every legal sensor reading "
+                   "leaves the system no move that keeps the safety guarantees")
+        hint = None
     return Diagnosis(
         kind="safety",
-        summary="the environment can force a sensor change after which every system move "
-        "violates a safety guarantee",
+        summary=summary,
         formulas=tuple(_where(f, game.spec.path) for f, _ in parts),
         witness=tuple(steps),
         final_inputs=_true(X, final_x),

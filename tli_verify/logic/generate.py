@@ -28,6 +28,10 @@ class RandomSpecConfig:
         Numbers of formulas per slot.
     depth : int
         Depth of the random propositional trees.
+    env_state_safety : float
+        Probability that an environment safety formula is ``X``-free, ``G(p)`` over the
+        current inputs and outputs (these constrain the initial state too; 0 draws none and
+        keeps the specs of earlier versions seed for seed).
     """
 
     n_inputs: int = 3
@@ -37,6 +41,7 @@ class RandomSpecConfig:
     n_env_live: int = 1
     n_sys_live: int = 2
     depth: int = 2
+    env_state_safety: float = 0.0
 
 
 def _prop(rng: np.random.Generator, names: list[str], depth: int) -> str:
@@ -61,6 +66,9 @@ def random_spec_text(config: RandomSpecConfig, seed: int) -> str:
 
     env_safety = []
     for _ in range(config.n_env_safety):
+        if config.env_state_safety > 0 and rng.random() < config.env_state_safety:
+            env_safety.append(f"G({_prop(rng, allv, config.depth)})")
+            continue
         pre = _prop(rng, allv, config.depth)
         post = _prop(rng, xs, config.depth)
         env_safety.append(f"G({pre} -> X{post})")

@@ -16,11 +16,25 @@ predecessor is ``cpre(Z) = forall X'. (rho_e -> exists Y'. (rho_s & Z'))`` and t
 
 The spec is realizable iff ``forall X. theta_e -> exists Y. theta_s & Z``.
 
-A safety formula ``G(phi)`` constrains every step: ``phi`` with ``X v`` read as ``v'`` goes
-into its player's transition relation as written; an ``X``-free ``phi`` thus constrains the
-current state and is checked when the play leaves it. This is exact for the implication
-``phi_e -> phi_s`` on infinite plays (a guarantee broken at the step where the environment
-breaks an assumption does not count), and it is the reading of omega and slugs.
+Safety at every position, the first included (README, "How it works (logic layer)").
+``G(phi)`` means: ``phi`` holds at every position ``i >= 0``, where ``phi`` may mention the
+current and the next values. Each side's safety formulas go into its transition relation as
+written (``X v`` read as ``v'``), and in addition their *current-state consequence* applies
+to every state of the play, the initial one included:
+
+* ``safe_e(X)``: the sensor readings from which the safety assumptions can hold forever
+  (``nu C. exists Y, X'. rho_e & C'``, for some outputs); for an ``X``-free ``G(phi)``
+  over the inputs this is ``phi`` itself;
+* ``safe_s(X, Y)``: the states from which the safety guarantees can hold forever
+  (``nu C. exists X', Y'. rho_s & C'``); for an ``X``-free ``G(phi)`` this is ``phi``.
+
+The game uses ``theta_e & safe_e`` and ``theta_s & safe_s`` as initial conditions and
+``rho_e & safe_e'``, ``rho_s & safe_s'`` as transition relations: the textbook reading of an
+``X``-free ``G(phi)`` (``phi`` added to the initial condition, ``phi'`` to the transition
+relation), extended to ``phi`` with ``X``. A reading outside ``safe_e`` breaks an assumption
+whatever the system does, so the environment may not pick it (at the start or later); a
+state in which the environment has no legal move left is a dead end for the environment
+(the system wins there), and it can only arise from the system's outputs.
 """
 
 from __future__ import annotations
@@ -53,7 +67,11 @@ class Goal:
 class Game:
     """A GR(1) game on a CUDD manager (built by :func:`build_game`).
 
-    The BDD attributes are ``dd.cudd.Function`` nodes of ``manager``.
+    The BDD attributes are ``dd.cudd.Function`` nodes of ``manager``. ``theta_e``,
+    ``theta_s``, ``rho_e`` and ``rho_s`` include the current-state consequences ``safe_e``
+    (over the inputs) and ``safe_s`` (over inputs and outputs) of the safety formulas (module
+    docstring); ``safety_e``/``safety_s`` and ``init_e``/``init_s`` keep each formula's own
+    BDD, for diagnosis.
     """
 
     spec: GR1Spec
@@ -70,6 +88,8 @@ class Game:
     safety_s: tuple[tuple[SpecFormula, Any], ...] = field(default=())
     init_e: tuple[tuple[SpecFormula, Any], ...] = field(default=())
     init_s: tuple[tuple[SpecFormula, Any], ...] = field(default=())
+    safe_e: Any = None
+    safe_s: Any = None
 
     @property
     def inputs_next(self) -> list[str]:
@@ -150,28 +170,85 @@ def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
                                                        primed=False)))
         return tuple(out)
 
-    game = Game(
+    inputs, outputs = list(spec.inputs), list(spec.outputs)
+    inputs_next = [_prime(v) for v in inputs]
+    outputs_next = [_prime(v) for v in outputs]
+    rho_e = _conj_bdd(bdd, [b for _, b in safety_e])
+    rho_s = _conj_bdd(bdd, [b for _, b in safety_s])
+    rename = {v: _prime(v) for v in inputs + outputs}
+    safe_e = safety_closure(bdd, rho_e, {v: _prime(v) for v in inputs}, outputs + inputs_next)
+    safe_s = safety_closure(bdd, rho_s, rename, inputs_next + outputs_next)
+    return Game(
         spec=spec,
         manager=bdd,
         inputs=spec.inputs,
         outputs=spec.outputs,
-        theta_e=bdd.true,
-        theta_s=bdd.true,
-        rho_e=bdd.true,
-        rho_s=bdd.true,
+        theta_e=_conj_bdd(bdd, [b for _, b in init_e]) & safe_e,
+        theta_s=_conj_bdd(bdd, [b for _, b in init_s]) & safe_s,
+        rho_e=rho_e & bdd.let(rename, safe_e),
+        rho_s=rho_s & bdd.let(rename, safe_s),
         env_goals=goals(spec.assume.liveness),
         sys_goals=goals(spec.guarantee.liveness),
         safety_e=tuple(safety_e),
         safety_s=tuple(safety_s),
         init_e=tuple(init_e),
         init_s=tuple(init_s),
+        safe_e=safe_e,
+        safe_s=safe_s,
     )
-    return game.with_(
-        theta_e=game.conj(init_e),
-        theta_s=game.conj(init_s),
-        rho_e=game.conj(safety_e),
-        rho_s=game.conj(safety_s),
-    )
+
+
+def _conj_bdd(bdd: Any, parts: Iterable[Any]) -> Any:
+    u = bdd.true
+    for b in parts:
+        u &= b
+    return u
+
+
+def safety_closure(bdd: Any, trans: Any, rename: Mapping[str, str],
+                   quantified: Sequence[str]) -> Any:
+    """``nu C. exists quantified. trans & C'``: where ``G(trans)`` can still hold forever.
+
+    Parameters
+    ----------
+    bdd : dd.cudd.BDD
+    trans : BDD
+        A transition constraint (over current and primed variables).
+    rename : mapping of str to str
+        The current variables ``C`` ranges over, each to its primed copy (``C'``).
+    quantified : sequence of str
+        Every variable of ``trans`` outside the keys of ``rename``.
+
+    Returns
+    -------
+    BDD
+        Over the keys of ``rename``: the states from which some infinite sequence satisfies
+        ``trans`` at every step, i.e. the current-state consequence of ``G(trans)``. For the
+        assumptions (``rename`` over the inputs, the outputs quantified) these are the
+        readings from which they can hold for some outputs; for an ``X``-free ``G(phi)`` the
+        result is ``phi`` itself (when ``phi`` is satisfiable in each step).
+    """
+    c = bdd.true
+    while True:
+        new = bdd.exist(list(quantified), trans & bdd.let(dict(rename), c))
+        if new == c:
+            return c
+        c = new
+
+
+def closed_relation(game: Game, parts: Sequence[Any], *, system: bool) -> Any:
+    """The transition relation of a subset of one side's safety formulas, with its
+    current-state consequence on the next state (as :func:`build_game` builds ``rho_e`` and
+    ``rho_s`` from all of them)."""
+    bdd = game.manager
+    trans = _conj_bdd(bdd, parts)
+    if system:
+        rename = {v: _prime(v) for v in game.inputs + game.outputs}
+        safe = safety_closure(bdd, trans, rename, game.inputs_next + game.outputs_next)
+    else:
+        rename = {v: _prime(v) for v in game.inputs}
+        safe = safety_closure(bdd, trans, rename, list(game.outputs) + game.inputs_next)
+    return trans & game.prime(safe)
 
 
 def _conjuncts(f: Any) -> list[Any]:

@@ -25,6 +25,9 @@ from tli_verify.errors import SpecError
 
 __all__ = [
     "AP_PATTERN",
+    "MAX_FORMULA_CHARS",
+    "MAX_FORMULA_DEPTH",
+    "MAX_FORMULA_NODES",
     "RESERVED",
     "Slot",
     "atomic_propositions",
@@ -40,6 +43,24 @@ operators: ``G``, ``F``, ``X``, ``U``, ``W``, ``R``, ``M``)."""
 RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
 MAX_FORMULA_CHARS = 20_000
+"""Longest formula text accepted (characters)."""
+
+MAX_FORMULA_DEPTH = 100
+"""Deepest nesting accepted: of parentheses in the text, and of operators in the parsed
+formula (``a -> a -> ...`` nests without parentheses). Real task formulas nest a few levels;
+the limit keeps every recursive pass over a formula far from Python's recursion limit."""
+
+MAX_FORMULA_NODES = 50_000
+"""Most operator nodes a parsed formula may expand to (Spot expands ``F[1:3]``, ``X[2]``,
+...: a short text can stand for an exponentially large formula)."""
+
+
+_FORMULA_CHARS = frozenset(
+    "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_ \t\r\n!&|-<>=^~()/\\"
+)
+"""Characters a formula may use. Spot's PSL/SERE syntax (``[]``, ``{}``, ``;``, ``*``, ranges
+``F[1:3]``, quoted names) is not GR(1), and on some malformed inputs (``[] [] X X []``) Spot's
+parser needs seconds to recover: such text is refused before it reaches Spot."""
 
 
 class Slot(Enum):
@@ -56,7 +77,8 @@ def _spot() -> Any:
     return spot
 
 
-def parse_formula(text: str, *, where: str) -> Any:
+def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_CHARS,
+                  max_depth: int = MAX_FORMULA_DEPTH) -> Any:
     """Parse ``text`` with Spot.
 
     Parameters
@@ -65,6 +87,11 @@ def parse_formula(text: str, *, where: str) -> Any:
         Formula in Spot's LTL syntax.
     where : str
         Location used in error messages (e.g. ``"specs/scoop.toml:23 guarantee.safety[0]"``).
+    max_chars : int or None
+        Longest text accepted (None: no limit, for formulas the tool builds from checked
+        parts).
+    max_depth : int
+        Deepest nesting accepted (parentheses in the text, operators in the formula).
 
     Returns
     -------
@@ -80,10 +107,18 @@ def parse_formula(text: str, *, where: str) -> Any:
         raise SpecError(f"{where}: expected a formula string, got {type(text).__name__}")
     if not text.strip():
         raise SpecError(f"{where}: empty formula")
-    if len(text) > MAX_FORMULA_CHARS:
-        raise SpecError(f"{where}: formula longer than {MAX_FORMULA_CHARS} characters")
+    if max_chars is not None and len(text) > max_chars:
+        raise SpecError(f"{where}: formula longer than {max_chars} characters")
     if "\x00" in text:
         raise SpecError(f"{where}: formula contains a NUL character")
+    bad = next((ch for ch in text if ch not in _FORMULA_CHARS), None)
+    if bad is not None:
+        raise SpecError(f"{where}: character {bad!r} is not allowed in a formula (GR(1) "
+                        "formulas use identifiers, true, false, ! & | -> <-> ^ X G F U W R M "
+                        "and parentheses)")
+    if _paren_depth(text) > max_depth:
+        raise SpecError(f"{where}: formula nests parentheses deeper than the limit of "
+                        f"{max_depth} levels")
     spot = _spot()
     try:
         f = spot.formula(text)
@@ -94,7 +129,59 @@ def parse_formula(text: str, *, where: str) -> Any:
                         ) from None
     if not f.is_ltl_formula():
         raise SpecError(f"{where}: {text!r} uses PSL/SERE operators; GR(1) specs use LTL only")
+    depth, size = formula_stats(f)
+    if depth > max_depth:
+        raise SpecError(f"{where}: formula nests operators deeper than the limit of "
+                        f"{max_depth} levels")
+    if max_chars is not None and size > MAX_FORMULA_NODES:
+        raise SpecError(f"{where}: formula expands to {size} operators (e.g. by F[n:m] or "
+                        f"X[n]), more than the limit of {MAX_FORMULA_NODES}")
     return f
+
+
+def _paren_depth(text: str) -> int:
+    """Deepest nesting of ``(`` in ``text`` (unbalanced text is Spot's to reject)."""
+    depth = deepest = 0
+    for ch in text:
+        if ch == "(":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch == ")":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def formula_depth(f: Any, *, limit: int = MAX_FORMULA_DEPTH) -> int:
+    """Operator nesting depth of a parsed formula (an atom has depth 1), without recursion.
+
+    Spot shares equal sub-formulas (the formula is a DAG: ``F[1:3] F[1:3] ... a`` expands to
+    a tree exponentially larger than its text), so depths are computed once per distinct
+    sub-formula. ``limit`` is accepted for symmetry with the callers and not needed for speed.
+    """
+    del limit
+    return formula_stats(f)[0]
+
+
+def formula_stats(f: Any) -> tuple[int, int]:
+    """``(depth, size)`` of a parsed formula: nesting depth, and the number of operator
+    nodes of its tree (sub-formulas counted at every occurrence), by dynamic programming over
+    Spot's shared DAG (no recursion; linear in the number of distinct sub-formulas)."""
+    memo: dict[int, tuple[int, int]] = {}
+    stack: list[tuple[Any, bool]] = [(f, False)]
+    while stack:
+        g, expanded = stack.pop()
+        key = g.id()
+        if key in memo:
+            continue
+        children = list(g)
+        if expanded:
+            stats = [memo[c.id()] for c in children]
+            memo[key] = (1 + max((d for d, _ in stats), default=0),
+                         1 + sum(n for _, n in stats))
+        else:
+            stack.append((g, True))
+            stack.extend((c, False) for c in children if c.id() not in memo)
+    return memo[f.id()]
 
 
 def atomic_propositions(f: Any) -> set[str]:
@@ -187,7 +274,8 @@ def classify(f: Any, slot: Slot, *, where: str) -> None:
     else:
         off = _liveness_offence(f)
     if off is not None:
-        raise SpecError(f"{where}: {off.sub!r}: {off.reason}")
+        sub = off.sub if len(off.sub) <= 200 else off.sub[:200] + "..."
+        raise SpecError(f"{where}: {sub!r}: {off.reason}")
 
 
 def is_ap_name(name: str) -> bool:

@@ -39,7 +39,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.logic.diagnose import Step
-from tli_verify.logic.gr1 import Game, build_game, least_assignment, solve
+from tli_verify.logic.gr1 import (
+    Game,
+    build_game,
+    closed_relation,
+    least_assignment,
+    safety_closure,
+    solve,
+)
 from tli_verify.logic.spec import GR1Spec, SpecFormula, SpecSide
 
 __all__ = [
@@ -168,8 +175,10 @@ def well_separation(game: Game) -> WellSeparation:
     path = game.spec.path
     X = list(game.inputs)
     if bdd.exist(X, game.theta_e) == bdd.false:
+        # No initial reading satisfies the initial assumptions and lets the safety
+        # assumptions hold from time 0 on.
         return WellSeparation(False, "initial",
-                              tuple(f"{f.where(path)}: {f.text}" for f, _ in game.init_e))
+                              tuple(f"{f.where(path)}: {f.text}" for f in _initial_culprits(game)))
     env_goals = [g.bdd for g in game.env_goals]
     winning = _env_winning(game, env_goals)
     bad_start = game.theta_e & game.theta_s & ~winning
@@ -191,6 +200,36 @@ def well_separation(game: Game) -> WellSeparation:
     return WellSeparation(False, kind, formulas, tuple(steps), loop_start)
 
 
+def _initial_culprits(game: Game) -> list[SpecFormula]:
+    """A minimal set of assumptions (initial conditions, and safety formulas at time 0) that
+    no initial reading satisfies."""
+    bdd = game.manager
+    rename = {v: v + "'" for v in game.inputs}
+    quantified = list(game.outputs) + game.inputs_next
+    parts: list[tuple[SpecFormula, Any, bool]] = (
+        [(f, b, False) for f, b in game.init_e] + [(f, b, True) for f, b in game.safety_e])
+
+    def empty(subset: list[tuple[SpecFormula, Any, bool]]) -> bool:
+        init = bdd.true
+        trans = bdd.true
+        for _, b, is_safety in subset:
+            if is_safety:
+                trans &= b
+            else:
+                init &= b
+        u = init & safety_closure(bdd, trans, rename, quantified)
+        return bdd.exist(list(game.inputs), u) == bdd.false
+
+    k = 0
+    while k < len(parts):
+        rest = parts[:k] + parts[k + 1:]
+        if empty(rest):
+            parts = rest
+        else:
+            k += 1
+    return [f for f, _, _ in parts]
+
+
 def _assign(game: Game, step: Step) -> dict[str, bool]:
     return {**{v: v in step.inputs for v in game.inputs},
             **{v: v in step.outputs for v in game.outputs}}
@@ -206,9 +245,7 @@ def _broken_safety(game: Game, state: dict[str, bool] | None) -> tuple[str, ...]
     k = 0
     while k < len(parts):
         rest = parts[:k] + parts[k + 1:]
-        u = bdd.true
-        for _, b in rest:
-            u &= b
+        u = closed_relation(game, [b for _, b in rest], system=False)
         if bdd.exist(game.inputs_next, bdd.let(state, u)) == bdd.false:
             parts = rest
         else:

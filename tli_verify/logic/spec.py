@@ -41,7 +41,14 @@ from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
-from tli_verify.logic.ltl import Slot, atomic_propositions, classify, is_ap_name, parse_formula
+from tli_verify.logic.ltl import (
+    MAX_FORMULA_DEPTH,
+    Slot,
+    atomic_propositions,
+    classify,
+    is_ap_name,
+    parse_formula,
+)
 
 __all__ = [
     "GR1Spec",
@@ -57,6 +64,8 @@ _TOP_KEYS = frozenset(
 )
 _SIDE_KEYS = frozenset({"init", "safety", "liveness"})
 EXPECTATIONS = ("realizable", "unrealizable", "not-well-separated")
+MAX_TOML_DEPTH = 16
+"""Deepest nesting of TOML arrays and tables accepted in a spec (a spec needs 3)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,6 +200,13 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib reads nested arrays recursively
+        raise SpecError(f"{where}:{_deep_line(text)}: arrays or tables nested deeper than "
+                        f"the limit of {MAX_TOML_DEPTH} levels") from None
+    deep = _too_deep(data)
+    if deep is not None:
+        raise SpecError(f"{where}: '{deep}': arrays or tables nested deeper than the limit of "
+                        f"{MAX_TOML_DEPTH} levels")
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise SpecError(f"{where}: unknown top-level key {unknown[0]!r} "
@@ -199,6 +215,9 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     name = data.get("name", default_name)
     if not isinstance(name, str) or not name:
         raise SpecError(f"{where}: 'name' must be a non-empty string")
+    if any(ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0 for ch in name):
+        raise SpecError(f"{where}:{lines.key('name') or 1}: 'name' must be one line without "
+                        "control characters")
     description = data.get("description", "")
     if not isinstance(description, str):
         raise SpecError(f"{where}: 'description' must be a string")
@@ -229,6 +248,31 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         expect=expect,
         description=description,
     )
+
+
+def _too_deep(data: Any) -> str | None:
+    """The top-level key of a value nested deeper than ``MAX_TOML_DEPTH`` (no recursion)."""
+    stack: list[tuple[str, Any, int]] = [(str(k), v, 1) for k, v in data.items()]
+    while stack:
+        key, value, depth = stack.pop()
+        if depth > MAX_TOML_DEPTH:
+            return key
+        if isinstance(value, dict):
+            stack.extend((key, v, depth + 1) for v in value.values())
+        elif isinstance(value, list):
+            stack.extend((key, v, depth + 1) for v in value)
+    return None
+
+
+def _deep_line(text: str) -> int:
+    """Best-effort line where bracket nesting first exceeds ``MAX_TOML_DEPTH``."""
+    depth = 0
+    for number, line in enumerate(text.splitlines(), start=1):
+        for ch in line:
+            depth += (ch in "[{") - (ch in "]}")
+            if depth > MAX_TOML_DEPTH:
+                return number
+    return 1
 
 
 def label_holds(spec: GR1Spec, mode: str, sensors: Mapping[str, bool]) -> bool:
@@ -449,8 +493,12 @@ def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assum
     a_safety = [f"G(X({labels}))"]
 
     def formula(text: str, section: str, index: int) -> SpecFormula:
+        # Built from labels already checked against the limits: allow the few levels and
+        # characters the constraint itself adds.
         return SpecFormula(text=text, section=section, index=index, line=None, origin="modes",
-                           ltl=parse_formula(text, where=f"[modes] constraint {text!r}"))
+                           ltl=parse_formula(text, where=f"[modes] constraint {section}",
+                                             max_chars=None,
+                                             max_depth=MAX_FORMULA_DEPTH + 8))
 
     def extend(side: SpecSide, name: str, inits: list[str], safeties: list[str]) -> SpecSide:
         init = side.init + tuple(formula(t, f"{name}.init", len(side.init) + i)
