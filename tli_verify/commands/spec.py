@@ -1,4 +1,5 @@
-"""``tli spec check`` and ``tli spec automaton``: GR(1) realizability and task automata."""
+"""``tli spec check``, ``tli spec automaton`` and ``tli spec infer``: GR(1) realizability, task
+automata, and specs inferred from demonstrations."""
 
 from __future__ import annotations
 
@@ -43,6 +44,29 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                      help="OUT.json or OUT.dot (default: a summary on stdout)")
     aut.add_argument("--json", action="store_true", help="print the automaton JSON on stdout")
     aut.set_defaults(handler=_automaton)
+
+    infer = ssub.add_parser(
+        "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix E)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Writes the spec the demonstrations imply (paper appendix E, 'Automatic "
+        "construction of GR(1) LTL formulas'): initial conditions, the goal (the modes the "
+        "demonstrations end in), the demonstrated mode changes as phi_t^s, the demonstrated "
+        "sensor changes and fairness toward the goal as the environment part, and the "
+        "perturbation marker p with the goal GF(goal | p) (details: tli_verify.logic.infer). "
+        "The spec is checked; exit 0 if realizable and well-separated, 1 if not (the file is "
+        "written either way), 2 on bad input.",
+        epilog="example (scoop, paper Fig. 5(a)):\n"
+        "  tli spec infer demos/scoop_*.csv --modes specs/scoop.toml -o scoop-inferred.toml\n"
+        "gives the black edges a->b->c->d. Online, perturbations add b->a, c->a, c->b\n"
+        "(tli_verify.logic.infer.add_transition, re-synthesized each time), and the automaton\n"
+        "grows to the one of specs/scoop.toml, Fig. 5(a) (scripts/infer_scoop.py shows it).")
+    infer.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
+    infer.add_argument("--modes", type=Path, required=True, metavar="LABELS",
+                       help="TOML file with a [modes] table (mode = \"sensor formula\"), "
+                       "or a spec file")
+    infer.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC.toml")
+    infer.add_argument("--name", default=None, help="spec name (default: the output's stem)")
+    infer.set_defaults(handler=_infer)
 
 
 def _usage(parser: argparse.ArgumentParser) -> int:
@@ -147,6 +171,34 @@ def _automaton(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(f"wrote {args.output}\n")
     return 0
+
+
+def _infer(args: argparse.Namespace) -> int:
+    from tli_verify.demos import load_demos
+    from tli_verify.io import atomic_write_text
+    from tli_verify.logic.check import check_spec, synthesize
+    from tli_verify.logic.infer import infer_spec_text, load_labels
+    from tli_verify.logic.spec import parse_spec
+
+    demos = load_demos(args.demos)
+    labels = load_labels(args.modes, demos[0].sensor_names)
+    name = args.name or args.output.stem
+    text = infer_spec_text(demos, labels, name=name,
+                           sources=[p.name for p in args.demos])
+    spec = parse_spec(text, path=str(args.output), default_name=name)
+    atomic_write_text(args.output, text)
+    result = check_spec(spec)
+    ok = result.realizable and result.well_separated
+    verdict = "realizable" if result.realizable else "UNREALIZABLE"
+    separated = "well-separated" if result.well_separated else "NOT well-separated"
+    sys.stdout.write(f"wrote {args.output}: {verdict}, {separated}\n")
+    if ok:
+        automaton = synthesize(spec)
+        pairs = " ".join(f"{a}->{b}" for a, b in automaton.mode_transitions() if a != b)
+        sys.stdout.write(f"  automaton: {len(automaton.states)} states; mode changes {pairs}\n")
+    for w in result.warnings:
+        sys.stdout.write(f"  warning: {w}\n")
+    return 0 if ok else 1
 
 
 def demo_stage(out: Path) -> list[str]:

@@ -130,6 +130,14 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
                             "(lower-case identifier, not true/false)")
         if mode in sensors:
             raise SpecError(f"{loc}: modes.{mode}: {mode!r} is also a sensor column")
+        label = raw[mode]
+        if isinstance(label, str):
+            f = parse_formula(label, where=f"{loc}: modes.{mode}")
+            extra = sorted(atomic_propositions(f) - set(sensors) - set(raw))
+            if extra:
+                raise SpecError(f"{loc}: modes.{mode}: label uses {extra[0]!r}, which is not a "
+                                "sensor column of the demonstrations "
+                                f"({', '.join(sensors) or 'none'})")
     table = _modes(raw, tuple(sensors), tuple(raw), where, lines)
     if table is None:  # pragma: no cover - raw is a non-empty table
         raise SpecError(f"{where}: no [modes] table")
@@ -335,11 +343,17 @@ def infer_spec_text(demos: Sequence[Any], labels: Mapping[str, str], *,
         "liveness = [", *(f"  {_toml_str(t)}," for t in fair), "]",
         "",
         "[guarantee]",
-        f"init = {_toml_str(f'{_or(init_modes)} & !{marker}')}",
+        f"init = {_toml_str(_init_guarantee(init_modes, marker))}",
         "safety = [", *(f"  {_toml_str(t)}," for t in sys_safety), "]",
         f"liveness = [{_toml_str(f'GF({goal})')}]",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _init_guarantee(modes: Sequence[str], marker: str) -> str:
+    if len(modes) == 1:
+        return f"{modes[0]} & !{marker}"
+    return f"({' | '.join(modes)}) & !{marker}"
 
 
 def _marker_formula(marker: str, regress: Sequence[tuple[str, str]]) -> str:
