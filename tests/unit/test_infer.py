@@ -147,6 +147,23 @@ def test_unrealizable_growth_is_refused_and_the_old_spec_kept(inferred: GR1Spec)
     assert check_spec(add_transition(inferred, "b", "a")).realizable
 
 
+def test_a_transition_already_allowed_leaves_the_spec_unchanged(specs_dir: Path,
+                                                                inferred: GR1Spec) -> None:
+    paper = load_spec(specs_dir / "scoop.toml")
+    assert add_transition(paper, "c", "b") is paper
+    assert add_transition(inferred, "a", "b") is inferred
+    assert add_transition(inferred, "b", "a") is not inferred
+
+
+def test_assumptions_that_cannot_be_relaxed_are_reported(inferred: GR1Spec) -> None:
+    text = spec_to_toml(inferred).replace(
+        'safety = [\n  "G((!r & !s & !t)', 'safety = [\n  "G(!t | X t)",\n  "G((!r & !s & !t)', 1)
+    locked = parse_spec(text)  # sensor t, once on, stays on: d -> a cannot happen
+    assert check_spec(locked).realizable
+    with pytest.raises(SpecError, match=r"assumptions still rule out the sensor change"):
+        add_transition(locked, "d", "a")
+
+
 def test_resume_state_carries_on_after_the_new_edge(inferred: GR1Spec) -> None:
     old = synthesize(inferred)
     state = old.initial_state({"r": False, "s": False, "t": False})

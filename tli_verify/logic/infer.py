@@ -477,8 +477,9 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     Returns
     -------
     GR1Spec
-        The grown spec, realizable and well-separated (``path`` None). ``spec`` itself is
-        unchanged (values are immutable), so on any error the caller keeps the old spec.
+        The grown spec, realizable and well-separated (``path`` None); ``spec`` itself when
+        it already allows the change (both players' safety formulas). ``spec`` is never
+        modified (values are immutable), so on any error the caller keeps the old spec.
 
     Raises
     ------
@@ -497,6 +498,8 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
         if m not in spec.mode_names:
             raise SpecError(f"{where}: {m!r} is not a known mode ({', '.join(spec.mode_names)});"
                             " only transitions into known modes are valid (paper Asm. 3)")
+    if _allowed(spec, from_mode, to_mode):
+        return spec
     l_to = spec.modes[to_mode]
     l_from = spec.modes[from_mode]
     bdd, labs = _label_bdds({"from": l_from, "to": l_to}, spec.inputs)
@@ -540,6 +543,10 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
             changed[(f.section, f.index)] = f"G(({lhs!s}) -> (({body[1]!s}) | X({l_to})))"
     grown = _replace(spec, changed)
     _check_change_allowed(grown, from_mode, to_mode)
+    if not _allowed(grown, from_mode, to_mode):
+        raise SpecError(f"{where}: the guarantees still rule out the transition {from_mode} -> "
+                        f"{to_mode}: no guarantee of the form G({from_mode} -> X(...)) covers "
+                        "it")
     result = check_spec(grown)
     if not result.realizable:
         summary = result.diagnosis.summary if result.diagnosis is not None else ""
@@ -567,6 +574,20 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
 
     draft = dc_replace(spec, assume=side(spec.assume), guarantee=side(spec.guarantee))
     return parse_spec(spec_to_toml(draft), default_name=spec.name)
+
+
+def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
+    """Whether the game already has a move from ``from_mode`` (under its label) to
+    ``to_mode`` (under its label) that both players' safety formulas allow."""
+    from tli_verify.logic.gr1 import _to_bdd, build_game
+
+    game = build_game(spec)
+    bdd = game.manager
+    assert spec.modes is not None
+    lf = _to_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
+    lt = _to_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
+    move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
+    return bool(move != bdd.false)
 
 
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
