@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import itertools
 from pathlib import Path
@@ -245,7 +246,7 @@ def _mode_sequences(draw: st.DrawFn) -> tuple[list[list[int]], int]:
     return sequences, n_modes
 
 
-@settings(max_examples=25)
+@settings(max_examples=15)
 @given(_mode_sequences())
 def test_random_demos_give_sound_specs_that_replay_them(
         case: tuple[list[list[int]], int]) -> None:
@@ -270,3 +271,29 @@ def test_inferred_marker_name_avoids_sensors_and_modes() -> None:
     spec = parse_spec(infer_spec_text(demos, labels))
     assert spec.outputs == ("p", "q", "p_")
     assert check_spec(spec).realizable
+
+
+@functools.lru_cache(maxsize=1)
+def _scoop_inferred() -> GR1Spec:
+    repo = Path(__file__).resolve().parents[2]
+    demos = load_demos(sorted((repo / "demos").glob("scoop_*.csv")))
+    return infer_spec(demos, load_labels(repo / "specs" / "scoop.toml", demos[0].sensor_names))
+
+
+_SCOOP_PAIRS = [(a, b) for a in "abcd" for b in "abcd" if a != b]
+
+
+@settings(max_examples=6)
+@given(st.lists(st.sampled_from(_SCOOP_PAIRS), min_size=1, max_size=4, unique=True))
+def test_any_perturbation_growth_stays_sound_and_adds_exactly_its_edges(
+        pairs: list[tuple[str, str]]) -> None:
+    spec = _scoop_inferred()
+    for a, b in pairs:
+        spec = add_transition(spec, a, b)
+    result = check_spec(spec)
+    assert result.realizable and result.well_separated
+    assert _omega(spec)
+    edges = {(a, b) for a, b in synthesize(spec).mode_transitions() if a != b}
+    assert edges == {("a", "b"), ("b", "c"), ("c", "d")} | set(pairs)
+    again = parse_spec(spec_to_toml(spec))
+    assert synthesize(again).to_json() == synthesize(spec).to_json()

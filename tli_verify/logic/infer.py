@@ -515,7 +515,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
         import spot
 
         if body.kind() == spot.op_Implies and _ap(body[0]) == from_mode:
-            changed[(f.section, f.index)] = f"G({from_mode} -> (({body[1]!s}) | X {to_mode}))"
+            changed[(f.section, f.index)] = f"G({from_mode} -> {_or_next(body[1], to_mode)})"
             sys_done = True
             continue
         parts = _marker_parts(body, markers)
@@ -540,7 +540,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
 
         lb = _to_bdd(lhs, bdd, primed=False)
         if (lb & labs["from"]) != bdd.false:
-            changed[(f.section, f.index)] = f"G(({lhs!s}) -> (({body[1]!s}) | X({l_to})))"
+            changed[(f.section, f.index)] = f"G(({lhs!s}) -> {_or_next(body[1], l_to)})"
     grown = _replace(spec, changed)
     _check_change_allowed(grown, from_mode, to_mode)
     if not _allowed(grown, from_mode, to_mode):
@@ -557,6 +557,16 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
                                 "the spec not well-separated (the system could win vacuously); "
                                 "the old spec is kept")
     return grown
+
+
+def _or_next(rhs: Any, extra: str) -> str:
+    """``rhs | X extra`` as text; ``X(D | extra)`` when ``rhs`` is ``X D``, so that repeated
+    growth keeps the formula flat (Spot's n-ary ``|``)."""
+    import spot
+
+    if rhs.kind() == spot.op_X:
+        return f"X(({rhs[0]!s}) | ({extra}))"
+    return f"(({rhs!s}) | X({extra}))"
 
 
 def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
