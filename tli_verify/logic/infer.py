@@ -467,7 +467,10 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     spec : GR1Spec
         A spec with a ``[modes]`` table whose ``phi_t^s`` is written as ``G(m -> X(...))`` per
         mode, and whose environment's sensor changes are written as ``G(C -> X(...))`` per
-        reading class (as :func:`infer_spec` and ``specs/scoop.toml`` write them).
+        reading class (as :func:`infer_spec` and ``specs/scoop.toml`` write them). The
+        guarantee ``G(from_mode -> X(...))`` gets ``to_mode`` as a further successor; every
+        assumption ``G(C -> X(...))`` with ``C`` over the inputs meeting ``from_mode``'s label
+        gets ``to_mode``'s label as a further next reading (the change was observed).
     from_mode, to_mode : str
         Known modes (paper Asm. 3: a transition into an unknown mode is not valid).
     perturbation : bool
@@ -489,7 +492,10 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     UnrealizableError
         The grown spec is unrealizable or not well-separated (the old spec is kept).
     """
+    import spot
+
     from tli_verify.logic.check import check_spec
+    from tli_verify.logic.gr1 import _to_bdd
 
     where = spec.path or spec.name
     if spec.modes is None:
@@ -505,18 +511,14 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     bdd, labs = _label_bdds({"from": l_from, "to": l_to}, spec.inputs)
     markers = {o for o in spec.outputs if o not in spec.mode_names}
     changed: dict[tuple[str, int], str] = {}
-    sys_done = False
+    # phi_t^s: from's successors (a mode without a G(from -> X ...) formula allows every next
+    # mode already), and the perturbation marker.
     for f in spec.guarantee.safety:
-        if f.origin != "file":
-            continue
-        body = _g_body(f.ltl)
+        body = _g_body(f.ltl) if f.origin == "file" else None
         if body is None:
             continue
-        import spot
-
         if body.kind() == spot.op_Implies and _ap(body[0]) == from_mode:
             changed[(f.section, f.index)] = f"G({from_mode} -> {_or_next(body[1], to_mode)})"
-            sys_done = True
             continue
         parts = _marker_parts(body, markers)
         if parts is not None and perturbation:
@@ -524,22 +526,16 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
             new = f"({from_mode} & X {to_mode})"
             rhs = new if rhs == "false" else f"({rhs}) | {new}"
             changed[(f.section, f.index)] = f"G(X {p} <-> ({rhs}))"
-    del sys_done  # a mode without a G(m -> X ...) formula already allows every next mode
+    # The observed sensor change: every G(C -> X(...)) over the inputs whose C meets from's
+    # label gets to's label as a further possible next reading.
     for f in spec.assume.safety:
-        if f.origin != "file":
-            continue
-        body = _g_body(f.ltl)
-        import spot
-
+        body = _g_body(f.ltl) if f.origin == "file" else None
         if body is None or body.kind() != spot.op_Implies:
             continue
         lhs = body[0]
         if atomic_propositions(lhs) - set(spec.inputs) or not lhs.is_boolean():
             continue
-        from tli_verify.logic.gr1 import _to_bdd
-
-        lb = _to_bdd(lhs, bdd, primed=False)
-        if (lb & labs["from"]) != bdd.false:
+        if (_to_bdd(lhs, bdd, primed=False) & labs["from"]) != bdd.false:
             changed[(f.section, f.index)] = f"G(({lhs!s}) -> {_or_next(body[1], l_to)})"
     grown = _replace(spec, changed)
     _check_change_allowed(grown, from_mode, to_mode)
