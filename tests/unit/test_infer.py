@@ -212,14 +212,14 @@ def test_bad_inputs(scoop_demos: list[Demonstration], tmp_path: Path) -> None:
 # Random demonstrations: one-hot sensors, mode sequences with returns and shortcuts.
 
 
-def _synthetic(sequences: list[list[int]], n_modes: int) -> tuple[list[Demonstration],
-                                                                  dict[str, str]]:
+def _synthetic(sequences: list[list[int]], n_modes: int, hold: int = 2
+               ) -> tuple[list[Demonstration], dict[str, str]]:
     sensors = tuple(f"s{i}" for i in range(n_modes))
     labels = {f"m{i}": " & ".join(s if j == i else f"!{s}" for j, s in enumerate(sensors))
               for i in range(n_modes)}
     demos = []
     for k, seq in enumerate(sequences):
-        rows = [i for i in seq for _ in range(2)]  # each mode held for two samples
+        rows = [i for i in seq for _ in range(hold)]  # each mode held for `hold` samples
         n = len(rows)
         readings = np.zeros((n, n_modes), dtype=bool)
         readings[np.arange(n), rows] = True
@@ -297,3 +297,19 @@ def test_any_perturbation_growth_stays_sound_and_adds_exactly_its_edges(
     assert edges == {("a", "b"), ("b", "c"), ("c", "d")} | set(pairs)
     again = parse_spec(spec_to_toml(spec))
     assert synthesize(again).to_json() == synthesize(spec).to_json()
+
+
+def test_a_mode_seen_for_one_sample_is_an_observation() -> None:
+    # Sensors that flicker through a mode for one sample (lagged or noisy readings): no DS
+    # can be learned from it, but the sensor change it shows is real.
+    demos, labels = _synthetic([[0, 1, 2]], 3, hold=1)
+    spec = parse_spec(infer_spec_text(demos, labels))
+    edges = {(a, b) for a, b in synthesize(spec).mode_transitions() if a != b}
+    assert edges == {("m0", "m1"), ("m1", "m2")}
+
+
+def test_an_unlabelled_reading_names_its_file_and_line(scoop_demos: list[Demonstration]
+                                                       ) -> None:
+    labels = {"a": "!r & !s & !t", "b": "r & !s & !t", "c": "!r & s & !t"}
+    with pytest.raises(DemoError, match=r"scoop_1\.csv.*line \d+.*t=1.*satisfies no mode"):
+        infer_spec_text(scoop_demos, labels)

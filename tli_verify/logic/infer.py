@@ -56,6 +56,7 @@ new automaton to carry on from, and :func:`spec_to_toml` writes the grown spec.
 
 from __future__ import annotations
 
+import itertools
 import os
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -160,29 +161,49 @@ class _Observed:
 
 def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[str]
              ) -> _Observed:
-    from tli_verify.segmentation import segment_demos, spec_labeler
+    """Label every sample (:func:`~tli_verify.segmentation.spec_labeler`) and collect the
+    runs of equal label groups. Unlike :func:`~tli_verify.segmentation.segment_demos` this
+    needs no DS training data: a group seen for one sample is a valid observation."""
+    from tli_verify.segmentation import _runs, spec_labeler
 
     # A minimal spec carrying the labels, for spec_labeler (label evaluation and messages).
     holder = GR1Spec(name="labels", inputs=tuple(sensors), outputs=tuple(labels),
                      modes=dict(labels), assume=_empty_side(), guarantee=_empty_side())
     labeler, modes, shown = spec_labeler(holder)
-    seg = segment_demos(demos, labeler=labeler, modes=modes, labels=shown, shift=False,
-                        entry_samples=1)
     groups: list[tuple[str, ...]] = []
     initial: list[tuple[str, ...]] = []
     final: list[tuple[str, ...]] = []
     succ: dict[tuple[str, ...], list[tuple[str, ...]]] = {}
-    for s in seg.segments:
-        if s.modes not in groups:
-            groups.append(s.modes)
-        if s.start == 0 and s.modes not in initial:
-            initial.append(s.modes)
-        nxt = succ.setdefault(s.modes, [])
-        if s.next_modes is None:
-            if s.modes not in final:
-                final.append(s.modes)
-        elif s.next_modes not in nxt:
-            nxt.append(s.next_modes)
+    for demo in demos:
+        cache: dict[bytes, tuple[str, ...]] = {}
+        per_sample: list[tuple[str, ...]] = []
+        for i in range(demo.n_samples):
+            key = demo.sensors[i].tobytes()
+            if key not in cache:
+                cache[key] = labeler(demo.sensor_reading(i))
+            if not cache[key]:
+                reading = ", ".join(f"{n}={int(v)}" for n, v in
+                                    zip(demo.sensor_names, demo.sensors[i], strict=True))
+                raise DemoError(f"{demo.where(i)}: sensor reading {reading} satisfies no mode "
+                                "label")
+            per_sample.append(cache[key])
+        runs = [per_sample[start] for start, _ in _runs(per_sample)]
+        for g in runs:
+            if g not in groups:
+                groups.append(g)
+            succ.setdefault(g, [])
+        if runs[0] not in initial:
+            initial.append(runs[0])
+        if runs[-1] not in final:
+            final.append(runs[-1])
+        for g, h in itertools.pairwise(runs):
+            if h not in succ[g]:
+                succ[g].append(h)
+    visited = {m for g in groups for m in g}
+    for m in modes:
+        if m not in visited:
+            raise DemoError(f"mode {m!r} (label {shown[m]!r}) is visited by no demonstration; "
+                            "every mode needs demonstration data (paper Asm. 3)")
     order = {g: i for i, g in enumerate(groups)}
     return _Observed(groups=tuple(groups), initial=tuple(initial), final=tuple(final),
                      successors={g: tuple(sorted(v, key=order.__getitem__))
