@@ -44,6 +44,13 @@ GR(1); ``GF(goals | p)`` is its GR(1) form. Without the marker the first recover
 forever, meeting every fairness assumption, and ``GF d`` would be lost. With it, the scoop
 demonstrations grow to exactly the automaton of ``specs/scoop.toml`` (paper Fig. 5(a)).
 
+Limits. Modes that share a label get the union of their group's successors (cooking's
+``w1``/``w2``: which of them came first is not in the sensors), so the spec is weaker than a
+hand-written one. The goal is where the demonstrations end: a cyclic task (inspection,
+``a, b, a, ...``) gets ``GF(last mode | p)`` with the cycle's closing edge marked, not its
+hand-written ``GF((b & rel) | p)``. Readings no label covers are refused (file and line), as
+is a mode no demonstration visits (paper Asm. 3).
+
 Online re-synthesis (paper: "phi_t^s will be modified to incorporate those newly observed
 transitions as valid mode switches, and a new automaton will be re-synthesized"):
 :func:`add_transition` adds a transition into a known mode (paper Asm. 3) to ``phi_t^s``. The
