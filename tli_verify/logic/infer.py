@@ -48,8 +48,8 @@ Limits. Modes that share a label get the union of their group's successors (cook
 ``w1``/``w2``: which of them came first is not in the sensors), so the spec is weaker than a
 hand-written one. The goal is where the demonstrations end: a cyclic task (inspection,
 ``a, b, a, ...``) gets ``GF(last mode | p)`` with the edges out of the last mode marked as
-regressing, not its hand-written ``GF((b & rel) | p)``. Readings no label covers are refused (file and line), as
-is a mode no demonstration visits (paper Asm. 3).
+regressing, not its hand-written ``GF((b & rel) | p)``. Readings no label covers are refused
+(file and line), as is a mode no demonstration visits (paper Asm. 3).
 
 Online re-synthesis (paper: "phi_t^s will be modified to incorporate those newly observed
 transitions as valid mode switches, and a new automaton will be re-synthesized"):
