@@ -15,6 +15,12 @@ sensor change the specs' assumptions allow a shared boundary and no other:
 
 Sensors ``cy, cb, cg, co, cp, cr`` are the tile memberships (all false in the dark); no latent
 state. One scripted demonstration (as in the paper) runs from yellow along the row to red.
+The assumptions also rule out moving back to the previous tile (``B -> Y`` and so on) although
+the tiles share a boundary: the nominal task only moves forward; under a perturbation the
+executive reports such a change as an assumption violation. The dark modes ``d1``-``d4`` of the
+specs are never demonstrated (paper: "the system learns a DS for each of the colored mode"), so
+``tli learn --spec specs/color-tracing-*.toml`` refuses the demonstration (paper Asm. 3); learn
+it without ``--spec`` (one DS per tile reading).
 """
 
 from __future__ import annotations

@@ -12,8 +12,15 @@ sensor change the specs' assumptions allow is a shared boundary and no other is:
 
 Chicken and broccoli each touch white and the pot, the pot touches white, and chicken and
 broccoli do not touch (the assumptions ``white -> white|ch|br``, ``ch -> ch|white|pot``,
-``br -> br|white|pot``, ``pot -> pot|white`` of ``specs/cooking-*.toml``). Sensors ``ch``, ``br``,
-``pot`` are region memberships; the world has no latent state.
+``br -> br|white|pot``, ``pot -> pot|white`` of ``specs/cooking-*.toml``). Sensors: ``ch`` and
+``br`` are the memberships of yellow and green; ``pot`` means "food dropped in the pot": the
+spoon is in the dark region and entered it carrying food (from yellow or green), a latent bit
+that lasts while the spoon stays in the pot. An empty spoon over the pot reads white, so the
+change ``white -> pot``, which the assumptions rule out, cannot happen even though white and
+the pot share a boundary. The changes the assumptions still rule out are geometric ones the
+nominal task never makes: from the pot straight into yellow or green (the spoon leaves the pot
+to white first), and jumps between yellow and green; under a perturbation the executive
+reports them as assumption violations.
 
 Two scripted demonstrations, one per order (paper Fig. (a)): chicken first (white -> yellow ->
 dark -> white -> green -> dark, ``specs/cooking-cb.toml``) and broccoli first (white -> green ->
@@ -61,6 +68,7 @@ class CookingWorld(WorldBase):
     specs: ClassVar[tuple[str, ...]] = ("cooking-cb.toml", "cooking-bc.toml", "cooking-c.toml",
                                         "cooking-cc.toml")
     sensor_names: ClassVar[tuple[str, ...]] = ("ch", "br", "pot")
+    latent_names: ClassVar[tuple[str, ...]] = ("ch", "br", "pot")
     region_names: ClassVar[tuple[str, ...]] = ("white", "yellow", "green", "dark")
     region_colors: ClassVar[tuple[str, ...]] = ("#ffffff", "#f7e27a", "#9ed99b", "#555555")
     lo: ClassVar[tuple[float, ...]] = (0.0, 0.0)
@@ -78,9 +86,16 @@ class CookingWorld(WorldBase):
 
     def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
              ) -> tuple[BoolArray, BoolArray]:
-        """``(ch, br, pot)``: membership of yellow, green, dark (no latent state)."""
+        """``(ch, br, pot)`` and the latent reading ``(ch, br, pot)`` (module docstring).
+
+        ``ch``, ``br``: in yellow, in green; ``pot`` = in dark and (``pot`` or ``ch`` or ``br``
+        at the previous reading).
+        """
         idx = self.region_index(x)
-        return np.stack([idx == 1, idx == 2, idx == 3], axis=1), latent
+        ch, br = idx == 1, idx == 2
+        pot = (idx == 3) & np.any(latent, axis=1)
+        reading = np.stack([ch, br, pot], axis=1)
+        return reading, reading.copy()
 
     def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Demonstration]:
         """Demonstrations alternating the two orders: chicken first, broccoli first, ...
