@@ -14,10 +14,11 @@ the smallest certified decay rate, for the learned model and the committed
 ``models/scoop.model.json``.
 
 True regions: the paper's scoop world (:class:`tli_verify.worlds.scoop.ScoopWorld`, workspace
-``[-8, 8]^2``); starts are uniform in the mode's colour region, entry is membership of the next
-mode's colour region:
+``[-8, 8]^2``); starts are uniform in the states where the world's sensors read the mode,
+entry is membership of the next mode's colour region:
 
-* ``a`` (reach, ``!r & !s & !t``): white; next ``b`` (``r``): yellow (``x2 <= -4``);
+* ``a`` (reach, ``!r & !s & !t``): white, and pink or green with an empty spoon (all of the
+  workspace but yellow); next ``b`` (``r``): yellow (``x2 <= -4``, outside the pink column);
 * ``b`` (scoop, ``r``): yellow; next ``c`` (``s``): pink (``2 <= x1 <= 6``, ``x2 <= 6``);
 * ``c`` (transport, ``s``): pink; next ``d`` (``t``): green (``2 <= x1 <= 6``, ``x2 > 6``).
 
@@ -51,11 +52,15 @@ WORLD = ScoopWorld()
 def region(mode: str, X: FloatArray) -> BoolArray:
     """Membership of the true region of a scoop mode ``a``, ``b``, ``c`` or ``d``.
 
-    The world's colour regions (:data:`tli_verify.worlds.scoop.MODE_REGION`): a white,
-    b yellow, c pink, d green.
+    Where the world's sensors read the mode's label: b yellow, c pink (with soup on the
+    spoon), d green (soup delivered) -- :data:`tli_verify.worlds.scoop.MODE_REGION` -- and
+    a everywhere else, i.e. white and also pink or green with an empty spoon (reached
+    without scooping, or after a spill).
     """
     if mode not in MODE_REGION:
         raise ValueError(f"unknown scoop mode {mode!r}")
+    if mode == "a":
+        return np.asarray(~WORLD.in_region("yellow", X))
     return WORLD.in_region(MODE_REGION[mode], X)
 
 
