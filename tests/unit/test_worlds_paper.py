@@ -30,6 +30,7 @@ from tli_verify.worlds import (
     CookingWorld,
     InspectionWorld,
     ScoopWorld,
+    World,
     WorldBase,
 )
 from tli_verify.worlds.base import write_demos
@@ -102,7 +103,19 @@ def test_regions_partition_the_workspace(name: str) -> None:
     got = world.true_mode(np.array([p for p, _ in probes]))
     assert list(got) == [r for _, r in probes]
     assert len(world.region_colors) == len(world.region_names)
+    assert isinstance(world, World)
     assert all((SPECS / s).is_file() for s in world.specs)
+
+
+@pytest.mark.parametrize("name", list(WORLDS))
+def test_sample_region_stays_in_the_region(name: str) -> None:
+    world = WORLDS[name]()
+    for region in world.region_names:
+        X = world.sample_region(region, 50, np.random.default_rng(1))
+        assert X.shape == (50, 2)
+        assert world.in_region(region, X).all()
+    with pytest.raises(ModelError, match="no region"):
+        world.sample_region("nowhere", 1, np.random.default_rng(1))
 
 
 def test_scoop_region_areas_are_the_papers() -> None:

@@ -4,14 +4,15 @@ the multi-modal task worlds of the paper's experiments (:mod:`.base`): soup scoo
 
 from __future__ import annotations
 
-from tli_verify.worlds.base import WorldBase, plot_world, write_demos
+from tli_verify.worlds.base import World, WorldBase, plot_world, write_demos
 from tli_verify.worlds.color_tracing import ColorTracingWorld
 from tli_verify.worlds.cooking import CookingWorld
 from tli_verify.worlds.inspection import InspectionWorld
 from tli_verify.worlds.scoop import ScoopWorld
 
 __all__ = ["WORLDS", "ColorTracingWorld", "CookingWorld", "InspectionWorld", "ScoopWorld",
-           "WorldBase", "plot_world", "write_demos"]
+           "World", "WorldBase", "plot_world",
+           "write_demos"]
 
 WORLDS: dict[str, type[WorldBase]] = {
     "scoop": ScoopWorld,

@@ -27,7 +27,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -36,11 +36,39 @@ from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import ModelError
 from tli_verify.io import atomic_write_text
 
-__all__ = ["WorldBase", "min_jerk_path", "plot_world", "write_demos"]
+__all__ = ["World", "WorldBase", "min_jerk_path", "plot_world", "write_demos"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
+
+
+@runtime_checkable
+class World(Protocol):
+    """What a consumer (the closed-loop executive, an experiment) needs from a world.
+
+    :class:`WorldBase` implements it; see there for the meaning of each member.
+    """
+
+    @property
+    def lag(self) -> int: ...
+
+    name: ClassVar[str]
+    sensor_names: ClassVar[tuple[str, ...]]
+    latent_names: ClassVar[tuple[str, ...]]
+    region_names: ClassVar[tuple[str, ...]]
+
+    def region_index(self, X: npt.ArrayLike) -> IntArray: ...
+
+    def true_mode(self, X: npt.ArrayLike) -> npt.NDArray[np.str_]: ...
+
+    def initial_latent(self, batch: int) -> BoolArray: ...
+
+    def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
+             ) -> tuple[BoolArray, BoolArray]: ...
+
+    def sensors(self, X: npt.ArrayLike,
+                latent: npt.ArrayLike | None = None) -> BoolArray: ...
 
 
 def min_jerk_path(waypoints: npt.ArrayLike, duration: float, dt: float
@@ -161,6 +189,26 @@ class WorldBase:
         Xa = np.asarray(X, dtype=np.float64)
         return np.asarray(np.all((Xa >= np.array(self.lo)) & (Xa <= np.array(self.hi)),
                                  axis=-1))
+
+    def sample_region(self, name: str, count: int, rng: np.random.Generator) -> FloatArray:
+        """``count`` uniform random states of a true region (rejection sampling), (count, n).
+
+        Raises
+        ------
+        ModelError
+            Unknown region, or the region is too small to hit (below about 1e-4 of the box).
+        """
+        lo, hi = np.array(self.lo), np.array(self.hi)
+        out: list[FloatArray] = []
+        got = 0
+        for _ in range(200):
+            X = rng.uniform(lo, hi, size=(max(4 * count, 64), lo.size))
+            ok = X[self.in_region(name, X)]
+            out.append(ok)
+            got += len(ok)
+            if got >= count:
+                return np.concatenate(out)[:count]
+        raise ModelError(f"{self.name}: cannot sample {count} states of region {name!r}")
 
     # ----------------------------------------------------------------- sensors
     def initial_latent(self, batch: int) -> BoolArray:
