@@ -402,3 +402,13 @@ def test_cooking_ds_learned_once_serve_all_four_automata(repo: Path, tmp_path: P
                     ("cooking-c.toml", "d", None), ("cooking-c.toml", "g", "w")}
     # everything else is covered: e.g. all of cooking-cc (chicken continuously)
     assert not {g for g in gaps if g[0] == "cooking-cc.toml"}
+
+
+@pytest.mark.parametrize("name", list(WORLDS))
+def test_worlds_are_values_that_pickle(name: str) -> None:
+    import pickle
+
+    world = WORLDS[name](lag=3)
+    again = pickle.loads(pickle.dumps(world))
+    assert again == world and again.lag == 3
+    assert again != WORLDS[name]()
