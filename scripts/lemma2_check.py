@@ -5,7 +5,7 @@ region ``delta_j`` of the next mode ``j``: the DS then reaches ``delta_j`` in fi
 every start, and the sensors report the transition the automaton waits for. This script learns
 the scoop model from the bundled demonstrations (``demos/scoop_*.csv`` with ``specs/scoop.toml``,
 :func:`tli_verify.model.learn_model`), or loads a model file, draws random starts in each mode's
-*true* region (the scoop generator's discs, :mod:`tli_verify.demos`), integrates the mode's
+*true* region (the paper's scoop world, :mod:`tli_verify.worlds.scoop`), integrates the mode's
 nominal DS alone (``f`` of paper eq. 4, no cuts; explicit Euler, vectorised over the starts) and
 prints, per mode: the fraction of starts that enter the next mode's region within the horizon
 and the worst entry time. A second table counts the components that satisfy the sampled-data
@@ -13,11 +13,14 @@ condition ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` at ``dt = 1 ms`` (floats, ma
 the smallest certified decay rate, for the learned model and the committed
 ``models/scoop.model.json``.
 
-True regions (the scoop generator's sensors, in the box around the demonstrations):
+True regions: the paper's scoop world (:class:`tli_verify.worlds.scoop.ScoopWorld`, workspace
+``[-8, 8]^2``); starts are uniform in the states where the world's sensors read the mode,
+entry is membership of the next mode's colour region:
 
-* ``a`` (reach, ``!r & !s & !t``): outside the soup disc; next ``b`` (``r``): the soup disc;
-* ``b`` (scoop, ``r``): the soup disc; next ``c`` (``s``): outside the soup and target discs;
-* ``c`` (transport, ``s``): outside both discs; next ``d`` (``t``): the target disc.
+* ``a`` (reach, ``!r & !s & !t``): white, and pink or green with an empty spoon (all of the
+  workspace but yellow); next ``b`` (``r``): yellow (``x2 <= -4``, outside the pink column);
+* ``b`` (scoop, ``r``): yellow; next ``c`` (``s``): pink (``2 <= x1 <= 6``, ``x2 <= 6``);
+* ``c`` (transport, ``s``): pink; next ``d`` (``t``): green (``2 <= x1 <= 6``, ``x2 > 6``).
 
 Usage: ``.venv/bin/python scripts/lemma2_check.py [--model FILE] [--starts 300] [--seed 0]
 [--dt 0.01] [--horizon 60] [--rate R]`` (``--rate 0``: learn with the old margin-only
@@ -35,45 +38,30 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.demos import (
-    SCOOP_SOUP_CENTER,
-    SCOOP_SOUP_RADIUS,
-    SCOOP_TARGET_CENTER,
-    SCOOP_TARGET_RADIUS,
-)
 from tli_verify.model import Model, learn_model, load_model
+from tli_verify.worlds.scoop import MODE_REGION, ScoopWorld
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 ROOT = Path(__file__).resolve().parents[1]
-BOX_LO = np.array([0.0, 0.5])
-"""Lower corner of the start box (the demonstrations' bounding box, padded by about 1)."""
-BOX_HI = np.array([9.5, 9.7])
-"""Upper corner of the start box."""
-
-
-def in_soup(X: FloatArray) -> BoolArray:
-    """Sensor ``r``: inside the soup disc (closed, as the generator reads it)."""
-    return np.asarray(np.linalg.norm(X - SCOOP_SOUP_CENTER, axis=1) <= SCOOP_SOUP_RADIUS)
-
-
-def in_target(X: FloatArray) -> BoolArray:
-    """Sensor ``t`` (once scooped): inside the target disc."""
-    return np.asarray(np.linalg.norm(X - SCOOP_TARGET_CENTER, axis=1) <= SCOOP_TARGET_RADIUS)
+WORLD = ScoopWorld()
+"""The paper's scoop world: the true regions the starts are drawn from and entries are read in."""
 
 
 def region(mode: str, X: FloatArray) -> BoolArray:
-    """Membership of the true region of a scoop mode ``a``, ``b``, ``c`` or ``d``."""
+    """Membership of the true region of a scoop mode ``a``, ``b``, ``c`` or ``d``.
+
+    Where the world's sensors read the mode's label: b yellow, c pink (with soup on the
+    spoon), d green (soup delivered) -- :data:`tli_verify.worlds.scoop.MODE_REGION` -- and
+    a everywhere else, i.e. white and also pink or green with an empty spoon (reached
+    without scooping, or after a spill).
+    """
+    if mode not in MODE_REGION:
+        raise ValueError(f"unknown scoop mode {mode!r}")
     if mode == "a":
-        return ~in_soup(X)
-    if mode == "b":
-        return in_soup(X)
-    if mode == "c":
-        return ~in_soup(X) & ~in_target(X)
-    if mode == "d":
-        return in_target(X)
-    raise ValueError(f"unknown scoop mode {mode!r}")
+        return np.asarray(~WORLD.in_region("yellow", X))
+    return WORLD.in_region(MODE_REGION[mode], X)
 
 
 NEXT = {"a": "b", "b": "c", "c": "d"}
@@ -81,14 +69,11 @@ NEXT = {"a": "b", "b": "c", "c": "d"}
 
 
 def sample_starts(mode: str, n: int, rng: np.random.Generator) -> FloatArray:
-    """``n`` uniform random states of the mode's true region inside the start box."""
+    """``n`` uniform random states of the mode's true region (in the workspace ``[-8, 8]^2``)."""
+    lo, hi = np.array(WORLD.lo), np.array(WORLD.hi)
     out = np.empty((0, 2))
     while out.shape[0] < n:
-        X = rng.uniform(BOX_LO, BOX_HI, size=(4 * n, 2))
-        if mode == "b":  # the soup disc is small against the box: sample it directly
-            r = SCOOP_SOUP_RADIUS * np.sqrt(rng.uniform(size=4 * n))
-            phi = rng.uniform(0.0, 2.0 * np.pi, size=4 * n)
-            X = SCOOP_SOUP_CENTER + np.column_stack([r * np.cos(phi), r * np.sin(phi)])
+        X = rng.uniform(lo, hi, size=(4 * n, 2))
         out = np.vstack([out, X[region(mode, X)]])
     return out[:n]
 

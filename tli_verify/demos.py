@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import DemoError
-from tli_verify.io import atomic_write_text, read_text
+from tli_verify.io import read_text
 from tli_verify.limits import MAX_ABS_VALUE, MAX_STATE_DIM
 
 __all__ = [
@@ -343,30 +343,17 @@ def demo_to_csv(demo: Demonstration, *, velocities: bool = True) -> str:
 # The bundled 2D soup-scooping demonstrations (paper Sec. 7.2, Fig. 1 and 5).
 # --------------------------------------------------------------------------------------------
 
-SCOOP_SOUP_CENTER = np.array([4.5, 2.5])
-"""Centre of the soup region (sensor ``r``: spoon in contact with the soup)."""
-SCOOP_SOUP_RADIUS = 1.2
-SCOOP_TARGET_CENTER = np.array([8.5, 7.0])
-"""Centre of the target bowl (sensor ``t``: spoon at the target)."""
-SCOOP_TARGET_RADIUS = 0.9
 
-
-def _min_jerk(s: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Minimum-jerk timing ``u(s) = 10 s^3 - 15 s^4 + 6 s^5`` and its derivative."""
-    return 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
-
-
-def make_scoop_demos(*, seed: int, n_demos: int = 3, duration: float = 10.0,
+def make_scoop_demos(*, seed: int, n_demos: int = 3, duration: float = 12.0,
                      dt: float = 0.05) -> list[Demonstration]:
-    """Synthesise 2D soup-scooping demonstrations with sensors ``r, s, t``.
+    """Synthesise 2D soup-scooping demonstrations with sensors ``r, s, t`` (the paper's world).
 
-    Each demonstration is a smooth path (a cubic spline through jittered waypoints: start,
-    above the soup, through the soup, out of it, to the target bowl) timed with a minimum-jerk
-    profile, so it starts and ends at rest. Sensors follow the paper's scooping task (Sec. 7.2):
-    ``r`` while the spoon is inside the soup disc, ``s`` once it has left the soup (soup on the
-    spoon) until it reaches the target disc, ``t`` inside the target disc after scooping. The
-    sensor sequence is therefore ``(!r!s!t) -> (r!s!t) -> (!r s!t) -> (!r!s t)``: modes
-    a (reach), b (scoop), c (transport), d (done) of ``specs/scoop.toml``.
+    The scripted demonstrator of :class:`tli_verify.worlds.scoop.ScoopWorld`: the paper's
+    geometry (Fig. 2; workspace ``[-8, 8]^2``, yellow contact ``x2 <= -4``, pink soup-on-spoon
+    column ``2 <= x1 <= 6``, green target above ``x2 = 6``), paths timed with a minimum-jerk
+    profile so they start and end at rest, read by the world's sensor model. The sensor
+    sequence is ``(!r!s!t) -> (r!s!t) -> (!r s!t) -> (!r!s t)``: modes a (reach), b (scoop),
+    c (transport), d (done) of ``specs/scoop.toml``.
 
     Parameters
     ----------
@@ -383,41 +370,9 @@ def make_scoop_demos(*, seed: int, n_demos: int = 3, duration: float = 10.0,
     list of Demonstration
         With analytic velocities.
     """
-    from scipy.interpolate import CubicSpline
+    from tli_verify.worlds.scoop import ScoopWorld
 
-    rng = np.random.default_rng(seed)
-    demos = []
-    t = np.arange(0.0, duration + 0.5 * dt, dt)
-    for d in range(n_demos):
-        start = np.array([1.0, 8.0]) + rng.uniform(-0.8, 0.8, size=2)
-        jitter = rng.normal(scale=0.15, size=(3, 2))
-        waypoints = np.vstack([
-            start,
-            np.array([3.0, 3.6]) + jitter[0],   # above the soup, approaching
-            np.array([4.5, 1.9]) + jitter[1],   # through the soup
-            np.array([6.2, 3.4]) + jitter[2],   # out of the soup, soup on the spoon
-            np.array([7.6, 6.2]),               # towards the target bowl
-            SCOOP_TARGET_CENTER,
-        ])
-        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0),
-                                                                 axis=1))])
-        spline = CubicSpline(chord / chord[-1], waypoints, bc_type="natural")
-        u, du = _min_jerk(t / duration)
-        x = spline(u)
-        dx = spline(u, 1) * (du / duration)[:, None]
-        in_soup = np.linalg.norm(x - SCOOP_SOUP_CENTER, axis=1) <= SCOOP_SOUP_RADIUS
-        scooped = np.maximum.accumulate(in_soup) & ~in_soup
-        at_target = scooped & (np.linalg.norm(x - SCOOP_TARGET_CENTER, axis=1)
-                               <= SCOOP_TARGET_RADIUS)
-        # once at the target the task is done: t stays on
-        at_target = np.maximum.accumulate(at_target)
-        r = in_soup
-        s = scooped & ~at_target
-        sensors = np.stack([r, s, at_target], axis=1)
-        demos.append(Demonstration(path=f"<scoop demo {d + 1}>", t=t.copy(), x=x, dx=dx,
-                                   sensor_names=("r", "s", "t"), sensors=sensors,
-                                   velocities_from_file=True))
-    return demos
+    return ScoopWorld(duration=duration, dt=dt).demonstrate(seed, n_demos)
 
 
 def write_scoop_demos(directory: str | os.PathLike[str], *, seed: int = 0,
@@ -434,11 +389,7 @@ def write_scoop_demos(directory: str | os.PathLike[str], *, seed: int = 0,
     -------
     list of Path
     """
-    out = []
-    for i, demo in enumerate(make_scoop_demos(seed=seed, n_demos=n_demos), start=1):
-        path = Path(directory) / f"scoop_{i}.csv"
-        atomic_write_text(path, f"# soup-scooping demonstration {i} "
-                                f"(tli_verify.demos.make_scoop_demos, seed={seed})\n"
-                          + demo_to_csv(demo))
-        out.append(path)
-    return out
+    from tli_verify.worlds.base import write_demos
+    from tli_verify.worlds.scoop import ScoopWorld
+
+    return write_demos(ScoopWorld(), directory, seed=seed, n_demos=n_demos, prefix="scoop")

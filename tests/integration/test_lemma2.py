@@ -1,7 +1,8 @@
 """Paper Lemma 2 on the scoop task: each mode's DS alone enters the next mode's sensor region.
 
 The model is learned from the bundled demonstrations with the shipped spec (what ``tli learn``
-does); starts are uniform in each mode's true region (the scoop generator's discs). The check
+does); starts are uniform in each mode's true region (the paper's scoop world,
+:mod:`tli_verify.worlds.scoop`: a white, b yellow, c pink, d green). The check
 itself is ``scripts/lemma2_check.py`` (loaded from its file), so the test and the printed table
 are the same computation.
 """
@@ -58,20 +59,23 @@ def test_every_mode_hands_over_from_every_start(lemma2: ModuleType, learned: Mod
 
 def test_attractors_have_a_margin_inside_the_next_region(lemma2: ModuleType,
                                                          learned: Model) -> None:
-    from tli_verify.demos import (
-        SCOOP_SOUP_CENTER,
-        SCOOP_SOUP_RADIUS,
-        SCOOP_TARGET_CENTER,
-        SCOOP_TARGET_RADIUS,
-    )
+    from tli_verify.worlds.scoop import TARGET_CENTER
 
     a, b, c = (learned.modes[m].ds.attractor for m in "abc")
+
+    def margin_box(x: np.ndarray, lo: tuple[float, float], hi: tuple[float, float]) -> float:
+        return float(min(x[0] - lo[0], hi[0] - x[0], x[1] - lo[1], hi[1] - x[1]))
+
     # strictly inside: a whole Euler step (and then some) away from the boundary
-    assert SCOOP_SOUP_RADIUS - np.linalg.norm(a - SCOOP_SOUP_CENTER) > 0.05
-    assert np.linalg.norm(b - SCOOP_SOUP_CENTER) - SCOOP_SOUP_RADIUS > 0.05
-    assert np.linalg.norm(b - SCOOP_TARGET_CENTER) > SCOOP_TARGET_RADIUS
-    assert SCOOP_TARGET_RADIUS - np.linalg.norm(c - SCOOP_TARGET_CENTER) > 0.05
-    np.testing.assert_allclose(learned.modes["d"].ds.attractor, SCOOP_TARGET_CENTER, atol=1e-9)
+    # a -> yellow, left of the pink column (x1 < 2, x2 <= -4)
+    assert margin_box(a, (-8.0, -8.0), (2.0, -4.0)) > 0.05
+    # b -> pink (2 <= x1 <= 6, x2 <= 6)
+    assert margin_box(b, (2.0, -8.0), (6.0, 6.0)) > 0.05
+    # c -> green (2 <= x1 <= 6, 6 < x2 <= 8)
+    assert margin_box(c, (2.0, 6.0), (6.0, 8.0)) > 0.05
+    for x, nxt in ((a, "b"), (b, "c"), (c, "d")):
+        assert lemma2.region(nxt, x[None])[0]
+    np.testing.assert_allclose(learned.modes["d"].ds.attractor, TARGET_CENTER, atol=1e-9)
 
 
 def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None:

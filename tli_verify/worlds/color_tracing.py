@@ -1,0 +1,97 @@
+"""The color-tracing world of the paper's third robot experiment (appendix "Color Tracing").
+
+The end-effector moves through (while staying within) the (Y)ellow, (B)lue, (G)reen, (O)range
+and (P)ink tiles and eventually reaches (R)ed; a perturbation into the (D)ark background makes
+the task automaton replan (``specs/color-tracing-a/b/c.toml``: re-enter at yellow, at blue, or
+tile-dependent). The paper gives no coordinates; ours (workspace ``[0, 12] x [0, 6]``) make every
+sensor change the specs' assumptions allow a shared boundary and no other:
+
+* Y ``[0, 2)``, B ``[2, 4)``, G ``[4, 6)``, O ``[6, 8)`` in ``x1``, each over the band
+  ``2 <= x2 <= 4``: a row of tiles, each touching the next and the dark background;
+* P ``8 <= x1 < 10`` and R ``x1 >= 10``, both over the full height: P touches O, R and the
+  dark background; R touches only P (the assumptions allow no dark -> red change, and red is
+  absorbing);
+* dark: the rest (``x1 < 8`` off the band).
+
+Sensors ``cy, cb, cg, co, cp, cr`` are the tile memberships (all false in the dark); no latent
+state. One scripted demonstration (as in the paper) runs from yellow along the row to red.
+The assumptions also rule out moving back to the previous tile (``B -> Y`` and so on) although
+the tiles share a boundary: the nominal task only moves forward; under a perturbation the
+executive reports such a change as an assumption violation. The dark modes ``d1``-``d4`` of the
+specs are never demonstrated (paper: "the system learns a DS for each of the colored mode"), so
+``tli learn --spec specs/color-tracing-*.toml`` refuses the demonstration (paper Asm. 3); learn
+it without ``--spec`` (one DS per tile reading).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.demos import Demonstration
+from tli_verify.worlds.base import BoolArray, FloatArray, IntArray, WorldBase
+
+__all__ = ["ColorTracingWorld"]
+
+BAND = (2.0, 4.0)
+"""The row of Y, B, G, O tiles: ``2 <= x2 <= 4``."""
+
+
+@dataclass(frozen=True, slots=True)
+class ColorTracingWorld(WorldBase):
+    """The color-tracing world (module docstring).
+
+    Attributes
+    ----------
+    lag : int
+        Sensor lag in steps (default 0).
+    duration : float
+        Seconds per demonstration.
+    dt : float
+        Sampling period (s).
+    """
+
+    duration: float = 12.0
+    dt: float = 0.05
+
+    name: ClassVar[str] = "color-tracing"
+    specs: ClassVar[tuple[str, ...]] = ("color-tracing-a.toml", "color-tracing-b.toml",
+                                        "color-tracing-c.toml")
+    sensor_names: ClassVar[tuple[str, ...]] = ("cy", "cb", "cg", "co", "cp", "cr")
+    region_names: ClassVar[tuple[str, ...]] = ("dark", "Y", "B", "G", "O", "P", "R")
+    region_colors: ClassVar[tuple[str, ...]] = ("#3a3a3a", "#f7e27a", "#7aa6f7", "#9ed99b",
+                                                "#f7b36b", "#f4b6c8", "#e2574c")
+    lo: ClassVar[tuple[float, ...]] = (0.0, 0.0)
+    hi: ClassVar[tuple[float, ...]] = (12.0, 6.0)
+
+    def region_index(self, X: npt.ArrayLike) -> IntArray:
+        """0 dark, 1 Y, 2 B, 3 G, 4 O, 5 P, 6 R, shape (N,)."""
+        Xa = np.asarray(X, dtype=np.float64)
+        x1, x2 = Xa[..., 0], Xa[..., 1]
+        band = (x2 >= BAND[0]) & (x2 <= BAND[1])
+        tile = np.clip(np.floor(x1 / 2.0), 0, 3).astype(np.int64) + 1  # Y B G O by x1
+        idx = np.where(band & (x1 < 8.0), tile, 0)
+        idx = np.where((x1 >= 8.0) & (x1 < 10.0), 5, idx)
+        return np.asarray(np.where(x1 >= 10.0, 6, idx), dtype=np.int64)
+
+    def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
+             ) -> tuple[BoolArray, BoolArray]:
+        """One-hot tile membership ``(cy, cb, cg, co, cp, cr)`` (all false in the dark)."""
+        idx = self.region_index(x)
+        return np.stack([idx == k for k in range(1, 7)], axis=1), latent
+
+    def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Demonstration]:
+        """One demonstration (default) from yellow along the tiles to red (seeded jitter)."""
+        rng = np.random.default_rng(seed)
+        out = []
+        for i in range(1 if n_demos is None else int(n_demos)):
+            xs = np.array([0.8, 3.0, 5.0, 7.0, 9.0, 11.0])
+            ys = 3.0 + rng.uniform(-0.35, 0.35, size=xs.size)
+            xs = xs + np.concatenate([rng.uniform(-0.3, 0.3, size=1), np.zeros(4),
+                                      rng.uniform(-0.3, 0.3, size=1)])
+            out.append(self._demo(str(i + 1), np.column_stack([xs, ys]), self.duration,
+                                  self.dt))
+        return out
