@@ -260,3 +260,24 @@ def test_learned_cuts_saved_as_a_certified_model(looping: tuple[TaskAutomaton, M
     pol2 = LTLDSPolicy(aut, again, ocert)  # the new pair is covered; the cut is kept
     res = run_episode(pol2, Chain(), [-3.0, 2.0], steps=1500, speed_cap=20.0)
     assert res.success and res.cuts_added == 0
+
+
+def test_batched_episodes_agree_with_single_episodes(
+        nominal: tuple[TaskAutomaton, Model, Path]) -> None:
+    from tli_verify.runtime.executive import run_episodes
+
+    aut, model, cert = nominal
+    starts = np.array([[-3.0, 4.0], [-2.0, 1.0], [-4.0, -1.0], [1.0, 2.0], [5.0, 1.0]])
+    base = LTLDSPolicy(aut, model, cert)
+    forks = [base.fork() for _ in starts]
+    assert len({id(f.model) for f in forks}) == 1 and len({id(f.events) for f in forks}) == 5
+    batch = run_episodes(forks,
+                         [Chain() for _ in starts], starts, steps=3000, speed_cap=20.0)
+    for x0, got in zip(starts, batch, strict=True):
+        one = run_episode(pickle.loads(pickle.dumps(base)), Chain(), x0, steps=3000,
+                          speed_cap=20.0)
+        assert got.success == one.success and got.modes == one.modes
+        assert got.steps == one.steps
+        np.testing.assert_allclose(got.states, one.states, rtol=1e-9, atol=1e-9)
+    assert all(r.success for r in batch)
+    assert batch[-1].steps == 0 and batch[-1].modes == ("c",)  # started in the goal mode

@@ -69,6 +69,7 @@ __all__ = [
     "SensorModel",
     "check_coverage",
     "run_episode",
+    "run_episodes",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -170,6 +171,7 @@ class LTLDSPolicy:
         "_entries",
         "_entry",
         "_holding",
+        "_inputs",
         "_key",
         "_last",
         "_mode",
@@ -230,6 +232,7 @@ class LTLDSPolicy:
         self._holding = False
         self._entries: dict[str, list[FloatArray]] = {}
         self._plan_cache: dict[int, str | None] = {}
+        self._inputs = frozenset(automaton.inputs)
 
     # ---------------------------------------------------------------- public state
     @property
@@ -324,11 +327,17 @@ class LTLDSPolicy:
 
     # ---------------------------------------------------------------- control
     def _vector(self, x: npt.ArrayLike) -> FloatArray:
-        xa = np.array(x, dtype=np.float64).reshape(-1)
-        if xa.size != self.model.dim or not np.all(np.isfinite(xa)):
+        xa = np.array(x, dtype=np.float64).reshape(-1)  # a copy: callers update x in place
+        if xa.size != self.model.dim or not (np.isfinite(xa.sum()) or np.isfinite(xa).all()):
             raise ModelError(f"state must be a finite vector of dimension {self.model.dim}, "
                              f"got shape {np.shape(x)}")
         return xa
+
+    def _read(self, sensors: Sensors) -> frozenset[str]:
+        """The set of true sensors (unknown names raise :class:`SpecError`, exit 2)."""
+        if isinstance(sensors, dict) and sensors.keys() <= self._inputs:
+            return frozenset([k for k, v in sensors.items() if v])
+        return self.automaton._reading(sensors)
 
     def reset(self, x0: npt.ArrayLike, sensors: Sensors) -> None:
         """Start an episode at ``x0`` with the first reading (learned cuts are kept).
@@ -342,7 +351,7 @@ class LTLDSPolicy:
         self._pending = False
         self._holding = False
         self._state = None
-        reading = self.automaton._reading(sensors)
+        reading = self._read(sensors)
         try:
             sid = self.automaton.initial_state(reading)
         except AssumptionViolation as exc:
@@ -358,6 +367,18 @@ class LTLDSPolicy:
         self._entry = x
         self._last = x
         self._entries.setdefault(self._mode, []).append(x)
+
+    def fork(self) -> LTLDSPolicy:
+        """A copy for another episode: same automaton, model (and its learned cuts) and
+        certificate check, its own episode state, events and recorded entry states. Forks of
+        one policy share the model object, so :func:`run_episodes` batches their DS."""
+        new = object.__new__(LTLDSPolicy)
+        for name in LTLDSPolicy.__slots__:
+            setattr(new, name, getattr(self, name))
+        new.events = list(self.events)
+        new._entries = {k: list(v) for k, v in self._entries.items()}
+        new._plan_cache = dict(self._plan_cache)
+        return new
 
     def notify_perturbation(self) -> None:
         """The next reading follows a perturbation: a mode exit then is not a failure."""
@@ -375,10 +396,14 @@ class LTLDSPolicy:
         self._pending = False
         if perturbed:
             self.events.append(Perturbation(t, self._mode))
-        reading = self.automaton._reading(sensors)
+        reading = self._read(sensors)
         cause = "perturbation" if perturbed else "invariance failure"
         try:
-            new_state, new_mode = self.automaton.next_mode(self._state, reading)
+            target = self.automaton._index.get((self._state, reading))
+            if target is None:
+                self.automaton.next_mode(self._state, reading)  # raises, with its message
+                raise AssumptionViolation(f"no transition for {sorted(reading)}")  # not reached
+            new_state, new_mode = target, self.automaton.states[target].mode
             self._holding = False
         except AssumptionViolation as exc:
             sid = self._resync(reading)
@@ -597,3 +622,87 @@ def run_episode(
                          states=np.array(states), modes=tuple(modes),
                          automaton_states=tuple(astates), events=tuple(policy.events),
                          cuts_added=added, model=policy.model)
+
+
+def run_episodes(
+    policies: Sequence[LTLDSPolicy],
+    sensors: Sequence[SensorModel],
+    starts: npt.ArrayLike,
+    *,
+    steps: int = 2000,
+    speed_cap: float = np.inf,
+) -> list[EpisodeResult]:
+    """Many closed-loop episodes at once: the velocities are evaluated batched.
+
+    Each episode has its own executive (automaton state, events, learned cuts) and sensor
+    model; per step the automaton and monitor advance episode by episode (cheap), and the DS
+    run by episodes that share a model and a key are evaluated in one vectorised call (the
+    expensive part). Same results as :func:`run_episode` per start, up to float rounding of
+    the batched evaluation.
+
+    Parameters
+    ----------
+    policies : sequence of LTLDSPolicy
+        One per start (e.g. ``[copy.copy(p) ...]`` or policies built from one model: episodes
+        that share a model object share a batch).
+    sensors : sequence of SensorModel
+        One per start.
+    starts : array_like, shape (N, n)
+    steps : int, optional
+    speed_cap : float, optional
+
+    Returns
+    -------
+    list of EpisodeResult
+    """
+    X = np.array(starts, dtype=np.float64)
+    N = X.shape[0]
+    if not (len(policies) == len(sensors) == N):
+        raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
+                       f"{len(sensors)}, {N}")
+    paths = [[X[i].copy()] for i in range(N)]
+    modes: list[list[str]] = []
+    astates: list[list[int]] = []
+    for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
+        sen.reset(X[i].copy())
+        pol.reset(X[i], sen.read(X[i]))
+        modes.append([pol.mode])
+        astates.append([pol.state if pol.state is not None else -1])
+    active = np.ones(N, dtype=bool)
+    taken = np.zeros(N, dtype=np.int64)
+    for _ in range(steps):
+        groups: dict[tuple[int, str], list[int]] = {}
+        for i in np.flatnonzero(active).tolist():
+            pol = policies[i]
+            if pol.done and not pol.holding:
+                active[i] = False
+                continue
+            key = pol.decide(X[i], sensors[i].read(X[i]))
+            taken[i] += 1
+            if key:
+                groups.setdefault((id(pol.model), key), []).append(i)
+        if not active.any():
+            break
+        V = np.zeros_like(X)
+        for (_, key), rows in groups.items():
+            pol = policies[rows[0]]
+            V[rows] = pol.model.modes[key].velocity(X[rows], dt=pol.dt)
+        idx = np.flatnonzero(active)
+        if np.isfinite(speed_cap):
+            from tli_verify.runtime.rollout import cap_speed
+
+            V[idx] = cap_speed(V[idx], speed_cap)
+        for i in idx.tolist():
+            X[i] = X[i] + policies[i].dt * V[i]
+            paths[i].append(X[i].copy())
+            modes[i].append(policies[i].mode)
+            st = policies[i].state
+            astates[i].append(st if st is not None else -1)
+    out = []
+    for i, pol in enumerate(policies):
+        out.append(EpisodeResult(
+            success=pol.done and not pol.holding, steps=int(taken[i]),
+            states=np.array(paths[i]), modes=tuple(modes[i]),
+            automaton_states=tuple(astates[i]), events=tuple(pol.events),
+            cuts_added=sum(1 for e in pol.events if isinstance(e, CutAdded)), model=pol.model))
+    return out
