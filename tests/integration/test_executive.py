@@ -281,3 +281,27 @@ def test_batched_episodes_agree_with_single_episodes(
         np.testing.assert_allclose(got.states, one.states, rtol=1e-9, atol=1e-9)
     assert all(r.success for r in batch)
     assert batch[-1].steps == 0 and batch[-1].modes == ("c",)  # started in the goal mode
+
+
+def test_per_transition_ds_follow_the_plan_and_share_the_cut(tmp_path: Path) -> None:
+    aut, _, _ = _project(tmp_path, [0.5, -1.8])
+    mpath = tmp_path / "models" / "chain.model.json"
+    doc = json.loads(mpath.read_text())
+    b = doc["modes"].pop("b")
+    doc["modes"]["b->c"] = {**b, "next_mode": "c"}
+    doc["modes"]["b->a"] = {**_ds("b", "a", [-1.0, 3.0], [[-1.0, 0.0], [0.0, -1.0]])}
+    save_model(model_from_dict(doc, path=str(mpath)), mpath)
+    cpath = tmp_path / "certificates" / "chain.cert.json"
+    write_certificate(issue_certificate(mpath, cert_path=cpath, dt="1/100"), cpath)
+    pol = LTLDSPolicy(aut, load_model(mpath), cpath)
+    res = run_episode(pol, Chain(), [-3.0, 2.0], steps=1500, speed_cap=20.0)
+    # in b the automaton can go to a or c; the plan is c (the goal), so b->c runs
+    assert "b" in res.modes
+    cuts = [e for e in res.events if isinstance(e, CutAdded)]
+    fails = [e for e in res.events if isinstance(e, InvarianceFailure)]
+    assert [f.key for f in fails] == ["b->c"]
+    assert len(cuts) == 1 and cuts[0].keys == ("b->a", "b->c")
+    assert len(pol.model.modes["b->a"].cuts) == 1 and len(pol.model.modes["b->c"].cuts) == 1
+    assert res.success
+    pol.reset([0.5, 1.0], {"u": True})  # starts in b (reported: not an initial reading)
+    assert (pol.mode, pol.planned, pol.key) == ("b", "c", "b->c")

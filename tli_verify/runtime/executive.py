@@ -175,6 +175,7 @@ class LTLDSPolicy:
         "_key",
         "_last",
         "_mode",
+        "_model",
         "_pending",
         "_plan_cache",
         "_planned",
@@ -187,7 +188,6 @@ class LTLDSPolicy:
         "events",
         "goal_modes",
         "learn_cuts",
-        "model",
     )
 
     def __init__(self, automaton: TaskAutomaton, model: Model,
@@ -208,7 +208,7 @@ class LTLDSPolicy:
             raise ModelError(f"{model.path}: no DS for mode {missing[0]!r} the automaton "
                              f"{automaton.name!r} runs")
         self.automaton = automaton
-        self.model = model
+        self._model = model
         self.certificate = str(certificate)
         self.dt = float(dt)
         if goal_modes is None:
@@ -235,6 +235,12 @@ class LTLDSPolicy:
         self._inputs = frozenset(automaton.inputs)
 
     # ---------------------------------------------------------------- public state
+    @property
+    def model(self) -> Model:
+        """The certified model with the cuts learned so far (read-only: replacing it would
+        run a model the certificate check did not see)."""
+        return self._model
+
     @property
     def mode(self) -> str:
         """The mode being run."""
@@ -500,7 +506,7 @@ class LTLDSPolicy:
                                          "separates the failure state"))
             return
         try:
-            self.model = self.model.add_cut(key, attempt.cut)
+            self._model = self.model.add_cut(key, attempt.cut)
         except ModelError as exc:
             self.events.append(CutFailed(t, mode, str(exc)))
             return
