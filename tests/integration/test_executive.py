@@ -191,12 +191,20 @@ def test_impossible_reading_is_reported_and_resynchronized(
     ev = [e for e in pol.events if isinstance(e, AssumptionViolationEvent)]
     assert len(ev) == 1 and ev[0].reading == ("v",) and ev[0].resynced is not None
     assert pol.mode == "c" and aut.states[ev[0].resynced].mode == "c"
+    replans = [e for e in pol.events if isinstance(e, Replan)]
+    assert [(r.from_mode, r.to_mode, r.cause) for r in replans] == [
+        ("a", "c", "assumption violation")]
+    assert not any(isinstance(e, InvarianceFailure | CutAdded) for e in pol.events)
     assert np.allclose(v, model.velocity(x, "c", dt=pol.dt))
     # no automaton state has both sensors on: report it, hold still, never crash
     v2 = pol.step(x, {"u": True, "v": True})
     ev = [e for e in pol.events if isinstance(e, AssumptionViolationEvent)]
     assert len(ev) == 2 and ev[1].resynced is None and pol.holding
     assert np.array_equal(v2, np.zeros(2))
+    # a reading it can follow again ends the hold
+    v3 = pol.step(x, {"v": True})
+    assert not pol.holding and pol.mode == "c"
+    assert np.allclose(v3, model.velocity(x, "c", dt=pol.dt))
     # an initial reading the assumptions rule out
     pol.reset(x, {"u": True})
     first = pol.events[0]

@@ -15,12 +15,14 @@ every control period returns the velocity to apply. Per step it
 3. **replanning**: a mode other than the planned next one is followed (receding horizon,
    :class:`~.events.Replan`);
 4. **invariance failures**: such an exit that no perturbation caused (the caller reports
-   perturbations: ``step(..., perturbed=True)`` or :meth:`LTLDSPolicy.notify_perturbation`) is an
-   invariance failure of the mode left. The executive records ``(x^0, x^{T_f-1}, x^{T_f})`` --
-   the mode-entry state, the last in-mode state, the failure state -- solves the cut QCQP
-   (appendix F; constrained by the mode's earlier cut points and every entry state recorded in
-   the mode, so earlier failures stay separated) and applies it at once: a new model
-   (:meth:`tli_verify.model.Model.add_cut`), whose DS of that mode all share the cut;
+   perturbations: ``step(..., perturbed=True)`` or :meth:`LTLDSPolicy.notify_perturbation`) is
+   an invariance failure of the mode left (an exit across a reading the assumptions rule out
+   is reported as an assumption violation and cuts nothing). The executive records
+   ``(x^0, x^{T_f-1}, x^{T_f})`` -- the mode-entry state, the last in-mode state, the failure
+   state -- and solves the cut QCQP (appendix F), constrained by the mode's earlier cut points
+   and every entry state recorded in the mode, so earlier failures stay separated. It applies
+   the cut at once: a new model (:meth:`tli_verify.model.Model.add_cut`), whose DS of that
+   mode all share the cut;
 5. runs ``model.velocity(x, mode, next_mode=planned, dt=dt)``: the per-transition DS towards the
    planned next mode where the model has one.
 
@@ -404,6 +406,9 @@ class LTLDSPolicy:
             self.events.append(Perturbation(t, self._mode))
         reading = self._read(sensors)
         cause = "perturbation" if perturbed else "invariance failure"
+        was_holding = self._holding
+        if was_holding and not perturbed:
+            cause = "assumption violation"
         try:
             target = self.automaton._index.get((self._state, reading))
             if target is None:
@@ -417,18 +422,18 @@ class LTLDSPolicy:
                                                         str(exc), sid))
             if sid is None:
                 self._holding = True
-                self._last = xv
                 return ""
             self._holding = False
             new_state, new_mode = sid, self.automaton.states[sid].mode
-            if perturbed:
-                cause = "perturbation"
-            else:
+            if not perturbed:
                 cause = "assumption violation"
         old_mode, planned = self._mode, self._planned
         if new_mode != old_mode:
             expected = new_mode == planned
-            if not expected and not perturbed and self._last is not None \
+            # a cut only for a policy-made exit: not after a perturbation, and not across a
+            # reading the assumptions rule out (a sensor glitch or an unreported push; its
+            # "last in-mode state" may not be one)
+            if not expected and cause == "invariance failure" and self._last is not None \
                     and self._entry is not None:
                 self._failure(t, old_mode, new_mode, xv)
             self._enter(new_state)
@@ -465,9 +470,9 @@ class LTLDSPolicy:
             ``M_i(x) f_i(x)`` of the mode's DS (zero while holding).
         """
         key = self.decide(x, sensors, perturbed=perturbed)
-        if not key:
+        if not key or self._last is None:
             return np.zeros(self.model.dim)
-        return self.model.modes[key].velocity(self._vector(x), dt=self.dt)
+        return self.model.modes[key].velocity(self._last, dt=self.dt)
 
     def velocity(self, x: npt.ArrayLike) -> FloatArray:
         """The current DS's velocity at ``x`` without advancing (zero while holding)."""
