@@ -313,3 +313,23 @@ def test_per_transition_ds_follow_the_plan_and_share_the_cut(tmp_path: Path) -> 
     assert res.success
     pol.reset([0.5, 1.0], {"u": True})  # starts in b (reported: not an initial reading)
     assert (pol.mode, pol.planned, pol.key) == ("b", "c", "b->c")
+
+
+def test_shipped_scoop_pair_runs_and_a_tampered_certificate_is_refused(project: Path) -> None:
+    from tli_verify.certify.gate import run_gate
+    from tli_verify.logic.spec import load_spec
+
+    aut = synthesize(load_spec(project / "specs" / "scoop.toml"))
+    mpath = project / "models" / "scoop.model.json"
+    cert = project / "certificates" / "scoop.cert.json"
+    pol = LTLDSPolicy(aut, load_model(mpath), cert)
+    assert pol.goal_modes == ("d",) and pol.dt == pytest.approx(1e-3)
+    pol.reset(np.full(pol.model.dim, -5.0), {})
+    assert (pol.mode, pol.planned, pol.key) == ("a", "b", "a")
+    assert run_gate(project).ok  # the gate and the executive agree on the genuine pair
+    doc = json.loads(cert.read_text())
+    doc["control_period"]["dt"] = "1/10"  # a longer certified period, digest left stale
+    cert.write_text(json.dumps(doc))
+    assert not run_gate(project).ok
+    with pytest.raises(CertificateError, match="does not re-check"):
+        LTLDSPolicy(aut, load_model(mpath), cert)
