@@ -24,6 +24,10 @@ Success is measured on the same starts the cuts were learned from, as in the pap
 report it on 100 fresh *held-out* starts per noise level (same distribution), with the final
 cuts, which the paper does not.
 
+Rollouts and cut learning run on the runtime's engine (:mod:`tli_verify.runtime.rollout`,
+:mod:`tli_verify.runtime.online`), the one the executive and the campaigns share; this module
+keeps the study's configuration, process pool, statistics, report and figures.
+
 Every trial is seeded by ``SeedSequence([seed, trial])``, so results do not depend on the number
 of worker processes.
 """
