@@ -671,14 +671,13 @@ def run_episodes(
     if not (len(policies) == len(sensors) == N):
         raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
                        f"{len(sensors)}, {N}")
-    paths = [[X[i].copy()] for i in range(N)]
-    modes: list[list[str]] = []
-    astates: list[list[int]] = []
     for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
         sen.reset(X[i].copy())
         pol.reset(X[i], sen.read(X[i]))
-        modes.append([pol.mode])
-        astates.append([pol.state if pol.state is not None else -1])
+    dts = np.array([pol.dt for pol in policies])[:, None]
+    hist_x = [X.copy()]
+    hist_mode = [[pol.mode for pol in policies]]
+    hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
     active = np.ones(N, dtype=bool)
     taken = np.zeros(N, dtype=np.int64)
     for _ in range(steps):
@@ -698,22 +697,22 @@ def run_episodes(
         for (_, key), rows in groups.items():
             pol = policies[rows[0]]
             V[rows] = pol.model.modes[key].velocity(X[rows], dt=pol.dt)
-        idx = np.flatnonzero(active)
         if np.isfinite(speed_cap):
             from tli_verify.runtime.rollout import cap_speed
 
-            V[idx] = cap_speed(V[idx], speed_cap)
-        for i in idx.tolist():
-            X[i] = X[i] + policies[i].dt * V[i]
-            paths[i].append(X[i].copy())
-            modes[i].append(policies[i].mode)
-            st = policies[i].state
-            astates[i].append(st if st is not None else -1)
+            cap_speed(V, speed_cap)
+        X += dts * V  # held and finished episodes have V = 0
+        hist_x.append(X.copy())
+        hist_mode.append([pol.mode for pol in policies])
+        hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
+    path = np.array(hist_x)
     out = []
     for i, pol in enumerate(policies):
+        T = int(taken[i]) + 1
         out.append(EpisodeResult(
-            success=pol.done and not pol.holding, steps=int(taken[i]),
-            states=np.array(paths[i]), modes=tuple(modes[i]),
-            automaton_states=tuple(astates[i]), events=tuple(pol.events),
+            success=pol.done and not pol.holding, steps=T - 1, states=path[:T, i].copy(),
+            modes=tuple(m[i] for m in hist_mode[:T]),
+            automaton_states=tuple(s[i] for s in hist_state[:T]),
+            events=tuple(pol.events),
             cuts_added=sum(1 for e in pol.events if isinstance(e, CutAdded)), model=pol.model))
     return out
