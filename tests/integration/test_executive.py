@@ -333,3 +333,26 @@ def test_shipped_scoop_pair_runs_and_a_tampered_certificate_is_refused(project: 
     assert not run_gate(project).ok
     with pytest.raises(CertificateError, match="does not re-check"):
         LTLDSPolicy(aut, load_model(mpath), cert)
+
+
+def test_batched_perturbed_episodes_agree_with_single_episodes(
+        looping: tuple[TaskAutomaton, Model, Path]) -> None:
+    from tli_verify.runtime.executive import run_episodes
+
+    aut, model, cert = looping
+    starts = np.array([[-3.0, 2.0], [-3.0, 4.0], [-1.0, 0.0]])
+    kicks = {0: (300, [1.0, 4.0]), 1: (50, [2.0, 0.0]), 2: (80, [-4.0, 4.0])}
+
+    def push_batch(i: int, t: int, x: np.ndarray) -> np.ndarray | None:
+        return np.array(kicks[i][1]) if t == kicks[i][0] else None
+
+    base = LTLDSPolicy(aut, model, cert)
+    batch = run_episodes([base.fork() for _ in starts], [Chain() for _ in starts], starts,
+                         steps=1500, speed_cap=20.0, perturb=push_batch)
+    for i, (x0, got) in enumerate(zip(starts, batch, strict=True)):
+        one = run_episode(base.fork(), Chain(), x0, steps=1500, speed_cap=20.0,
+                          perturb={kicks[i][0]: kicks[i][1]})
+        assert got.modes == one.modes and got.steps == one.steps and got.success
+        assert [type(e).__name__ for e in got.events] == [type(e).__name__ for e in one.events]
+        np.testing.assert_allclose(got.states, one.states, rtol=1e-9, atol=1e-9)
+    assert any(isinstance(e, CutAdded) for r in batch for e in r.events)

@@ -642,6 +642,7 @@ def run_episodes(
     *,
     steps: int = 2000,
     speed_cap: float = np.inf,
+    perturb: Callable[[int, int, FloatArray], FloatArray | None] | None = None,
 ) -> list[EpisodeResult]:
     """Many closed-loop episodes at once: the velocities are evaluated batched.
 
@@ -661,6 +662,9 @@ def run_episodes(
     starts : array_like, shape (N, n)
     steps : int, optional
     speed_cap : float, optional
+    perturb : callable, optional
+        ``perturb(i, t, x) -> new state or None`` for episode ``i`` before its step ``t``
+        (1-based); the executive is told (``perturbed=True``), as in :func:`run_episode`.
 
     Returns
     -------
@@ -687,7 +691,10 @@ def run_episodes(
             if pol.done and not pol.holding:
                 active[i] = False
                 continue
-            key = pol.decide(X[i], sensors[i].read(X[i]))
+            pushed = perturb(i, int(taken[i]) + 1, X[i].copy()) if perturb is not None else None
+            if pushed is not None:
+                X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
+            key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
             taken[i] += 1
             if key:
                 groups.setdefault((id(pol.model), key), []).append(i)
