@@ -245,9 +245,39 @@ class ModeModel:
     ds: LPVDS
     cuts: tuple[Cut, ...] = ()
     fit: Mapping[str, Any] | None = None
+    _modulator: Any = field(default=None, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        """Freeze ``fit`` and build the modulator once for this cut set (paper eq. 5).
+
+        Raises
+        ------
+        ModelError
+            A cut of the wrong dimension, or one that leaves ``x*`` outside.
+        """
+        from tli_verify.boundary.modulation import Modulator
+
+        object.__setattr__(self, "cuts", tuple(self.cuts))
+        if self.fit is not None and not isinstance(self.fit, MappingProxyType):
+            object.__setattr__(self, "fit", MappingProxyType(dict(self.fit)))
+        if self.cuts:
+            object.__setattr__(self, "_modulator",
+                               Modulator.build(self.cuts, self.ds.attractor, lyapunov=self.ds.P))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle by value (a mappingproxy does not pickle); the modulator is rebuilt."""
+        return (ModeModel, (self.key, self.mode, self.next_mode, self.ds, self.cuts,
+                            dict(self.fit) if self.fit is not None else None))
+
+    @property
+    def modulator(self) -> Any:
+        """The :class:`~tli_verify.boundary.modulation.Modulator` of the cuts (None without)."""
+        return self._modulator
 
     def velocity(self, X: npt.ArrayLike, *, dt: float | None = None) -> FloatArray:
         """``M(x) f(x)`` (paper eq. 5 with the corner guard), or ``f(x)`` without cuts.
+
+        The modulator is built once per cut set (in ``__post_init__``), not per call.
 
         Parameters
         ----------
@@ -259,18 +289,22 @@ class ModeModel:
         -------
         ndarray, same shape as ``X``
         """
-        from tli_verify.boundary.modulation import check_control_period, modulate
+        from tli_verify.boundary.modulation import check_control_period
 
         check_control_period(dt)
         F = self.ds.velocity(X)
-        if not self.cuts:
+        if self._modulator is None:
             return F
 
         single = F.ndim == 1
         Xa = np.atleast_2d(np.asarray(X, dtype=np.float64))
-        out = modulate(Xa, np.atleast_2d(F), self.cuts, self.ds.attractor, lyapunov=self.ds.P,
-                       dt=dt)
+        out = self._modulator(Xa, np.atleast_2d(F), dt=dt)
         return np.asarray(out[0] if single else out, dtype=np.float64)
+
+    def with_cuts(self, cuts: Sequence[Cut]) -> ModeModel:
+        """A copy with the given cuts (validated, modulator rebuilt)."""
+        return ModeModel(key=self.key, mode=self.mode, next_mode=self.next_mode, ds=self.ds,
+                         cuts=tuple(cuts), fit=self.fit)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -357,14 +391,87 @@ class Model:
         """``f(x)`` of the mode's LPV-DS without modulation (paper eq. 4)."""
         return self.modes[self.key(mode, next_mode)].ds.velocity(X)
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.modes, MappingProxyType):
+            object.__setattr__(self, "modes", MappingProxyType(dict(self.modes)))
+        if self.source is not None and not isinstance(self.source, MappingProxyType):
+            object.__setattr__(self, "source", MappingProxyType(dict(self.source)))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle by value (mappingproxies do not pickle), e.g. to send to worker processes."""
+        source = json.loads(json.dumps(dict(self.source))) if self.source is not None else None
+        return (Model, (self.state_names, dict(self.modes), self.spec, self.path, source))
+
     def with_cuts(self, key: str, cuts: Sequence[Cut]) -> Model:
         """A copy of the model whose DS ``key`` has the given cuts."""
         if key not in self.modes:
             raise ModelError(f"no DS {key!r} in the model")
-        old = self.modes[key]
         modes = dict(self.modes)
-        modes[key] = ModeModel(key=old.key, mode=old.mode, next_mode=old.next_mode, ds=old.ds,
-                               cuts=tuple(cuts), fit=old.fit)
+        modes[key] = self.modes[key].with_cuts(cuts)
+        return Model(state_names=self.state_names, modes=MappingProxyType(modes),
+                     spec=self.spec, path=self.path, source=self.source)
+
+    def keys_of(self, mode: str) -> tuple[str, ...]:
+        """Every DS key of a mode (the plain key and its per-transition keys), sorted."""
+        return tuple(sorted(k for k, m in self.modes.items() if m.mode == mode))
+
+    def region_cuts(self, mode: str) -> tuple[Cut, ...]:
+        """The cuts learned for a mode's region: the union over its DS keys, in order."""
+        seen: dict[tuple[tuple[float, ...], tuple[float, ...]], Cut] = {}
+        for k in self.keys_of(mode):
+            for c in self.modes[k].cuts:
+                seen.setdefault((tuple(c.normal.tolist()), tuple(c.point.tolist())), c)
+        return tuple(seen.values())
+
+    def add_cut(self, key: str, cut: Cut) -> Model:
+        """A new model with ``cut`` added to the region of a mode (paper Sec. 5.2).
+
+        The cut bounds the *mode's region*, so every DS of that mode -- the plain one and the
+        per-transition ones -- gets it (they share the cuts learned for the region).
+
+        Parameters
+        ----------
+        key : str
+            A mode name or a DS key (``"a"`` or ``"a->b"``); the cut goes to every DS of its
+            mode.
+        cut : Cut
+
+        Returns
+        -------
+        Model
+            This model is unchanged.
+
+        Raises
+        ------
+        ModelError
+            ``key`` is unknown; ``cut`` is not a :class:`Cut`, has a normal that is not a unit
+            vector, a dimension other than the model's, or leaves the attractor of one of the
+            mode's DS on or outside its plane (``x*`` must be strictly inside).
+        """
+        if key in self.modes:
+            mode = self.modes[key].mode
+        elif self.keys_of(key):
+            mode = key
+        else:
+            raise ModelError(f"{self.path or 'model'}: no DS or mode {key!r} to cut "
+                             f"(known keys: {', '.join(sorted(self.modes))})")
+        if not isinstance(cut, Cut):
+            raise ModelError(f"a cut must be a Cut, got {type(cut).__name__}")
+        if cut.dim != self.dim:
+            raise ModelError(f"cut has dimension {cut.dim}, the model has {self.dim} states")
+        norm = float(np.linalg.norm(cut.normal))
+        if not abs(norm - 1.0) <= 1e-6:
+            raise ModelError(f"cut normal must be a unit vector, its norm is {norm:.9g}")
+        modes = dict(self.modes)
+        for k in self.keys_of(mode):
+            mm = self.modes[k]
+            h = cut.offset(mm.ds.attractor)
+            scale = max(1.0, float(np.linalg.norm(cut.point - mm.ds.attractor)))
+            if not h > 1e-9 * scale:
+                raise ModelError(f"cut for mode {mode!r} leaves the attractor of DS {k!r} on or "
+                                 f"outside its plane (w . (p - x*) = {h:.6g}); x* must be "
+                                 "strictly inside")
+            modes[k] = mm.with_cuts((*mm.cuts, cut))
         return Model(state_names=self.state_names, modes=MappingProxyType(modes),
                      spec=self.spec, path=self.path, source=self.source)
 

@@ -110,6 +110,7 @@ References
 from __future__ import annotations
 
 import itertools
+import math
 import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -586,7 +587,9 @@ def _admits(A: FloatArray, c: FloatArray, v: FloatArray, g: FloatArray) -> bool:
 
 def check_control_period(dt: float | None) -> None:
     """Raise :class:`ModelError` unless ``dt`` is None or a positive finite number."""
-    if dt is not None and (isinstance(dt, bool) or not isinstance(dt, numbers.Real)
+    if dt is None or (type(dt) is float and 0.0 < dt < math.inf):  # the fast path (per step)
+        return
+    if (isinstance(dt, bool) or not isinstance(dt, numbers.Real)
                            or not (np.isfinite(dt) and dt > 0)):
         raise ModelError(f"dt must be a positive number, got {dt!r}")
 

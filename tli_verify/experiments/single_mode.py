@@ -24,6 +24,10 @@ Success is measured on the same starts the cuts were learned from, as in the pap
 report it on 100 fresh *held-out* starts per noise level (same distribution), with the final
 cuts, which the paper does not.
 
+Rollouts and cut learning run on the runtime's engine (:mod:`tli_verify.runtime.rollout`,
+:mod:`tli_verify.runtime.online`), the one the executive and the campaigns share; this module
+keeps the study's configuration, process pool, statistics, report and figures.
+
 Every trial is seeded by ``SeedSequence([seed, trial])``, so results do not depend on the number
 of worker processes.
 """
@@ -39,8 +43,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import SolverError, TliError
+from tli_verify.errors import TliError
 from tli_verify.logic.escape import markdown_text, markdown_url
+from tli_verify.runtime.online import CutLearning
+from tli_verify.runtime.online import learn_cuts as _learn_cuts
+from tli_verify.runtime.rollout import EulerProtocol, Rollouts, rollout, rollout_protocol
 
 __all__ = [
     "NOISE_PERCENT",
@@ -62,6 +69,8 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 Policy = Callable[[FloatArray], FloatArray]
+# Rollouts, rollout and CutLearning live in the runtime engine (tli_verify.runtime) and are
+# re-exported here for the study's callers.
 
 NOISE_PERCENT: tuple[int, ...] = (0, 5, 30)
 POLICIES: tuple[str, ...] = ("BC", "BC+mod", "DS", "DS+mod")
@@ -151,126 +160,6 @@ class SingleModeConfig:
                 raise TliError(message)
 
 
-@dataclass(frozen=True, slots=True, eq=False)
-class Rollouts:
-    """Vectorised rollouts from N starts.
-
-    Attributes
-    ----------
-    reached : ndarray of bool, shape (N,)
-        Reached the goal before leaving the mode (= success).
-    left : ndarray of bool, shape (N,)
-        Left the mode before reaching the goal (an invariance failure).
-    exit_step : ndarray of int, shape (N,)
-        Step of the first state outside the mode, -1 if none.
-    entry, last_inside, outside : ndarray, shape (N, n)
-        ``x^0``, ``x^{T_f-1}``, ``x^{T_f}`` (the last two NaN where the mode was not left).
-    paths : ndarray, shape (steps + 1, N, n), optional
-        States, frozen after a rollout ends; only when recorded.
-    """
-
-    reached: npt.NDArray[np.bool_]
-    left: npt.NDArray[np.bool_]
-    exit_step: npt.NDArray[np.int64]
-    entry: FloatArray
-    last_inside: FloatArray
-    outside: FloatArray
-    paths: FloatArray | None = None
-
-    @property
-    def success(self) -> npt.NDArray[np.bool_]:
-        """Reached the goal and never left the mode."""
-        return self.reached
-
-    @property
-    def reachability_failures(self) -> npt.NDArray[np.bool_]:
-        """Stayed in the mode but did not reach the goal within the horizon."""
-        return ~self.reached & ~self.left
-
-
-def rollout(
-    policy: Policy,
-    starts: npt.ArrayLike,
-    contains: Callable[[FloatArray], npt.NDArray[np.bool_]],
-    attractor: npt.ArrayLike,
-    *,
-    dt: float = 0.01,
-    steps: int = 1000,
-    speed_cap: float = 20.0,
-    goal_tolerance: float = 0.4,
-    record: bool = False,
-) -> Rollouts:
-    """Euler rollouts of a state-based policy, vectorised over the starts.
-
-    Parameters
-    ----------
-    policy : callable
-        Velocities for states, (M, n) -> (M, n).
-    starts : array_like, shape (N, n)
-        Start states (inside the mode).
-    contains : callable
-        The mode sensor, (M, n) -> bool (M,).
-    attractor : array_like, shape (n,)
-        Goal.
-    dt, steps, speed_cap, goal_tolerance : float, int, float, float
-        Integration protocol; the speed cap rescales a velocity, keeping its direction.
-    record : bool, optional
-        Keep the paths (for figures).
-
-    Returns
-    -------
-    Rollouts
-    """
-    X = np.array(starts, dtype=np.float64)
-    goal = np.asarray(attractor, dtype=np.float64)
-    N, n = X.shape
-    reached = np.linalg.norm(X - goal, axis=1) <= goal_tolerance
-    left = ~contains(X)
-    exit_step = np.where(left, 0, -1).astype(np.int64)
-    last_inside = np.full((N, n), np.nan)
-    outside = np.where(left[:, None], X, np.nan)
-    reached &= ~left
-    active = ~(reached | left)
-    paths = np.empty((steps + 1, N, n)) if record else None
-    if paths is not None:
-        paths[0] = X
-    for t in range(1, steps + 1):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            if paths is not None:
-                paths[t:] = X
-            break
-        x = X[idx]
-        v = policy(x)
-        speed = np.linalg.norm(v, axis=1)
-        over = speed > speed_cap
-        if np.any(over):
-            v[over] *= (speed_cap / speed[over])[:, None]
-        x_new = x + dt * v
-        inside = contains(x_new)
-        out_now = ~inside
-        if np.any(out_now):
-            j = idx[out_now]
-            left[j] = True
-            exit_step[j] = t
-            last_inside[j] = x[out_now]
-            outside[j] = x_new[out_now]
-        goal_now = inside & (np.linalg.norm(x_new - goal, axis=1) <= goal_tolerance)
-        reached[idx[goal_now]] = True
-        X[idx[inside]] = x_new[inside]
-        active[idx[out_now | goal_now]] = False
-        if paths is not None:
-            paths[t] = X
-            paths[t, idx[out_now]] = x_new[out_now]
-    if paths is not None:
-        # keep the exit point visible: states after an exit stay at the failure state
-        for row in np.flatnonzero(left & (exit_step > 0)).tolist():
-            paths[int(exit_step[row]):, row] = outside[row]
-    return Rollouts(reached=reached, left=left, exit_step=exit_step,
-                    entry=np.array(starts, dtype=np.float64), last_inside=last_inside,
-                    outside=outside, paths=paths)
-
-
 def _roll(
     config: SingleModeConfig,
     policy: Policy,
@@ -280,9 +169,7 @@ def _roll(
     *,
     record: bool = False,
 ) -> Rollouts:
-    return rollout(policy, starts, contains, goal, dt=config.dt, steps=config.steps,
-                   speed_cap=config.speed_cap, goal_tolerance=config.goal_tolerance,
-                   record=record)
+    return rollout_protocol(policy, starts, contains, goal, _protocol(config), record=record)
 
 
 def sample_starts(
@@ -328,35 +215,9 @@ def sample_starts(
     return out
 
 
-@dataclass(frozen=True, slots=True, eq=False)
-class CutLearning:
-    """Outcome of iterative cut learning for one policy and noise level.
-
-    Attributes
-    ----------
-    cuts : list of Cut
-    curve : list of float
-        Success rate with 0, 1, ..., len(cuts) cuts.
-    failures : list of tuple
-        The invariance failures ``(x^0, x^{T_f-1}, x^{T_f})`` the cuts were built from.
-    final : Rollouts
-        Rollouts with all cuts.
-    unsolved : int
-        Failures for which no separating cut existed (skipped).
-    fallback : int
-        Cuts solved with only the failure's own ``x^0`` kept inside, because no plane kept
-        every entry state inside (``cut_constraints="entries"`` only).
-    converged : bool
-        No rollout left the mode with the final cuts.
-    """
-
-    cuts: list[Any]
-    curve: list[float]
-    failures: list[tuple[FloatArray, FloatArray, FloatArray]]
-    final: Rollouts
-    unsolved: int
-    fallback: int
-    converged: bool
+def _protocol(config: SingleModeConfig) -> EulerProtocol:
+    return EulerProtocol(dt=config.dt, steps=config.steps, speed_cap=config.speed_cap,
+                         goal_tolerance=config.goal_tolerance)
 
 
 def learn_cuts(
@@ -371,6 +232,9 @@ def learn_cuts(
     record: bool = False,
 ) -> CutLearning:
     """Add cuts from sampled invariance failures one at a time (paper appendix F).
+
+    The study's parameters around :func:`tli_verify.runtime.online.learn_cuts` (the engine
+    the executive shares).
 
     Parameters
     ----------
@@ -392,53 +256,10 @@ def learn_cuts(
     -------
     CutLearning
     """
-    from tli_verify.boundary.cuts import InvarianceFailure, inside_cuts, solve_cut
-    from tli_verify.boundary.modulation import modulated
-
-    cuts: list[Any] = []
-    curve: list[float] = []
-    used: list[tuple[FloatArray, FloatArray, FloatArray]] = []
-    unsolved = 0
-    fallback = 0
-    while True:
-        pol = modulated(base, cuts, attractor, lyapunov=lyapunov, dt=config.dt)
-        res = _roll(config, pol.velocity, starts, contains, attractor, record=record)
-        curve.append(float(res.success.mean()))
-        fails = np.flatnonzero(res.left & (res.exit_step > 0))
-        if fails.size == 0 or len(cuts) >= config.max_cuts:
-            return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
-                               unsolved=unsolved, fallback=fallback,
-                               converged=fails.size == 0)
-        new = None
-        # failures whose last in-mode state is inside the cuts first: a cut can only change
-        # the flow inside the cuts (outside them the policy runs unmodulated, paper Fig. 4)
-        order = rng.permutation(fails)
-        fixable = inside_cuts(res.last_inside[order], cuts)
-        order = np.concatenate([order[fixable], order[~fixable]])
-        keep = starts if config.cut_constraints == "entries" else None
-        for j in order:
-            failure = InvarianceFailure(entry=res.entry[j], last_inside=res.last_inside[j],
-                                        outside=res.outside[j])
-            try:
-                new = solve_cut(failure, attractor, previous=cuts, keep_inside=keep,
-                                margin=config.cut_margin)
-            except SolverError:
-                if keep is None:
-                    unsolved += 1
-                    continue
-                try:  # some entry state lies beyond the exit: keep only this failure's x^0
-                    new = solve_cut(failure, attractor, previous=cuts,
-                                    margin=config.cut_margin)
-                    fallback += 1
-                except SolverError:
-                    unsolved += 1
-                    continue
-            used.append((res.entry[j].copy(), res.last_inside[j].copy(), res.outside[j].copy()))
-            break
-        if new is None:
-            return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
-                               unsolved=unsolved, fallback=fallback, converged=False)
-        cuts.append(new)
+    return _learn_cuts(base, starts, contains, attractor, rng, protocol=_protocol(config),
+                       max_cuts=config.max_cuts, cut_margin=config.cut_margin,
+                       cut_constraints=config.cut_constraints, lyapunov=lyapunov,
+                       record=record)
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,0 +1,202 @@
+"""What the LTL-DS executive reports, step by step (frozen values; see :mod:`.executive`).
+
+Every event carries the control step ``step`` (0 = the ``reset`` reading) at which it happened.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.boundary.cuts import Cut
+
+__all__ = [
+    "AssumptionViolationEvent",
+    "CutAdded",
+    "CutFailed",
+    "Event",
+    "InvarianceFailure",
+    "ModeChange",
+    "Perturbation",
+    "Replan",
+    "event_to_json",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class ModeChange:
+    """The automaton moved to another mode.
+
+    Attributes
+    ----------
+    step : int
+    from_mode, to_mode : str
+    state : int
+        The automaton state entered.
+    expected : bool
+        ``to_mode`` was the planned next mode (a nominal transition).
+    """
+
+    step: int
+    from_mode: str
+    to_mode: str
+    state: int
+    expected: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Replan:
+    """The reading showed a mode other than the planned one; the automaton replans from it
+    (receding horizon, paper Sec. 1 and Fig. 4(b)).
+
+    Attributes
+    ----------
+    step : int
+    from_mode, to_mode : str
+        The mode left and the mode the reading shows.
+    planned : str or None
+        The mode that was planned next.
+    new_plan : str or None
+        The next mode planned from ``to_mode``.
+    cause : str
+        ``"perturbation"``, ``"invariance failure"`` or ``"assumption violation"``.
+    """
+
+    step: int
+    from_mode: str
+    to_mode: str
+    planned: str | None
+    new_plan: str | None
+    cause: str
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class InvarianceFailure:
+    """A mode exit no perturbation caused, to a mode other than the planned next one
+    (paper Sec. 5.2).
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+        The mode left.
+    key : str
+        The DS that was running.
+    to_mode : str
+        The mode the reading shows.
+    entry, last_inside, outside : ndarray, shape (n,)
+        ``x^0`` (mode entry), ``x^{T_f-1}`` (last in-mode state), ``x^{T_f}`` (failure state).
+    """
+
+    step: int
+    mode: str
+    key: str
+    to_mode: str
+    entry: FloatArray
+    last_inside: FloatArray
+    outside: FloatArray
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CutAdded:
+    """A cut learned from an invariance failure and applied at once (a new model).
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+        The mode whose region the cut bounds.
+    keys : tuple of str
+        The DS of that mode that got it (they share the region's cuts).
+    cut : Cut
+    cuts : int
+        The mode's number of cuts now.
+    fallback : bool
+        Solved keeping only this failure's ``x^0`` inside (not every recorded entry state).
+    """
+
+    step: int
+    mode: str
+    keys: tuple[str, ...]
+    cut: Cut
+    cuts: int
+    fallback: bool
+
+
+@dataclass(frozen=True, slots=True)
+class CutFailed:
+    """No separating cut exists for an invariance failure (the failure is reported, not cut).
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+    reason : str
+    """
+
+    step: int
+    mode: str
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class AssumptionViolationEvent:
+    """A sensor reading the spec's environment assumptions rule out.
+
+    Attributes
+    ----------
+    step : int
+    state : int
+        The automaton state it was read in.
+    reading : tuple of str
+        The true sensors.
+    message : str
+    resynced : int or None
+        The automaton state consistent with the reading the executive moved to, or None when
+        none exists (then it holds: zero velocity, same state, until a reading it can follow).
+    """
+
+    step: int
+    state: int
+    reading: tuple[str, ...]
+    message: str
+    resynced: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class Perturbation:
+    """The caller reported a perturbation before this step's reading.
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+        The mode the executive was in.
+    """
+
+    step: int
+    mode: str
+
+
+Event = (ModeChange | Replan | InvarianceFailure | CutAdded | CutFailed
+         | AssumptionViolationEvent | Perturbation)
+
+
+def event_to_json(event: Event) -> dict[str, Any]:
+    """JSON-ready record ``{"event": <class name>, ...fields}`` (arrays as lists)."""
+    out: dict[str, Any] = {"event": type(event).__name__}
+    for name in event.__slots__:
+        value = getattr(event, name)
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        elif isinstance(value, Cut):
+            value = value.to_dict()
+        elif isinstance(value, tuple):
+            value = list(value)
+        out[name] = value
+    return out

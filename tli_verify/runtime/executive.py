@@ -1,0 +1,721 @@
+"""The LTL-DS executive (paper eq. 6, Sec. 5, Fig. 4(b) and Fig. 7).
+
+``x' = sum_i delta_{Omega_phi(alpha), sigma_i} M_i(x) f_i(x)``: the task automaton ``Omega_phi``
+picks the mode from the sensor reading ``alpha``; the mode's certified DS ``f_i``, modulated by
+the cuts learned for the mode's region (``M_i``, eq. 5), moves the state.
+
+:class:`LTLDSPolicy` is the controller: ``reset(x0, sensors)`` once, then ``step(x, sensors)``
+every control period returns the velocity to apply. Per step it
+
+1. advances the automaton on the reading (Mealy step, :meth:`TaskAutomaton.next_mode`);
+2. **assumption monitor**: a reading the environment assumptions rule out is reported
+   (:class:`~.events.AssumptionViolationEvent`), never ignored; the executive resynchronizes to
+   an automaton state entered with that reading (same strategy memory first) and holds (zero
+   velocity) while none exists -- it never crashes on a reading;
+3. **replanning**: a mode other than the planned next one is followed (receding horizon,
+   :class:`~.events.Replan`);
+4. **invariance failures**: such an exit that no perturbation caused (the caller reports
+   perturbations: ``step(..., perturbed=True)`` or :meth:`LTLDSPolicy.notify_perturbation`) is
+   an invariance failure of the mode left (an exit across a reading the assumptions rule out
+   is reported as an assumption violation and cuts nothing). The executive records
+   ``(x^0, x^{T_f-1}, x^{T_f})`` -- the mode-entry state, the last in-mode state, the failure
+   state -- and solves the cut QCQP (appendix F), constrained by the mode's earlier cut points
+   and every entry state recorded in the mode, so earlier failures stay separated. It applies
+   the cut at once: a new model (:meth:`tli_verify.model.Model.add_cut`), whose DS of that
+   mode all share the cut;
+5. runs ``model.velocity(x, mode, next_mode=planned, dt=dt)``: the per-transition DS towards the
+   planned next mode where the model has one.
+
+It refuses (:class:`~tli_verify.errors.CertificateError`, exit 1) a model its certificate does
+not cover, exactly as the gate does: the certificate re-checks
+(:func:`tli_verify.certify.certificate.check_certificate`), names this model file, and the DS in
+memory are the certified file's (cuts learned online are covered: modulation keeps the
+certified ``V`` decreasing, Thm. 1); and a control period longer than the certified one.
+
+:func:`run_episode` is the closed loop around it: a sensor model, Euler steps with a speed cap,
+scheduled perturbations.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.boundary.cuts import InvarianceFailure as _Failure
+from tli_verify.errors import CertificateError, ModelError, TliError
+from tli_verify.logic.automaton import AssumptionViolation, TaskAutomaton
+from tli_verify.model import Model
+from tli_verify.runtime.events import (
+    AssumptionViolationEvent,
+    CutAdded,
+    CutFailed,
+    Event,
+    InvarianceFailure,
+    ModeChange,
+    Perturbation,
+    Replan,
+)
+from tli_verify.runtime.online import cut_for_failure
+
+__all__ = [
+    "EpisodeResult",
+    "LTLDSPolicy",
+    "SensorModel",
+    "check_coverage",
+    "run_episode",
+    "run_episodes",
+]
+
+FloatArray = npt.NDArray[np.float64]
+Sensors = Mapping[str, bool] | Iterable[str]
+
+
+def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    try:
+        return Path(a).resolve() == Path(b).resolve() or os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _same_ds(a: Any, b: Any) -> bool:
+    return all(np.array_equal(getattr(a, f), getattr(b, f))
+               for f in ("attractor", "priors", "means", "covs", "A", "P"))
+
+
+def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fraction:
+    """Check that ``certificate`` covers ``model``, as the gate does; return its ``dt``.
+
+    Parameters
+    ----------
+    model : Model
+        Loaded from a file (``model.path``); cuts added in memory since are allowed.
+    certificate : path-like
+
+    Returns
+    -------
+    Fraction
+        The certified control period.
+
+    Raises
+    ------
+    CertificateError
+        (exit 1) The certificate does not re-check, names another model file, or the DS in
+        memory differ from the certified file's (a cut of the file missing, other numbers);
+        (exit 2) the certificate file cannot be read.
+    """
+    from tli_verify.certify.certificate import check_certificate
+    from tli_verify.model import load_model
+
+    check = check_certificate(certificate)
+    if not check.ok:
+        raise CertificateError(f"{certificate}: refused: the certificate does not re-check: "
+                               f"{check.problems[0]}")
+    if model.path is None or check.model_path is None or \
+            not _same_file(model.path, check.model_path):
+        raise CertificateError(f"{certificate}: refused: it covers {check.model_path}, not the "
+                               f"model {model.path or '(not loaded from a file)'}")
+    certified = load_model(model.path)
+    if set(certified.modes) != set(model.modes):
+        raise CertificateError(f"{certificate}: refused: the model in memory has DS "
+                               f"{sorted(model.modes)}, the certified file "
+                               f"{sorted(certified.modes)}")
+    for key, mm in model.modes.items():
+        ref = certified.modes[key]
+        if not _same_ds(mm.ds, ref.ds):
+            raise CertificateError(f"{certificate}: refused: DS {key!r} in memory differs from "
+                                   f"the certified file {model.path}")
+        have = {(tuple(c.normal.tolist()), tuple(c.point.tolist())) for c in mm.cuts}
+        if any((tuple(c.normal.tolist()), tuple(c.point.tolist())) not in have
+               for c in ref.cuts):
+            raise CertificateError(f"{certificate}: refused: DS {key!r} in memory lacks a cut "
+                                   f"of the certified file {model.path}")
+    return Fraction(check.dt) if check.dt is not None else Fraction(1, 1000)
+
+
+class LTLDSPolicy:
+    """The LTL-DS executive: task automaton + modulated, certified DS per mode (paper eq. 6).
+
+    Parameters
+    ----------
+    automaton : TaskAutomaton
+        From :func:`tli_verify.logic.check.synthesize`.
+    model : Model
+        Loaded from its file; a DS for every mode the automaton runs.
+    certificate : path-like
+        A certificate covering the model file (see :func:`check_coverage`).
+    dt : float, optional
+        Control period of the loop (default: the certified one; longer is refused).
+    goal_modes : sequence of str, optional
+        Modes that complete the task (default: the automaton's sink modes, which no
+        transition leaves); used to rank the next modes a state can plan.
+    learn_cuts : bool, optional
+        Add a cut on each invariance failure (paper Sec. 5.2); off: report only.
+    cut_margin : float, optional
+        Separation margin of the cut QCQP.
+
+    Raises
+    ------
+    CertificateError
+        The certificate does not cover the model, or ``dt`` exceeds the certified period (1).
+    ModelError
+        A mode the automaton runs has no DS in the model (2).
+    """
+
+    __slots__ = (
+        "_entries",
+        "_entry",
+        "_holding",
+        "_inputs",
+        "_key",
+        "_last",
+        "_mode",
+        "_model",
+        "_pending",
+        "_plan_cache",
+        "_planned",
+        "_state",
+        "_steps",
+        "automaton",
+        "certificate",
+        "cut_margin",
+        "dt",
+        "events",
+        "goal_modes",
+        "learn_cuts",
+    )
+
+    def __init__(self, automaton: TaskAutomaton, model: Model,
+                 certificate: str | os.PathLike[str], *, dt: float | None = None,
+                 goal_modes: Sequence[str] | None = None, learn_cuts: bool = True,
+                 cut_margin: float = 1e-3) -> None:
+        cert_dt = check_coverage(model, certificate)
+        if dt is None:
+            dt = float(cert_dt)
+        if not (np.isfinite(dt) and dt > 0):
+            raise TliError(f"dt must be a positive number, got {dt!r}")
+        if dt > float(cert_dt) * (1.0 + 1e-12):  # the float nearest the certified period is fine
+            raise CertificateError(f"{certificate}: refused: control period {dt:g} s is longer "
+                                   f"than the certified {cert_dt} s")
+        run_modes = sorted({s.mode for s in automaton.states})
+        missing = [m for m in run_modes if not model.keys_of(m)]
+        if missing:
+            raise ModelError(f"{model.path}: no DS for mode {missing[0]!r} the automaton "
+                             f"{automaton.name!r} runs")
+        self.automaton = automaton
+        self._model = model
+        self.certificate = str(certificate)
+        self.dt = float(dt)
+        if goal_modes is None:
+            succ: dict[str, set[str]] = {m: set() for m in run_modes}
+            for a, b in automaton.mode_transitions():
+                if a != b:
+                    succ[a].add(b)
+            goal_modes = [m for m in run_modes if not succ[m]]
+        self.goal_modes = tuple(goal_modes)
+        self.learn_cuts = bool(learn_cuts)
+        self.cut_margin = float(cut_margin)
+        self.events: list[Event] = []
+        self._state: int | None = None
+        self._mode = ""
+        self._planned: str | None = None
+        self._key = ""
+        self._entry: FloatArray | None = None
+        self._last: FloatArray | None = None
+        self._steps = 0
+        self._pending = False
+        self._holding = False
+        self._entries: dict[str, list[FloatArray]] = {}
+        self._plan_cache: dict[int, str | None] = {}
+        self._inputs = frozenset(automaton.inputs)
+
+    # ---------------------------------------------------------------- public state
+    @property
+    def model(self) -> Model:
+        """The certified model with the cuts learned so far (read-only: replacing it would
+        run a model the certificate check did not see)."""
+        return self._model
+
+    @property
+    def mode(self) -> str:
+        """The mode being run."""
+        return self._mode
+
+    @property
+    def state(self) -> int | None:
+        """The automaton state (None before :meth:`reset`)."""
+        return self._state
+
+    @property
+    def planned(self) -> str | None:
+        """The next mode the automaton plans from the current state (None in a goal mode)."""
+        return self._planned
+
+    @property
+    def key(self) -> str:
+        """The model key of the DS being run."""
+        return self._key
+
+    @property
+    def steps(self) -> int:
+        """Control steps since :meth:`reset`."""
+        return self._steps
+
+    @property
+    def holding(self) -> bool:
+        """No automaton state matches the last reading: the executive holds (zero velocity)."""
+        return self._holding
+
+    @property
+    def done(self) -> bool:
+        """The current mode is a goal mode."""
+        return self._mode in self.goal_modes
+
+    # ---------------------------------------------------------------- planning
+    def _distances(self) -> dict[str, int]:
+        preds: dict[str, set[str]] = {}
+        for a, b in self.automaton.mode_transitions():
+            if a != b:
+                preds.setdefault(b, set()).add(a)
+        dist = {g: 0 for g in self.goal_modes}
+        queue = deque(self.goal_modes)
+        while queue:
+            m = queue.popleft()
+            for p in sorted(preds.get(m, ())):
+                if p not in dist:
+                    dist[p] = dist[m] + 1
+                    queue.append(p)
+        return dist
+
+    def _plan(self, state: int) -> str | None:
+        """The next mode to run towards from ``state``: among the modes the automaton can move
+        to, one with a per-transition DS, the closest to a goal mode; else the plain DS's
+        ``next_mode``."""
+        if state in self._plan_cache:
+            return self._plan_cache[state]
+        mode = self.automaton.states[state].mode
+        succ = sorted({self.automaton.states[t.target].mode for t in self.automaton.transitions
+                       if t.source == state} - {mode})
+        dist = self._distances()
+        far = len(self.automaton.modes) + 1
+        with_ds = [s for s in succ if f"{mode}->{s}" in self.model.modes]
+        plan: str | None
+        if with_ds:
+            plan = min(with_ds, key=lambda s: (dist.get(s, far), s))
+        elif mode in self.model.modes and self.model.modes[mode].next_mode is not None:
+            plan = self.model.modes[mode].next_mode
+        elif succ and mode not in self.goal_modes:
+            plan = min(succ, key=lambda s: (dist.get(s, far), s))
+        else:
+            plan = None
+        self._plan_cache[state] = plan
+        return plan
+
+    def _enter(self, state: int) -> None:
+        self._state = state
+        self._mode = self.automaton.states[state].mode
+        self._planned = self._plan(state)
+        self._key = self.model.key(self._mode, self._planned)
+
+    def _resync(self, reading: frozenset[str]) -> int | None:
+        """An automaton state entered with this reading: same strategy memory first."""
+        cands = [s for s in self.automaton.states if frozenset(s.inputs) == reading]
+        if not cands:
+            return None
+        goal = self.automaton.states[self._state].goal if self._state is not None else 0
+        return min(cands, key=lambda s: (s.goal != goal, s.id not in self.automaton.initial,
+                                         s.id)).id
+
+    # ---------------------------------------------------------------- control
+    def _vector(self, x: npt.ArrayLike) -> FloatArray:
+        xa = np.array(x, dtype=np.float64).reshape(-1)  # a copy: callers update x in place
+        if xa.size != self.model.dim or not (np.isfinite(xa.sum()) or np.isfinite(xa).all()):
+            raise ModelError(f"state must be a finite vector of dimension {self.model.dim}, "
+                             f"got shape {np.shape(x)}")
+        return xa
+
+    def _read(self, sensors: Sensors) -> frozenset[str]:
+        """The set of true sensors (unknown names raise :class:`SpecError`, exit 2)."""
+        if isinstance(sensors, dict) and sensors.keys() <= self._inputs:
+            return frozenset([k for k, v in sensors.items() if v])
+        return self.automaton._reading(sensors)
+
+    def reset(self, x0: npt.ArrayLike, sensors: Sensors) -> None:
+        """Start an episode at ``x0`` with the first reading (learned cuts are kept).
+
+        A reading the initial assumptions rule out is reported and resynchronized like any
+        other (:class:`~.events.AssumptionViolationEvent`).
+        """
+        x = self._vector(x0)
+        self.events = []
+        self._steps = 0
+        self._pending = False
+        self._holding = False
+        self._state = None
+        reading = self._read(sensors)
+        try:
+            sid = self.automaton.initial_state(reading)
+        except AssumptionViolation as exc:
+            sid_or_none = self._resync(reading)
+            self.events.append(AssumptionViolationEvent(0, -1, tuple(sorted(reading)), str(exc),
+                                                        sid_or_none))
+            if sid_or_none is None:
+                self._holding = True
+                sid = self.automaton.initial[0]
+            else:
+                sid = sid_or_none
+        self._enter(sid)
+        self._entry = x
+        self._last = x
+        self._entries.setdefault(self._mode, []).append(x)
+
+    def fork(self) -> LTLDSPolicy:
+        """A copy for another episode: same automaton, model (and its learned cuts) and
+        certificate check, its own episode state, events and recorded entry states. Forks of
+        one policy share the model object, so :func:`run_episodes` batches their DS."""
+        new = object.__new__(LTLDSPolicy)
+        for name in LTLDSPolicy.__slots__:
+            setattr(new, name, getattr(self, name))
+        new.events = list(self.events)
+        new._entries = {k: list(v) for k, v in self._entries.items()}
+        new._plan_cache = dict(self._plan_cache)
+        return new
+
+    def notify_perturbation(self) -> None:
+        """The next reading follows a perturbation: a mode exit then is not a failure."""
+        self._pending = True
+
+    def decide(self, x: npt.ArrayLike, sensors: Sensors, *, perturbed: bool = False) -> str:
+        """Advance the automaton, the monitor and the cuts on a reading; return the DS key to
+        run (``""`` while holding). :meth:`step` is this plus the velocity."""
+        if self._state is None:
+            raise TliError("call reset(x0, sensors) before step()")
+        xv = self._vector(x)
+        self._steps += 1
+        t = self._steps
+        perturbed = perturbed or self._pending
+        self._pending = False
+        if perturbed:
+            self.events.append(Perturbation(t, self._mode))
+        reading = self._read(sensors)
+        cause = "perturbation" if perturbed else "invariance failure"
+        was_holding = self._holding
+        if was_holding and not perturbed:
+            cause = "assumption violation"
+        try:
+            new_state, new_mode = self.automaton.next_mode(self._state, reading)
+            self._holding = False
+        except AssumptionViolation as exc:
+            sid = self._resync(reading)
+            self.events.append(AssumptionViolationEvent(t, self._state, tuple(sorted(reading)),
+                                                        str(exc), sid))
+            if sid is None:
+                self._holding = True
+                return ""
+            self._holding = False
+            new_state, new_mode = sid, self.automaton.states[sid].mode
+            if not perturbed:
+                cause = "assumption violation"
+        old_mode, planned = self._mode, self._planned
+        if new_mode != old_mode:
+            expected = new_mode == planned
+            # a cut only for a policy-made exit: not after a perturbation, and not across a
+            # reading the assumptions rule out (a sensor glitch or an unreported push; its
+            # "last in-mode state" may not be one)
+            if not expected and cause == "invariance failure" and self._last is not None \
+                    and self._entry is not None:
+                self._failure(t, old_mode, new_mode, xv)
+            self._enter(new_state)
+            if not expected:
+                self.events.append(Replan(t, old_mode, new_mode, planned, self._planned, cause))
+            self.events.append(ModeChange(t, old_mode, new_mode, new_state, expected))
+            self._entry = xv
+            self._entries.setdefault(new_mode, []).append(xv)
+        else:
+            if new_state != self._state:
+                self._enter(new_state)
+            if perturbed:
+                self._entry = xv
+                self._entries.setdefault(new_mode, []).append(xv)
+        self._last = xv
+        return self._key
+
+    def step(self, x: npt.ArrayLike, sensors: Sensors, *, perturbed: bool = False
+             ) -> FloatArray:
+        """One control step: the velocity to apply at ``x`` given the reading there.
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            The current state.
+        sensors : mapping of str to bool, or iterable of str
+            The reading at ``x``.
+        perturbed : bool, optional
+            A perturbation moved the state since the last step.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            ``M_i(x) f_i(x)`` of the mode's DS (zero while holding).
+        """
+        key = self.decide(x, sensors, perturbed=perturbed)
+        if not key or self._last is None:
+            return np.zeros(self.model.dim)
+        return self.model.modes[key].velocity(self._last, dt=self.dt)
+
+    def velocity(self, x: npt.ArrayLike) -> FloatArray:
+        """The current DS's velocity at ``x`` without advancing (zero while holding)."""
+        if self._holding or not self._key:
+            return np.zeros(self.model.dim)
+        return self.model.modes[self._key].velocity(self._vector(x), dt=self.dt)
+
+    # ---------------------------------------------------------------- online cuts
+    def _failure(self, t: int, mode: str, to_mode: str, x_out: FloatArray) -> None:
+        if self._entry is None or self._last is None:  # pragma: no cover - set by reset
+            return
+        key = self._key
+        self.events.append(InvarianceFailure(t, mode, key, to_mode, self._entry.copy(),
+                                             self._last.copy(), x_out.copy()))
+        if not self.learn_cuts:
+            return
+        mm = self.model.modes[key]
+        x_star = mm.ds.attractor
+        keys = self.model.keys_of(mode)
+        # keep inside: every entry state seen in the mode (earlier failures' x^0 among them),
+        # the other DS' attractors of the mode, and a small box around x* (x* strictly inside)
+        delta = 1e-3 * max(1e-6, float(np.linalg.norm(self._last - x_star)))
+        box = x_star + delta * np.vstack([np.eye(x_star.size), -np.eye(x_star.size)])
+        others = [self.model.modes[k].ds.attractor for k in keys if k != key]
+        keep = np.vstack([*self._entries.get(mode, []), *others, box])
+        try:
+            failure = _Failure(entry=self._entry, last_inside=self._last, outside=x_out)
+        except ModelError as exc:
+            self.events.append(CutFailed(t, mode, str(exc)))
+            return
+        previous = self.model.region_cuts(mode)
+        attempt = cut_for_failure(failure, x_star, previous=previous, keep_inside=keep,
+                                  margin=self.cut_margin)
+        if attempt.cut is None:
+            self.events.append(CutFailed(t, mode, "no plane through the last in-mode state "
+                                         "separates the failure state"))
+            return
+        try:
+            self._model = self.model.add_cut(key, attempt.cut)
+        except ModelError as exc:
+            self.events.append(CutFailed(t, mode, str(exc)))
+            return
+        self.events.append(CutAdded(t, mode, keys, attempt.cut,
+                                    len(self.model.region_cuts(mode)), attempt.fallback))
+
+
+class SensorModel(Protocol):
+    """What a world provides to the closed loop (worlds implement it, paper Sec. 4).
+
+    ``reset(x0)`` starts an episode (a sensor may keep a history, e.g. a lag); ``read(x)``
+    is called once per control step, in order, and returns the reading at ``x``.
+    """
+
+    def reset(self, x0: FloatArray) -> None:  # pragma: no cover - protocol
+        """Start an episode at ``x0``."""
+        ...
+
+    def read(self, x: FloatArray) -> Mapping[str, bool]:  # pragma: no cover - protocol
+        """The sensor reading at ``x`` (input name -> value)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class EpisodeResult:
+    """One closed-loop episode.
+
+    Attributes
+    ----------
+    success : bool
+        A goal mode was reached within the step budget.
+    steps : int
+        Control steps taken.
+    states : ndarray, shape (steps + 1, n)
+    modes : tuple of str
+        The mode run at each step (``len = steps + 1``; index 0 after ``reset``).
+    automaton_states : tuple of int
+    events : tuple of Event
+    cuts_added : int
+    model : Model
+        The model at the end (with the cuts learned online).
+    """
+
+    success: bool
+    steps: int
+    states: FloatArray
+    modes: tuple[str, ...]
+    automaton_states: tuple[int, ...]
+    events: tuple[Event, ...]
+    cuts_added: int
+    model: Model
+
+
+Perturb = Callable[[int, FloatArray], "FloatArray | None"]
+
+
+def run_episode(
+    policy: LTLDSPolicy,
+    sensors: SensorModel,
+    x0: npt.ArrayLike,
+    *,
+    steps: int = 2000,
+    speed_cap: float = np.inf,
+    perturb: Perturb | Mapping[int, npt.ArrayLike] | None = None,
+    stop_at_goal: bool = True,
+) -> EpisodeResult:
+    """Run the executive in closed loop: ``x_{t+1} = x_t + dt cap(step(x_t, read(x_t)))``.
+
+    Parameters
+    ----------
+    policy : LTLDSPolicy
+        Its learned cuts carry over between episodes (``policy.model``).
+    sensors : SensorModel
+    x0 : array_like, shape (n,)
+    steps : int, optional
+        Step budget.
+    speed_cap : float, optional
+        Velocities faster than this are rescaled (direction kept).
+    perturb : callable or mapping, optional
+        ``perturb(t, x) -> new state or None`` before step ``t`` (1-based), or ``{t: new
+        state}``; the executive is told (``perturbed=True``).
+    stop_at_goal : bool, optional
+        End when the executive is in a goal mode.
+
+    Returns
+    -------
+    EpisodeResult
+    """
+    x = np.array(x0, dtype=np.float64).reshape(-1)
+    sensors.reset(x.copy())
+    policy.reset(x, sensors.read(x))
+    dt = policy.dt
+    states = [x.copy()]
+    modes = [policy.mode]
+    astates = [policy.state if policy.state is not None else -1]
+    table = dict(perturb) if isinstance(perturb, Mapping) else None
+    t = 0
+    for t in range(1, steps + 1):
+        if stop_at_goal and policy.done and not policy.holding:
+            t -= 1
+            break
+        pushed: Any = None
+        if table is not None:
+            pushed = table.get(t)
+        elif callable(perturb):
+            pushed = perturb(t, x.copy())
+        if pushed is not None:
+            x = np.array(pushed, dtype=np.float64).reshape(-1)
+        v = policy.step(x, sensors.read(x), perturbed=pushed is not None)
+        speed = float(np.linalg.norm(v))
+        if speed > speed_cap:
+            v = v * (speed_cap / speed)
+        x = x + dt * v
+        states.append(x.copy())
+        modes.append(policy.mode)
+        astates.append(policy.state if policy.state is not None else -1)
+    added = sum(1 for e in policy.events if isinstance(e, CutAdded))
+    return EpisodeResult(success=policy.done and not policy.holding, steps=t,
+                         states=np.array(states), modes=tuple(modes),
+                         automaton_states=tuple(astates), events=tuple(policy.events),
+                         cuts_added=added, model=policy.model)
+
+
+def run_episodes(
+    policies: Sequence[LTLDSPolicy],
+    sensors: Sequence[SensorModel],
+    starts: npt.ArrayLike,
+    *,
+    steps: int = 2000,
+    speed_cap: float = np.inf,
+    perturb: Callable[[int, int, FloatArray], FloatArray | None] | None = None,
+) -> list[EpisodeResult]:
+    """Many closed-loop episodes at once: the velocities are evaluated batched.
+
+    Each episode has its own executive (automaton state, events, learned cuts) and sensor
+    model; per step the automaton and monitor advance episode by episode (cheap), and the DS
+    run by episodes that share a model and a key are evaluated in one vectorised call (the
+    expensive part). Same results as :func:`run_episode` per start, up to float rounding of
+    the batched evaluation.
+
+    Parameters
+    ----------
+    policies : sequence of LTLDSPolicy
+        One per start (e.g. ``[copy.copy(p) ...]`` or policies built from one model: episodes
+        that share a model object share a batch).
+    sensors : sequence of SensorModel
+        One per start.
+    starts : array_like, shape (N, n)
+    steps : int, optional
+    speed_cap : float, optional
+    perturb : callable, optional
+        ``perturb(i, t, x) -> new state or None`` for episode ``i`` before its step ``t``
+        (1-based); the executive is told (``perturbed=True``), as in :func:`run_episode`.
+
+    Returns
+    -------
+    list of EpisodeResult
+    """
+    X = np.array(starts, dtype=np.float64)
+    N = X.shape[0]
+    if not (len(policies) == len(sensors) == N):
+        raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
+                       f"{len(sensors)}, {N}")
+    for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
+        sen.reset(X[i].copy())
+        pol.reset(X[i], sen.read(X[i]))
+    dts = np.array([pol.dt for pol in policies])[:, None]
+    hist_x = [X.copy()]
+    hist_mode = [[pol.mode for pol in policies]]
+    hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
+    active = np.ones(N, dtype=bool)
+    taken = np.zeros(N, dtype=np.int64)
+    for _ in range(steps):
+        groups: dict[tuple[int, str], list[int]] = {}
+        for i in np.flatnonzero(active).tolist():
+            pol = policies[i]
+            if pol.done and not pol.holding:
+                active[i] = False
+                continue
+            pushed = perturb(i, int(taken[i]) + 1, X[i].copy()) if perturb is not None else None
+            if pushed is not None:
+                X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
+            key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
+            taken[i] += 1
+            if key:
+                groups.setdefault((id(pol.model), key), []).append(i)
+        if not active.any():
+            break
+        V = np.zeros_like(X)
+        for (_, key), rows in groups.items():
+            pol = policies[rows[0]]
+            V[rows] = pol.model.modes[key].velocity(X[rows], dt=pol.dt)
+        if np.isfinite(speed_cap):
+            from tli_verify.runtime.rollout import cap_speed
+
+            cap_speed(V, speed_cap)
+        X += dts * V  # held and finished episodes have V = 0
+        hist_x.append(X.copy())
+        hist_mode.append([pol.mode for pol in policies])
+        hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
+    path = np.array(hist_x)
+    out = []
+    for i, pol in enumerate(policies):
+        T = int(taken[i]) + 1
+        out.append(EpisodeResult(
+            success=pol.done and not pol.holding, steps=T - 1, states=path[:T, i].copy(),
+            modes=tuple(m[i] for m in hist_mode[:T]),
+            automaton_states=tuple(s[i] for s in hist_state[:T]),
+            events=tuple(pol.events),
+            cuts_added=sum(1 for e in pol.events if isinstance(e, CutAdded)), model=pol.model))
+    return out

@@ -1,0 +1,196 @@
+"""Cut learning from invariance failures (paper Sec. 5.2 and appendix F), shared by the
+single-mode study's batch loop and the executive's online cuts.
+
+A cut for a failure ``(x^0, x^{T_f-1}, x^{T_f})`` is the plane through the last in-mode state
+that separates the failure state and keeps ``x*``, the earlier cut points and the given states
+inside (:func:`tli_verify.boundary.cuts.solve_cut`). When no plane keeps every given state
+inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix F as written).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_cut
+from tli_verify.errors import SolverError, TliError
+from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
+
+__all__ = ["CutAttempt", "CutLearning", "cut_for_failure", "learn_cuts"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class CutAttempt:
+    """The outcome of :func:`cut_for_failure`.
+
+    Attributes
+    ----------
+    cut : Cut or None
+        None when no separating plane exists.
+    fallback : bool
+        Solved keeping only the failure's own ``x^0`` (and ``x*``, earlier cut points) inside.
+    """
+
+    cut: Cut | None
+    fallback: bool = False
+
+
+def cut_for_failure(
+    failure: InvarianceFailure,
+    attractor: npt.ArrayLike,
+    *,
+    previous: Sequence[Cut] = (),
+    keep_inside: npt.ArrayLike | None = None,
+    margin: float = 1e-3,
+) -> CutAttempt:
+    """Solve the cut QCQP for one failure, falling back to appendix F's constraints.
+
+    Parameters
+    ----------
+    failure : InvarianceFailure
+    attractor : array_like, shape (n,)
+        ``x*`` of the DS the cut modulates.
+    previous : sequence of Cut
+        Earlier cuts of the mode (their points stay inside).
+    keep_inside : array_like, shape (k, n), optional
+        More states to keep inside (e.g. every observed entry state, earlier failures' ``x^0``).
+    margin : float
+
+    Returns
+    -------
+    CutAttempt
+    """
+    try:
+        return CutAttempt(solve_cut(failure, attractor, previous=previous,
+                                    keep_inside=keep_inside, margin=margin))
+    except SolverError:
+        if keep_inside is None:
+            return CutAttempt(None)
+    try:  # some kept state lies beyond the exit: keep only this failure's x^0
+        return CutAttempt(solve_cut(failure, attractor, previous=previous, margin=margin),
+                          fallback=True)
+    except SolverError:
+        return CutAttempt(None)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CutLearning:
+    """Outcome of iterative cut learning for one policy and start set.
+
+    Attributes
+    ----------
+    cuts : list of Cut
+    curve : list of float
+        Success rate with 0, 1, ..., len(cuts) cuts.
+    failures : list of tuple
+        The invariance failures ``(x^0, x^{T_f-1}, x^{T_f})`` the cuts were built from.
+    final : Rollouts
+        Rollouts with all cuts.
+    unsolved : int
+        Failures for which no separating cut existed (skipped).
+    fallback : int
+        Cuts solved with only the failure's own ``x^0`` kept inside, because no plane kept
+        every entry state inside (``cut_constraints="entries"`` only).
+    converged : bool
+        No rollout left the mode with the final cuts.
+    """
+
+    cuts: list[Cut]
+    curve: list[float]
+    failures: list[tuple[FloatArray, FloatArray, FloatArray]]
+    final: Rollouts
+    unsolved: int
+    fallback: int
+    converged: bool
+
+
+def learn_cuts(
+    base: Policy,
+    starts: FloatArray,
+    contains: Region,
+    attractor: FloatArray,
+    rng: np.random.Generator,
+    *,
+    protocol: EulerProtocol,
+    max_cuts: int = 20,
+    cut_margin: float = 1e-3,
+    cut_constraints: str = "entries",
+    lyapunov: FloatArray | None = None,
+    record: bool = False,
+) -> CutLearning:
+    """Add cuts from sampled invariance failures one at a time (paper appendix F).
+
+    Roll out all starts with the modulated policy, pick one failure at random (those whose
+    last in-mode state is inside the cuts first: a cut only changes the flow inside the cuts,
+    paper Fig. 4), solve its cut, add it, repeat until no start leaves or ``max_cuts``.
+
+    Parameters
+    ----------
+    base : callable
+        Nominal policy, (N, n) -> (N, n).
+    starts : ndarray, shape (N, n)
+    contains : callable
+        Mode sensor.
+    attractor : ndarray, shape (n,)
+    rng : numpy.random.Generator
+        Picks which failure to cut next.
+    protocol : EulerProtocol
+        Integration; the modulation is told its ``dt``.
+    max_cuts : int, optional
+    cut_margin : float, optional
+    cut_constraints : {"entries", "paper"}, optional
+        ``"entries"`` keeps every start inside each cut, ``"paper"`` only the failure's ``x^0``.
+    lyapunov : ndarray, shape (n, n), optional
+        The DS's ``P`` (None for BC).
+    record : bool, optional
+        Record paths of the final rollouts.
+
+    Returns
+    -------
+    CutLearning
+    """
+    from tli_verify.boundary.modulation import modulated
+
+    if cut_constraints not in ("entries", "paper"):
+        raise TliError(f"cut constraints must be 'entries' or 'paper', got {cut_constraints!r}")
+    cuts: list[Cut] = []
+    curve: list[float] = []
+    used: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+    unsolved = 0
+    fallback = 0
+    keep = starts if cut_constraints == "entries" else None
+    while True:
+        pol = modulated(base, cuts, attractor, lyapunov=lyapunov, dt=protocol.dt)
+        res = rollout_protocol(pol.velocity, starts, contains, attractor, protocol,
+                               record=record)
+        curve.append(float(res.success.mean()))
+        fails = res.invariance_failures
+        if fails.size == 0 or len(cuts) >= max_cuts:
+            return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
+                               unsolved=unsolved, fallback=fallback,
+                               converged=fails.size == 0)
+        new = None
+        order = rng.permutation(fails)
+        fixable = inside_cuts(res.last_inside[order], cuts)
+        order = np.concatenate([order[fixable], order[~fixable]])
+        for j in order:
+            failure = InvarianceFailure(entry=res.entry[j], last_inside=res.last_inside[j],
+                                        outside=res.outside[j])
+            attempt = cut_for_failure(failure, attractor, previous=cuts, keep_inside=keep,
+                                      margin=cut_margin)
+            if attempt.cut is None:
+                unsolved += 1
+                continue
+            new = attempt.cut
+            fallback += int(attempt.fallback)
+            used.append((res.entry[j].copy(), res.last_inside[j].copy(), res.outside[j].copy()))
+            break
+        if new is None:
+            return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
+                               unsolved=unsolved, fallback=fallback, converged=False)
+        cuts.append(new)
