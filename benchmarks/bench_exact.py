@@ -101,7 +101,7 @@ def main(out_dir: Path) -> str:
         rows.append(f"| {n} | {K} | {t_ours:.4f} | {t_dt:.4f} | {base} | {speed} | {agree} |")
         if not (v_ours and v_dt):
             raise RuntimeError(f"n = {n}: the benchmark's system should certify")
-    return ("### Exact certificate check: integer congruence vs Fraction elimination\n\n"
+    return ("## Exact certificate check: integer congruence vs Fraction elimination\n\n"
             f"Random stable LPV-DS with K = {K} components sharing a Lyapunov matrix; medians of "
             f"{REPEATS} runs. Issue 10 measured 5-8 minutes for one n = 120 model with the "
             "Fraction baseline.\n\n" + "\n".join(rows) + "\n")
