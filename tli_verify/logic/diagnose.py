@@ -28,7 +28,7 @@ from tli_verify.logic.gr1 import (
     assignments,
     closed_relation,
     least_assignment,
-    safety_closure,
+    minimal_init_core,
     solve,
 )
 from tli_verify.logic.spec import SpecFormula
@@ -170,30 +170,12 @@ def _initial_culprits(game: Game, x: dict[str, bool]) -> list[SpecFormula]:
     time 0) that no system state satisfies for the initial reading ``x``."""
     bdd = game.manager
     Y = list(game.outputs)
-    rename = {v: v + "'" for v in game.inputs + game.outputs}
-    nxt = game.inputs_next + game.outputs_next
     parts: list[tuple[SpecFormula, Any, bool]] = (
         [(f, b, False) for f, b in game.init_s] + [(f, b, True) for f, b in game.safety_s])
-
-    def empty(subset: list[tuple[SpecFormula, Any, bool]]) -> bool:
-        init = bdd.true
-        trans = bdd.true
-        for _, b, is_safety in subset:
-            if is_safety:
-                trans &= b
-            else:
-                init &= b
-        u = init & safety_closure(bdd, trans, rename, nxt)
-        return bdd.exist(Y, bdd.let(x, u)) == bdd.false
-
-    k = 0
-    while k < len(parts):
-        rest = parts[:k] + parts[k + 1:]
-        if empty(rest):
-            parts = rest
-        else:
-            k += 1
-    return [f for f, _, _ in parts]
+    return minimal_init_core(
+        bdd, parts, rename={v: v + "'" for v in game.inputs + game.outputs},
+        quantified=game.inputs_next + game.outputs_next,
+        empty=lambda u: bdd.exist(Y, bdd.let(x, u)) == bdd.false)
 
 
 def _diagnose_safety(game: Game) -> Diagnosis:

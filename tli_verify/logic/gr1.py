@@ -39,7 +39,7 @@ state in which the environment has no legal move left is a dead end for the envi
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -234,6 +234,49 @@ def safety_closure(bdd: Any, trans: Any, rename: Mapping[str, str],
         if new == c:
             return c
         c = new
+
+
+def minimal_init_core(bdd: Any, parts: Sequence[tuple[Any, Any, bool]], *,
+                      rename: Mapping[str, str], quantified: Sequence[str],
+                      empty: Callable[[Any], bool]) -> list[Any]:
+    """A 1-minimal subset of one side's initial conditions and safety formulas (at time 0)
+    whose initial states are ``empty`` (deletion-based minimisation).
+
+    Parameters
+    ----------
+    bdd : dd.cudd.BDD
+    parts : sequence of (formula, BDD, is_safety)
+        Initial conditions (``is_safety`` false) and safety constraints of one side.
+    rename, quantified
+        As in :func:`safety_closure` for that side.
+    empty : callable
+        ``u -> bool``: whether the initial states ``init & safety_closure(trans)`` give no
+        legal start (what "no start" means differs between the two callers).
+
+    Returns
+    -------
+    list
+        The formulas of the minimal subset, in their original order.
+    """
+    def fails(subset: Sequence[tuple[Any, Any, bool]]) -> bool:
+        init = bdd.true
+        trans = bdd.true
+        for _, b, is_safety in subset:
+            if is_safety:
+                trans &= b
+            else:
+                init &= b
+        return empty(init & safety_closure(bdd, trans, rename, quantified))
+
+    kept = list(parts)
+    k = 0
+    while k < len(kept):
+        rest = kept[:k] + kept[k + 1:]
+        if fails(rest):
+            kept = rest
+        else:
+            k += 1
+    return [f for f, _, _ in kept]
 
 
 def closed_relation(game: Game, parts: Sequence[Any], *, system: bool) -> Any:

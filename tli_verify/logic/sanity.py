@@ -44,7 +44,7 @@ from tli_verify.logic.gr1 import (
     build_game,
     closed_relation,
     least_assignment,
-    safety_closure,
+    minimal_init_core,
     solve,
 )
 from tli_verify.logic.spec import GR1Spec, SpecFormula, SpecSide
@@ -204,30 +204,12 @@ def _initial_culprits(game: Game) -> list[SpecFormula]:
     """A minimal set of assumptions (initial conditions, and safety formulas at time 0) that
     no initial reading satisfies."""
     bdd = game.manager
-    rename = {v: v + "'" for v in game.inputs}
-    quantified = list(game.outputs) + game.inputs_next
     parts: list[tuple[SpecFormula, Any, bool]] = (
         [(f, b, False) for f, b in game.init_e] + [(f, b, True) for f, b in game.safety_e])
-
-    def empty(subset: list[tuple[SpecFormula, Any, bool]]) -> bool:
-        init = bdd.true
-        trans = bdd.true
-        for _, b, is_safety in subset:
-            if is_safety:
-                trans &= b
-            else:
-                init &= b
-        u = init & safety_closure(bdd, trans, rename, quantified)
-        return bdd.exist(list(game.inputs), u) == bdd.false
-
-    k = 0
-    while k < len(parts):
-        rest = parts[:k] + parts[k + 1:]
-        if empty(rest):
-            parts = rest
-        else:
-            k += 1
-    return [f for f, _, _ in parts]
+    return minimal_init_core(
+        bdd, parts, rename={v: v + "'" for v in game.inputs},
+        quantified=list(game.outputs) + game.inputs_next,
+        empty=lambda u: bdd.exist(list(game.inputs), u) == bdd.false)
 
 
 def _assign(game: Game, step: Step) -> dict[str, bool]:
