@@ -24,6 +24,9 @@ __all__ = ["WorldSensors"]
 FloatArray = npt.NDArray[np.float64]
 
 
+Key = tuple[int, int, tuple[bool, ...]]
+
+
 class WorldSensors:
     """One episode's sensor model of a world (the runtime's ``SensorModel`` protocol).
 
@@ -31,41 +34,65 @@ class WorldSensors:
     ----------
     world : World
         E.g. :class:`tli_verify.worlds.ScoopWorld`; its ``lag`` is honoured.
+    cache : dict, optional
+        Reading memo shared between episodes of one world (see Notes); default: its own.
+    region_cache : bool, optional
+        Memoize ``world.read`` on ``(region of x_prev, region of x, latent)`` (default True).
 
     Notes
     -----
     ``read(x)`` must be called once per control step, in order (the lag counts calls). The
     latent state (scooping: soup on the spoon) starts at ``world.initial_latent`` on
     :meth:`reset`.
+
+    Every bundled world's ``read`` depends on the states only through their true regions
+    (``world.region_index``) and on the latent state, so one reading per ``(region before,
+    region now, latent)`` is exact and saves the batched call's overhead on a single state
+    (about 30 of 40 microseconds per step); ``region_cache=False`` calls ``world.read`` every
+    step (for a world whose sensors look at more than the region). A shared ``cache`` must only
+    be shared by sensors of the same world.
     """
 
-    __slots__ = ("_hist", "_latent", "_prev", "names", "world")
+    __slots__ = ("_cache", "_hist", "_latent", "_prev", "names", "region_cache", "world")
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: World, *, cache: dict[Key, tuple[dict[str, bool],
+                                                                 tuple[bool, ...]]] | None = None,
+                 region_cache: bool = True) -> None:
         self.world = world
         self.names = tuple(world.sensor_names)
-        self._hist: deque[FloatArray] = deque(maxlen=world.lag + 1)
-        self._latent = world.initial_latent(1)
-        self._prev: FloatArray | None = None
+        self.region_cache = bool(region_cache)
+        self._cache = {} if cache is None else cache
+        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)
+        self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
+        self._prev: tuple[FloatArray, int] | None = None
 
     def reset(self, x0: FloatArray) -> None:
         """Start an episode at ``x0`` (history and latent state cleared)."""
         self._hist.clear()
-        self._latent = self.world.initial_latent(1)
+        self._latent = tuple(self.world.initial_latent(1)[0].tolist())
         self._prev = None
 
     def read(self, x: FloatArray) -> dict[str, bool]:
         """The reading at this step (from the state ``lag`` calls back), name -> value."""
         xa = np.array(x, dtype=np.float64).reshape(1, -1)  # a copy: callers update x in place
-        self._hist.append(xa)
+        region = int(self.world.region_index(xa)[0]) if self.region_cache else -1
+        self._hist.append((xa, region))
         lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
         prev = lagged if self._prev is None else self._prev
-        reading, self._latent = self.world.read(prev, lagged, self._latent)
         self._prev = lagged
-        return {n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)}
+        key = (prev[1], lagged[1], self._latent)
+        hit = self._cache.get(key) if self.region_cache else None
+        if hit is None:
+            reading, latent = self.world.read(prev[0], lagged[0],
+                                              np.array([self._latent], dtype=bool))
+            hit = ({n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)},
+                   tuple(bool(v) for v in latent[0].tolist()))
+            if self.region_cache:
+                self._cache[key] = hit
+        self._latent = hit[1]
+        return dict(hit[0])
 
     @property
     def latent(self) -> dict[str, bool]:
         """The latent world state after the last reading (name -> value)."""
-        return {n: bool(v) for n, v in
-                zip(self.world.latent_names, self._latent[0].tolist(), strict=True)}
+        return dict(zip(self.world.latent_names, self._latent, strict=True))
