@@ -12,6 +12,7 @@ the model: the executive refuses it), 2 bad arguments.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -19,7 +20,7 @@ from typing import Any
 
 from tli_verify.commands import output_path
 
-__all__ = ["parse_perturb", "register"]
+__all__ = ["demo_stage", "parse_perturb", "register"]
 
 SUPPORTED = ("scoop",)
 
@@ -175,3 +176,61 @@ def _run(args: argparse.Namespace) -> int:
             f"{len(perturbations)} perturbation(s), {res.cuts_added} cut(s) added\n"
             f"wrote {out / 'run.json'}, {out / 'run.png'}\n")
     return 0 if res.success else 1
+
+
+def demo_stage(out: Path) -> list[str]:
+    """``tli demo``: gate the shipped files, run a perturbed scoop episode with and without
+    modulation (``out/run/``), and the quick scoop experiment (``out/scoop/``)."""
+    import numpy as np
+
+    from tli_verify.certify.gate import run_gate
+    from tli_verify.commands.experiment import scoop_study
+    from tli_verify.experiments.scoop import (
+        ExperimentConfig,
+        bundled_setup,
+        episode_json,
+        mode_string,
+        plot_episode,
+        random_start,
+        run_variant,
+    )
+    from tli_verify.io import atomic_write_text, bundled_dir, canonical_json
+
+    root = bundled_dir("models").parent
+    report = run_gate(root)
+    lines = [f"[run] gate on the shipped specs/models/certificates: "
+             f"{'pass' if report.ok else 'BLOCKED'} ({len(report.items)} checks)"]
+    if not report.ok:
+        return [*lines, f"[run] gate blocked: {report.blockers[0].path}: "
+                        f"{report.blockers[0].message}; episodes skipped"]
+    setup = bundled_setup()
+    seed = 2
+    perturbations = parse_perturb(["random:3"], seed=seed, world=setup.world)
+    x0 = random_start(setup.world, np.random.default_rng([seed, 3]))
+    target = out / "run"
+    results = {}
+    for variant in ("LTL-DS", "no-modulation"):
+        t0 = time.perf_counter()
+        res = run_variant(setup, variant, x0, perturbations)
+        rec = episode_json(res, world="scoop", variant=variant,
+                           seconds=time.perf_counter() - t0, x0=x0,
+                           perturbations=perturbations, dt=0.01)
+        atomic_write_text(target / f"{variant}.json", canonical_json(rec))
+        results[variant] = res
+        lines.append(f"[run] scoop, 3 random perturbations (seed {seed}), {variant}: "
+                     f"{'reached d' if res.success else 'did NOT reach d'} in {res.steps} "
+                     f"steps, modes {mode_string(res)}, {res.cuts_added} cut(s)")
+    plot_episode(setup.world, results["LTL-DS"], target / "scoop_modulation.png",
+                 others=[("no modulation", results["no-modulation"])],
+                 nominal=run_variant(setup, "LTL-DS", x0, {}),
+                 title="tli run --world scoop --seed 2 --perturb random:3: LTL-DS (left), "
+                       "without modulation (right)")
+    lines.append(f"[run] episodes -> {target}/LTL-DS.json, {target}/no-modulation.json, "
+                 f"{target / 'scoop_modulation.png'}")
+    cfg = ExperimentConfig(experiments=2, episodes=20, bc_epochs=60, steps=2000)
+    summary, files = scoop_study(cfg, out / "scoop", workers=min(2, os.cpu_count() or 1),
+                                 fig7_tries=0)
+    row = ", ".join(f"{v} {t['percent']:.0f}%" for v, t in summary["totals"].items())
+    lines.append(f"[run] scoop experiment (quick: 2 models x 20 perturbed episodes): {row}")
+    lines.append(f"[run] scoop report: {files[0]}")
+    return lines
