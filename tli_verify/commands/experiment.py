@@ -70,6 +70,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     c.add_argument("--episodes", type=int, default=None,
                    help="per experiment and variant (default 100; 20 with --quick)")
     c.add_argument("--lag", type=int, default=0, help="sensor lag of the world (default 0)")
+    c.add_argument("--steps", type=int, default=None,
+                   help="step budget per episode at dt = 1/100 (default 3000; 2000 with --quick)")
     c.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     c.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -173,12 +175,14 @@ def _scoop_config(args: argparse.Namespace) -> Any:
     q = args.quick
     exps = args.experiments if args.experiments is not None else (2 if q else 10)
     eps = args.episodes if args.episodes is not None else (20 if q else 100)
-    for name, v, lo in (("--experiments", exps, 1), ("--episodes", eps, 1),
+    steps = args.steps if args.steps is not None else 1
+    for name, v, lo in (("--experiments", exps, 1), ("--episodes", eps, 1), ("--steps", steps, 1),
                         ("--seed", args.seed, 0), ("--lag", args.lag, 0)):
         if v < lo:
             raise TliError(f"{name} must be >= {lo}, got {v}")
     return ExperimentConfig(experiments=exps, episodes=eps, bc_epochs=60 if q else 300,
-                            steps=2000 if q else 3000, seed=args.seed, lag=args.lag)
+                            steps=args.steps if args.steps is not None else (2000 if q else 3000),
+                            seed=args.seed, lag=args.lag)
 
 
 def _scoop(args: argparse.Namespace) -> int:
