@@ -101,3 +101,28 @@ def test_uncertified_pair_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
     code, _, err = _run(["run", "--world", "scoop", "--model", str(tmp_path / "m.model.json"),
                          "--out", str(tmp_path / "o")], capsys)
     assert code == 1 and "refused" in err and err.count("\n") == 1
+
+
+def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """-o saves the model with the episode's cut and a re-issued certificate; the pair runs
+    (the executive accepts it) and the failure the cut was learned from is not repeated."""
+    from tli_verify.certify.certificate import check_certificate
+    from tli_verify.model import load_model
+
+    saved = tmp_path / "m" / "learned.model.json"
+    args = ["run", "--world", "scoop", "--seed", "2", "--perturb", "random:3", "--json"]
+    code, out, err = _run([*args, "--out", str(tmp_path / "a"), "-o", str(saved)], capsys)
+    first = json.loads(out)
+    assert code == 0 and first["cuts_added"] == 1, err
+    cert = tmp_path / "m" / "learned.cert.json"
+    assert first["saved"] == {"model": str(saved), "certificate": str(cert)}
+    assert check_certificate(cert).ok
+    assert sum(len(mm.cuts) for mm in load_model(saved).modes.values()) >= 1
+    code, out, err = _run([*args, "--out", str(tmp_path / "b"), "--model", str(saved),
+                           "--certificate", str(cert)], capsys)
+    second = json.loads(out)
+    assert code == 0, err
+    assert second["cuts_added"] == 0
+    fails = [e for e in second["events"] if e["event"] == "InvarianceFailure"]
+    assert len(fails) < sum(e["event"] == "InvarianceFailure" for e in first["events"])

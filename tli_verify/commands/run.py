@@ -52,6 +52,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--out", type=output_path, default=Path("out/run"),
                    help="output directory (default out/run)")
     p.add_argument("--json", action="store_true", help="print the episode record as JSON")
+    p.add_argument("-o", "--output", type=output_path, default=None, metavar="MODEL.json",
+                   help="save the model with the cuts learned in the episode, and a re-issued "
+                   "certificate (at dt = 1/100) next to it as <name>.cert.json; both written "
+                   "atomically, nothing written if it does not certify")
     p.set_defaults(handler=_run)
 
 
@@ -107,6 +111,16 @@ def parse_perturb(items: list[str], *, seed: int, world: Any) -> dict[int, Any]:
     return out
 
 
+def certificate_next_to(model: Path) -> Path:
+    """``<dir>/<name>.cert.json`` for ``<dir>/<name>.model.json`` (or ``<name>.json``)."""
+    name = model.name
+    for suffix in (".model.json", ".json"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return model.with_name(f"{name}.cert.json")
+
+
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -160,6 +174,13 @@ def _run(args: argparse.Namespace) -> int:
                           perturbations=perturbations, dt=policy.dt)
     record["nominal_success"] = bool(nominal.success)
     record["nominal_mode_sequence"] = mode_string(nominal)
+    if args.output is not None:
+        from tli_verify.experiments.scoop import CERT_DT
+        from tli_verify.runtime.persist import save_certified
+
+        cert = certificate_next_to(args.output)
+        save_certified(res.model, args.output, cert, dt=CERT_DT)
+        record["saved"] = {"model": str(args.output), "certificate": str(cert)}
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "run.json", canonical_json(record))
@@ -174,7 +195,9 @@ def _run(args: argparse.Namespace) -> int:
             f"goal mode in {res.steps} steps ({res.steps * policy.dt:.2f} s simulated, "
             f"{seconds * 1e3:.0f} ms); modes {seq if len(seq) <= 40 else seq[:37] + '...'}; "
             f"{len(perturbations)} perturbation(s), {res.cuts_added} cut(s) added\n"
-            f"wrote {out / 'run.json'}, {out / 'run.png'}\n")
+            f"wrote {out / 'run.json'}, {out / 'run.png'}"
+            + (f", {record['saved']['model']}, {record['saved']['certificate']}"
+               if "saved" in record else "") + "\n")
     return 0 if res.success else 1
 
 
