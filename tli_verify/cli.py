@@ -30,6 +30,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.spec",
     "tli_verify.commands.motion",
     "tli_verify.commands.experiment",
+    "tli_verify.commands.run",
     "tli_verify.commands.demo",
 )
 

@@ -14,6 +14,7 @@ DEMO_STAGES: tuple[str, ...] = (
     "tli_verify.commands.spec",
     "tli_verify.commands.motion",
     "tli_verify.commands.experiment",
+    "tli_verify.commands.run",
 )
 
 

@@ -1,5 +1,8 @@
 """``tli experiment ...``: reproductions of the paper's experiments.
 
+``tli experiment scoop`` runs the multi-modal soup-scooping experiment (paper Sec. 7.2 and
+appendix "Multi-modal Experiments", Fig. 7): see :mod:`tli_verify.experiments.scoop`.
+
 ``tli experiment single-mode`` runs the single-mode study of paper Sec. 7.1 (Fig. 6-8): random
 convex modes, BC / BC+mod / DS / DS+mod from noisy start states, cuts learned from invariance
 failures. See :mod:`tli_verify.experiments.single_mode` and ``docs/boundary.md``.
@@ -50,6 +53,31 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default 1e-3)")
     s.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s.set_defaults(handler=_single_mode)
+    c = esub.add_parser(
+        "scoop",
+        help="multi-modal soup scooping (paper Sec. 7.2): LTL-DS / no modulation / no "
+        "replanning / BC under random perturbations; Fig. 7",
+        description="10 experiments, each an LPV-DS model learned and certified from 1-3 "
+        "seeded demonstrations of the scoop world; >= 100 episodes per experiment and variant, "
+        "1-3 perturbations each in uniformly random directions with magnitudes up to the "
+        "workspace size. Writes scoop.json, scoop.md, scoop_success.png and fig7.png to --out.",
+    )
+    c.add_argument("--quick", action="store_true",
+                   help="2 experiments x 20 episodes, short BC training, a short Fig. 7 search "
+                   "(seconds)")
+    c.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    c.add_argument("--experiments", type=int, default=None, help="default 10 (2 with --quick)")
+    c.add_argument("--episodes", type=int, default=None,
+                   help="per experiment and variant (default 100; 20 with --quick)")
+    c.add_argument("--lag", type=int, default=0, help="sensor lag of the world (default 0)")
+    c.add_argument("--steps", type=int, default=None,
+                   help="step budget per episode at dt = 1/100 (default 3000; 2000 with --quick)")
+    c.add_argument("--workers", type=int, default=None,
+                   help="worker processes (default: min(2, CPUs)); results do not depend on it")
+    c.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    c.add_argument("--out", type=output_path, default=Path("out/scoop"),
+                   help="output directory (default out/scoop)")
+    c.set_defaults(handler=_scoop)
 
 
 def _missing(parser: argparse.ArgumentParser) -> int:
@@ -137,6 +165,80 @@ def _table(summary: dict[str, Any]) -> str:
     cuts = summary["cuts"]["DS+mod"]
     lines.append("DS+mod cuts (mean/max): "
                  + ", ".join(f"{k}%: {cuts[k]['mean']:.1f}/{cuts[k]['max']:.0f}" for k in noises))
+    return "\n".join(lines) + "\n"
+
+
+def _scoop_config(args: argparse.Namespace) -> Any:
+    from tli_verify.errors import TliError
+    from tli_verify.experiments.scoop import ExperimentConfig
+
+    q = args.quick
+    exps = args.experiments if args.experiments is not None else (2 if q else 10)
+    eps = args.episodes if args.episodes is not None else (20 if q else 100)
+    steps = args.steps if args.steps is not None else 1
+    for name, v, lo in (("--experiments", exps, 1), ("--episodes", eps, 1), ("--steps", steps, 1),
+                        ("--seed", args.seed, 0), ("--lag", args.lag, 0)):
+        if v < lo:
+            raise TliError(f"{name} must be >= {lo}, got {v}")
+    return ExperimentConfig(experiments=exps, episodes=eps, bc_epochs=60 if q else 300,
+                            steps=args.steps if args.steps is not None else (2000 if q else 3000),
+                            seed=args.seed, lag=args.lag)
+
+
+def _scoop(args: argparse.Namespace) -> int:
+    from tli_verify.errors import TliError
+    from tli_verify.io import canonical_json
+
+    cfg = _scoop_config(args)
+    workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
+    if workers < 1:
+        raise TliError(f"--workers must be >= 1, got {workers}")
+    out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
+    summary, files = scoop_study(cfg, out, workers=workers, fig7_tries=20 if args.quick else 200)
+    if args.json:
+        sys.stdout.write(canonical_json(summary))
+    else:
+        sys.stdout.write(_scoop_table(summary))
+        sys.stdout.write("wrote " + ", ".join(str(f) for f in files) + "\n")
+    return 0
+
+
+def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
+                ) -> tuple[dict[str, Any], list[Path]]:
+    """Run the scoop experiment, write its report and figures; return the JSON summary."""
+    from tli_verify.experiments.scoop import bundled_setup, plot_episode, write_report
+
+    summary = run_scoop(cfg, workers=workers, fig7_tries=fig7_tries)
+    fig7 = summary.pop("fig7")
+    png = None
+    if fig7 is not None and fig7["found"] is not None:
+        f = fig7["found"]
+        png = out / "fig7.png"
+        plot_episode(bundled_setup(lag=fig7["lag"]).world, f["no_modulation"], png,
+                     others=[("LTL-DS", f["ltl_ds"])],
+                     title=f"Fig. 7 (sensor lag {fig7['lag']}): without modulation (left), "
+                     "LTL-DS (right)")
+    summary["fig7"] = None if fig7 is None else {
+        "text": fig7["text"], "lag": fig7["lag"],
+        "strict": None if fig7["found"] is None else fig7["found"]["strict"]}
+    files = write_report(summary, out, fig7=fig7, fig7_png=png)
+    return summary, files + ([png] if png is not None else [])
+
+
+def run_scoop(cfg: Any, *, workers: int, fig7_tries: int) -> dict[str, Any]:
+    """:func:`tli_verify.experiments.scoop.run_all` (imported lazily)."""
+    from tli_verify.experiments.scoop import run_all
+
+    return run_all(cfg, workers=workers, fig7_tries=fig7_tries)
+
+
+def _scoop_table(summary: dict[str, Any]) -> str:
+    lines = [f"{'variant':<15}{'success':>10}{'episodes':>10}{'success %':>11}"]
+    for v, t in summary["totals"].items():
+        lines.append(f"{v:<15}{t['success']:>10}{t['episodes']:>10}{t['percent']:>10.1f}%")
+    lines.append(f"wall time {summary['seconds']:.1f} s on {summary['workers']} worker(s)")
+    if summary.get("fig7"):
+        lines.append("Fig. 7: " + summary["fig7"]["text"])
     return "\n".join(lines) + "\n"
 
 

@@ -1,0 +1,259 @@
+"""``tli run``: one closed-loop LTL-DS episode on a task world (paper eq. 6, Fig. 7).
+
+Only the scoop world is supported: it ships a spec, a model and a certificate
+(``specs/scoop.toml``, ``models/scoop.model.json``, ``certificates/scoop.cert.json``, certified at
+``dt = 1/100``). The other worlds (cooking, color tracing, inspection) have demonstrations and
+specs but no certified model yet; ``tli run`` refuses them (exit 2).
+
+Exit codes: 0 the episode reached the goal mode, 1 it did not (or the certificate does not cover
+the model: the executive refuses it), 2 bad arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from tli_verify.commands import output_path
+
+__all__ = ["demo_stage", "parse_perturb", "register"]
+
+SUPPORTED = ("scoop",)
+
+
+def register(sub: argparse._SubParsersAction[Any]) -> None:
+    """Register ``tli run``."""
+    p = sub.add_parser(
+        "run", help="run one closed-loop LTL-DS episode on a world (scoop)",
+        description="Task automaton + certified, modulated DS per mode in closed loop with a "
+        "world's sensors; perturbations, online cuts, replanning. Writes run.json and a "
+        "Fig. 7-style run.png to --out. Exit 0: the goal mode was reached; 1: it was not.")
+    p.add_argument("--world", required=True, help="world name (supported: scoop)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the start and of random:N")
+    p.add_argument("--start", default=None, metavar="X1,X2",
+                   help="start state (default: a seeded random state reading mode a)")
+    p.add_argument("--perturb", action="append", default=[], metavar="T:DX,DY|random:N",
+                   help="displace the state by (DX, DY) before step T (repeatable), or N "
+                   "seeded random perturbations (directions uniform, magnitudes up to the "
+                   "workspace size)")
+    p.add_argument("--no-modulation", action="store_true", help="learn no cuts")
+    p.add_argument("--no-replan", action="store_true",
+                   help="run the demonstrated mode sequence open loop")
+    p.add_argument("--steps", type=int, default=3000, help="step budget (default 3000)")
+    p.add_argument("--lag", type=int, default=0, help="sensor lag in steps (default 0)")
+    p.add_argument("--model", type=Path, default=None, help="model file (default: bundled)")
+    p.add_argument("--certificate", type=Path, default=None,
+                   help="certificate file (default: bundled)")
+    p.add_argument("--spec", type=Path, default=None, help="spec file (default: bundled)")
+    p.add_argument("--out", type=output_path, default=Path("out/run"),
+                   help="output directory (default out/run)")
+    p.add_argument("--json", action="store_true", help="print the episode record as JSON")
+    p.add_argument("-o", "--output", type=output_path, default=None, metavar="MODEL.json",
+                   help="save the model with the cuts learned in the episode, and a re-issued "
+                   "certificate (at dt = 1/100) next to it as <name>.cert.json; both written "
+                   "atomically, nothing written if it does not certify")
+    p.set_defaults(handler=_run)
+
+
+def _floats(text: str, n: int, what: str) -> list[float]:
+    import math
+
+    from tli_verify.errors import TliError
+
+    parts = text.split(",")
+    try:
+        vals = [float(v) for v in parts]
+    except ValueError:
+        vals = []
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise TliError(f"{what}: expected {n} comma-separated finite numbers, got {text!r}")
+    return vals
+
+
+def parse_perturb(items: list[str], *, seed: int, world: Any) -> dict[int, Any]:
+    """``--perturb`` values -> ``{step: displacement}``.
+
+    Raises
+    ------
+    TliError
+        (exit 2) A malformed item, a step < 1, a repeated step, N < 0.
+    """
+    import numpy as np
+
+    from tli_verify.errors import TliError
+    from tli_verify.experiments.scoop import random_perturbations
+
+    out: dict[int, Any] = {}
+    rng = np.random.default_rng([seed, 11])
+    for item in items:
+        if item.startswith("random:"):
+            n_text = item[len("random:"):]
+            if not n_text.isdigit():
+                raise TliError(f"--perturb {item!r}: random:N needs a count N >= 0")
+            for t, d in random_perturbations(rng, int(n_text), world).items():
+                if t in out:
+                    raise TliError(f"--perturb {item!r}: step {t} is perturbed twice")
+                out[t] = d
+            continue
+        head, sep, tail = item.partition(":")
+        if not sep or not head.strip().isdigit():
+            raise TliError(f"--perturb {item!r}: expected T:DX,DY (T a step >= 1) or random:N")
+        t = int(head)
+        if t < 1:
+            raise TliError(f"--perturb {item!r}: step must be >= 1")
+        if t in out:
+            raise TliError(f"--perturb {item!r}: step {t} is perturbed twice")
+        out[t] = np.array(_floats(tail, 2, f"--perturb {item!r}"))
+    return out
+
+
+def certificate_next_to(model: Path) -> Path:
+    """``<dir>/<name>.cert.json`` for ``<dir>/<name>.model.json`` (or ``<name>.json``)."""
+    name = model.name
+    for suffix in (".model.json", ".json"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return model.with_name(f"{name}.cert.json")
+
+
+def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from tli_verify.errors import TliError
+    from tli_verify.experiments.scoop import (
+        bundled_setup,
+        episode_json,
+        make_policy,
+        mode_string,
+        plot_episode,
+        random_start,
+        run_variant,
+    )
+    from tli_verify.io import atomic_write_text, canonical_json
+    from tli_verify.worlds import WORLDS
+
+    if args.world not in WORLDS:
+        raise TliError(f"--world {args.world!r}: unknown world (worlds: "
+                       f"{', '.join(sorted(WORLDS))})")
+    if args.world not in SUPPORTED:
+        raise TliError(f"--world {args.world!r}: tli run supports only "
+                       f"{', '.join(SUPPORTED)} (no certified model is bundled for "
+                       f"{args.world})")
+    if args.steps < 1:
+        raise TliError(f"--steps must be >= 1, got {args.steps}")
+    if args.lag < 0:
+        raise TliError(f"--lag must be >= 0, got {args.lag}")
+    if args.seed < 0:
+        raise TliError(f"--seed must be >= 0, got {args.seed}")
+    if args.no_modulation and args.no_replan:
+        raise TliError("--no-modulation and --no-replan: choose one ablation")
+    setup = bundled_setup(model=args.model, certificate=args.certificate, spec=args.spec,
+                          lag=args.lag)
+    world = setup.world
+    perturbations = parse_perturb(args.perturb, seed=args.seed, world=world)
+    if args.start is not None:
+        x0 = np.array(_floats(args.start, 2, f"--start {args.start!r}"))
+        if not bool(world.in_workspace(x0[None])[0]):
+            raise TliError(f"--start {args.start!r}: outside the workspace "
+                           f"[{world.lo[0]:g}, {world.hi[0]:g}]^2")
+    else:
+        x0 = random_start(world, np.random.default_rng([args.seed, 3]))
+    variant = ("no-modulation" if args.no_modulation else
+               "no-replan" if args.no_replan else "LTL-DS")
+    policy = make_policy(setup, variant)  # refuses a model its certificate does not cover
+    t0 = time.perf_counter()
+    res = run_variant(setup, variant, x0, perturbations, steps=args.steps, policy=policy)
+    seconds = time.perf_counter() - t0
+    nominal = run_variant(setup, variant, x0, {}, steps=args.steps)
+    record = episode_json(res, world=args.world, variant=variant, seconds=seconds, x0=x0,
+                          perturbations=perturbations, dt=policy.dt)
+    record["nominal_success"] = bool(nominal.success)
+    record["nominal_mode_sequence"] = mode_string(nominal)
+    if args.output is not None:
+        from tli_verify.experiments.scoop import CERT_DT
+        from tli_verify.runtime.persist import save_certified
+
+        cert = certificate_next_to(args.output)
+        save_certified(res.model, args.output, cert, dt=CERT_DT)
+        record["saved"] = {"model": str(args.output), "certificate": str(cert)}
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "run.json", canonical_json(record))
+    plot_episode(world, res, out / "run.png", nominal=nominal,
+                 title=f"tli run --world {args.world} ({variant}, seed {args.seed})")
+    if args.json:
+        sys.stdout.write(canonical_json(record))
+    else:
+        seq = record["mode_sequence"]
+        sys.stdout.write(
+            f"{args.world} ({variant}): {'reached' if res.success else 'did NOT reach'} the "
+            f"goal mode in {res.steps} steps ({res.steps * policy.dt:.2f} s simulated, "
+            f"{seconds * 1e3:.0f} ms); modes {seq if len(seq) <= 40 else seq[:37] + '...'}; "
+            f"{len(perturbations)} perturbation(s), {res.cuts_added} cut(s) added\n"
+            f"wrote {out / 'run.json'}, {out / 'run.png'}"
+            + (f", {record['saved']['model']}, {record['saved']['certificate']}"
+               if "saved" in record else "") + "\n")
+    return 0 if res.success else 1
+
+
+def demo_stage(out: Path) -> list[str]:
+    """``tli demo``: gate the shipped files, run a perturbed scoop episode with and without
+    modulation (``out/run/``), and the quick scoop experiment (``out/scoop/``)."""
+    import numpy as np
+
+    from tli_verify.certify.gate import run_gate
+    from tli_verify.commands.experiment import scoop_study
+    from tli_verify.experiments.scoop import (
+        ExperimentConfig,
+        bundled_setup,
+        episode_json,
+        mode_string,
+        plot_episode,
+        random_start,
+        run_variant,
+    )
+    from tli_verify.io import atomic_write_text, bundled_dir, canonical_json
+
+    root = bundled_dir("models").parent
+    report = run_gate(root)
+    lines = [f"[run] gate on the shipped specs/models/certificates: "
+             f"{'pass' if report.ok else 'BLOCKED'} ({len(report.items)} checks)"]
+    if not report.ok:
+        return [*lines, f"[run] gate blocked: {report.blockers[0].path}: "
+                        f"{report.blockers[0].message}; episodes skipped"]
+    setup = bundled_setup()
+    seed = 2
+    perturbations = parse_perturb(["random:3"], seed=seed, world=setup.world)
+    x0 = random_start(setup.world, np.random.default_rng([seed, 3]))
+    target = out / "run"
+    results = {}
+    for variant in ("LTL-DS", "no-modulation"):
+        t0 = time.perf_counter()
+        res = run_variant(setup, variant, x0, perturbations)
+        rec = episode_json(res, world="scoop", variant=variant,
+                           seconds=time.perf_counter() - t0, x0=x0,
+                           perturbations=perturbations, dt=0.01)
+        atomic_write_text(target / f"{variant}.json", canonical_json(rec))
+        results[variant] = res
+        lines.append(f"[run] scoop, 3 random perturbations (seed {seed}), {variant}: "
+                     f"{'reached d' if res.success else 'did NOT reach d'} in {res.steps} "
+                     f"steps, modes {mode_string(res)}, {res.cuts_added} cut(s)")
+    plot_episode(setup.world, results["LTL-DS"], target / "scoop_modulation.png",
+                 others=[("no modulation", results["no-modulation"])],
+                 nominal=run_variant(setup, "LTL-DS", x0, {}),
+                 title="tli run --world scoop --seed 2 --perturb random:3: LTL-DS (left), "
+                       "without modulation (right)")
+    lines.append(f"[run] episodes -> {target}/LTL-DS.json, {target}/no-modulation.json, "
+                 f"{target / 'scoop_modulation.png'}")
+    cfg = ExperimentConfig(experiments=2, episodes=20, bc_epochs=60, steps=2000)
+    summary, files = scoop_study(cfg, out / "scoop", workers=min(2, os.cpu_count() or 1),
+                                 fig7_tries=0)
+    row = ", ".join(f"{v} {t['percent']:.0f}%" for v, t in summary["totals"].items())
+    lines.append(f"[run] scoop experiment (quick: 2 models x 20 perturbed episodes): {row}")
+    lines.append(f"[run] scoop report: {files[0]}")
+    return lines

@@ -1,0 +1,98 @@
+"""Adapt a task world (:mod:`tli_verify.worlds`) to the executive's :class:`SensorModel`.
+
+Imports go one way: the runtime consumes worlds (this module imports
+:mod:`tli_verify.worlds.base` for the protocol only); worlds never import the runtime.
+
+A world's sensor model is batched and stateful (:meth:`tli_verify.worlds.base.WorldBase.read`:
+``(x_prev, x, latent) -> (reading, latent)``, with a lag of ``L`` steps: the reading at step
+``k`` is computed from the state at step ``max(k - L, 0)``). :class:`WorldSensors` keeps one
+episode's history and latent state and answers ``read(x)`` once per control step, exactly as
+:meth:`~tli_verify.worlds.base.WorldBase.sensors` scans a whole history.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.worlds.base import World
+
+__all__ = ["WorldSensors"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+Key = tuple[int, int, tuple[bool, ...]]
+
+
+class WorldSensors:
+    """One episode's sensor model of a world (the runtime's ``SensorModel`` protocol).
+
+    Parameters
+    ----------
+    world : World
+        E.g. :class:`tli_verify.worlds.ScoopWorld`; its ``lag`` is honoured.
+    cache : dict, optional
+        Reading memo shared between episodes of one world (see Notes); default: its own.
+    region_cache : bool, optional
+        Memoize ``world.read`` on ``(region of x_prev, region of x, latent)`` (default True).
+
+    Notes
+    -----
+    ``read(x)`` must be called once per control step, in order (the lag counts calls). The
+    latent state (scooping: soup on the spoon) starts at ``world.initial_latent`` on
+    :meth:`reset`.
+
+    Every bundled world's ``read`` depends on the states only through their true regions
+    (``world.region_index``) and on the latent state, so one reading per ``(region before,
+    region now, latent)`` is exact and saves the batched call's overhead on a single state
+    (about 30 of 40 microseconds per step); ``region_cache=False`` calls ``world.read`` every
+    step (for a world whose sensors look at more than the region). A shared ``cache`` must only
+    be shared by sensors of the same world.
+    """
+
+    __slots__ = ("_cache", "_hist", "_latent", "_prev", "names", "region_cache", "world")
+
+    def __init__(self, world: World, *, cache: dict[Key, tuple[dict[str, bool],
+                                                                 tuple[bool, ...]]] | None = None,
+                 region_cache: bool = True) -> None:
+        self.world = world
+        self.names = tuple(world.sensor_names)
+        self.region_cache = bool(region_cache)
+        self._cache = {} if cache is None else cache
+        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)
+        self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
+        self._prev: tuple[FloatArray, int] | None = None
+
+    def reset(self, x0: FloatArray) -> None:
+        """Start an episode at ``x0`` (history and latent state cleared)."""
+        self._hist.clear()
+        self._latent = tuple(self.world.initial_latent(1)[0].tolist())
+        self._prev = None
+
+    def read(self, x: FloatArray) -> dict[str, bool]:
+        """The reading at this step (from the state ``lag`` calls back), name -> value."""
+        xa = np.array(x, dtype=np.float64).reshape(1, -1)  # a copy: callers update x in place
+        region = int(self.world.region_index(xa)[0]) if self.region_cache else -1
+        self._hist.append((xa, region))
+        lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
+        prev = lagged if self._prev is None else self._prev
+        self._prev = lagged
+        key = (prev[1], lagged[1], self._latent)
+        hit = self._cache.get(key) if self.region_cache else None
+        if hit is None:
+            reading, latent = self.world.read(prev[0], lagged[0],
+                                              np.array([self._latent], dtype=bool))
+            hit = ({n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)},
+                   tuple(bool(v) for v in latent[0].tolist()))
+            if self.region_cache:
+                self._cache[key] = hit
+        self._latent = hit[1]
+        return dict(hit[0])
+
+    @property
+    def latent(self) -> dict[str, bool]:
+        """The latent world state after the last reading (name -> value)."""
+        return dict(zip(self.world.latent_names, self._latent, strict=True))
