@@ -43,8 +43,14 @@ import numpy.typing as npt
 from tli_verify.errors import TliError
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.model import Model
-from tli_verify.runtime.events import CutAdded, InvarianceFailure, Perturbation
-from tli_verify.runtime.executive import EpisodeResult, LTLDSPolicy, run_episode, run_episodes
+from tli_verify.runtime.events import InvarianceFailure, Perturbation
+from tli_verify.runtime.executive import (
+    EpisodeResult,
+    LTLDSPolicy,
+    batch_results,
+    run_episode,
+    run_episodes,
+)
 from tli_verify.runtime.worlds import WorldSensors
 from tli_verify.worlds.scoop import ScoopWorld
 
@@ -367,16 +373,7 @@ def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[Wor
         hist.append(X.copy())
         modes.append([p.mode for p in policies])
         astates.append([-1 if p.state is None else p.state for p in policies])
-    path = np.array(hist)
-    out = []
-    for i, pol in enumerate(policies):
-        T = int(taken[i]) + 1
-        out.append(EpisodeResult(
-            success=pol.done and not pol.holding, steps=T - 1, states=path[:T, i].copy(),
-            modes=tuple(m[i] for m in modes[:T]),
-            automaton_states=tuple(s[i] for s in astates[:T]), events=tuple(pol.events),
-            cuts_added=sum(1 for e in pol.events if isinstance(e, CutAdded)), model=pol.model))
-    return out
+    return batch_results(policies, hist, modes, astates, taken)
 
 
 def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:

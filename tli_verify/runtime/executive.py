@@ -69,6 +69,7 @@ __all__ = [
     "EpisodeResult",
     "LTLDSPolicy",
     "SensorModel",
+    "batch_results",
     "check_coverage",
     "run_episode",
     "run_episodes",
@@ -708,6 +709,28 @@ def run_episodes(
         hist_x.append(X.copy())
         hist_mode.append([pol.mode for pol in policies])
         hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
+    return batch_results(policies, hist_x, hist_mode, hist_state, taken)
+
+
+def batch_results(policies: Sequence[LTLDSPolicy], hist_x: Sequence[FloatArray],
+                  hist_mode: Sequence[Sequence[str]], hist_state: Sequence[Sequence[int]],
+                  taken: npt.NDArray[np.int64]) -> list[EpisodeResult]:
+    """The per-episode results of a batched closed loop.
+
+    Parameters
+    ----------
+    policies : sequence of LTLDSPolicy, length B
+    hist_x : sequence of ndarray, each shape (B, n)
+        States of the whole batch at every step (the first is the starts).
+    hist_mode, hist_state : sequence of sequence, each of length B
+        Modes and automaton states (-1 for none) of the batch at every step.
+    taken : ndarray of int, shape (B,)
+        Steps each episode actually took.
+
+    Returns
+    -------
+    list of EpisodeResult
+    """
     path = np.array(hist_x)
     out = []
     for i, pol in enumerate(policies):
