@@ -536,3 +536,13 @@ def test_demo_without_a_checkout_says_what_it_needs(tmp_path: Path, repo: Path) 
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith("error: the bundled specs/ directory is not installed")
     assert len(proc.stderr.splitlines()) == 1
+
+
+def test_check_cert_on_a_fifo_and_an_empty_automaton_output(
+        tmp_path: Path, repo: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    fifo = tmp_path / "cert.json"
+    os.mkfifo(fifo)
+    code, _, err = run(capsys, "check-cert", str(fifo))
+    assert_bad_input(code, err, "cert.json", "not a regular file")
+    code, _, err = run(capsys, "spec", "automaton", str(repo / "specs" / "scoop.toml"), "-o", "")
+    assert_bad_input(code, err, "empty path")

@@ -289,6 +289,9 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     if cpath.is_dir():
         raise CertificateError(f"{cpath}: is a directory, expected a certificate file",
                                exit_code=2)
+    if cpath.exists() and not cpath.is_file():
+        raise CertificateError(f"{cpath}: not a regular file (a device, FIFO or socket); "
+                               "refused, never read", exit_code=2)
     if not cpath.is_file():
         raise CertificateError(f"{cpath}: no such certificate file", exit_code=2)
     problems: list[str] = []

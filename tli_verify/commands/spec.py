@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from tli_verify.commands import output_path
 from tli_verify.errors import TliError
 
 
@@ -40,7 +41,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         description="Writes JSON (states, initial, transitions, mode_transitions) or Graphviz "
         "DOT, by the extension of -o. Exit 1 if the spec is unrealizable.")
     aut.add_argument("file", type=Path, metavar="FILE")
-    aut.add_argument("-o", "--output", type=Path, default=None,
+    aut.add_argument("-o", "--output", type=output_path, default=None,
                      help="OUT.json or OUT.dot (default: a summary on stdout)")
     aut.add_argument("--json", action="store_true", help="print the automaton JSON on stdout")
     aut.set_defaults(handler=_automaton)
@@ -64,7 +65,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     infer.add_argument("--modes", type=Path, required=True, metavar="LABELS",
                        help="TOML file with a [modes] table (mode = \"sensor formula\"), "
                        "or a spec file")
-    infer.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC.toml")
+    infer.add_argument("-o", "--output", type=output_path, required=True, metavar="SPEC.toml")
     infer.add_argument("--name", default=None, help="spec name (default: the output's stem)")
     infer.set_defaults(handler=_infer)
 
