@@ -338,11 +338,14 @@ class Model:
 
     @property
     def spec_path(self) -> Path | None:
-        """The spec file resolved against the model file's directory (None if none)."""
+        """The spec file resolved against the model file's directory (None if none).
+
+        Resolved the way the operating system opens it (symlinks first, then ``..``), so the
+        file certify hashes, the gate checks and the runtime loads is one and the same."""
         if self.spec is None:
             return None
         base = Path(self.path).parent if self.path else Path(".")
-        return base / self.spec
+        return Path(os.path.realpath(base / self.spec))
 
     def key(self, mode: str, next_mode: str | None = None) -> str:
         """The key of the DS to run in ``mode`` (towards ``next_mode`` for per-transition DS).

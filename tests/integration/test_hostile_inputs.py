@@ -118,7 +118,7 @@ def bad_output(kind: str, command: str, project: Path, tmp_path: Path) -> tuple[
         (project / "afile").write_text("keep me\n")
         return str(project / "afile" / name), "under a regular file"
     if kind == "empty":
-        return "", "empty path" if command != "spec automaton" else "is a directory"
+        return "", "empty path"
     fifo = project / "a-fifo"  # a FIFO of our own: never replace a system device in a test
     if not fifo.exists():
         os.mkfifo(fifo)
@@ -546,3 +546,20 @@ def test_check_cert_on_a_fifo_and_an_empty_automaton_output(
     assert_bad_input(code, err, "cert.json", "not a regular file")
     code, _, err = run(capsys, "spec", "automaton", str(repo / "specs" / "scoop.toml"), "-o", "")
     assert_bad_input(code, err, "empty path")
+
+
+def test_learn_control_dt_is_bounded_and_run_never_overwrites_its_certificate(
+        tmp_path: Path, repo: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "learn", str(repo / "demos" / "scoop_1.csv"), "-o",
+                       str(tmp_path / "m.json"), "--control-dt", "1e200")
+    assert code == 2 and "at most 1" in err
+    for sub in ("models", "certificates", "specs"):
+        shutil.copytree(repo / sub, tmp_path / sub)
+    cert = tmp_path / "certificates" / "scoop.cert.json"
+    before = cert.read_bytes()
+    code, _, err = run(capsys, "run", "--world", "scoop", "--model",
+                       str(tmp_path / "models" / "scoop.model.json"), "--certificate", str(cert),
+                       "--spec", str(tmp_path / "specs" / "scoop.toml"), "--seed", "1", "-o",
+                       str(tmp_path / "certificates" / "scoop.model.json"))
+    assert_bad_input(code, err, "would overwrite the input file")
+    assert cert.read_bytes() == before

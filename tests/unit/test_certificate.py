@@ -272,3 +272,13 @@ def test_certificate_predicts_the_rollout_of_a_lasa_shape(tmp_path: Path) -> Non
     assert check_certificate(cert).ok
     assert_certificate_predicts_rollout(load_model(path).modes["main"].ds,
                                         span=float(np.ptp(X, axis=0).max()), seed=7)
+
+
+def test_huge_rationals_in_a_certificate_are_malformed_not_a_crash(project: Path) -> None:
+    cert = project / "certificates" / "scoop.cert.json"
+
+    def long_dt(doc: dict[str, Any]) -> None:
+        doc["control_period"]["dt"] = "1/" + "1" * 5000
+
+    problems = _forge(cert, long_dt)
+    assert len(problems) == 1 and problems[0].startswith("malformed certificate")

@@ -189,3 +189,51 @@ def test_certificate_states_the_declared_numeric_ranges(project: Path) -> None:
     problems = check_certificate(cert).problems
     assert len(problems) == 1
     assert "well_posed.limits differ from this tool's declared ranges" in problems[0]
+
+
+def test_symlinked_directories_block(project: Path, tmp_path_factory: pytest.TempPathFactory
+                                     ) -> None:
+    import os
+
+    hidden = tmp_path_factory.mktemp("hidden")
+    shutil.copy(project / "models" / "scoop.model.json", hidden / "uncertified.json")
+    os.symlink(hidden, project / "models" / "sub")
+    found = blockers(project)
+    assert found == ["model models/sub: not a regular file (a symlinked directory, not "
+                     "followed): refused, never read"]
+
+
+def test_spec_path_through_a_symlink_and_dotdot_binds_the_file_the_os_opens(
+        project: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Reviewer's forgery: ``sub/../../specs/scoop.toml`` with ``sub`` a symlink elsewhere.
+
+    The OS follows the link first, so the spec the model names is *not* the project's. The
+    certificate must bind that file, and pointing the certificate at the project's spec (hashes
+    and digest redone) must not pass."""
+    import os
+
+    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.io import canonical_json, sha256_file
+
+    outside = tmp_path_factory.mktemp("outside")
+    (outside / "a" / "x").mkdir(parents=True)
+    (outside / "specs").mkdir()
+    evil = outside / "specs" / "scoop.toml"  # what sub/../../specs opens: outside/a/x/../..
+    evil.write_text((project / "specs" / "scoop.toml").read_text() + "\n# another spec\n")
+    os.symlink(outside / "a" / "x", project / "models" / "sub")
+
+    def point(doc: dict[str, Any]) -> None:
+        doc["spec"] = "sub/../../specs/scoop.toml"
+
+    # certify binds the file the OS opens (evil), and check-cert agrees with certify
+    edit_model(project, point)
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    assert Path(os.path.realpath(cert.parent / doc["spec"]["path"])) == evil.resolve()
+    # forging the certificate onto the project's spec is caught
+    doc["spec"] = {"path": "../specs/scoop.toml",
+                   "sha256": sha256_file(project / "specs" / "scoop.toml")}
+    doc["digest"] = certificate_digest(doc)
+    cert.write_text(canonical_json(doc))
+    problems = check_certificate(cert).problems
+    assert any("is not the spec the model names" in p for p in problems)

@@ -308,7 +308,7 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     else:
         passed.append("digest matches the content")
     mpath = Path(model_path) if model_path is not None else \
-        Path(os.path.normpath(cpath.parent / doc["model"]["path"]))
+        Path(os.path.realpath(cpath.parent / doc["model"]["path"]))
     if not mpath.is_file():
         problems.append(f"{cpath}: model file {mpath} not found")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
@@ -363,13 +363,13 @@ def _same_file(a: Path, b: Path) -> bool:
 def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
                         passed: list[str]) -> list[str]:
     """The certificate's spec must be the very file the model names, unchanged."""
-    spec_path = Path(os.path.normpath(model.spec_path)) if model.spec_path is not None else None
+    spec_path = model.spec_path  # resolved as the OS opens it
     if spec_path is None:
         return ([f"the certificate covers spec {spec['path']} but {mpath} names none"]
                 if spec is not None else [])
     if spec is None:
         return [f"{mpath} names spec {model.spec} but the certificate covers no spec"]
-    named = Path(os.path.normpath(cpath.parent / spec["path"]))
+    named = Path(os.path.realpath(cpath.parent / spec["path"]))
     if not spec_path.is_file():
         return [f"spec file {spec_path} not found"]
     if not _same_file(named, spec_path):

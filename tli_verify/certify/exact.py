@@ -66,6 +66,10 @@ __all__ = [
 ExactMatrix = tuple[tuple[Fraction, ...], ...]
 """A matrix of exact rationals, row-major."""
 
+MAX_RATIONAL = 10**20
+"""Bound on the numerator and denominator of a control period or decay rate (cost of the
+exact check grows with their size; a certificate's ``dt`` and rates have a few digits)."""
+
 MAX_EXACT_DIM = 128
 """Largest state dimension the exact check accepts (a model above it is refused, not stalled).
 
@@ -210,15 +214,19 @@ def parse_rational(value: str | int | float | Fraction, *, what: str = "value") 
     ValueError
         Not a finite rational.
     """
-    if isinstance(value, Fraction):
-        return value
     if isinstance(value, float) and not math.isfinite(value):
         raise ValueError(f"{what}: {value!r} is not a finite number")
+    if isinstance(value, str) and len(value) > 64:
+        raise ValueError(f"{what}: {value[:20]!r}... is too long (at most 64 characters)")
     try:
-        return Fraction(value)
+        q = value if isinstance(value, Fraction) else Fraction(value)
     except (ValueError, ZeroDivisionError, TypeError):
         raise ValueError(f"{what}: {value!r} is not a rational number "
                          "(e.g. 0.001 or 1/1000)") from None
+    if max(abs(q.numerator), q.denominator) >= MAX_RATIONAL:
+        raise ValueError(f"{what}: {value!r} has a numerator or denominator of 20 digits or "
+                         "more (a certificate states dt and rates with fewer)")
+    return q
 
 
 def to_fractions(M: npt.ArrayLike) -> ExactMatrix:
@@ -616,6 +624,8 @@ def certified_decay_rate(P: npt.ArrayLike, A: npt.ArrayLike, *,
         exp10 = math.floor(math.log10(lam)) - digits + 1
         unit = Fraction(10) ** exp10
         cand = Fraction(math.floor(Fraction(lam) / unit)) * unit
+        if cand.denominator >= MAX_RATIONAL or cand.numerator >= MAX_RATIONAL:
+            cand = Fraction(1, MAX_RATIONAL // 10)  # the smallest rate a certificate states
         if cand > 0 and check_lyapunov(Pf, Af, rate=cand).ok:
             return cand
         lam /= 2.0

@@ -95,9 +95,14 @@ class GateReport:
 
 
 def _files(directory: Path, pattern: str) -> list[Path]:
-    """Every entry matching ``pattern`` that is not a directory (regular or not)."""
-    return sorted(p for p in directory.rglob(pattern) if not p.is_dir()) \
-        if directory.is_dir() else []
+    """Every entry matching ``pattern`` that is not a directory (regular or not), and every
+    symlinked directory (``rglob`` does not descend into them, so they are blocked, never
+    silently skipped)."""
+    if not directory.is_dir():
+        return []
+    found = {p for p in directory.rglob(pattern) if not p.is_dir()}
+    found |= {p for p in directory.rglob("*") if p.is_symlink() and p.is_dir()}
+    return sorted(found)
 
 
 def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
@@ -109,8 +114,10 @@ def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
             return None
     except OSError:
         pass
-    return GateItem(kind, shown, False, "not a regular file (a device, FIFO, socket or "
-                    "dangling link): refused, never read", "load")
+    what = ("a symlinked directory, not followed" if path.is_dir() else
+             "a device, FIFO, socket or dangling link")
+    return GateItem(kind, shown, False, f"not a regular file ({what}): refused, never read",
+                    "load")
 
 
 def _default_spec_checker() -> Callable[[Path], Any]:
@@ -192,7 +199,7 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
         items.append(GateItem("model", name, False, "names no spec: a deployed model must name "
                               "the spec whose automaton runs it (\"spec\" field)", "spec"))
         return items
-    spec_path = Path(os.path.normpath(model.spec_path))
+    spec_path = model.spec_path  # resolved as the OS opens it
     if not spec_path.is_file():
         items.append(GateItem("model", name, False, f"its spec {spec_path} does not exist",
                               "spec"))

@@ -16,6 +16,10 @@ and ``max_{x in box} V`` of the convex quadratic ``V`` is attained at a vertex o
 sublevel set ``{V <= lambda_min(P) r^2}`` lies inside the ball of radius ``r`` around ``x*``.
 The campaigns and the Franka loop use ``T`` as the reachability deadline instead of an
 arbitrary horizon.
+
+The bound is continuous-time: a sampled loop at period ``dt`` is certified to decrease ``V`` at
+each Euler step of the nominal DS, but not at the rate ``exp(-lambda dt)`` per step, and not for
+the modulated step; use ``T`` for a sampled loop only with that caveat.
 """
 
 from __future__ import annotations

@@ -31,6 +31,14 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _control_period(text: str) -> float:
+    """A control period in seconds: positive and at most 1 s (a DS step of a robot loop)."""
+    value = _positive_float(text)
+    if value > 1.0:
+        raise argparse.ArgumentTypeError(f"must be at most 1 (seconds), got {text!r}")
+    return value
+
+
 def _rational(text: str) -> Fraction:
     """A positive exact rational (``0.001``, ``1/200``) for ``--dt``."""
     from tli_verify.certify.exact import parse_rational
@@ -87,7 +95,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="certified decay rate of V per DS, A_k^T P + P A_k <= -rate P (1/s; "
                    "default: 0.25 x the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
                    "only, the learner before issue 9)")
-    p.add_argument("--control-dt", type=_positive_float, default=1e-3, metavar="DT",
+    p.add_argument("--control-dt", type=_control_period, default=1e-3, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
                    "(default 0.001 s)")
     p.add_argument("--baseline", action="store_true",

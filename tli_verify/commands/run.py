@@ -152,6 +152,12 @@ def _run(args: argparse.Namespace) -> int:
         raise TliError(f"--seed must be >= 0, got {args.seed}")
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
+    if args.output is not None:  # the certificate written next to -o must not be an input
+        from tli_verify.io import check_output_file
+
+        inputs = [p for p in (args.model, args.certificate, args.spec) if p is not None]
+        check_output_file(certificate_next_to(args.output), inputs=[args.output, *inputs],
+                          what="certificate")
     setup = bundled_setup(model=args.model, certificate=args.certificate, spec=args.spec,
                           lag=args.lag)
     world = setup.world
