@@ -563,3 +563,11 @@ def test_learn_control_dt_is_bounded_and_run_never_overwrites_its_certificate(
                        str(tmp_path / "certificates" / "scoop.model.json"))
     assert_bad_input(code, err, "would overwrite the input file")
     assert cert.read_bytes() == before
+
+
+def test_run_refuses_a_spec_other_than_the_certified_one(
+        tmp_path: Path, repo: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    other = tmp_path / "other.toml"
+    other.write_text((repo / "specs" / "scoop.toml").read_text() + "\n# another spec\n")
+    code, _, err = run(capsys, "run", "--world", "scoop", "--spec", str(other), "--steps", "5")
+    assert_bad_input(code, err, "not the spec the model names")

@@ -97,8 +97,11 @@ def test_tampered_model_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture
 
 def test_uncertified_pair_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     root = bundled_dir("models").parent
-    shutil.copy(root / "models" / "scoop.model.json", tmp_path / "m.model.json")
-    code, _, err = _run(["run", "--world", "scoop", "--model", str(tmp_path / "m.model.json"),
+    (tmp_path / "models").mkdir()
+    shutil.copytree(root / "specs", tmp_path / "specs")  # the spec the model names
+    shutil.copy(root / "models" / "scoop.model.json", tmp_path / "models" / "m.model.json")
+    code, _, err = _run(["run", "--world", "scoop", "--model",
+                         str(tmp_path / "models" / "m.model.json"),
                          "--out", str(tmp_path / "o")], capsys)
     assert code == 1 and "refused" in err and err.count("\n") == 1
 

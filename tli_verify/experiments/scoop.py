@@ -118,11 +118,19 @@ def bundled_setup(*, model: str | os.PathLike[str] | None = None,
     from tli_verify.logic.spec import load_spec
     from tli_verify.model import load_model
 
-    spec_path = Path(spec) if spec is not None else bundled_dir("specs") / "scoop.toml"
     model_path = Path(model) if model is not None else bundled_dir("models") / "scoop.model.json"
     cert_path = (Path(certificate) if certificate is not None
                  else bundled_dir("certificates") / "scoop.cert.json")
-    return Setup(automaton=synthesize(load_spec(spec_path)), model=load_model(model_path),
+    loaded = load_model(model_path)
+    named = loaded.spec_path  # the spec the certificate binds (check_certificate hashes it)
+    if spec is not None and named is not None \
+            and Path(os.path.realpath(spec)) != Path(os.path.realpath(named)):
+        raise TliError(f"--spec {spec}: not the spec the model names ({named}); the "
+                       "certificate binds that one, so the automaton must come from it",
+                       exit_code=2)
+    spec_path = Path(spec) if spec is not None else (
+        named if named is not None else bundled_dir("specs") / "scoop.toml")
+    return Setup(automaton=synthesize(load_spec(spec_path)), model=loaded,
                  certificate=str(cert_path), world=ScoopWorld(lag=lag))
 
 
