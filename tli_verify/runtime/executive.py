@@ -38,6 +38,7 @@ scheduled perturbations.
 
 from __future__ import annotations
 
+import math
 import os
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -337,7 +338,7 @@ class LTLDSPolicy:
     # ---------------------------------------------------------------- control
     def _vector(self, x: npt.ArrayLike) -> FloatArray:
         xa = np.array(x, dtype=np.float64).reshape(-1)  # a copy: callers update x in place
-        if xa.size != self.model.dim or not (np.isfinite(xa.sum()) or np.isfinite(xa).all()):
+        if xa.size != self.model.dim or not (math.isfinite(xa.sum()) or np.isfinite(xa).all()):
             raise ModelError(f"state must be a finite vector of dimension {self.model.dim}, "
                              f"got shape {np.shape(x)}")
         return xa
@@ -605,6 +606,7 @@ def run_episode(
     modes = [policy.mode]
     astates = [policy.state if policy.state is not None else -1]
     table = dict(perturb) if isinstance(perturb, Mapping) else None
+    capped = bool(np.isfinite(speed_cap))  # speed > inf never holds
     t = 0
     for t in range(1, steps + 1):
         if stop_at_goal and policy.done and not policy.holding:
@@ -618,11 +620,12 @@ def run_episode(
         if pushed is not None:
             x = np.array(pushed, dtype=np.float64).reshape(-1)
         v = policy.step(x, sensors.read(x), perturbed=pushed is not None)
-        speed = float(np.linalg.norm(v))
-        if speed > speed_cap:
-            v = v * (speed_cap / speed)
-        x = x + dt * v
-        states.append(x.copy())
+        if capped:
+            speed = math.sqrt(float(v @ v))  # what np.linalg.norm computes for a vector
+            if speed > speed_cap:
+                v = v * (speed_cap / speed)
+        x = x + dt * v  # a new array each step: the history needs no copy
+        states.append(x)
         modes.append(policy.mode)
         astates.append(policy.state if policy.state is not None else -1)
     added = sum(1 for e in policy.events if isinstance(e, CutAdded))

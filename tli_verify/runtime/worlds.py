@@ -13,6 +13,7 @@ episode's history and latent state and answers ``read(x)`` once per control step
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -53,7 +54,8 @@ class WorldSensors:
     be shared by sensors of the same world.
     """
 
-    __slots__ = ("_cache", "_hist", "_latent", "_prev", "names", "region_cache", "world")
+    __slots__ = ("_cache", "_hist", "_latent", "_one", "_prev", "names", "region_cache",
+                 "world")
 
     def __init__(self, world: World, *, cache: dict[Key, tuple[dict[str, bool],
                                                                  tuple[bool, ...]]] | None = None,
@@ -65,6 +67,7 @@ class WorldSensors:
         self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)
         self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
         self._prev: tuple[FloatArray, int] | None = None
+        self._one: Callable[[list[float]], int] | None = getattr(world, "region_one", None)
 
     def reset(self, x0: FloatArray) -> None:
         """Start an episode at ``x0`` (history and latent state cleared)."""
@@ -75,7 +78,12 @@ class WorldSensors:
     def read(self, x: FloatArray) -> dict[str, bool]:
         """The reading at this step (from the state ``lag`` calls back), name -> value."""
         xa = np.array(x, dtype=np.float64).reshape(1, -1)  # a copy: callers update x in place
-        region = int(self.world.region_index(xa)[0]) if self.region_cache else -1
+        if not self.region_cache:
+            region = -1
+        elif self._one is not None:
+            region = self._one(xa[0].tolist())  # the world's scalar region test
+        else:
+            region = int(self.world.region_index(xa)[0])
         self._hist.append((xa, region))
         lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
         prev = lagged if self._prev is None else self._prev
