@@ -399,14 +399,18 @@ class LTLDSPolicy:
         run (``""`` while holding). :meth:`step` is this plus the velocity."""
         if self._state is None:
             raise TliError("call reset(x0, sensors) before step()")
-        xv = self._vector(x)
+        return self._decide(self._vector(x), self._read(sensors), perturbed)
+
+    def _decide(self, xv: FloatArray, reading: frozenset[str], perturbed: bool) -> str:
+        """:meth:`decide` on a checked state (finite, shape (n,), not updated in place later:
+        it may be recorded) and a checked reading (the set of true inputs)."""
+        assert self._state is not None  # reset() ran (decide checks)
         self._steps += 1
         t = self._steps
         perturbed = perturbed or self._pending
         self._pending = False
         if perturbed:
             self.events.append(Perturbation(t, self._mode))
-        reading = self._read(sensors)
         cause = "perturbation" if perturbed else "invariance failure"
         was_holding = self._holding
         if was_holding and not perturbed:
@@ -675,6 +679,8 @@ def run_episodes(
     if not (len(policies) == len(sensors) == N):
         raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
                        f"{len(sensors)}, {N}")
+    from tli_verify.runtime.worlds import WorldSensors
+
     for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
         sen.reset(X[i].copy())
         pol.reset(X[i], sen.read(X[i]))
@@ -684,20 +690,37 @@ def run_episodes(
     hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
     active = np.ones(N, dtype=bool)
     taken = np.zeros(N, dtype=np.int64)
+    # Fast path per episode (same results): a state checked for the whole batch at once and a
+    # reading as the set of true sensors (a WorldSensors whose names the automaton reads);
+    # anything else goes through decide(), which checks and raises as run_episode does.
+    lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
+            and X.ndim == 2 and X.shape[1] == pol.model.dim
+            for pol, sen in zip(policies, sensors, strict=True)]
     for _ in range(steps):
         groups: dict[tuple[int, str], list[int]] = {}
+        Xc = X.copy()  # this step's states: rows are recorded by the executives, never updated
+        ok: list[bool] = np.isfinite(Xc).all(axis=1).tolist()
+        pts: list[list[float]] = Xc.tolist()
         for i in np.flatnonzero(active).tolist():
             pol = policies[i]
-            if pol.done and not pol.holding:
+            if pol._mode in pol.goal_modes and not pol._holding:  # done
                 active[i] = False
                 continue
             pushed = perturb(i, int(taken[i]) + 1, X[i].copy()) if perturb is not None else None
             if pushed is not None:
                 X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
-            key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
+                Xc[i] = X[i]
+                if lean[i]:
+                    pts[i] = Xc[i].tolist()
+                    ok[i] = bool(np.isfinite(Xc[i]).all())
+            if lean[i] and ok[i]:
+                reading = sensors[i].read_set(Xc[i], pts[i])  # type: ignore[attr-defined]
+                key = pol._decide(Xc[i], reading, pushed is not None)
+            else:
+                key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
             taken[i] += 1
             if key:
-                groups.setdefault((id(pol.model), key), []).append(i)
+                groups.setdefault((id(pol._model), key), []).append(i)
         if not active.any():
             break
         V = np.zeros_like(X)
@@ -710,8 +733,8 @@ def run_episodes(
             cap_speed(V, speed_cap)
         X += dts * V  # held and finished episodes have V = 0
         hist_x.append(X.copy())
-        hist_mode.append([pol.mode for pol in policies])
-        hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
+        hist_mode.append([pol._mode for pol in policies])
+        hist_state.append([-1 if pol._state is None else pol._state for pol in policies])
     return batch_results(policies, hist_x, hist_mode, hist_state, taken)
 
 
