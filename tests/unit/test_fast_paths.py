@@ -121,3 +121,45 @@ def test_world_sensors_scalar_regions_match_uncached_reads(lag: int) -> None:
         x = np.clip(x + step, -8.0, 8.0)
         assert fast.read(x) == slow.read(x)
         assert fast.latent == slow.latent
+
+
+class _PlainSensors:
+    """A sensor model that is not a WorldSensors: run_episodes takes the general path."""
+
+    def __init__(self, world: ScoopWorld) -> None:
+        self.inner = WorldSensors(world, region_cache=False)
+
+    def reset(self, x0: np.ndarray) -> None:
+        self.inner.reset(x0)
+
+    def read(self, x: np.ndarray) -> dict[str, bool]:
+        return self.inner.read(x)
+
+
+def test_batched_fast_path_matches_general_path() -> None:
+    from tli_verify.experiments.scoop import bundled_setup, make_policy, random_start
+    from tli_verify.runtime.executive import run_episodes
+
+    setup = bundled_setup()
+    world = setup.world
+    base = make_policy(setup, "LTL-DS")
+    rng = np.random.default_rng(5)
+    n = 12
+    starts = np.array([random_start(world, rng) for _ in range(n)])
+    pushes = {(i, t): rng.uniform(-10.0, 10.0, size=2)
+              for i in range(n) for t in rng.integers(1, 400, size=2).tolist()}
+
+    def perturb(i: int, t: int, x: np.ndarray) -> np.ndarray | None:
+        d = pushes.get((i, t))
+        return None if d is None else np.clip(x + d, -8.0, 8.0)
+
+    fast = run_episodes([base.fork() for _ in range(n)], [WorldSensors(world) for _ in range(n)],
+                        starts, steps=600, perturb=perturb)
+    slow = run_episodes([base.fork() for _ in range(n)], [_PlainSensors(world) for _ in range(n)],
+                        starts, steps=600, perturb=perturb)
+    assert sum(len(r.events) for r in fast) > n  # perturbations and mode changes happened
+    for a, b in zip(fast, slow, strict=True):
+        assert (a.success, a.steps, a.modes, a.automaton_states) == \
+            (b.success, b.steps, b.modes, b.automaton_states)
+        assert [type(e).__name__ for e in a.events] == [type(e).__name__ for e in b.events]
+        np.testing.assert_allclose(a.states, b.states, rtol=1e-12, atol=1e-12)

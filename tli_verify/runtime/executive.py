@@ -45,7 +45,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -699,7 +699,7 @@ def run_episodes(
     for _ in range(steps):
         groups: dict[tuple[int, str], list[int]] = {}
         Xc = X.copy()  # this step's states: rows are recorded by the executives, never updated
-        ok: list[bool] = np.isfinite(Xc).all(axis=1).tolist()
+        ok = cast("list[bool]", np.isfinite(Xc).all(axis=1).tolist())
         pts: list[list[float]] = Xc.tolist()
         for i in np.flatnonzero(active).tolist():
             pol = policies[i]
