@@ -688,8 +688,8 @@ def run_episodes(
     hist_x = [X.copy()]
     hist_mode = [[pol.mode for pol in policies]]
     hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
-    active = np.ones(N, dtype=bool)
-    taken = np.zeros(N, dtype=np.int64)
+    live = list(range(N))  # the active episodes
+    taken = [0] * N
     # Fast path per episode (same results): a state checked for the whole batch at once and a
     # reading as the set of true sensors (a WorldSensors whose names the automaton reads);
     # anything else goes through decide(), which checks and raises as run_episode does.
@@ -701,27 +701,30 @@ def run_episodes(
         Xc = X.copy()  # this step's states: rows are recorded by the executives, never updated
         ok = cast("list[bool]", np.isfinite(Xc).all(axis=1).tolist())
         pts: list[list[float]] = Xc.tolist()
-        for i in np.flatnonzero(active).tolist():
+        still = []
+        for i in live:
             pol = policies[i]
             if pol._mode in pol.goal_modes and not pol._holding:  # done
-                active[i] = False
                 continue
-            pushed = perturb(i, int(taken[i]) + 1, X[i].copy()) if perturb is not None else None
+            still.append(i)
+            xi = Xc[i]
+            pushed = perturb(i, taken[i] + 1, xi.copy()) if perturb is not None else None
             if pushed is not None:
                 X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
-                Xc[i] = X[i]
+                xi[:] = X[i]
                 if lean[i]:
-                    pts[i] = Xc[i].tolist()
-                    ok[i] = bool(np.isfinite(Xc[i]).all())
+                    pts[i] = xi.tolist()
+                    ok[i] = bool(np.isfinite(xi).all())
             if lean[i] and ok[i]:
-                reading = sensors[i].read_set(Xc[i], pts[i])  # type: ignore[attr-defined]
-                key = pol._decide(Xc[i], reading, pushed is not None)
+                reading = sensors[i].read_set(xi, pts[i])  # type: ignore[attr-defined]
+                key = pol._decide(xi, reading, pushed is not None)
             else:
                 key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
             taken[i] += 1
             if key:
                 groups.setdefault((id(pol._model), key), []).append(i)
-        if not active.any():
+        live = still
+        if not live:
             break
         V = np.zeros_like(X)
         for (_, key), rows in groups.items():
@@ -735,6 +738,8 @@ def run_episodes(
         hist_x.append(X.copy())
         hist_mode.append([pol._mode for pol in policies])
         hist_state.append([-1 if pol._state is None else pol._state for pol in policies])
+    return batch_results(policies, hist_x, hist_mode, hist_state,
+                         np.array(taken, dtype=np.int64))
     return batch_results(policies, hist_x, hist_mode, hist_state, taken)
 
 
