@@ -45,6 +45,7 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from operator import mul
 
 import numpy as np
 import numpy.typing as npt
@@ -81,8 +82,8 @@ class GMM:
     _quad_rows: tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]] = field(init=False,
                                                                            repr=False)
     _design: FloatArray = field(init=False, repr=False)
-    _one: tuple[tuple[float, ...], tuple[tuple[int, int], ...], tuple[tuple[float, ...], ...]] \
-        = field(init=False, repr=False)
+    _one: tuple[tuple[float, ...], tuple[tuple[int, int], ...],
+                tuple[tuple[tuple[float, ...], float], ...]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         priors = np.array(self.priors, dtype=np.float64)
@@ -128,7 +129,7 @@ class GMM:
         object.__setattr__(self, "_one", (
             tuple(center.tolist()),
             tuple(zip(iu.tolist(), ju.tolist(), strict=True)),
-            tuple(tuple(row) for row in design.T.tolist()),
+            tuple((tuple(row[:-1]), row[-1]) for row in design.T.tolist()),
         ))
 
     @property
@@ -206,8 +207,7 @@ class GMM:
         u = [xi - ci for xi, ci in zip(x, center, strict=True)]
         phi = [u[i] * u[j] for i, j in pairs]
         phi.extend(u)
-        logp = [sum([p * w for p, w in zip(phi, row[:-1], strict=True)], row[-1])
-                for row in design]
+        logp = [sum(map(mul, phi, row), const) for row, const in design]
         top = max(logp)
         e = [math.exp(v - top) for v in logp]
         total = sum(e)

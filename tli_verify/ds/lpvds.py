@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
+from operator import mul
 from typing import Literal
 
 import numpy as np
@@ -170,7 +171,7 @@ class LPVDS:
         xs, cols = self._one
         z = [xi - ai for xi, ai in zip(x, xs, strict=True)]
         g = [gk * zi for gk in self._mix.posterior_one(x) for zi in z]  # (K n,)
-        return np.array([sum([a * b for a, b in zip(g, col, strict=True)]) for col in cols])
+        return np.array([sum(map(mul, g, col)) for col in cols])
 
     def lyapunov(self, X: npt.ArrayLike) -> FloatArray:
         """``V(x) = (x - x*)^T P (x - x*)``.
