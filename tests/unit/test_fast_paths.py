@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -163,3 +164,29 @@ def test_batched_fast_path_matches_general_path() -> None:
             (b.success, b.steps, b.modes, b.automaton_states)
         assert [type(e).__name__ for e in a.events] == [type(e).__name__ for e in b.events]
         np.testing.assert_allclose(a.states, b.states, rtol=1e-12, atol=1e-12)
+
+
+def test_batched_loop_calls_an_overridden_decide() -> None:
+    """A subclass's decide() (e.g. the no-replan ablation) is not bypassed by the fast path."""
+    from tli_verify.experiments.scoop import bundled_setup, make_policy
+    from tli_verify.runtime.executive import LTLDSPolicy, run_episodes
+
+    class Counting(LTLDSPolicy):
+        calls = 0
+
+        def decide(self, x: Any, sensors: Any, *, perturbed: bool = False) -> str:
+            type(self).calls += 1
+            return super().decide(x, sensors, perturbed=perturbed)
+
+    setup = bundled_setup()
+    base = make_policy(setup, "LTL-DS")
+    pols = []
+    for _ in range(3):
+        p = object.__new__(Counting)
+        fork = base.fork()
+        for name in LTLDSPolicy.__slots__:
+            setattr(p, name, getattr(fork, name))
+        pols.append(p)
+    starts = np.array([[-5.0, 4.0], [-2.0, -6.0], [7.0, 0.0]])
+    res = run_episodes(pols, [WorldSensors(setup.world) for _ in starts], starts, steps=300)
+    assert Counting.calls == sum(r.steps for r in res) > 0

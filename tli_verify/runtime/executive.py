@@ -691,9 +691,12 @@ def run_episodes(
     live = list(range(N))  # the active episodes
     taken = [0] * N
     # Fast path per episode (same results): a state checked for the whole batch at once and a
-    # reading as the set of true sensors (a WorldSensors whose names the automaton reads);
-    # anything else goes through decide(), which checks and raises as run_episode does.
+    # reading as the set of true sensors (a WorldSensors whose names the automaton reads) for
+    # an executive whose decide() is LTLDSPolicy's own (a subclass may override it, e.g. the
+    # no-replan ablation); anything else goes through decide(), which checks and raises as
+    # run_episode does.
     lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
+            and type(pol).decide is LTLDSPolicy.decide
             and X.ndim == 2 and X.shape[1] == pol.model.dim
             for pol, sen in zip(policies, sensors, strict=True)]
     for _ in range(steps):
@@ -704,7 +707,7 @@ def run_episodes(
         still = []
         for i in live:
             pol = policies[i]
-            if pol._mode in pol.goal_modes and not pol._holding:  # done
+            if pol.done and not pol.holding:
                 continue
             still.append(i)
             xi = Xc[i]
@@ -736,8 +739,8 @@ def run_episodes(
             cap_speed(V, speed_cap)
         X += dts * V  # held and finished episodes have V = 0
         hist_x.append(X.copy())
-        hist_mode.append([pol._mode for pol in policies])
-        hist_state.append([-1 if pol._state is None else pol._state for pol in policies])
+        hist_mode.append([pol.mode for pol in policies])
+        hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
     return batch_results(policies, hist_x, hist_mode, hist_state,
                          np.array(taken, dtype=np.int64))
     return batch_results(policies, hist_x, hist_mode, hist_state, taken)
