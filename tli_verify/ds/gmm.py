@@ -41,8 +41,11 @@ References
 
 from __future__ import annotations
 
+import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from operator import mul
 
 import numpy as np
 import numpy.typing as npt
@@ -79,6 +82,8 @@ class GMM:
     _quad_rows: tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]] = field(init=False,
                                                                            repr=False)
     _design: FloatArray = field(init=False, repr=False)
+    _one: tuple[tuple[float, ...], tuple[tuple[int, int], ...],
+                tuple[tuple[tuple[float, ...], float], ...]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         priors = np.array(self.priors, dtype=np.float64)
@@ -120,6 +125,12 @@ class GMM:
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_quad_rows", (iu, ju))
+        # single-state path (posterior_one): the same design, as Python floats per component
+        object.__setattr__(self, "_one", (
+            tuple(center.tolist()),
+            tuple(zip(iu.tolist(), ju.tolist(), strict=True)),
+            tuple((tuple(row[:-1]), row[-1]) for row in design.T.tolist()),
+        ))
 
     @property
     def n_components(self) -> int:
@@ -172,6 +183,35 @@ class GMM:
         p = np.exp(logp, out=logp)
         p /= p.sum(axis=1, keepdims=True)
         return p
+
+
+    def posterior_one(self, x: Sequence[float]) -> list[float]:
+        """:meth:`posterior` of one state, in plain Python (no array overhead).
+
+        The same polynomial design as :meth:`posterior` (``phi(u) @ design``, then a
+        max-shifted softmax); only the summation order of the dot products differs, so the
+        result agrees with ``posterior(x[None])[0]`` to float rounding
+        (``tests/unit/test_fast_paths.py``).
+
+        Parameters
+        ----------
+        x : sequence of float, length n
+            One state (not validated: the caller checks the dimension).
+
+        Returns
+        -------
+        list of float, length K
+            Non-negative, summing to 1 (up to rounding).
+        """
+        center, pairs, design = self._one
+        u = [xi - ci for xi, ci in zip(x, center, strict=True)]
+        phi = [u[i] * u[j] for i, j in pairs]
+        phi.extend(u)
+        logp = [sum(map(mul, phi, row), const) for row, const in design]
+        top = max(logp)
+        e = [math.exp(v - top) for v in logp]
+        total = sum(e)
+        return [v / total for v in e]
 
 
 def _standardise(X: FloatArray) -> tuple[FloatArray, FloatArray, float]:

@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
+from operator import mul
 from typing import Literal
 
 import numpy as np
@@ -76,6 +77,8 @@ class LPVDS:
     P: FloatArray
     _mix: GMM = field(init=False, repr=False)
     _a_stack: FloatArray = field(init=False, repr=False)
+    _one: tuple[tuple[float, ...], tuple[tuple[float, ...], ...]] = field(init=False,
+                                                                          repr=False)
 
     def __post_init__(self) -> None:
         mix = GMM(priors=self.priors, means=self.means, covs=self.covs)
@@ -101,6 +104,9 @@ class LPVDS:
         a_stack = np.ascontiguousarray(np.transpose(A, (0, 2, 1)).reshape(k * n, n))
         a_stack.setflags(write=False)
         object.__setattr__(self, "_a_stack", a_stack)  # rows k*n + j: (A_k)[:, j]
+        # single-state path (velocity of one state): x* and the columns of a_stack as floats
+        object.__setattr__(self, "_one", (tuple(attractor.tolist()),
+                                          tuple(tuple(c) for c in a_stack.T.tolist())))
 
     @property
     def dim(self) -> int:
@@ -148,6 +154,9 @@ class LPVDS:
         ndarray, shape (N, n) or (n,)
             Same leading shape as ``X``.
         """
+        if isinstance(X, np.ndarray) and X.shape == (len(self._one[0]),) \
+                and X.dtype == np.float64:
+            return self._velocity_one(X.tolist())
         Xa, single = self._states(X)
         Z = Xa - self.attractor
         gamma = self._mix.posterior(Xa)  # (N, K)
@@ -155,6 +164,14 @@ class LPVDS:
         G = (gamma[:, :, None] * Z[:, None, :]).reshape(Z.shape[0], -1)  # (N, K n)
         F = G @ self._a_stack
         return F[0] if single else F
+
+    def _velocity_one(self, x: list[float]) -> FloatArray:
+        """:meth:`velocity` of one state in plain Python: ``G @ a_stack`` with
+        ``G = [gamma_k z_i]`` (the same products; only the summation order differs)."""
+        xs, cols = self._one
+        z = [xi - ai for xi, ai in zip(x, xs, strict=True)]
+        g = [gk * zi for gk in self._mix.posterior_one(x) for zi in z]  # (K n,)
+        return np.array([sum(map(mul, g, col)) for col in cols])
 
     def lyapunov(self, X: npt.ArrayLike) -> FloatArray:
         """``V(x) = (x - x*)^T P (x - x*)``.

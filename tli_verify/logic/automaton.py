@@ -146,6 +146,8 @@ class TaskAutomaton:
     free_inputs: tuple[str, ...] = ()
     _index: dict[int, list[Transition]] = field(default_factory=dict, compare=False,
                                                 repr=False)
+    _lookup: dict[tuple[int, frozenset[str]], int | None] = field(
+        default_factory=dict, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for t in self.transitions:
@@ -200,11 +202,19 @@ class TaskAutomaton:
         AssumptionViolation
             If the environment assumptions rule this sensor change out.
         """
+        if isinstance(sensors, frozenset):
+            # lookup cache: (state, reading) -> target, filled lazily below (a reading is
+            # cached only after it was validated, so a hit needs no checks)
+            hit = self._lookup.get((state, sensors), -1)
+            if hit is not None and hit >= 0:
+                return hit, self.states[hit].mode
         if not 0 <= state < len(self.states):
             raise SpecError(f"no automaton state {state}")
         reading = self._reading(sensors)
         target = next((t.target for t in self._index.get(state, ()) if t.matches(reading)),
                       None)
+        if len(self._lookup) < 4096:
+            self._lookup[(state, reading)] = target
         if target is None:
             raise AssumptionViolation(
                 f"sensor reading {sorted(reading)} from state {state} (mode "

@@ -38,13 +38,14 @@ scheduled perturbations.
 
 from __future__ import annotations
 
+import math
 import os
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -337,7 +338,7 @@ class LTLDSPolicy:
     # ---------------------------------------------------------------- control
     def _vector(self, x: npt.ArrayLike) -> FloatArray:
         xa = np.array(x, dtype=np.float64).reshape(-1)  # a copy: callers update x in place
-        if xa.size != self.model.dim or not (np.isfinite(xa.sum()) or np.isfinite(xa).all()):
+        if xa.size != self.model.dim or not (math.isfinite(xa.sum()) or np.isfinite(xa).all()):
             raise ModelError(f"state must be a finite vector of dimension {self.model.dim}, "
                              f"got shape {np.shape(x)}")
         return xa
@@ -398,14 +399,18 @@ class LTLDSPolicy:
         run (``""`` while holding). :meth:`step` is this plus the velocity."""
         if self._state is None:
             raise TliError("call reset(x0, sensors) before step()")
-        xv = self._vector(x)
+        return self._decide(self._vector(x), self._read(sensors), perturbed)
+
+    def _decide(self, xv: FloatArray, reading: frozenset[str], perturbed: bool) -> str:
+        """:meth:`decide` on a checked state (finite, shape (n,), not updated in place later:
+        it may be recorded) and a checked reading (the set of true inputs)."""
+        assert self._state is not None  # reset() ran (decide checks)
         self._steps += 1
         t = self._steps
         perturbed = perturbed or self._pending
         self._pending = False
         if perturbed:
             self.events.append(Perturbation(t, self._mode))
-        reading = self._read(sensors)
         cause = "perturbation" if perturbed else "invariance failure"
         was_holding = self._holding
         if was_holding and not perturbed:
@@ -605,6 +610,7 @@ def run_episode(
     modes = [policy.mode]
     astates = [policy.state if policy.state is not None else -1]
     table = dict(perturb) if isinstance(perturb, Mapping) else None
+    capped = bool(np.isfinite(speed_cap))  # speed > inf never holds
     t = 0
     for t in range(1, steps + 1):
         if stop_at_goal and policy.done and not policy.holding:
@@ -618,11 +624,12 @@ def run_episode(
         if pushed is not None:
             x = np.array(pushed, dtype=np.float64).reshape(-1)
         v = policy.step(x, sensors.read(x), perturbed=pushed is not None)
-        speed = float(np.linalg.norm(v))
-        if speed > speed_cap:
-            v = v * (speed_cap / speed)
-        x = x + dt * v
-        states.append(x.copy())
+        if capped:
+            speed = math.sqrt(float(v @ v))  # what np.linalg.norm computes for a vector
+            if speed > speed_cap:
+                v = v * (speed_cap / speed)
+        x = x + dt * v  # a new array each step: the history needs no copy
+        states.append(x)
         modes.append(policy.mode)
         astates.append(policy.state if policy.state is not None else -1)
     added = sum(1 for e in policy.events if isinstance(e, CutAdded))
@@ -672,6 +679,8 @@ def run_episodes(
     if not (len(policies) == len(sensors) == N):
         raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
                        f"{len(sensors)}, {N}")
+    from tli_verify.runtime.worlds import WorldSensors
+
     for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
         sen.reset(X[i].copy())
         pol.reset(X[i], sen.read(X[i]))
@@ -679,23 +688,46 @@ def run_episodes(
     hist_x = [X.copy()]
     hist_mode = [[pol.mode for pol in policies]]
     hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
-    active = np.ones(N, dtype=bool)
-    taken = np.zeros(N, dtype=np.int64)
+    live = list(range(N))  # the active episodes
+    taken = [0] * N
+    # Fast path per episode (same results): a state checked for the whole batch at once and a
+    # reading as the set of true sensors (a WorldSensors whose names the automaton reads) for
+    # an executive whose decide() is LTLDSPolicy's own (a subclass may override it, e.g. the
+    # no-replan ablation); anything else goes through decide(), which checks and raises as
+    # run_episode does.
+    lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
+            and type(pol).decide is LTLDSPolicy.decide
+            and X.ndim == 2 and X.shape[1] == pol.model.dim
+            for pol, sen in zip(policies, sensors, strict=True)]
     for _ in range(steps):
         groups: dict[tuple[int, str], list[int]] = {}
-        for i in np.flatnonzero(active).tolist():
+        Xc = X.copy()  # this step's states: rows are recorded by the executives, never updated
+        ok = cast("list[bool]", np.isfinite(Xc).all(axis=1).tolist())
+        pts: list[list[float]] = Xc.tolist()
+        still = []
+        for i in live:
             pol = policies[i]
             if pol.done and not pol.holding:
-                active[i] = False
                 continue
-            pushed = perturb(i, int(taken[i]) + 1, X[i].copy()) if perturb is not None else None
+            still.append(i)
+            xi = Xc[i]
+            pushed = perturb(i, taken[i] + 1, xi.copy()) if perturb is not None else None
             if pushed is not None:
                 X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
-            key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
+                xi[:] = X[i]
+                if lean[i]:
+                    pts[i] = xi.tolist()
+                    ok[i] = bool(np.isfinite(xi).all())
+            if lean[i] and ok[i]:
+                reading = sensors[i].read_set(xi, pts[i])  # type: ignore[attr-defined]
+                key = pol._decide(xi, reading, pushed is not None)
+            else:
+                key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
             taken[i] += 1
             if key:
-                groups.setdefault((id(pol.model), key), []).append(i)
-        if not active.any():
+                groups.setdefault((id(pol._model), key), []).append(i)
+        live = still
+        if not live:
             break
         V = np.zeros_like(X)
         for (_, key), rows in groups.items():
@@ -709,6 +741,8 @@ def run_episodes(
         hist_x.append(X.copy())
         hist_mode.append([pol.mode for pol in policies])
         hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
+    return batch_results(policies, hist_x, hist_mode, hist_state,
+                         np.array(taken, dtype=np.int64))
     return batch_results(policies, hist_x, hist_mode, hist_state, taken)
 
 

@@ -13,6 +13,7 @@ episode's history and latent state and answers ``read(x)`` once per control step
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -25,6 +26,8 @@ FloatArray = npt.NDArray[np.float64]
 
 
 Key = tuple[int, int, tuple[bool, ...]]
+Hit = tuple[dict[str, bool], tuple[bool, ...], frozenset[str]]
+"""A memoized reading: name -> value, the latent state after it, the set of true sensors."""
 
 
 class WorldSensors:
@@ -53,18 +56,19 @@ class WorldSensors:
     be shared by sensors of the same world.
     """
 
-    __slots__ = ("_cache", "_hist", "_latent", "_prev", "names", "region_cache", "world")
+    __slots__ = ("_cache", "_hist", "_latent", "_one", "_prev", "names", "region_cache",
+                 "world")
 
-    def __init__(self, world: World, *, cache: dict[Key, tuple[dict[str, bool],
-                                                                 tuple[bool, ...]]] | None = None,
+    def __init__(self, world: World, *, cache: dict[Key, Hit] | None = None,
                  region_cache: bool = True) -> None:
         self.world = world
         self.names = tuple(world.sensor_names)
         self.region_cache = bool(region_cache)
         self._cache = {} if cache is None else cache
-        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)
+        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)  # (x (n,), region)
         self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
         self._prev: tuple[FloatArray, int] | None = None
+        self._one: Callable[[list[float]], int] | None = getattr(world, "region_one", None)
 
     def reset(self, x0: FloatArray) -> None:
         """Start an episode at ``x0`` (history and latent state cleared)."""
@@ -74,8 +78,34 @@ class WorldSensors:
 
     def read(self, x: FloatArray) -> dict[str, bool]:
         """The reading at this step (from the state ``lag`` calls back), name -> value."""
-        xa = np.array(x, dtype=np.float64).reshape(1, -1)  # a copy: callers update x in place
-        region = int(self.world.region_index(xa)[0]) if self.region_cache else -1
+        xa = np.array(x, dtype=np.float64).reshape(-1)  # a copy: callers update x in place
+        return dict(self._advance(xa, xa.tolist() if self._one is not None else None)[0])
+
+    def read_set(self, x: FloatArray, point: list[float]) -> frozenset[str]:
+        """:meth:`read`, as the set of true sensors, for the batched loop.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            The state; kept (not copied) in the lag history, so the caller must not update
+            it in place.
+        point : list of float, length n
+            ``x.tolist()``.
+
+        Returns
+        -------
+        frozenset of str
+        """
+        return self._advance(x, point)[2]
+
+    def _advance(self, xa: FloatArray, point: list[float] | None
+                 ) -> tuple[dict[str, bool], tuple[bool, ...], frozenset[str]]:
+        if not self.region_cache:
+            region = -1
+        elif self._one is not None and point is not None:
+            region = self._one(point)  # the world's scalar region test
+        else:
+            region = int(self.world.region_index(xa[None, :])[0])
         self._hist.append((xa, region))
         lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
         prev = lagged if self._prev is None else self._prev
@@ -83,14 +113,15 @@ class WorldSensors:
         key = (prev[1], lagged[1], self._latent)
         hit = self._cache.get(key) if self.region_cache else None
         if hit is None:
-            reading, latent = self.world.read(prev[0], lagged[0],
+            reading, latent = self.world.read(prev[0][None, :], lagged[0][None, :],
                                               np.array([self._latent], dtype=bool))
-            hit = ({n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)},
-                   tuple(bool(v) for v in latent[0].tolist()))
+            values = {n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)}
+            hit = (values, tuple(bool(v) for v in latent[0].tolist()),
+                   frozenset(n for n, v in values.items() if v))
             if self.region_cache:
                 self._cache[key] = hit
         self._latent = hit[1]
-        return dict(hit[0])
+        return hit
 
     @property
     def latent(self) -> dict[str, bool]:

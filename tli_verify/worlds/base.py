@@ -168,6 +168,19 @@ class WorldBase:
         """
         raise NotImplementedError
 
+    def region_one(self, x: Sequence[float]) -> int:
+        """:meth:`region_index` of one state (worlds may override it with a scalar test).
+
+        Parameters
+        ----------
+        x : sequence of float, length 2
+
+        Returns
+        -------
+        int
+        """
+        return int(self.region_index(np.asarray(x, dtype=np.float64)[None, :])[0])
+
     def region_masks(self, X: npt.ArrayLike) -> dict[str, BoolArray]:
         """Membership of every true region, ``{name: (N,) bool}`` (a partition)."""
         idx = self.region_index(X)

@@ -34,6 +34,7 @@ minimum-jerk profile: readings ``a -> b -> c -> d``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -94,6 +95,13 @@ class ScoopWorld(WorldBase):
         idx[column & (x2 <= TARGET_X2)] = 2
         idx[column & (x2 > TARGET_X2)] = 3
         return idx
+
+    def region_one(self, x: Sequence[float]) -> int:
+        """:meth:`region_index` of one state ``(x1, x2)``: the same comparisons, in Python."""
+        x1, x2 = float(x[0]), float(x[1])
+        if X1_COLUMN[0] <= x1 <= X1_COLUMN[1]:
+            return 2 if x2 <= TARGET_X2 else (3 if x2 > TARGET_X2 else 0)
+        return 1 if x2 <= CONTACT_X2 else 0
 
     def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
              ) -> tuple[BoolArray, BoolArray]:
