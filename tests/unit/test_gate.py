@@ -237,3 +237,19 @@ def test_spec_path_through_a_symlink_and_dotdot_binds_the_file_the_os_opens(
     cert.write_text(canonical_json(doc))
     problems = check_certificate(cert).problems
     assert any("is not the spec the model names" in p for p in problems)
+
+
+def test_per_transition_goal_mode_without_a_ds_the_runtime_can_pick_blocks(
+        project: Path) -> None:
+    """Review finding: goal mode d keyed only 'd->a' passed the gate, but the runtime never plans
+    d -> a (d only stays), so it had no DS to run in d."""
+
+    def key_d_as_transition(doc: dict[str, Any]) -> None:
+        doc["modes"]["d->a"] = dict(doc["modes"].pop("d"), mode="d", next_mode="a")
+
+    edit_model(project, key_d_as_transition)
+    found = blockers(project)
+    assert len(found) == 1
+    assert "no DS to run in automaton state" in found[0]
+    assert "(mode 'd'): no plain DS 'd'" in found[0]
+    assert "none: it only stays in the mode" in found[0]

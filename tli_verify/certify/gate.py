@@ -16,7 +16,8 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      declares otherwise);
    * ``modes``: it has a DS for every mode the spec's task automaton can run, a per-transition
      DS for every mode transition the automaton can take out of a mode whose DS is
-     per-transition, and no mode (or next mode) the spec lacks;
+     per-transition, in every automaton state of such a mode a DS the runtime can pick (one
+     towards a mode that state can move to), and no mode (or next mode) the spec lacks;
    * ``dimension``: its state names are distinct and every DS and cut has their dimension.
 
 A directory with no model to deploy fails closed ("nothing to gate"). Any failure blocks.
@@ -265,6 +266,22 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
     for m in runnable:
         if m not in plain and m not in per_transition:
             problems.append(f"no DS for mode {m!r}, which the automaton can run")
+    # state by state, as the runtime picks a DS: a mode with per-transition DS only needs one
+    # towards a mode this state can move to (else the planner has no DS to run there)
+    succ: dict[int, set[str]] = {}
+    for t in automaton.transitions:
+        succ.setdefault(t.source, set()).add(automaton.states[t.target].mode)
+    for sid, state in enumerate(automaton.states):
+        m = state.mode
+        if m in plain or m not in per_transition:
+            continue
+        moves = succ.get(sid, set()) - {m}
+        if not moves & per_transition[m]:
+            towards = ", ".join(sorted(moves)) or "none: it only stays in the mode"
+            problems.append(f"no DS to run in automaton state {sid} (mode {m!r}): no plain DS "
+                            f"{m!r} and no per-transition DS towards the modes it can move to "
+                            f"({towards})")
+            break
     for src, dst in automaton.mode_transitions():
         if src != dst and src not in plain and src in per_transition \
                 and dst not in per_transition[src]:
