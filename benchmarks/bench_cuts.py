@@ -38,17 +38,10 @@ n = 6 with 40 points)."""
 
 def _problem(n: int, k: int, rng: np.random.Generator, shell: bool) -> tuple[
         np.ndarray, InvarianceFailure, np.ndarray]:
-    u = rng.standard_normal(n)
-    u /= np.linalg.norm(u)
-    x_star = rng.standard_normal(n)
-    x_star *= 0.3 * rng.uniform() / np.linalg.norm(x_star)
-    xl = 0.98 * u
-    v = u + 0.5 * rng.standard_normal(n)
-    xf = xl + 0.05 * (v / np.linalg.norm(v) if u @ v > 0 else u)
-    Q = rng.standard_normal((k + 1, n))
-    Q /= np.linalg.norm(Q, axis=1, keepdims=True)
-    Q *= 0.97 if shell else 0.97 * rng.uniform(size=(k + 1, 1)) ** (1.0 / n)
-    return x_star, InvarianceFailure(Q[0], xl, xf), Q[1:]
+    from tests.support.instances import ball_instance
+
+    x_star, x0, xl, xf, inner = ball_instance(n, k, rng, shell=shell)
+    return x_star, InvarianceFailure(x0, xl, xf), np.array(inner).reshape(-1, n)
 
 
 def _timed(problem: tuple[np.ndarray, InvarianceFailure, np.ndarray], method: CutMethod,

@@ -70,27 +70,6 @@ def _model_with_cuts(seed: int = 0, m: int = 10) -> Model:
     return model
 
 
-_CHAIN_SPEC = """
-name = "chain"
-inputs = ["u", "v"]
-outputs = ["a", "b", "c", "p"]
-[modes]
-a = "!u & !v"
-b = "u & !v"
-c = "!u & v"
-[assume]
-init = "!u & !v"
-safety = [
-  "G((!u & !v) -> X((!u & !v) | (u & !v)))",
-  "G((u & !v) -> X((!u & !v) | (u & !v) | (!u & v)))",
-  "G((!u & v) -> X(!u & v))",
-]
-liveness = ["GF(!a | u)", "GF(!b | v)"]
-[guarantee]
-init = "a & !p"
-safety = ["G(a -> X(a | b))", "G(b -> X(a | b | c))", "G(c -> X c)", "G(X p <-> (b & X a))"]
-liveness = ["GF(c | p)"]
-"""
 
 
 class _Chain:
@@ -103,13 +82,14 @@ class _Chain:
 
 def _chain_policy(root: Path) -> Any:
     """The chain world of ``tests/integration/test_executive.py`` (certified at dt = 1/100)."""
+    from tests.support.instances import CHAIN_SPEC
     from tli_verify.certify.certificate import issue_certificate, write_certificate
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import parse_spec
     from tli_verify.model import load_model, save_model
     from tli_verify.runtime.executive import LTLDSPolicy
 
-    spec_text = _CHAIN_SPEC
+    spec_text = CHAIN_SPEC
     i2 = [[1.0, 0.0], [0.0, 1.0]]
 
     def ds(mode: str, nxt: str | None, att: list[float], A: list[list[float]]) -> dict[str, Any]:

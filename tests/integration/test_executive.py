@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.support.instances import CHAIN_SPEC
 from tli_verify.certify.certificate import check_certificate, issue_certificate, write_certificate
 from tli_verify.errors import CertificateError
 from tli_verify.logic.automaton import TaskAutomaton
@@ -35,27 +36,7 @@ from tli_verify.runtime.events import (
 from tli_verify.runtime.executive import LTLDSPolicy, run_episode
 from tli_verify.runtime.persist import save_certified
 
-SPEC = """
-name = "chain"
-inputs = ["u", "v"]
-outputs = ["a", "b", "c", "p"]
-[modes]
-a = "!u & !v"
-b = "u & !v"
-c = "!u & v"
-[assume]
-init = "!u & !v"
-safety = [
-  "G((!u & !v) -> X((!u & !v) | (u & !v)))",
-  "G((u & !v) -> X((!u & !v) | (u & !v) | (!u & v)))",
-  "G((!u & v) -> X(!u & v))",
-]
-liveness = ["GF(!a | u)", "GF(!b | v)"]
-[guarantee]
-init = "a & !p"
-safety = ["G(a -> X(a | b))", "G(b -> X(a | b | c))", "G(c -> X c)", "G(X p <-> (b & X a))"]
-liveness = ["GF(c | p)"]
-"""
+SPEC = CHAIN_SPEC
 
 I2 = [[1.0, 0.0], [0.0, 1.0]]
 

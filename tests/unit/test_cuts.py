@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy.optimize import linprog, lsq_linear, minimize, nnls
 
+from tests.support.instances import ball_instance
 from tli_verify.boundary.cuts import (
     Cut,
     InvarianceFailure,
@@ -419,21 +420,6 @@ def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-def _ball_instance(n: int, k: int, rng: np.random.Generator, *, shell: bool = False):
-    """A mode region shaped like the unit ball: x* near the centre, x^{T_f-1} on the rim, the
-    failure state just outside, x^0 and k more states inside (on a sphere of radius 0.97 with
-    ``shell``, like earlier cut points on the boundary). A separating cut always exists."""
-    u = rng.standard_normal(n)
-    u /= np.linalg.norm(u)
-    x_star = rng.standard_normal(n)
-    x_star *= 0.3 * rng.uniform() / np.linalg.norm(x_star)
-    xl = 0.98 * u
-    v = u + 0.5 * rng.standard_normal(n)
-    xf = xl + 0.05 * (v / np.linalg.norm(v) if u @ v > 0 else u)
-    Q = rng.standard_normal((k + 1, n))
-    Q /= np.linalg.norm(Q, axis=1, keepdims=True)
-    Q *= 0.97 if shell else 0.97 * rng.uniform(size=(k + 1, 1)) ** (1.0 / n)
-    return x_star, Q[0], xl, xf, list(Q[1:])
 
 
 def _solve(inst, method: str):
@@ -451,7 +437,7 @@ def test_hull_method_agrees_with_enumeration(n: int) -> None:
     problems and reach the same distance; the hull is used wherever it applies."""
     rng = np.random.default_rng(300 + n)
     insts = list(_instances(n, 40, rng))
-    insts += [_ball_instance(n, int(rng.integers(3, 12 if n == 5 else 20)), rng, shell=i % 2 == 1)
+    insts += [ball_instance(n, int(rng.integers(3, 12 if n == 5 else 20)), rng, shell=i % 2 == 1)
               for i in range(16)]
     methods: dict[str, int] = {}
     for inst in insts:
@@ -476,7 +462,7 @@ def test_many_points_optimal_against_an_independent_search(n: int) -> None:
     rng = np.random.default_rng(400 + n)
     off_attractor = 0
     for i in range(6):
-        inst = _ball_instance(n, 40, rng, shell=i % 2 == 1)
+        inst = ball_instance(n, 40, rng, shell=i % 2 == 1)
         sol = _solve(inst, "auto")
         assert sol is not None, "a separating cut exists for every ball instance"
         assert sol.optimal
@@ -497,7 +483,7 @@ def test_local_method_is_a_verified_separating_cut(n: int) -> None:
     """The polynomial-time method: the same refusals as the exact one (proved), otherwise an
     admissible cut no closer to x* than the optimum, flagged as not proved optimal."""
     rng = np.random.default_rng(500 + n)
-    insts = list(_instances(n, 24, rng)) + [_ball_instance(n, 20, rng) for _ in range(6)]
+    insts = list(_instances(n, 24, rng)) + [ball_instance(n, 20, rng) for _ in range(6)]
     local_answers = equal = 0
     for inst in insts:
         loc, exact = _solve(inst, "local"), _solve(inst, "auto")
@@ -521,7 +507,7 @@ def test_auto_falls_back_to_the_local_method_beyond_budget(monkeypatch) -> None:
     """Over the candidate budget the default method returns the verified local answer."""
     import tli_verify.boundary.cuts as cuts
 
-    inst = _ball_instance(4, 40, np.random.default_rng(7))
+    inst = ball_instance(4, 40, np.random.default_rng(7))
     exact = _solve(inst, "auto")
     assert exact is not None and exact.method == "hull"
     monkeypatch.setattr(cuts, "_HULL_BUDGET", 0)
@@ -537,7 +523,7 @@ def test_local_answer_is_rechecked_against_every_constraint(monkeypatch) -> None
     checked here): the re-check drops them all and the answer is admissible."""
     import tli_verify.boundary.cuts as cuts
 
-    inst = _ball_instance(4, 10, np.random.default_rng(8))
+    inst = ball_instance(4, 10, np.random.default_rng(8))
     C, d_hat, s_hat = _data(*inst)
     exact = _solve(inst, "auto")
     assert exact is not None and not exact.through_attractor
