@@ -8,6 +8,7 @@ Every error a user can cause is a :class:`TliError`. The CLI turns it into a one
 from __future__ import annotations
 
 __all__ = [
+    "CampaignError",
     "CertificateError",
     "DemoError",
     "GateError",
@@ -17,6 +18,7 @@ __all__ = [
     "SpecError",
     "TliError",
     "UnrealizableError",
+    "WorkerLost",
 ]
 
 
@@ -78,3 +80,13 @@ class GateError(TliError):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
     exit_code = 1
+
+
+class WorkerLost(TliError):
+    """A worker running a batch of a campaign died more often than the retries allow."""
+
+    exit_code = 1
+
+
+class CampaignError(TliError):
+    """A campaign's configuration, case file or backend is unusable (exit 2)."""
