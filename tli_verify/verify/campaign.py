@@ -873,11 +873,17 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     spec = sim_spec(config)
     ld = load(spec)
     strategy = _strategy(config, ld)
-    drawn = draw_cases(strategy, config.examples, config.seed)
-    jobs = [(spec, [(i, drawn[i]) for i in range(k, min(k + config.batch_size, len(drawn)))])
-            for k in range(0, len(drawn), config.batch_size)]
     outcomes: dict[int, RunOutcome] = {}
     partial = False
+    emit(f"drawing {config.examples} cases (seed {config.seed})")
+    try:
+        drawn = draw_cases(strategy, config.examples, config.seed)
+    except KeyboardInterrupt:
+        drawn = []
+        partial = True
+        emit("interrupted while drawing cases: nothing simulated")
+    jobs = [(spec, [(i, drawn[i]) for i in range(k, min(k + config.batch_size, len(drawn)))])
+            for k in range(0, len(drawn), config.batch_size)]
     bar = None
     if progress:
         from tqdm import tqdm
@@ -886,6 +892,8 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     backend = make_backend(config.backend, workers=config.workers,
                            scheduler=config.scheduler, on_event=emit)
     try:
+        if jobs:
+            emit(f"simulating {len(drawn)} runs in {len(jobs)} batch(es) ({config.backend})")
         for _, batch in backend.map_unordered(simulate_batch, jobs):
             for o in batch:
                 outcomes[o.index] = o

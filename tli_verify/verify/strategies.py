@@ -222,12 +222,17 @@ def push_sequences(world: Any, *, max_pushes: int = 3, window: int = 700,
     regions = tuple(world.region_names)
     ordered = tuple(lv for lv in LEVELS if lv in levels)
 
+    gap_s = st.integers(0, window - 1)
+    disp_s = displacements(dim, size)
+    level_s = st.sampled_from(ordered)
+    target_s = st.sampled_from(regions)
+
     @st.composite
     def one(draw: st.DrawFn) -> tuple[int, tuple[float, ...], str, str | None]:
-        gap = draw(st.integers(0, window - 1))
-        disp = draw(displacements(dim, size))
-        level = draw(st.sampled_from(ordered))
-        target = draw(st.sampled_from(regions)) if level == "task" else None
+        gap = draw(gap_s)
+        disp = draw(disp_s)
+        level = draw(level_s)
+        target = draw(target_s) if level == "task" else None
         return gap, disp, level, target
 
     def build(items: list[tuple[int, tuple[float, ...], str, str | None]]
