@@ -298,8 +298,9 @@ def _replay(args: argparse.Namespace) -> int:
     for n in notes:
         sys.stderr.write(f"note: {n}\n")
     want = (doc.get("expected") or {}).get("violation")
+    kinds = sorted(k.value for k in verdict.kinds)
     record = {"case": str(args.case), "expected": want, "reproduced": reproduced,
-              "violations": sorted(k.value for k in verdict.kinds),
+              "violations": kinds,
               "messages": [v.message for v in verdict.violations][:5],
               "oracle_modes": verdict.oracle_modes[:200], "files_changed": notes}
     if args.json:
@@ -308,7 +309,7 @@ def _replay(args: argparse.Namespace) -> int:
         sys.stdout.write(
             f"{args.case}: expected {want}: "
             + ("REPRODUCED" if reproduced else "does not reproduce")
-            + f" (violations now: {', '.join(record['violations']) or 'none'}; modes "
+            + f" (violations now: {', '.join(kinds) or 'none'}; modes "
             f"{verdict.oracle_modes[:40]})\n")
     return 1 if reproduced else 0
 
