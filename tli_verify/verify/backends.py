@@ -154,10 +154,22 @@ class ProcessBackend:
                         raise WorkerLost(f"batch {over[0]}: its worker died "
                                          f"{tries[over[0]]} times (retries: {MAX_RETRIES})")
         except KeyboardInterrupt:
-            if self._pool is not None:
-                self._pool.shutdown(wait=False, cancel_futures=True)
-                self._pool = None
+            self._kill()
             raise
+
+    def _kill(self) -> None:
+        """Stop the pool now: cancel what is queued and terminate the workers (their running
+        batches are abandoned)."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        procs = list(getattr(pool, "_processes", {}).values())  # no public API before 3.14
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=5)
 
     def close(self) -> None:
         """Shut the pool down."""
