@@ -33,9 +33,11 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 import random
+import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -72,7 +74,9 @@ __all__ = [
     "SimSpec",
     "WatchedPolicy",
     "case_document",
+    "chunk_seed",
     "draw_cases",
+    "draw_chunks",
     "load",
     "read_case",
     "replay_case",
@@ -575,7 +579,7 @@ def _budget(n: int) -> int:
     return math.ceil(1.3 * n) + 10
 
 
-def draw_cases(strategy: Any, n: int, seed: int) -> list[Case]:
+def draw_cases(strategy: Any, n: int, seed: int | str) -> list[Case]:
     """``n`` cases from ``strategy``, deterministic in ``seed`` (hypothesis in this process).
 
     ``hypothesis.find`` with ``random=Random(seed)``, no example database, the generate phase
@@ -602,6 +606,36 @@ def draw_cases(strategy: Any, n: int, seed: int) -> list[Case]:
     return out[:n]
 
 
+def chunk_seed(seed: int, chunk: int) -> str:
+    """The hypothesis seed of chunk ``chunk`` of a campaign seeded ``seed``."""
+    return f"tli-verify:{seed}:{chunk}"
+
+
+def draw_chunks(strategy: Any, n: int, seed: int, size: int
+                ) -> Iterator[list[tuple[int, Case]]]:
+    """The campaign's cases in chunks of ``size``: ``[(index, case), ...]`` per chunk.
+
+    Chunk ``j`` is the first cases of :func:`draw_cases` ``(strategy, size + 10,
+    chunk_seed(seed, j))`` (so a
+    chunk can be replayed on its own to shrink, and drawing overlaps the simulation); cases
+    drawn by an earlier chunk are skipped (each chunk starts from hypothesis's simplest case),
+    so every index is a distinct case.
+    """
+    seen: set[Case] = set()
+    index = 0
+    j = 0
+    while index < n:
+        want = min(size, n - index)
+        fresh = [c for c in draw_cases(strategy, size + 10, chunk_seed(seed, j))
+                 if c not in seen][:want]
+        if not fresh:
+            return
+        seen.update(fresh)
+        yield [(index + k, c) for k, c in enumerate(fresh)]
+        index += len(fresh)
+        j += 1
+
+
 class _Shrinker:
     """The condition hypothesis shrinks with: 'the case violates ``kind``' (cached)."""
 
@@ -624,13 +658,15 @@ class _Shrinker:
         return self.kind in self.verdict(case).kinds
 
 
-def shrink(spec: SimSpec, strategy: Any, seed: int, examples: int, kind: ViolationKind,
+def shrink(spec: SimSpec, strategy: Any, seed: int | str, examples: int, kind: ViolationKind,
            known: Mapping[Case, Verdict]) -> tuple[Case | None, Verdict | None, int]:
     """Shrink the first case violating ``kind`` in the seeded generation order.
 
-    Replays :func:`draw_cases`'s generation (same strategy, seed and settings; verdicts in
-    ``known`` are looked up, not simulated) with the condition "violates ``kind``", so
-    hypothesis stops at the same first failing case and shrinks it (candidates simulated here).
+    Replays :func:`draw_cases`'s generation of ``examples`` cases with ``seed`` (a campaign
+    replays the chunk, :func:`chunk_seed`, of its first counterexample; same strategy and
+    settings; verdicts in ``known`` are looked up, not simulated) with the condition "violates
+    ``kind``", so hypothesis stops at the same first failing case and shrinks it (candidates
+    simulated here).
 
     Returns
     -------
@@ -875,34 +911,64 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     strategy = _strategy(config, ld)
     outcomes: dict[int, RunOutcome] = {}
     partial = False
-    emit(f"drawing {config.examples} cases (seed {config.seed})")
-    try:
-        drawn = draw_cases(strategy, config.examples, config.seed)
-    except KeyboardInterrupt:
-        drawn = []
-        partial = True
-        emit("interrupted while drawing cases: nothing simulated")
-    jobs = [(spec, [(i, drawn[i]) for i in range(k, min(k + config.batch_size, len(drawn)))])
-            for k in range(0, len(drawn), config.batch_size)]
+    emit(f"drawing {config.examples} cases (seed {config.seed}) and simulating them in "
+         f"batches of {config.batch_size} ({config.backend})")
+    drawn: dict[int, Case] = {}
+    chunk_of: dict[int, int] = {}
+    feed: queue.Queue[Any] = queue.Queue()
+    stop = threading.Event()
+
+    def produce() -> None:  # hypothesis draws here while the workers simulate
+        try:
+            for j, chunk in enumerate(draw_chunks(strategy, config.examples, config.seed,
+                                                  config.batch_size)):
+                if stop.is_set():
+                    return
+                feed.put((j, chunk))
+            feed.put(None)
+        except BaseException as exc:  # handed to the driver thread
+            feed.put(exc)
+
+    producer = threading.Thread(target=produce, name="tli-verify-draw", daemon=True)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(drawn), unit="run", desc="campaign", leave=False)
+        bar = tqdm(total=config.examples, unit="run", desc="campaign", leave=False)
     backend = make_backend(config.backend, workers=config.workers,
                            scheduler=config.scheduler, on_event=emit)
+    producer.start()
     try:
-        if jobs:
-            emit(f"simulating {len(drawn)} runs in {len(jobs)} batch(es) ({config.backend})")
-        for _, batch in backend.map_unordered(simulate_batch, jobs):
-            for o in batch:
-                outcomes[o.index] = o
-            if bar is not None:
-                bar.update(len(batch))
+        finished = False
+        while not finished:
+            wave = [feed.get()]
+            while True:  # everything drawn meanwhile joins this wave
+                try:
+                    wave.append(feed.get_nowait())
+                except queue.Empty:
+                    break
+            jobs = []
+            for item in wave:
+                if item is None:
+                    finished = True
+                elif isinstance(item, BaseException):
+                    raise item
+                else:
+                    j, chunk = item
+                    for i, c in chunk:
+                        drawn[i] = c
+                        chunk_of[i] = j
+                    jobs.append((spec, chunk))
+            for _, batch in backend.map_unordered(simulate_batch, jobs):
+                for o in batch:
+                    outcomes[o.index] = o
+                if bar is not None:
+                    bar.update(len(batch))
     except KeyboardInterrupt:
         partial = True
-        emit(f"interrupted after {len(outcomes)} of {len(drawn)} runs: partial results")
+        emit(f"interrupted after {len(outcomes)} of {config.examples} runs: partial results")
     finally:
+        stop.set()
         backend.close()
         if bar is not None:
             bar.close()
@@ -920,9 +986,10 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         case, verdict = drawn[first.index], first.verdict
         shrunk = False
         if config.shrink and not partial:
+            j = chunk_of[first.index]
             try:
-                small, v, shrink_steps = shrink(spec, strategy, config.seed, config.examples,
-                                                kind, known)
+                small, v, shrink_steps = shrink(spec, strategy, chunk_seed(config.seed, j),
+                                                config.batch_size + 10, kind, known)
             except KeyboardInterrupt:
                 small, v = None, None
                 partial = True
