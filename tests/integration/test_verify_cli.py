@@ -210,3 +210,40 @@ def test_worker_dying_every_time_raises_worker_lost() -> None:
             list(backend.map_unordered(_always_die, [1]))
     finally:
         backend.close()
+
+
+@pytest.fixture(scope="module")
+def broken(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The shipped model with mode b's attractor moved into white (above the soup): b's DS
+    leaves yellow, a's DS brings the spoon back, forever (a deliberately broken model; its
+    certificate is re-issued, stability does not depend on x*)."""
+    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.io import bundled_dir
+
+    d = tmp_path_factory.mktemp("broken")
+    doc = json.loads((bundled_dir("models") / "scoop.model.json").read_text())
+    doc["modes"]["b"]["attractor"] = [-2.5, -2.0]
+    doc["spec"] = str((bundled_dir("specs") / "scoop.toml").resolve())
+    doc["source"] = {}
+    model, cert = d / "broken.model.json", d / "broken.cert.json"
+    model.write_text(json.dumps(doc))
+    write_certificate(issue_certificate(model, cert_path=cert, dt="1/100"), cert)
+    return model, cert
+
+
+def test_looping_model_is_found_and_shrunk_to_no_perturbation(
+        broken: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    model, cert = broken
+    code, text, _ = _run(["verify", "--world", "scoop", "--model", str(model),
+                          "--certificate", str(cert), "--examples", "12", "--no-modulation",
+                          "--backend", "serial", "--json", "--out", str(tmp_path)], capsys)
+    rec = json.loads(text)
+    assert code == 1
+    assert rec["violations"]["looping"] >= 1
+    ce = rec["counterexample"]
+    assert ce["expected"]["violation"] == "looping"
+    assert ce["perturbations"] == []  # the nominal run already loops: the minimal sequence
+    assert ce["expected"]["oracle_modes"].startswith("ababab")
+    assert rec["simulations_to_first_counterexample"] == 1
+    code, text, _ = _run(["replay", str(tmp_path / "counterexample.json"), "--json"], capsys)
+    assert code == 1 and json.loads(text)["reproduced"] is True

@@ -74,6 +74,7 @@ __all__ = [
     "SimSpec",
     "WatchedPolicy",
     "case_document",
+    "check_case",
     "chunk_seed",
     "draw_cases",
     "draw_chunks",
@@ -510,6 +511,8 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
         cuts = tuple(CutRecord(e.step, e.mode, tuple(e.cut.normal.tolist()),
                                tuple(e.cut.point.tolist()))
                      for e in res.events if isinstance(e, CutAdded))
+        if res.success and res.modes[-1] not in ld.policy.goal_modes:  # the watchdog, not d
+            res = replace(res, success=False)
         out.append((Trace(states=S, read_states=R, modes=res.modes,
                           pushes=tuple(sorted(t for t in pushed[i] if t <= res.steps)),
                           cuts=cuts, budget=ld.budget), res))
