@@ -544,6 +544,12 @@ class Oracle:
                 viol.append(Violation(ViolationKind.INVARIANCE, t,
                                       f"step {t}: unprovoked exit {a} -> {b} (not planned, no "
                                       "perturbation) and no cut learned for it"))
+        for kind in (ViolationKind.INVARIANCE, ViolationKind.REPEATED_EXIT):
+            same = [v for v in viol if v.kind is kind]
+            if len(same) > 1:  # the first, with the count
+                viol = [v for v in viol if v.kind is not kind]
+                viol.append(Violation(kind, same[0].step,
+                                      f"{same[0].message} (and {len(same) - 1} more)"))
         # (4) no looping after the last perturbation
         cycles = 0
         t0 = min(last_push, end)
@@ -616,6 +622,8 @@ class Oracle:
         mode_edges = sorted({(modes[t - 1], modes[t]) for t in range(1, len(modes))
                              if modes[t - 1] != modes[t]})
         perturbed = sorted({tr.modes[p - 1] for p in pushes if 1 <= p <= T})
+        rank = {k: i for i, k in enumerate(PRIORITY)}
+        viol.sort(key=lambda v: (rank[v.kind], v.step))
         return Verdict(violations=tuple(viol), reached=goal_step is not None,
                        goal_step=goal_step, deadline_step=deadline, conclusive=conclusive,
                        assumptions_ok=assumptions_ok, cycles=cycles, failures=failures,
