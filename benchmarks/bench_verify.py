@@ -85,7 +85,24 @@ def _median(xs: list[int | None]) -> str:
 
 
 def main(out_dir: Path) -> str:
+    import os
+
     data: dict[str, Any] = {}
+    load_before = os.getloadavg()[0]
+    # CPU cost per run, in this process (independent of what else the machine runs)
+    from tli_verify.verify.campaign import CampaignConfig, _strategy, draw_cases, load, sim_spec
+    from tli_verify.verify.campaign import simulate_batch as _batch
+
+    spec = sim_spec(CampaignConfig(world="scoop"))
+    ld = load(spec)
+    strategy = _strategy(CampaignConfig(world="scoop"), ld)
+    c0 = time.process_time()
+    sample = draw_cases(strategy, 200, 0)
+    draw_cpu = (time.process_time() - c0) / len(sample)
+    c0 = time.process_time()
+    _batch((spec, list(enumerate(sample))))
+    sim_cpu = (time.process_time() - c0) / len(sample)
+    data["cpu_per_run_s"] = {"draw": draw_cpu, "simulate_and_check": sim_cpu}
     # throughput
     t0 = time.perf_counter()
     r2 = _campaign("process", 2)
@@ -116,6 +133,8 @@ def main(out_dir: Path) -> str:
         a, lp = _random_sampling(seed)
         rnd_any.append(a)
         rnd_loop.append(lp)
+    load_after = os.getloadavg()[0]
+    data["load_average"] = [load_before, load_after]
     data["fig7"] = {"budget": BUDGET, "seeds": SEEDS, "hypothesis_any": hyp_any,
                     "hypothesis_looping": hyp_loop, "random_any": rnd_any,
                     "random_looping": rnd_loop}
@@ -128,6 +147,11 @@ def main(out_dir: Path) -> str:
         f"| 2 processes | {wall2:.1f} s | {RUNS / wall2:.0f} | <= 20 s |\n"
         f"| 1 process | {wall1:.1f} s | {RUNS / wall1:.0f} | |\n"
         f"| Dask LocalCluster, 2 workers (lead fills) | {dask_cell} | | |\n\n"
+        f"CPU time per run (one core, in-process): drawing {draw_cpu * 1e3:.1f} ms (driver), "
+        f"simulation + oracle {sim_cpu * 1e3:.1f} ms (worker), i.e. "
+        f"{1 / sim_cpu:.0f} runs/s per worker core. Load average of the machine during the "
+        f"measurement: {load_before:.1f} -> {load_after:.1f} (2 cores; wall times above "
+        "include it).\n\n"
         f"Fig. 7 without modulation: simulations until the first counterexample, median over "
         f"{SEEDS} seeds, budget {BUDGET} runs each:\n\n"
         "| search | any violation | looping (Fig. 7) | target |\n|---|---:|---:|---:|\n"
