@@ -31,7 +31,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 def found(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, dict, Path]:  # type: ignore[type-arg]
     """A short campaign without modulation (serial backend): it finds a counterexample."""
     out = tmp_path_factory.mktemp("found")
-    code = main(["verify", "--world", "scoop", "--examples", "40", "--seed", "0",
+    code = main(["verify", "--world", "scoop", "--examples", "25", "--seed", "0",
                  "--no-modulation", "--backend", "serial", "--json", "--out", str(out)])
     return code, json.loads((out / "campaign.json").read_text()), out
 
@@ -39,7 +39,7 @@ def found(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, dict, Path]:  
 def test_campaign_json_fields(found: tuple[int, dict, Path]) -> None:  # type: ignore[type-arg]
     code, rec, out = found
     assert code == 1
-    assert rec["runs"] == 40 and rec["partial"] is False and rec["modulation"] is False
+    assert rec["runs"] == 25 and rec["partial"] is False and rec["modulation"] is False
     assert set(rec["violations"]) == KINDS
     assert sum(rec["violations"].values()) >= 1
     assert rec["task_satisfied"] <= rec["runs"]
@@ -51,7 +51,7 @@ def test_campaign_json_fields(found: tuple[int, dict, Path]) -> None:  # type: i
     ce = rec["counterexample"]
     assert ce is not None and ce["shrunk"] is True
     assert ce["expected"]["violation"] in KINDS
-    assert 1 <= rec["simulations_to_first_counterexample"] <= 40
+    assert 1 <= rec["simulations_to_first_counterexample"] <= 25
     assert rec["failure_probability_bound_95"] is None
     assert ce["files"]["model"]["path"] == "models/scoop.model.json"
     for name in ("campaign.md", "campaign.png", "counterexample.json", "counterexample.png"):
