@@ -1,0 +1,213 @@
+"""The Cartesian impedance controller of the Panda (issue 13): step response, null-space
+posture, saturation, DS-target tracking, the 4-D DS state map, the sampled-data check."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.support.sim import require_panda
+
+pytestmark = pytest.mark.sim
+
+DT = 0.002  # the model's time step (s)
+
+
+@pytest.fixture(scope="module")
+def panda() -> Any:
+    return require_panda()
+
+
+def _controller(panda: Any, **kw: Any) -> Any:
+    from tli_verify.sim.controller import ImpedanceController
+
+    return ImpedanceController(panda, **kw)
+
+
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_step_response_5cm(panda: Any, substeps: int) -> None:
+    """A 5 cm target step (world y) converges: error < 2 mm within 1.5 s, without saturating."""
+    data = panda.new_data()
+    ctl = _controller(panda)
+    z_target = ctl.ds_state(data) + np.array([0.0, 0.05, 0.0, 0.0])
+    pos, quat = ctl.target_pose_from_ds_state(z_target)
+    errors = []
+    for _ in range(round(1.5 / (DT * substeps))):
+        ctl.step(data, pos, quat, substeps=substeps)
+        errors.append(np.linalg.norm(ctl.ds_state(data)[:3] - pos))
+    assert errors[0] > 0.04  # it did start 5 cm away
+    assert errors[-1] < 2e-3
+    assert max(errors[round(0.5 / (DT * substeps)):]) < 2e-3  # settled by 0.5 s, stays there
+    stats = ctl.stats()
+    assert stats.saturated_calls == 0 and stats.saturation_fraction == 0.0
+    assert stats.max_pos_error == pytest.approx(0.05, abs=1e-9)
+    assert stats.last_rot_error < 1e-3
+
+
+def _self_motion(panda: Any, gains: Any) -> tuple[float, float, float]:
+    """Start 0.4 rad away from the posture along an exact self-motion (at the home posture,
+    joint 2 = 0 makes joints 1 and 3 coaxial: +a on joint 1, -a on joint 3 leaves the hand
+    where it was), hold the hand there for 2 s. Returns the joint deviation from the posture at
+    the start and the end, and the largest hand position error."""
+    from tli_verify.sim.robot import HOME_QPOS
+
+    q0 = HOME_QPOS + np.array([0.4, 0.0, -0.4, 0.0, 0.0, 0.0, 0.0])
+    data = panda.new_data(q0)
+    ctl = _controller(panda, gains=gains)  # posture: HOME_QPOS
+    home_pose = ctl.ds_state(panda.new_data())
+    np.testing.assert_allclose(ctl.ds_state(data), home_pose, atol=1e-12)  # same hand pose
+    pos, quat = ctl.target_pose_from_ds_state(home_pose)
+    start = float(np.abs(panda.q(data) - ctl.posture).max())
+    for _ in range(1000):
+        ctl.step(data, pos, quat)
+    return start, float(np.abs(panda.q(data) - ctl.posture).max()), ctl.stats().max_pos_error
+
+
+def test_null_space_holds_posture(panda: Any) -> None:
+    """The posture term moves the arm back to its posture through the null space while the
+    hand stays within 0.5 mm; without it (kn = dn = 0) the arm stays away (the check can fail)."""
+    from tli_verify.sim.controller import Gains
+
+    start, end, hand_err = _self_motion(panda, Gains())
+    assert start == pytest.approx(0.4)
+    assert end < 0.05 and hand_err < 5e-4
+    _, end_free, _ = _self_motion(panda, Gains(kn=0.0, dn=0.0))
+    assert end_free > 0.35
+
+
+def test_far_target_reports_saturation(panda: Any) -> None:
+    from tli_verify.sim.robot import TORQUE_LIMITS
+
+    data = panda.new_data()
+    ctl = _controller(panda)
+    pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data) + np.array([0.0, 0.8, 0.0, 1.0]))
+    tau = ctl.step(data, pos, quat)
+    assert ctl.last_saturated > 0
+    assert np.all(np.abs(tau) <= TORQUE_LIMITS)
+    np.testing.assert_array_equal(data.ctrl[panda.act_ids], tau)
+    for _ in range(9):
+        ctl.step(data, pos, quat)
+    stats = ctl.stats()
+    assert stats.calls == 10 and stats.saturated_calls >= 1
+    assert stats.saturation_fraction == pytest.approx(stats.saturated_calls / 10)
+    ctl.reset_stats()
+    assert ctl.stats().calls == 0
+
+
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_ds_integrated_target_is_tracked(panda: Any, substeps: int) -> None:
+    """The target integrated from a DS (speed <= 0.25 m/s, pitch rate <= 0.8 rad/s) is tracked
+    within the documented bound: 1 cm in position, 0.03 rad in pitch; the DS converges."""
+    from tli_verify.sim.controller import integrate_ds_target
+
+    period = DT * substeps
+    data = panda.new_data()
+    ctl = _controller(panda)
+    z_star = ctl.ds_state(data) + np.array([0.0, 0.15, -0.10, 0.4])
+
+    def ds(z: np.ndarray) -> np.ndarray:
+        v = -2.0 * (z - z_star)
+        speed = np.linalg.norm(v[:3])
+        if speed > 0.25:
+            v[:3] *= 0.25 / speed
+        return v
+
+    z_t = ctl.ds_state(data)
+    worst = np.zeros(4)
+    for _ in range(round(3.0 / period)):
+        zdot = ds(z_t)
+        z_t = integrate_ds_target(z_t, zdot, period)
+        pos, quat = ctl.target_pose_from_ds_state(z_t)
+        ctl.step(data, pos, quat, ctl.map.twist_from_ds_velocity(zdot), substeps=substeps)
+        worst = np.maximum(worst, np.abs(ctl.ds_state(data) - z_t))
+    assert np.linalg.norm(worst[:3]) < 0.01 and worst[3] < 0.03
+    assert worst[3] > 1e-4  # it did move in pitch
+    z_end = ctl.ds_state(data)
+    assert np.linalg.norm(z_end[:3] - z_star[:3]) < 3e-3 and abs(z_end[3] - z_star[3]) < 0.01
+    assert ctl.stats().saturated_calls == 0
+
+
+def test_leash_keeps_the_target_near_the_robot() -> None:
+    from tli_verify.sim.controller import integrate_ds_target
+
+    z = integrate_ds_target(np.zeros(4), np.array([1.0, 0.0, 0.0, 2.0]), 0.1,
+                            z_actual=np.zeros(4), leash=np.array([0.02, 0.02, 0.02, 0.05]))
+    np.testing.assert_allclose(z, [0.02, 0.0, 0.0, 0.05])
+    np.testing.assert_allclose(integrate_ds_target(np.zeros(4), np.ones(4), 0.1), 0.1 * np.ones(4))
+
+
+@settings(max_examples=30, deadline=None)
+@given(z=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(0, 1),
+                   st.floats(-1.5, 1.5)))
+def test_ds_state_map_round_trip(z: tuple[float, float, float, float]) -> None:
+    """target_pose_from_ds_state then ds_state is the identity; pitch is about world x."""
+    import mujoco
+
+    from tli_verify.sim.controller import R0_DOWN, DSStateMap, quat_to_mat, rot_x
+
+    class _Data:  # a site pose as MuJoCo stores it
+        site_xpos = np.zeros((1, 3))
+        site_xmat = np.zeros((1, 9))
+
+    dmap = DSStateMap(site=0)
+    pos, quat = dmap.target_pose_from_ds_state(np.array(z))
+    rot = quat_to_mat(quat)
+    np.testing.assert_allclose(rot, rot_x(z[3]) @ R0_DOWN, atol=1e-12)
+    np.testing.assert_allclose(rot @ np.array([0.0, 1.0, 0.0]),  # tool y = world x: the axis
+                               [1.0, 0.0, 0.0], atol=1e-12)
+    data = _Data()
+    data.site_xpos[0] = pos
+    data.site_xmat[0] = rot.ravel()
+    np.testing.assert_allclose(dmap.ds_state(data), z, atol=1e-9)
+    assert mujoco.mju_mat2Quat is not None
+
+
+def test_arm_mass_block_with_free_bodies(panda: Any) -> None:
+    """The 7x7 block read from data.M equals mj_fullM's, also with free bodies in the scene."""
+    import mujoco
+
+    from tli_verify.sim.controller import ImpedanceController, arm_mass_index
+    from tli_verify.sim.robot import HOME_QPOS, Panda, panda_spec
+
+    spec = panda_spec()
+    for i in range(3):
+        bead = spec.worldbody.add_body(name=f"bead{i}", pos=[0.5, 0.1 * i, 0.05])
+        bead.add_freejoint()
+        bead.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.008, 0, 0], mass=0.002)
+    scene = Panda.from_model(spec.compile())
+    assert scene.model.nv == 7 + 18
+    rng = np.random.default_rng(3)
+    data = scene.new_data(HOME_QPOS + rng.uniform(-0.2, 0.2, size=7))
+    full = np.zeros((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, data, full)
+    block = data.M[arm_mass_index(scene.model, scene.dof_adr)]
+    np.testing.assert_allclose(block, full[np.ix_(scene.dof_adr, scene.dof_adr)], rtol=1e-12)
+    # The free bodies do not change the arm's closed loop: same joint trajectory as the arm alone.
+    q0 = scene.q(data)
+    alone = panda.new_data(q0)
+    trajectories = []
+    for robot, d in ((scene, data), (panda, alone)):
+        ctl = ImpedanceController(robot)
+        pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(d)
+                                                  + np.array([0.0, 0.02, 0.0, 0.1]))
+        traj = []
+        for _ in range(300):
+            ctl.step(d, pos, quat)
+            traj.append(robot.q(d))
+        trajectories.append(traj)
+        assert ctl.pos_error < 1e-3
+    np.testing.assert_allclose(trajectories[0], trajectories[1], rtol=0, atol=1e-9)
+
+
+def test_sampled_data_check() -> None:
+    """python-control: default gains are stable at 2 and 10 ms, unstable at 60 ms."""
+    from tli_verify.sim.controller import Gains, sampled_data_spectral_radius
+
+    g = Gains()
+    assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.002) < 0.97
+    assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.010) < 0.86
+    assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.060) > 1.0
