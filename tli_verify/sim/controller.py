@@ -58,6 +58,7 @@ Tracking a DS (the loop)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -122,18 +123,31 @@ class DSStateMap:
 
     site: int
     r0: FloatArray = field(default_factory=lambda: R0_DOWN.copy())
+    _q0: tuple[float, float, float, float] = field(init=False, repr=False, compare=False)
+    _r0_row1: tuple[float, float, float] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        r0 = np.asarray(self.r0, dtype=np.float64)
+        if r0.shape != (3, 3) or not np.allclose(r0 @ r0.T, np.eye(3), atol=1e-9) \
+                or np.linalg.det(r0) < 0:
+            raise ModelError("DSStateMap: field 'r0' is not a 3x3 rotation matrix")
+        q0 = np.empty(4)
+        mujoco.mju_mat2Quat(q0, r0.ravel())
+        object.__setattr__(self, "_q0", tuple(float(v) for v in q0))
+        object.__setattr__(self, "_r0_row1", tuple(float(v) for v in r0[1]))
 
     def ds_state(self, data: Any) -> FloatArray:
         """The DS state ``(x, y, z, pitch)`` of the site, shape (4,), as of the last kinematics.
 
-        Pitch is the angle about world x of ``R @ r0.T`` (rad, in (-pi, pi]).
+        Pitch is the angle about world x of ``M = R @ r0.T``: ``atan2(M[2, 1], M[1, 1])`` (rad,
+        in (-pi, pi]), with ``M[i, 1] = R[i, :] . r0[1, :]``.
         """
-        rot = data.site_xmat[self.site].reshape(3, 3)
-        m = rot @ self.r0.T
-        out = np.empty(4)
-        out[:3] = data.site_xpos[self.site]
-        out[3] = np.arctan2(m[2, 1], m[1, 1])
-        return out
+        xm = data.site_xmat[self.site].tolist()
+        a, b, c = self._r0_row1
+        m11 = xm[3] * a + xm[4] * b + xm[5] * c
+        m21 = xm[6] * a + xm[7] * b + xm[8] * c
+        x, y, z = data.site_xpos[self.site].tolist()
+        return np.array((x, y, z, math.atan2(m21, m11)))
 
     def target_pose_from_ds_state(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Target site pose for a DS state ``z`` (shape (4,)).
@@ -143,19 +157,20 @@ class DSStateMap:
         pos : ndarray, shape (3,)
             ``z[:3]`` (m, world frame).
         quat : ndarray, shape (4,)
-            Unit quaternion ``(w, x, y, z)`` of ``RotX(z[3]) @ r0``.
+            Unit quaternion ``(w, x, y, z)`` of ``RotX(z[3]) @ r0``: the product
+            ``(cos(pitch/2), sin(pitch/2), 0, 0) * q0``.
         """
-        quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, (rot_x(float(z[3])) @ self.r0).ravel())
-        return np.array(z[:3], dtype=np.float64), quat
+        x, y, zz, pitch = np.asarray(z, dtype=np.float64).tolist()
+        c, s = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+        w0, x0, y0, z0 = self._q0
+        quat = np.array((c * w0 - s * x0, c * x0 + s * w0, c * y0 - s * z0, c * z0 + s * y0))
+        return np.array((x, y, zz)), quat
 
     def twist_from_ds_velocity(self, zdot: FloatArray) -> FloatArray:
         """Site twist ``(v, w)`` (m/s, rad/s; world frame), shape (6,), for a DS velocity
         ``zdot`` (shape (4,)): ``v = zdot[:3]``, ``w = zdot[3] * x``."""
-        out = np.zeros(6)
-        out[:3] = zdot[:3]
-        out[3:] = zdot[3] * PITCH_AXIS
-        return out
+        vx, vy, vz, wp = np.asarray(zdot, dtype=np.float64).tolist()
+        return np.array((vx, vy, vz, wp * PITCH_AXIS[0], wp * PITCH_AXIS[1], wp * PITCH_AXIS[2]))
 
 
 def integrate_ds_target(z_target: FloatArray, zdot: FloatArray, dt: float,
@@ -287,10 +302,10 @@ class ImpedanceController:
     after ``mj_forward``. :meth:`step` does that for ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_contig", "_dof", "_e", "_idx_m", "_jac6", "_n_sat", "_q_idx", "_qerr",
-                 "_quat", "_rhs", "calls", "gains", "map", "max_pos_error", "max_rot_error",
-                 "model", "panda", "pos_error", "posture", "rot_error", "saturated_calls",
-                 "site")
+    __slots__ = ("_act", "_contig", "_dof", "_idx_m", "_jac6", "_kd6", "_kp6", "_n_sat",
+                 "_q_idx", "_qerr", "_quat", "_rhs", "calls", "gains", "map", "max_pos_error",
+                 "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
+                 "saturated_calls", "site")
 
     def __init__(self, panda: Panda, site: int | None = None, gains: Gains | None = None,
                  posture: FloatArray | None = None, r0: FloatArray | None = None) -> None:
@@ -309,8 +324,13 @@ class ImpedanceController:
         self._idx_m = arm_mass_index(self.model, self._dof)
         self._qerr = np.zeros(4)
         self._quat = np.zeros(4)
-        self._e = np.zeros(6)
         self._rhs = np.zeros((6, 2))
+        g = self.gains
+        self._kp6 = np.array([g.kp_pos] * 3 + [g.kp_rot] * 3)
+        self._kd6 = np.array([g.kd_pos] * 3 + [g.kd_rot] * 3)
+        a0 = int(panda.act_ids[0])
+        self._act: Any = (slice(a0, a0 + 7) if np.array_equal(panda.act_ids, np.arange(a0, a0 + 7))
+                          else panda.act_ids)
         self._n_sat = 0
         self.reset_stats()
 
@@ -391,27 +411,24 @@ class ImpedanceController:
         lam_inv = jac @ x
         lam_inv.flat[::7] += _LAMBDA_DAMPING
         # Pose error: position, and the rotation vector of R_d R^T (world frame).
-        e = self._e
-        e[:3] = pos_d - data.site_xpos[self.site]
+        ex, ey, ez = (pos_d - data.site_xpos[self.site]).tolist()
         qerr = self._qerr
         site_quat = self._quat
         mujoco.mju_mat2Quat(site_quat, data.site_xmat[self.site])
         mujoco.mju_negQuat(site_quat, site_quat)
         mujoco.mju_mulQuat(qerr, quat_d, site_quat)     # q_d * conj(q): world-frame error
-        if qerr[0] < 0.0:
-            qerr *= -1.0
-        vnorm = float(np.sqrt(qerr[1] ** 2 + qerr[2] ** 2 + qerr[3] ** 2))
-        angle = 2.0 * float(np.arctan2(vnorm, qerr[0]))
-        if vnorm > 1e-12:
-            e[3:] = qerr[1:] * (angle / vnorm)
-        else:
-            e[3:] = 0.0
+        w, a, b, c = qerr.tolist()
+        if w < 0.0:
+            w, a, b, c = -w, -a, -b, -c
+        vnorm = math.sqrt(a * a + b * b + c * c)
+        angle = 2.0 * math.atan2(vnorm, w)
+        k = angle / vnorm if vnorm > 1e-12 else 0.0
+        e = np.array((ex, ey, ez, a * k, b * k, c * k))
         vel = jac @ qd
         if twist_d is not None:
             vel -= twist_d
         rhs = self._rhs
-        rhs[:3, 0] = g.kp_pos * e[:3] - g.kd_pos * vel[:3]
-        rhs[3:, 0] = g.kp_rot * e[3:] - g.kd_rot * vel[3:]
+        rhs[:, 0] = self._kp6 * e - self._kd6 * vel
         # Posture torque (mass-weighted), projected with I - J^T Jbar^T, Jbar = M^-1 J^T Lambda:
         # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term.
         tau0 = mass @ (g.kn * (self.posture - q) - g.dn * qd)
@@ -420,14 +437,13 @@ class ImpedanceController:
         if info != 0:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
         tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias
-        over = np.abs(tau) > TORQUE_LIMITS
-        n_sat = int(np.count_nonzero(over))
+        n_sat = int(np.count_nonzero(np.abs(tau) > TORQUE_LIMITS))
         if n_sat:
             tau = np.clip(tau, -TORQUE_LIMITS, TORQUE_LIMITS)
         clipped = tau
-        data.ctrl[self.panda.act_ids] = clipped
+        data.ctrl[self._act] = clipped
         # Bookkeeping.
-        pe = float(np.sqrt(e[0] ** 2 + e[1] ** 2 + e[2] ** 2))
+        pe = math.sqrt(ex * ex + ey * ey + ez * ez)
         self._n_sat = n_sat
         self.pos_error = pe
         self.rot_error = angle
