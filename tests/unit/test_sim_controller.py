@@ -28,16 +28,17 @@ def _controller(panda: Any, **kw: Any) -> Any:
     return ImpedanceController(panda, **kw)
 
 
-@pytest.mark.parametrize("substeps", [1, 5])
-def test_step_response_5cm(panda: Any, substeps: int) -> None:
-    """A 5 cm target step (world y) converges: error < 2 mm within 1.5 s, without saturating."""
+@pytest.mark.parametrize(("substeps", "every"), [(1, None), (5, None), (10, 1), (10, None)])
+def test_step_response_5cm(panda: Any, substeps: int, every: int | None) -> None:
+    """A 5 cm target step (world y) converges: error < 2 mm within 1.5 s, without saturating
+    (torques computed every step, or once per 10 / 20 ms control period)."""
     data = panda.new_data()
     ctl = _controller(panda)
     z_target = ctl.ds_state(data) + np.array([0.0, 0.05, 0.0, 0.0])
     pos, quat = ctl.target_pose_from_ds_state(z_target)
     errors = []
     for _ in range(round(1.5 / (DT * substeps))):
-        ctl.step(data, pos, quat, substeps=substeps)
+        ctl.step(data, pos, quat, substeps=substeps, control_every=every)
         errors.append(np.linalg.norm(ctl.ds_state(data)[:3] - pos))
     assert errors[0] > 0.04  # it did start 5 cm away
     assert errors[-1] < 2e-3
@@ -46,6 +47,22 @@ def test_step_response_5cm(panda: Any, substeps: int) -> None:
     assert stats.saturated_calls == 0 and stats.saturation_fraction == 0.0
     assert stats.max_pos_error == pytest.approx(0.05, abs=1e-9)
     assert stats.last_rot_error < 1e-3
+
+
+def test_control_every_step_equals_one_step_periods(panda: Any) -> None:
+    """substeps=10, control_every=1 is exactly ten 1-step periods; holding differs."""
+    runs = []
+    for substeps, every, periods in ((10, 1, 20), (1, None, 200), (10, None, 20)):
+        data = panda.new_data()
+        ctl = _controller(panda)
+        pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data)
+                                                  + np.array([0.0, 0.03, 0.02, 0.2]))
+        for _ in range(periods):
+            ctl.step(data, pos, quat, substeps=substeps, control_every=every)
+        assert ctl.calls == (200 if every == 1 or substeps == 1 else 20)
+        runs.append(panda.q(data))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    assert np.abs(runs[0] - runs[2]).max() > 1e-6
 
 
 def _self_motion(panda: Any, gains: Any) -> tuple[float, float, float]:

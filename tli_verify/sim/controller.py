@@ -302,10 +302,10 @@ class ImpedanceController:
     after ``mj_forward``. :meth:`step` does that for ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_act", "_contig", "_dof", "_idx_m", "_jac6", "_kd6", "_kp6", "_n_sat",
-                 "_q_idx", "_qerr", "_quat", "_rhs", "calls", "gains", "map", "max_pos_error",
-                 "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
-                 "saturated_calls", "site")
+    __slots__ = ("_act", "_contig", "_dof", "_idx_m", "_jac6", "_kd6", "_kp6", "_last_tau",
+                 "_n_sat", "_q_idx", "_qerr", "_quat", "_rhs", "calls", "gains", "map",
+                 "max_pos_error", "max_rot_error", "model", "panda", "pos_error", "posture",
+                 "rot_error", "saturated_calls", "site")
 
     def __init__(self, panda: Panda, site: int | None = None, gains: Gains | None = None,
                  posture: FloatArray | None = None, r0: FloatArray | None = None) -> None:
@@ -325,6 +325,7 @@ class ImpedanceController:
         self._qerr = np.zeros(4)
         self._quat = np.zeros(4)
         self._rhs = np.zeros((6, 2))
+        self._last_tau = np.zeros(7)
         g = self.gains
         self._kp6 = np.array([g.kp_pos] * 3 + [g.kp_rot] * 3)
         self._kd6 = np.array([g.kd_pos] * 3 + [g.kd_rot] * 3)
@@ -457,21 +458,33 @@ class ImpedanceController:
         return clipped
 
     def step(self, data: Any, pos_d: FloatArray, quat_d: FloatArray,
-             twist_d: FloatArray | None = None, substeps: int = 1) -> FloatArray:
-        """One control period: ``mj_step1``, :meth:`compute`, ``mj_step2``, then ``substeps - 1``
-        more ``mj_step`` with the torques held (zero-order hold).
+             twist_d: FloatArray | None = None, substeps: int = 1,
+             control_every: int | None = None) -> FloatArray:
+        """One control period of ``substeps`` physics steps towards a held target.
+
+        The torques are computed (``mj_step1``, :meth:`compute`, ``mj_step2``) on the first
+        physics step and again every ``control_every`` steps, and held (zero-order hold) in
+        between with plain ``mj_step``. The default ``control_every = substeps`` computes them
+        once per period (the loop :func:`sampled_data_spectral_radius` analyses);
+        ``control_every = 1`` is a torque loop at the physics rate (500 Hz) under a slower
+        target, as on the real robot (1 kHz torque loop, slower DS).
 
         Returns
         -------
         ndarray, shape (7,)
-            The torques applied (N m).
+            The last torques applied (N m).
         """
         m = self.model
-        mujoco.mj_step1(m, data)
-        tau = self.compute(data, pos_d, quat_d, twist_d)
-        mujoco.mj_step2(m, data)
-        for _ in range(substeps - 1):
-            mujoco.mj_step(m, data)
+        every = substeps if control_every is None else max(1, int(control_every))
+        tau = self._last_tau
+        for k in range(substeps):
+            if k % every == 0:
+                mujoco.mj_step1(m, data)
+                tau = self.compute(data, pos_d, quat_d, twist_d)
+                mujoco.mj_step2(m, data)
+            else:
+                mujoco.mj_step(m, data)
+        self._last_tau = tau
         return tau
 
 
