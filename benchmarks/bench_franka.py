@@ -8,8 +8,9 @@ scene (:func:`tli_verify.sim.robot.load_panda`: the Menagerie Panda, torque moto
 - the closed loop: a DS target (a linear DS stand-in for the policy, 4-D: position + pitch,
   integrated each control period) tracked by the controller, ``mj_step1`` / controller /
   ``mj_step2`` and the held substeps, at a control period of 2 ms (every step), 10 ms
-  (5 substeps) and 20 ms (10 substeps, the scene's period), in physics steps per second, as a fraction of the bare rate, and as a real-time
-  factor (simulated / wall time); the largest tracking error is reported with it.
+  (5 substeps) and 20 ms (10 substeps, the scene's period), in physics steps per second, as a
+  fraction of the bare rate, and as a real-time factor (simulated / wall time); the largest
+  tracking error is reported with it.
 
 Targets (issue 13): closed loop >= 60 % of the bare ``mj_step`` rate, >= 5x real time. The
 scene with the beads is benchmarked by the scene's own rows when it lands.
