@@ -279,6 +279,73 @@ class Panda:
         return self.site_pose(d, site)
 
 
+    def ik(self, pos: FloatArray, quat: FloatArray, site: int | None = None,
+           q_init: FloatArray | None = None, *, tol: float = 1e-7, max_iter: int = 200,
+           posture_weight: float = 1e-3) -> tuple[FloatArray, float]:
+        """Inverse kinematics: a posture putting ``site`` at the pose ``(pos, quat)``.
+
+        Damped least squares (Levenberg-Marquardt) on the site Jacobian, joints clipped to
+        :data:`JOINT_LOWER` / :data:`JOINT_UPPER` after each step, with a small pull towards
+        ``q_init`` in the null space. For placing the arm at the start of a trial (the
+        controller then holds it); not used inside the control loop.
+
+        Parameters
+        ----------
+        pos : ndarray, shape (3,)
+            Target site position (m, world).
+        quat : ndarray, shape (4,)
+            Target site orientation, unit quaternion ``(w, x, y, z)``.
+        site : int, optional
+            Site id (default :attr:`tcp_site`).
+        q_init : ndarray, shape (7,), optional
+            Start (and preferred) posture (default :data:`HOME_QPOS`).
+        tol : float, optional
+            Stop when the pose error (m and rad, 2-norm of the 6-vector) is below it.
+        max_iter : int, optional
+        posture_weight : float, optional
+            Gain of the null-space pull towards ``q_init``.
+
+        Returns
+        -------
+        q : ndarray, shape (7,)
+            The posture found (within the joint limits).
+        error : float
+            Its remaining pose error (same norm as ``tol``); check it: a target out of reach
+            returns the closest posture found, not an exception.
+        """
+        s = self.tcp_site if site is None else site
+        m = self.model
+        d = mujoco.MjData(m)
+        q_ref = np.array(HOME_QPOS if q_init is None else q_init, dtype=np.float64)
+        q = np.clip(q_ref, JOINT_LOWER, JOINT_UPPER)
+        jac = np.zeros((6, m.nv))
+        err = np.zeros(6)
+        cur = np.zeros(4)
+        dq_rot = np.zeros(4)
+        target = np.asarray(quat, dtype=np.float64)
+        norm = np.inf
+        for _ in range(max_iter):
+            d.qpos[self.qpos_adr] = q
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            err[:3] = pos - d.site_xpos[s]
+            mujoco.mju_mat2Quat(cur, d.site_xmat[s])
+            mujoco.mju_negQuat(cur, cur)
+            mujoco.mju_mulQuat(dq_rot, target, cur)
+            mujoco.mju_quat2Vel(err[3:], dq_rot, 1.0)
+            norm = float(np.linalg.norm(err))
+            if norm < tol:
+                break
+            mujoco.mj_jacSite(m, d, jac[:3], jac[3:], s)
+            j = jac[:, self.dof_adr]
+            lam = 1e-9 + 1e-3 * norm
+            jjt = j @ j.T + lam * np.eye(6)
+            step = j.T @ np.linalg.solve(jjt, err)
+            null = np.eye(7) - j.T @ np.linalg.solve(jjt, j)
+            q = np.clip(q + step + posture_weight * null @ (q_ref - q), JOINT_LOWER, JOINT_UPPER)
+        return q, norm
+
+
 def load_panda(assets: Path | None = None) -> Panda:
     """Compile the arm alone (:func:`panda_spec`, no scene) and index it.
 
