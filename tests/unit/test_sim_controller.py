@@ -228,3 +228,37 @@ def test_sampled_data_check() -> None:
     assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.002) < 0.97
     assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.010) < 0.86
     assert sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.060) > 1.0
+
+
+def test_tool_site_with_its_own_nominal_orientation(panda: Any) -> None:
+    """A tool mounted under the hand (the ladle's way: pi about the hand's y, 0.26 m below),
+    controlled at its own site with r0 = Rz(-pi/2): IK places it, a pitch step of 0.3 rad and
+    a 4 cm move converge, and ds_state reads the pitch about world x."""
+    import mujoco
+
+    from tli_verify.sim.robot import Panda, panda_spec
+
+    spec = panda_spec()
+    tool = spec.body("hand").add_body(name="tool", pos=[0.117, 0.0, 0.257], quat=[0, 0, 1, 0])
+    tool.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.035, 0.001, 0], mass=0.12)
+    tool.add_site(name="tool_site")
+    robot = Panda.from_model(spec.compile())
+    site = mujoco.mj_name2id(robot.model, mujoco.mjtObj.mjOBJ_SITE, "tool_site")
+    rz = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    ctl = _controller(robot, site=site, r0=rz)
+    z0 = np.array([0.5, 0.05, 0.2, 0.0])
+    q, err = robot.ik(*ctl.target_pose_from_ds_state(z0), site=site)
+    assert err < 1e-6
+    ctl.posture[:] = q
+    data = robot.new_data(q)
+    np.testing.assert_allclose(ctl.ds_state(data), z0, atol=1e-6)
+    # the tool's local +x (its "front") points along world -y at pitch 0
+    np.testing.assert_allclose(data.site_xmat[site].reshape(3, 3)[:, 0], [0, -1, 0], atol=1e-6)
+    z1 = z0 + np.array([0.0, -0.04, 0.0, 0.3])
+    pos, quat = ctl.target_pose_from_ds_state(z1)
+    for _ in range(75):  # 1.5 s at 20 ms, torques every 2 ms
+        ctl.step(data, pos, quat, substeps=10, control_every=1)
+    z = ctl.ds_state(data)
+    assert np.linalg.norm(z[:3] - z1[:3]) < 2e-3 and abs(z[3] - z1[3]) < 5e-3
+    front = data.site_xmat[site].reshape(3, 3)[:, 0]  # tipped down by the positive pitch
+    np.testing.assert_allclose(front, [0, -np.cos(0.3), -np.sin(0.3)], atol=5e-3)
