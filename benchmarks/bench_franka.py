@@ -73,10 +73,15 @@ def main(out_dir: Path) -> str:
     import mujoco
     from threadpoolctl import threadpool_limits
 
+    from tli_verify.errors import AssetError
     from tli_verify.sim.controller import ImpedanceController
     from tli_verify.sim.robot import load_panda
 
-    panda = load_panda()
+    try:
+        panda = load_panda()
+    except AssetError as exc:  # not fetched: say so instead of failing the whole `make bench`
+        return ("## The MuJoCo Franka loop: robot and controller\n\n"
+                f"Skipped: {exc}\n")
     model = panda.model
     dt = float(model.opt.timestep)
     results: dict[str, Any] = {"timestep_s": dt, "nv": int(model.nv)}
