@@ -262,3 +262,21 @@ def test_tool_site_with_its_own_nominal_orientation(panda: Any) -> None:
     assert np.linalg.norm(z[:3] - z1[:3]) < 2e-3 and abs(z[3] - z1[3]) < 5e-3
     front = data.site_xmat[site].reshape(3, 3)[:, 0]  # tipped down by the positive pitch
     np.testing.assert_allclose(front, [0, -np.cos(0.3), -np.sin(0.3)], atol=5e-3)
+
+
+def test_simulated_loop_stability_agrees_with_the_model(panda: Any) -> None:
+    """The simulated sampled-data loop (period map differentiated at rest) is stable at 20 ms
+    and unstable at 60 ms, where python-control's decoupled model puts the boundary too."""
+    from tli_verify.sim.controller import (
+        Gains,
+        closed_loop_spectral_radius,
+        sampled_data_spectral_radius,
+    )
+
+    g = Gains()
+    for substeps, stable in ((10, True), (30, False)):
+        real = closed_loop_spectral_radius(panda, substeps, settle=50)
+        model = sampled_data_spectral_radius(g.kp_pos, g.kd_pos, 0.002 * substeps)
+        assert (real < 1.0) == stable == (model < 1.0)
+        if not stable:  # the unstable mode is the task-space one the model describes
+            assert real == pytest.approx(model, rel=0.05)
