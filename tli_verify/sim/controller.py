@@ -50,10 +50,13 @@ Fast path
     ``mj_jacSite`` and three quaternion calls, reads ``M`` from ``data.M`` through a precomputed
     index (:func:`arm_mass_index`), and does two Cholesky solves (LAPACK ``dposv``: ``M^-1 J^T``,
     then ``Lambda`` applied to the impedance and posture terms at once), no explicit inverse and
-    no Python loop over joints: about 28 us per call here (``make bench``, bench_franka).
+    no Python loop over joints: about 28 us per call on an idle core, 56-67 us on the loaded
+    shared machine of ``make bench`` (bench_franka).
 
 Tracking a DS (the loop)
-    Each control period ``T``: ``zdot = f(z)`` from the policy; ``z_t = integrate_ds_target(z_t,
+    Each control period ``T``: ``zdot = f(z_t)`` from the policy (evaluated at the target: the
+    sampled-data system a certificate at period ``T`` covers; or at the measured state
+    :meth:`ImpedanceController.ds_state`); ``z_t = integrate_ds_target(z_t,
     zdot, T[, z_actual, leash])``; ``pos, quat = target_pose_from_ds_state(z_t)``;
     ``step(data, pos, quat, twist_from_ds_velocity(zdot), substeps)``. Measured bound
     (``tests/unit/test_sim_controller.py``): for a DS with speed <= 0.25 m/s and pitch rate <=
@@ -301,11 +304,23 @@ class ImpedanceController:
     r0 : ndarray, shape (3, 3), optional
         Nominal orientation of the DS state map (default :data:`R0_DOWN`).
 
+    Attributes
+    ----------
+    map : DSStateMap
+        The 4-D DS state map of the controlled site.
+    posture : ndarray, shape (7,)
+        The null-space posture (may be overwritten in place, e.g. with an IK solution).
+    pos_error, rot_error : float
+        Position (m) and orientation (rad) error at the last call.
+    calls, saturated_calls : int
+        Counters since :meth:`reset_stats` (see :meth:`stats`).
+
     Notes
     -----
-    The data passed to :meth:`compute` must have positions, velocities, ``M`` and ``qfrc_bias``
-    at the current state: call it after ``mj_step1`` (then set the torques and ``mj_step2``), or
-    after ``mj_forward``. :meth:`step` does that for ``substeps`` physics steps per call.
+    The gains are read at construction. The data passed to :meth:`compute` must have positions,
+    velocities, ``M`` and ``qfrc_bias`` at the current state: call it after ``mj_step1`` (then
+    set the torques and ``mj_step2``), or after ``mj_forward``. :meth:`step` does that for
+    ``substeps`` physics steps per call.
     """
 
     __slots__ = ("_act", "_contig", "_dof", "_idx_m", "_jac6", "_kd6", "_kp6", "_last_tau",
