@@ -181,7 +181,14 @@ def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
     code = main(["run", "--world", "scoop", "--spec", str(other), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "not the spec the model names" in err
-    # the grown spec may not overwrite an input
+    # the grown spec may not overwrite an input, nor the spec the model and certificate bind
+    named = specs_dir / "scoop.toml"
+    before = named.read_bytes()
+    code = main(["run", "--world", "scoop", "--learn-transitions", "--grown-spec",
+                 str(specs_dir / ".." / "specs" / "scoop.toml"), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "grown spec would overwrite" in err
+    assert named.read_bytes() == before
     code = main(["run", "--world", "scoop", "--spec", str(other), "--learn-transitions",
                  "--grown-spec", str(other), "--out", str(tmp_path)])
     err = capsys.readouterr().err

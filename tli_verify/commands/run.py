@@ -182,6 +182,13 @@ def _run(args: argparse.Namespace) -> int:
     setup = bundled_setup(model=args.model, certificate=args.certificate,
                           spec=None if args.learn_transitions else args.spec, lag=args.lag)
     start_spec = _growth_start(setup, args.spec) if args.learn_transitions else None
+    if args.grown_spec is not None:  # never over the files the certificate binds
+        from tli_verify.io import check_output_file
+
+        bound = [setup.model.path, setup.certificate, setup.model.spec_path,
+                 None if start_spec is None else start_spec.path]
+        check_output_file(args.grown_spec, inputs=[p for p in bound if p is not None],
+                          what="grown spec")
     if start_spec is not None:
         from dataclasses import replace
 
