@@ -197,3 +197,26 @@ def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
                  "--grown-spec", str(other), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error:") and "grown spec" in err
+
+
+def test_batched_episodes_grow_as_single_episodes(inferred: GR1Spec) -> None:
+    """``run_episodes`` (the batched fast path) grows each fork's spec as ``run_episode``."""
+    from tli_verify.experiments.scoop import run_variant_batch
+
+    setup = replace(bundled_setup(), automaton=synthesize(inferred))
+    base = LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
+                       learn_transitions=True)
+    starts = np.array([random_start(setup.world, np.random.default_rng([s, 3]))
+                       for s in SEEDS[:2]])
+    perts = [random_perturbations(np.random.default_rng([s, 11]), 3, setup.world)
+             for s in SEEDS[:2]]
+    batch = run_variant_batch(setup, "LTL-DS", starts, perts, policy=base)
+    assert base.learned == ()  # forks grow their own copies
+    for x0, pert, got in zip(starts, perts, batch, strict=True):
+        one = run_variant(setup, "LTL-DS", x0, pert, policy=base.fork())
+        learned = [(e.from_mode, e.to_mode) for e in got.events
+                   if isinstance(e, TransitionLearned)]
+        assert learned and learned == [(e.from_mode, e.to_mode) for e in one.events
+                                       if isinstance(e, TransitionLearned)]
+        assert got.modes == one.modes and got.success and one.success
+        np.testing.assert_allclose(got.states, one.states, rtol=1e-9, atol=1e-9)
