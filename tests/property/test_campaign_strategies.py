@@ -126,3 +126,15 @@ def test_shrinks_a_pair_to_the_latest_pair() -> None:
 
     seq = find(push_sequences(WORLD, max_pushes=4, window=100), two_big, settings=_SHRINK)
     assert [p.step for p in seq] == [99, 100]
+    assert all(p.magnitude <= 2.0 for p in seq)
+
+
+def test_deleting_a_push_keeps_the_others_in_place() -> None:
+    # "a push before step 100 and one after step 200": the minimal sequence is exactly two
+    # zero pushes at the latest qualifying steps (no filler pushes kept to hold the others)
+    def both(seq: tuple[Push, ...]) -> bool:
+        return any(p.step < 100 for p in seq) and any(p.step > 200 for p in seq)
+
+    seq = find(push_sequences(WORLD, max_pushes=4, window=300), both, settings=_SHRINK)
+    assert [p.step for p in seq] == [99, 300]
+    assert all(p.magnitude == 0.0 and p.level == "free" for p in seq)

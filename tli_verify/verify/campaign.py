@@ -47,6 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import CampaignError, TliError
+from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.verify.oracle import (
     CutRecord,
@@ -360,17 +361,21 @@ class WatchedPolicy(LTLDSPolicy):
     """The executive, with a looping watchdog that ends the episode (not the policy's logic).
 
     :attr:`done` is also true once, after step ``after`` (the last perturbation), the executive
-    has reported more than ``limit`` events: every event after the last perturbation comes
-    with a mode change (at most 5 per change), so by then the run has re-entered visited modes
-    more than the oracle's loop bound allows and the verdict is decided.
+    has reported more than ``limit`` events since the last cut it learned (every such event
+    comes with a mode change, at most 5 per change, so by then the run has re-entered visited
+    modes more than the oracle's loop bound allows), or more than ``max_cuts`` cuts: either way
+    the oracle's looping verdict is decided.
     """
 
-    __slots__ = ("_after", "_limit", "_mark")
+    __slots__ = ("_after", "_cuts", "_limit", "_mark", "_max_cuts", "_seen")
     _after: int
     _limit: int
     _mark: int
+    _seen: int
+    _cuts: int
+    _max_cuts: int
 
-    def watch(self, after: int, limit: int) -> WatchedPolicy:
+    def watch(self, after: int, limit: int, max_cuts: int) -> WatchedPolicy:
         """A fork for one episode with the watchdog armed."""
         new = object.__new__(WatchedPolicy)
         for name in LTLDSPolicy.__slots__:
@@ -380,7 +385,10 @@ class WatchedPolicy(LTLDSPolicy):
         new._plan_cache = dict(self._plan_cache)
         new._after = int(after)
         new._limit = int(limit)
+        new._max_cuts = int(max_cuts)
         new._mark = -1
+        new._seen = 0
+        new._cuts = 0
         return new
 
     @property
@@ -389,9 +397,16 @@ class WatchedPolicy(LTLDSPolicy):
         if self._mode in self.goal_modes:
             return True
         if self._steps >= self._after:
+            n = len(self.events)
             if self._mark < 0:
-                self._mark = len(self.events)
-            elif len(self.events) - self._mark > self._limit:
+                self._mark = self._seen = n
+            elif n > self._seen:  # each event is looked at once
+                for k in range(self._seen, n):
+                    if isinstance(self.events[k], CutAdded):
+                        self._mark = k + 1  # a learned cut restarts the loop count
+                        self._cuts += 1
+                self._seen = n
+            if n - self._mark > self._limit or self._cuts > self._max_cuts:
                 return True
         return False
 
@@ -478,7 +493,6 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
     -------
     list of (Trace, EpisodeResult)
     """
-    from tli_verify.runtime.events import CutAdded
     from tli_verify.runtime.executive import run_episodes
     from tli_verify.runtime.worlds import WorldSensors
 
@@ -500,7 +514,7 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
         pushed[i][t] = new
         return new
 
-    policies = [ld.policy.watch(c.last_step, ld.limit) for c in cases_]
+    policies = [ld.policy.watch(c.last_step, ld.limit, ld.oracle.max_cuts) for c in cases_]
     memo: dict[Any, Any] = {}
     sensors = [WorldSensors(world, cache=memo) for _ in cases_]
     results = run_episodes(policies, sensors, X, steps=ld.budget if budget is None else budget,

@@ -34,8 +34,11 @@ Checks (violation kinds, :class:`ViolationKind`):
    guarantees, which the synthesized automaton does by construction). Guarantees are owed
    only while the readings satisfy the assumptions: at a reading the assumptions rule out the
    oracle stops (``assumptions_ok = False``; checks 1, 2 and 4 are then decided on the prefix).
-4. **No looping** (``LOOPING``) -- after the last perturbation the run re-enters a mode it
-   already visited at most ``max_cycles`` times (default: the number of modes).
+4. **No looping** (``LOOPING``) -- after the last disturbance (perturbation, or an unprovoked
+   exit answered with a cut: learning a cut is progress, Thm. 2) the run re-enters a mode it
+   already visited at most ``max_cycles`` times (default: the number of modes), and after the
+   last perturbation the policy learns at most ``max_cuts`` cuts (default: 3 per mode; the
+   failures must stop).
 
 The reachability deadline (sampled time)
 ----------------------------------------
@@ -289,6 +292,9 @@ class Oracle:
     params : mapping of str to _ModeParams
         Per mode: the DS the plan runs (certificate's ``P`` and rate, sampled rate).
     max_cycles : int
+        Re-entries into visited modes allowed after the last disturbance.
+    max_cuts : int
+        Cuts allowed after the last perturbation.
     factor, slack : float, int
         Deadline margin.
     touch_tol : float
@@ -303,6 +309,7 @@ class Oracle:
     path: Mapping[str, tuple[str, ...]]
     params: Mapping[str, _ModeParams]
     max_cycles: int
+    max_cuts: int = 12
     factor: float = 1.5
     slack: int = 50
     touch_tol: float = 0.05
@@ -312,7 +319,8 @@ class Oracle:
     @classmethod
     def build(cls, world: Any, automaton: Any, model: Any,
               certificate: str | os.PathLike[str] | Mapping[str, Any], *, dt: float,
-              max_cycles: int | None = None, factor: float = 1.5, slack: int = 50,
+              max_cycles: int | None = None, max_cuts: int | None = None,
+              factor: float = 1.5, slack: int = 50,
               touch_tol: float = 0.05) -> Oracle:
         """Precompute the plan, the goal modes and the per-mode deadline data.
 
@@ -327,6 +335,8 @@ class Oracle:
         dt : float
         max_cycles : int, optional
             Default: the number of modes.
+        max_cuts : int, optional
+            Cuts the policy may learn after the last perturbation (default: 3 per mode).
 
         Raises
         ------
@@ -400,6 +410,7 @@ class Oracle:
         return cls(world=world, automaton=automaton, dt=float(dt), goals=goals,
                    planned=planned, path=path, params=params,
                    max_cycles=len(automaton.modes) if max_cycles is None else int(max_cycles),
+                   max_cuts=(3 * len(automaton.modes) if max_cuts is None else int(max_cuts)),
                    factor=float(factor), slack=int(slack), touch_tol=float(touch_tol),
                    _names=tuple(world.sensor_names))
 
@@ -550,9 +561,11 @@ class Oracle:
                 viol = [v for v in viol if v.kind is not kind]
                 viol.append(Violation(kind, same[0].step,
                                       f"{same[0].message} (and {len(same) - 1} more)"))
-        # (4) no looping after the last perturbation
+        # (4) no looping after the last disturbance (a perturbation, or an exit answered
+        # with a cut: learning is progress, Thm. 2); the cuts learned after the last
+        # perturbation must stop too
         cycles = 0
-        t0 = min(last_push, end)
+        t0 = min(max([last_push, *answered_steps]), end)
         visited = {modes[t0]} if modes else set()
         loop_step = None
         for t in range(t0 + 1, end + 1):
@@ -565,9 +578,15 @@ class Oracle:
         if loop_step is not None:
             seq = _runs(modes[t0:])
             viol.append(Violation(ViolationKind.LOOPING, loop_step,
-                                  f"after the last perturbation (step {last_push}) the modes "
-                                  f"cycle {cycles} times (bound {self.max_cycles}): "
-                                  f"{seq[:40]}{'...' if len(seq) > 40 else ''}"))
+                                  f"after step {t0} (the last perturbation or learned cut) "
+                                  f"the modes cycle {cycles} times (bound {self.max_cycles}):"
+                                  f" {seq[:40]}{'...' if len(seq) > 40 else ''}"))
+        learned = [t for t in answered_steps if t > last_push]
+        if len(learned) > self.max_cuts:
+            viol.append(Violation(ViolationKind.LOOPING, learned[self.max_cuts],
+                                  f"{len(learned)} cuts learned after the last perturbation "
+                                  f"(step {last_push}; bound {self.max_cuts}): the failures "
+                                  "do not stop"))
         # (2) reachability after the last disturbance
         goal_step = next((t for t in range(end + 1) if modes[t] in self.goals), None)
         ref = max([last_push, *answered_steps]) if modes else 0

@@ -31,10 +31,11 @@ towards its first element) is designed into the encoding, so a failing sequence 
 * **fewer** perturbations: the sequence is a list;
 * **smaller** ones: ``magnitude * unit direction`` with the magnitude a float in ``[0, D]``
   (``D`` the workspace size) shrinking to 0, the level towards ``"free"``;
-* **later** ones: steps are *delay-encoded backwards* from the end of the perturbation window:
-  the first element sits ``gap_0`` steps before the window's end, each next one ``1 + gap_i``
-  steps before the previous; gaps shrink to 0, i.e. perturbations move later (and sorted,
-  distinct steps come for free).
+* **later** ones: each step is encoded as its distance *before the end of the perturbation
+  window* (``step = window - early``), independently of the others; ``early`` shrinks to 0,
+  i.e. perturbations move later, and deleting one perturbation never moves another (a
+  delay-encoded chain, each step relative to the previous, would). Two perturbations drawn
+  for one step are one (the first); the sequence is sorted by step.
 
 References
 ----------
@@ -222,29 +223,26 @@ def push_sequences(world: Any, *, max_pushes: int = 3, window: int = 700,
     regions = tuple(world.region_names)
     ordered = tuple(lv for lv in LEVELS if lv in levels)
 
-    gap_s = st.integers(0, window - 1)
+    early_s = st.integers(0, window - 1)
     disp_s = displacements(dim, size)
     level_s = st.sampled_from(ordered)
     target_s = st.sampled_from(regions)
 
     @st.composite
     def one(draw: st.DrawFn) -> tuple[int, tuple[float, ...], str, str | None]:
-        gap = draw(gap_s)
+        early = draw(early_s)
         disp = draw(disp_s)
         level = draw(level_s)
         target = draw(target_s) if level == "task" else None
-        return gap, disp, level, target
+        return early, disp, level, target
 
     def build(items: list[tuple[int, tuple[float, ...], str, str | None]]
               ) -> tuple[Push, ...]:
-        out: list[Push] = []
-        step = window + 1
-        for gap, disp, level, target in items:  # backwards from the window's end
-            step = step - 1 - gap
-            if step < 1:
-                break
-            out.append(Push(step, disp, level, target))
-        return tuple(sorted(out, key=lambda p: p.step))
+        out: dict[int, Push] = {}
+        for early, disp, level, target in items:  # steps back from the window's end
+            step = window - early
+            out.setdefault(step, Push(step, disp, level, target))  # one push per step
+        return tuple(out[t] for t in sorted(out))
 
     return st.lists(one(), min_size=min_pushes, max_size=max_pushes).map(build).filter(
         lambda seq: len(seq) >= min_pushes)
