@@ -59,11 +59,19 @@ def test_campaign_json_fields(found: tuple[int, dict, Path]) -> None:  # type: i
     assert "## Counterexample" in (out / "campaign.md").read_text()
 
 
-def test_shrunk_counterexample_is_no_larger(found: tuple[int, dict, Path]) -> None:  # type: ignore[type-arg]
+def test_fig7_looping_found_and_shrunk(found: tuple[int, dict, Path]) -> None:  # type: ignore[type-arg]
+    # the shipped model loops a -> b -> a -> b without modulation (Fig. 7): the campaign files
+    # its counterexample under looping (the most specific kind found, although a lone
+    # invariance failure came first) and shrinks it to a single perturbation
     _, rec, _ = found
+    first = rec["first_violation_by_kind"]
+    assert first["looping"] is not None
+    assert rec["simulations_to_first_counterexample"] == min(v for v in first.values() if v)
     ce = rec["counterexample"]
-    assert 1 <= len(ce["perturbations"]) <= 3
-    assert all(p["step"] <= 700 for p in ce["perturbations"])
+    assert ce["expected"]["violation"] == "looping"
+    assert ce["index"] + 1 == first["looping"]
+    assert len(ce["perturbations"]) == 1
+    assert ce["expected"]["oracle_modes"].startswith("ababab")
 
 
 def test_replay_round_trip(found: tuple[int, dict, Path],  # type: ignore[type-arg]

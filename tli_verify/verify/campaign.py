@@ -3,19 +3,21 @@
 :func:`run_campaign` does, for a :class:`CampaignConfig`:
 
 1. **draw** -- the driver draws ``examples`` cases (start + perturbation sequence,
-   :func:`tli_verify.verify.strategies.cases`) with hypothesis, deterministically from the seed
-   (:func:`draw_cases`: ``hypothesis.find`` with ``random=Random(seed)``, a condition that
-   never holds, and no example database; hypothesis generates in one process);
+   :func:`tli_verify.verify.strategies.cases`) with hypothesis, deterministically from the seed,
+   in chunks of ``batch_size`` on a thread (:func:`draw_chunks`, :func:`draw_cases`:
+   ``hypothesis.find`` with ``random=Random(chunk seed)``, a condition that never holds, and no
+   example database; hypothesis generates in one process) while the workers simulate;
 2. **simulate** -- the cases travel in batches (``batch_size`` runs,
    :func:`simulate_batch`: one vectorised :func:`~tli_verify.runtime.executive.run_episodes`
    call per batch, then the oracle on every trace, in the worker) to a backend
    (:mod:`.backends`); only verdicts come back;
-3. **shrink** -- the first failing case in generation order is shrunk by hypothesis in the
-   driver (:func:`shrink`): the same ``find`` with the same seed replays the generation (the
-   verdicts already computed are looked up, not re-simulated) until it meets that case, then
-   hypothesis's shrinker minimises it -- fewer, smaller, later perturbations, by the encoding of
-   :mod:`.strategies` -- keeping the same violation kind; candidates are simulated in the
-   driver;
+3. **shrink** -- the first case of the most specific violation kind found
+   (:data:`~tli_verify.verify.oracle.PRIORITY`: looping before a lone invariance failure) is
+   shrunk by hypothesis in the driver (:func:`shrink`): the same ``find`` with the seed of its
+   chunk replays that chunk's generation (the verdicts already computed are looked up, not
+   re-simulated) until it meets that case, then hypothesis's shrinker minimises it -- fewer,
+   smaller, later perturbations, by the encoding of :mod:`.strategies` -- keeping that
+   violation kind; candidates are simulated in the driver;
 4. optionally (``target_examples > 0``, no counterexample yet) a **targeted** search in the
    driver: hypothesis with ``hypothesis.target`` on the oracle's robustness margin.
 
@@ -50,6 +52,7 @@ from tli_verify.errors import CampaignError, TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.verify.oracle import (
+    PRIORITY,
     CutRecord,
     Oracle,
     Trace,
@@ -295,6 +298,9 @@ class CampaignResult:
             "coverage": self.coverage,
             "counterexample": self.counterexample,
             "simulations_to_first_counterexample": self.first_counterexample_at,
+            "first_violation_by_kind": {
+                k.value: next((o.index + 1 for o in self.outcomes if k in o.verdict.kinds),
+                              None) for k in ViolationKind},
             "failure_probability_bound_95": self.failure_bound,
             "shrink_simulations": self.shrink_steps,
             "seconds": self.seconds,
@@ -754,9 +760,11 @@ def _files(spec: SimSpec) -> dict[str, dict[str, str]]:
 
 
 def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
-                  index: int | None = None, shrunk: bool = False) -> dict[str, Any]:
-    """The JSON case file of a counterexample (``tli replay`` reads it)."""
-    primary = verdict.primary
+                  index: int | None = None, shrunk: bool = False,
+                  kind: ViolationKind | None = None) -> dict[str, Any]:
+    """The JSON case file of a counterexample (``tli replay`` reads it); the expected
+    violation is ``kind`` (the one the shrinker kept), default the verdict's primary one."""
+    primary = kind if kind is not None and kind in verdict.kinds else verdict.primary
     return {
         "kind": CASE_KIND,
         "version": 1,
@@ -997,15 +1005,17 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
             bar.close()
     ordered = tuple(outcomes[i] for i in sorted(outcomes))
     failing = [o for o in ordered if not o.verdict.ok]
-    first = failing[0] if failing else None
+    first_any = failing[0] if failing else None
+    # the counterexample: the first run of the most specific kind found (PRIORITY), so a
+    # campaign that finds Fig. 7's looping shrinks a looping run, not an earlier lone failure
+    kind = next((k for k in PRIORITY if any(k in o.verdict.kinds for o in failing)), None)
+    first = next((o for o in failing if kind in o.verdict.kinds), None)
     counterexample = None
     first_at = None
     shrink_steps = 0
     known = {drawn[o.index]: o.verdict for o in ordered}
-    if first is not None:
-        first_at = first.index + 1
-        kind = first.verdict.primary
-        assert kind is not None
+    if first is not None and kind is not None and first_any is not None:
+        first_at = first_any.index + 1
         case, verdict = drawn[first.index], first.verdict
         shrunk = False
         if config.shrink and not partial:
@@ -1020,7 +1030,7 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
             if small is not None and v is not None:
                 case, verdict, shrunk = small, v, True
         counterexample = case_document(spec, case, verdict, seed=config.seed,
-                                       index=first.index, shrunk=shrunk)
+                                       index=first.index, shrunk=shrunk, kind=kind)
     elif config.target_examples > 0 and not partial:
         found, v, shrink_steps = _targeted(spec, strategy, config.seed,
                                            config.target_examples)

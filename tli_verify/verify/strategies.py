@@ -19,11 +19,12 @@ meets, using the world's *true regions*):
 
 * ``"free"`` -- ``x + d`` clipped to the workspace (the paper's experiments: any direction,
   any magnitude up to the workspace size);
-* ``"motion"`` -- a motion-level perturbation: the state stays in its true region; ``x + s d``
-  with the largest ``s`` in ``[0, 1]`` (bisection) that keeps it there;
+* ``"motion"`` -- a motion-level perturbation: the state stays in its true region: ``x + d``
+  if it lies there, else ``x + (s/2) d`` with ``s`` the largest fraction in ``[0, 1]``
+  (bisection) that keeps it there (half way to the boundary: never on it);
 * ``"task"`` -- a task-level perturbation: the state is pushed into the named target region
-  (adjacent or not): ``x + d`` if it lies there, else the point of the segment from the
-  region's reference point towards ``x + d`` farthest inside the region.
+  (adjacent or not): ``x + d`` if it lies there, else half way from the region's reference
+  point towards where the segment to ``x + d`` leaves the region.
 
 Shrinking (hypothesis shrinks lists by deleting elements, numbers towards zero, ``sampled_from``
 towards its first element) is designed into the encoding, so a failing sequence shrinks toward
@@ -334,8 +335,9 @@ _ANCHORS: dict[tuple[str, int, str], FloatArray] = {}
 
 
 def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> FloatArray:
-    """The point ``a + s (b - a)`` with the largest ``s`` in [0, 1] found by bisection such
-    that it lies in ``region`` (``a`` does)."""
+    """``b`` if it lies in ``region``; else ``a + s/2 (b - a)`` with ``s`` the largest fraction
+    in [0, 1] (bisection) keeping the segment's point in ``region`` (``a`` lies in it): half
+    way to the region's boundary, so a push never lands on a mode boundary."""
     if int(world.region_index(b[None])[0]) == region:
         return b
     lo_s, hi_s = 0.0, 1.0
@@ -345,7 +347,7 @@ def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> Flo
             lo_s = mid
         else:
             hi_s = mid
-    return np.asarray(a + lo_s * (b - a), dtype=np.float64)
+    return np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
 
 
 def apply_push(world: Any, x: npt.ArrayLike, push: Push) -> FloatArray:
