@@ -72,6 +72,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--certificate", type=Path, default=None)
     p.add_argument("--json", action="store_true", help="print the campaign record as JSON")
+    p.add_argument("--evidence", nargs="?", const="", default=None, metavar="PATH",
+                   help="also write campaign evidence for the deployment gate (default "
+                   "certificates/<name>.campaign.json next to the model's project)")
     p.add_argument("--out", type=output_path, default=Path("out/verify"),
                    help="report directory (default out/verify)")
     p.set_defaults(handler=_verify)
@@ -103,6 +106,12 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
+    if args.evidence is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("tli_verify.verify.evidence") is None:
+            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
+                           "available in this build")
     progress = not args.json and sys.stderr.isatty()
 
     def note(text: str) -> None:
@@ -115,11 +124,23 @@ def _verify(args: argparse.Namespace) -> int:
     record = result.to_json()
     files = write_report(result, out)
     record["report"] = [str(f) for f in files]
+    if args.evidence is not None:
+        try:
+            from tli_verify.verify.evidence import (  # type: ignore[import-not-found,unused-ignore]
+                write_campaign_evidence,
+            )
+        except ImportError:
+            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
+                           "available in this build") from None
+        target, _ = write_campaign_evidence(cfg, result, args.evidence or None)
+        record["evidence"] = str(target)
     atomic_write_text(out / "campaign.json", canonical_json(record))
     if args.json:
         sys.stdout.write(canonical_json(record))
     else:
         sys.stdout.write(_summary(result, out))
+        if args.evidence is not None:
+            sys.stdout.write(f"wrote evidence {record['evidence']}\n")
     if result.partial:
         sys.stderr.write(f"error: interrupted after {result.runs} of {cfg.examples} runs; "
                          f"partial report written to {out / 'campaign.md'}\n")
