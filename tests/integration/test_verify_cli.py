@@ -255,3 +255,14 @@ def test_looping_model_is_found_and_shrunk_to_no_perturbation(
     assert rec["simulations_to_first_counterexample"] == 1
     code, text, _ = _run(["replay", str(tmp_path / "counterexample.json"), "--json"], capsys)
     assert code == 1 and json.loads(text)["reproduced"] is True
+
+
+def test_replay_notes_changed_files(found: tuple[int, dict, Path],  # type: ignore[type-arg]
+                                    tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = json.loads((found[2] / "counterexample.json").read_text())
+    doc["files"]["model"]["sha256"] = "0" * 64
+    case = tmp_path / "stale.json"
+    case.write_text(json.dumps(doc))
+    code, text, err = _run(["replay", str(case), "--json"], capsys)
+    assert code == 1 and json.loads(text)["reproduced"] is True
+    assert err.startswith("note: model:") and "changed since the case was saved" in err

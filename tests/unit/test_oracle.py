@@ -163,3 +163,20 @@ def test_reading_outside_the_assumptions_stops_the_checks(oracle: Oracle) -> Non
     v = oracle.check(forge([(YELLOW, "b", 5)]))
     assert not v.assumptions_ok
     assert v.ok and not v.conclusive
+
+
+def test_certified_deadline_holds_on_simulated_runs(oracle: Oracle) -> None:
+    # the certificate predicts the rollout: on real closed-loop runs (LTL-DS, the shipped
+    # model) the goal is reached before the oracle's certified deadline, from every
+    # disturbed state drawn here
+    from tli_verify.verify.campaign import CampaignConfig, _strategy, draw_cases, simulate
+
+    cfg = CampaignConfig(world="scoop", modulation=True)
+    spec = sim_spec(cfg)
+    cases = draw_cases(_strategy(cfg, load(spec)), 12, "deadline-check")
+    for trace, _ in simulate(spec, cases):
+        v = oracle.check(trace)
+        assert v.reached and v.conclusive
+        if v.deadline_step is not None:
+            assert v.goal_step is not None and v.goal_step <= v.deadline_step
+        assert ViolationKind.REACHABILITY not in v.kinds
