@@ -83,7 +83,7 @@ PUSHES = (
     # keeps x1 outside the column and puts x2 in [0, 4]: white. Step 340 is mid-scoop.
     Push(340, (0.0, 8.0), ("b", "a"), (-8.0, 8.0, -8.0, -4.0)),
     # c -> a, a spill: pink is 2 <= x1 <= 6, x2 <= 6; left by 8 leaves the column (x1 in
-    # [-6, -2]), up by 6 puts x2 above -2 > -4: white, and the soup is lost.
+    # [-6, -2]), up by 6 puts x2 at -2 or above (> -4): white, and the soup is lost.
     Push(540, (-8.0, 6.0), ("c", "a"), (2.0, 6.0, -8.0, 6.0)),
     # c -> b, back into the soup: left by 8 leaves the column, down by 6 puts x2 <= -4 from
     # any pink state with x2 <= 2 (the first ~170 steps of c; step 540 is at x2 = -0.6).
