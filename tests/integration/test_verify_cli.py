@@ -99,6 +99,7 @@ def test_campaign_with_modulation_finds_nothing(tmp_path: Path,
     assert "None found" in (tmp_path / "campaign.md").read_text()
 
 
+@pytest.mark.slow  # starts 2 worker processes that each load the setup (~5-15 s)
 def test_process_backend_matches_serial(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     recs = []
