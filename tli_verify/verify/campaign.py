@@ -942,6 +942,8 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     strategy = _strategy(config, ld)
     outcomes: dict[int, RunOutcome] = {}
     partial = False
+    backend = make_backend(config.backend, workers=config.workers,
+                           scheduler=config.scheduler, on_event=emit)
     emit(f"drawing {config.examples} cases (seed {config.seed}) and simulating them in "
          f"batches of {config.batch_size} ({config.backend})")
     drawn: dict[int, Case] = {}
@@ -966,8 +968,6 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         from tqdm import tqdm
 
         bar = tqdm(total=config.examples, unit="run", desc="campaign", leave=False)
-    backend = make_backend(config.backend, workers=config.workers,
-                           scheduler=config.scheduler, on_event=emit)
     producer.start()
     try:
         finished = False
