@@ -9,6 +9,7 @@ from __future__ import annotations
 
 __all__ = [
     "CertificateError",
+    "ClusterError",
     "DemoError",
     "GateError",
     "ModelError",
@@ -17,6 +18,7 @@ __all__ = [
     "SpecError",
     "TliError",
     "UnrealizableError",
+    "WorkerLost",
 ]
 
 
@@ -78,3 +80,14 @@ class GateError(TliError):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
     exit_code = 1
+
+
+class WorkerLost(TliError):
+    """A worker process died on the same batch of a campaign again and again (each loss is
+    reported and the batch re-run, up to 2 times, before this is raised). Not a verdict: the
+    campaign could not complete (exit 2)."""
+
+
+class ClusterError(TliError):
+    """A Dask scheduler is unreachable, has no workers, or Dask is not installed
+    (``pip install 'tli-verify[cluster]'``)."""

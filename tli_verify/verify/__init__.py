@@ -1,0 +1,1 @@
+"""Bisimulation campaigns (issue 12)."""
