@@ -11,6 +11,7 @@ __all__ = [
     "CertificateError",
     "ClusterError",
     "DemoError",
+    "EvidenceError",
     "GateError",
     "ModelError",
     "OutputError",
@@ -91,3 +92,10 @@ class WorkerLost(TliError):
 class ClusterError(TliError):
     """A Dask scheduler is unreachable, has no workers, or Dask is not installed
     (``pip install 'tli-verify[cluster]'``)."""
+
+
+class EvidenceError(TliError):
+    """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
+    the deployed files."""
+
+    exit_code = 1
