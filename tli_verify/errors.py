@@ -8,8 +8,8 @@ Every error a user can cause is a :class:`TliError`. The CLI turns it into a one
 from __future__ import annotations
 
 __all__ = [
+    "CampaignError",
     "CertificateError",
-    "ClusterError",
     "DemoError",
     "EvidenceError",
     "GateError",
@@ -77,6 +77,13 @@ class CertificateError(TliError):
     exit_code = 1
 
 
+class EvidenceError(TliError):
+    """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
+    the deployed files."""
+
+    exit_code = 1
+
+
 class GateError(TliError):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
@@ -84,18 +91,10 @@ class GateError(TliError):
 
 
 class WorkerLost(TliError):
-    """A worker process died on the same batch of a campaign again and again (each loss is
-    reported and the batch re-run, up to 2 times, before this is raised). Not a verdict: the
-    campaign could not complete (exit 2)."""
-
-
-class ClusterError(TliError):
-    """A Dask scheduler is unreachable, has no workers, or Dask is not installed
-    (``pip install 'tli-verify[cluster]'``)."""
-
-
-class EvidenceError(TliError):
-    """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
-    the deployed files."""
+    """A worker running a batch of a campaign died more often than the retries allow."""
 
     exit_code = 1
+
+
+class CampaignError(TliError):
+    """A campaign's configuration, case file or backend is unusable (exit 2)."""

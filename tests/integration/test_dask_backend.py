@@ -14,7 +14,7 @@ import pytest
 
 pytest.importorskip("distributed")
 
-from tli_verify.errors import ClusterError, WorkerLost
+from tli_verify.errors import CampaignError, WorkerLost
 from tli_verify.verify.dask_backend import DaskBackend
 
 
@@ -99,7 +99,7 @@ def test_the_batch_functions_own_error_is_re_raised(backend: DaskBackend) -> Non
 
 
 def test_ctrl_c_cancels_the_pending_batches_and_re_raises(backend: DaskBackend) -> None:
-    it = backend.map_unordered(batch_sum, [(t, [t], 0.0 if t == 0 else 30.0) for t in range(4)])
+    it = backend.map_unordered(batch_sum, [(t, [t], 0.0 if t == 0 else 3.0) for t in range(4)])
     assert next(it) == (0, (0, 0))
     with pytest.raises(KeyboardInterrupt) as excinfo:
         it.throw(KeyboardInterrupt())  # Ctrl-C while waiting for the next batch
@@ -120,9 +120,9 @@ def _scheduler_keys(dask_scheduler: object) -> list[str]:
 
 
 def test_an_unreachable_scheduler_is_a_cluster_error() -> None:
-    with pytest.raises(ClusterError, match=r"--scheduler tcp://127.0.0.1:1: cannot reach"):
+    with pytest.raises(CampaignError, match=r"--scheduler tcp://127.0.0.1:1: cannot reach"):
         DaskBackend(scheduler="tcp://127.0.0.1:1", connect_timeout=2)
-    with pytest.raises(ClusterError, match="not an address"):
+    with pytest.raises(CampaignError, match="not an address"):
         DaskBackend(scheduler="localhost", connect_timeout=2)
 
 

@@ -16,10 +16,10 @@ only when a :class:`DaskBackend` is built: ``import tli_verify`` never imports i
 Reliability
     A worker that dies while running a batch (``KilledWorker``: the process exited, was killed,
     or ran out of memory) is reported through ``on_event`` and the batch re-submitted, up to
-    ``retries`` (2) times; then :class:`~tli_verify.errors.WorkerLost`. On the ``LocalCluster``
-    this backend starts, the scheduler gives up on a task at its first worker death
-    (``allowed_failures=0``) so that every loss is seen and reported here; a remote scheduler
-    applies its own ``distributed.scheduler.allowed-failures`` first (default 3 silent
+    ``retries`` (2) times; then :class:`~tli_verify.errors.WorkerLost` (exit 1). On the
+    ``LocalCluster`` this backend starts, the scheduler gives up on a task at its first worker
+    death (``allowed_failures=0``) so that every loss is seen and reported here; a remote
+    scheduler applies its own ``distributed.scheduler.allowed-failures`` first (default 3 silent
     re-runs). Ctrl-C (``KeyboardInterrupt``) cancels every pending future and re-raises; so
     does a consumer that stops iterating early (the futures are cancelled).
 """
@@ -33,7 +33,7 @@ import socket
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
-from tli_verify.errors import ClusterError, WorkerLost
+from tli_verify.errors import CampaignError, WorkerLost
 
 __all__ = ["DEFAULT_CONNECT_TIMEOUT", "DEFAULT_RETRIES", "DaskBackend"]
 
@@ -43,7 +43,7 @@ R = TypeVar("R")
 DEFAULT_RETRIES = 2
 """Re-submissions of a batch whose worker died, before :class:`WorkerLost`."""
 DEFAULT_CONNECT_TIMEOUT = 10.0
-"""Seconds to reach a scheduler (and to see its first worker) before :class:`ClusterError`."""
+"""Seconds to reach a scheduler (and to see its first worker) before :class:`CampaignError`."""
 
 _counter = itertools.count()
 
@@ -52,7 +52,7 @@ def _import_distributed() -> Any:
     try:
         import distributed
     except ImportError as exc:  # the [cluster] extra is not installed
-        raise ClusterError(f"--backend dask needs Dask distributed, which is not installed "
+        raise CampaignError(f"--backend dask needs Dask distributed, which is not installed "
                            f"({exc}): pip install 'tli-verify[cluster]'") from None
     return distributed
 
@@ -80,7 +80,7 @@ class DaskBackend:
 
     Raises
     ------
-    ClusterError
+    CampaignError
         (exit 2) Dask is not installed, the scheduler is unreachable or has no worker, or
         ``workers`` is not positive.
 
@@ -97,7 +97,7 @@ class DaskBackend:
                  connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> None:
         distributed = _import_distributed()
         if retries < 0:
-            raise ClusterError(f"retries: must be >= 0, got {retries}")
+            raise CampaignError(f"retries: must be >= 0, got {retries}")
         self.retries = int(retries)
         self.on_event = on_event
         self.scheduler = scheduler
@@ -106,11 +106,14 @@ class DaskBackend:
         if scheduler is None:
             n = int(workers) if workers is not None else (os.cpu_count() or 1)
             if n < 1:
-                raise ClusterError(f"--workers: must be at least 1, got {workers}")
+                raise CampaignError(f"--workers: must be at least 1, got {workers}")
+            # loopback only; no dashboard; the scheduler's HTTP endpoints on a free port
+            # (its default 8787 may be taken by another cluster: a warning, not an error)
             self._cluster = distributed.LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True,
+                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None, silence_logs=logging.CRITICAL,
-                scheduler_kwargs={"allowed_failures": 0})
+                scheduler_kwargs={"allowed_failures": 0, "dashboard": False,
+                                  "dashboard_address": "127.0.0.1:0"})
             try:
                 self._client = distributed.Client(self._cluster, set_as_default=False)
             except BaseException:
@@ -125,7 +128,7 @@ class DaskBackend:
     def _connect(distributed: Any, scheduler: str, timeout: float) -> Any:
         """A client of a running scheduler that has at least one worker."""
         if not isinstance(scheduler, str) or not scheduler.strip():
-            raise ClusterError(f"--scheduler: not an address: {scheduler!r} (expected "
+            raise CampaignError(f"--scheduler: not an address: {scheduler!r} (expected "
                                "tcp://HOST:PORT)")
         _probe(scheduler, timeout)
         why = None
@@ -135,13 +138,13 @@ class DaskBackend:
             why = _short(exc)
         if why is not None:
             _collect_quietly()  # the half-built client's __del__ would print a traceback
-            raise ClusterError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
+            raise CampaignError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
                                f"within {timeout:g} s ({why})")
         try:
             client.wait_for_workers(1, timeout=timeout)
         except (OSError, TimeoutError) as exc:
             client.close()
-            raise ClusterError(f"--scheduler {scheduler}: the scheduler has no worker "
+            raise CampaignError(f"--scheduler {scheduler}: the scheduler has no worker "
                                f"(none joined within {timeout:g} s: {type(exc).__name__})"
                                ) from None
         return client
@@ -184,7 +187,7 @@ class DaskBackend:
         from distributed.scheduler import KilledWorker
 
         if self._client is None:
-            raise ClusterError("the Dask backend is closed")
+            raise CampaignError("the Dask backend is closed")
         batch = list(items)
         if not batch:
             return
@@ -220,7 +223,7 @@ class DaskBackend:
                         continue
                     fut.result()  # re-raises fn's own exception with its traceback
                 if fut.status == "cancelled":
-                    raise ClusterError(f"batch {i}: cancelled by the scheduler "
+                    raise CampaignError(f"batch {i}: cancelled by the scheduler "
                                        f"{self.scheduler or '(LocalCluster)'}")
                 result = fut.result()
                 pending.pop(fut.key, None)
@@ -273,14 +276,14 @@ def _probe(scheduler: str, timeout: float) -> None:
         parts = urlsplit(scheduler if "://" in scheduler else f"tcp://{scheduler}")
         host, port = parts.hostname, parts.port
     except ValueError as exc:
-        raise ClusterError(f"--scheduler {scheduler}: not an address ({exc}; expected "
+        raise CampaignError(f"--scheduler {scheduler}: not an address ({exc}; expected "
                            "tcp://HOST:PORT)") from None
     if not host or port is None:
-        raise ClusterError(f"--scheduler {scheduler}: not an address (expected tcp://HOST:PORT)")
+        raise CampaignError(f"--scheduler {scheduler}: not an address (expected tcp://HOST:PORT)")
     try:
         socket.create_connection((host, port), timeout=timeout).close()
     except OSError as exc:
-        raise ClusterError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
+        raise CampaignError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
                            f"({exc.strerror or type(exc).__name__})") from None
 
 

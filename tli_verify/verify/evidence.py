@@ -124,7 +124,9 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
                    certificate: str | os.PathLike[str], seed: int, examples: int, runs: int,
                    violations: Mapping[str, int], modulation: bool, partial: bool = False,
                    backend: str | None = None, workers: int | None = None,
-                   counterexample: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                   counterexample: Mapping[str, Any] | None = None,
+                   inconclusive: int | None = None,
+                   expected: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The evidence document of one finished campaign (with its digest).
 
     Parameters
@@ -153,6 +155,11 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         Worker count (informational).
     counterexample : mapping, optional
         The shrunk counterexample, when one was found.
+    inconclusive : int, optional
+        Runs whose reachability the oracle could not decide (informational).
+    expected : mapping str -> str, optional
+        ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
+        that changed since is refused.
 
     Returns
     -------
@@ -162,7 +169,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     Raises
     ------
     EvidenceError
-        (exit 2) A file is missing, or a field is out of range (the schema names it).
+        (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
+        range (the schema names it).
     """
     from tli_verify import __version__
     from tli_verify.model import validate_schema
@@ -186,6 +194,14 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         "violations": {"total": sum(by_kind.values()), "by_kind": by_kind},
         "counterexample": None if counterexample is None else dict(counterexample),
     }
+    if inconclusive is not None:
+        doc["campaign"]["inconclusive"] = int(inconclusive)
+    for key, sha in (expected or {}).items():
+        if doc[key]["sha256"] != sha:
+            raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
+                                f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
+                                f"{doc[key]['sha256'][:12]}... now): re-run the campaign",
+                                exit_code=2)
     doc["digest"] = evidence_digest(doc)
     validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
     return doc
@@ -220,42 +236,77 @@ def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any
     return doc
 
 
-def write_campaign_evidence(config: Any, result: Any,
-                            path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Write the evidence of a finished campaign (``tli verify ... --evidence``).
+def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[str] | None = None
+                            ) -> tuple[Path, dict[str, Any]]:
+    """Write the evidence of a finished campaign (``tli verify ... --evidence [PATH]``).
 
     Parameters
     ----------
     config : tli_verify.verify.campaign.CampaignConfig
-        Its ``world``, ``spec``, ``model``, ``certificate``, ``seed``, ``examples``,
-        ``modulation``, ``backend`` and ``workers``; the three files must be set (resolved).
+        Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
     result : tli_verify.verify.campaign.CampaignResult
-        Its ``runs``, ``violations`` (kind -> count), ``counterexample`` and ``partial``.
-    path : path-like
-        Where to write it.
+        Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
+        ``inconclusive`` and ``files`` (the spec, model and certificate the campaign ran, with
+        the SHA-256 it ran them at).
+    path : path-like, optional
+        Where to write it (default: :func:`evidence_path_for` the model, under the model's
+        project: ``models/NAME.model.json`` -> ``certificates/NAME.campaign.json``).
 
     Returns
     -------
-    dict
-        The document written (evidence of a violating or partial campaign is written too, as an
-        honest record, and the gate refuses it).
+    (Path, dict)
+        The file and the document written. Evidence of a violating or partial campaign is
+        written too, as an honest record; the gate refuses it.
+
+    Raises
+    ------
+    EvidenceError
+        (exit 2) A file changed since the campaign hashed it, or is missing.
+    OutputError
+        (exit 2) The path cannot be written.
     """
-    missing = [k for k in ("spec", "model", "certificate") if getattr(config, k, None) is None]
-    if missing:
-        raise EvidenceError(f"{path}: campaign evidence needs the campaign's files; "
-                            f"{', '.join(missing)} not set", exit_code=2)
+    files = _campaign_files(config, result)
+    model = files["model"][0]
+    target = Path(path) if path is not None else evidence_path_for(model, model.parent.parent)
     counterexample = getattr(result, "counterexample", None)
     if counterexample is not None and not isinstance(counterexample, Mapping):
         to_json = getattr(counterexample, "to_json", None)
         counterexample = to_json() if callable(to_json) else {"repr": repr(counterexample)}
     backend = getattr(config, "backend", None)
-    return write_evidence(
-        path, world=str(config.world), spec=config.spec, model=config.model,
-        certificate=config.certificate, seed=int(config.seed), examples=int(config.examples),
-        runs=int(result.runs), violations=_counts(result.violations),
-        modulation=bool(config.modulation), partial=bool(getattr(result, "partial", False)),
+    inconclusive = getattr(result, "inconclusive", None)
+    doc = write_evidence(
+        target, world=str(config.world), spec=files["spec"][0], model=model,
+        certificate=files["certificate"][0], seed=int(config.seed),
+        examples=int(config.examples), runs=int(result.runs),
+        violations=_counts(result.violations), modulation=bool(config.modulation),
+        partial=bool(getattr(result, "partial", False)),
         backend=None if backend is None else str(backend),
-        workers=getattr(config, "workers", None), counterexample=counterexample)
+        workers=getattr(config, "workers", None), counterexample=counterexample,
+        inconclusive=None if inconclusive is None else int(inconclusive),
+        expected={k: h for k, (_, h) in files.items() if h is not None})
+    return target, doc
+
+
+def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | None]]:
+    """name -> (path, SHA-256 the campaign ran it at) from ``result.files`` (paths relative to
+    the repository root or absolute), else from the config."""
+    files = getattr(result, "files", None) or {}
+    out: dict[str, tuple[Path, str | None]] = {}
+    for name in ("spec", "model", "certificate"):
+        entry = files.get(name)
+        if isinstance(entry, Mapping) and entry.get("path"):
+            p = Path(str(entry["path"]))
+            if not p.is_absolute():
+                from tli_verify.io import bundled_dir
+
+                p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+            out[name] = (p, str(entry.get("sha256") or "") or None)
+        elif getattr(config, name, None):
+            out[name] = (Path(getattr(config, name)), None)
+        else:
+            raise EvidenceError(f"campaign evidence needs the campaign's {name} file; neither "
+                                "the result nor the config names it", exit_code=2)
+    return out
 
 
 def _counts(violations: Any) -> dict[str, int]:
