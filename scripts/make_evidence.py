@@ -47,9 +47,13 @@ def _world_map(items: list[str]) -> dict[str, str]:
 
 
 def _run(args: argparse.Namespace) -> int:
+    import importlib
+
     from tli_verify.io import bundled_dir
-    from tli_verify.verify.campaign import CampaignConfig, run_campaign
     from tli_verify.worlds import WORLDS
+
+    campaign = importlib.import_module("tli_verify.verify.campaign")  # the verify branch's
+    CampaignConfig, run_campaign = campaign.CampaignConfig, campaign.run_campaign
 
     root = args.root if args.root is not None else bundled_dir("models").parent
     models = sorted((root / "models").glob("*.model.json"))

@@ -458,10 +458,13 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         from tli_verify.verify.campaign import CampaignConfig, run_campaign
     except ImportError as exc:
         return False, f"cannot re-run the campaign: {exc}"
-    config = CampaignConfig(world=check.world, spec=Path(check.spec_path), model=model,
-                            certificate=Path(check.certificate_path), examples=examples,
-                            seed=check.seed, modulation=True)
+    from tli_verify.verify.evidence import settings_for_config
+
     try:
+        config = CampaignConfig(world=check.world, spec=str(check.spec_path), model=str(model),
+                                certificate=str(check.certificate_path), examples=examples,
+                                seed=check.seed, modulation=True,
+                                **settings_for_config(dict(check.settings), CampaignConfig))
         result = run_campaign(config)
     except TliError as exc:
         return False, f"the re-run campaign failed: {exc}"
@@ -472,6 +475,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     if getattr(result, "partial", False):
         return False, f"{what}: interrupted, incomplete"
     if found:
-        kinds = ", ".join(f"{k}: {v}" for k, v in sorted(found.items()))
-        return False, f"{what}: {sum(found.values())} violation(s) ({kinds})"
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
+        return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
+                       f"reproduce: tli verify --world {check.world} --seed {check.seed} "
+                       f"--examples {examples} --model {model}")
     return True, f"{what}: 0 violations"

@@ -48,6 +48,7 @@ __all__ = [
     "evidence_digest",
     "evidence_path_for",
     "model_stem",
+    "settings_for_config",
     "write_campaign_evidence",
     "write_evidence",
 ]
@@ -126,6 +127,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
                    backend: str | None = None, workers: int | None = None,
                    counterexample: Mapping[str, Any] | None = None,
                    inconclusive: int | None = None,
+                   settings: Mapping[str, Any] | None = None,
                    expected: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The evidence document of one finished campaign (with its digest).
 
@@ -157,6 +159,9 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         The shrunk counterexample, when one was found.
     inconclusive : int, optional
         Runs whose reachability the oracle could not decide (informational).
+    settings : mapping, optional
+        The campaign's other parameters (``max_pushes``, ``window``, ``levels``, ``lag``, ...;
+        JSON values): ``tli gate --rerun`` runs with them again.
     expected : mapping str -> str, optional
         ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
         that changed since is refused.
@@ -196,6 +201,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     }
     if inconclusive is not None:
         doc["campaign"]["inconclusive"] = int(inconclusive)
+    if settings is not None:
+        doc["campaign"]["settings"] = {str(k): v for k, v in settings.items()}
     for key, sha in (expected or {}).items():
         if doc[key]["sha256"] != sha:
             raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
@@ -283,8 +290,43 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
         backend=None if backend is None else str(backend),
         workers=getattr(config, "workers", None), counterexample=counterexample,
         inconclusive=None if inconclusive is None else int(inconclusive),
-        expected={k: h for k, (_, h) in files.items() if h is not None})
+        settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
+
+
+_CORE = frozenset({"world", "spec", "model", "certificate", "examples", "seed", "modulation",
+                   "workers", "backend", "scheduler"})
+"""Config fields recorded elsewhere in the evidence, or where (not what) the campaign ran."""
+
+
+def _settings(config: Any) -> dict[str, Any]:
+    """The config's other fields with JSON values (tuples as lists), for a faithful re-run."""
+    import dataclasses
+
+    if not dataclasses.is_dataclass(config):
+        return {}
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(config):
+        if f.name in _CORE:
+            continue
+        value = getattr(config, f.name)
+        if isinstance(value, tuple):
+            value = list(value)
+        if value is None or isinstance(value, bool | int | float | str) or (
+                isinstance(value, list)
+                and all(isinstance(v, bool | int | float | str) for v in value)):
+            out[f.name] = value
+    return out
+
+
+def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[str, Any]:
+    """Recorded settings as keyword arguments of ``config_type`` (lists back to tuples; fields
+    it does not have are dropped)."""
+    import dataclasses
+
+    names = {f.name for f in dataclasses.fields(config_type)} - _CORE
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()
+            if k in names}
 
 
 def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | None]]:
@@ -341,6 +383,8 @@ class EvidenceCheck:
         The campaign's, when the file could be read.
     model_path, spec_path, certificate_path : str or None
         The files it binds (resolved), when the file could be read.
+    settings : tuple of (str, object)
+        The campaign's other recorded parameters (``campaign.settings``).
     """
 
     path: str
@@ -353,6 +397,7 @@ class EvidenceCheck:
     model_path: str | None = None
     spec_path: str | None = None
     certificate_path: str | None = None
+    settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -437,7 +482,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                          seed=int(camp["seed"]), examples=int(camp["examples"]),
                          runs=int(camp["runs"]), model_path=str(mpath),
                          spec_path=str(named["spec"]),
-                         certificate_path=str(named["certificate"]))
+                         certificate_path=str(named["certificate"]),
+                         settings=tuple(sorted(camp.get("settings", {}).items())))
 
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
@@ -537,6 +583,8 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     if examples < min_examples:
         out.append(f"{shown}: {examples} example(s), fewer than the minimum {min_examples} "
                    "(MIN_EVIDENCE_EXAMPLES)")
+    if (camp.get("settings") or {}).get("max_pushes", 1) == 0:
+        out.append(f"{shown}: the campaign perturbed nothing (max_pushes 0): not evidence")
     if runs < examples:
         out.append(f"{shown}: {runs} run(s) for {examples} examples: every example is at "
                    "least one run")
