@@ -437,8 +437,9 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
 
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
-    """``tli gate --rerun N``: a short campaign with the evidence's seed and world, modulation
-    on, on the deployed files.
+    """``tli gate --rerun N``: a short campaign with the evidence's seed, world and settings,
+    modulation on, on the deployed files; not shrunk (the line says how to reproduce it), in
+    this process when ``N`` fits in one batch.
 
     Parameters
     ----------
@@ -460,11 +461,16 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"cannot re-run the campaign: {exc}"
     from tli_verify.verify.evidence import settings_for_config
 
+    settings = settings_for_config(dict(check.settings), CampaignConfig)
+    # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool
+    # would only add its start-up)
+    settings["shrink"] = False
+    single = examples <= int(settings.get("batch_size", 100))
     try:
         config = CampaignConfig(world=check.world, spec=str(check.spec_path), model=str(model),
                                 certificate=str(check.certificate_path), examples=examples,
                                 seed=check.seed, modulation=True,
-                                **settings_for_config(dict(check.settings), CampaignConfig))
+                                backend="serial" if single else "process", **settings)
         result = run_campaign(config)
     except TliError as exc:
         return False, f"the re-run campaign failed: {exc}"
