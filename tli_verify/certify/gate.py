@@ -417,9 +417,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
         valid = [c for c, _ in certified.get(model.resolve(), [])]
         check = check_evidence(evidence, model_path=model, valid_certificates=valid)
         if not check.ok:
-            more = f" (+{len(check.problems) - 1} more)" if len(check.problems) > 1 else ""
             items.append(GateItem("model", name, False, f"{shown(evidence)}: "
-                                  f"{check.problems[0]}{more}", "campaign"))
+                                  f"{'; '.join(check.problems)}", "campaign"))
             continue
         items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on world "
                               f"{check.world!r} with seed {check.seed}: {check.examples} "

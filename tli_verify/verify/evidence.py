@@ -471,7 +471,8 @@ def check_evidence(path: str | os.PathLike[str], *,
     if model_path is not None and not _same_file(named["model"], mpath):
         problems.append(f"{shown}: model.path {doc['model']['path']!r} ({named['model']}) is "
                         f"not the deployed model {mpath}: the evidence binds another model")
-    problems += _check_files(doc, shown, mpath, named, passed)
+    seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
+    problems += _check_files(doc, shown, mpath, named, seen, passed)
     if valid_certificates is not None and named["certificate"].is_file() and not any(
             _same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
@@ -504,8 +505,9 @@ def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str])
 
 
 def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],
-                 passed: list[str]) -> list[str]:
-    """The three hashes; the spec is the model's; the certificate covers the model."""
+                 seen: Mapping[str, Path], passed: list[str]) -> list[str]:
+    """The three hashes; the spec is the model's; the certificate covers the model. ``named``:
+    the files resolved as the OS opens them; ``seen``: as the evidence names them (messages)."""
     from tli_verify.model import load_model, read_json
 
     out: list[str] = []
@@ -529,19 +531,19 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
         out.append(f"{shown}: spec.path {doc['spec']['path']!r} ({spec}) is not the spec the "
                    f"model names ({model.spec_path}): the campaign ran another spec")
     elif not spec.is_file():
-        out.append(f"{shown}: spec file {spec} not found")
+        out.append(f"{shown}: spec file {seen['spec']} not found")
     elif (sha := sha256_file(spec)) != doc["spec"]["sha256"]:
-        out.append(f"{spec}: SHA-256 {_short(sha)} differs from the evidence's "
+        out.append(f"{seen['spec']}: SHA-256 {_short(sha)} differs from the evidence's "
                    f"{_short(doc['spec']['sha256'])}: the spec changed after the campaign")
     else:
-        passed.append(f"spec {spec} is the model's and matches its SHA-256")
+        passed.append(f"spec {seen['spec']} is the model's and matches its SHA-256")
     cert = named["certificate"]
     if not cert.is_file():
-        out.append(f"{shown}: certificate file {cert} not found")
+        out.append(f"{shown}: certificate file {seen['certificate']} not found")
         return out
     sha = sha256_file(cert)
     if sha != doc["certificate"]["sha256"]:
-        out.append(f"{cert}: SHA-256 {_short(sha)} differs from the evidence's "
+        out.append(f"{seen['certificate']}: SHA-256 {_short(sha)} differs from the evidence's "
                    f"{_short(doc['certificate']['sha256'])}: the certificate changed after the "
                    "campaign")
         return out
@@ -549,12 +551,14 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
         cert_doc = read_json(cert, what="certificate", error=EvidenceError)
         cert_model = str(cert_doc["model"]["sha256"])
     except (EvidenceError, KeyError, TypeError):
-        return [*out, f"{shown}: certificate {cert} is not a readable certificate"]
+        return [*out, f"{shown}: certificate {seen['certificate']} is not a readable "
+                "certificate"]
     if cert_model != model_sha:
         out.append(f"{shown}: certificate {doc['certificate']['path']!r} covers model "
                    f"{_short(cert_model)}, not {mpath} ({_short(model_sha)})")
     else:
-        passed.append(f"certificate {cert} matches its SHA-256 and covers the model")
+        passed.append(f"certificate {seen['certificate']} matches its SHA-256 and covers the "
+                      "model")
     return out
 
 
