@@ -210,6 +210,16 @@ def test_garbage_evidence_blocks_with_one_line(project: Path, content: bytes,
     assert "Traceback" not in err and "internal error" not in err
 
 
+def test_a_fifo_or_directory_in_place_of_the_evidence_blocks_without_reading(
+        project: Path) -> None:
+    (project / EVIDENCE).unlink()
+    os.mkfifo(project / EVIDENCE)  # reading it would block forever
+    assert "not a regular file" in only_campaign_blocks(project)
+    (project / EVIDENCE).unlink()
+    (project / EVIDENCE).mkdir()
+    assert "is a directory" in only_campaign_blocks(project)
+
+
 def test_a_huge_evidence_file_is_not_read(project: Path) -> None:
     with open(project / EVIDENCE, "wb") as handle:
         handle.truncate(MAX_INPUT_BYTES + 1)  # sparse: nothing is written, nothing read

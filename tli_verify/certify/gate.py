@@ -428,7 +428,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
             ok, message = (runner or rerun_campaign)(check, model, int(rerun))
             items.append(GateItem("model", name, ok, message, "rerun"))
     for evidence in _files(base / "certificates", "*" + EVIDENCE_SUFFIX):
-        if Path(os.path.normpath(evidence.absolute())) not in claimed:
+        if evidence.name.endswith(EVIDENCE_SUFFIX) and \
+                Path(os.path.normpath(evidence.absolute())) not in claimed:
             items.append(GateItem("evidence", shown(evidence), False, "binds no deployed "
                                   "model (the gate looks for models/<name>.model.json next to "
                                   "certificates/<name>.campaign.json)", "campaign"))
