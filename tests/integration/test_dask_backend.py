@@ -138,3 +138,19 @@ def test_import_tli_verify_never_imports_dask() -> None:
 
 def _states(dask_scheduler: object) -> dict[str, str]:
     return {str(k): v.state for k, v in dask_scheduler.tasks.items()}  # type: ignore[attr-defined]
+
+
+def test_a_local_cluster_that_cannot_start_is_a_campaign_error() -> None:
+    """Worker processes are spawned from ``__main__``: a program read from stdin has no file to
+    re-import, so they die at start-up; the driver gets one CampaignError, not Dask's."""
+    code = ("from tli_verify.verify.dask_backend import DaskBackend\n"
+            "from tli_verify.errors import CampaignError\n"
+            "try:\n"
+            "    DaskBackend(workers=1)\n"
+            "except CampaignError as exc:\n"
+            "    print('CampaignError', exc.exit_code, exc)\n")
+    root = str(Path(__file__).resolve().parents[2])
+    out = subprocess.run([sys.executable, "-"], input=code, capture_output=True, text=True,
+                         check=True, env={**os.environ, "PYTHONPATH": root}, timeout=120)
+    assert out.stdout.startswith("CampaignError 2 --backend dask: cannot start a LocalCluster "
+                                 "of 1 worker process(es)"), out.stdout

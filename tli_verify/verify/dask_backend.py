@@ -109,11 +109,18 @@ class DaskBackend:
                 raise CampaignError(f"--workers: must be at least 1, got {workers}")
             # loopback only; no dashboard; the scheduler's HTTP endpoints on a free port
             # (its default 8787 may be taken by another cluster: a warning, not an error)
-            self._cluster = distributed.LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address=None, silence_logs=logging.CRITICAL,
-                scheduler_kwargs={"allowed_failures": 0, "dashboard": False,
-                                  "dashboard_address": "127.0.0.1:0"})
+            try:
+                self._cluster = distributed.LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                    dashboard_address=None, silence_logs=logging.CRITICAL,
+                    scheduler_kwargs={"allowed_failures": 0, "dashboard": False,
+                                      "dashboard_address": "127.0.0.1:0"})
+            except Exception as exc:  # e.g. worker processes that cannot start (no __main__)
+                cause = exc.__cause__ or exc
+                raise CampaignError(f"--backend dask: cannot start a LocalCluster of {n} "
+                                    f"worker process(es): {_short(exc)}"
+                                    + (f" ({_short(cause)})" if cause is not exc else "")
+                                    ) from None
             try:
                 self._client = distributed.Client(self._cluster, set_as_default=False)
             except BaseException:
