@@ -119,7 +119,21 @@ def _scheduler_keys(dask_scheduler: object) -> list[str]:
     return sorted(str(k) for k in dask_scheduler.tasks)  # type: ignore[attr-defined]
 
 
-def test_an_unreachable_scheduler_is_a_cluster_error() -> None:
+def test_connecting_to_a_running_scheduler(backend: DaskBackend) -> None:
+    """``--scheduler ADDR``: a second client of the fixture's cluster; closing it leaves the
+    cluster running."""
+    cluster = backend._cluster
+    assert cluster is not None
+    remote = DaskBackend(scheduler=cluster.scheduler_address, connect_timeout=10)
+    try:
+        assert remote.workers >= 1
+        assert dict(remote.map_unordered(batch_sum, [(1, [2, 3], 0.0)])) == {0: (1, 13)}
+    finally:
+        remote.close()
+    assert dict(backend.map_unordered(batch_sum, [(2, [4], 0.0)])) == {0: (2, 16)}
+
+
+def test_an_unreachable_scheduler_is_a_campaign_error() -> None:
     with pytest.raises(CampaignError, match=r"--scheduler tcp://127.0.0.1:1: cannot reach"):
         DaskBackend(scheduler="tcp://127.0.0.1:1", connect_timeout=2)
     with pytest.raises(CampaignError, match="not an address"):
