@@ -12,6 +12,7 @@ __all__ = [
     "CampaignError",
     "CertificateError",
     "DemoError",
+    "EvidenceError",
     "GateError",
     "ModelError",
     "OutputError",
@@ -73,6 +74,13 @@ class SolverError(TliError):
 
 class CertificateError(TliError):
     """A certificate is malformed, or does not re-check exactly."""
+
+    exit_code = 1
+
+
+class EvidenceError(TliError):
+    """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
+    the deployed files."""
 
     exit_code = 1
 
