@@ -482,14 +482,16 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
         seq = mode_string(r)
         if len(seq) > 14:
             seq = seq[:12] + "..."
-        verdict = "reaches d" if r.success else f"no d in {r.steps} steps"
+        goal = "d" if world.name == "scoop" else "the goal"
+        verdict = f"reaches {goal}" if r.success else f"no {goal} in {r.steps} steps"
         ax.set_title(f"{label + ': ' if label else ''}{seq} ({verdict}, {r.cuts_added} cuts)",
                      fontsize=9)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
-        ax.set_xlabel("x1 (spoon orientation)", fontsize=8)
-        ax.set_ylabel("x2 (distance to soup)", fontsize=8)
+        scoop = world.name == "scoop"
+        ax.set_xlabel("x1 (spoon orientation)" if scoop else "x1", fontsize=8)
+        ax.set_ylabel("x2 (distance to soup)" if scoop else "x2", fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
