@@ -219,7 +219,8 @@ def world_setup(world: str, *, model: Path | None = None, certificate: Path | No
         certificate=(certificate if certificate is not None
                      else bundled_dir("certificates") / bundle.certificate_file),
         spec=spec, lag=lag)
-    return dataclasses.replace(setup, world=WORLDS[world](lag=lag)), bundle
+    world_model: Any = WORLDS[world](lag=lag)  # Setup is typed for scoop; any World runs
+    return dataclasses.replace(setup, world=world_model), bundle
 
 
 def initial_start(setup: Any, rng: Any, *, tries: int = 10000) -> Any:
