@@ -1,8 +1,9 @@
 """Learn and certify the bundled models of the cooking, color-tracing and inspection worlds.
 
-Usage: ``.venv/bin/python scripts/make_models.py [--world cooking|color-tracing|inspection|all]``
-(from the repository root). Every step is a ``tli`` command, printed before it runs and run
-in-process through :func:`tli_verify.cli.main`, so each line can be pasted into a shell:
+Usage: ``.venv/bin/python scripts/make_models.py [--world cooking|color-tracing|inspection|all]
+[--check N [--perturbations K]]`` (from the repository root; ``--check`` learns nothing: it runs
+N seeded perturbed ``tli run`` episodes per bundled spec and prints the success counts).
+Every step is a ``tli`` command, printed before it runs and run in-process through :func:`tli_verify.cli.main`, so each line can be pasted into a shell:
 
 * **inspection**: ``tli learn demos/inspection_*.csv --spec specs/inspection.toml`` (two modes,
   learned with the spec), then ``tli certify``;
@@ -95,17 +96,62 @@ def make(world: str) -> list[Path]:
     return out
 
 
+def check(world: str, episodes: int, perturbations: int) -> None:
+    """Closed-loop success of every bundle of a world on seeded perturbed episodes.
+
+    Prints, per bundle: LTL-DS success, episodes with an assumption violation (a perturbation
+    or a DS crossing into a region the spec's assumptions rule out), cuts learned. Seeds
+    ``0 .. episodes-1``, as ``tli run --world W --spec S --seed K --perturb random:N``.
+    """
+    import numpy as np
+
+    from tli_verify.commands.run import (
+        REGISTRY,
+        bundle_policy,
+        initial_start,
+        parse_perturb,
+        world_setup,
+    )
+    from tli_verify.experiments.scoop import random_start, run_variant
+    from tli_verify.runtime.events import AssumptionViolationEvent
+
+    for bundle in REGISTRY[world]:
+        setup, _ = world_setup(world, spec=ROOT / "specs" / f"{bundle.spec}.toml")
+        ok = violated = cuts = 0
+        for seed in range(episodes):
+            pert = parse_perturb([f"random:{perturbations}"], seed=seed, world=setup.world)
+            rng = np.random.default_rng([seed, 3])
+            x0 = (random_start(setup.world, rng) if world == "scoop"
+                  else initial_start(setup, rng))
+            res = run_variant(setup, "LTL-DS", x0, pert, policy=bundle_policy(setup, "LTL-DS",
+                                                                               bundle))
+            ok += bool(res.success)
+            violated += any(isinstance(e, AssumptionViolationEvent) for e in res.events)
+            cuts += res.cuts_added
+        sys.stdout.write(f"{bundle.spec}: LTL-DS reached the goal in {ok}/{episodes} episodes "
+                         f"(random:{perturbations}); {violated} with an assumption violation; "
+                         f"{cuts} cut(s)\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
     import os
 
     parser = argparse.ArgumentParser(prog="make_models.py")
     parser.add_argument("--world", choices=[*SHARED, *WITH_SPEC, "all"], default="all")
+    parser.add_argument("--check", type=int, default=0, metavar="N",
+                        help="instead of learning: run N seeded perturbed episodes per bundled "
+                        "spec and print the success counts")
+    parser.add_argument("--perturbations", type=int, default=2, metavar="K",
+                        help="random perturbations per --check episode (default 2)")
     args = parser.parse_args(argv)
     os.chdir(ROOT)
     names = [*SHARED, *WITH_SPEC] if args.world == "all" else [args.world]
     for world in names:
-        make(world)
+        if args.check > 0:
+            check(world, args.check, args.perturbations)
+        else:
+            make(world)
     return 0
 
 
