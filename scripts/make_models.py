@@ -3,7 +3,8 @@
 Usage: ``.venv/bin/python scripts/make_models.py [--world cooking|color-tracing|inspection|all]
 [--check N [--perturbations K]]`` (from the repository root; ``--check`` learns nothing: it runs
 N seeded perturbed ``tli run`` episodes per bundled spec and prints the success counts).
-Every step is a ``tli`` command, printed before it runs and run in-process through :func:`tli_verify.cli.main`, so each line can be pasted into a shell:
+Every step is a ``tli`` command, printed before it runs and run in-process through
+:func:`tli_verify.cli.main`, so each line can be pasted into a shell:
 
 * **inspection**: ``tli learn demos/inspection_*.csv --spec specs/inspection.toml`` (two modes,
   learned with the spec), then ``tli certify``;
