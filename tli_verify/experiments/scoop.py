@@ -190,12 +190,17 @@ class SequencePolicy(LTLDSPolicy):
     def __init__(self, automaton: TaskAutomaton, model: Model,
                  certificate: str | os.PathLike[str], **kwargs: Any) -> None:
         super().__init__(automaton, model, certificate, **kwargs)
+        state: int | None = automaton.initial[0]
         seq = [automaton.states[automaton.initial[0]].mode]
-        while len(seq) <= len(model.modes):
+        while len(seq) <= len(model.modes) and state is not None:
             mm = model.modes.get(seq[-1])
-            if mm is None or mm.next_mode is None:
+            # a mode with per-transition DS only (cooking's w1 -> y): the automaton's plan
+            nxt = mm.next_mode if mm is not None else self._plan(state)
+            if nxt is None:
                 break
-            seq.append(mm.next_mode)
+            seq.append(nxt)
+            state = next((t.target for t in automaton.transitions if t.source == state
+                          and automaton.states[t.target].mode == nxt), None)
         self._seq: tuple[str, ...] = tuple(seq)
         self._idx = 0
 
