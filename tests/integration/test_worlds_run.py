@@ -76,6 +76,16 @@ def test_cooking_c_runs_the_detour_ds_after_a_push_into_the_broccoli(
     assert [m for m, _ in rec["mode_trace"]] == ["w", "g", "w", "y", "d"]
 
 
+def test_no_replan_runs_a_model_with_per_transition_ds_only(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # cooking-cb's w1 has only 'w1->y': the open-loop sequence follows the automaton's plan
+    # (it used to stop at w1 and exit 2, "no DS for 'w1'")
+    code, rec = _run(["--world", "cooking", "--seed", "3", "--perturb", "random:2",
+                      "--no-replan", "--out", str(tmp_path)], capsys)
+    assert code in (0, 1) and rec["variant"] == "no-replan"
+    assert [m for m, _ in rec["mode_trace"]][:2] == ["w1", "y"]
+
+
 def _ds_arrays(entry: dict) -> str:
     """The DS of a model entry as canonical text (everything but its mode names)."""
     return json.dumps({k: v for k, v in entry.items() if k not in ("mode", "next_mode")},
