@@ -28,7 +28,7 @@ dark -> white -> yellow -> dark, ``specs/cooking-bc.toml``), and a detour (white
 white -> yellow -> dark: the green -> white that ``specs/cooking-c.toml`` runs after a push into
 the broccoli, demonstrated by no order). Learned once without a spec they give one DS per
 demonstrated *sensor* transition, named by the readings (``tli learn`` without ``--spec``);
-:func:`tli_verify.worlds.rebind.rebind_model` binds that one set of DS, bit for bit, to each of
+:func:`tli_verify.rebind.rebind_model` binds that one set of DS, bit for bit, to each of
 the four automata of ``cooking-cb/bc/c/cc`` through their mode labels
 (``scripts/make_models.py``).
 """
