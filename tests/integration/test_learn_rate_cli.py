@@ -46,7 +46,11 @@ def test_default_contracts_and_rate_zero_is_the_old_learner(
     for key, (rate, _, fit_rate) in plain.items():
         assert fit_rate == 0.0
         assert "control_dt" not in json.loads(old.read_text())["modes"][key]["fit"]
-        assert rate < 0.01, key  # the margin eps = 1e-3 only: barely contracting
+        assert rate >= 1e-3 * (1 - 1e-3), key  # the margin eps = 1e-3 is all it guarantees
+    # ... and on the bundled demos it leaves DS barely contracting (a, b, c at about eps; the
+    # goal mode d's fit happens to contract fast by itself), which the default never does
+    barely = sorted(k for k, (rate, _, _) in plain.items() if rate < 0.01)
+    assert barely and set(barely) >= {"a", "b", "c"}, plain
 
 
 def test_rate_and_control_dt_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:

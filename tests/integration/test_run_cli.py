@@ -37,14 +37,18 @@ def test_json_fields_and_success(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 
 def test_no_modulation_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    _, out1, _ = _run(["run", "--world", "scoop", "--seed", "2", "--perturb", "random:3",
-                       "--out", str(tmp_path / "a"), "--json"], capsys)
-    _, out2, _ = _run(["run", "--world", "scoop", "--seed", "2", "--perturb", "random:3",
-                       "--no-modulation", "--out", str(tmp_path / "b"), "--json"], capsys)
+    # seed 19: the perturbations leave the spoon where the unmodulated system loops a -> b
+    # -> a ... (Fig. 7); LTL-DS cuts the b -> a failure once and reaches d
+    code1, out1, _ = _run(["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3",
+                           "--out", str(tmp_path / "a"), "--json"], capsys)
+    code2, out2, _ = _run(["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3",
+                           "--no-modulation", "--out", str(tmp_path / "b"), "--json"], capsys)
     a, b = json.loads(out1), json.loads(out2)
     assert a["perturbations"] == b["perturbations"]
     assert a["cuts_added"] >= 1 and b["cuts_added"] == 0
     assert a["mode_trace"] != b["mode_trace"]
+    assert (code1, a["success"]) == (0, True) and (code2, b["success"]) == (1, False)
+    assert b["mode_sequence"].startswith("ababab") and b["steps"] == 3000
 
 
 def test_explicit_perturbation_is_applied(tmp_path: Path,
@@ -114,7 +118,7 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
     from tli_verify.model import load_model
 
     saved = tmp_path / "m" / "learned.model.json"
-    args = ["run", "--world", "scoop", "--seed", "2", "--perturb", "random:3", "--json"]
+    args = ["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3", "--json"]
     code, out, err = _run([*args, "--out", str(tmp_path / "a"), "-o", str(saved)], capsys)
     first = json.loads(out)
     assert code == 0 and first["cuts_added"] == 1, err

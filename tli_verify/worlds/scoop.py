@@ -28,7 +28,8 @@ change the world can produce -- even under arbitrary jumps of the state -- is on
 assumptions allow: ``a -> a|b``, ``b -> a|b|c``, ``c -> a|b|c|d``, ``d -> d``.
 
 The scripted demonstrator moves the spoon from white (upper left) down into the soup (yellow),
-sideways into pink (scooping) and up through pink into the green target, timed with a
+scoops -- an arc: down to the bottom of the soup, back up steeply to just under the surface,
+levelling off sideways into pink -- and lifts through pink into the green target, timed with a
 minimum-jerk profile: readings ``a -> b -> c -> d``.
 """
 
@@ -44,7 +45,7 @@ import numpy.typing as npt
 from tli_verify.demos import Demonstration
 from tli_verify.worlds.base import BoolArray, FloatArray, IntArray, WorldBase
 
-__all__ = ["MODE_REGION", "ScoopWorld"]
+__all__ = ["MODE_REGION", "SCOOP_WAYPOINTS", "ScoopWorld"]
 
 X1_COLUMN = (2.0, 6.0)
 """The pink/green column ``2 <= x1 <= 6``."""
@@ -54,6 +55,19 @@ TARGET_X2 = 6.0
 """Green is ``x2 > 6`` in the column; pink is ``x2 <= 6``."""
 TARGET_CENTER = np.array([4.0, 7.0])
 """Where the demonstrations end (the middle of green)."""
+
+SCOOP_WAYPOINTS: tuple[tuple[tuple[float, float], float], ...] = (
+    ((-3.0, -1.5), 1.0),    # above the soup (a: reaching)
+    ((-2.3, -5.2), 0.4),    # in contact (yellow; b: scooping starts)
+    ((-0.5, -6.9), 0.3),    # the bottom of the scoop
+    ((0.8, -6.0), 0.2),     # coming back up ...
+    ((1.2, -4.5), 0.1),     # ... steeply, to just under the surface
+    ((2.3, -4.25), 0.1),    # levelling off sideways into pink: scooped (c: transporting)
+    ((3.6, -3.0), 0.2),     # lifting
+    ((4.0, 1.5), 0.5),      # up through pink
+)
+"""The scripted demonstrator's waypoints between the start and :data:`TARGET_CENTER`:
+``(point, jitter)``; each point moves by ``jitter * N(0, 0.25^2 I)`` per demonstration."""
 
 MODE_REGION = {"a": "white", "b": "yellow", "c": "pink", "d": "green"}
 """The region each mode of ``specs/scoop.toml`` runs in (nominally)."""
@@ -119,22 +133,24 @@ class ScoopWorld(WorldBase):
     def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Demonstration]:
         """Scripted scooping demonstrations (default 3), readings ``a -> b -> c -> d``.
 
-        Waypoints (jittered with the seed): a start in the upper-left white region, above the
-        soup, into the soup (yellow), along the soup to the pink column (scooping), up through
-        pink, the middle of green.
+        Waypoints (jittered with the seed; :data:`SCOOP_WAYPOINTS`): a start in the upper-left
+        white region, down into the soup (yellow), a scooping arc -- dip to the bottom of the
+        soup, come back up steeply to just under its surface and level off sideways into the
+        pink column (the soup is on the spoon) -- then up through pink to the middle of green.
+        The arc is what makes Fig. 7's looping possible: the scooping DS (mode ``b``) learned
+        from it rises near the top of yellow, so from states just under the surface left of
+        pink it leaves the soup back into white (an invariance failure, ``b -> a``), and the
+        reaching DS (``a``) brings the spoon straight back (:mod:`tli_verify.experiments.scoop`,
+        :func:`~tli_verify.experiments.scoop.fig7_search`).
         """
         rng = np.random.default_rng(seed)
         out = []
         for i in range(3 if n_demos is None else int(n_demos)):
             start = np.array([-5.0, 4.5]) + rng.uniform(-1.5, 1.5, size=2)
-            j = rng.normal(scale=0.25, size=(4, 2))
-            waypoints = np.vstack([
-                start,
-                np.array([-3.0, -1.5]) + j[0],      # above the soup
-                np.array([-1.5, -5.8]) + 0.5 * j[1],  # in contact (yellow)
-                np.array([3.6, -5.6]) + 0.5 * j[2],   # scooped: into pink, low
-                np.array([4.0, 1.5]) + 0.5 * j[3],    # transporting up through pink
-                TARGET_CENTER,                        # at the target (green)
-            ])
+            j = rng.normal(scale=0.25, size=(len(SCOOP_WAYPOINTS), 2))
+            waypoints = np.vstack([start]
+                                  + [np.array(p) + s * j[k]
+                                     for k, (p, s) in enumerate(SCOOP_WAYPOINTS)]
+                                  + [TARGET_CENTER])
             out.append(self._demo(str(i + 1), waypoints, self.duration, self.dt))
         return out
