@@ -76,6 +76,17 @@ def test_cooking_c_runs_the_detour_ds_after_a_push_into_the_broccoli(
     assert [m for m, _ in rec["mode_trace"]] == ["w", "g", "w", "y", "d"]
 
 
+def test_a_model_given_without_spec_runs_to_the_goal_of_the_spec_it_names(
+        repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # cooking-cc repeats forever (no sink mode): its bundle names the goal d; --model alone
+    # must pick that bundle through the spec the model names, not the world's default
+    code, rec = _run(["--world", "cooking", "--model",
+                      str(repo / "models" / "cooking-cc.model.json"), "--certificate",
+                      str(repo / "certificates" / "cooking-cc.cert.json"), "--seed", "1",
+                      "--out", str(tmp_path)], capsys)
+    assert code == 0 and [m for m, _ in rec["mode_trace"]] == ["w", "y", "d"]
+
+
 def test_no_replan_runs_a_model_with_per_transition_ds_only(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # cooking-cb's w1 has only 'w1->y': the open-loop sequence follows the automaton's plan

@@ -31,7 +31,6 @@ from tli_verify.commands import output_path
 __all__ = ["REGISTRY", "Bundle", "demo_stage", "parse_perturb", "register", "world_setup"]
 
 
-
 @dataclass(frozen=True, slots=True)
 class Bundle:
     """A shipped (spec, model, certificate) triple of a world, and what its goal is.
@@ -205,8 +204,8 @@ def world_setup(world: str, *, model: Path | None = None, certificate: Path | No
     -------
     setup : tli_verify.experiments.scoop.Setup
     bundle : Bundle
-        The bundle whose goal the episode uses (the default bundle when ``--spec`` names none
-        of the world's; the model's spec is then checked against it by ``bundled_setup``).
+        The bundle whose goal the episode uses: the one of ``--spec``, else of the spec the
+        model names, else the default (``bundled_setup`` checks the spec against the model).
 
     Raises
     ------
@@ -232,6 +231,13 @@ def world_setup(world: str, *, model: Path | None = None, certificate: Path | No
         certificate=(certificate if certificate is not None
                      else bundled_dir("certificates") / bundle.certificate_file),
         spec=spec, lag=lag)
+    named = setup.model.spec_path
+    if spec is None and named is not None:  # --model: the goal of the spec it names
+        for b in bundles:
+            if os.path.realpath(bundled_dir("specs") / f"{b.spec}.toml") == \
+                    os.path.realpath(named):
+                bundle = b
+                break
     world_model: Any = WORLDS[world](lag=lag)  # Setup is typed for scoop; any World runs
     return dataclasses.replace(setup, world=world_model), bundle
 
