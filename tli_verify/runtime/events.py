@@ -120,6 +120,9 @@ class CutAdded:
         The mode's number of cuts now.
     fallback : bool
         Solved keeping only this failure's ``x^0`` inside (not every recorded entry state).
+    shift : float
+        0, or the fraction of the exit step the plane was moved off ``x^{T_f-1}`` because no
+        plane through it separates the failure (``tli_verify.runtime.online.SHIFTS``).
     """
 
     step: int
@@ -128,6 +131,7 @@ class CutAdded:
     cut: Cut
     cuts: int
     fallback: bool
+    shift: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)

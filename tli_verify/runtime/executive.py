@@ -657,7 +657,8 @@ class LTLDSPolicy:
             self.events.append(CutFailed(t, mode, str(exc)))
             return
         self.events.append(CutAdded(t, mode, keys, attempt.cut,
-                                    len(self.model.region_cuts(mode)), attempt.fallback))
+                                    len(self.model.region_cuts(mode)), attempt.fallback,
+                                    attempt.shift))
 
 
 class SensorModel(Protocol):
