@@ -1,8 +1,10 @@
 """Learn and certify the bundled models of the cooking, color-tracing and inspection worlds.
 
 Usage: ``.venv/bin/python scripts/make_models.py [--world cooking|color-tracing|inspection|all]
-[--check N [--perturbations K]]`` (from the repository root; ``--check`` learns nothing: it runs
-N seeded perturbed ``tli run`` episodes per bundled spec and prints the success counts).
+[--check N [--perturbations K]] [--recovery]`` (from the repository root). ``--check`` learns
+nothing: it runs N seeded perturbed ``tli run`` episodes per bundled spec and prints the
+success counts; ``--recovery`` prints the first tile the color-tracing recovery DS enter from
+uniform dark starts.
 Every step is a ``tli`` command, printed before it runs and run in-process through
 :func:`tli_verify.cli.main`, so each line can be pasted into a shell:
 
@@ -134,6 +136,39 @@ def check(world: str, episodes: int, perturbations: int) -> None:
                          f"{cuts} cut(s)\n")
 
 
+def recovery_entries(starts: int = 300, steps: int = 4000) -> None:
+    """Where the color-tracing recovery DS first leave the dark, from uniform dark starts.
+
+    Each dark mode's DS alone (no automaton, no cuts; Euler at dt = 0.01, seed 0) from the
+    same ``starts`` uniform states of the dark region: the first tile each run enters (the
+    dark region is not convex, so Lemma 2 does not promise the re-entry tile).
+    """
+    import numpy as np
+
+    from tli_verify.model import load_model
+    from tli_verify.worlds import ColorTracingWorld
+
+    world = ColorTracingWorld()
+    X0 = world.sample_region("dark", starts, np.random.default_rng(0))
+    names = np.array([*world.region_names, "none"])
+    for spec, mode, nxt in (("color-tracing-a", "d1", "y"), ("color-tracing-b", "d2", "b"),
+                            ("color-tracing-c", "d2", "pk")):
+        model = load_model(ROOT / "models" / f"{spec}.model.json")
+        X = X0.copy()
+        first = np.full(len(X), -1)
+        for _ in range(steps):
+            X = X + 0.01 * model.velocity(X, mode=mode, next_mode=nxt)
+            idx = world.region_index(X)
+            new = (first < 0) & (idx != 0)
+            first[new] = idx[new]
+            if (first >= 0).all():
+                break
+        got = names[np.where(first < 0, len(names) - 1, first)]
+        counts = ", ".join(f"{n} {int((got == n).sum())}" for n in names if (got == n).any())
+        sys.stdout.write(f"{spec} {mode}->{nxt}: first tile entered from {starts} dark "
+                         f"starts: {counts}\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
     import os
@@ -145,8 +180,14 @@ def main(argv: list[str] | None = None) -> int:
                         "spec and print the success counts")
     parser.add_argument("--perturbations", type=int, default=2, metavar="K",
                         help="random perturbations per --check episode (default 2)")
+    parser.add_argument("--recovery", action="store_true",
+                        help="instead of learning: where the color-tracing recovery DS first "
+                        "leave the dark, from 300 uniform dark starts")
     args = parser.parse_args(argv)
     os.chdir(ROOT)
+    if args.recovery:
+        recovery_entries()
+        return 0
     names = [*SHARED, *WITH_SPEC] if args.world == "all" else [args.world]
     for world in names:
         if args.check > 0:
