@@ -49,8 +49,13 @@ demonstration is translated to end on ``x*``, as in appendix D.
 Per-transition DS (paper appendix "Generalization", Fig. 7(b)): when the segments of a mode are
 followed by different next modes, a mode-based DS would average conflicting attractors, so one DS
 is learned per transition instead, keyed ``"<mode>-><next>"`` (attractor from the segments of
-``mode`` followed by ``next``, with the entry-point rule above). Segments that end a
-demonstration (no next mode) keep the plain key ``"<mode>"``. When modes share a label, every
+``mode`` followed by ``next``, with the entry-point rule above). The same holds when a mode hands
+over in some demonstrations and ends others (cooking's pot: passed through after the first
+ingredient, the final mode after the second): the hand-overs get ``"<mode>-><next>"`` and the
+segments that end a demonstration (no next mode) keep the plain key ``"<mode>"``, a DS that stays
+in the mode (its attractor the mean end point; dropped when those segments have fewer than 2
+samples in all, too few to learn from). A mode whose segments all hand over to one next mode, or
+all end their demonstration, has the plain key only. When modes share a label, every
 pair of a mode of the group and a mode of the next group gets the key (the automaton decides at
 run time which one it needs).
 """
@@ -336,7 +341,11 @@ def _mode_data(demos: Sequence[Demonstration], segments: list[Segment], shift: b
     buckets: dict[tuple[str, str, str | None], list[Segment]] = {}
     for group, segs in by_group.items():
         successors = {s.next_modes for s in segs if s.next_modes is not None}
-        per_transition = len(successors) > 1
+        ending = any(s.next_modes is None for s in segs)
+        # per-transition keys when the group hands over to several next groups, or hands over
+        # in some demonstrations and ends others: the hand-overs must not share a DS (and an
+        # attractor) with the segments that stay in the mode at the end of the task
+        per_transition = len(successors) > 1 or (len(successors) == 1 and ending)
         for seg in segs:
             for mode in group:
                 if per_transition and seg.next_modes is not None:
@@ -344,11 +353,18 @@ def _mode_data(demos: Sequence[Demonstration], segments: list[Segment], shift: b
                         buckets.setdefault((transition_key(mode, succ), mode, succ),
                                            []).append(seg)
                 else:
-                    unique = (next(iter(successors)) if len(successors) == 1 else None)
+                    unique = (next(iter(successors))
+                              if len(successors) == 1 and not per_transition else None)
                     nxt_single = unique[0] if unique is not None and len(unique) == 1 else None
                     buckets.setdefault((mode, mode, nxt_single), []).append(seg)
     out: dict[str, ModeData] = {}
+    handed = {mode for (key, mode, nxt) in buckets if key != mode}
     for (key, mode, nxt), segs in buckets.items():
+        if key == mode and mode in handed \
+                and sum(s.stop - s.start for s in segs) < 2:
+            # a demonstration that ends right after entering a mode that other segments pass
+            # through: too little data for a DS that stays; the hand-overs are learned
+            continue
         targets = np.array([_target(demos, s, after.get((s.demo, s.stop)), entry_samples)
                             for s in segs])
         handing_over = np.array([s.next_modes is not None for s in segs])

@@ -65,7 +65,7 @@ def test_explicit_perturbation_is_applied(tmp_path: Path,
 
 @pytest.mark.parametrize("args", [
     ["--world", "nope"],
-    ["--world", "cooking"],
+    ["--world", "cooking", "--spec", "specs/scoop.toml"],  # not the model's spec
     ["--world", "scoop", "--perturb", "3:x"],
     ["--world", "scoop", "--perturb", "0:1,1"],
     ["--world", "scoop", "--perturb", "random:-1"],

@@ -38,13 +38,18 @@ def test_each_sensor_state_is_a_mode_and_attractor_is_the_entry_into_the_next_mo
         (1, 0, 3, ("!r",), ("r",)), (1, 3, 4, ("r",), None),
     ]
     # Lemma 2: the mean of the first (up to 3) states of the next segment, over the segments
-    # that hand over; the segment ending demo 1 in "!r" does not count
-    np.testing.assert_allclose(seg.data["!r"].attractor, np.mean([[2.5, 0.0], [3.0, 1.0]], 0))
-    np.testing.assert_allclose(seg.data["r"].attractor, [4, 0])  # only d1 hands over
+    # that hand over; the one-sample segment ending demo 1 in "!r" (and demo 2's in "r") is
+    # too short for a DS that stays: only the hand-over keys are learned
+    assert sorted(seg.data) == ["!r->r", "r->!r"]
+    np.testing.assert_allclose(seg.data["!r->r"].attractor, np.mean([[2.5, 0.0], [3.0, 1.0]], 0))
+    np.testing.assert_allclose(seg.data["r->!r"].attractor, [4, 0])  # only d1 hands over
     one = segment_demos([d1, d2], entry_samples=1)
-    np.testing.assert_allclose(one.data["!r"].attractor, np.mean([[2, 0], [3, 1]], 0))
-    assert seg.data["!r"].next_mode == "r"  # one observed successor: plain key
-    assert seg.data["r"].next_mode == "!r"
+    np.testing.assert_allclose(one.data["!r->r"].attractor, np.mean([[2, 0], [3, 1]], 0))
+    assert seg.data["!r->r"].next_mode == "r"
+    assert seg.data["r->!r"].next_mode == "!r"
+    # without the ending segments: one observed successor, plain key
+    plain = segment_demos([demo([[0, 0], [1, 0], [2, 0], [3, 0]], [[0], [0], [1], [1]])])
+    assert sorted(plain.data) == ["!r", "r"] and plain.data["!r"].next_mode == "r"
 
 
 def test_a_mode_that_only_ends_demonstrations_keeps_the_mean_end_point() -> None:
@@ -181,3 +186,28 @@ def test_a_ds_needs_two_samples() -> None:
 def test_spec_without_modes_table() -> None:
     with pytest.raises(SpecError, match=r"s\.toml: no \[modes\] table"):
         spec_labeler(SimpleNamespace(modes=None, path="s.toml"))
+
+
+def test_a_mode_passed_through_and_ending_gets_a_hand_over_key_and_a_plain_key() -> None:
+    # cooking's pot: passed through (-> white) in one demonstration, the final mode in both.
+    # The hand-over is keyed per transition; the plain key is the DS that stays (the mean end
+    # point), not the hand-over's (before: one plain DS heading to white for both)
+    d1 = demo([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0], [5, 0], [6, 0], [7, 0], [8, 0]],
+              [[0], [0], [1], [1], [1], [0], [0], [1], [1]])
+    d2 = demo([[0, 2], [1, 2], [2, 2], [3, 2], [3, 3]], [[0], [0], [1], [1], [1]])
+    seg = segment_demos([d1, d2])
+    assert sorted(seg.data) == ["!r", "r", "r->!r"]
+    hand_over, stay = seg.data["r->!r"], seg.data["r"]
+    assert (hand_over.mode, hand_over.next_mode) == ("r", "!r")
+    assert (stay.mode, stay.next_mode) == ("r", None)
+    np.testing.assert_allclose(hand_over.attractor, [5.5, 0])  # entry into white
+    np.testing.assert_allclose(stay.attractor, np.mean([[8, 0], [3, 3]], axis=0))  # the ends
+    assert [(s.demo, s.start) for s in hand_over.segments] == [(0, 2)]
+    assert [(s.demo, s.start) for s in stay.segments] == [(0, 7), (1, 2)]
+    # with shared labels (cooking-cb's d1/d2 on the pot): both pot modes get both keys
+    def label(reading: Mapping[str, bool]) -> tuple[str, ...]:
+        return ("d1", "d2") if reading["r"] else ("w1", "w2")
+
+    shared = segment_demos([d1, d2], labeler=label)
+    assert {"d1", "d2", "d1->w1", "d1->w2", "d2->w1", "d2->w2"} <= set(shared.data)
+    np.testing.assert_allclose(shared.data["d2"].attractor, stay.attractor)

@@ -1,9 +1,9 @@
 """``tli run``: one closed-loop LTL-DS episode on a task world (paper eq. 6, Fig. 7).
 
-Only the scoop world is supported: it ships a spec, a model and a certificate
-(``specs/scoop.toml``, ``models/scoop.model.json``, ``certificates/scoop.cert.json``, certified at
-``dt = 1/100``). The other worlds (cooking, color tracing, inspection) have demonstrations and
-specs but no certified model yet; ``tli run`` refuses them (exit 2).
+Every world ships a spec, a certified model and its certificate (certified at ``dt = 1/100``),
+listed in :data:`REGISTRY`: scoop (``specs/scoop.toml``), cooking (``cooking-cb``, the default,
+and ``cooking-bc/c/cc`` through ``--spec``: one set of learned DS bound to each),
+color tracing (``color-tracing-a``, default, ``-b``, ``-c``) and inspection.
 
 ``--learn-transitions`` grows the spec online (paper appendix E; README section 7): the run may
 then start from another spec than the model names (``--spec``, e.g. one ``tli spec infer``
@@ -11,24 +11,73 @@ wrote), provided it has the same sensors and the same ``[modes]`` labels; transi
 lacks are added as the episode shows them, and ``--grown-spec OUT.toml`` writes the grown spec.
 The model and its certificate keep binding the spec the model names.
 
-Exit codes: 0 the episode reached the goal mode, 1 it did not (or the certificate does not cover
+Exit codes: 0 the episode reached the goal, 1 it did not (or the certificate does not cover
 the model: the executive refuses it), 2 bad arguments.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import output_path
 
-__all__ = ["demo_stage", "parse_perturb", "register"]
+__all__ = ["REGISTRY", "Bundle", "demo_stage", "parse_perturb", "register", "world_setup"]
 
-SUPPORTED = ("scoop",)
+
+@dataclass(frozen=True, slots=True)
+class Bundle:
+    """A shipped (spec, model, certificate) triple of a world, and what its goal is.
+
+    Attributes
+    ----------
+    spec : str
+        Spec name (``specs/<spec>.toml``); the model is ``models/<spec>.model.json`` and the
+        certificate ``certificates/<spec>.cert.json`` unless given.
+    goal_modes : tuple of str or None
+        Modes that complete an episode (None: the automaton's sink modes).
+    goal_inputs : tuple of str
+        Sensors that must also read true in the goal mode (inspection: the release ``rel``).
+    model, certificate : str or None
+        File names under ``models/`` and ``certificates/`` (default from ``spec``).
+    """
+
+    spec: str
+    goal_modes: tuple[str, ...] | None = None
+    goal_inputs: tuple[str, ...] = ()
+    model: str | None = None
+    certificate: str | None = None
+
+    @property
+    def model_file(self) -> str:
+        """``<spec>.model.json`` unless given."""
+        return self.model or f"{self.spec}.model.json"
+
+    @property
+    def certificate_file(self) -> str:
+        """``<spec>.cert.json`` unless given."""
+        return self.certificate or f"{self.spec}.cert.json"
+
+
+REGISTRY: dict[str, tuple[Bundle, ...]] = {
+    "scoop": (Bundle("scoop"),),
+    "cooking": (Bundle("cooking-cb"), Bundle("cooking-bc"), Bundle("cooking-c"),
+                # chicken continuously: no sink mode; an episode is done once food is in
+                Bundle("cooking-cc", goal_modes=("d",))),
+    "color-tracing": (Bundle("color-tracing-a"), Bundle("color-tracing-b"),
+                      Bundle("color-tracing-c")),
+    # repeated forever: an episode is done at the first release (b & rel)
+    "inspection": (Bundle("inspection", goal_modes=("b",), goal_inputs=("rel",)),),
+}
+"""World -> its shipped bundles; the first is the default, ``--spec`` picks another."""
+
+SUPPORTED = tuple(REGISTRY)
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -38,10 +87,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         description="Task automaton + certified, modulated DS per mode in closed loop with a "
         "world's sensors; perturbations, online cuts, replanning. Writes run.json and a "
         "Fig. 7-style run.png to --out. Exit 0: the goal mode was reached; 1: it was not.")
-    p.add_argument("--world", required=True, help="world name (supported: scoop)")
+    p.add_argument("--world", required=True,
+                   help=f"world name ({', '.join(REGISTRY)})")
     p.add_argument("--seed", type=int, default=0, help="seed of the start and of random:N")
     p.add_argument("--start", default=None, metavar="X1,X2",
-                   help="start state (default: a seeded random state reading mode a)")
+                   help="start state (default: a seeded random state whose reading is an "
+                   "initial one of the spec)")
     p.add_argument("--perturb", action="append", default=[], metavar="T:DX,DY|random:N",
                    help="displace the state by (DX, DY) before step T (repeatable), or N "
                    "seeded random perturbations (directions uniform, magnitudes up to the "
@@ -55,7 +106,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--certificate", type=Path, default=None,
                    help="certificate file (default: bundled)")
     p.add_argument("--spec", type=Path, default=None,
-                   help="spec file (default: the one the model names; with "
+                   help="spec file (default: the world's first bundled spec; a world's other "
+                   "bundled spec picks its bundled model and certificate; with "
                    "--learn-transitions the spec to grow from, with the same sensors and "
                    "[modes] labels)")
     p.add_argument("--learn-transitions", action="store_true",
@@ -135,29 +187,147 @@ def certificate_next_to(model: Path) -> Path:
     return model.with_name(f"{name}.cert.json")
 
 
+def world_setup(world: str, *, model: Path | None = None, certificate: Path | None = None,
+                spec: Path | None = None, lag: int = 0) -> tuple[Any, Bundle]:
+    """The closed-loop setup of a world: its bundle (``--spec`` picks one), files, world.
+
+    Parameters
+    ----------
+    world : str
+        A key of :data:`REGISTRY`.
+    model, certificate, spec : Path, optional
+        Files given on the command line (default: the bundle's).
+    lag : int, optional
+        Sensor lag (steps).
+
+    Returns
+    -------
+    setup : tli_verify.experiments.scoop.Setup
+    bundle : Bundle
+        The bundle whose goal the episode uses: the one of ``--spec``, else of the spec the
+        model names, else the default (``bundled_setup`` checks the spec against the model).
+
+    Raises
+    ------
+    SpecError, ModelError, TliError
+        (exit 2) Unreadable files; a spec that is not the one the model names.
+    """
+    import dataclasses
+
+    from tli_verify.experiments.scoop import bundled_setup
+    from tli_verify.io import bundled_dir
+    from tli_verify.worlds import WORLDS
+
+    bundles = REGISTRY[world]
+    bundle = bundles[0]
+    if spec is not None:
+        real = os.path.realpath(spec)
+        for b in bundles:
+            if os.path.realpath(bundled_dir("specs") / f"{b.spec}.toml") == real:
+                bundle = b
+                break
+    setup = bundled_setup(
+        model=model if model is not None else bundled_dir("models") / bundle.model_file,
+        certificate=(certificate if certificate is not None
+                     else bundled_dir("certificates") / bundle.certificate_file),
+        spec=spec, lag=lag)
+    named = setup.model.spec_path
+    if spec is None and named is not None:  # --model: the goal of the spec it names
+        for b in bundles:
+            if os.path.realpath(bundled_dir("specs") / f"{b.spec}.toml") == \
+                    os.path.realpath(named):
+                bundle = b
+                break
+    world_model: Any = WORLDS[world](lag=lag)  # Setup is typed for scoop; any World runs
+    return dataclasses.replace(setup, world=world_model), bundle
+
+
+def initial_start(setup: Any, rng: Any, *, tries: int = 10000) -> Any:
+    """A uniform random state of the workspace whose first reading is an initial one of the
+    automaton (the spec's ``assume.init``), shape (2,).
+
+    Raises
+    ------
+    TliError
+        (exit 2) No such state in ``tries`` draws.
+    """
+    import numpy as np
+
+    from tli_verify.errors import TliError
+    from tli_verify.logic.automaton import AssumptionViolation
+
+    world = setup.world
+    lo, hi = np.array(world.lo), np.array(world.hi)
+    names = world.sensor_names
+    for _ in range(tries):
+        x = rng.uniform(lo, hi)
+        reading = world.sensors(x[None])[0]
+        try:
+            setup.automaton.initial_state({n: bool(v) for n, v in zip(names, reading,
+                                                                       strict=True)})
+        except AssumptionViolation:
+            continue
+        return x
+    raise TliError(f"{world.name}: no start with an initial reading in {tries} draws")
+
+
+def bundle_policy(setup: Any, variant: str, bundle: Bundle) -> Any:
+    """The executive of a variant, with the bundle's goal (:func:`make_policy` otherwise).
+
+    A bundle with ``goal_inputs`` (inspection: ``rel``) is done in a goal mode only on a
+    reading with those sensors true (the spec's goal ``b & rel``, not just mode ``b``).
+
+    Raises
+    ------
+    CertificateError
+        (exit 1) The certificate does not cover the model.
+    """
+    from tli_verify.experiments.scoop import make_policy
+
+    if bundle.goal_modes is None and not bundle.goal_inputs:
+        return make_policy(setup, variant)
+    goal, sequence = _goal_classes()
+    cls = sequence if variant == "no-replan" else goal
+    kwargs = {} if variant == "no-replan" else {"learn_cuts": variant != "no-modulation"}
+    pol = cls(setup.automaton, setup.model, setup.certificate, goal_modes=bundle.goal_modes,
+              **kwargs)
+    pol.need = frozenset(bundle.goal_inputs)
+    return pol
+
+
+@functools.cache
+def _goal_classes() -> tuple[type, type]:
+    """Executive classes whose ``done`` also needs the goal sensors (built on first use: the
+    runtime is imported lazily, as by every command)."""
+    from tli_verify.experiments.scoop import SequencePolicy
+    from tli_verify.runtime.executive import LTLDSPolicy
+
+    def done(self: Any) -> bool:
+        if self._mode not in self.goal_modes or self._state is None:
+            return False
+        return bool(self.need <= frozenset(self.automaton.states[self._state].inputs))
+
+    members = {"__slots__": ("need",), "done": property(done)}
+    return (type("GoalPolicy", (LTLDSPolicy,), dict(members)),
+            type("GoalSequencePolicy", (SequencePolicy,), dict(members)))
+
+
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tli_verify.errors import TliError
     from tli_verify.experiments.scoop import (
-        bundled_setup,
         episode_json,
-        make_policy,
         mode_string,
         plot_episode,
         random_start,
         run_variant,
     )
     from tli_verify.io import atomic_write_text, canonical_json
-    from tli_verify.worlds import WORLDS
 
-    if args.world not in WORLDS:
+    if args.world not in REGISTRY:
         raise TliError(f"--world {args.world!r}: unknown world (worlds: "
-                       f"{', '.join(sorted(WORLDS))})")
-    if args.world not in SUPPORTED:
-        raise TliError(f"--world {args.world!r}: tli run supports only "
-                       f"{', '.join(SUPPORTED)} (no certified model is bundled for "
-                       f"{args.world})")
+                       f"{', '.join(sorted(REGISTRY))})")
     if args.steps < 1:
         raise TliError(f"--steps must be >= 1, got {args.steps}")
     if args.lag < 0:
@@ -179,8 +349,9 @@ def _run(args: argparse.Namespace) -> int:
         inputs = [p for p in (args.model, args.certificate, args.spec) if p is not None]
         check_output_file(certificate_next_to(args.output), inputs=[args.output, *inputs],
                           what="certificate")
-    setup = bundled_setup(model=args.model, certificate=args.certificate,
-                          spec=None if args.learn_transitions else args.spec, lag=args.lag)
+    setup, bundle = world_setup(args.world, model=args.model, certificate=args.certificate,
+                                spec=None if args.learn_transitions else args.spec,
+                                lag=args.lag)
     start_spec = _growth_start(setup, args.spec) if args.learn_transitions else None
     if args.grown_spec is not None:  # never over the files the certificate binds
         from tli_verify.io import check_output_file
@@ -201,17 +372,22 @@ def _run(args: argparse.Namespace) -> int:
         x0 = np.array(_floats(args.start, 2, f"--start {args.start!r}"))
         if not bool(world.in_workspace(x0[None])[0]):
             raise TliError(f"--start {args.start!r}: outside the workspace "
-                           f"[{world.lo[0]:g}, {world.hi[0]:g}]^2")
-    else:
+                           f"[{world.lo[0]:g}, {world.hi[0]:g}] x [{world.lo[1]:g}, "
+                           f"{world.hi[1]:g}]")
+    elif args.world == "scoop":
         x0 = random_start(world, np.random.default_rng([args.seed, 3]))
+    else:
+        x0 = initial_start(setup, np.random.default_rng([args.seed, 3]))
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
-    policy = (make_policy(setup, variant) if start_spec is None  # refuses an uncovered model
+    # refuses a model its certificate does not cover
+    policy = (bundle_policy(setup, variant, bundle) if start_spec is None
               else _growing_policy(setup, variant, start_spec))
     t0 = time.perf_counter()
     res = run_variant(setup, variant, x0, perturbations, steps=args.steps, policy=policy)
     seconds = time.perf_counter() - t0
-    nominal = run_variant(setup, variant, x0, {}, steps=args.steps)
+    nominal = run_variant(setup, variant, x0, {}, steps=args.steps,
+                          policy=bundle_policy(setup, variant, bundle))
     record = episode_json(res, world=args.world, variant=variant, seconds=seconds, x0=x0,
                           perturbations=perturbations, dt=policy.dt)
     record["nominal_success"] = bool(nominal.success)

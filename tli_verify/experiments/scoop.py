@@ -190,12 +190,17 @@ class SequencePolicy(LTLDSPolicy):
     def __init__(self, automaton: TaskAutomaton, model: Model,
                  certificate: str | os.PathLike[str], **kwargs: Any) -> None:
         super().__init__(automaton, model, certificate, **kwargs)
+        state: int | None = automaton.initial[0]
         seq = [automaton.states[automaton.initial[0]].mode]
-        while len(seq) <= len(model.modes):
+        while len(seq) <= len(model.modes) and state is not None:
             mm = model.modes.get(seq[-1])
-            if mm is None or mm.next_mode is None:
+            # a mode with per-transition DS only (cooking's w1 -> y): the automaton's plan
+            nxt = mm.next_mode if mm is not None else self._plan(state)
+            if nxt is None:
                 break
-            seq.append(mm.next_mode)
+            seq.append(nxt)
+            state = next((t.target for t in automaton.transitions if t.source == state
+                          and automaton.states[t.target].mode == nxt), None)
         self._seq: tuple[str, ...] = tuple(seq)
         self._idx = 0
 
@@ -482,14 +487,16 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
         seq = mode_string(r)
         if len(seq) > 14:
             seq = seq[:12] + "..."
-        verdict = "reaches d" if r.success else f"no d in {r.steps} steps"
+        goal = "d" if world.name == "scoop" else "the goal"
+        verdict = f"reaches {goal}" if r.success else f"no {goal} in {r.steps} steps"
         ax.set_title(f"{label + ': ' if label else ''}{seq} ({verdict}, {r.cuts_added} cuts)",
                      fontsize=9)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
-        ax.set_xlabel("x1 (spoon orientation)", fontsize=8)
-        ax.set_ylabel("x2 (distance to soup)", fontsize=8)
+        scoop = world.name == "scoop"
+        ax.set_xlabel("x1 (spoon orientation)" if scoop else "x1", fontsize=8)
+        ax.set_ylabel("x2 (distance to soup)" if scoop else "x2", fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

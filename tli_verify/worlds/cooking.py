@@ -22,11 +22,15 @@ nominal task never makes: from the pot straight into yellow or green (the spoon 
 to white first), and jumps between yellow and green; under a perturbation the executive
 reports them as assumption violations.
 
-Two scripted demonstrations, one per order (paper Fig. (a)): chicken first (white -> yellow ->
+Three scripted demonstrations: one per order (paper Fig. (a)), chicken first (white -> yellow ->
 dark -> white -> green -> dark, ``specs/cooking-cb.toml``) and broccoli first (white -> green ->
-dark -> white -> yellow -> dark, ``specs/cooking-bc.toml``). Learned without a spec they give one
-DS per demonstrated *sensor* transition, named by the readings (``tli learn`` without
-``--spec``), which the four automata of ``cooking-cb/bc/c/cc`` reuse through their mode labels.
+dark -> white -> yellow -> dark, ``specs/cooking-bc.toml``), and a detour (white -> green ->
+white -> yellow -> dark: the green -> white that ``specs/cooking-c.toml`` runs after a push into
+the broccoli, demonstrated by no order). Learned once without a spec they give one DS per
+demonstrated *sensor* transition, named by the readings (``tli learn`` without ``--spec``);
+:func:`tli_verify.rebind.rebind_model` binds that one set of DS, bit for bit, to each of
+the four automata of ``cooking-cb/bc/c/cc`` through their mode labels
+(``scripts/make_models.py``).
 """
 
 from __future__ import annotations
@@ -98,18 +102,36 @@ class CookingWorld(WorldBase):
         return reading, reading.copy()
 
     def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Demonstration]:
-        """Demonstrations alternating the two orders: chicken first, broccoli first, ...
+        """Demonstrations cycling three scripts: chicken first, broccoli first, a detour.
 
-        Default 2 (one per order). Waypoints (jittered with the seed): a start in the lower
-        white band, the first ingredient, the pot, back out below the pot, the second
-        ingredient, the pot.
+        Default 3 (one per script). Waypoints (jittered with the seed):
+
+        * chicken first / broccoli first: a start in the lower white band, the first
+          ingredient, the pot, back out below the pot, the second ingredient, the pot
+          (readings white -> yellow|green -> dark -> white -> green|yellow -> dark);
+        * the detour (``specs/cooking-c.toml``: "a detour into the broccoli region returns to
+          white"): a start, the broccoli region, back out to white below the pot, the chicken,
+          the pot (white -> green -> white -> yellow -> dark). It is the only demonstration of
+          green -> white, the ``g -> w`` that cooking-c's automaton plans after a push into
+          the broccoli (paper Asm. 3: every DS the automaton can run needs demonstration data).
         """
         rng = np.random.default_rng(seed)
         out = []
-        for i in range(2 if n_demos is None else int(n_demos)):
-            first, second = (CHICKEN, BROCCOLI) if i % 2 == 0 else (BROCCOLI, CHICKEN)
+        for i in range(3 if n_demos is None else int(n_demos)):
+            kind = i % 3
+            first, second = (CHICKEN, BROCCOLI) if kind == 0 else (BROCCOLI, CHICKEN)
             start = np.array([5.0, 1.5]) + rng.uniform(-1.0, 1.0, size=2)
             j = 0.2 * rng.normal(size=(5, 2))
+            if kind == 2:
+                waypoints = np.vstack([
+                    start,
+                    BROCCOLI + j[0],
+                    np.array([5.0, 4.0]) + j[1],  # back to white, broccoli not taken
+                    CHICKEN + j[3],
+                    POT + 0.5 * j[4],
+                ])
+                out.append(self._demo(f"{i + 1} (detour)", waypoints, self.duration, self.dt))
+                continue
             waypoints = np.vstack([
                 start,
                 first + j[0],
@@ -118,6 +140,6 @@ class CookingWorld(WorldBase):
                 second + j[3],
                 POT + 0.5 * j[4],
             ])
-            order = "chicken-first" if i % 2 == 0 else "broccoli-first"
+            order = "chicken-first" if kind == 0 else "broccoli-first"
             out.append(self._demo(f"{i + 1} ({order})", waypoints, self.duration, self.dt))
         return out
