@@ -3,7 +3,8 @@
 For each ``models/<name>.model.json`` of the repository (or of ``--root DIR``), runs a
 bisimulation campaign (:func:`tli_verify.verify.campaign.run_campaign`) on the model, its
 certificate ``certificates/<name>.cert.json`` and the spec the model names, with the sensor
-model of world ``<name>`` (``--world NAME=WORLD`` for a model named otherwise), modulation on,
+model of world ``<name>`` (or the world ``<name>`` starts with, as ``cooking`` for
+``cooking-cb``; ``--world NAME=WORLD`` for a model named otherwise), modulation on,
 and writes the evidence ``tli gate`` requires (:mod:`tli_verify.verify.evidence`).
 
 Usage (after any bundled model or certificate changed; one command)::
@@ -68,14 +69,20 @@ def _run(args: argparse.Namespace) -> int:
     status = 0
     for model in models:
         name = model_stem(model)
-        world = worlds.get(name, name)
+        # the world named NAME, else the longest world name NAME starts with (cooking-cb)
+        prefixes = [w for w in WORLDS if name.startswith(f"{w}-")]
+        world = worlds.get(name, name if name in WORLDS or not prefixes
+                           else max(prefixes, key=len))
         if world not in WORLDS:
             raise TliError(f"{model}: no world named {world!r} ({', '.join(sorted(WORLDS))}); "
                            f"pass --world {name}=WORLD")
         cert = root / "certificates" / f"{name}.cert.json"
         config = CampaignConfig(world=world, model=str(model), certificate=str(cert),
                                 examples=args.examples, seed=args.seed, modulation=True,
-                                workers=args.workers, backend=args.backend)
+                                workers=args.workers, backend=args.backend,
+                                # worlds without a nominal start: starts drawn in the regions
+                                # of the spec's initial states
+                                random_starts=world not in campaign.NOMINAL_STARTS)
         t0 = time.perf_counter()
         result = run_campaign(config, progress=sys.stderr.isatty())
         seconds = time.perf_counter() - t0

@@ -18,64 +18,16 @@ the model: the executive refuses it), 2 bad arguments.
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import output_path
+from tli_verify.runtime.bundles import REGISTRY, Bundle
 
 __all__ = ["REGISTRY", "Bundle", "demo_stage", "parse_perturb", "register", "world_setup"]
-
-
-@dataclass(frozen=True, slots=True)
-class Bundle:
-    """A shipped (spec, model, certificate) triple of a world, and what its goal is.
-
-    Attributes
-    ----------
-    spec : str
-        Spec name (``specs/<spec>.toml``); the model is ``models/<spec>.model.json`` and the
-        certificate ``certificates/<spec>.cert.json`` unless given.
-    goal_modes : tuple of str or None
-        Modes that complete an episode (None: the automaton's sink modes).
-    goal_inputs : tuple of str
-        Sensors that must also read true in the goal mode (inspection: the release ``rel``).
-    model, certificate : str or None
-        File names under ``models/`` and ``certificates/`` (default from ``spec``).
-    """
-
-    spec: str
-    goal_modes: tuple[str, ...] | None = None
-    goal_inputs: tuple[str, ...] = ()
-    model: str | None = None
-    certificate: str | None = None
-
-    @property
-    def model_file(self) -> str:
-        """``<spec>.model.json`` unless given."""
-        return self.model or f"{self.spec}.model.json"
-
-    @property
-    def certificate_file(self) -> str:
-        """``<spec>.cert.json`` unless given."""
-        return self.certificate or f"{self.spec}.cert.json"
-
-
-REGISTRY: dict[str, tuple[Bundle, ...]] = {
-    "scoop": (Bundle("scoop"),),
-    "cooking": (Bundle("cooking-cb"), Bundle("cooking-bc"), Bundle("cooking-c"),
-                # chicken continuously: no sink mode; an episode is done once food is in
-                Bundle("cooking-cc", goal_modes=("d",))),
-    "color-tracing": (Bundle("color-tracing-a"), Bundle("color-tracing-b"),
-                      Bundle("color-tracing-c")),
-    # repeated forever: an episode is done at the first release (b & rel)
-    "inspection": (Bundle("inspection", goal_modes=("b",), goal_inputs=("rel",)),),
-}
-"""World -> its shipped bundles; the first is the default, ``--spec`` picks another."""
 
 SUPPORTED = tuple(REGISTRY)
 
@@ -286,30 +238,14 @@ def bundle_policy(setup: Any, variant: str, bundle: Bundle) -> Any:
 
     if bundle.goal_modes is None and not bundle.goal_inputs:
         return make_policy(setup, variant)
-    goal, sequence = _goal_classes()
-    cls = sequence if variant == "no-replan" else goal
-    kwargs = {} if variant == "no-replan" else {"learn_cuts": variant != "no-modulation"}
-    pol = cls(setup.automaton, setup.model, setup.certificate, goal_modes=bundle.goal_modes,
-              **kwargs)
-    pol.need = frozenset(bundle.goal_inputs)
-    return pol
-
-
-@functools.cache
-def _goal_classes() -> tuple[type, type]:
-    """Executive classes whose ``done`` also needs the goal sensors (built on first use: the
-    runtime is imported lazily, as by every command)."""
     from tli_verify.experiments.scoop import SequencePolicy
     from tli_verify.runtime.executive import LTLDSPolicy
 
-    def done(self: Any) -> bool:
-        if self._mode not in self.goal_modes or self._state is None:
-            return False
-        return bool(self.need <= frozenset(self.automaton.states[self._state].inputs))
-
-    members = {"__slots__": ("need",), "done": property(done)}
-    return (type("GoalPolicy", (LTLDSPolicy,), dict(members)),
-            type("GoalSequencePolicy", (SequencePolicy,), dict(members)))
+    cls = SequencePolicy if variant == "no-replan" else LTLDSPolicy
+    kwargs: dict[str, Any] = ({} if variant == "no-replan"
+                              else {"learn_cuts": variant != "no-modulation"})
+    return cls(setup.automaton, setup.model, setup.certificate, goal_modes=bundle.goal_modes,
+               goal_inputs=bundle.goal_inputs, **kwargs)
 
 
 def _run(args: argparse.Namespace) -> int:

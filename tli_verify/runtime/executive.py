@@ -216,6 +216,9 @@ class LTLDSPolicy:
     learn_transitions : bool, optional
         Grow the spec online (module docstring, item 6). Default off: a transition the spec
         lacks is reported as an assumption violation only.
+    goal_inputs : sequence of str, optional
+        Sensors that must also read true for a goal mode to complete the task (a cyclic task
+        such as inspection, ``GF(b & rel)``: done at the first ``b & rel``).
 
     Raises
     ------
@@ -250,6 +253,7 @@ class LTLDSPolicy:
         "cut_margin",
         "dt",
         "events",
+        "goal_inputs",
         "goal_modes",
         "learn_cuts",
         "learn_transitions",
@@ -259,7 +263,7 @@ class LTLDSPolicy:
                  certificate: str | os.PathLike[str], *, dt: float | None = None,
                  goal_modes: Sequence[str] | None = None, learn_cuts: bool = True,
                  cut_margin: float = 1e-3, spec: GR1Spec | None = None,
-                 learn_transitions: bool = False) -> None:
+                 learn_transitions: bool = False, goal_inputs: Sequence[str] = ()) -> None:
         cert_dt = check_coverage(model, certificate)
         if dt is None:
             dt = float(cert_dt)
@@ -271,6 +275,11 @@ class LTLDSPolicy:
         if goal_modes is None:
             goal_modes = automaton.sink_modes()
         self.goal_modes = tuple(goal_modes)
+        unknown = sorted(set(goal_inputs) - set(automaton.inputs))
+        if unknown:
+            raise TliError(f"goal_inputs: {unknown[0]!r} is not a sensor of the automaton "
+                           f"({', '.join(automaton.inputs)})", exit_code=2)
+        self.goal_inputs = frozenset(goal_inputs)
         self._plan_cache: dict[int, PlannedStep] = plan_states(
             automaton, model, self.goal_modes, str(model.path))
         self.learn_transitions = bool(learn_transitions)
@@ -349,8 +358,13 @@ class LTLDSPolicy:
 
     @property
     def done(self) -> bool:
-        """The current mode is a goal mode."""
-        return self._mode in self.goal_modes
+        """The current mode is a goal mode (with every sensor of ``goal_inputs`` read true)."""
+        if self._mode not in self.goal_modes:
+            return False
+        if not self.goal_inputs:
+            return True
+        return self._state is not None and \
+            self.goal_inputs <= frozenset(self.automaton.states[self._state].inputs)
 
     @property
     def learned(self) -> tuple[tuple[str, str], ...]:
@@ -438,9 +452,11 @@ class LTLDSPolicy:
         """A copy for another episode: same automaton, model (and its learned cuts) and
         certificate check, its own episode state, events and recorded entry states. Forks of
         one policy share the model object, so :func:`run_episodes` batches their DS."""
-        new = object.__new__(LTLDSPolicy)
-        for name in LTLDSPolicy.__slots__:
-            setattr(new, name, getattr(self, name))
+        new = object.__new__(type(self))  # a subclass (the no-replan ablation) stays one
+        for cls in type(self).__mro__:
+            for name in getattr(cls, "__slots__", ()):
+                if hasattr(self, name):
+                    setattr(new, name, getattr(self, name))
         new.events = list(self.events)
         new._entries = {k: list(v) for k, v in self._entries.items()}
         new._plan_cache = dict(self._plan_cache)

@@ -445,6 +445,7 @@ def load(spec: SimSpec) -> Loaded:
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
     from tli_verify.model import load_model
+    from tli_verify.runtime.bundles import bundle_for_spec
     from tli_verify.worlds import WORLDS
 
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
@@ -453,9 +454,16 @@ def load(spec: SimSpec) -> Loaded:
     world = WORLDS[spec.world](lag=spec.lag)
     automaton = synthesize(load_spec(spec.spec))
     model = load_model(spec.model)
-    base = WatchedPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation)
+    # the goal a world ships with its spec (a cyclic task's goal mode and sensors); else the
+    # automaton's sink modes -- one goal for the policy and the oracle
+    bundle = bundle_for_spec(spec.spec)
+    goal_modes = bundle.goal_modes if bundle is not None else None
+    goal_inputs = bundle.goal_inputs if bundle is not None else ()
+    base = WatchedPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation,
+                         goal_modes=goal_modes, goal_inputs=goal_inputs)
     oracle = Oracle.build(world, automaton, model, spec.certificate, dt=base.dt,
-                          max_cycles=spec.max_cycles)
+                          max_cycles=spec.max_cycles, goal_modes=goal_modes,
+                          goal_inputs=goal_inputs)
     limit = 5 * (oracle.max_cycles + len(automaton.modes) + 1)
     return Loaded(world=world, automaton=automaton, model=model,
                   certificate=spec.certificate, policy=base, oracle=oracle,

@@ -284,7 +284,10 @@ class Oracle:
     dt : float
         The loop's control period.
     goals : frozenset of str
-        Goal modes (sink modes of the automaton's mode graph).
+        Goal modes (default: the sink modes of the automaton's mode graph).
+    goal_inputs : frozenset of str
+        Sensors that must also read true in a goal mode for the goal to count (a cyclic
+        task, e.g. inspection's ``b & rel``); empty: the goal mode alone.
     planned : mapping of str to frozenset of str
         The planned successors of each mode.
     path : mapping of str to tuple of str
@@ -313,6 +316,7 @@ class Oracle:
     factor: float = 1.5
     slack: int = 50
     touch_tol: float = 0.05
+    goal_inputs: frozenset[str] = frozenset()
     _names: tuple[str, ...] = field(default=(), repr=False)
 
     # ------------------------------------------------------------------ construction
@@ -321,7 +325,8 @@ class Oracle:
               certificate: str | os.PathLike[str] | Mapping[str, Any], *, dt: float,
               max_cycles: int | None = None, max_cuts: int | None = None,
               factor: float = 1.5, slack: int = 50,
-              touch_tol: float = 0.05) -> Oracle:
+              touch_tol: float = 0.05, goal_modes: Sequence[str] | None = None,
+              goal_inputs: Sequence[str] = ()) -> Oracle:
         """Precompute the plan, the goal modes and the per-mode deadline data.
 
         Parameters
@@ -337,6 +342,11 @@ class Oracle:
             Default: the number of modes.
         max_cuts : int, optional
             Cuts the policy may learn after the last perturbation (default: 3 per mode).
+        goal_modes : sequence of str, optional
+            The task's goal modes (default: the sink modes; a cyclic task has none).
+        goal_inputs : sequence of str, optional
+            Sensors that must also read true there
+            (:class:`tli_verify.runtime.bundles.Bundle`).
 
         Raises
         ------
@@ -356,7 +366,8 @@ class Oracle:
         for a, b in automaton.mode_transitions():
             if a != b and a in succ:
                 succ[a].add(b)
-        goals = frozenset(m for m in run_modes if not succ[m])
+        goals = (frozenset(m for m in run_modes if not succ[m]) if goal_modes is None
+                 else frozenset(goal_modes))
         preds: dict[str, set[str]] = {}
         for a, bs in succ.items():
             for b in bs:
@@ -412,7 +423,7 @@ class Oracle:
                    max_cycles=len(automaton.modes) if max_cycles is None else int(max_cycles),
                    max_cuts=(3 * len(automaton.modes) if max_cuts is None else int(max_cuts)),
                    factor=float(factor), slack=int(slack), touch_tol=float(touch_tol),
-                   _names=tuple(world.sensor_names))
+                   goal_inputs=frozenset(goal_inputs), _names=tuple(world.sensor_names))
 
     # ------------------------------------------------------------------ deadlines
     def deadline_steps(self, mode: str, x: npt.ArrayLike | None = None) -> int:
@@ -588,7 +599,8 @@ class Oracle:
                                   f"(step {last_push}; bound {self.max_cuts}): the failures "
                                   "do not stop"))
         # (2) reachability after the last disturbance
-        goal_step = next((t for t in range(end + 1) if modes[t] in self.goals), None)
+        goal_step = next((t for t in range(end + 1) if modes[t] in self.goals
+                          and self.goal_inputs <= readings[t]), None)
         ref = max([last_push, *answered_steps]) if modes else 0
         ref = min(ref, end)
         deadline = None
