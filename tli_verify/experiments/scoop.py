@@ -599,6 +599,7 @@ def run_experiment(cfg: ExperimentConfig, exp: int) -> dict[str, Any]:
                 "episodes": len(res),
                 "cuts_mean": float(np.mean([r.cuts_added for r in res])),
                 "steps": int(sum(r.steps for r in res)),
+                "loops": sum(is_fig7_loop(r, cfg.steps) for r in res),
             }
     out["seconds"] = time.perf_counter() - t0
     return out
@@ -636,6 +637,7 @@ def run_all(cfg: ExperimentConfig, *, workers: int = 2, fig7_tries: int = 0
         ok = sum(r["variants"][v]["success"] for r in rows)
         n = sum(r["variants"][v]["episodes"] for r in rows)
         totals[v] = {"success": ok, "episodes": n, "percent": 100.0 * ok / max(n, 1),
+                     "loops": sum(r["variants"][v]["loops"] for r in rows),
                      "per_experiment": [100.0 * r["variants"][v]["success"]
                                         / max(r["variants"][v]["episodes"], 1) for r in rows],
                      "policy_steps": sum(r["variants"][v]["steps"] for r in rows)}
@@ -872,17 +874,20 @@ def write_report(summary: Mapping[str, Any], out: Path, *, fig7: Mapping[str, An
         f"size (16), step budget {cfg['steps']} (dt = 0.01 s), sensor lag {cfg['lag']}, "
         f"seed {cfg['seed']}. Wall time {summary['seconds']:.1f} s on {summary['workers']} "
         "worker(s).", "",
-        "| variant | success | episodes | success % | per experiment (%) |",
-        "|---|---:|---:|---:|---|",
+        "| variant | success | episodes | success % | per experiment (%) | Fig. 7 loops |",
+        "|---|---:|---:|---:|---|---:|",
     ]
     for v in VARIANTS:
         t = tot[v]
         per = ", ".join(f"{p:.0f}" for p in t["per_experiment"])
-        lines.append(f"| {v} | {t['success']} | {t['episodes']} | {t['percent']:.1f} | {per} |")
+        lines.append(f"| {v} | {t['success']} | {t['episodes']} | {t['percent']:.1f} | {per} "
+                     f"| {t['loops']} |")
     lines += ["", "Variants: **LTL-DS** = task automaton + certified DS per mode + cuts "
               "learned online + replanning; **no-modulation** = the same without cuts; "
               "**no-replan** = the demonstrated mode sequence run open loop (cuts kept); "
-              "**BC** = the paper's MLP per mode under the automaton (replanning, cuts).", ""]
+              "**BC** = the paper's MLP per mode under the automaton (replanning, cuts). "
+              f"**Fig. 7 loops**: episodes still looping a -> b -> a ... (>= {FIG7_MIN_ROUNDS} "
+              "b -> a invariance failures) when the step budget ran out.", ""]
     if fig7 is not None:
         lines += ["## Fig. 7", "", fig7["text"], ""]
         if fig7_png is not None:
