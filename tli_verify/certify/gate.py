@@ -266,21 +266,16 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
     for m in runnable:
         if m not in plain and m not in per_transition:
             problems.append(f"no DS for mode {m!r}, which the automaton can run")
-    # state by state, as the runtime picks a DS: a mode with per-transition DS only needs one
-    # towards a mode this state can move to (else the planner has no DS to run there)
-    succ: dict[int, set[str]] = {}
-    for t in automaton.transitions:
-        succ.setdefault(t.source, set()).add(automaton.states[t.target].mode)
-    for sid, state in enumerate(automaton.states):
-        m = state.mode
-        if m in plain or m not in per_transition:
-            continue
-        moves = succ.get(sid, set()) - {m}
-        if not moves & per_transition[m]:
-            towards = ", ".join(sorted(moves)) or "none: it only stays in the mode"
-            problems.append(f"no DS to run in automaton state {sid} (mode {m!r}): no plain DS "
-                            f"{m!r} and no per-transition DS towards the modes it can move to "
-                            f"({towards})")
+    # state by state, with the runtime's own planner (TaskAutomaton.planned_keys): the DS the
+    # executive would run in each state must exist (modes without any DS are reported above)
+    ds = {k: (mm.mode, mm.next_mode) for k, mm in model.modes.items()}
+    for step in automaton.planned_keys(ds):
+        m = step.mode
+        if step.key is None and (m in plain or m in per_transition):
+            towards = ", ".join(step.moves) or "none: it only stays in the mode"
+            problems.append(f"no DS to run in automaton state {step.state} (mode {m!r}): no "
+                            f"plain DS {m!r} and no per-transition DS towards the modes it can "
+                            f"move to ({towards})")
             break
     for src, dst in automaton.mode_transitions():
         if src != dst and src not in plain and src in per_transition \

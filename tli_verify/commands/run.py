@@ -5,6 +5,12 @@ Only the scoop world is supported: it ships a spec, a model and a certificate
 ``dt = 1/100``). The other worlds (cooking, color tracing, inspection) have demonstrations and
 specs but no certified model yet; ``tli run`` refuses them (exit 2).
 
+``--learn-transitions`` grows the spec online (paper appendix E; README section 7): the run may
+then start from another spec than the model names (``--spec``, e.g. one ``tli spec infer``
+wrote), provided it has the same sensors and the same ``[modes]`` labels; transitions the spec
+lacks are added as the episode shows them, and ``--grown-spec OUT.toml`` writes the grown spec.
+The model and its certificate keep binding the spec the model names.
+
 Exit codes: 0 the episode reached the goal mode, 1 it did not (or the certificate does not cover
 the model: the executive refuses it), 2 bad arguments.
 """
@@ -48,7 +54,15 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--model", type=Path, default=None, help="model file (default: bundled)")
     p.add_argument("--certificate", type=Path, default=None,
                    help="certificate file (default: bundled)")
-    p.add_argument("--spec", type=Path, default=None, help="spec file (default: bundled)")
+    p.add_argument("--spec", type=Path, default=None,
+                   help="spec file (default: the one the model names; with "
+                   "--learn-transitions the spec to grow from, with the same sensors and "
+                   "[modes] labels)")
+    p.add_argument("--learn-transitions", action="store_true",
+                   help="add a valid transition the spec lacks (into a known mode) to it "
+                   "online, re-synthesize and carry on (paper appendix E)")
+    p.add_argument("--grown-spec", type=output_path, default=None, metavar="OUT.toml",
+                   help="with --learn-transitions: write the (grown) spec here, atomically")
     p.add_argument("--out", type=output_path, default=Path("out/run"),
                    help="output directory (default out/run)")
     p.add_argument("--json", action="store_true", help="print the episode record as JSON")
@@ -152,14 +166,35 @@ def _run(args: argparse.Namespace) -> int:
         raise TliError(f"--seed must be >= 0, got {args.seed}")
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
+    if args.grown_spec is not None and not args.learn_transitions:
+        raise TliError("--grown-spec needs --learn-transitions")
+    if args.grown_spec is not None:
+        from tli_verify.io import check_output_file
+
+        inputs = [p for p in (args.model, args.certificate, args.spec) if p is not None]
+        check_output_file(args.grown_spec, inputs=inputs, what="grown spec")
     if args.output is not None:  # the certificate written next to -o must not be an input
         from tli_verify.io import check_output_file
 
         inputs = [p for p in (args.model, args.certificate, args.spec) if p is not None]
         check_output_file(certificate_next_to(args.output), inputs=[args.output, *inputs],
                           what="certificate")
-    setup = bundled_setup(model=args.model, certificate=args.certificate, spec=args.spec,
-                          lag=args.lag)
+    setup = bundled_setup(model=args.model, certificate=args.certificate,
+                          spec=None if args.learn_transitions else args.spec, lag=args.lag)
+    start_spec = _growth_start(setup, args.spec) if args.learn_transitions else None
+    if args.grown_spec is not None:  # never over the files the certificate binds
+        from tli_verify.io import check_output_file
+
+        bound = [setup.model.path, setup.certificate, setup.model.spec_path,
+                 None if start_spec is None else start_spec.path]
+        check_output_file(args.grown_spec, inputs=[p for p in bound if p is not None],
+                          what="grown spec")
+    if start_spec is not None:
+        from dataclasses import replace
+
+        from tli_verify.logic.check import synthesize
+
+        setup = replace(setup, automaton=synthesize(start_spec))
     world = setup.world
     perturbations = parse_perturb(args.perturb, seed=args.seed, world=world)
     if args.start is not None:
@@ -171,7 +206,8 @@ def _run(args: argparse.Namespace) -> int:
         x0 = random_start(world, np.random.default_rng([args.seed, 3]))
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
-    policy = make_policy(setup, variant)  # refuses a model its certificate does not cover
+    policy = (make_policy(setup, variant) if start_spec is None  # refuses an uncovered model
+              else _growing_policy(setup, variant, start_spec))
     t0 = time.perf_counter()
     res = run_variant(setup, variant, x0, perturbations, steps=args.steps, policy=policy)
     seconds = time.perf_counter() - t0
@@ -180,6 +216,12 @@ def _run(args: argparse.Namespace) -> int:
                           perturbations=perturbations, dt=policy.dt)
     record["nominal_success"] = bool(nominal.success)
     record["nominal_mode_sequence"] = mode_string(nominal)
+    if start_spec is not None:
+        record["learned_transitions"] = [list(e) for e in policy.learned]
+        record["spec"] = str(start_spec.path)
+        if args.grown_spec is not None:
+            _write_grown(policy, start_spec, args.grown_spec)
+            record["grown_spec"] = str(args.grown_spec)
     if args.output is not None:
         from tli_verify.experiments.scoop import CERT_DT
         from tli_verify.runtime.persist import save_certified
@@ -201,10 +243,74 @@ def _run(args: argparse.Namespace) -> int:
             f"goal mode in {res.steps} steps ({res.steps * policy.dt:.2f} s simulated, "
             f"{seconds * 1e3:.0f} ms); modes {seq if len(seq) <= 40 else seq[:37] + '...'}; "
             f"{len(perturbations)} perturbation(s), {res.cuts_added} cut(s) added\n"
-            f"wrote {out / 'run.json'}, {out / 'run.png'}"
+            + (_growth_line(res) if start_spec is not None else "")
+            + f"wrote {out / 'run.json'}, {out / 'run.png'}"
             + (f", {record['saved']['model']}, {record['saved']['certificate']}"
-               if "saved" in record else "") + "\n")
+               if "saved" in record else "")
+            + (f", {record['grown_spec']}" if "grown_spec" in record else "") + "\n")
     return 0 if res.success else 1
+
+
+def _growth_start(setup: Any, spec: Path | None) -> Any:
+    """The spec to grow from (``--spec``, default the model's): same inputs and ``[modes]``
+    labels as the spec the model names (the DS were learned on those labels).
+
+    Raises
+    ------
+    TliError
+        (exit 2) A spec that does not load or labels the modes otherwise.
+    """
+    from tli_verify.errors import TliError
+    from tli_verify.io import bundled_dir
+    from tli_verify.logic.spec import load_spec
+
+    named_path = setup.model.spec_path or bundled_dir("specs") / "scoop.toml"
+    named = load_spec(named_path)
+    if spec is None:
+        return named
+    start = load_spec(spec)
+    if tuple(start.inputs) != tuple(named.inputs) or start.modes != named.modes:
+        raise TliError(f"--spec {spec}: its sensors or [modes] labels differ from those of "
+                       f"{named_path}, the spec the model names (its DS were learned on those "
+                       "labels)", exit_code=2)
+    return start
+
+
+def _growing_policy(setup: Any, variant: str, spec: Any) -> Any:
+    """:func:`~tli_verify.experiments.scoop.make_policy` with ``learn_transitions``."""
+    from tli_verify.experiments.scoop import SequencePolicy
+    from tli_verify.runtime.executive import LTLDSPolicy
+
+    if variant == "no-replan":
+        return SequencePolicy(setup.automaton, setup.model, setup.certificate, spec=spec,
+                              learn_transitions=True)
+    return LTLDSPolicy(setup.automaton, setup.model, setup.certificate,
+                       learn_cuts=variant != "no-modulation", spec=spec,
+                       learn_transitions=True)
+
+
+def _write_grown(policy: Any, start: Any, path: Path) -> None:
+    """Write the policy's current spec as TOML (atomically), with a provenance header."""
+    from tli_verify.io import atomic_write_text
+
+    learned = " ".join(f"{a}->{b}" for a, b in policy.learned) or "none"
+    header = (f"# Grown online by `tli run --learn-transitions` from {start.path}.\n"
+              f"# Transitions learned in this run: {learned}.\n")
+    atomic_write_text(path, header + policy.spec_toml)
+
+
+def _growth_line(res: Any) -> str:
+    from tli_verify.runtime.events import TransitionLearned, TransitionRefused
+
+    parts = []
+    for e in res.events:
+        if isinstance(e, TransitionLearned):
+            parts.append(f"+{e.from_mode}->{e.to_mode} (step {e.step}: automaton {e.states} "
+                         f"states, {e.mode_edges} mode changes)")
+        elif isinstance(e, TransitionRefused):
+            parts.append(f"refused {e.from_mode}->{e.to_mode or '?'} (step {e.step}: "
+                         f"{e.reason})")
+    return f"learned transitions: {', '.join(parts) if parts else 'none'}\n"
 
 
 def demo_stage(out: Path) -> list[str]:

@@ -23,7 +23,8 @@ a :class:`~tli_verify.errors.SpecError` naming the limit.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections import deque
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,6 +37,7 @@ __all__ = [
     "MAX_AUTOMATON_STATES",
     "AssumptionViolation",
     "AutomatonState",
+    "PlannedStep",
     "TaskAutomaton",
     "Transition",
     "extract_automaton",
@@ -113,6 +115,39 @@ class Transition:
         lits = [v if v in self.sensors else f"!{v}" for v in inputs
                 if v in self.sensors or v in self.off]
         return ",".join(lits) or "*"
+
+
+@dataclass(frozen=True, slots=True)
+class PlannedStep:
+    """What the runtime runs in one automaton state (:meth:`TaskAutomaton.planned_mode`).
+
+    Attributes
+    ----------
+    state : int
+        The automaton state.
+    mode : str
+        Its mode.
+    next_mode : str or None
+        The mode planned next (None in a goal mode, or when the state can only stay).
+    key : str or None
+        The DS key the runtime runs there: the per-transition DS ``mode -> next_mode`` when
+        the model has it, else the mode's plain DS; None when the model has neither (the
+        state cannot run: the gate blocks such a model, the executive refuses it).
+    moves : tuple of str
+        The other modes this state can move to (sorted).
+    """
+
+    state: int
+    mode: str
+    next_mode: str | None
+    key: str | None
+    moves: tuple[str, ...]
+
+
+DSKeys = Mapping[str, tuple[str, "str | None"]]
+"""A model's DS keys as the planner sees them: key -> ``(mode, next_mode)``. A key equal to its
+mode is a plain DS (``next_mode``: the demonstrated next mode, or None); any other key is a
+per-transition DS ``mode -> next_mode`` (paper appendix F)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -221,6 +256,112 @@ class TaskAutomaton:
                 f"{self.states[state].mode}) violates the environment assumptions"
             )
         return target, self.states[target].mode
+
+    # ------------------------------------------------------------------ the planner
+    def successor_modes(self) -> tuple[tuple[str, ...], ...]:
+        """Per state, the other modes it can move to in one step (sorted)."""
+        succ: list[set[str]] = [set() for _ in self.states]
+        for t in self.transitions:
+            succ[t.source].add(self.states[t.target].mode)
+        return tuple(tuple(sorted(m - {s.mode})) for m, s in zip(succ, self.states,
+                                                                 strict=True))
+
+    def sink_modes(self) -> tuple[str, ...]:
+        """Modes the automaton runs that no transition leaves (the default goal modes of the
+        runtime), in sorted order."""
+        run = sorted({s.mode for s in self.states})
+        left = {a for a, b in self.mode_transitions() if a != b}
+        return tuple(m for m in run if m not in left)
+
+    def mode_distances(self, goal_modes: Iterable[str]) -> dict[str, int]:
+        """Fewest mode changes from each mode to a goal mode in the mode graph (modes that
+        cannot reach one are absent)."""
+        preds: dict[str, set[str]] = {}
+        for a, b in self.mode_transitions():
+            if a != b:
+                preds.setdefault(b, set()).add(a)
+        goals = list(dict.fromkeys(goal_modes))
+        dist = {g: 0 for g in goals}
+        queue = deque(goals)
+        while queue:
+            m = queue.popleft()
+            for p in sorted(preds.get(m, ())):
+                if p not in dist:
+                    dist[p] = dist[m] + 1
+                    queue.append(p)
+        return dist
+
+    def planned_keys(self, ds: DSKeys, goal_modes: Sequence[str] | None = None
+                     ) -> tuple[PlannedStep, ...]:
+        """The planner: per state, the next mode to run towards and the DS key to run.
+
+        This is the one planner of the toolkit: the executive runs what it returns
+        (:class:`tli_verify.runtime.executive.LTLDSPolicy`) and the deployment gate checks
+        its coverage with it (:func:`tli_verify.certify.gate.run_gate`, check ``modes``), so
+        a model the gate passes has a DS in every state the executive can enter.
+
+        Rules, in state ``s`` of mode ``m`` with the other modes ``M`` it can move to:
+
+        1. among the modes of ``M`` with a per-transition DS ``m -> n``: the closest to a goal
+           mode (then the least name); run that DS;
+        2. else, with a plain DS ``m``: its demonstrated next mode if it is in ``M``, else
+           the closest mode of ``M`` (none in a goal mode); run the plain DS (never a
+           per-transition DS towards a mode ``s`` cannot move to);
+        3. else no DS (``key`` None); the closest mode of ``M`` is still reported.
+
+        Parameters
+        ----------
+        ds : mapping of str to (str, str or None)
+            The model's DS keys (:data:`DSKeys`; ``{k: (mm.mode, mm.next_mode) for k, mm in
+            model.modes.items()}``).
+        goal_modes : sequence of str, optional
+            Modes that complete the task (default: :meth:`sink_modes`).
+
+        Returns
+        -------
+        tuple of PlannedStep
+            One per state, indexed by state id.
+        """
+        goals = tuple(self.sink_modes() if goal_modes is None else goal_modes)
+        dist = self.mode_distances(goals)
+        far = len(self.modes) + len(self.states) + 1
+        per: dict[str, dict[str, str]] = {}
+        plain: dict[str, str | None] = {}
+        for k, (mode, demo) in ds.items():
+            if k == mode:
+                plain[mode] = demo
+            elif demo is not None:
+                per.setdefault(mode, {})[demo] = k
+
+        def rank(n: str) -> tuple[int, str]:
+            return (dist.get(n, far), n)
+
+        out = []
+        for s, moves in zip(self.states, self.successor_modes(), strict=True):
+            m = s.mode
+            towards = per.get(m, {})
+            with_ds = [n for n in moves if n in towards]
+            nxt: str | None
+            key: str | None
+            closest = min(moves, key=rank) if moves and m not in goals else None
+            if with_ds:
+                nxt = min(with_ds, key=rank)
+                key = towards[nxt]
+            elif m in plain:
+                demo = plain[m]
+                nxt = demo if demo is not None and demo in moves else closest
+                key = m
+            else:
+                nxt, key = closest, None
+            out.append(PlannedStep(state=s.id, mode=m, next_mode=nxt, key=key, moves=moves))
+        return tuple(out)
+
+    def planned_mode(self, state: int, ds: DSKeys, goal_modes: Sequence[str] | None = None
+                     ) -> PlannedStep:
+        """:meth:`planned_keys` of one state."""
+        if not 0 <= state < len(self.states):
+            raise SpecError(f"no automaton state {state}")
+        return self.planned_keys(ds, goal_modes)[state]
 
     def mode_transitions(self) -> list[list[str]]:
         """Sorted distinct ``[from_mode, to_mode]`` pairs, self-loops included."""

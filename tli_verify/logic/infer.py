@@ -66,7 +66,7 @@ from __future__ import annotations
 import itertools
 import os
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -642,7 +642,7 @@ def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
 
 
 def resume_state(automaton: TaskAutomaton, old: AutomatonState,
-                 sensors: Mapping[str, bool] | Sequence[str]) -> int:
+                 sensors: Mapping[str, bool] | Iterable[str]) -> int:
     """The state of a re-synthesized automaton to carry on from.
 
     Parameters
@@ -652,8 +652,8 @@ def resume_state(automaton: TaskAutomaton, old: AutomatonState,
     old : AutomatonState
         The state of the old automaton the run was in before the sensor change (mode, goal
         memory, reading).
-    sensors : mapping of str to bool, or sequence of str
-        The current (new) reading.
+    sensors : mapping of str to bool, or iterable of str
+        The current (new) reading (values of the inputs, or the set of true inputs).
 
     Returns
     -------
@@ -707,7 +707,7 @@ class Regrowth:
 
 
 def regrow(spec: GR1Spec, from_mode: str, to_mode: str, old: AutomatonState,
-           sensors: Mapping[str, bool] | Sequence[str], *, perturbation: bool = True
+           sensors: Mapping[str, bool] | Iterable[str], *, perturbation: bool = True
            ) -> Regrowth:
     """:func:`add_transition`, re-synthesis and :func:`resume_state` in one call (for the
     executive's ``--learn-transitions``)."""

@@ -22,6 +22,8 @@ __all__ = [
     "ModeChange",
     "Perturbation",
     "Replan",
+    "TransitionLearned",
+    "TransitionRefused",
     "event_to_json",
 ]
 
@@ -118,6 +120,9 @@ class CutAdded:
         The mode's number of cuts now.
     fallback : bool
         Solved keeping only this failure's ``x^0`` inside (not every recorded entry state).
+    shift : float
+        0, or the fraction of the exit step the plane was moved off ``x^{T_f-1}`` because no
+        plane through it separates the failure (``tli_verify.runtime.online.SHIFTS``).
     """
 
     step: int
@@ -126,6 +131,7 @@ class CutAdded:
     cut: Cut
     cuts: int
     fallback: bool
+    shift: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,8 +189,67 @@ class Perturbation:
     mode: str
 
 
+@dataclass(frozen=True, slots=True)
+class TransitionLearned:
+    """``--learn-transitions``: a mode change the spec lacked was added to ``phi_t^s``, the
+    spec re-synthesized (realizable, well-separated, every state covered by the model's DS)
+    and the run carried on in the new automaton (paper appendix E, "a new automaton will be
+    re-synthesized"; :func:`tli_verify.logic.infer.regrow`).
+
+    Attributes
+    ----------
+    step : int
+    from_mode, to_mode : str
+        The edge added.
+    reading : tuple of str
+        The true sensors of the reading that showed it.
+    state : int
+        The state of the new automaton the run carries on from.
+    states, edges : int
+        The new automaton's size (states, reading-cube edges).
+    mode_edges : int
+        Its distinct mode changes (``from != to``) now.
+    perturbed : bool
+        A reported perturbation caused the change.
+    """
+
+    step: int
+    from_mode: str
+    to_mode: str
+    reading: tuple[str, ...]
+    state: int
+    states: int
+    edges: int
+    mode_edges: int
+    perturbed: bool
+
+
+@dataclass(frozen=True, slots=True)
+class TransitionRefused:
+    """``--learn-transitions``: a mode change the spec lacks was *not* added; the spec and the
+    automaton are kept and the reading is handled as an assumption violation.
+
+    Attributes
+    ----------
+    step : int
+    from_mode : str
+    to_mode : str or None
+        The mode the reading shows (None: no mode label holds, paper Asm. 3).
+    reading : tuple of str
+    reason : str
+        Why (unrealizable or not well-separated grown spec, no DS for a state of the grown
+        automaton, assumptions that cannot be relaxed, a reading no mode label covers).
+    """
+
+    step: int
+    from_mode: str
+    to_mode: str | None
+    reading: tuple[str, ...]
+    reason: str
+
+
 Event = (ModeChange | Replan | InvarianceFailure | CutAdded | CutFailed
-         | AssumptionViolationEvent | Perturbation)
+         | AssumptionViolationEvent | Perturbation | TransitionLearned | TransitionRefused)
 
 
 def event_to_json(event: Event) -> dict[str, Any]:

@@ -24,7 +24,19 @@ every control period returns the velocity to apply. Per step it
    the cut at once: a new model (:meth:`tli_verify.model.Model.add_cut`), whose DS of that
    mode all share the cut;
 5. runs ``model.velocity(x, mode, next_mode=planned, dt=dt)``: the per-transition DS towards the
-   planned next mode where the model has one.
+   planned next mode where the model has one. The plan is the toolkit's one planner,
+   :meth:`TaskAutomaton.planned_keys`, which the deployment gate checks coverage with too;
+6. **growing the spec** (``learn_transitions=True``, paper appendix E): a reading the
+   assumptions rule out that shows another *known* mode (paper Asm. 3) is a transition the
+   spec lacks. It is added to ``phi_t^s`` (:func:`tli_verify.logic.infer.regrow`: the observed
+   sensor change joins the assumptions, the change is marked as regressing), the spec is
+   re-synthesized and re-checked (realizable, well-separated), the grown automaton must give
+   every state a DS of the certified model (the same coverage check as at construction), and
+   the run carries on from the matching state (:func:`~tli_verify.logic.infer.resume_state`)
+   with a :class:`~.events.TransitionLearned` event; otherwise the old spec is kept, a
+   :class:`~.events.TransitionRefused` event says why and the reading is handled as an
+   assumption violation. The certified model and its certificate are untouched: they still
+   bind the spec the model names; the grown spec (:attr:`LTLDSPolicy.spec_toml`) is a new file.
 
 It refuses (:class:`~tli_verify.errors.CertificateError`, exit 1) a model its certificate does
 not cover, exactly as the gate does: the certificate re-checks
@@ -40,19 +52,18 @@ from __future__ import annotations
 
 import math
 import os
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, Protocol, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import InvarianceFailure as _Failure
 from tli_verify.errors import CertificateError, ModelError, TliError
-from tli_verify.logic.automaton import AssumptionViolation, TaskAutomaton
+from tli_verify.logic.automaton import AssumptionViolation, PlannedStep, TaskAutomaton
 from tli_verify.model import Model
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
@@ -63,10 +74,16 @@ from tli_verify.runtime.events import (
     ModeChange,
     Perturbation,
     Replan,
+    TransitionLearned,
+    TransitionRefused,
 )
 from tli_verify.runtime.online import cut_for_failure
 
+if TYPE_CHECKING:
+    from tli_verify.logic.spec import GR1Spec
+
 __all__ = [
+    "MAX_ENTRY_STATES",
     "EpisodeResult",
     "LTLDSPolicy",
     "SensorModel",
@@ -78,6 +95,37 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 Sensors = Mapping[str, bool] | Iterable[str]
+
+MAX_ENTRY_STATES = 64
+"""Most mode-entry states the executive keeps per mode (kept inside every later cut of the
+mode). Beyond it, one of the two closest recorded states (the older) is dropped, so the record
+stays bounded over long runs and keeps its spread (see :meth:`LTLDSPolicy._record_entry`)."""
+
+
+def plan_states(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None,
+                where: str) -> dict[int, PlannedStep]:
+    """The planner's choice in every state (:meth:`TaskAutomaton.planned_keys`), checked.
+
+    Raises
+    ------
+    ModelError
+        A mode the automaton runs has no DS, or a state has no DS the planner can run (the
+        deployment gate's ``modes`` check, with the same planner).
+    """
+    run_modes = sorted({s.mode for s in automaton.states})
+    missing = [m for m in run_modes if not model.keys_of(m)]
+    if missing:
+        raise ModelError(f"{where}: no DS for mode {missing[0]!r} the automaton "
+                         f"{automaton.name!r} runs")
+    steps = automaton.planned_keys({k: (mm.mode, mm.next_mode) for k, mm in model.modes.items()},
+                                   goal_modes)
+    for st in steps:
+        if st.key is None:
+            towards = ", ".join(st.moves) or "none: it only stays in the mode"
+            raise ModelError(f"{where}: no DS to run in automaton state {st.state} (mode "
+                             f"{st.mode!r}): no plain DS {st.mode!r} and no per-transition DS "
+                             f"towards the modes it can move to ({towards})")
+    return {st.state: st for st in steps}
 
 
 def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
@@ -162,13 +210,22 @@ class LTLDSPolicy:
         Add a cut on each invariance failure (paper Sec. 5.2); off: report only.
     cut_margin : float, optional
         Separation margin of the cut QCQP.
+    spec : GR1Spec, optional
+        The spec ``automaton`` was synthesized from (needed by ``learn_transitions``; its
+        inputs and modes must be the automaton's).
+    learn_transitions : bool, optional
+        Grow the spec online (module docstring, item 6). Default off: a transition the spec
+        lacks is reported as an assumption violation only.
 
     Raises
     ------
     CertificateError
         The certificate does not cover the model, or ``dt`` exceeds the certified period (1).
     ModelError
-        A mode the automaton runs has no DS in the model (2).
+        A mode the automaton runs has no DS in the model, or a state has no DS the planner can
+        run (2).
+    TliError
+        ``learn_transitions`` without a matching ``spec`` (2).
     """
 
     __slots__ = (
@@ -178,11 +235,14 @@ class LTLDSPolicy:
         "_inputs",
         "_key",
         "_last",
+        "_learned",
         "_mode",
         "_model",
         "_pending",
         "_plan_cache",
         "_planned",
+        "_refused",
+        "_spec_text",
         "_state",
         "_steps",
         "automaton",
@@ -192,12 +252,14 @@ class LTLDSPolicy:
         "events",
         "goal_modes",
         "learn_cuts",
+        "learn_transitions",
     )
 
     def __init__(self, automaton: TaskAutomaton, model: Model,
                  certificate: str | os.PathLike[str], *, dt: float | None = None,
                  goal_modes: Sequence[str] | None = None, learn_cuts: bool = True,
-                 cut_margin: float = 1e-3) -> None:
+                 cut_margin: float = 1e-3, spec: GR1Spec | None = None,
+                 learn_transitions: bool = False) -> None:
         cert_dt = check_coverage(model, certificate)
         if dt is None:
             dt = float(cert_dt)
@@ -206,22 +268,33 @@ class LTLDSPolicy:
         if dt > float(cert_dt) * (1.0 + 1e-12):  # the float nearest the certified period is fine
             raise CertificateError(f"{certificate}: refused: control period {dt:g} s is longer "
                                    f"than the certified {cert_dt} s")
-        run_modes = sorted({s.mode for s in automaton.states})
-        missing = [m for m in run_modes if not model.keys_of(m)]
-        if missing:
-            raise ModelError(f"{model.path}: no DS for mode {missing[0]!r} the automaton "
-                             f"{automaton.name!r} runs")
+        if goal_modes is None:
+            goal_modes = automaton.sink_modes()
+        self.goal_modes = tuple(goal_modes)
+        self._plan_cache: dict[int, PlannedStep] = plan_states(
+            automaton, model, self.goal_modes, str(model.path))
+        self.learn_transitions = bool(learn_transitions)
+        self._spec_text: str | None = None
+        if spec is not None:
+            from tli_verify.logic.infer import spec_to_toml
+
+            if tuple(spec.inputs) != tuple(automaton.inputs) or \
+                    tuple(spec.mode_names) != tuple(automaton.modes):
+                raise TliError(f"{spec.path or spec.name}: not the spec of the automaton "
+                               f"{automaton.name!r} (inputs or modes differ)", exit_code=2)
+            self._spec_text = spec_to_toml(spec)
+        elif self.learn_transitions:
+            raise TliError("learn_transitions needs the spec the automaton was synthesized "
+                           "from (spec=...)", exit_code=2)
+        if self.learn_transitions and spec is not None and spec.modes is None:
+            raise TliError(f"{spec.path or spec.name}: learn_transitions needs a [modes] table "
+                           "(which mode a reading shows)", exit_code=2)
+        self._learned: tuple[tuple[str, str], ...] = ()
+        self._refused: frozenset[tuple[str, frozenset[str]]] = frozenset()
         self.automaton = automaton
         self._model = model
         self.certificate = str(certificate)
         self.dt = float(dt)
-        if goal_modes is None:
-            succ: dict[str, set[str]] = {m: set() for m in run_modes}
-            for a, b in automaton.mode_transitions():
-                if a != b:
-                    succ[a].add(b)
-            goal_modes = [m for m in run_modes if not succ[m]]
-        self.goal_modes = tuple(goal_modes)
         self.learn_cuts = bool(learn_cuts)
         self.cut_margin = float(cut_margin)
         self.events: list[Event] = []
@@ -235,7 +308,6 @@ class LTLDSPolicy:
         self._pending = False
         self._holding = False
         self._entries: dict[str, list[FloatArray]] = {}
-        self._plan_cache: dict[int, str | None] = {}
         self._inputs = frozenset(automaton.inputs)
 
     # ---------------------------------------------------------------- public state
@@ -280,51 +352,35 @@ class LTLDSPolicy:
         """The current mode is a goal mode."""
         return self._mode in self.goal_modes
 
-    # ---------------------------------------------------------------- planning
-    def _distances(self) -> dict[str, int]:
-        preds: dict[str, set[str]] = {}
-        for a, b in self.automaton.mode_transitions():
-            if a != b:
-                preds.setdefault(b, set()).add(a)
-        dist = {g: 0 for g in self.goal_modes}
-        queue = deque(self.goal_modes)
-        while queue:
-            m = queue.popleft()
-            for p in sorted(preds.get(m, ())):
-                if p not in dist:
-                    dist[p] = dist[m] + 1
-                    queue.append(p)
-        return dist
+    @property
+    def learned(self) -> tuple[tuple[str, str], ...]:
+        """The mode changes added to the spec online, in order (``learn_transitions``)."""
+        return self._learned
 
+    @property
+    def spec_toml(self) -> str | None:
+        """The TOML text of the current spec -- the grown one after a learned transition --
+        accepted by ``tli spec check`` (None when built without ``spec``)."""
+        return self._spec_text
+
+    @property
+    def spec(self) -> GR1Spec | None:
+        """The current spec, parsed from :attr:`spec_toml` (None when built without one)."""
+        from tli_verify.logic.spec import parse_spec
+
+        return None if self._spec_text is None else parse_spec(self._spec_text)
+
+    # ---------------------------------------------------------------- planning
     def _plan(self, state: int) -> str | None:
-        """The next mode to run towards from ``state``: among the modes the automaton can move
-        to, one with a per-transition DS, the closest to a goal mode; else the plain DS's
-        ``next_mode``."""
-        if state in self._plan_cache:
-            return self._plan_cache[state]
-        mode = self.automaton.states[state].mode
-        succ = sorted({self.automaton.states[t.target].mode for t in self.automaton.transitions
-                       if t.source == state} - {mode})
-        dist = self._distances()
-        far = len(self.automaton.modes) + 1
-        with_ds = [s for s in succ if f"{mode}->{s}" in self.model.modes]
-        plan: str | None
-        if with_ds:
-            plan = min(with_ds, key=lambda s: (dist.get(s, far), s))
-        elif mode in self.model.modes and self.model.modes[mode].next_mode is not None:
-            plan = self.model.modes[mode].next_mode
-        elif succ and mode not in self.goal_modes:
-            plan = min(succ, key=lambda s: (dist.get(s, far), s))
-        else:
-            plan = None
-        self._plan_cache[state] = plan
-        return plan
+        """The next mode planned from ``state`` (:meth:`TaskAutomaton.planned_keys`)."""
+        return self._plan_cache[state].next_mode
 
     def _enter(self, state: int) -> None:
+        step = self._plan_cache[state]
         self._state = state
-        self._mode = self.automaton.states[state].mode
-        self._planned = self._plan(state)
-        self._key = self.model.key(self._mode, self._planned)
+        self._mode = step.mode
+        self._planned = step.next_mode
+        self._key = step.key or ""  # every state has a key (plan_states checked)
 
     def _resync(self, reading: frozenset[str]) -> int | None:
         """An automaton state entered with this reading: same strategy memory first."""
@@ -376,7 +432,7 @@ class LTLDSPolicy:
         self._enter(sid)
         self._entry = x
         self._last = x
-        self._entries.setdefault(self._mode, []).append(x)
+        self._record_entry(self._mode, x)
 
     def fork(self) -> LTLDSPolicy:
         """A copy for another episode: same automaton, model (and its learned cuts) and
@@ -389,6 +445,24 @@ class LTLDSPolicy:
         new._entries = {k: list(v) for k, v in self._entries.items()}
         new._plan_cache = dict(self._plan_cache)
         return new
+
+    def _record_entry(self, mode: str, x: FloatArray) -> None:
+        """Record a mode-entry state (kept inside the mode's later cuts), bounded.
+
+        At most :data:`MAX_ENTRY_STATES` per mode: past it, the older of the two closest
+        recorded states goes (a near-duplicate constraint), so long runs stay bounded in memory
+        and in the cut QCQP's size while isolated entry states -- the ones a cut could
+        otherwise exclude -- are kept.
+        """
+        kept = self._entries.setdefault(mode, [])
+        kept.append(x)
+        if len(kept) <= MAX_ENTRY_STATES:
+            return
+        P = np.array(kept)
+        d2 = ((P[:, None, :] - P[None, :, :]) ** 2).sum(axis=-1)
+        d2[np.tril_indices(len(kept))] = np.inf
+        i, _ = np.unravel_index(int(np.argmin(d2)), d2.shape)  # i < j: i is the older one
+        del kept[int(i)]
 
     def notify_perturbation(self) -> None:
         """The next reading follows a perturbation: a mode exit then is not a failure."""
@@ -419,6 +493,11 @@ class LTLDSPolicy:
             new_state, new_mode = self.automaton.next_mode(self._state, reading)
             self._holding = False
         except AssumptionViolation as exc:
+            grown = self._grow(t, reading, perturbed) if self.learn_transitions else None
+            if grown is not None:
+                new_state, new_mode = grown, self.automaton.states[grown].mode
+                self._holding = False
+                return self._advance(t, xv, new_state, new_mode, perturbed, cause)
             sid = self._resync(reading)
             self.events.append(AssumptionViolationEvent(t, self._state, tuple(sorted(reading)),
                                                         str(exc), sid))
@@ -429,6 +508,11 @@ class LTLDSPolicy:
             new_state, new_mode = sid, self.automaton.states[sid].mode
             if not perturbed:
                 cause = "assumption violation"
+        return self._advance(t, xv, new_state, new_mode, perturbed, cause)
+
+    def _advance(self, t: int, xv: FloatArray, new_state: int, new_mode: str, perturbed: bool,
+                 cause: str) -> str:
+        """Enter ``new_state`` (mode change, replan, invariance failure and its cut)."""
         old_mode, planned = self._mode, self._planned
         if new_mode != old_mode:
             expected = new_mode == planned
@@ -443,13 +527,13 @@ class LTLDSPolicy:
                 self.events.append(Replan(t, old_mode, new_mode, planned, self._planned, cause))
             self.events.append(ModeChange(t, old_mode, new_mode, new_state, expected))
             self._entry = xv
-            self._entries.setdefault(new_mode, []).append(xv)
+            self._record_entry(new_mode, xv)
         else:
             if new_state != self._state:
                 self._enter(new_state)
             if perturbed:
                 self._entry = xv
-                self._entries.setdefault(new_mode, []).append(xv)
+                self._record_entry(new_mode, xv)
         self._last = xv
         return self._key
 
@@ -481,6 +565,61 @@ class LTLDSPolicy:
         if self._holding or not self._key:
             return np.zeros(self.model.dim)
         return self.model.modes[self._key].velocity(self._vector(x), dt=self.dt)
+
+    # ---------------------------------------------------------------- growing the spec
+    def _grow(self, t: int, reading: frozenset[str], perturbed: bool) -> int | None:
+        """Learn the transition a reading the assumptions rule out shows (module docstring,
+        item 6); the state of the grown automaton to carry on from, or None (refused, or not
+        a transition into another known mode: the caller resynchronizes)."""
+        from tli_verify.logic.infer import regrow, spec_to_toml
+        from tli_verify.logic.spec import label_holds
+
+        spec = self.spec
+        if spec is None or self._state is None:  # pragma: no cover - checked in __init__
+            return None
+        from_mode = self._mode
+        if (from_mode, reading) in self._refused:
+            return None
+        shown = tuple(sorted(reading))
+        values = {i: i in reading for i in spec.inputs}
+        holds = [m for m in spec.mode_names if label_holds(spec, m, values)]
+        if len(holds) != 1:
+            why = ("no mode label holds for it: only transitions into known modes are valid "
+                   "(paper Asm. 3)" if not holds else
+                   f"the labels of several modes hold for it ({', '.join(holds)})")
+            self._refuse(t, from_mode, None, reading, why)
+            return None
+        to_mode = holds[0]
+        if to_mode == from_mode:  # a sensor change inside the mode's label: nothing to learn
+            self._refused = self._refused | {(from_mode, reading)}
+            return None
+        try:
+            grown = regrow(spec, from_mode, to_mode, self.automaton.states[self._state],
+                           reading)
+            if grown.spec is spec:  # already allowed: nothing to learn at this state
+                self._refused = self._refused | {(from_mode, reading)}
+                return None
+            plans = plan_states(grown.automaton, self.model, self.goal_modes,
+                                f"{self.model.path}")
+        except TliError as exc:
+            self._refuse(t, from_mode, to_mode, reading, str(exc))
+            return None
+        self.automaton = grown.automaton
+        self._plan_cache = plans
+        self._spec_text = spec_to_toml(grown.spec)
+        self._learned = (*self._learned, (from_mode, to_mode))
+        self._refused = frozenset()  # the spec changed: earlier refusals may not hold now
+        mode_edges = sum(1 for a, b in grown.automaton.mode_transitions() if a != b)
+        self.events.append(TransitionLearned(
+            t, from_mode, to_mode, shown, grown.state, len(grown.automaton.states),
+            len(grown.automaton.transitions), mode_edges, perturbed))
+        return grown.state
+
+    def _refuse(self, t: int, from_mode: str, to_mode: str | None, reading: frozenset[str],
+                reason: str) -> None:
+        self._refused = self._refused | {(from_mode, reading)}
+        self.events.append(TransitionRefused(t, from_mode, to_mode, tuple(sorted(reading)),
+                                             reason))
 
     # ---------------------------------------------------------------- online cuts
     def _failure(self, t: int, mode: str, to_mode: str, x_out: FloatArray) -> None:
@@ -518,7 +657,8 @@ class LTLDSPolicy:
             self.events.append(CutFailed(t, mode, str(exc)))
             return
         self.events.append(CutAdded(t, mode, keys, attempt.cut,
-                                    len(self.model.region_cuts(mode)), attempt.fallback))
+                                    len(self.model.region_cuts(mode)), attempt.fallback,
+                                    attempt.shift))
 
 
 class SensorModel(Protocol):

@@ -5,6 +5,13 @@ A cut for a failure ``(x^0, x^{T_f-1}, x^{T_f})`` is the plane through the last 
 that separates the failure state and keeps ``x*``, the earlier cut points and the given states
 inside (:func:`tli_verify.boundary.cuts.solve_cut`). When no plane keeps every given state
 inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix F as written).
+
+When even appendix F's QCQP has no solution -- the run dipped below the chord from ``x^0`` to
+``x*`` and left the mode above it, so every plane through ``x^{T_f-1}`` that keeps ``x^0`` and
+``x*`` inside also keeps ``x^{T_f}`` inside -- the plane is moved along the exit step: it passes
+through ``x^{T_f-1} + s (x^{T_f} - x^{T_f-1})`` for the smallest ``s`` in :data:`SHIFTS` that
+admits a separating plane, with ``x^{T_f-1}`` itself kept inside. This extends appendix F (found
+by the bisimulation campaigns: without it the failure got no cut and could repeat).
 """
 
 from __future__ import annotations
@@ -19,9 +26,13 @@ from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_
 from tli_verify.errors import SolverError, TliError
 from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
 
-__all__ = ["CutAttempt", "CutLearning", "cut_for_failure", "learn_cuts"]
+__all__ = ["SHIFTS", "CutAttempt", "CutLearning", "cut_for_failure", "learn_cuts"]
 
 FloatArray = npt.NDArray[np.float64]
+
+#: Fractions of the exit step ``x^{T_f} - x^{T_f-1}`` tried, in order, for the plane's point
+#: when no plane through ``x^{T_f-1}`` separates the failure (module docstring).
+SHIFTS: tuple[float, ...] = (0.25, 0.5, 0.75, 0.9)
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,10 +45,14 @@ class CutAttempt:
         None when no separating plane exists.
     fallback : bool
         Solved keeping only the failure's own ``x^0`` (and ``x*``, earlier cut points) inside.
+    shift : float
+        0 for a plane through ``x^{T_f-1}`` (appendix F); else the fraction of the exit step
+        the plane was moved by (:data:`SHIFTS`), ``x^{T_f-1}`` kept inside.
     """
 
     cut: Cut | None
     fallback: bool = False
+    shift: float = 0.0
 
 
 def cut_for_failure(
@@ -71,11 +86,28 @@ def cut_for_failure(
     except SolverError:
         if keep_inside is None:
             return CutAttempt(None)
+    last = np.asarray(failure.last_inside, dtype=np.float64)
+    x_star = np.asarray(attractor, dtype=np.float64).reshape(-1)
+    # x* strictly inside (Model.add_cut's rule): a small box around it, as the executive keeps
+    delta = 1e-3 * max(1e-6, float(np.linalg.norm(last - x_star)))
+    box = x_star + delta * np.vstack([np.eye(x_star.size), -np.eye(x_star.size)])
     try:  # some kept state lies beyond the exit: keep only this failure's x^0
-        return CutAttempt(solve_cut(failure, attractor, previous=previous, margin=margin),
-                          fallback=True)
+        return CutAttempt(solve_cut(failure, attractor, previous=previous, keep_inside=box,
+                                    margin=margin), fallback=True)
     except SolverError:
-        return CutAttempt(None)
+        pass
+    step = np.asarray(failure.outside, dtype=np.float64) - last
+    for s in SHIFTS:  # no plane through x^{T_f-1}: move it along the exit step
+        moved = InvarianceFailure(entry=failure.entry, last_inside=last + s * step,
+                                  outside=failure.outside)
+        try:
+            cut = solve_cut(moved, attractor, previous=previous,
+                            keep_inside=np.vstack([last[None, :], box]),
+                            margin=margin)
+        except SolverError:
+            continue
+        return CutAttempt(cut, fallback=True, shift=s)
+    return CutAttempt(None)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
