@@ -23,7 +23,9 @@ Pieces:
 
 * :func:`run_experiment` (one learned model, many perturbed episodes per variant, batched with
   :func:`~tli_verify.runtime.executive.run_episodes`), :func:`run_all` (a process pool over
-  experiments), :func:`find_loop` (the Fig. 7 start), the Markdown report and figures.
+  experiments), :func:`fig7_search` / :func:`find_loop` (paper Fig. 7: the unmodulated system
+  loops a -> b -> a ... until its budget, LTL-DS ends it with one cut; :func:`fig7_record`,
+  :func:`plot_fig7`), the Markdown report and figures.
 """
 
 from __future__ import annotations
@@ -831,18 +833,26 @@ def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
 
 def plot_fig7(world: ScoopWorld, search: Mapping[str, Any],
               path: str | os.PathLike[str]) -> None:
-    """Fig. 7-style picture of a found case: left the unmodulated loop, right LTL-DS with its
-    cut (:func:`plot_episode`, the unperturbed run dashed grey), and an inset on the left
-    panel zoomed on the loop at the soup's surface."""
+    """Fig. 7-style picture of a case :func:`fig7_search` found (PNG, atomic).
+
+    Three panels (:func:`plot_episode`): the unmodulated run looping until its budget, its
+    last 400 steps zoomed on the loop at the soup's surface, and LTL-DS with the cut it added
+    (blue); the unperturbed run from the same start is dashed grey.
+
+    Raises
+    ------
+    TliError
+        The search found no case.
+    """
     f = search["found"]
     if f is None:
         raise TliError("no Fig. 7 case to draw (the search found none)")
-    setup_nominal = None
     p, r = f["no_modulation"], f["ltl_ds"]
+    nominal = None
     if f["perturbations"]:
-        setup_nominal = run_variant(bundled_setup(lag=search["lag"]), "no-modulation",
-                                    f["start"], {}, steps=p.steps)
-    plot_episode(world, p, path, nominal=setup_nominal, label="no modulation",
+        nominal = run_variant(bundled_setup(lag=search["lag"]), "no-modulation", f["start"],
+                              {}, steps=p.steps)
+    plot_episode(world, p, path, nominal=nominal, label="no modulation",
                  others=[("LTL-DS", r)], zoom_first=True,
                  title=f"Fig. 7: without modulation a -> b -> a ... until the budget "
                        f"({b_to_a_failures(p)} b -> a failures in {p.steps} steps); LTL-DS "
