@@ -92,7 +92,7 @@ def test_nominal_run_neither_loops_nor_fails() -> None:
 
 
 def test_search_finds_the_documented_case_and_draws_it(tmp_path: Path) -> None:
-    search = fig7_search(0, 20, BUDGET)
+    search = fig7_search(0, 3, BUDGET)  # the third try of seed 0 is the documented case
     rec = fig7_record(search)
     json.dumps(rec)  # JSON-ready
     assert rec["found"] and rec["stage"] == "perturbed nominal run"
