@@ -39,9 +39,13 @@ def specs_dir() -> Path:
 
 @pytest.fixture
 def project(tmp_path: Path, repo: Path) -> Path:
-    """A copy of the deployed scoop model, its certificate and spec (a project the gate sees)."""
+    """A copy of the deployed scoop model, its certificate and spec (a project the gate sees),
+    with binding-only campaign evidence (tests/support/evidence.py)."""
+    from tests.support.evidence import attach_evidence
+
     for sub, name in (("models", "scoop.model.json"), ("certificates", "scoop.cert.json"),
                       ("specs", "scoop.toml")):
         (tmp_path / sub).mkdir()
         shutil.copy(repo / sub / name, tmp_path / sub / name)
+    attach_evidence(tmp_path)
     return tmp_path

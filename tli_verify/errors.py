@@ -9,8 +9,10 @@ from __future__ import annotations
 
 __all__ = [
     "AssetError",
+    "CampaignError",
     "CertificateError",
     "DemoError",
+    "EvidenceError",
     "GateError",
     "ModelError",
     "OutputError",
@@ -18,6 +20,7 @@ __all__ = [
     "SpecError",
     "TliError",
     "UnrealizableError",
+    "WorkerLost",
 ]
 
 
@@ -75,6 +78,13 @@ class CertificateError(TliError):
     exit_code = 1
 
 
+class EvidenceError(TliError):
+    """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
+    the deployed files."""
+
+    exit_code = 1
+
+
 class GateError(TliError):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
@@ -84,3 +94,13 @@ class GateError(TliError):
 class AssetError(TliError):
     """A simulator asset (the MuJoCo Panda model files) cannot be fetched, fails its pinned
     sha256, or is missing: run ``python -m tli_verify.sim.assets fetch``."""
+
+
+class WorkerLost(TliError):
+    """A worker running a batch of a campaign died more often than the retries allow."""
+
+    exit_code = 1
+
+
+class CampaignError(TliError):
+    """A campaign's configuration, case file or backend is unusable (exit 2)."""

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.support.evidence import attach_evidence
 from tli_verify.certify.certificate import (
     certificate_digest,
     check_certificate,
@@ -68,6 +69,7 @@ def fresh(tmp_path: Path, repo: Path) -> Path:
     cert = tmp_path / "certificates" / "scoop.cert.json"
     write_certificate(issue_certificate(tmp_path / "models" / "scoop.model.json",
                                         cert_path=cert), cert)
+    attach_evidence(tmp_path)  # binding-only campaign evidence: the gate's other checks pass
     return tmp_path
 
 

@@ -1,9 +1,13 @@
 """Closed-loop spec growth (``--learn-transitions``, paper appendix E) on the scoop world.
 
 From the demonstration-only spec (``tli spec infer demos/scoop_*.csv``: mode changes
-``a -> b -> c -> d`` only), seeded perturbed episodes run by the executive with the shipped
+``a -> b -> c -> d`` only), three perturbed episodes run by the executive with the shipped
 certified model grow the automaton to exactly paper Fig. 5(a), the automaton of
-``specs/scoop.toml``.
+``specs/scoop.toml``. Each missing transition is driven by one explicit push (:data:`PUSHES`)
+computed from the world's true regions (:mod:`tli_verify.worlds.scoop`), not found by a lucky
+seed: whichever state of its source region the push meets, it lands where the world reads the
+missing edge (:func:`test_each_push_lands_where_the_world_reads_its_edge`), and the episodes
+check that the push meets the run in that region and mode.
 """
 
 from __future__ import annotations
@@ -11,22 +15,19 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
 
 from tests.support.omega_oracle import omega_realizable
 from tli_verify.cli import main
 from tli_verify.demos import load_demos
-from tli_verify.experiments.scoop import (
-    bundled_setup,
-    random_perturbations,
-    random_start,
-    run_variant,
-)
+from tli_verify.experiments.scoop import _pusher, bundled_setup, run_variant
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.logic.infer import infer_spec, load_labels
@@ -39,11 +40,72 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
-from tli_verify.runtime.executive import LTLDSPolicy, check_coverage
+from tli_verify.runtime.executive import EpisodeResult, LTLDSPolicy, check_coverage
+from tli_verify.worlds.scoop import ScoopWorld
 
-SEEDS = (19, 6, 9)
-"""The seeded episodes of the README walkthrough (``tli run --seed S --perturb random:3``; with
-the scooping demonstrations of issue 11 D, seed 19 is the Fig. 7 loop's b -> a failure)."""
+START = (-6.0, 0.0)
+"""The start of every episode here (white, left of the soup; ``tli run --start=-6,0``).
+Unperturbed, the bundled model runs ``a`` (steps 0-252), ``b`` (253-431, the scoop, x2 down
+to -6.8), ``c`` (432-886, up the pink column: x2 <= 2 until about step 600), ``d``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Push:
+    """One explicit perturbation (``tli run --perturb STEP:DX,DY``) that shows a missing edge.
+
+    Attributes
+    ----------
+    step : int
+        The step it is applied before (1-based, as ``--perturb``).
+    shift : tuple of float
+        The displacement ``(DX, DY)``; the state is then clipped to the workspace
+        ``[-8, 8]^2``, as every push is.
+    edge : tuple of str
+        The mode change the world reads: ``(mode before, mode after)``.
+    source : tuple of float
+        ``(x1_lo, x1_hi, x2_lo, x2_hi)``: the box, intersected with the region of ``edge[0]``,
+        from which the push lands in the region of ``edge[1]``, whatever the point.
+    """
+
+    step: int
+    shift: tuple[float, float]
+    edge: tuple[str, str]
+    source: tuple[float, float, float, float]
+
+    @property
+    def flag(self) -> str:
+        """The ``--perturb`` value."""
+        return f"{self.step}:{self.shift[0]:g},{self.shift[1]:g}"
+
+
+PUSHES = (
+    # b -> a, out of the soup: yellow is x2 <= -4 outside the pink column; straight up by 8
+    # keeps x1 outside the column and puts x2 in [0, 4]: white. Step 340 is mid-scoop.
+    Push(340, (0.0, 8.0), ("b", "a"), (-8.0, 8.0, -8.0, -4.0)),
+    # c -> a, a spill: pink is 2 <= x1 <= 6, x2 <= 6; left by 8 leaves the column (x1 in
+    # [-6, -2]), up by 6 puts x2 at -2 or above (> -4): white, and the soup is lost.
+    Push(540, (-8.0, 6.0), ("c", "a"), (2.0, 6.0, -8.0, 6.0)),
+    # c -> b, back into the soup: left by 8 leaves the column, down by 6 puts x2 <= -4 from
+    # any pink state with x2 <= 2 (the first ~170 steps of c; step 540 is at x2 = -0.6).
+    Push(540, (-8.0, -6.0), ("c", "b"), (2.0, 6.0, -8.0, 2.0)),
+)
+"""The walkthrough's three pushes, in order: episode ``i`` (from :data:`START`) gets
+``PUSHES[i]`` and grows the spec by ``PUSHES[i].edge``."""
+
+LOOP_PUSH = (340, (0.5, 2.5))
+"""``--perturb 340:0.5,2.5``: a push that stays in the soup (yellow to yellow: no new edge), to
+just under its surface left of pink, where the bundled model's scooping DS rises out of the
+soup by itself (Fig. 7's loop). From step 340's state (-0.38, -6.84) it lands at
+(0.12, -4.34), inside :data:`LOOP_BAND`."""
+
+LOOP_BAND = (-0.5, 1.5, -4.5, -4.05)
+"""``(x1_lo, x1_hi, x2_lo, x2_hi)``: the landing points from which the DS of ``b`` leaves the
+soup into white (every point of a 0.5 x 0.25 grid over it does, on the bundled model; x2 = -5
+does not). A property of the learned DS, not of the world's geometry."""
+
+REGION_OF_MODE = {"a": 0, "b": 1, "c": 2, "d": 3}
+"""Mode -> index of its region (``ScoopWorld.region_names``: white, yellow, pink, green);
+pink reads ``c`` only with soup on the spoon, which a run entering pink from yellow has."""
 
 
 def _edges(aut: TaskAutomaton) -> set[tuple[Any, ...]]:
@@ -57,6 +119,44 @@ def _edges(aut: TaskAutomaton) -> set[tuple[Any, ...]]:
     return {(desc(t.source), t.sensors, t.off, desc(t.target)) for t in aut.transitions}
 
 
+def _pushed(world: ScoopWorld, push: Push, x: Any) -> np.ndarray:
+    """The state ``push`` moves ``x`` to, with the pusher the episodes use."""
+    out = _pusher(world, {push.step: push.shift})(push.step, np.asarray(x, dtype=np.float64))
+    assert out is not None
+    return out
+
+
+def _check_meets(world: ScoopWorld, res: EpisodeResult, push: Push) -> None:
+    """The push met the run in mode ``edge[0]``, inside its source box, and moved it into the
+    region of ``edge[1]``."""
+    before = res.states[push.step - 1]  # the state the push is applied to
+    x1_lo, x1_hi, x2_lo, x2_hi = push.source
+    assert res.modes[push.step - 1] == push.edge[0], "re-time the push: the run has moved on"
+    assert world.region_one(before) == REGION_OF_MODE[push.edge[0]]
+    assert x1_lo <= before[0] <= x1_hi and x2_lo <= before[1] <= x2_hi, before
+    assert world.region_one(_pushed(world, push, before)) == REGION_OF_MODE[push.edge[1]]
+
+
+@st.composite
+def _in_source(draw: st.DrawFn, push: Push) -> tuple[float, float]:
+    x1_lo, x1_hi, x2_lo, x2_hi = push.source
+    x = (draw(st.floats(x1_lo, x1_hi)), draw(st.floats(x2_lo, x2_hi)))
+    assume(ScoopWorld().region_one(x) == REGION_OF_MODE[push.edge[0]])
+    return x
+
+
+@pytest.mark.parametrize("push", PUSHES, ids=lambda p: "".join(p.edge))
+@given(data=st.data())
+def test_each_push_lands_where_the_world_reads_its_edge(push: Push, data: st.DataObject
+                                                        ) -> None:
+    """Geometry only: from every state of its source (region of ``edge[0]`` within the box)
+    the push lands in the region of ``edge[1]`` -- which is what makes the episodes below
+    independent of where exactly the push meets the run."""
+    world = ScoopWorld()
+    x = data.draw(_in_source(push))
+    assert world.region_one(_pushed(world, push, x)) == REGION_OF_MODE[push.edge[1]]
+
+
 @pytest.fixture(scope="module")
 def inferred(repo: Path) -> GR1Spec:
     demos = load_demos(sorted((repo / "demos").glob("scoop_*.csv")))
@@ -64,43 +164,44 @@ def inferred(repo: Path) -> GR1Spec:
     return infer_spec(demos, labels, name="scoop-inferred")
 
 
+def _demo_only_policy(inferred: GR1Spec) -> tuple[Any, LTLDSPolicy]:
+    setup = replace(bundled_setup(), automaton=synthesize(inferred))
+    return setup, LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
+                              learn_transitions=True)
+
+
 @pytest.fixture(scope="module")
-def grown(inferred: GR1Spec) -> tuple[LTLDSPolicy, list[Any]]:
-    """The executive after the seeded perturbed episodes, and their results."""
-    setup = bundled_setup()
-    setup = replace(setup, automaton=synthesize(inferred))
-    pol = LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
-                      learn_transitions=True)
-    results = []
-    for seed in SEEDS:  # as `tli run --seed S --perturb random:3` draws them
-        x0 = random_start(setup.world, np.random.default_rng([seed, 3]))
-        pert = random_perturbations(np.random.default_rng([seed, 11]), 3, setup.world)
-        results.append(run_variant(setup, "LTL-DS", x0, pert, policy=pol))
+def grown(inferred: GR1Spec) -> tuple[LTLDSPolicy, list[EpisodeResult]]:
+    """The executive after the three pushed episodes (one policy: what it learns carries
+    over), and their results."""
+    setup, pol = _demo_only_policy(inferred)
+    results = [run_variant(setup, "LTL-DS", np.array(START), {p.step: p.shift}, policy=pol)
+               for p in PUSHES]
     return pol, results
 
 
 def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
-        inferred: GR1Spec, grown: tuple[LTLDSPolicy, list[Any]], specs_dir: Path,
+        inferred: GR1Spec, grown: tuple[LTLDSPolicy, list[EpisodeResult]], specs_dir: Path,
         tmp_path: Path) -> None:
     demo_only = synthesize(inferred)
     paper = synthesize(load_spec(specs_dir / "scoop.toml"))
     assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 5(a)
     pol, results = grown
+    world = ScoopWorld()
     assert all(r.success for r in results)
-    assert sorted(pol.learned) == [("b", "a"), ("c", "a"), ("c", "b")]
+    for push, r in zip(PUSHES, results, strict=True):
+        _check_meets(world, r, push)
+        # each episode learns exactly its push's edge, at the push, as a push (replanned,
+        # never cut)
+        ev = [e for e in r.events if isinstance(e, TransitionLearned)]
+        assert [(e.step, e.from_mode, e.to_mode, e.perturbed) for e in ev] \
+            == [(push.step, *push.edge, True)]
+        at = {type(o) for o in r.events if o.step == push.step}
+        assert Perturbation in at and InvarianceFailure not in at and CutAdded not in at
+    assert list(pol.learned) == [p.edge for p in PUSHES]
     ev = [e for r in results for e in r.events if isinstance(e, TransitionLearned)]
-    assert [(e.from_mode, e.to_mode) for e in ev] == list(pol.learned)
     assert [e.mode_edges for e in ev] == [4, 5, 6]  # each adds exactly its own edge
     assert ev[-1].states == len(pol.automaton.states)
-    for r in results:
-        for e in r.events:
-            if not isinstance(e, TransitionLearned):
-                continue
-            at = {type(o) for o in r.events if o.step == e.step}
-            if e.perturbed:  # a push: replanned, never cut
-                assert Perturbation in at and InvarianceFailure not in at
-            else:  # the DS left the mode itself: the edge is learned *and* the exit is cut
-                assert {InvarianceFailure, CutAdded} <= at
     # no reading was left unexplained once the spec had grown
     assert not any(isinstance(e, (AssumptionViolationEvent, TransitionRefused))
                    for r in results for e in r.events)
@@ -117,6 +218,30 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
     # the certified model still names (and its certificate still binds) the original spec
     assert pol.model.spec_path is not None and pol.model.spec_path.name == "scoop.toml"
     check_coverage(pol.model, pol.certificate)
+
+
+def test_the_ds_leaving_the_soup_by_itself_is_learned_and_cut(inferred: GR1Spec) -> None:
+    """The other way an edge shows: no push across regions; the DS of ``b`` leaves the soup
+    itself (an invariance failure): the edge is learned *and* the exit is cut, same step."""
+    setup, pol = _demo_only_policy(inferred)
+    world = ScoopWorld()
+    step, shift = LOOP_PUSH
+    r = run_variant(setup, "LTL-DS", np.array(START), {step: shift}, policy=pol)
+    assert r.success
+    # the push meets the scoop (mode b) and keeps it in the soup, inside the band: b -> b
+    assert r.modes[step - 1] == "b"
+    landed = _pushed(world, Push(step, shift, ("b", "b"), LOOP_BAND), r.states[step - 1])
+    assert world.region_one(landed) == REGION_OF_MODE["b"]
+    x1_lo, x1_hi, x2_lo, x2_hi = LOOP_BAND
+    assert x1_lo <= landed[0] <= x1_hi and x2_lo <= landed[1] <= x2_hi, landed
+    ev = [e for e in r.events if isinstance(e, TransitionLearned)]
+    assert [(e.from_mode, e.to_mode, e.perturbed) for e in ev] == [("b", "a", False)]
+    assert ev[0].step > step and ev[0].mode_edges == 4
+    at = {type(o) for o in r.events if o.step == ev[0].step}
+    assert {InvarianceFailure, CutAdded} <= at and Perturbation not in at
+    # the state read at that step is out of the soup, in white
+    assert world.region_one(r.states[ev[0].step - 1]) == REGION_OF_MODE["a"]
+    assert r.cuts_added >= 1 and pol.learned == (("b", "a"),)
 
 
 def test_grown_spec_cross_checked_by_spot_and_omega(
@@ -146,20 +271,23 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
     spec = tmp_path / "g0.toml"
     spec.write_text(spec_to_toml(inferred))
     per_episode = []
-    for i, seed in enumerate(SEEDS):
-        nxt = tmp_path / f"g{i + 1}.toml"
-        code = main(["run", "--world", "scoop", "--seed", str(seed), "--perturb", "random:3",
-                     "--spec", str(spec), "--learn-transitions", "--grown-spec", str(nxt),
-                     "--out", str(tmp_path / f"run{seed}"), "--json"])
+    for i, push in enumerate(PUSHES, start=1):  # the commands of README section 7
+        nxt = tmp_path / f"g{i}.toml"
+        code = main(["run", "--world", "scoop", f"--start={START[0]:g},{START[1]:g}",
+                     "--perturb", push.flag, "--spec", str(spec), "--learn-transitions",
+                     "--grown-spec", str(nxt), "--out", str(tmp_path / f"run{i}"), "--json"])
         rec = json.loads(capsys.readouterr().out)
         assert code == 0 and rec["success"]
         assert rec["grown_spec"] == str(nxt) and rec["spec"] == str(spec)
-        assert sum(e["event"] == "TransitionLearned" for e in rec["events"]) \
-            == len(rec["learned_transitions"])
-        per_episode.append(rec["learned_transitions"])
+        learned = [e for e in rec["events"] if e["event"] == "TransitionLearned"]
+        assert len(learned) == len(rec["learned_transitions"])
+        per_episode.append((rec["learned_transitions"], [e["step"] for e in learned],
+                            rec["mode_sequence"]))
         spec = nxt
-    # the growth the README walkthrough prints (section 7)
-    assert per_episode == [[["b", "a"]], [["c", "a"], ["c", "b"]], []]
+    # the growth the README walkthrough prints (section 7): one edge per episode, at its push
+    assert per_episode == [([["b", "a"]], [340], "ababcd"),
+                           ([["c", "a"]], [540], "abcabcd"),
+                           ([["c", "b"]], [540], "abcbcd")]
     paper = synthesize(load_spec(specs_dir / "scoop.toml"))
     assert _edges(synthesize(load_spec(spec))) == _edges(paper)
     assert main(["spec", "check", str(spec)]) == 0
@@ -207,17 +335,19 @@ def test_batched_episodes_grow_as_single_episodes(inferred: GR1Spec) -> None:
     setup = replace(bundled_setup(), automaton=synthesize(inferred))
     base = LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
                        learn_transitions=True)
-    starts = np.array([random_start(setup.world, np.random.default_rng([s, 3]))
-                       for s in SEEDS[:2]])
-    perts = [random_perturbations(np.random.default_rng([s, 11]), 3, setup.world)
-             for s in SEEDS[:2]]
+    # the second start is where the demonstrations start: its run enters c at step 719, so
+    # the c -> b push comes 108 steps into c, as PUSHES[2] does from START
+    starts = np.array([START, (-5.0, 4.5)])
+    pushes = [PUSHES[0], replace(PUSHES[2], step=719 + 108)]
+    perts = [{p.step: p.shift} for p in pushes]
     batch = run_variant_batch(setup, "LTL-DS", starts, perts, policy=base)
     assert base.learned == ()  # forks grow their own copies
-    for x0, pert, got in zip(starts, perts, batch, strict=True):
-        one = run_variant(setup, "LTL-DS", x0, pert, policy=base.fork())
+    for x0, push, got in zip(starts, pushes, batch, strict=True):
+        _check_meets(setup.world, got, push)
+        one = run_variant(setup, "LTL-DS", x0, {push.step: push.shift}, policy=base.fork())
         learned = [(e.from_mode, e.to_mode) for e in got.events
                    if isinstance(e, TransitionLearned)]
-        assert learned and learned == [(e.from_mode, e.to_mode) for e in one.events
-                                       if isinstance(e, TransitionLearned)]
+        assert learned == [push.edge] == [(e.from_mode, e.to_mode) for e in one.events
+                                          if isinstance(e, TransitionLearned)]
         assert got.modes == one.modes and got.success and one.success
         np.testing.assert_allclose(got.states, one.states, rtol=1e-9, atol=1e-9)

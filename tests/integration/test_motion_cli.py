@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.evidence import attach_evidence
 from tli_verify.cli import main
 
 
@@ -60,6 +61,13 @@ def test_learn_certify_check_gate(project: Path, capsys: pytest.CaptureFixture[s
     assert code == 0
     assert out.strip().endswith(f"valid (re-checked exactly against {model})")
 
+    # certified but never property-tested: the campaign-evidence check alone blocks
+    code, out, err = run(capsys, "gate", str(project))
+    assert code == 1
+    assert [line.split(": ")[1] for line in out.splitlines() if line.startswith("BLOCK")] == [
+        "campaign"]
+    assert_one_error_line(err, "gate blocked: 1 problem(s)", "no campaign evidence")
+    attach_evidence(project)
     code, out, _ = run(capsys, "gate", str(project))
     assert code == 0
     assert out.strip().splitlines()[-1] == ("gate: pass (1 certificate(s), 1 model(s), "
@@ -82,7 +90,7 @@ def test_learn_certify_check_gate(project: Path, capsys: pytest.CaptureFixture[s
     code, out, err = run(capsys, "gate", str(project))
     assert code == 1
     assert "BLOCK certificate" in out and "BLOCK model" in out
-    assert_one_error_line(err, "gate blocked: 2 problem(s)")
+    assert_one_error_line(err, "gate blocked: 3 problem(s)")  # certificate, model, campaign
 
 
 def test_json_output_and_label_free_modes(project: Path,

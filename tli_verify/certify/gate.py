@@ -18,7 +18,13 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      DS for every mode transition the automaton can take out of a mode whose DS is
      per-transition, in every automaton state of such a mode a DS the runtime can pick (one
      towards a mode that state can move to), and no mode (or next mode) the spec lacks;
-   * ``dimension``: its state names are distinct and every DS and cut has their dimension.
+   * ``dimension``: its state names are distinct and every DS and cut has their dimension;
+   * ``campaign``: campaign evidence ``certificates/<name>.campaign.json``
+     (:mod:`tli_verify.verify.evidence`) binds its current spec, model and valid certificate,
+     found 0 violations with modulation on, is complete and has at least
+     ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
+     campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
+     nothing. Evidence that binds no deployed model blocks too.
 
 A directory with no model to deploy fails closed ("nothing to gate"). Any failure blocks.
 """
@@ -34,7 +40,10 @@ from typing import Any
 from tli_verify.certify.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError
 
-__all__ = ["GateItem", "GateReport", "run_gate"]
+__all__ = ["CampaignRunner", "GateItem", "GateReport", "rerun_campaign", "run_gate"]
+
+CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
+"""``(evidence check, model path, examples) -> (ok, one-line message)``: a ``--rerun``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,7 +53,7 @@ class GateItem:
     Attributes
     ----------
     kind : str
-        ``"spec"``, ``"certificate"``, ``"model"`` or ``"project"``.
+        ``"spec"``, ``"certificate"``, ``"model"``, ``"evidence"`` or ``"project"``.
     path : str
         The file (relative to the project).
     ok : bool
@@ -52,7 +61,7 @@ class GateItem:
         What passed, or what blocks.
     check : str
         Which check of that file (``"re-check"``, ``"certificate"``, ``"spec"``, ``"modes"``,
-        ``"dimension"``, ``"contents"``).
+        ``"dimension"``, ``"campaign"``, ``"rerun"``, ``"contents"``).
     """
 
     kind: str
@@ -290,7 +299,8 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
 
 
 def run_gate(root: str | os.PathLike[str] = ".", *,
-             spec_checker: Callable[[Path], Any] | None = None) -> GateReport:
+             spec_checker: Callable[[Path], Any] | None = None, rerun: int | None = None,
+             campaign_runner: CampaignRunner | None = None) -> GateReport:
     """Run the deployment gate on a project directory.
 
     Parameters
@@ -301,6 +311,12 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         ``path -> result`` with ``.realizable``, ``.expected_realizable``, ``.as_expected``,
         ``.well_separated`` and ``.spec`` (default:
         :func:`tli_verify.logic.check.check_spec_file`).
+    rerun : int, optional
+        Re-run a campaign of this many examples per deployed model whose evidence checks, with
+        the evidence's seed and world (``tli gate --rerun N``); a violation blocks.
+    campaign_runner : callable, optional
+        ``(evidence check, model path, examples) -> (ok, message)`` for ``rerun`` (default:
+        :func:`rerun_campaign`, which calls :func:`tli_verify.verify.campaign.run_campaign`).
 
     Returns
     -------
@@ -331,6 +347,8 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         items.append(bad if bad is not None else _spec_item(specs.check(spec), shown(spec)))
     certified: dict[Path, list[tuple[Path, CertCheck]]] = {}
     for cert in _files(base / "certificates", "*.json"):
+        if cert.name.endswith(".campaign.json"):  # EVIDENCE_SUFFIX
+            continue  # campaign evidence, checked per model (_campaign_items)
         bad = _irregular(cert, "certificate", shown(cert))
         if bad is not None:
             items.append(bad)
@@ -357,9 +375,109 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     for model in models:
         bad = _irregular(model, "model", shown(model))
         items += [bad] if bad is not None else _model_checks(model, shown, certified, specs)
+    items += _campaign_items(base, models, shown, certified, rerun=rerun,
+                             runner=campaign_runner)
     if not models:
         items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
                               f"{shown(base / 'models')}/ to deploy (the gate fails closed)",
                               "contents"))
     return GateReport(root=str(base), items=tuple(items))
 
+
+
+# --------------------------------------------------------------------------------------------
+# Campaign evidence (issue 12 D)
+# --------------------------------------------------------------------------------------------
+
+def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str],
+                    certified: dict[Path, list[tuple[Path, CertCheck]]], *,
+                    rerun: int | None, runner: CampaignRunner | None) -> list[GateItem]:
+    """One ``campaign`` line per deployed model (and a ``rerun`` line with ``rerun``), then
+    one blocking ``evidence`` line per evidence file that binds no deployed model."""
+    from tli_verify.verify.evidence import EVIDENCE_SUFFIX, check_evidence, evidence_path_for
+
+    items: list[GateItem] = []
+    claimed: set[Path] = set()
+    for model in models:
+        if _irregular(model, "model", shown(model)) is not None:
+            continue  # already blocked, never read
+        name = shown(model)
+        evidence = evidence_path_for(model, base)
+        claimed.add(Path(os.path.normpath(evidence.absolute())))
+        if not os.path.lexists(evidence):
+            items.append(GateItem("model", name, False, f"no campaign evidence "
+                                  f"{shown(evidence)} (run: python scripts/make_evidence.py, or "
+                                  "tli verify ... --evidence)", "campaign"))
+            continue
+        valid = [c for c, _ in certified.get(model.resolve(), [])]
+        check = check_evidence(evidence, model_path=model, valid_certificates=valid)
+        if not check.ok:
+            items.append(GateItem("model", name, False, f"{shown(evidence)}: "
+                                  f"{'; '.join(check.problems)}", "campaign"))
+            continue
+        items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on world "
+                              f"{check.world!r} with seed {check.seed}: {check.examples} "
+                              f"examples ({check.runs} runs), modulation on, 0 violations; "
+                              "binds its spec, model and certificate (SHA-256)", "campaign"))
+        if rerun is not None:
+            ok, message = (runner or rerun_campaign)(check, model, int(rerun))
+            items.append(GateItem("model", name, ok, message, "rerun"))
+    for evidence in _files(base / "certificates", "*" + EVIDENCE_SUFFIX):
+        if evidence.name.endswith(EVIDENCE_SUFFIX) and \
+                Path(os.path.normpath(evidence.absolute())) not in claimed:
+            items.append(GateItem("evidence", shown(evidence), False, "binds no deployed "
+                                  "model (the gate looks for models/<name>.model.json next to "
+                                  "certificates/<name>.campaign.json)", "campaign"))
+    return items
+
+
+def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
+    """``tli gate --rerun N``: a short campaign with the evidence's seed, world and settings,
+    modulation on, on the deployed files; not shrunk (the line says how to reproduce it), in
+    this process when ``N`` fits in one batch.
+
+    Parameters
+    ----------
+    check : tli_verify.verify.evidence.EvidenceCheck
+        A passing evidence check (its world, seed, spec and certificate).
+    model : Path
+        The deployed model.
+    examples : int
+        Examples of the short campaign.
+
+    Returns
+    -------
+    (bool, str)
+        Whether it found nothing, and one line saying what it ran and found.
+    """
+    try:
+        from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    except ImportError as exc:
+        return False, f"cannot re-run the campaign: {exc}"
+    from tli_verify.verify.evidence import settings_for_config
+
+    settings = settings_for_config(dict(check.settings), CampaignConfig)
+    # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool
+    # would only add its start-up)
+    settings["shrink"] = False
+    single = examples <= int(settings.get("batch_size", 100))
+    try:
+        config = CampaignConfig(world=check.world, spec=str(check.spec_path), model=str(model),
+                                certificate=str(check.certificate_path), examples=examples,
+                                seed=check.seed, modulation=True,
+                                backend="serial" if single else "process", **settings)
+        result = run_campaign(config)
+    except TliError as exc:
+        return False, f"the re-run campaign failed: {exc}"
+    found = {str(getattr(k, "value", k)): int(v) for k, v in dict(result.violations).items()
+             if int(v)}
+    what = (f"re-ran {examples} examples with seed {check.seed} on world {check.world!r} "
+            f"({result.runs} runs)")
+    if getattr(result, "partial", False):
+        return False, f"{what}: interrupted, incomplete"
+    if found:
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
+        return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
+                       f"reproduce: tli verify --world {check.world} --seed {check.seed} "
+                       f"--examples {examples} --model {model}")
+    return True, f"{what}: 0 violations"

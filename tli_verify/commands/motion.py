@@ -72,6 +72,17 @@ def _seed(text: str) -> int:
     return value
 
 
+def _rerun_examples(text: str) -> int:
+    """``--rerun N``: examples of the gate's re-run campaign, 1 to 100,000."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 1 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be between 1 and 100000, got {text!r}")
+    return value
+
+
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
 
@@ -137,10 +148,15 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
         "gate", help="deployment gate: every certificate, model and spec re-checks",
         description="Exit 0 only when every certificate under DIR/certificates re-checks "
-        "exactly, every model under DIR/models has a valid certificate, and every spec under "
-        "DIR/specs gets its declared verdict. Exit 1 with the list of what blocks.")
+        "exactly, every model under DIR/models has a valid certificate and campaign evidence "
+        "(DIR/certificates/NAME.campaign.json) binding its current files with 0 violations, "
+        "and every spec under DIR/specs gets its declared verdict. Exit 1 with the list of "
+        "what blocks.")
     p.add_argument("directory", nargs="?", type=Path, default=Path("."), metavar="DIR")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.add_argument("--rerun", type=_rerun_examples, default=None, metavar="N",
+                   help="also re-run a campaign of N examples per deployed model, with its "
+                   "evidence's seed and world; a violation blocks")
     p.set_defaults(handler=_gate)
 
 
@@ -267,7 +283,7 @@ def _check_cert(args: argparse.Namespace) -> int:
 def _gate(args: argparse.Namespace) -> int:
     from tli_verify.certify.gate import run_gate
 
-    report = run_gate(args.directory)
+    report = run_gate(args.directory, rerun=args.rerun)
     for item in report.items:
         if args.json:
             _emit(item.to_json())

@@ -1,0 +1,120 @@
+"""Campaign evidence for every bundled model: ``certificates/<name>.campaign.json`` (issue 12 D).
+
+For each ``models/<name>.model.json`` of the repository (or of ``--root DIR``), runs a
+bisimulation campaign (:func:`tli_verify.verify.campaign.run_campaign`) on the model, its
+certificate ``certificates/<name>.cert.json`` and the spec the model names, with the sensor
+model of world ``<name>`` (``--world NAME=WORLD`` for a model named otherwise), modulation on,
+and writes the evidence ``tli gate`` requires (:mod:`tli_verify.verify.evidence`).
+
+Usage (after any bundled model or certificate changed; one command)::
+
+    .venv/bin/python scripts/make_evidence.py [--examples 1000] [--seed 0] [--workers W]
+        [--backend process|serial|dask] [--only NAME ...] [--root DIR]
+
+Prints one line per model. Exit 0 when every campaign found nothing (the gate then passes on
+the evidence), 1 when one found a violation (its evidence is written anyway, as an honest
+record the gate refuses), 2 on bad arguments or files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from tli_verify.errors import TliError
+from tli_verify.verify.evidence import (
+    MIN_EVIDENCE_EXAMPLES,
+    evidence_path_for,
+    model_stem,
+    write_campaign_evidence,
+)
+
+DEFAULT_EXAMPLES = 1000
+"""Examples per bundled model: 2x :data:`MIN_EVIDENCE_EXAMPLES` (the 95% bound on the failure
+probability is then 0.3%)."""
+
+
+def _world_map(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        name, sep, world = item.partition("=")
+        if not sep or not name or not world:
+            raise TliError(f"--world {item!r}: expected NAME=WORLD")
+        out[name] = world
+    return out
+
+
+def _run(args: argparse.Namespace) -> int:
+    import importlib
+
+    from tli_verify.io import bundled_dir
+    from tli_verify.worlds import WORLDS
+
+    campaign = importlib.import_module("tli_verify.verify.campaign")  # the verify branch's
+    CampaignConfig, run_campaign = campaign.CampaignConfig, campaign.run_campaign
+
+    root = args.root if args.root is not None else bundled_dir("models").parent
+    models = sorted((root / "models").glob("*.model.json"))
+    if args.only:
+        models = [m for m in models if model_stem(m) in set(args.only)]
+        missing = sorted(set(args.only) - {model_stem(m) for m in models})
+        if missing:
+            raise TliError(f"--only: no models/{missing[0]}.model.json under {root}")
+    if not models:
+        raise TliError(f"{root / 'models'}: no *.model.json to make evidence for")
+    worlds = _world_map(args.world)
+    status = 0
+    for model in models:
+        name = model_stem(model)
+        world = worlds.get(name, name)
+        if world not in WORLDS:
+            raise TliError(f"{model}: no world named {world!r} ({', '.join(sorted(WORLDS))}); "
+                           f"pass --world {name}=WORLD")
+        cert = root / "certificates" / f"{name}.cert.json"
+        config = CampaignConfig(world=world, model=str(model), certificate=str(cert),
+                                examples=args.examples, seed=args.seed, modulation=True,
+                                workers=args.workers, backend=args.backend)
+        t0 = time.perf_counter()
+        result = run_campaign(config, progress=sys.stderr.isatty())
+        seconds = time.perf_counter() - t0
+        path, doc = write_campaign_evidence(config, result, evidence_path_for(model, root))
+        total = doc["violations"]["total"]
+        shown = path.relative_to(root) if path.is_relative_to(root) else path
+        print(f"{shown}: world {world!r}, seed {args.seed}, {args.examples} examples, "
+              f"{result.runs} runs, {total} violation(s), {seconds:.1f} s")
+        if total or result.partial:
+            status = 1
+    return status
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--examples", type=int, default=DEFAULT_EXAMPLES,
+                        help=f"examples per model (default {DEFAULT_EXAMPLES}; the gate needs "
+                        f"at least {MIN_EVIDENCE_EXAMPLES})")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--backend", default="process", choices=("process", "serial", "dask"))
+    parser.add_argument("--only", nargs="+", default=None, metavar="NAME",
+                        help="only these models (models/NAME.model.json)")
+    parser.add_argument("--world", action="append", default=[], metavar="NAME=WORLD",
+                        help="the world of model NAME (default: the world named NAME)")
+    parser.add_argument("--root", type=Path, default=None,
+                        help="project directory (default: the repository)")
+    args = parser.parse_args(argv)
+    if args.examples < 1 or not 0 <= args.seed < 2**32:
+        parser.error("--examples must be >= 1 and --seed in [0, 2^32)")
+    try:
+        return _run(args)
+    except TliError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return exc.exit_code
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

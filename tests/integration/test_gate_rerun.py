@@ -1,0 +1,41 @@
+"""``tli gate --rerun N`` with the real campaign: evidence that checks does not save a model a
+short seeded re-run catches (issue 12 D)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.support.evidence import attach_evidence
+from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.cli import main
+
+pytest.importorskip("tli_verify.verify.campaign")  # the verify branch (issue 12 A-C)
+
+
+def test_rerun_blocks_a_model_whose_ds_leaves_its_mode(project: Path,
+                                                       capsys: pytest.CaptureFixture[str]
+                                                       ) -> None:
+    """Mode c's attractor moved into white (mode a's region): c's DS leaves its mode unprovoked.
+    The model is re-certified (still Lyapunov-stable) and its evidence re-bound, so every other
+    gate check passes; only the re-run campaign finds the invariance failures."""
+    model = project / "models" / "scoop.model.json"
+    doc = json.loads(model.read_text())
+    doc["modes"]["c"]["attractor"] = [-3.0, 0.0]
+    model.write_text(json.dumps(doc))
+    cert = project / "certificates" / "scoop.cert.json"
+    write_certificate(issue_certificate(model, cert_path=cert), cert)
+    attach_evidence(project)
+    assert main(["gate", str(project)]) == 0  # without --rerun: nothing notices
+    capsys.readouterr()
+    code = main(["gate", str(project), "--rerun", "4", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 1
+    records = [json.loads(line) for line in out.splitlines()]
+    blocked = [r for r in records if r.get("ok") is False]
+    assert [(r["check"], r["path"]) for r in blocked] == [("rerun", "models/scoop.model.json")]
+    assert "re-ran 4 examples with seed 0 on world 'scoop'" in blocked[0]["message"]
+    assert "violations by kind" in blocked[0]["message"]
+    assert err.startswith("error: gate blocked: 1 problem(s)") and err.count("\n") == 1

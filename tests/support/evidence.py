@@ -1,0 +1,49 @@
+"""Binding-only campaign evidence for tests of the gate's *other* checks.
+
+The gate requires campaign evidence for every deployed model (issue 12 D). Tests that exercise
+the certificate, spec, modes or dimension checks attach evidence with :func:`attach_evidence`:
+it binds the project's current files exactly as ``tli verify --evidence`` does, with the minimum
+number of examples and no violation. It says nothing about the policy; the campaign itself is
+tested in ``tests/integration/test_verify_cli.py`` and the evidence check in
+``tests/unit/test_evidence.py``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from tli_verify.verify.evidence import MIN_EVIDENCE_EXAMPLES, evidence_path_for, write_evidence
+
+
+def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Path:
+    """Write ``certificates/<name>.campaign.json`` for ``models/<name>.model.json``.
+
+    Parameters
+    ----------
+    project : Path
+        Holds ``models/<name>.model.json``, ``certificates/<name>.cert.json`` and the spec the
+        model names (``specs/scoop.toml`` for the bundled model).
+    name : str, optional
+    **overrides
+        Fields of :func:`tli_verify.verify.evidence.build_evidence` to change.
+
+    Returns
+    -------
+    Path
+        The evidence file.
+    """
+    from tli_verify.model import load_model
+
+    model = project / "models" / f"{name}.model.json"
+    spec = load_model(model).spec_path or project / "specs" / "scoop.toml"  # none named: any
+    fields: dict[str, Any] = {
+        "world": "scoop", "spec": spec, "model": model,
+        "certificate": project / "certificates" / f"{name}.cert.json", "seed": 0,
+        "examples": MIN_EVIDENCE_EXAMPLES, "runs": MIN_EVIDENCE_EXAMPLES, "violations": {},
+        "modulation": True, "backend": "process", "workers": 2,
+    }
+    fields.update(overrides)
+    path = evidence_path_for(model, project)
+    write_evidence(path, **fields)
+    return path

@@ -1,0 +1,291 @@
+"""Campaign evidence (issue 12 D): forgeries only the evidence check catches.
+
+Every forgery below leaves the spec, the model and the certificate valid, so the gate's other
+checks pass; only the ``campaign`` line may block, and must, naming the file and what differs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.support.evidence import attach_evidence
+from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certify.gate import run_gate
+from tli_verify.cli import main
+from tli_verify.errors import EvidenceError, OutputError
+from tli_verify.io import canonical_json, sha256_file
+from tli_verify.limits import MAX_INPUT_BYTES
+from tli_verify.verify.evidence import (
+    MIN_EVIDENCE_EXAMPLES,
+    check_evidence,
+    evidence_digest,
+    evidence_path_for,
+    write_evidence,
+)
+
+EVIDENCE = Path("certificates") / "scoop.campaign.json"
+
+
+def only_campaign_blocks(project: Path) -> str:
+    """The gate blocks on the campaign line of the model, and on nothing else; its message."""
+    report = run_gate(project)
+    found = [(b.kind, b.path, b.check) for b in report.blockers]
+    assert found == [("model", "models/scoop.model.json", "campaign")], \
+        [f"{b.path}: {b.check}: {b.message}" for b in report.blockers]
+    message = report.blockers[0].message
+    assert message.startswith("certificates/scoop.campaign.json: ")
+    return message
+
+
+def forge(project: Path, edit: Callable[[dict[str, Any]], None], *,
+          redigest: bool = True) -> None:
+    """Edit the evidence and (by default) make its digest consistent again."""
+    path = project / EVIDENCE
+    doc = json.loads(path.read_text())
+    edit(doc)
+    if redigest:
+        doc["digest"] = evidence_digest(doc)
+    path.write_text(canonical_json(doc))
+
+
+def leaves(obj: Any, prefix: tuple[Any, ...] = ()) -> Iterator[tuple[Any, ...]]:
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from leaves(v, (*prefix, k))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            yield from leaves(v, (*prefix, i))
+    else:
+        yield prefix
+
+
+def test_fresh_evidence_passes_and_binds_the_three_files(project: Path) -> None:
+    report = run_gate(project)
+    assert report.ok, [b.message for b in report.blockers]
+    line = [i for i in report.items if i.check == "campaign"]
+    assert len(line) == 1 and line[0].ok
+    assert f"{MIN_EVIDENCE_EXAMPLES} examples" in line[0].message
+    check = check_evidence(project / EVIDENCE)
+    assert check.ok, check.problems
+    doc = json.loads((project / EVIDENCE).read_text())
+    for key, path in (("model", "models/scoop.model.json"), ("spec", "specs/scoop.toml"),
+                      ("certificate", "certificates/scoop.cert.json")):
+        assert doc[key] == {"path": os.path.relpath(project / path, project / "certificates"),
+                            "sha256": sha256_file(project / path)}
+    assert doc["violations"] == {"total": 0, "by_kind": {}}
+    assert doc["campaign"]["failure_probability_bound_95"] == pytest.approx(
+        3 / MIN_EVIDENCE_EXAMPLES)
+
+
+def test_evidence_for_another_models_hash_blocks(project: Path) -> None:
+    other = project / "other.model.json"  # another (loadable) model: one A_k entry changed
+    doc = json.loads((project / "models" / "scoop.model.json").read_text())
+    doc["modes"]["a"]["components"][0]["A"][0][0] *= 1.01
+    other.write_text(json.dumps(doc))
+    forge(project, lambda d: d["model"].update(sha256=sha256_file(other)))
+    message = only_campaign_blocks(project)
+    assert "differs from the evidence's" in message
+    assert "the campaign ran another model" in message
+
+
+def test_evidence_naming_another_model_file_blocks(project: Path) -> None:
+    """The evidence points at a copy of the model (same bytes, same hash): still not the
+    deployed file."""
+    shutil.copy(project / "models" / "scoop.model.json", project / "copy.model.json")
+    forge(project, lambda d: d["model"].update(path="../copy.model.json"))
+    message = only_campaign_blocks(project)
+    assert "is not the deployed model" in message and "binds another model" in message
+
+
+@pytest.mark.parametrize(("key", "said"), [
+    ("spec", "the spec changed after the campaign"),
+    ("certificate", "the certificate changed after the campaign"),
+    ("model", "the campaign ran another model"),
+])
+def test_a_hash_edited_with_the_digest_recomputed_blocks(project: Path, key: str,
+                                                         said: str) -> None:
+    forge(project, lambda d: d[key].update(sha256="0" * 64))
+    message = only_campaign_blocks(project)
+    assert said in message and "0000000000" in message
+
+
+def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -> None:
+    model = project / "models" / "scoop.model.json"
+    doc = json.loads(model.read_text())
+    doc["modes"]["b"]["components"][0]["A"][1][1] *= 1.001
+    model.write_text(json.dumps(doc))
+    cert = project / "certificates" / "scoop.cert.json"
+    write_certificate(issue_certificate(model, cert_path=cert), cert)
+    message = only_campaign_blocks(project)
+    assert "models/scoop.model.json: SHA-256" in message
+    attach_evidence(project)  # a new campaign on the new files: passes again
+    assert run_gate(project).ok
+
+
+@pytest.mark.parametrize(("edit", "said"), [
+    (lambda d: d["violations"].update(total=1, by_kind={"invariance": 1}),
+     "found 1 violation(s) (invariance: 1)"),
+    (lambda d: d["violations"].update(by_kind={"looping": 1}),  # total left at 0
+     "violations.total 0 is not the sum"),
+    (lambda d: d.update(counterexample={"sequence": [[3, [0.1, 0.0]]]}),
+     "records a counterexample"),
+    (lambda d: d["campaign"].update(examples=MIN_EVIDENCE_EXAMPLES - 1),
+     f"fewer than the minimum {MIN_EVIDENCE_EXAMPLES}"),
+    (lambda d: d["campaign"].update(runs=MIN_EVIDENCE_EXAMPLES - 1),
+     "every example is at least one run"),
+    (lambda d: d["campaign"].update(modulation=False), "ran without modulation"),
+    (lambda d: d["campaign"].update(partial=True), "interrupted (partial)"),
+    (lambda d: d.update(world="nowhere"), "'nowhere' is not a known world"),
+    (lambda d: d["tool"].update(version="0.0.0"), "written by tli-verify 0.0.0"),
+], ids=["violation", "inconsistent-total", "counterexample", "too-few-examples",
+        "too-few-runs", "no-modulation", "partial", "unknown-world", "old-tool"])
+def test_a_campaign_that_is_no_evidence_blocks(project: Path, edit: Callable[[Any], None],
+                                               said: str) -> None:
+    forge(project, edit)
+    assert said in only_campaign_blocks(project)
+
+
+def test_every_field_edited_without_the_digest_is_caught(project: Path) -> None:
+    doc = json.loads((project / EVIDENCE).read_text())
+    paths = [p for p in leaves(doc) if p != ("digest",)]
+    assert len(paths) >= 20
+    for path in paths:
+        target = doc
+        for part in path[:-1]:
+            target = target[part]
+        old = target[path[-1]]
+        new: Any = (not old if isinstance(old, bool) else old + 1 if isinstance(old, int)
+                    else old * 2 if isinstance(old, float)
+                    else ("0" * 64 if len(old) == 64 else old + "x") if isinstance(old, str)
+                    else 1)
+        target[path[-1]] = new
+        (project / EVIDENCE).write_text(canonical_json(doc))
+        problems = check_evidence(project / EVIDENCE).problems
+        assert any("digest does not match the content" in p or "malformed" in p
+                   for p in problems), path
+        target[path[-1]] = old
+    (project / EVIDENCE).write_text(canonical_json(doc))
+    assert check_evidence(project / EVIDENCE).ok
+
+
+def test_missing_evidence_blocks(project: Path) -> None:
+    (project / EVIDENCE).unlink()
+    report = run_gate(project)
+    assert [(b.kind, b.path, b.check, b.message) for b in report.blockers] == [
+        ("model", "models/scoop.model.json", "campaign",
+         "no campaign evidence certificates/scoop.campaign.json (run: python "
+         "scripts/make_evidence.py, or tli verify ... --evidence)")]
+
+
+def test_a_symlinked_evidence_file_is_refused_never_followed(project: Path,
+                                                             tmp_path_factory: Any) -> None:
+    elsewhere = tmp_path_factory.mktemp("elsewhere") / "scoop.campaign.json"
+    shutil.copy(project / EVIDENCE, elsewhere)
+    (project / EVIDENCE).unlink()
+    os.symlink(elsewhere, project / EVIDENCE)
+    assert "a symlink: refused, never followed" in only_campaign_blocks(project)
+
+
+@pytest.mark.parametrize("content", [
+    b"\x00\x01garbage\xff" * 10,
+    b"{" * 5000,
+    b'{"schema_version": 1}',
+    b"not json at all",
+], ids=["binary", "deep", "schema", "text"])
+def test_garbage_evidence_blocks_with_one_line(project: Path, content: bytes,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    (project / EVIDENCE).write_bytes(content)
+    assert "malformed campaign evidence" in only_campaign_blocks(project)
+    code = main(["gate", str(project)])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.count("\n") == 1 and err.startswith("error: gate blocked: 1 problem(s)")
+    assert "Traceback" not in err and "internal error" not in err
+
+
+def test_a_fifo_or_directory_in_place_of_the_evidence_blocks_without_reading(
+        project: Path) -> None:
+    (project / EVIDENCE).unlink()
+    os.mkfifo(project / EVIDENCE)  # reading it would block forever
+    assert "not a regular file" in only_campaign_blocks(project)
+    (project / EVIDENCE).unlink()
+    (project / EVIDENCE).mkdir()
+    assert "is a directory" in only_campaign_blocks(project)
+
+
+def test_a_huge_evidence_file_is_not_read(project: Path) -> None:
+    with open(project / EVIDENCE, "wb") as handle:
+        handle.truncate(MAX_INPUT_BYTES + 1)  # sparse: nothing is written, nothing read
+    message = only_campaign_blocks(project)
+    assert "larger than the limit" in message and "MAX_INPUT_BYTES" in message
+
+
+def test_evidence_of_no_deployed_model_blocks(project: Path) -> None:
+    shutil.copy(project / EVIDENCE, project / "certificates" / "ghost.campaign.json")
+    report = run_gate(project)
+    assert [(b.kind, b.path) for b in report.blockers] == [
+        ("evidence", "certificates/ghost.campaign.json")]
+    assert "binds no deployed model" in report.blockers[0].message
+
+
+def test_evidence_files_are_not_certificates(project: Path) -> None:
+    report = run_gate(project)
+    assert report.count("certificate") == 1  # scoop.cert.json only
+
+
+def test_evidence_path_mirrors_the_model_path(tmp_path: Path) -> None:
+    assert evidence_path_for(tmp_path / "models" / "scoop.model.json", tmp_path) == \
+        tmp_path / "certificates" / "scoop.campaign.json"
+    assert evidence_path_for(tmp_path / "models" / "sub" / "x.json", tmp_path) == \
+        tmp_path / "certificates" / "sub" / "x.campaign.json"
+
+
+def test_write_evidence_refuses_bad_output_and_missing_files(project: Path) -> None:
+    fields: dict[str, Any] = {
+        "world": "scoop", "spec": project / "specs" / "scoop.toml",
+        "model": project / "models" / "scoop.model.json",
+        "certificate": project / "certificates" / "scoop.cert.json", "seed": 1,
+        "examples": 10, "runs": 10, "violations": {}, "modulation": True}
+    with pytest.raises(OutputError, match="would overwrite the input file"):
+        write_evidence(project / "models" / "scoop.model.json", **fields)
+    with pytest.raises(EvidenceError, match="model file not found") as info:
+        write_evidence(project / "x.campaign.json", **{**fields, "model": project / "nope"})
+    assert info.value.exit_code == 2
+    with pytest.raises(EvidenceError, match=r"campaign\.seed") as info:
+        write_evidence(project / "x.campaign.json", **{**fields, "seed": 2**32})
+    assert info.value.exit_code == 2
+    assert not (project / "x.campaign.json").exists()
+
+
+def test_rerun_blocks_when_the_campaign_finds_a_violation(project: Path) -> None:
+    """The gate's wiring of ``--rerun``: the runner gets the evidence's seed and world, and its
+    verdict is one ``rerun`` line (the real campaign: tests/integration/test_gate_rerun.py)."""
+    calls: list[tuple[str | None, int | None, str, int]] = []
+
+    def runner(check: Any, model: Path, examples: int) -> tuple[bool, str]:
+        calls.append((check.world, check.seed, model.name, examples))
+        return False, "re-ran: 1 violation(s) (invariance: 1)"
+
+    report = run_gate(project, rerun=7, campaign_runner=runner)
+    assert calls == [("scoop", 0, "scoop.model.json", 7)]
+    assert [(b.check, b.message) for b in report.blockers] == [
+        ("rerun", "re-ran: 1 violation(s) (invariance: 1)")]
+    forge(project, lambda d: d["campaign"].update(partial=True))
+    calls.clear()
+    run_gate(project, rerun=7, campaign_runner=runner)
+    assert calls == []  # no re-run from evidence that does not check
+
+
+def test_gate_rerun_argument_is_checked(project: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["gate", str(project), "--rerun", "0"])
+    assert info.value.code == 2
+    assert "--rerun" in capsys.readouterr().err

@@ -1,0 +1,336 @@
+"""``tli verify`` (a bisimulation campaign) and ``tli replay`` (a saved counterexample).
+
+Exit codes: ``tli verify`` 0 no violation, 1 a violation (or the certificate does not cover the
+model), 2 bad arguments or files, 130 interrupted (a partial report is written first).
+``tli replay`` 1 the expected violation reproduces, 0 it no longer does, 2 a bad case file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from tli_verify.commands import output_path
+
+__all__ = ["register", "write_report"]
+
+
+def _positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    return v
+
+
+def _nonneg(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    return v
+
+
+def register(sub: argparse._SubParsersAction[Any]) -> None:
+    """Register ``tli verify`` and ``tli replay``."""
+    p = sub.add_parser(
+        "verify", help="bisimulation campaign: generated perturbation sequences vs the oracle",
+        description="Draw perturbation sequences with hypothesis (seeded), simulate them in "
+        "batches on worker processes, check every run with the oracle (invariance, certified "
+        "reachability deadline, automaton run, no looping), shrink the first counterexample "
+        "and write a report (campaign.json, campaign.md, campaign.png, counterexample.json). "
+        "Exit 0: no violation; 1: a violation.")
+    p.add_argument("--world", required=True, help="world name (its sensor model, regions)")
+    p.add_argument("--examples", type=_positive, default=200, help="cases (default 200)")
+    p.add_argument("--seed", type=_nonneg, default=0, help="seed (default 0)")
+    p.add_argument("--no-modulation", action="store_true",
+                   help="the ablation without cuts (replanning only)")
+    p.add_argument("--workers", type=_positive, default=None,
+                   help="worker processes (default: CPU count)")
+    p.add_argument("--backend", choices=("process", "dask", "serial"), default="process")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="Dask scheduler address (--backend dask; default: a LocalCluster)")
+    p.add_argument("--batch-size", type=_positive, default=100, help="runs per batch")
+    p.add_argument("--max-pushes", type=_nonneg, default=3,
+                   help="perturbations per case, at most (default 3)")
+    p.add_argument("--window", type=_positive, default=700,
+                   help="perturbations happen in steps 1..WINDOW (default 700)")
+    p.add_argument("--random-starts", action="store_true",
+                   help="draw start states too (default: the world's nominal start)")
+    p.add_argument("--lag", type=_nonneg, default=0, help="sensor lag in steps")
+    p.add_argument("--target", type=_nonneg, default=0, metavar="N",
+                   help="when nothing is found, N more driver-side examples guided by "
+                   "hypothesis.target on the robustness margin")
+    p.add_argument("--no-shrink", action="store_true", help="do not shrink")
+    p.add_argument("--spec", type=Path, default=None)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--certificate", type=Path, default=None)
+    p.add_argument("--json", action="store_true", help="print the campaign record as JSON")
+    p.add_argument("--evidence", nargs="?", const="", default=None, metavar="PATH",
+                   help="also write campaign evidence for the deployment gate (default "
+                   "certificates/<name>.campaign.json next to the model's project)")
+    p.add_argument("--out", type=output_path, default=Path("out/verify"),
+                   help="report directory (default out/verify)")
+    p.set_defaults(handler=_verify)
+
+    r = sub.add_parser(
+        "replay", help="replay a saved counterexample (CASE.json) deterministically",
+        description="Exit 1: the case's violation reproduces; 0: it no longer does; 2: bad "
+        "case file.")
+    r.add_argument("case", type=Path, help="a case file (tli verify's counterexample.json)")
+    r.add_argument("--modulation", choices=("case", "on", "off"), default="case",
+                   help="run as saved (default), or with modulation on/off")
+    r.add_argument("--json", action="store_true")
+    r.set_defaults(handler=_replay)
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from tli_verify.errors import TliError
+    from tli_verify.io import atomic_write_text, canonical_json
+    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+
+    if args.scheduler is not None and args.backend != "dask":
+        raise TliError("--scheduler needs --backend dask")
+    cfg = CampaignConfig(
+        world=args.world, spec=str(args.spec) if args.spec else None,
+        model=str(args.model) if args.model else None,
+        certificate=str(args.certificate) if args.certificate else None,
+        examples=args.examples, seed=args.seed, modulation=not args.no_modulation,
+        workers=args.workers, backend=args.backend, scheduler=args.scheduler,
+        batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
+        random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
+        target_examples=args.target)
+    if args.evidence is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("tli_verify.verify.evidence") is None:
+            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
+                           "available in this build")
+    progress = not args.json and sys.stderr.isatty()
+
+    def note(text: str) -> None:
+        if not args.json:
+            sys.stderr.write(f"note: {text}\n")
+
+    result = run_campaign(cfg, progress=progress, on_event=note)
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    record = result.to_json()
+    files = write_report(result, out)
+    record["report"] = [str(f) for f in files]
+    if args.evidence is not None:
+        try:
+            from tli_verify.verify.evidence import (  # type: ignore[import-not-found,unused-ignore]
+                write_campaign_evidence,
+            )
+        except ImportError:
+            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
+                           "available in this build") from None
+        target, _ = write_campaign_evidence(cfg, result, args.evidence or None)
+        record["evidence"] = str(target)
+    atomic_write_text(out / "campaign.json", canonical_json(record))
+    if args.json:
+        sys.stdout.write(canonical_json(record))
+    else:
+        sys.stdout.write(_summary(result, out))
+        if args.evidence is not None:
+            sys.stdout.write(f"wrote evidence {record['evidence']}\n")
+    if result.partial:
+        sys.stderr.write(f"error: interrupted after {result.runs} of {cfg.examples} runs; "
+                         f"partial report written to {out / 'campaign.md'}\n")
+        return 130
+    return 1 if result.counterexample is not None else 0
+
+
+def _summary(result: Any, out: Path) -> str:
+    c = result.config
+    bad = {k: n for k, n in result.violations.items() if n}
+    lines = [f"{c.world} ({'LTL-DS' if c.modulation else 'no modulation'}, seed {c.seed}): "
+             f"{result.runs} runs in {result.seconds:.1f} s, task satisfied in "
+             f"{result.task_satisfied}, {result.cuts_added} cut(s) added"]
+    if result.counterexample is None:
+        bound = result.failure_bound
+        lines.append("no violation found" + (f"; failure probability <= {bound:.3g} at 95% "
+                                             "(3/N)" if bound is not None else ""))
+    else:
+        ce = result.counterexample
+        pert = ", ".join(f"step {p['step']}: {p['level']} "
+                         f"({p['displacement'][0]:.3g}, {p['displacement'][1]:.3g})"
+                         + (f" -> {p['target']}" if p["target"] else "")
+                         for p in ce["perturbations"]) or "none"
+        lines.append("violations: " + ", ".join(f"{k} {n}" for k, n in bad.items()))
+        lines.append(f"first counterexample after {result.first_counterexample_at} "
+                     f"simulation(s); {'shrunk' if ce['shrunk'] else 'not shrunk'} to "
+                     f"{len(ce['perturbations'])} perturbation(s) [{pert}]: "
+                     f"{ce['expected']['violation']} (modes "
+                     f"{ce['expected']['oracle_modes'][:40]})")
+    lines.append(f"wrote {out / 'campaign.json'}, {out / 'campaign.md'}, "
+                 f"{out / 'campaign.png'}"
+                 + (f", {out / 'counterexample.json'}, {out / 'counterexample.png'}"
+                    if result.counterexample is not None else ""))
+    return "\n".join(lines) + "\n"
+
+
+def write_report(result: Any, out: Path) -> list[Path]:
+    """``campaign.md``, ``campaign.png`` (outcomes per run, coverage) and, with a
+    counterexample, ``counterexample.json`` + ``counterexample.png`` (Fig. 7 style: the
+    counterexample's run, and the same case under LTL-DS when it was found without
+    modulation). All written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from tli_verify.io import atomic_write_text, canonical_json
+    from tli_verify.plotting import save_figure
+    from tli_verify.verify.oracle import PRIORITY
+
+    c = result.config
+    files: list[Path] = []
+    # --- the picture: outcomes per run + coverage
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10.0, 3.6),
+                                   gridspec_kw={"width_ratios": [2.2, 1.0]})
+    colors = {"ok": "tab:green", "invariance": "tab:orange", "repeated-exit": "tab:red",
+              "reachability": "tab:purple", "automaton": "black", "looping": "tab:blue"}
+    groups: dict[str, list[tuple[int, int]]] = {}
+    for o in result.outcomes:
+        k = o.verdict.primary.value if o.verdict.primary else "ok"
+        groups.setdefault(k, []).append((o.index, o.steps))
+    for k in ["ok", *[p.value for p in PRIORITY]]:
+        pts = groups.get(k)
+        if pts:
+            a = np.array(pts)
+            ax1.scatter(a[:, 0], a[:, 1], s=8, color=colors[k], label=f"{k} ({len(pts)})")
+    ax1.set_yscale("log")
+    ax1.set_xlabel("run (generation order)")
+    ax1.set_ylabel("steps")
+    ax1.set_title(f"outcomes per run: {result.runs} runs"
+                  + (" (PARTIAL)" if result.partial else ""), fontsize=9)
+    ax1.legend(fontsize=7, loc="best")
+    cov = result.coverage
+    names = ["automaton edges", "mode edges", "modes perturbed", "cut faces touched"]
+    got = [cov["automaton_edges"]["exercised"], cov["mode_edges"]["exercised"],
+           len(cov["modes_perturbed"]["perturbed"]), cov["cut_faces"]["touched"]]
+    tot = [cov["automaton_edges"]["total"], cov["mode_edges"]["total"],
+           len(cov["modes_perturbed"]["modes"]), cov["cut_faces"]["total"]]
+    frac = [g / t if t else 0.0 for g, t in zip(got, tot, strict=True)]
+    ax2.barh(names, frac, color="tab:blue")
+    for i, (g, t) in enumerate(zip(got, tot, strict=True)):
+        ax2.text(min(frac[i], 0.75) + 0.02, i, f"{g}/{t}", va="center", fontsize=8)
+    ax2.set_xlim(0, 1.05)
+    ax2.set_title("coverage", fontsize=9)
+    ax2.tick_params(labelsize=7)
+    fig.tight_layout()
+    png = out / "campaign.png"
+    save_figure(fig, png, dpi=90)
+    files.append(png)
+    # --- the counterexample
+    ce = result.counterexample
+    if ce is not None:
+        cj = out / "counterexample.json"
+        atomic_write_text(cj, canonical_json(ce))
+        files.append(cj)
+        try:
+            files.append(_plot_case(result, cj, out / "counterexample.png"))
+        except Exception as exc:  # a picture must not lose the campaign's results
+            sys.stderr.write(f"note: counterexample picture not drawn ({exc})\n")
+    # --- Markdown
+    md = out / "campaign.md"
+    lines = [f"# Bisimulation campaign: {c.world}"
+             + (" (PARTIAL: interrupted)" if result.partial else ""), "",
+             f"{result.runs} of {c.examples} runs, seed {c.seed}, "
+             f"{'LTL-DS (modulation on)' if c.modulation else 'without modulation'}, "
+             f"up to {c.max_pushes} perturbations in steps 1..{c.window} (levels "
+             f"{', '.join(c.levels)}), backend {c.backend}; {result.seconds:.1f} s.", "",
+             "| check | runs violating |", "|---|---:|"]
+    lines += [f"| {k} | {n} |" for k, n in result.violations.items()]
+    lines += ["", f"Task satisfied in {result.task_satisfied} of {result.runs} runs; "
+              f"{result.cuts_added} cut(s) added; {result.inconclusive} run(s) with "
+              "reachability undecided (ended early).", ""]
+    cov = result.coverage
+    lines += ["## Coverage", "",
+              f"- automaton edges exercised: {cov['automaton_edges']['exercised']} of "
+              f"{cov['automaton_edges']['total']}",
+              f"- mode edges: {cov['mode_edges']['exercised']} of "
+              f"{cov['mode_edges']['total']} ({', '.join(cov['mode_edges']['list'])})",
+              f"- modes perturbed: {', '.join(cov['modes_perturbed']['perturbed']) or 'none'}"
+              f" (of {', '.join(cov['modes_perturbed']['modes'])})",
+              f"- cut faces touched: {cov['cut_faces']['touched']} of "
+              f"{cov['cut_faces']['total']}", "", "![campaign](campaign.png)", ""]
+    lines += ["## Counterexample", ""]
+    if ce is None:
+        lines.append("None found" + (f": the failure probability is at most "
+                                     f"{result.failure_bound:.3g} at 95 % confidence (3/N)."
+                                     if result.failure_bound is not None else "."))
+    else:
+        lines += [f"First found after {result.first_counterexample_at} simulation(s) "
+                  f"(generation order); {'shrunk' if ce['shrunk'] else 'not shrunk'} "
+                  f"({result.shrink_steps} shrinking simulations). Violation: "
+                  f"**{ce['expected']['violation']}**; oracle modes "
+                  f"`{ce['expected']['oracle_modes'][:60]}`.", "",
+                  f"Start {ce['start']}; perturbations:", ""]
+        lines += [f"- step {p['step']}: {p['level']} displacement {p['displacement']}"
+                  + (f" into {p['target']}" if p["target"] else "")
+                  for p in ce["perturbations"]] or ["- none"]
+        lines += ["", *[f"> {m}" for m in ce["expected"]["messages"]], "",
+                  "Replay: `tli replay counterexample.json`.", "",
+                  "![counterexample](counterexample.png)", ""]
+    if result.events:
+        lines += ["## Events", "", *[f"- {e}" for e in result.events], ""]
+    atomic_write_text(md, "\n".join(lines) + "\n")
+    files.insert(0, md)
+    return files
+
+
+def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
+    from dataclasses import replace
+
+    from tli_verify.experiments.scoop import plot_episode
+    from tli_verify.verify.campaign import load, read_case, simulate
+
+    _, spec, case = read_case(case_path)
+    ld = load(spec)
+    (_, res), = simulate(spec, [case])
+    others = []
+    if not spec.modulation:
+        (_, fixed), = simulate(replace(spec, modulation=True), [case])
+        others.append(("same case, LTL-DS", fixed))
+    (_, nominal), = simulate(spec, [replace(case, pushes=())])
+    plot_episode(ld.world, res, png, nominal=nominal, others=others,
+                 title=f"counterexample ({case_path.name}): "
+                       f"{'LTL-DS' if spec.modulation else 'no modulation'}"
+                       + (" (left) vs LTL-DS (right)" if others else ""))
+    return png
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from tli_verify.io import canonical_json
+    from tli_verify.verify.campaign import replay_case
+
+    mod = None if args.modulation == "case" else args.modulation == "on"
+    doc, verdict, reproduced, notes = replay_case(args.case, modulation=mod)
+    for n in notes:
+        sys.stderr.write(f"note: {n}\n")
+    want = (doc.get("expected") or {}).get("violation")
+    kinds = sorted(k.value for k in verdict.kinds)
+    record = {"case": str(args.case), "expected": want, "reproduced": reproduced,
+              "violations": kinds,
+              "messages": [v.message for v in verdict.violations][:5],
+              "oracle_modes": verdict.oracle_modes[:200], "files_changed": notes}
+    if args.json:
+        sys.stdout.write(canonical_json(record))
+    else:
+        sys.stdout.write(
+            f"{args.case}: expected {want}: "
+            + ("REPRODUCED" if reproduced else "does not reproduce")
+            + f" (violations now: {', '.join(kinds) or 'none'}; modes "
+            f"{verdict.oracle_modes[:40]})\n")
+    return 1 if reproduced else 0
+

@@ -1,0 +1,207 @@
+"""Where a campaign's batches run: in the driver, in local processes, or on Dask.
+
+Runs are independent, so a campaign sends *batches* of runs (100-1,000, vectorised episodes)
+to a :class:`Backend`, never one tiny task per run (Dask costs about 1-6 ms a task).
+:meth:`Backend.map_unordered` yields ``(index, result)`` as batches complete.
+
+* ``"serial"`` -- :class:`SerialBackend`, in the calling process (tests, debugging);
+* ``"process"`` -- :class:`ProcessBackend`, a :class:`~concurrent.futures.ProcessPoolExecutor`.
+  A worker that dies (``BrokenProcessPool``) is reported through ``on_event``, the pool is
+  rebuilt and the unfinished batches re-run, up to 2 times per batch; then
+  :class:`~tli_verify.errors.WorkerLost`;
+* ``"dask"`` -- ``tli_verify.verify.dask_backend.DaskBackend`` (the ``[cluster]`` extra),
+  imported only when asked for.
+
+Ctrl-C: pending batches are cancelled and ``KeyboardInterrupt`` is re-raised; the campaign
+keeps the results it got and writes a partial report.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Protocol, TypeVar
+
+from tli_verify.errors import CampaignError, WorkerLost
+
+__all__ = ["MAX_RETRIES", "Backend", "ProcessBackend", "SerialBackend", "make_backend"]
+
+T = TypeVar("T")
+R = TypeVar("R")
+MAX_RETRIES = 2
+"""A batch whose worker died is re-run at most this many times."""
+
+
+class Backend(Protocol):
+    """An executor of independent batches."""
+
+    def map_unordered(self, fn: Callable[[T], R], items: Sequence[T]
+                      ) -> Iterator[tuple[int, R]]:  # pragma: no cover - protocol
+        """Run ``fn`` on every item; yield ``(index, result)`` as each completes."""
+        ...
+
+    def close(self) -> None:  # pragma: no cover - protocol
+        """Release workers."""
+        ...
+
+
+class SerialBackend:
+    """Run every batch in the calling process, in order."""
+
+    def __init__(self, *, on_event: Callable[[str], None] | None = None) -> None:
+        self.on_event = on_event
+
+    def map_unordered(self, fn: Callable[[T], R], items: Sequence[T]
+                      ) -> Iterator[tuple[int, R]]:
+        """Yield ``(i, fn(items[i]))`` in order."""
+        for i, item in enumerate(items):
+            yield i, fn(item)
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def _init_worker() -> None:
+    """Worker start-up: one BLAS thread (the batches are the parallelism); Ctrl-C is the
+    driver's to handle."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import threadpoolctl
+
+        threadpoolctl.threadpool_limits(1)
+    except Exception:  # pragma: no cover - threadpoolctl is a dependency
+        pass
+
+
+class ProcessBackend:
+    """Batches on local worker processes (:class:`~concurrent.futures.ProcessPoolExecutor`).
+
+    Parameters
+    ----------
+    workers : int, optional
+        Default: the CPU count.
+    on_event : callable, optional
+        Called with one line per notable event (a worker died, a batch re-run).
+    """
+
+    def __init__(self, *, workers: int | None = None,
+                 on_event: Callable[[str], None] | None = None) -> None:
+        self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self.on_event = on_event
+        self._pool: Any = None
+
+    def _emit(self, text: str) -> None:
+        if self.on_event is not None:
+            self.on_event(text)
+
+    def _new_pool(self) -> Any:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
+                                   initializer=_init_worker)
+
+    def map_unordered(self, fn: Callable[[T], R], items: Sequence[T]
+                      ) -> Iterator[tuple[int, R]]:
+        """Yield ``(index, result)`` as batches complete; re-run batches of a dead worker.
+
+        Raises
+        ------
+        WorkerLost
+            (exit 1) A batch's worker died more than :data:`MAX_RETRIES` times.
+        KeyboardInterrupt
+            After cancelling the pending batches.
+        """
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        pending = set(range(len(items)))
+        tries = dict.fromkeys(pending, 0)
+        try:
+            while pending:
+                if self._pool is None:
+                    self._pool = self._new_pool()
+                futures = {self._pool.submit(fn, items[i]): i for i in sorted(pending)}
+                broken = False
+                while futures:
+                    done, _ = wait(futures, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        i = futures.pop(fut)
+                        try:
+                            result = fut.result()
+                        except BrokenProcessPool:
+                            broken = True
+                            continue
+                        pending.discard(i)
+                        yield i, result
+                    if broken:
+                        break
+                if broken:
+                    lost = sorted(pending)
+                    for fut in futures:
+                        fut.cancel()
+                    self._pool.shutdown(wait=False, cancel_futures=True)
+                    self._pool = None
+                    for i in lost:
+                        tries[i] += 1
+                    over = [i for i in lost if tries[i] > MAX_RETRIES]
+                    self._emit(f"worker lost: batch(es) {', '.join(map(str, lost))} re-run "
+                               f"on a new pool")
+                    if over:
+                        raise WorkerLost(f"batch {over[0]}: its worker died "
+                                         f"{tries[over[0]]} times (retries: {MAX_RETRIES})")
+        except KeyboardInterrupt:
+            self._kill()
+            raise
+
+    def _kill(self) -> None:
+        """Stop the pool now: cancel what is queued and terminate the workers (their running
+        batches are abandoned)."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        procs = list(getattr(pool, "_processes", {}).values())  # no public API before 3.14
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=5)
+
+    def close(self) -> None:
+        """Shut the pool down."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+def make_backend(kind: str = "process", *, workers: int | None = None,
+                 scheduler: str | None = None, on_event: Callable[[str], None] | None = None
+                 ) -> Backend:
+    """The backend named ``kind`` (``"serial"``, ``"process"`` or ``"dask"``).
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) Unknown kind; ``scheduler`` without ``"dask"``; dask not installed.
+    """
+    if kind == "serial":
+        if scheduler is not None:
+            raise CampaignError("--scheduler needs --backend dask")
+        return SerialBackend(on_event=on_event)
+    if kind == "process":
+        if scheduler is not None:
+            raise CampaignError("--scheduler needs --backend dask")
+        return ProcessBackend(workers=workers, on_event=on_event)
+    if kind == "dask":
+        try:
+            from tli_verify.verify.dask_backend import DaskBackend  # type: ignore[import-not-found,unused-ignore]
+        except ImportError as exc:
+            raise CampaignError(f"--backend dask: not available ({exc}); install "
+                                "'tli-verify[cluster]'") from exc
+        backend: Backend = DaskBackend(scheduler=scheduler, workers=workers, on_event=on_event)
+        return backend
+    raise CampaignError(f"--backend {kind!r}: unknown backend (serial, process, dask)")

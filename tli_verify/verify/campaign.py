@@ -1,0 +1,1053 @@
+"""Bisimulation campaigns: generated perturbation sequences against the oracle (paper Sec. 4.4).
+
+:func:`run_campaign` does, for a :class:`CampaignConfig`:
+
+1. **draw** -- the driver draws ``examples`` cases (start + perturbation sequence,
+   :func:`tli_verify.verify.strategies.cases`) with hypothesis, deterministically from the seed,
+   in chunks of ``batch_size`` on a thread (:func:`draw_chunks`, :func:`draw_cases`:
+   ``hypothesis.find`` with ``random=Random(chunk seed)``, a condition that never holds, and no
+   example database; hypothesis generates in one process) while the workers simulate;
+2. **simulate** -- the cases travel in batches (``batch_size`` runs,
+   :func:`simulate_batch`: one vectorised :func:`~tli_verify.runtime.executive.run_episodes`
+   call per batch, then the oracle on every trace, in the worker) to a backend
+   (:mod:`.backends`); only verdicts come back;
+3. **shrink** -- the first case of the most specific violation kind found
+   (:data:`~tli_verify.verify.oracle.PRIORITY`: looping before a lone invariance failure) is
+   shrunk by hypothesis in the driver (:func:`shrink`): the same ``find`` with the seed of its
+   chunk replays that chunk's generation (the verdicts already computed are looked up, not
+   re-simulated) until it meets that case, then hypothesis's shrinker minimises it -- fewer,
+   smaller, later perturbations, by the encoding of :mod:`.strategies` -- keeping that
+   violation kind; candidates are simulated in the driver;
+4. optionally (``target_examples > 0``, no counterexample yet) a **targeted** search in the
+   driver: hypothesis with ``hypothesis.target`` on the oracle's robustness margin.
+
+Every run's budget decides reachability: the perturbation window plus the certified worst-case
+deadline (:meth:`~tli_verify.verify.oracle.Oracle.budget`); a run also ends at a goal mode, and
+a looping watchdog ends it once it has changed mode so often that the oracle's loop bound is
+exceeded (:class:`WatchedPolicy`).
+
+A counterexample is saved as a JSON case (:func:`case_document`): world, the files and their
+SHA-256, start, perturbation sequence, seed, expected violation; :func:`replay_case` replays it
+deterministically (``tli replay``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import queue
+import random
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import CampaignError, TliError
+from tli_verify.runtime.events import CutAdded
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.verify.oracle import (
+    PRIORITY,
+    CutRecord,
+    Oracle,
+    Trace,
+    Verdict,
+    ViolationKind,
+)
+from tli_verify.verify.strategies import (
+    LEVELS,
+    Case,
+    apply_push,
+    case_from_json,
+    case_to_json,
+    cases,
+)
+
+__all__ = [
+    "CASE_KIND",
+    "NOMINAL_STARTS",
+    "CampaignConfig",
+    "CampaignResult",
+    "Loaded",
+    "RunOutcome",
+    "SimSpec",
+    "WatchedPolicy",
+    "case_document",
+    "check_case",
+    "chunk_seed",
+    "draw_cases",
+    "draw_chunks",
+    "load",
+    "read_case",
+    "replay_case",
+    "run_campaign",
+    "shrink",
+    "sim_spec",
+    "simulate",
+    "simulate_batch",
+    "start_regions",
+]
+
+FloatArray = npt.NDArray[np.float64]
+CASE_KIND = "tli-verify/bisimulation-case"
+NOMINAL_STARTS: dict[str, tuple[float, ...]] = {"scoop": (-5.0, 4.5)}
+"""The start of the scripted demonstrator's nominal run, per world (the default start)."""
+
+
+# ------------------------------------------------------------------------------ config
+@dataclass(frozen=True, slots=True)
+class CampaignConfig:
+    """A campaign (``tli verify``).
+
+    Attributes
+    ----------
+    world : str
+        World name (:data:`tli_verify.worlds.WORLDS`); its sensor model and true regions.
+    spec, model, certificate : str or None
+        Files (default: the bundled ``models/<world>.model.json``, its certificate, and the
+        spec the model names).
+    examples : int
+        Cases drawn and simulated.
+    seed : int
+    modulation : bool
+        Learn cuts online (LTL-DS); False: the no-modulation ablation.
+    workers : int or None
+        Worker processes (default: the CPU count).
+    backend : str
+        ``"process"``, ``"serial"`` or ``"dask"``.
+    scheduler : str or None
+        Dask scheduler address (``--backend dask``).
+    batch_size : int
+        Runs per batch (one task).
+    max_pushes : int
+        Perturbations per case, at most.
+    window : int
+        Perturbations happen in steps ``1..window``.
+    levels : tuple of str
+        Perturbation levels (:data:`~tli_verify.verify.strategies.LEVELS`).
+    start : tuple of float or None
+        Fixed start (default: :data:`NOMINAL_STARTS` of the world; ``random_starts`` draws).
+    random_starts : bool
+        Draw starts too (in the regions whose first reading the spec allows).
+    lag : int
+        Sensor lag of the world (steps).
+    max_cycles : int or None
+        Loop bound of the oracle (default: the number of modes).
+    shrink : bool
+        Shrink the first counterexample.
+    target_examples : int
+        Extra driver-side targeted examples when nothing was found (0: none).
+    """
+
+    world: str = "scoop"
+    spec: str | None = None
+    model: str | None = None
+    certificate: str | None = None
+    examples: int = 200
+    seed: int = 0
+    modulation: bool = True
+    workers: int | None = None
+    backend: str = "process"
+    scheduler: str | None = None
+    batch_size: int = 100
+    max_pushes: int = 3
+    window: int = 700
+    levels: tuple[str, ...] = LEVELS
+    start: tuple[float, ...] | None = None
+    random_starts: bool = False
+    lag: int = 0
+    max_cycles: int | None = None
+    shrink: bool = True
+    target_examples: int = 0
+
+    def __post_init__(self) -> None:
+        if self.examples < 1:
+            raise CampaignError(f"examples must be >= 1, got {self.examples}")
+        if self.seed < 0:
+            raise CampaignError(f"seed must be >= 0, got {self.seed}")
+        if self.batch_size < 1:
+            raise CampaignError(f"batch_size must be >= 1, got {self.batch_size}")
+        if self.workers is not None and self.workers < 1:
+            raise CampaignError(f"workers must be >= 1, got {self.workers}")
+        if self.window < 1 or self.max_pushes < 0 or self.lag < 0:
+            raise CampaignError("window must be >= 1, max_pushes and lag >= 0")
+        if self.target_examples < 0:
+            raise CampaignError("target_examples must be >= 0")
+
+
+@dataclass(frozen=True, slots=True)
+class SimSpec:
+    """What a worker needs to rebuild the setup (files by path and SHA-256; picklable)."""
+
+    world: str
+    lag: int
+    spec: str
+    model: str
+    certificate: str
+    hashes: tuple[str, str, str]
+    modulation: bool
+    max_cycles: int | None
+    window: int
+
+
+@dataclass(frozen=True, slots=True)
+class RunOutcome:
+    """One simulated case.
+
+    Attributes
+    ----------
+    index : int
+        Position in generation order.
+    verdict : Verdict
+    steps : int
+    cuts_added : int
+    modes : str
+        The policy's run-length mode sequence.
+    """
+
+    index: int
+    verdict: Verdict
+    steps: int
+    cuts_added: int
+    modes: str
+
+
+@dataclass(frozen=True, slots=True)
+class CampaignResult:
+    """What a campaign found.
+
+    Attributes
+    ----------
+    config : CampaignConfig
+    runs : int
+        Cases simulated (fewer than ``examples`` when ``partial``).
+    violations : dict of str to int
+        Runs violating each kind (every kind listed; a run may count under several).
+    task_satisfied : int
+        Runs that reached a goal mode.
+    cuts_added : int
+    coverage : dict
+        ``automaton_edges`` (exercised, total, list), ``mode_edges``, ``modes_perturbed``,
+        ``cut_faces`` (touched, total).
+    counterexample : dict or None
+        The (shrunk) case document (:func:`case_document`).
+    first_counterexample_at : int or None
+        Simulations (in generation order) until the first counterexample.
+    failure_bound : float or None
+        With no violation: the 95 % upper bound ``3 / runs`` on the failure probability
+        (rule of three).
+    partial : bool
+        Interrupted (Ctrl-C): the counts cover the runs completed.
+    outcomes : tuple of RunOutcome
+    seconds : float
+    inconclusive : int
+        Runs whose reachability was not decided (ended early, assumptions left).
+    shrink_steps : int
+        Simulations the shrinker ran.
+    events : tuple of str
+        Notable events (worker lost, ...).
+    files : dict
+        ``spec``, ``model``, ``certificate``: ``{"path", "sha256"}``.
+    """
+
+    config: CampaignConfig
+    runs: int
+    violations: dict[str, int]
+    task_satisfied: int
+    cuts_added: int
+    coverage: dict[str, Any]
+    counterexample: dict[str, Any] | None
+    first_counterexample_at: int | None
+    failure_bound: float | None
+    partial: bool
+    outcomes: tuple[RunOutcome, ...] = ()
+    seconds: float = 0.0
+    inconclusive: int = 0
+    shrink_steps: int = 0
+    events: tuple[str, ...] = ()
+    files: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``tli verify --json`` record."""
+        c = self.config
+        return {
+            "world": c.world,
+            "examples": c.examples,
+            "seed": c.seed,
+            "modulation": c.modulation,
+            "backend": c.backend,
+            "batch_size": c.batch_size,
+            "max_pushes": c.max_pushes,
+            "window": c.window,
+            "levels": list(c.levels),
+            "random_starts": c.random_starts,
+            "lag": c.lag,
+            "files": self.files,
+            "runs": self.runs,
+            "partial": self.partial,
+            "violations": self.violations,
+            "violating_runs": sum(1 for o in self.outcomes if not o.verdict.ok),
+            "task_satisfied": self.task_satisfied,
+            "cuts_added": self.cuts_added,
+            "inconclusive": self.inconclusive,
+            "coverage": self.coverage,
+            "counterexample": self.counterexample,
+            "simulations_to_first_counterexample": self.first_counterexample_at,
+            "first_violation_by_kind": {
+                k.value: next((o.index + 1 for o in self.outcomes if k in o.verdict.kinds),
+                              None) for k in ViolationKind},
+            "failure_probability_bound_95": self.failure_bound,
+            "shrink_simulations": self.shrink_steps,
+            "seconds": self.seconds,
+            "events": list(self.events),
+        }
+
+
+# ------------------------------------------------------------------------------ setup
+def _resolve(cfg: CampaignConfig) -> tuple[Path, Path, Path]:
+    from tli_verify.io import bundled_dir
+    from tli_verify.model import load_model
+    from tli_verify.worlds import WORLDS
+
+    if cfg.world not in WORLDS:
+        raise CampaignError(f"--world {cfg.world!r}: unknown world (worlds: "
+                            f"{', '.join(sorted(WORLDS))})")
+    model = Path(cfg.model) if cfg.model else bundled_dir("models") / f"{cfg.world}.model.json"
+    if not model.is_file():
+        raise CampaignError(f"{model}: no such model file (pass --model for world "
+                            f"{cfg.world!r})")
+    if cfg.certificate:
+        cert = Path(cfg.certificate)
+    elif cfg.model:
+        from tli_verify.commands.run import certificate_next_to
+
+        cert = certificate_next_to(model)
+    else:
+        cert = bundled_dir("certificates") / f"{cfg.world}.cert.json"
+    if not cert.is_file():
+        raise CampaignError(f"{cert}: no such certificate file")
+    named = load_model(model).spec_path
+    if cfg.spec:
+        spec = Path(cfg.spec)
+        if named is not None and Path(os.path.realpath(spec)) != named:
+            raise CampaignError(f"--spec {spec}: not the spec the model names ({named}); the "
+                                "certificate binds that one")
+    elif named is not None:
+        spec = named
+    else:
+        spec = bundled_dir("specs") / f"{cfg.world}.toml"
+    if not spec.is_file():
+        raise CampaignError(f"{spec}: no such spec file")
+    return spec, model, cert
+
+
+def sim_spec(cfg: CampaignConfig) -> SimSpec:
+    """Resolve the files of a config and hash them.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) Unknown world, missing files.
+    """
+    from tli_verify.io import sha256_file
+
+    spec, model, cert = _resolve(cfg)
+    return SimSpec(world=cfg.world, lag=cfg.lag, spec=str(spec), model=str(model),
+                   certificate=str(cert),
+                   hashes=(sha256_file(spec), sha256_file(model), sha256_file(cert)),
+                   modulation=cfg.modulation, max_cycles=cfg.max_cycles, window=cfg.window)
+
+
+class WatchedPolicy(LTLDSPolicy):
+    """The executive, with a looping watchdog that ends the episode (not the policy's logic).
+
+    :attr:`done` is also true once, after step ``after`` (the last perturbation), the executive
+    has reported more than ``limit`` events since the last cut it learned (every such event
+    comes with a mode change, at most 5 per change, so by then the run has re-entered visited
+    modes more than the oracle's loop bound allows), or more than ``max_cuts`` cuts: either way
+    the oracle's looping verdict is decided.
+    """
+
+    __slots__ = ("_after", "_cuts", "_limit", "_mark", "_max_cuts", "_seen")
+    _after: int
+    _limit: int
+    _mark: int
+    _seen: int
+    _cuts: int
+    _max_cuts: int
+
+    def watch(self, after: int, limit: int, max_cuts: int) -> WatchedPolicy:
+        """A fork for one episode with the watchdog armed."""
+        new = object.__new__(WatchedPolicy)
+        for name in LTLDSPolicy.__slots__:
+            setattr(new, name, getattr(self, name))
+        new.events = list(self.events)
+        new._entries = {k: list(v) for k, v in self._entries.items()}
+        new._plan_cache = dict(self._plan_cache)
+        new._after = int(after)
+        new._limit = int(limit)
+        new._max_cuts = int(max_cuts)
+        new._mark = -1
+        new._seen = 0
+        new._cuts = 0
+        return new
+
+    @property
+    def done(self) -> bool:
+        """In a goal mode, or the watchdog fired."""
+        if self._mode in self.goal_modes:
+            return True
+        if self._steps >= self._after:
+            n = len(self.events)
+            if self._mark < 0:
+                self._mark = self._seen = n
+            elif n > self._seen:  # each event is looked at once
+                for k in range(self._seen, n):
+                    if isinstance(self.events[k], CutAdded):
+                        self._mark = k + 1  # a learned cut restarts the loop count
+                        self._cuts += 1
+                self._seen = n
+            if n - self._mark > self._limit or self._cuts > self._max_cuts:
+                return True
+        return False
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Loaded:
+    """A loaded setup: world, automaton, certified model, base policy, oracle."""
+
+    world: Any
+    automaton: Any
+    model: Any
+    certificate: str
+    policy: WatchedPolicy
+    oracle: Oracle
+    budget: int
+    limit: int
+
+
+@lru_cache(maxsize=4)
+def load(spec: SimSpec) -> Loaded:
+    """Load (once per process) what the runs of a :class:`SimSpec` need.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) A file's SHA-256 differs from the driver's (the files changed under the
+        campaign).
+    """
+    from tli_verify.io import sha256_file
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+    from tli_verify.worlds import WORLDS
+
+    for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
+        if sha256_file(path) != want:
+            raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
+    world = WORLDS[spec.world](lag=spec.lag)
+    automaton = synthesize(load_spec(spec.spec))
+    model = load_model(spec.model)
+    base = WatchedPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation)
+    oracle = Oracle.build(world, automaton, model, spec.certificate, dt=base.dt,
+                          max_cycles=spec.max_cycles)
+    limit = 5 * (oracle.max_cycles + len(automaton.modes) + 1)
+    return Loaded(world=world, automaton=automaton, model=model,
+                  certificate=spec.certificate, policy=base, oracle=oracle,
+                  budget=oracle.budget(spec.window), limit=limit)
+
+
+def start_regions(world: Any, automaton: Any) -> tuple[str, ...]:
+    """The true regions whose first reading (from the initial latent state) is one the spec's
+    initial assumption allows."""
+    from tli_verify.logic.automaton import AssumptionViolation
+
+    out = []
+    for name in world.region_names:
+        try:
+            x = world.sample_region(name, 1, np.random.default_rng(0))
+        except TliError:
+            continue
+        reading = world.sensors(x)[0]
+        true = [n for n, v in zip(world.sensor_names, reading.tolist(), strict=True) if v]
+        try:
+            automaton.initial_state(true)
+        except AssumptionViolation:
+            continue
+        out.append(name)
+    return tuple(out)
+
+
+# ------------------------------------------------------------------------------ simulation
+def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
+             ) -> list[tuple[Trace, Any]]:
+    """Simulate cases in one vectorised batch; return each run's trace and episode result.
+
+    Parameters
+    ----------
+    spec : SimSpec
+    cases_ : sequence of Case
+    budget : int, optional
+        Step budget (default: the certified one, :meth:`Oracle.budget`).
+
+    Returns
+    -------
+    list of (Trace, EpisodeResult)
+    """
+    from tli_verify.runtime.executive import run_episodes
+    from tli_verify.runtime.worlds import WorldSensors
+
+    ld = load(spec)
+    if not cases_:
+        return []
+    X = np.array([c.start for c in cases_], dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != ld.model.dim:
+        raise CampaignError(f"case start: expected {ld.model.dim} coordinates")
+    tables = [c.table() for c in cases_]
+    pushed: list[dict[int, FloatArray]] = [{} for _ in cases_]
+    world = ld.world
+
+    def perturb(i: int, t: int, x: FloatArray) -> FloatArray | None:
+        p = tables[i].get(t)
+        if p is None:
+            return None
+        new = apply_push(world, x, p)
+        pushed[i][t] = new
+        return new
+
+    policies = [ld.policy.watch(c.last_step, ld.limit, ld.oracle.max_cuts) for c in cases_]
+    memo: dict[Any, Any] = {}
+    sensors = [WorldSensors(world, cache=memo) for _ in cases_]
+    results = run_episodes(policies, sensors, X, steps=ld.budget if budget is None else budget,
+                           perturb=perturb)
+    out = []
+    for i, res in enumerate(results):
+        S = res.states
+        R = np.empty_like(S)
+        R[0] = S[0]
+        R[1:] = S[:-1]
+        for t, x in pushed[i].items():
+            if t < len(R):
+                R[t] = x
+        cuts = tuple(CutRecord(e.step, e.mode, tuple(e.cut.normal.tolist()),
+                               tuple(e.cut.point.tolist()))
+                     for e in res.events if isinstance(e, CutAdded))
+        if res.success and res.modes[-1] not in ld.policy.goal_modes:  # the watchdog, not d
+            res = replace(res, success=False)
+        out.append((Trace(states=S, read_states=R, modes=res.modes,
+                          pushes=tuple(sorted(t for t in pushed[i] if t <= res.steps)),
+                          cuts=cuts, budget=ld.budget), res))
+    return out
+
+
+def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunOutcome]:
+    """A worker's task: simulate a batch and check every trace with the oracle.
+
+    Parameters
+    ----------
+    job : (SimSpec, sequence of (index, Case))
+
+    Returns
+    -------
+    list of RunOutcome
+    """
+    import threadpoolctl
+
+    from tli_verify.experiments.scoop import mode_string
+
+    spec, items = job
+    with threadpoolctl.threadpool_limits(1):
+        sims = simulate(spec, [c for _, c in items])
+        verdicts = load(spec).oracle.check_many([tr for tr, _ in sims])
+    return [RunOutcome(index=i, verdict=v, steps=res.steps, cuts_added=res.cuts_added,
+                       modes=mode_string(res))
+            for (i, _), (_, res), v in zip(items, sims, verdicts, strict=True)]
+
+
+def check_case(spec: SimSpec, case: Case) -> Verdict:
+    """Simulate one case in this process and return the oracle's verdict."""
+    (trace, _), = simulate(spec, [case])
+    return load(spec).oracle.check(trace)
+
+
+# ------------------------------------------------------------------------------ drawing
+def _strategy(cfg: CampaignConfig, ld: Loaded) -> Any:
+    start = None
+    if not cfg.random_starts:
+        start = cfg.start if cfg.start is not None else NOMINAL_STARTS.get(cfg.world)
+        if start is None:
+            raise CampaignError(f"world {cfg.world!r} has no nominal start: pass a start or "
+                                "use random starts")
+        if len(start) != ld.model.dim:
+            raise CampaignError(f"start: expected {ld.model.dim} coordinates, got "
+                                f"{len(start)}")
+        if not bool(ld.world.in_workspace(np.asarray(start)[None])[0]):
+            raise CampaignError(f"start {list(start)}: outside the workspace")
+    return cases(ld.world, start=start, max_pushes=cfg.max_pushes, window=cfg.window,
+                 levels=cfg.levels,
+                 start_regions=start_regions(ld.world, ld.automaton) if start is None
+                 else None)
+
+
+def _settings(n: int, phases: Sequence[Any]) -> Any:
+    from hypothesis import HealthCheck, settings
+
+    return settings(max_examples=n, database=None, deadline=None, derandomize=False,
+                    phases=list(phases), suppress_health_check=list(HealthCheck),
+                    report_multiple_bugs=False, print_blob=False)
+
+
+def _budget(n: int) -> int:
+    """Examples hypothesis is asked for to yield ``n`` distinct cases (different choice
+    sequences can give one case, e.g. the empty sequence)."""
+    return math.ceil(1.3 * n) + 10
+
+
+def draw_cases(strategy: Any, n: int, seed: int | str) -> list[Case]:
+    """``n`` cases from ``strategy``, deterministic in ``seed`` (hypothesis in this process).
+
+    ``hypothesis.find`` with ``random=Random(seed)``, no example database, the generate phase
+    only and a condition that never holds: every example it generates is collected, in order.
+    Hypothesis may generate fewer than ``n`` when the strategy's space is exhausted.
+    """
+    from hypothesis import Phase, find
+    from hypothesis.errors import NoSuchExample
+
+    out: list[Case] = []
+    seen: set[Case] = set()
+
+    def collect(c: Case) -> bool:
+        if c not in seen:
+            seen.add(c)
+            out.append(c)
+        return False
+
+    try:
+        find(strategy, collect, settings=_settings(_budget(n), [Phase.generate]),
+             random=random.Random(seed))
+    except NoSuchExample:
+        pass
+    return out[:n]
+
+
+def chunk_seed(seed: int, chunk: int) -> str:
+    """The hypothesis seed of chunk ``chunk`` of a campaign seeded ``seed``."""
+    return f"tli-verify:{seed}:{chunk}"
+
+
+def draw_chunks(strategy: Any, n: int, seed: int, size: int
+                ) -> Iterator[list[tuple[int, Case]]]:
+    """The campaign's cases in chunks of ``size``: ``[(index, case), ...]`` per chunk.
+
+    Chunk ``j`` is the first cases of :func:`draw_cases` ``(strategy, size + 10,
+    chunk_seed(seed, j))`` (so a
+    chunk can be replayed on its own to shrink, and drawing overlaps the simulation); cases
+    drawn by an earlier chunk are skipped (each chunk starts from hypothesis's simplest case),
+    so every index is a distinct case.
+    """
+    seen: set[Case] = set()
+    index = 0
+    j = 0
+    while index < n:
+        want = min(size, n - index)
+        fresh = [c for c in draw_cases(strategy, size + 10, chunk_seed(seed, j))
+                 if c not in seen][:want]
+        if not fresh:
+            return
+        seen.update(fresh)
+        yield [(index + k, c) for k, c in enumerate(fresh)]
+        index += len(fresh)
+        j += 1
+
+
+class _Shrinker:
+    """The condition hypothesis shrinks with: 'the case violates ``kind``' (cached)."""
+
+    def __init__(self, spec: SimSpec, kind: ViolationKind, known: Mapping[Case, Verdict]
+                 ) -> None:
+        self.spec = spec
+        self.kind = kind
+        self.known = dict(known)
+        self.simulated = 0
+
+    def verdict(self, case: Case) -> Verdict:
+        v = self.known.get(case)
+        if v is None:
+            v = check_case(self.spec, case)
+            self.known[case] = v
+            self.simulated += 1
+        return v
+
+    def __call__(self, case: Case) -> bool:
+        return self.kind in self.verdict(case).kinds
+
+
+def shrink(spec: SimSpec, strategy: Any, seed: int | str, examples: int, kind: ViolationKind,
+           known: Mapping[Case, Verdict]) -> tuple[Case | None, Verdict | None, int]:
+    """Shrink the first case violating ``kind`` in the seeded generation order.
+
+    Replays :func:`draw_cases`'s generation of ``examples`` cases with ``seed`` (a campaign
+    replays the chunk, :func:`chunk_seed`, of its first counterexample; same strategy and
+    settings; verdicts in ``known`` are looked up, not simulated) with the condition "violates
+    ``kind``", so hypothesis stops at the same first failing case and shrinks it (candidates
+    simulated here).
+
+    Returns
+    -------
+    (Case or None, Verdict or None, int)
+        The minimal case, its verdict, and the simulations the shrinker ran.
+    """
+    from hypothesis import Phase, find
+    from hypothesis.errors import NoSuchExample
+
+    cond = _Shrinker(spec, kind, known)
+    try:
+        found = find(strategy, cond, settings=_settings(_budget(examples),
+                                                        [Phase.generate, Phase.shrink]),
+                     random=random.Random(seed))
+    except NoSuchExample:
+        return None, None, cond.simulated
+    return found, cond.verdict(found), cond.simulated
+
+
+def _targeted(spec: SimSpec, strategy: Any, seed: int, n: int
+              ) -> tuple[Case | None, Verdict | None, int]:
+    """Driver-side search with ``hypothesis.target`` on the robustness margin."""
+    from hypothesis import Phase, find, target
+    from hypothesis.errors import NoSuchExample
+
+    count = [0]
+    cache: dict[Case, Verdict] = {}
+
+    def cond(case: Case) -> bool:
+        v = cache.get(case)
+        if v is None:
+            v = check_case(spec, case)
+            cache[case] = v
+            count[0] += 1
+        if math.isfinite(v.robustness):
+            target(-v.robustness, label="negated robustness")
+        return not v.ok
+
+    try:
+        found = find(strategy, cond, settings=_settings(n, [Phase.generate, Phase.target,
+                                                            Phase.shrink]),
+                     random=random.Random(seed + 7919))
+    except NoSuchExample:
+        return None, None, count[0]
+    return found, cache.get(found) or check_case(spec, found), count[0]
+
+
+# ------------------------------------------------------------------------------ cases
+def _files(spec: SimSpec) -> dict[str, dict[str, str]]:
+    """The files of a run, paths relative to the repository root when under it."""
+    from tli_verify.io import bundled_dir
+
+    root = Path(os.path.realpath(bundled_dir("models").parent))
+    out = {}
+    for name, path, h in zip(("spec", "model", "certificate"),
+                             (spec.spec, spec.model, spec.certificate), spec.hashes,
+                             strict=True):
+        real = Path(os.path.realpath(path))
+        shown = str(real.relative_to(root)) if real.is_relative_to(root) else str(real)
+        out[name] = {"path": shown, "sha256": h}
+    return out
+
+
+def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
+                  index: int | None = None, shrunk: bool = False,
+                  kind: ViolationKind | None = None) -> dict[str, Any]:
+    """The JSON case file of a counterexample (``tli replay`` reads it); the expected
+    violation is ``kind`` (the one the shrinker kept), default the verdict's primary one."""
+    primary = kind if kind is not None and kind in verdict.kinds else verdict.primary
+    return {
+        "kind": CASE_KIND,
+        "version": 1,
+        "world": spec.world,
+        "lag": spec.lag,
+        "modulation": spec.modulation,
+        "max_cycles": spec.max_cycles,
+        "window": spec.window,
+        "files": _files(spec),
+        "seed": seed,
+        "index": index,
+        "shrunk": shrunk,
+        **case_to_json(case),
+        "expected": {"violation": primary.value if primary else None,
+                     "violations": sorted(k.value for k in verdict.kinds),
+                     "messages": [v.message for v in verdict.violations][:5],
+                     "oracle_modes": verdict.oracle_modes[:200]},
+    }
+
+
+def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Case]:
+    """Read a case file; the files it names are resolved relative to it when not absolute.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) Unreadable, malformed, or naming missing files.
+    """
+    import json
+
+    from tli_verify.io import read_text, sha256_file
+
+    p = Path(path)
+    if not p.is_file():
+        raise CampaignError(f"{p}: no such case file")
+    text = read_text(p, what="case", error=CampaignError)
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        raise CampaignError(f"{p}: not JSON ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("kind") != CASE_KIND:
+        raise CampaignError(f"{p}: kind: expected {CASE_KIND!r}")
+    files = doc.get("files")
+    if not isinstance(files, dict):
+        raise CampaignError(f"{p}: files: expected an object")
+    paths: list[str] = []
+    hashes: list[str] = []
+    for name in ("spec", "model", "certificate"):
+        entry = files.get(name)
+        if not isinstance(entry, dict) or not isinstance(entry.get("path"), str):
+            raise CampaignError(f"{p}: files.{name}.path: expected a string")
+        fp = Path(entry["path"])
+        if not fp.is_absolute():
+            from tli_verify.io import bundled_dir
+
+            candidates = [p.parent / fp, bundled_dir("models").parent / fp]
+            fp = next((c for c in candidates if c.is_file()), candidates[0])
+        if not fp.is_file():
+            raise CampaignError(f"{p}: files.{name}.path: {fp}: no such file")
+        paths.append(str(fp))
+        hashes.append(sha256_file(fp))
+    for name in ("world", "lag", "modulation"):
+        if name not in doc:
+            raise CampaignError(f"{p}: {name}: missing")
+    from tli_verify.worlds import WORLDS
+
+    if doc["world"] not in WORLDS:
+        raise CampaignError(f"{p}: world: unknown world {doc['world']!r}")
+    lag, mc, window = doc["lag"], doc.get("max_cycles"), doc.get("window", 700)
+    if not isinstance(lag, int) or lag < 0 or not isinstance(doc["modulation"], bool) or \
+            (mc is not None and (not isinstance(mc, int) or mc < 0)) or \
+            not isinstance(window, int) or window < 1:
+        raise CampaignError(f"{p}: lag, modulation, max_cycles or window: malformed")
+    dim = len(WORLDS[doc["world"]].lo)
+    case = case_from_json(doc, dim=dim, where=str(p))
+    spec = SimSpec(world=doc["world"], lag=lag, spec=paths[0], model=paths[1],
+                   certificate=paths[2], hashes=(hashes[0], hashes[1], hashes[2]),
+                   modulation=doc["modulation"], max_cycles=mc,
+                   window=max(window, case.last_step))
+    return doc, spec, case
+
+
+def replay_case(path: str | os.PathLike[str], *, modulation: bool | None = None
+                ) -> tuple[dict[str, Any], Verdict, bool, list[str]]:
+    """Replay a saved case deterministically.
+
+    Parameters
+    ----------
+    path : path-like
+    modulation : bool, optional
+        Override the case's setting (e.g. check that LTL-DS fixes a no-modulation case).
+
+    Returns
+    -------
+    (doc, Verdict, bool, list of str)
+        The case document, the verdict now, whether the expected violation reproduced, and
+        notes (files whose SHA-256 changed since the case was saved).
+    """
+    doc, spec, case = read_case(path)
+    notes = [f"{name}: {spec_path} changed since the case was saved (SHA-256 differs)"
+             for name, spec_path, h, entry in
+             zip(("spec", "model", "certificate"), (spec.spec, spec.model, spec.certificate),
+                 spec.hashes, (doc["files"][n] for n in ("spec", "model", "certificate")),
+                 strict=True) if entry.get("sha256") != h]
+    if modulation is not None:
+        spec = replace(spec, modulation=modulation)
+    verdict = check_case(spec, case)
+    want = (doc.get("expected") or {}).get("violation")
+    reproduced = want is not None and any(k.value == want for k in verdict.kinds)
+    return doc, verdict, reproduced, notes
+
+
+# ------------------------------------------------------------------------------ campaign
+def _coverage(outcomes: Sequence[RunOutcome], automaton: Any) -> dict[str, Any]:
+    edges: set[tuple[int, int]] = set()
+    mode_edges: set[tuple[str, str]] = set()
+    perturbed: set[str] = set()
+    touched = total = 0
+    for o in outcomes:
+        v = o.verdict
+        edges.update(v.edges)
+        mode_edges.update(v.mode_edges)
+        perturbed.update(v.modes_perturbed)
+        touched += v.cut_faces_touched
+        total += v.cut_faces
+    all_edges = {(t.source, t.target) for t in automaton.transitions if t.source != t.target}
+    all_modes = {(a, b) for a, b in automaton.mode_transitions() if a != b}
+    run_modes = sorted({s.mode for s in automaton.states})
+    return {
+        "automaton_edges": {"exercised": len(edges & all_edges), "total": len(all_edges),
+                            "list": [list(e) for e in sorted(edges)]},
+        "mode_edges": {"exercised": len(mode_edges & all_modes), "total": len(all_modes),
+                       "list": ["->".join(e) for e in sorted(mode_edges)]},
+        "modes_perturbed": {"perturbed": sorted(perturbed), "modes": run_modes},
+        "cut_faces": {"touched": touched, "total": total},
+    }
+
+
+def run_campaign(config: CampaignConfig, *, progress: bool = False,
+                 on_event: Callable[[str], None] | None = None) -> CampaignResult:
+    """Run a campaign (module docstring).
+
+    Parameters
+    ----------
+    config : CampaignConfig
+    progress : bool, optional
+        A tqdm progress bar on stderr.
+    on_event : callable, optional
+        Called with one line per notable event.
+
+    Returns
+    -------
+    CampaignResult
+        ``partial`` when interrupted by Ctrl-C (the results so far are kept).
+
+    Raises
+    ------
+    CampaignError, TliError
+        (exit 2) Bad configuration or files; (exit 1) the certificate does not cover the model.
+    WorkerLost
+        A batch's worker died more than twice.
+    """
+    from tli_verify.verify.backends import make_backend
+
+    t0 = time.perf_counter()
+    events: list[str] = []
+
+    def emit(text: str) -> None:
+        events.append(text)
+        if on_event is not None:
+            on_event(text)
+
+    spec = sim_spec(config)
+    ld = load(spec)
+    strategy = _strategy(config, ld)
+    outcomes: dict[int, RunOutcome] = {}
+    partial = False
+    backend = make_backend(config.backend, workers=config.workers,
+                           scheduler=config.scheduler, on_event=emit)
+    emit(f"drawing {config.examples} cases (seed {config.seed}) and simulating them in "
+         f"batches of {config.batch_size} ({config.backend})")
+    drawn: dict[int, Case] = {}
+    chunk_of: dict[int, int] = {}
+    feed: queue.Queue[Any] = queue.Queue()
+    stop = threading.Event()
+
+    def produce() -> None:  # hypothesis draws here while the workers simulate
+        try:
+            for j, chunk in enumerate(draw_chunks(strategy, config.examples, config.seed,
+                                                  config.batch_size)):
+                if stop.is_set():
+                    return
+                feed.put((j, chunk))
+            feed.put(None)
+        except BaseException as exc:  # handed to the driver thread
+            feed.put(exc)
+
+    producer = threading.Thread(target=produce, name="tli-verify-draw", daemon=True)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=config.examples, unit="run", desc="campaign", leave=False)
+    producer.start()
+    try:
+        finished = False
+        while not finished:
+            wave = [feed.get()]
+            while True:  # everything drawn meanwhile joins this wave
+                try:
+                    wave.append(feed.get_nowait())
+                except queue.Empty:
+                    break
+            jobs = []
+            for item in wave:
+                if item is None:
+                    finished = True
+                elif isinstance(item, BaseException):
+                    raise item
+                else:
+                    j, chunk = item
+                    for i, c in chunk:
+                        drawn[i] = c
+                        chunk_of[i] = j
+                    jobs.append((spec, chunk))
+            for _, batch in backend.map_unordered(simulate_batch, jobs):
+                for o in batch:
+                    outcomes[o.index] = o
+                if bar is not None:
+                    bar.update(len(batch))
+    except KeyboardInterrupt:
+        partial = True
+        emit(f"interrupted after {len(outcomes)} of {config.examples} runs: partial results")
+    finally:
+        stop.set()
+        backend.close()
+        if bar is not None:
+            bar.close()
+    ordered = tuple(outcomes[i] for i in sorted(outcomes))
+    failing = [o for o in ordered if not o.verdict.ok]
+    first_any = failing[0] if failing else None
+    # the counterexample: the first run of the most specific kind found (PRIORITY), so a
+    # campaign that finds Fig. 7's looping shrinks a looping run, not an earlier lone failure
+    kind = next((k for k in PRIORITY if any(k in o.verdict.kinds for o in failing)), None)
+    first = next((o for o in failing if kind in o.verdict.kinds), None)
+    counterexample = None
+    first_at = None
+    shrink_steps = 0
+    known = {drawn[o.index]: o.verdict for o in ordered}
+    if first is not None and kind is not None and first_any is not None:
+        first_at = first_any.index + 1
+        case, verdict = drawn[first.index], first.verdict
+        shrunk = False
+        if config.shrink and not partial:
+            j = chunk_of[first.index]
+            try:
+                small, v, shrink_steps = shrink(spec, strategy, chunk_seed(config.seed, j),
+                                                config.batch_size + 10, kind, known)
+            except KeyboardInterrupt:
+                small, v = None, None
+                partial = True
+                emit("interrupted while shrinking: the counterexample is not shrunk")
+            if small is not None and v is not None:
+                case, verdict, shrunk = small, v, True
+        counterexample = case_document(spec, case, verdict, seed=config.seed,
+                                       index=first.index, shrunk=shrunk, kind=kind)
+    elif config.target_examples > 0 and not partial:
+        found, v, shrink_steps = _targeted(spec, strategy, config.seed,
+                                           config.target_examples)
+        if found is not None and v is not None:
+            counterexample = case_document(spec, found, v, seed=config.seed, shrunk=True)
+            first_at = len(ordered) + shrink_steps
+    violations = {k.value: sum(1 for o in ordered if k in o.verdict.kinds)
+                  for k in ViolationKind}
+    runs = len(ordered)
+    return CampaignResult(
+        config=config, runs=runs, violations=violations,
+        task_satisfied=sum(1 for o in ordered if o.verdict.reached),
+        cuts_added=sum(o.cuts_added for o in ordered),
+        coverage=_coverage(ordered, ld.automaton), counterexample=counterexample,
+        first_counterexample_at=first_at,
+        failure_bound=(3.0 / runs if counterexample is None and runs > 0 else None),
+        partial=partial, outcomes=ordered, seconds=time.perf_counter() - t0,
+        inconclusive=sum(1 for o in ordered if not o.verdict.conclusive),
+        shrink_steps=shrink_steps, events=tuple(events),
+        files=_files(spec))

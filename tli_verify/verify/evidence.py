@@ -1,0 +1,599 @@
+"""Campaign evidence: ``certificates/<name>.campaign.json``, required by ``tli gate`` (issue 12 D).
+
+A deployed model needs, besides its Lyapunov certificate, evidence that a bisimulation campaign
+(``tli verify``: generated perturbation sequences against invariance and reachability, paper
+Sec. 4.4, Thm. 2, Asm. 2) ran on *its exact files* and found nothing. The evidence file (schema
+``tli_verify/schemas/campaign.schema.json``) binds, by SHA-256 of their exact bytes (the
+certificate's convention, :mod:`tli_verify.certify.certificate`):
+
+* the spec, the model and the certificate (paths relative to the evidence file's directory);
+* the world whose sensor model the campaign ran (``tli_verify.worlds.WORLDS``);
+* the seed, the number of examples (perturbation sequences) and of runs (simulations), whether
+  modulation was on (it must be: that is the deployed policy) and whether the campaign was
+  interrupted (``partial``: then it is not evidence);
+* the violations found, by kind (``total`` must be 0 to deploy) and the counterexample (null);
+* the tool version; and ``digest``, the SHA-256 of the canonical JSON of everything else.
+
+Nothing in it is trusted: :func:`check_evidence` re-reads it (bounded, regular files only, never
+a symlink), recomputes the digest and the three hashes, requires the spec to be the one the
+model names and the certificate to cover the model, and requires ``violations.total == 0``,
+no counterexample, modulation on, a complete campaign and at least
+:data:`MIN_EVIDENCE_EXAMPLES` examples. ``tli gate --rerun N`` additionally re-runs a short
+campaign with the evidence's seed (:mod:`tli_verify.certify.gate`).
+
+Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
+``scripts/make_evidence.py`` for every bundled model).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tli_verify.errors import EvidenceError, TliError
+from tli_verify.io import atomic_write_text, canonical_json, check_output_file, sha256_file
+
+__all__ = [
+    "EVIDENCE_KIND",
+    "EVIDENCE_SCHEMA_VERSION",
+    "EVIDENCE_SUFFIX",
+    "MIN_EVIDENCE_EXAMPLES",
+    "EvidenceCheck",
+    "build_evidence",
+    "check_evidence",
+    "evidence_digest",
+    "evidence_path_for",
+    "model_stem",
+    "settings_for_config",
+    "write_campaign_evidence",
+    "write_evidence",
+]
+
+EVIDENCE_SCHEMA_VERSION = 1
+EVIDENCE_KIND = "tli-verify/campaign-evidence"
+EVIDENCE_SUFFIX = ".campaign.json"
+MIN_EVIDENCE_EXAMPLES = 500
+"""Fewest examples (perturbation sequences) a campaign needs to count as evidence in the gate.
+
+With ``N`` examples and no violation, the failure probability per perturbed run is below
+``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
+campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
+evidence (1,000 examples, ``scripts/make_evidence.py``) costs seconds per model."""
+
+
+class _BadInput(EvidenceError):
+    """Evidence that cannot be built from what was given (exit 2)."""
+
+    exit_code = 2
+
+
+def evidence_digest(doc: Mapping[str, Any]) -> str:
+    """SHA-256 of the canonical JSON of an evidence document without its ``digest`` field."""
+    body = {k: v for k, v in doc.items() if k != "digest"}
+    return hashlib.sha256(canonical_json(body).encode("utf-8")).hexdigest()
+
+
+def model_stem(model_path: str | os.PathLike[str]) -> str:
+    """``scoop`` for ``models/scoop.model.json`` (also ``scoop.json``)."""
+    return Path(model_path).name.removesuffix(".json").removesuffix(".model")
+
+
+def evidence_path_for(model_path: str | os.PathLike[str],
+                      root: str | os.PathLike[str] = ".") -> Path:
+    """Where the gate looks for a deployed model's evidence.
+
+    ``ROOT/models/SUB/NAME.model.json`` -> ``ROOT/certificates/SUB/NAME.campaign.json``; a model
+    outside ``ROOT/models`` -> ``certificates/NAME.campaign.json`` next to its own directory.
+
+    Parameters
+    ----------
+    model_path : path-like
+    root : path-like, optional
+        The project directory (default ``.``).
+
+    Returns
+    -------
+    Path
+    """
+    mpath = Path(model_path)
+    models = Path(root) / "models"
+    try:
+        sub = Path(os.path.normpath(mpath.absolute())).parent.relative_to(
+            os.path.normpath(models.absolute()))
+        base = Path(root) / "certificates" / sub
+    except ValueError:
+        base = mpath.parent.parent / "certificates"
+    return base / (model_stem(mpath) + EVIDENCE_SUFFIX)
+
+
+def _relpath(target: Path, base_dir: Path) -> str:
+    return Path(os.path.relpath(target.resolve(), base_dir.resolve())).as_posix()
+
+
+def _file_entry(path: Path, base: Path, what: str) -> dict[str, str]:
+    if not path.is_file():
+        raise EvidenceError(f"{path}: {what} file not found", exit_code=2)
+    return {"path": _relpath(path, base), "sha256": sha256_file(path)}
+
+
+def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
+                   spec: str | os.PathLike[str], model: str | os.PathLike[str],
+                   certificate: str | os.PathLike[str], seed: int, examples: int, runs: int,
+                   violations: Mapping[str, int], modulation: bool, partial: bool = False,
+                   backend: str | None = None, workers: int | None = None,
+                   counterexample: Mapping[str, Any] | None = None,
+                   inconclusive: int | None = None,
+                   settings: Mapping[str, Any] | None = None,
+                   expected: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """The evidence document of one finished campaign (with its digest).
+
+    Parameters
+    ----------
+    evidence_path : path-like
+        Where it will be written (its paths are relative to that directory).
+    world : str
+        Name of the world whose sensor model ran (``tli_verify.worlds.WORLDS``).
+    spec, model, certificate : path-like
+        The files the campaign ran; hashed now (SHA-256 of their bytes).
+    seed : int
+        The campaign's seed, in ``[0, 2**32)``.
+    examples : int
+        Perturbation sequences drawn (>= 1).
+    runs : int
+        Simulations run.
+    violations : mapping str -> int
+        Violations found, by kind (``{}`` or all zero when none).
+    modulation : bool
+        Whether the policy ran with modulation (paper eq. 5).
+    partial : bool, optional
+        The campaign was interrupted.
+    backend : str, optional
+        ``"process"``, ``"dask"``, ... (informational).
+    workers : int, optional
+        Worker count (informational).
+    counterexample : mapping, optional
+        The shrunk counterexample, when one was found.
+    inconclusive : int, optional
+        Runs whose reachability the oracle could not decide (informational).
+    settings : mapping, optional
+        The campaign's other parameters (``max_pushes``, ``window``, ``levels``, ``lag``, ...;
+        JSON values): ``tli gate --rerun`` runs with them again.
+    expected : mapping str -> str, optional
+        ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
+        that changed since is refused.
+
+    Returns
+    -------
+    dict
+        Valid against ``campaign.schema.json``.
+
+    Raises
+    ------
+    EvidenceError
+        (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
+        range (the schema names it).
+    """
+    from tli_verify import __version__
+    from tli_verify.model import validate_schema
+
+    base = Path(evidence_path).parent
+    by_kind = {str(k): int(v) for k, v in violations.items()}
+    doc: dict[str, Any] = {
+        "schema_version": EVIDENCE_SCHEMA_VERSION,
+        "kind": EVIDENCE_KIND,
+        "tool": {"name": "tli-verify", "version": __version__},
+        "world": str(world),
+        "spec": _file_entry(Path(spec), base, "spec"),
+        "model": _file_entry(Path(model), base, "model"),
+        "certificate": _file_entry(Path(certificate), base, "certificate"),
+        "campaign": {
+            "seed": int(seed), "examples": int(examples), "runs": int(runs),
+            "modulation": bool(modulation), "partial": bool(partial),
+            "backend": backend, "workers": None if workers is None else int(workers),
+            "failure_probability_bound_95": 3.0 / int(examples) if int(examples) > 0 else 3.0,
+        },
+        "violations": {"total": sum(by_kind.values()), "by_kind": by_kind},
+        "counterexample": None if counterexample is None else dict(counterexample),
+    }
+    if inconclusive is not None:
+        doc["campaign"]["inconclusive"] = int(inconclusive)
+    if settings is not None:
+        doc["campaign"]["settings"] = {str(k): v for k, v in settings.items()}
+    for key, sha in (expected or {}).items():
+        if doc[key]["sha256"] != sha:
+            raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
+                                f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
+                                f"{doc[key]['sha256'][:12]}... now): re-run the campaign",
+                                exit_code=2)
+    doc["digest"] = evidence_digest(doc)
+    validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
+    return doc
+
+
+def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any]:
+    """Build (:func:`build_evidence`) and write an evidence file atomically (canonical JSON).
+
+    Parameters
+    ----------
+    path : path-like
+        ``certificates/<name>.campaign.json`` (see :func:`evidence_path_for`).
+    **fields
+        The keyword arguments of :func:`build_evidence` but ``evidence_path``.
+
+    Returns
+    -------
+    dict
+        The document written.
+
+    Raises
+    ------
+    OutputError
+        (exit 2) The path cannot be written or is one of the campaign's input files.
+    EvidenceError
+        (exit 2) See :func:`build_evidence`.
+    """
+    inputs = [fields[k] for k in ("spec", "model", "certificate") if fields.get(k) is not None]
+    check_output_file(path, inputs=inputs, what="campaign evidence")
+    doc = build_evidence(evidence_path=path, **fields)
+    atomic_write_text(path, canonical_json(doc))
+    return doc
+
+
+def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[str] | None = None
+                            ) -> tuple[Path, dict[str, Any]]:
+    """Write the evidence of a finished campaign (``tli verify ... --evidence [PATH]``).
+
+    Parameters
+    ----------
+    config : tli_verify.verify.campaign.CampaignConfig
+        Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
+    result : tli_verify.verify.campaign.CampaignResult
+        Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
+        ``inconclusive`` and ``files`` (the spec, model and certificate the campaign ran, with
+        the SHA-256 it ran them at).
+    path : path-like, optional
+        Where to write it (default: :func:`evidence_path_for` the model, under the model's
+        project: ``models/NAME.model.json`` -> ``certificates/NAME.campaign.json``).
+
+    Returns
+    -------
+    (Path, dict)
+        The file and the document written. Evidence of a violating or partial campaign is
+        written too, as an honest record; the gate refuses it.
+
+    Raises
+    ------
+    EvidenceError
+        (exit 2) A file changed since the campaign hashed it, or is missing.
+    OutputError
+        (exit 2) The path cannot be written.
+    """
+    files = _campaign_files(config, result)
+    model = files["model"][0]
+    target = Path(path) if path is not None else evidence_path_for(model, model.parent.parent)
+    counterexample = getattr(result, "counterexample", None)
+    if counterexample is not None and not isinstance(counterexample, Mapping):
+        to_json = getattr(counterexample, "to_json", None)
+        counterexample = to_json() if callable(to_json) else {"repr": repr(counterexample)}
+    backend = getattr(config, "backend", None)
+    inconclusive = getattr(result, "inconclusive", None)
+    doc = write_evidence(
+        target, world=str(config.world), spec=files["spec"][0], model=model,
+        certificate=files["certificate"][0], seed=int(config.seed),
+        examples=int(config.examples), runs=int(result.runs),
+        violations=_counts(result.violations), modulation=bool(config.modulation),
+        partial=bool(getattr(result, "partial", False)),
+        backend=None if backend is None else str(backend),
+        workers=getattr(config, "workers", None), counterexample=counterexample,
+        inconclusive=None if inconclusive is None else int(inconclusive),
+        settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
+    return target, doc
+
+
+_CORE = frozenset({"world", "spec", "model", "certificate", "examples", "seed", "modulation",
+                   "workers", "backend", "scheduler"})
+"""Config fields recorded elsewhere in the evidence, or where (not what) the campaign ran."""
+
+
+def _settings(config: Any) -> dict[str, Any]:
+    """The config's other fields with JSON values (tuples as lists), for a faithful re-run."""
+    import dataclasses
+
+    if not dataclasses.is_dataclass(config):
+        return {}
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(config):
+        if f.name in _CORE:
+            continue
+        value = getattr(config, f.name)
+        if isinstance(value, tuple):
+            value = list(value)
+        if value is None or isinstance(value, bool | int | float | str) or (
+                isinstance(value, list)
+                and all(isinstance(v, bool | int | float | str) for v in value)):
+            out[f.name] = value
+    return out
+
+
+def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[str, Any]:
+    """Recorded settings as keyword arguments of ``config_type`` (lists back to tuples; fields
+    it does not have are dropped)."""
+    import dataclasses
+
+    names = {f.name for f in dataclasses.fields(config_type)} - _CORE
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()
+            if k in names}
+
+
+def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | None]]:
+    """name -> (path, SHA-256 the campaign ran it at) from ``result.files`` (paths relative to
+    the repository root or absolute), else from the config."""
+    files = getattr(result, "files", None) or {}
+    out: dict[str, tuple[Path, str | None]] = {}
+    for name in ("spec", "model", "certificate"):
+        entry = files.get(name)
+        if isinstance(entry, Mapping) and entry.get("path"):
+            p = Path(str(entry["path"]))
+            if not p.is_absolute():
+                from tli_verify.io import bundled_dir
+
+                p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+            out[name] = (p, str(entry.get("sha256") or "") or None)
+        elif getattr(config, name, None):
+            out[name] = (Path(getattr(config, name)), None)
+        else:
+            raise EvidenceError(f"campaign evidence needs the campaign's {name} file; neither "
+                                "the result nor the config names it", exit_code=2)
+    return out
+
+
+def _counts(violations: Any) -> dict[str, int]:
+    """``{kind: count}`` from a mapping whose keys may be enum members."""
+    out: dict[str, int] = {}
+    for k, v in dict(violations).items():
+        name = getattr(k, "value", k)
+        out[str(name)] = out.get(str(name), 0) + int(v)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Checking
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class EvidenceCheck:
+    """Result of re-checking one evidence file.
+
+    Attributes
+    ----------
+    path : str
+        The evidence file.
+    problems : tuple of str
+        Everything that differs or fails; empty iff the evidence is valid.
+    passed : tuple of str
+        What was verified.
+    world : str or None
+    seed : int or None
+    examples : int or None
+    runs : int or None
+        The campaign's, when the file could be read.
+    model_path, spec_path, certificate_path : str or None
+        The files it binds (resolved), when the file could be read.
+    settings : tuple of (str, object)
+        The campaign's other recorded parameters (``campaign.settings``).
+    """
+
+    path: str
+    problems: tuple[str, ...] = ()
+    passed: tuple[str, ...] = field(default=())
+    world: str | None = None
+    seed: int | None = None
+    examples: int | None = None
+    runs: int | None = None
+    model_path: str | None = None
+    spec_path: str | None = None
+    certificate_path: str | None = None
+    settings: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """True iff nothing failed."""
+        return not self.problems
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or os.path.samefile(a, b)
+    except (OSError, RuntimeError):
+        return False
+
+
+def _short(sha: str) -> str:
+    return f"{sha[:12]}..."
+
+
+def check_evidence(path: str | os.PathLike[str], *,
+                   model_path: str | os.PathLike[str] | None = None,
+                   valid_certificates: Collection[str | os.PathLike[str]] | None = None,
+                   min_examples: int = MIN_EVIDENCE_EXAMPLES) -> EvidenceCheck:
+    """Re-check campaign evidence against the files it binds.
+
+    Parameters
+    ----------
+    path : path-like
+        The evidence file (must be a regular file, not a symlink).
+    model_path : path-like, optional
+        The deployed model it must bind (default: the one it names).
+    valid_certificates : collection of path-like, optional
+        The certificates known to re-check for this model (the gate's); the evidence's
+        certificate must be one of them. Default: only the certificate's hash and the model
+        hash it records are compared (``tli check-cert`` re-checks the certificate itself).
+    min_examples : int, optional
+        Fewest examples accepted (default :data:`MIN_EVIDENCE_EXAMPLES`).
+
+    Returns
+    -------
+    EvidenceCheck
+        Every problem found (not just the first); never raises for a bad file.
+    """
+    from tli_verify.model import read_json, validate_schema
+
+    epath = Path(path)
+    shown = str(epath)
+    if epath.is_symlink():
+        return EvidenceCheck(shown, (f"{shown}: a symlink: refused, never followed (campaign "
+                                     "evidence must be a regular file in certificates/)",))
+    if not epath.exists():
+        return EvidenceCheck(shown, (f"{shown}: no such campaign evidence file",))
+    try:
+        doc = read_json(epath, what="campaign evidence", error=EvidenceError)
+        validate_schema(doc, "campaign.schema.json", where=shown, error=EvidenceError)
+    except EvidenceError as exc:
+        return EvidenceCheck(shown, (f"malformed campaign evidence: {exc}",))
+    except RecursionError:
+        return EvidenceCheck(shown, (f"malformed campaign evidence: {shown}: nested too deeply",))
+    problems: list[str] = []
+    passed: list[str] = []
+    if evidence_digest(doc) != doc["digest"]:
+        problems.append(f"{shown}: digest does not match the content: the evidence was edited "
+                        "after the campaign wrote it")
+    else:
+        passed.append("digest matches the content")
+    problems += _check_tool_and_world(doc, shown, passed)
+    base = epath.parent
+    named = {k: Path(os.path.realpath(base / doc[k]["path"]))
+             for k in ("model", "spec", "certificate")}
+    mpath = Path(model_path) if model_path is not None else named["model"]
+    if model_path is not None and not _same_file(named["model"], mpath):
+        problems.append(f"{shown}: model.path {doc['model']['path']!r} ({named['model']}) is "
+                        f"not the deployed model {mpath}: the evidence binds another model")
+    seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
+    problems += _check_files(doc, shown, mpath, named, seen, passed)
+    if valid_certificates is not None and named["certificate"].is_file() and not any(
+            _same_file(named["certificate"], Path(c)) for c in valid_certificates):
+        problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
+                        f"certificate of {mpath}")
+    problems += _check_campaign(doc, shown, min_examples, passed)
+    camp = doc["campaign"]
+    return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
+                         seed=int(camp["seed"]), examples=int(camp["examples"]),
+                         runs=int(camp["runs"]), model_path=str(mpath),
+                         spec_path=str(named["spec"]),
+                         certificate_path=str(named["certificate"]),
+                         settings=tuple(sorted(camp.get("settings", {}).items())))
+
+
+def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
+    from tli_verify import __version__
+    from tli_verify.worlds import WORLDS
+
+    out: list[str] = []
+    version = doc["tool"]["version"]
+    if version != __version__:
+        out.append(f"{shown}: written by tli-verify {version}, this is {__version__}: the "
+                   "oracle may differ; re-run the campaign with this version")
+    if doc["world"] not in WORLDS:
+        out.append(f"{shown}: world {doc['world']!r} is not a known world "
+                   f"({', '.join(sorted(WORLDS))})")
+    else:
+        passed.append(f"world {doc['world']!r} (its sensor model) is known")
+    return out
+
+
+def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],
+                 seen: Mapping[str, Path], passed: list[str]) -> list[str]:
+    """The three hashes; the spec is the model's; the certificate covers the model. ``named``:
+    the files resolved as the OS opens them; ``seen``: as the evidence names them (messages)."""
+    from tli_verify.model import load_model, read_json
+
+    out: list[str] = []
+    if not mpath.is_file():
+        return [f"{shown}: model file {mpath} not found"]
+    model_sha = sha256_file(mpath)
+    if model_sha != doc["model"]["sha256"]:
+        out.append(f"{mpath}: SHA-256 {_short(model_sha)} differs from the evidence's "
+                   f"{_short(doc['model']['sha256'])}: the campaign ran another model (or the "
+                   "model changed after it)")
+    else:
+        passed.append(f"model {mpath} matches its SHA-256")
+    try:
+        model = load_model(mpath)
+    except TliError as exc:
+        return [*out, f"model does not load: {exc}"]
+    spec = named["spec"]
+    if model.spec_path is None:
+        out.append(f"{mpath} names no spec, the evidence binds {doc['spec']['path']!r}")
+    elif not _same_file(spec, model.spec_path):
+        out.append(f"{shown}: spec.path {doc['spec']['path']!r} ({spec}) is not the spec the "
+                   f"model names ({model.spec_path}): the campaign ran another spec")
+    elif not spec.is_file():
+        out.append(f"{shown}: spec file {seen['spec']} not found")
+    elif (sha := sha256_file(spec)) != doc["spec"]["sha256"]:
+        out.append(f"{seen['spec']}: SHA-256 {_short(sha)} differs from the evidence's "
+                   f"{_short(doc['spec']['sha256'])}: the spec changed after the campaign")
+    else:
+        passed.append(f"spec {seen['spec']} is the model's and matches its SHA-256")
+    cert = named["certificate"]
+    if not cert.is_file():
+        out.append(f"{shown}: certificate file {seen['certificate']} not found")
+        return out
+    sha = sha256_file(cert)
+    if sha != doc["certificate"]["sha256"]:
+        out.append(f"{seen['certificate']}: SHA-256 {_short(sha)} differs from the evidence's "
+                   f"{_short(doc['certificate']['sha256'])}: the certificate changed after the "
+                   "campaign")
+        return out
+    try:
+        cert_doc = read_json(cert, what="certificate", error=EvidenceError)
+        cert_model = str(cert_doc["model"]["sha256"])
+    except (EvidenceError, KeyError, TypeError):
+        return [*out, f"{shown}: certificate {seen['certificate']} is not a readable "
+                "certificate"]
+    if cert_model != model_sha:
+        out.append(f"{shown}: certificate {doc['certificate']['path']!r} covers model "
+                   f"{_short(cert_model)}, not {mpath} ({_short(model_sha)})")
+    else:
+        passed.append(f"certificate {seen['certificate']} matches its SHA-256 and covers the "
+                      "model")
+    return out
+
+
+def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
+                    passed: list[str]) -> list[str]:
+    out: list[str] = []
+    camp, viol = doc["campaign"], doc["violations"]
+    by_kind = {k: int(v) for k, v in viol["by_kind"].items()}
+    total = int(viol["total"])
+    if total != sum(by_kind.values()):
+        out.append(f"{shown}: violations.total {total} is not the sum of violations.by_kind "
+                   f"({sum(by_kind.values())})")
+    found = max(total, sum(by_kind.values()))
+    if found:
+        kinds = ", ".join(f"{k}: {v}" for k, v in sorted(by_kind.items()) if v) or "-"
+        out.append(f"{shown}: the campaign found {found} violation(s) ({kinds}): not evidence "
+                   "for deployment (tli replay the counterexample, fix the model)")
+    elif doc["counterexample"] is not None:
+        out.append(f"{shown}: records a counterexample: not evidence for deployment")
+    if camp["partial"]:
+        out.append(f"{shown}: the campaign was interrupted (partial): not evidence")
+    if not camp["modulation"]:
+        out.append(f"{shown}: the campaign ran without modulation, the deployed policy runs "
+                   "with it: not evidence for it")
+    examples, runs = int(camp["examples"]), int(camp["runs"])
+    if examples < min_examples:
+        out.append(f"{shown}: {examples} example(s), fewer than the minimum {min_examples} "
+                   "(MIN_EVIDENCE_EXAMPLES)")
+    if (camp.get("settings") or {}).get("max_pushes", 1) == 0:
+        out.append(f"{shown}: the campaign perturbed nothing (max_pushes 0): not evidence")
+    if runs < examples:
+        out.append(f"{shown}: {runs} run(s) for {examples} examples: every example is at "
+                   "least one run")
+    if not out:
+        passed.append(f"{examples} examples ({runs} runs, seed {camp['seed']}), modulation on, "
+                      "0 violations")
+    return out
+
