@@ -206,21 +206,15 @@ def _scoop(args: argparse.Namespace) -> int:
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
     """Run the scoop experiment, write its report and figures; return the JSON summary."""
-    from tli_verify.experiments.scoop import bundled_setup, plot_episode, write_report
+    from tli_verify.experiments.scoop import bundled_setup, fig7_record, plot_fig7, write_report
 
     summary = run_scoop(cfg, workers=workers, fig7_tries=fig7_tries)
     fig7 = summary.pop("fig7")
     png = None
     if fig7 is not None and fig7["found"] is not None:
-        f = fig7["found"]
         png = out / "fig7.png"
-        plot_episode(bundled_setup(lag=fig7["lag"]).world, f["no_modulation"], png,
-                     others=[("LTL-DS", f["ltl_ds"])],
-                     title=f"Fig. 7 (sensor lag {fig7['lag']}): without modulation (left), "
-                     "LTL-DS (right)")
-    summary["fig7"] = None if fig7 is None else {
-        "text": fig7["text"], "lag": fig7["lag"],
-        "strict": None if fig7["found"] is None else fig7["found"]["strict"]}
+        plot_fig7(bundled_setup(lag=fig7["lag"]).world, fig7, png)
+    summary["fig7"] = None if fig7 is None else fig7_record(fig7)
     files = write_report(summary, out, fig7=fig7, fig7_png=png)
     return summary, files + ([png] if png is not None else [])
 

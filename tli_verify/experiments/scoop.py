@@ -23,7 +23,9 @@ Pieces:
 
 * :func:`run_experiment` (one learned model, many perturbed episodes per variant, batched with
   :func:`~tli_verify.runtime.executive.run_episodes`), :func:`run_all` (a process pool over
-  experiments), :func:`find_loop` (the Fig. 7 start), the Markdown report and figures.
+  experiments), :func:`fig7_search` / :func:`find_loop` (paper Fig. 7: the unmodulated system
+  loops a -> b -> a ... until its budget, LTL-DS ends it with one cut; :func:`fig7_record`,
+  :func:`plot_fig7`), the Markdown report and figures.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ import numpy.typing as npt
 from tli_verify.errors import TliError
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.model import Model
-from tli_verify.runtime.events import InvarianceFailure, Perturbation
+from tli_verify.runtime.events import CutAdded, InvarianceFailure, Perturbation
 from tli_verify.runtime.executive import (
     EpisodeResult,
     LTLDSPolicy,
@@ -55,17 +57,25 @@ from tli_verify.runtime.worlds import WorldSensors
 from tli_verify.worlds.scoop import ScoopWorld
 
 __all__ = [
+    "FIG7_MIN_ROUNDS",
+    "NOMINAL_START",
     "VARIANTS",
     "ExperimentConfig",
     "SequencePolicy",
     "Setup",
+    "b_to_a_failures",
     "bundled_setup",
     "episode_json",
+    "fig7_record",
+    "fig7_search",
     "find_loop",
+    "is_fig7_loop",
+    "is_fig7_rescue",
     "learn_setup",
     "make_policy",
     "mode_runs",
     "plot_episode",
+    "plot_fig7",
     "random_perturbations",
     "random_start",
     "run_all",
@@ -436,13 +446,17 @@ def episode_json(res: EpisodeResult, *, world: str, variant: str, seconds: float
 # ----------------------------------------------------------------------------- figure
 def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[str], *,
                  nominal: EpisodeResult | None = None, title: str | None = None,
-                 others: Sequence[tuple[str, EpisodeResult]] = ()) -> None:
+                 others: Sequence[tuple[str, EpisodeResult]] = (), label: str = "",
+                 zoom_first: bool = False) -> None:
     """A Fig. 7-style picture: regions, cuts, nominal and perturbed trajectory, mode sequence.
 
     One panel per episode (``res`` first, then ``others``): the true regions, the trajectory
     in black with perturbation jumps in red (dashed), the nominal (unperturbed) run in grey,
     the cuts learned (blue lines), each invariance failure's last in-mode state (yellow
-    circle) and failure state (red cross); the mode sequence in the panel title.
+    circle) and failure state (red cross); the mode sequence in the panel title (after
+    ``label`` for ``res``, the given labels for ``others``). With ``zoom_first`` the first
+    panel is followed by a panel zoomed on the last 400 states of ``res`` (a loop at a
+    boundary), drawn by mode (a black, b orange).
     """
     import matplotlib
 
@@ -452,12 +466,15 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
 
     from tli_verify.plotting import save_figure
 
-    panels = [("", res), *others]
+    panels = [(label, res), *others]
     lo, hi = np.array(world.lo), np.array(world.hi)
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.6), squeeze=False)
+    ncols = len(panels) + int(zoom_first)
+    fig, grid = plt.subplots(1, ncols, figsize=(4.2 * ncols, 4.6), squeeze=False)
+    axes = list(grid[0])
+    zoom_ax = axes.pop(1) if zoom_first else None
     gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 300), np.linspace(lo[1], hi[1], 300))
     idx = world.region_index(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
-    for ax, (label, r) in zip(axes[0], panels, strict=True):
+    for ax, (label, r) in zip(axes, panels, strict=True):
         ax.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
                   cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
                   vmax=len(world.region_names) - 0.5, interpolation="nearest")
@@ -489,18 +506,49 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
             seq = seq[:12] + "..."
         goal = "d" if world.name == "scoop" else "the goal"
         verdict = f"reaches {goal}" if r.success else f"no {goal} in {r.steps} steps"
-        ax.set_title(f"{label + ': ' if label else ''}{seq} ({verdict}, {r.cuts_added} cuts)",
-                     fontsize=9)
+        cuts = f"{r.cuts_added} cut{'' if r.cuts_added == 1 else 's'}"
+        ax.set_title(f"{label + ': ' if label else ''}{seq} ({verdict}, {cuts})", fontsize=9)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
         scoop = world.name == "scoop"
         ax.set_xlabel("x1 (spoon orientation)" if scoop else "x1", fontsize=8)
         ax.set_ylabel("x2 (distance to soup)" if scoop else "x2", fontsize=8)
+    if zoom_ax is not None:
+        _zoom_panel(zoom_ax, world, res, idx, (lo, hi))
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     save_figure(fig, path, dpi=90)
+
+
+def _zoom_panel(ins: Any, world: ScoopWorld, res: EpisodeResult, idx: npt.NDArray[np.int64],
+                box: tuple[FloatArray, FloatArray]) -> None:
+    """A panel around the last 400 states of ``res``, modes coloured (a black, b orange),
+    the last failure states as red crosses."""
+    from matplotlib.colors import ListedColormap
+
+    lo, hi = box
+    S = res.states[-400:]
+    c = S.mean(axis=0)
+    half = max(0.3, 0.6 * float(np.max(S.max(axis=0) - S.min(axis=0))))
+    ins.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
+               cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
+               vmax=len(world.region_names) - 0.5, interpolation="nearest")
+    modes = res.modes[-400:]
+    for i in range(len(S) - 1):
+        ins.plot(S[i:i + 2, 0], S[i:i + 2, 1], lw=0.8,
+                 color="tab:orange" if modes[i] == "b" else "k")
+    outs = np.array([e.outside for e in res.events if isinstance(e, InvarianceFailure)][-60:])
+    if len(outs):
+        ins.plot(outs[:, 0], outs[:, 1], "x", color="tab:red", ms=3)
+    ins.set_xlim(c[0] - half, c[0] + half)
+    ins.set_ylim(c[1] - half, c[1] + half)
+    ins.set_aspect("equal")
+    ins.tick_params(labelsize=7)
+    ins.set_title(f"zoom: its last {len(S)} steps (mode a black, b orange)", fontsize=9)
+    ins.set_xlabel("x1", fontsize=8)
+    ins.set_ylabel("x2", fontsize=8)
 
 
 # ----------------------------------------------------------------------------- experiment
@@ -560,6 +608,7 @@ def run_experiment(cfg: ExperimentConfig, exp: int) -> dict[str, Any]:
                 "episodes": len(res),
                 "cuts_mean": float(np.mean([r.cuts_added for r in res])),
                 "steps": int(sum(r.steps for r in res)),
+                "loops": sum(is_fig7_loop(r, cfg.steps) for r in res),
             }
     out["seconds"] = time.perf_counter() - t0
     return out
@@ -584,7 +633,7 @@ def run_all(cfg: ExperimentConfig, *, workers: int = 2, fig7_tries: int = 0
     t0 = time.perf_counter()
     jobs: list[tuple[Any, ...]] = [(cfg, e) for e in range(cfg.experiments)]
     if fig7_tries > 0:
-        jobs.insert(0, ("fig7", cfg.seed, fig7_tries, cfg.steps))
+        jobs.insert(0, ("fig7", cfg.seed, fig7_tries, cfg.steps, cfg.lag))
     if workers <= 1:
         done = [_run_one(j) for j in jobs]
     else:
@@ -597,6 +646,7 @@ def run_all(cfg: ExperimentConfig, *, workers: int = 2, fig7_tries: int = 0
         ok = sum(r["variants"][v]["success"] for r in rows)
         n = sum(r["variants"][v]["episodes"] for r in rows)
         totals[v] = {"success": ok, "episodes": n, "percent": 100.0 * ok / max(n, 1),
+                     "loops": sum(r["variants"][v]["loops"] for r in rows),
                      "per_experiment": [100.0 * r["variants"][v]["success"]
                                         / max(r["variants"][v]["episodes"], 1) for r in rows],
                      "policy_steps": sum(r["variants"][v]["steps"] for r in rows)}
@@ -605,100 +655,215 @@ def run_all(cfg: ExperimentConfig, *, workers: int = 2, fig7_tries: int = 0
             "experiments": rows, "totals": totals, "fig7": fig7}
 
 
-def fig7_search(seed: int, tries: int, steps: int) -> dict[str, Any]:
-    """The Fig. 7 search on the shipped model: sensor lag 0 first, then the authors' lag 19;
-    without perturbations, then with one. Returns ``{"lag", "perturbations", "found", "text"}``
-    (``found`` from :func:`find_loop`, or None)."""
+def fig7_search(seed: int, tries: int, steps: int, lag: int = 0) -> dict[str, Any]:
+    """The Fig. 7 search on the shipped model (:func:`find_loop`), in two stages.
+
+    1. Perturbations of the nominal run: from :data:`NOMINAL_START`, ``tries`` seeded single
+       random perturbations (:func:`random_perturbations` within the nominal run's steps,
+       displacements rounded to 0.01 so the case replays from the command line).
+    2. If none loops: ``tries`` seeded random starts (reading ``a``), unperturbed.
+
+    Returns
+    -------
+    dict
+        ``{"lag", "stage", "tries", "seed", "found", "text"}``; ``found`` is :func:`find_loop`'s
+        record (with the episodes, not JSON-ready; :func:`fig7_record` makes it so) or None.
+    """
+    setup = bundled_setup(lag=lag)
     tried = []
-    near: tuple[int, int, dict[str, Any]] | None = None
-    for lag in (0, 19):
-        setup = bundled_setup(lag=lag)
-        for npert in (0, 1):
-            f = find_loop(setup, seed=seed, tries=tries, steps=steps, perturbations=npert)
-            tried.append(f"lag {lag}, {npert} perturbation(s): "
-                         + ("none" if f is None else
-                            f"{'loop until the budget' if f['strict'] else 'repeated'} "
-                            f"({f['loops']} b -> a failures)"))
-            if f is not None and f["strict"]:
-                return {"lag": lag, "perturbations": npert, "found": f,
-                        "text": _fig7_text(f, lag, npert, tries, tried)}
-            if f is not None and (near is None or f["loops"] > near[2]["loops"]):
-                near = (lag, npert, f)
-    if near is None:
-        return {"lag": None, "perturbations": None, "found": None,
-                "text": f"Fig. 7 NOT reproduced: in {tries} seeded tries per setting (sensor "
-                        "lag 0 and 19, 0 or 1 random perturbation) no start makes the "
-                        "unmodulated system leave the soup back into white (b -> a) at least "
-                        "twice while LTL-DS, after one cut, does so fewer times and reaches d ("
-                        + "; ".join(tried) + ")."}
-    return {"lag": near[0], "perturbations": near[1], "found": near[2],
-            "text": _fig7_text(near[2], near[0], near[1], tries, tried)}
+    for stage, start in (("perturbed nominal run", NOMINAL_START), ("random start", None)):
+        f = find_loop(setup, seed=seed, tries=tries, steps=steps, start=start,
+                      perturbations=1 if start is not None else 0)
+        tried.append(f"{stage}: {tries} tries, " + ("none" if f is None else
+                                                    f"found at try {f['index']}"))
+        if f is not None:
+            return {"lag": lag, "stage": stage, "tries": tries, "seed": seed, "found": f,
+                    "text": _fig7_text(f, lag, stage, tries)}
+    return {"lag": lag, "stage": None, "tries": tries, "seed": seed, "found": None,
+            "text": f"Fig. 7 NOT found (seed {seed}, sensor lag {lag}): no try made the "
+                    f"unmodulated system loop a -> b -> a ... (>= {FIG7_MIN_ROUNDS} b -> a "
+                    "failures) until its step budget ran out while LTL-DS reached d after "
+                    "exactly one cut (" + "; ".join(tried) + ")."}
 
 
-def _fig7_text(f: Mapping[str, Any], lag: int, npert: int, tries: int,
-               tried: Sequence[str]) -> str:
+def _replay_args(f: Mapping[str, Any]) -> str:
+    """The ``tli run`` arguments that replay a Fig. 7 case (start, perturbations)."""
+    x0 = ",".join(repr(float(v)) for v in f["start"])
+    parts = [f"--start={x0}"]
+    for t, d in sorted(f["perturbations"].items()):
+        parts.append(f"--perturb {int(t)}:" + ",".join(repr(float(v)) for v in d))
+    return " ".join(parts)
+
+
+def _fig7_text(f: Mapping[str, Any], lag: int, stage: str, tries: int) -> str:
     p, r = f["no_modulation"], f["ltl_ds"]
     seq_p = mode_string(p)
-    ending = (f"d never reached in {p.steps} steps" if not p.success
-              else f"d reached at step {p.steps}")
-    head = (f"Start {np.round(f['start'], 2).tolist()} (try {f['index']} of {tries}, sensor "
-            f"lag {lag}, {npert} random perturbation(s)): without modulation the modes run "
-            f"{seq_p[:30]}{'...' if len(seq_p) > 30 else ''} "
-            f"({f['loops']} b -> a invariance failures, "
-            f"{ending}); "
-            f"LTL-DS runs {mode_string(r)} and reaches d at step {r.steps} after "
-            f"{r.cuts_added} cut.")
-    if f["strict"]:
-        return head + " This is Fig. 7's top row vs. its second row."
-    return (head + " NOT Fig. 7 as claimed: no seeded start was found where the unmodulated "
-            "system loops until its step budget runs out (it escapes the loop after a few "
-            "rounds); the closest case is shown. Searched: " + "; ".join(tried) + ".")
+    return (f"Fig. 7 reproduced ({stage}, try {f['index']} of {tries}, sensor lag {lag}): from "
+            f"{np.round(f['start'], 2).tolist()} with {len(f['perturbations'])} "
+            f"perturbation(s), without modulation the modes run {seq_p[:12]}... -- mode b's DS "
+            "leaves the soup back into white (a b -> a invariance failure) and a's DS brings "
+            f"the spoon straight back, {f['loops']} times, until the budget of {p.steps} "
+            f"steps runs out; LTL-DS runs {mode_string(r)}: the first b -> a failure adds "
+            f"{r.cuts_added} cut to mode b, which is never crossed again, and d is reached at "
+            f"step {r.steps}. Replay: tli run --world scoop {_replay_args(f)} "
+            "[--no-modulation].")
 
 
 # ----------------------------------------------------------------------------- Fig. 7 search
-def find_loop(setup: Setup, *, seed: int = 0, tries: int = 300, steps: int = 3000,
-              perturbations: int = 1, verify: int = 20) -> dict[str, Any] | None:
-    """Search seeded starts for Fig. 7 (top row vs. second row).
+NOMINAL_START = np.array([-5.0, 4.0])
+"""The documented start of the nominal scoop run (white, upper left; reaches d unperturbed)."""
+FIG7_MIN_ROUNDS = 5
+"""A Fig. 7 loop: at least this many ``b -> a`` invariance failures without modulation."""
+
+
+def b_to_a_failures(res: EpisodeResult) -> int:
+    """Number of ``b -> a`` invariance failures (the scooping DS leaving the soup into white)."""
+    return sum(1 for e in res.events
+               if isinstance(e, InvarianceFailure) and (e.mode, e.to_mode) == ("b", "a"))
+
+
+def is_fig7_loop(res: EpisodeResult, budget: int, *,
+                 min_rounds: int = FIG7_MIN_ROUNDS) -> bool:
+    """Fig. 7's top row: no ``d`` within the whole step budget, at least ``min_rounds``
+    ``b -> a`` invariance failures, and still looping ``a -> b -> a ...`` at the end (the last
+    ``2 * min_rounds`` modes of the run-length mode sequence are a and b, so they alternate)."""
+    tail = mode_string(res)[-2 * min_rounds:]
+    return (not res.success and res.steps == budget
+            and b_to_a_failures(res) >= min_rounds
+            and len(tail) == 2 * min_rounds and set(tail) == {"a", "b"})
+
+
+def is_fig7_rescue(res: EpisodeResult) -> bool:
+    """Fig. 7's LTL-DS rows: ``d`` reached after exactly one invariance failure, ``b -> a``,
+    and the one cut it produced (for mode b)."""
+    fails = [e for e in res.events if isinstance(e, InvarianceFailure)]
+    cuts = [e for e in res.events if isinstance(e, CutAdded)]
+    return (res.success and res.cuts_added == 1 and len(fails) == 1
+            and (fails[0].mode, fails[0].to_mode) == ("b", "a")
+            and len(cuts) == 1 and cuts[0].mode == "b")
+
+
+def _rounded_perturbations(rng: np.random.Generator, count: int, world: ScoopWorld, *,
+                           last: int) -> dict[int, FloatArray]:
+    table = random_perturbations(rng, count, world, last=last)
+    return {t: np.array([float(f"{v:.2f}") for v in d]) for t, d in table.items()}
+
+
+def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 3000,
+              start: npt.ArrayLike | None = None, perturbations: int = 1,
+              verify: int = 20, min_rounds: int = FIG7_MIN_ROUNDS) -> dict[str, Any] | None:
+    """Search seeded episodes for Fig. 7 (top row vs. second row).
 
     Fig. 7: without modulation the system loops ``a -> b -> a -> b ...`` (mode b's DS leaves
-    the soup back into white, a's DS brings it back, again and again) until its step budget
-    runs out; LTL-DS reaches ``d`` after one cut. Each try is a seeded random start (reading
-    a) with ``perturbations`` seeded random perturbations, run without modulation; the tries
-    are ranked by their number of ``b -> a`` invariance failures, and LTL-DS is run on the
-    best ``verify`` of them.
+    the soup back into white, a's DS brings the spoon back, again and again) until its step
+    budget runs out (:func:`is_fig7_loop`); LTL-DS reaches ``d`` after the one cut that the
+    first ``b -> a`` failure produces (:func:`is_fig7_rescue`).
+
+    Each try is ``start`` (default: a seeded random start reading ``a``) with ``perturbations``
+    seeded random perturbations (within the unperturbed run's steps from a given ``start``,
+    else within 700 steps; displacements rounded to 0.01), run without modulation (batched);
+    LTL-DS runs on the first ``verify`` tries that loop, in order.
 
     Returns
     -------
     dict or None
-        ``{"strict", "start", "perturbations", "index", "loops", "no_modulation", "ltl_ds"}``:
-        ``strict`` when the unmodulated run loops until the budget ends (the Fig. 7 claim);
-        otherwise the try with the most ``b -> a`` failures (at least 2) whose LTL-DS run
-        reaches d after one cut with fewer of them. None if neither exists.
+        ``{"start", "perturbations", "index", "loops", "no_modulation", "ltl_ds"}`` of the
+        first try that loops without modulation and is rescued by LTL-DS; None if none is.
     """
     rng = np.random.default_rng([seed, 7])
-    starts = np.array([random_start(setup.world, rng) for _ in range(tries)])
-    perts = [random_perturbations(rng, perturbations, setup.world) if perturbations else {}
-             for _ in range(tries)]
+    if start is not None:
+        x0 = np.asarray(start, dtype=np.float64)
+        last = max(1, run_variant(setup, "no-modulation", x0, {}, steps=steps).steps)
+        starts = np.tile(x0, (tries, 1))
+    else:
+        last = 700
+        starts = np.array([random_start(setup.world, rng) for _ in range(tries)])
+    perts = [_rounded_perturbations(rng, perturbations, setup.world, last=last)
+             if perturbations else {} for _ in range(tries)]
     plain = run_variant_batch(setup, "no-modulation", starts, perts, steps=steps)
-
-    def loops(r: EpisodeResult) -> int:
-        return sum(1 for e in r.events
-                   if isinstance(e, InvarianceFailure) and (e.mode, e.to_mode) == ("b", "a"))
-
-    score = [loops(r) for r in plain]
-    order = sorted((i for i in range(tries) if score[i] >= 2),
-                   key=lambda i: (plain[i].success, -score[i], i))[:verify]
+    order = [i for i in range(tries) if is_fig7_loop(plain[i], steps, min_rounds=min_rounds)]
+    order = order[:verify]
     if not order:
         return None
     ours = run_variant_batch(setup, "LTL-DS", starts[order], [perts[i] for i in order],
                              steps=steps)
     for i, r in zip(order, ours, strict=True):
-        if r.success and r.cuts_added == 1 and loops(r) < score[i]:
-            p = plain[i]
-            return {"strict": bool(not p.success and mode_string(p).startswith("abab")),
-                    "start": starts[i], "perturbations": perts[i], "index": i,
-                    "loops": score[i], "no_modulation": p, "ltl_ds": r}
+        if is_fig7_rescue(r):
+            return {"start": starts[i], "perturbations": perts[i], "index": i,
+                    "loops": b_to_a_failures(plain[i]), "no_modulation": plain[i],
+                    "ltl_ds": r}
     return None
+
+
+def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON-ready Fig. 7 field of ``tli experiment scoop`` (from :func:`fig7_search`).
+
+    ``found`` false: only the text. Otherwise the case (seed, stage, try, start,
+    perturbations, the ``tli run`` replay arguments) and both episodes: the unmodulated one
+    (mode sequence and run-length trace, ``b -> a`` failures, budget exhausted) and LTL-DS's
+    (trace, its invariance failure and the cut it added).
+    """
+    from tli_verify.runtime.events import event_to_json
+
+    out: dict[str, Any] = {"text": search["text"], "lag": search["lag"],
+                           "found": search["found"] is not None, "seed": search["seed"],
+                           "tries": search["tries"], "stage": search["stage"]}
+    f = search["found"]
+    if f is None:
+        return out
+    p, r = f["no_modulation"], f["ltl_ds"]
+    out.update({
+        "index": int(f["index"]),
+        "start": [float(v) for v in f["start"]],
+        "perturbations": [{"step": int(t), "displacement": [float(v) for v in d]}
+                          for t, d in sorted(f["perturbations"].items())],
+        "replay": f"tli run --world scoop {_replay_args(f)}",
+        "no_modulation": {
+            "success": bool(p.success), "steps": int(p.steps),
+            "budget_exhausted": bool(not p.success),
+            "b_to_a_failures": b_to_a_failures(p),
+            "ab_rounds": mode_string(p).count("ab"),
+            "mode_sequence": mode_string(p),
+            "mode_trace": mode_runs(p.modes),
+        },
+        "ltl_ds": {
+            "success": bool(r.success), "steps": int(r.steps),
+            "cuts_added": int(r.cuts_added),
+            "mode_sequence": mode_string(r),
+            "mode_trace": mode_runs(r.modes),
+            "events": [event_to_json(e) for e in r.events
+                       if isinstance(e, InvarianceFailure | CutAdded)],
+        },
+    })
+    return out
+
+
+def plot_fig7(world: ScoopWorld, search: Mapping[str, Any],
+              path: str | os.PathLike[str]) -> None:
+    """Fig. 7-style picture of a case :func:`fig7_search` found (PNG, atomic).
+
+    Three panels (:func:`plot_episode`): the unmodulated run looping until its budget, its
+    last 400 steps zoomed on the loop at the soup's surface, and LTL-DS with the cut it added
+    (blue); the unperturbed run from the same start is dashed grey.
+
+    Raises
+    ------
+    TliError
+        The search found no case.
+    """
+    f = search["found"]
+    if f is None:
+        raise TliError("no Fig. 7 case to draw (the search found none)")
+    p, r = f["no_modulation"], f["ltl_ds"]
+    nominal = None
+    if f["perturbations"]:
+        nominal = run_variant(bundled_setup(lag=search["lag"]), "no-modulation", f["start"],
+                              {}, steps=p.steps)
+    plot_episode(world, p, path, nominal=nominal, label="no modulation",
+                 others=[("LTL-DS", r)], zoom_first=True,
+                 title=f"Fig. 7: without modulation a -> b -> a ... until the budget "
+                       f"({b_to_a_failures(p)} b -> a failures in {p.steps} steps); LTL-DS "
+                       "cuts the first b -> a failure (blue) and reaches d")
 
 
 # ----------------------------------------------------------------------------- report
@@ -726,17 +891,20 @@ def write_report(summary: Mapping[str, Any], out: Path, *, fig7: Mapping[str, An
         f"size (16), step budget {cfg['steps']} (dt = 0.01 s), sensor lag {cfg['lag']}, "
         f"seed {cfg['seed']}. Wall time {summary['seconds']:.1f} s on {summary['workers']} "
         "worker(s).", "",
-        "| variant | success | episodes | success % | per experiment (%) |",
-        "|---|---:|---:|---:|---|",
+        "| variant | success | episodes | success % | per experiment (%) | Fig. 7 loops |",
+        "|---|---:|---:|---:|---|---:|",
     ]
     for v in VARIANTS:
         t = tot[v]
         per = ", ".join(f"{p:.0f}" for p in t["per_experiment"])
-        lines.append(f"| {v} | {t['success']} | {t['episodes']} | {t['percent']:.1f} | {per} |")
+        lines.append(f"| {v} | {t['success']} | {t['episodes']} | {t['percent']:.1f} | {per} "
+                     f"| {t['loops']} |")
     lines += ["", "Variants: **LTL-DS** = task automaton + certified DS per mode + cuts "
               "learned online + replanning; **no-modulation** = the same without cuts; "
               "**no-replan** = the demonstrated mode sequence run open loop (cuts kept); "
-              "**BC** = the paper's MLP per mode under the automaton (replanning, cuts).", ""]
+              "**BC** = the paper's MLP per mode under the automaton (replanning, cuts). "
+              f"**Fig. 7 loops**: episodes still looping a -> b -> a ... (>= {FIG7_MIN_ROUNDS} "
+              "b -> a invariance failures) when the step budget ran out.", ""]
     if fig7 is not None:
         lines += ["## Fig. 7", "", fig7["text"], ""]
         if fig7_png is not None:
