@@ -65,3 +65,16 @@ def test_unknown_goal_sensor_is_refused(inspection: tuple) -> None:
     aut, model, cert = inspection
     with pytest.raises(TliError, match="goal_inputs: 'nope'"):
         LTLDSPolicy(aut, model, cert, goal_modes=("b",), goal_inputs=("nope",))
+
+
+def test_oracle_goal_of_a_cyclic_task(inspection: tuple) -> None:
+    from tli_verify.verify.oracle import Oracle
+    from tli_verify.worlds import WORLDS
+
+    aut, model, cert = inspection
+    world = WORLDS["inspection"]()
+    sinks = Oracle.build(world, aut, model, cert, dt=0.01)
+    assert sinks.goals == frozenset()  # repeated forever: no sink mode to reach
+    shipped = Oracle.build(world, aut, model, cert, dt=0.01, goal_modes=("b",),
+                           goal_inputs=("rel",))
+    assert shipped.goals == frozenset({"b"}) and shipped.goal_inputs == frozenset({"rel"})

@@ -35,7 +35,7 @@ SUPPORTED = tuple(REGISTRY)
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``tli run``."""
     p = sub.add_parser(
-        "run", help="run one closed-loop LTL-DS episode on a world (scoop)",
+        "run", help="run one closed-loop LTL-DS episode on a world",
         description="Task automaton + certified, modulated DS per mode in closed loop with a "
         "world's sensors; perturbations, online cuts, replanning. Writes run.json and a "
         "Fig. 7-style run.png to --out. Exit 0: the goal mode was reached; 1: it was not.")
