@@ -1,0 +1,239 @@
+"""Scripted scooping in the simulator: the waypoints, a mocap-driven ladle, and demonstrations.
+
+The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch):
+
+1. from the start above and beside the soup bowl, down to the bowl's near slope (front tipped
+   down by ``pitch`` 0.15 rad, the tray's underside along the conical floor);
+2. sweep along the floor towards -y through the beads gathered in the middle, then level the
+   tray at the far side (the beads ride over the open front onto the tray);
+3. tip the front up (-0.3 rad) and lift out of the bowl (the rim keeps the beads);
+4. carry to above the target bowl, lower, and pour (front down, 1.3 rad).
+
+Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 2-4 beads delivered.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.sim.scene import (
+    SOUP_BOWL,
+    SOUP_CENTER,
+    TARGET_CENTER,
+    TRAY_HALF_THICKNESS,
+    TRAY_RADIUS,
+    build_mocap_scene,
+    ladle_quat,
+    reset_beads,
+    scene_ids,
+)
+from tli_verify.sim.sensors import Reading, ScoopSensors
+
+__all__ = ["MocapRig", "ScoopStep", "scoop_waypoints"]
+
+FloatArray = npt.NDArray[np.float64]
+
+SCOOP_PITCH = 0.15
+CARRY_PITCH = -0.3
+POUR_PITCH = 1.3
+
+
+def _tray_height(pitch: float) -> float:
+    """Tray-frame height that puts the tipped front edge 1 mm over the bowl's flat floor."""
+    return float(SOUP_CENTER[2] + SOUP_BOWL.floor + 0.001 + TRAY_RADIUS * math.sin(pitch)
+                 + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
+
+
+def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0
+                    ) -> FloatArray:
+    """Timed waypoints of the scripted scoop (module doc).
+
+    Parameters
+    ----------
+    rng : numpy Generator, optional
+        Jitters the start and the carry waypoints (not the scoop itself) when ``jitter > 0``.
+    jitter : float, optional
+        Uniform jitter half-width (m) of those waypoints.
+
+    Returns
+    -------
+    ndarray, shape (K, 5)
+        Rows ``(time s, x, y, z, pitch rad)``, times increasing from 0.
+    """
+    cx, cy = float(SOUP_CENTER[0]), float(SOUP_CENTER[1])
+    tx, ty = float(TARGET_CENTER[0]), float(TARGET_CENTER[1])
+    low = _tray_height(SCOOP_PITCH)
+    w = np.array([
+        (0.0, cx, 0.05, 0.20, 0.0),                          # start: above, between the bowls
+        (1.0, cx, cy + 0.07, 0.08, SCOOP_PITCH),             # over the near slope
+        (1.6, cx, cy + 0.07, low + 0.007, SCOOP_PITCH),      # down onto it
+        (2.8, cx, cy - 0.035, low, SCOOP_PITCH),             # sweep through the beads
+        (3.1, cx, cy - 0.045, low + 0.004, 0.0),             # level the tray
+        (3.4, cx, cy - 0.03, low + 0.03, CARRY_PITCH),       # tip back
+        (4.4, cx, cy + 0.05, 0.18, CARRY_PITCH),             # lift out
+        (5.4, tx, ty, 0.15, -0.2),                           # carry over the target
+        (6.2, tx, ty, 0.10, -0.2),                           # lower
+        (7.2, tx, ty, 0.10, POUR_PITCH),                     # pour
+        (8.0, tx, ty, 0.10, POUR_PITCH),
+    ])
+    if rng is not None and jitter > 0:
+        for row in (0, 6, 7):
+            w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
+    return w
+
+
+def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
+    """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
+    return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ScoopStep:
+    """One sample of a scripted run.
+
+    Attributes
+    ----------
+    time : float
+    pose : ndarray, shape (4,)
+        The tray's actual ``(x, y, z, pitch)``.
+    reading : Reading
+    """
+
+    time: float
+    pose: FloatArray
+    reading: Reading
+
+
+def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
+    """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
+
+    The pitch is the angle of the tray's front (local +x) below the horizontal, signed: the
+    front points along ``(0, -cos p, -sin p)`` for a pure pitch ``p``.
+    """
+    front = data.site_xmat[site].reshape(3, 3)[:, 0]
+    pitch = math.atan2(-float(front[2]), -float(front[1]))
+    return np.array([*data.site_xpos[site].tolist(), pitch])
+
+
+class MocapRig:
+    """Phase 1: the ladle on a free hand body under Cartesian impedance, the scene, the sensors.
+
+    Each physics step applies ``F = K (p* - p) - D v`` and ``tau = K_r theta - D_r omega`` to
+    the carrier (``theta``: the rotation vector from the ladle's orientation to the target's),
+    plus any perturbation wrench the caller sets in :attr:`push`. ``p*`` and the target
+    orientation come from :meth:`command` (also shown by the mocap marker).
+
+    Parameters
+    ----------
+    seed : int, optional
+        Bead placement (:func:`~tli_verify.sim.scene.reset_beads`).
+    stiffness, rot_stiffness : float, optional
+        ``K`` (N/m) and ``K_r`` (Nm/rad); dampings are critical for the carrier's mass and
+        inertia.
+    """
+
+    def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
+                 rot_stiffness: float = 40.0) -> None:
+        self.k = float(stiffness)
+        self.kr = float(rot_stiffness)
+        self.push = np.zeros(6)
+        self.model = build_mocap_scene()
+        self.data = mujoco.MjData(self.model)
+        self.ids = scene_ids(self.model)
+        self.sensors = ScoopSensors(self.model, self.ids)
+        self._carrier = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY,
+                                              "ladle_carrier"))
+        jnt = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "ladle_free"))
+        self._qadr = int(self.model.jnt_qposadr[jnt])
+        self._dadr = int(self.model.jnt_dofadr[jnt])
+        mass = float(self.model.body_subtreemass[self._carrier])
+        inertia = float(self.model.body_inertia[self._carrier].max()) + 0.12 * 0.05 ** 2
+        self.d = 2.0 * math.sqrt(self.k * mass)
+        self.dr = 2.0 * math.sqrt(self.kr * inertia)
+        self._target_q = np.zeros(4)
+        self._err_q = np.zeros(4)
+        self._rotvec = np.zeros(3)
+        self.place([*self.data.mocap_pos[0].tolist(), 0.0])
+        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+
+    @property
+    def carrier(self) -> int:
+        """Body id of the free body carrying the ladle (where wrenches go)."""
+        return self._carrier
+
+    def command(self, pose: npt.ArrayLike) -> None:
+        """Move the mocap target to ``(x, y, z, pitch)``; the ladle follows through the weld."""
+        p = np.asarray(pose, dtype=np.float64)
+        self.data.mocap_pos[0] = p[:3]
+        self.data.mocap_quat[0] = ladle_quat(float(p[3]))
+
+    def place(self, pose: npt.ArrayLike) -> None:
+        """Teleport the ladle and its target to ``(x, y, z, pitch)`` (at rest)."""
+        p = np.asarray(pose, dtype=np.float64)
+        self.command(p)
+        a, d = self._qadr, self._dadr
+        self.data.qpos[a:a + 3] = p[:3]
+        self.data.qpos[a + 3:a + 7] = ladle_quat(float(p[3]))
+        self.data.qvel[d:d + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def pose(self) -> FloatArray:
+        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
+        return tray_pose(self.data, self.ids.tray_site)
+
+    def read(self) -> Reading:
+        """The sensors now."""
+        return self.sensors.read(self.data)
+
+    def physics_step(self) -> None:
+        """One physics step under the impedance law plus :attr:`push`."""
+        m, d = self.model, self.data
+        a, v = self._qadr, self._dadr
+        wrench = d.xfrc_applied[self._carrier]
+        wrench[:3] = self.k * (d.mocap_pos[0] - d.qpos[a:a + 3]) - self.d * d.qvel[v:v + 3]
+        # orientation error: target * conj(current), as a rotation vector (world frame)
+        cur = d.qpos[a + 3:a + 7]
+        mujoco.mju_negQuat(self._err_q, cur)
+        mujoco.mju_mulQuat(self._err_q, d.mocap_quat[0], self._err_q)
+        mujoco.mju_quat2Vel(self._rotvec, self._err_q, 1.0)
+        # free-joint angular velocity is in the body frame: rotate it to the world frame
+        omega = d.xmat[self._carrier].reshape(3, 3) @ d.qvel[v + 3:v + 6]
+        wrench[3:] = self.kr * self._rotvec - self.dr * omega
+        wrench += self.push
+        mujoco.mj_step(m, d)
+
+    def step(self, n: int = 1) -> None:
+        """``n`` physics steps."""
+        for _ in range(n):
+            self.physics_step()
+
+    def follow(self, waypoints: FloatArray, *, every: int = 10, until: float | None = None
+               ) -> list[ScoopStep]:
+        """Follow timed waypoints from the current time; sample every ``every`` steps.
+
+        Parameters
+        ----------
+        waypoints : ndarray, shape (K, 5)
+            From :func:`scoop_waypoints`.
+        every : int, optional
+        until : float, optional
+            Stop at this script time (default: the last waypoint's).
+
+        Returns
+        -------
+        list of ScoopStep
+        """
+        dt = float(self.model.opt.timestep)
+        end = float(waypoints[-1, 0]) if until is None else float(until)
+        out = []
+        for k in range(round(end / dt)):
+            self.command(interpolate(waypoints, k * dt))
+            self.physics_step()
+            if (k + 1) % every == 0:
+                out.append(ScoopStep((k + 1) * dt, self.pose(), self.read()))
+        return out
