@@ -15,12 +15,17 @@ Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 2-4 beads d
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.demos import Demonstration, demo_to_csv
+from tli_verify.io import atomic_write_text
 from tli_verify.sim.scene import (
     SOUP_BOWL,
     SOUP_CENTER,
@@ -32,9 +37,19 @@ from tli_verify.sim.scene import (
     reset_beads,
     scene_ids,
 )
-from tli_verify.sim.sensors import Reading, ScoopSensors
+from tli_verify.sim.sensors import SENSOR_NAMES, Reading, ScoopSensors
 
-__all__ = ["MocapRig", "ScoopStep", "scoop_waypoints"]
+__all__ = [
+    "CONTROL_DT",
+    "POSITION_SCALE",
+    "MocapRig",
+    "ScoopStep",
+    "from_ds",
+    "record_demo",
+    "scoop_waypoints",
+    "to_ds",
+    "write_demos",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -235,5 +250,78 @@ class MocapRig:
             self.command(interpolate(waypoints, k * dt))
             self.physics_step()
             if (k + 1) % every == 0:
-                out.append(ScoopStep((k + 1) * dt, self.pose(), self.read()))
+                out.append(ScoopStep(round((k + 1) * dt, 9), self.pose(), self.read()))
         return out
+
+
+CONTROL_DT = 0.02
+"""Control period (s) of the loop and of the recorded demonstrations: 10 physics steps."""
+POSITION_SCALE = 10.0
+"""DS state units: positions in decimetres (so they span about as much as the pitch in
+radians; in metres the learner's SDPs were ill-conditioned: CLARABEL 'optimal_inaccurate')."""
+
+
+def to_ds(pose: npt.ArrayLike) -> FloatArray:
+    """Tray pose ``(x, y, z [m], pitch [rad])`` -> DS state ``(x, y, z [dm], pitch)``."""
+    p = np.array(pose, dtype=np.float64)
+    p[..., :3] *= POSITION_SCALE
+    return p
+
+
+def from_ds(z: npt.ArrayLike) -> FloatArray:
+    """DS state -> tray pose (the inverse of :func:`to_ds`)."""
+    p = np.array(z, dtype=np.float64)
+    p[..., :3] /= POSITION_SCALE
+    return p
+
+
+def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonstration:
+    """One scripted demonstration in the simulator (like kinesthetic teaching).
+
+    The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too);
+    every control period the tray pose (the 4-D DS state) and the sensors are recorded.
+
+    Parameters
+    ----------
+    seed : int
+    name : str, optional
+        Shown in messages (``Demonstration.path``).
+    dt : float, optional
+        Sampling period (s), a multiple of the 2 ms physics step.
+
+    Returns
+    -------
+    Demonstration
+        ``x`` shape (T, 4): the DS state (:func:`to_ds`); sensors ``r, s, t``; velocities by finite
+        differences.
+    """
+    rig = MocapRig(seed)
+    waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02)
+    every = round(dt / float(rig.model.opt.timestep))
+    start = ScoopStep(0.0, rig.pose(), rig.read())
+    steps = [start, *rig.follow(waypoints, every=every)]
+    t = np.array([s.time for s in steps])
+    x = to_ds(np.array([s.pose for s in steps]))
+    sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)
+    dx = np.gradient(x, t, axis=0, edge_order=2)
+    return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,
+                         sensor_names=SENSOR_NAMES, sensors=sensors)
+
+
+def write_demos(directory: str | os.PathLike[str], seeds: Sequence[int] = (1, 2, 3)
+                ) -> list[Path]:
+    """Record demonstrations and write them as ``franka_<k>.csv`` (atomically).
+
+    Returns
+    -------
+    list of Path
+    """
+    out = []
+    for k, seed in enumerate(seeds, start=1):
+        path = Path(directory) / f"franka_{k}.csv"
+        demo = record_demo(seed, name=str(path))
+        head = (f"# franka scoop demonstration {k} (tli_verify.sim.demos, mocap rig, seed "
+                f"{seed}, dt {CONTROL_DT} s); state = tray (x, y, z in dm, pitch in rad)\n")
+        atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
+        out.append(path)
+    return out
