@@ -32,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.experiment",
     "tli_verify.commands.run",
     "tli_verify.commands.demo",
+    "tli_verify.commands.sim",
 )
 
 
