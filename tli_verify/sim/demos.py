@@ -102,6 +102,23 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
     return w
 
 
+def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
+    """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
+    while still low (the beads roll against the back rim), then goes on from the lift."""
+    lift = 6  # the row of scoop_waypoints that lifts out of the bowl
+    on = interpolate(waypoints, now + 0.4)  # sweep on a little: the beads get fully on
+    x, y, z, _ = on.tolist()
+    head = np.array([
+        (now, *cmd.tolist()),
+        (now + 0.4, *on.tolist()),
+        (now + 0.8, x, y - 0.01, z + 0.003, 0.0),
+        (now + 1.2, x, y - 0.005, z + 0.02, CARRY_PITCH),
+    ])
+    tail = waypoints[lift:].copy()
+    tail[:, 0] += now + 2.2 - tail[0, 0]
+    return np.vstack([head, tail])
+
+
 def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
     """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
     return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
@@ -117,11 +134,14 @@ class ScoopStep:
     pose : ndarray, shape (4,)
         The tray's actual ``(x, y, z, pitch)``.
     reading : Reading
+    command : ndarray, shape (4,)
+        The commanded pose (the impedance law's target) at that time.
     """
 
     time: float
     pose: FloatArray
     reading: Reading
+    command: FloatArray
 
 
 def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
@@ -153,7 +173,7 @@ class MocapRig:
     """
 
     def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
-                 rot_stiffness: float = 40.0) -> None:
+                 rot_stiffness: float = 150.0) -> None:
         self.k = float(stiffness)
         self.kr = float(rot_stiffness)
         self.push = np.zeros(6)
@@ -250,7 +270,8 @@ class MocapRig:
             self.command(interpolate(waypoints, k * dt))
             self.physics_step()
             if (k + 1) % every == 0:
-                out.append(ScoopStep(round((k + 1) * dt, 9), self.pose(), self.read()))
+                out.append(ScoopStep(round((k + 1) * dt, 9), self.pose(), self.read(),
+                                     interpolate(waypoints, (k + 1) * dt)))
         return out
 
 
@@ -278,8 +299,13 @@ def from_ds(z: npt.ArrayLike) -> FloatArray:
 def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonstration:
     """One scripted demonstration in the simulator (like kinesthetic teaching).
 
-    The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too);
-    every control period the tray pose (the 4-D DS state) and the sensors are recorded.
+    The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
+    reacting as a teacher would: once soup is on the spoon mid-sweep it levels the tray and
+    tips it back before lifting (:func:`_react`); every control period the commanded pose (the impedance law's target, which the closed
+    loop integrates: :mod:`tli_verify.sim.loop`) and the sensors from the physics are
+    recorded. The commanded pose, not the measured one: while scooping, the target presses
+    the tray onto the bowl's floor a few mm below where the floor holds it, and a DS learned
+    from the measured heights would hover over the beads.
 
     Parameters
     ----------
@@ -298,10 +324,22 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
     rig = MocapRig(seed)
     waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02)
     every = round(dt / float(rig.model.opt.timestep))
-    start = ScoopStep(0.0, rig.pose(), rig.read())
-    steps = [start, *rig.follow(waypoints, every=every)]
+    steps = [ScoopStep(0.0, rig.pose(), rig.read(), interpolate(waypoints, 0.0))]
+    sweep = (float(waypoints[2, 0]), float(waypoints[3, 0]))
+    k = 0
+    reacted = False
+    while k * dt < float(waypoints[-1, 0]) - 1e-9:
+        cmd = interpolate(waypoints, k * dt)
+        if steps[-1].reading.s and not reacted and sweep[0] < k * dt < sweep[1]:
+            waypoints = _react(waypoints, k * dt, cmd)  # soup on the spoon: tip back, lift
+            reacted = True
+        for _ in range(every):
+            rig.command(cmd)
+            rig.physics_step()
+        k += 1
+        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), rig.read(), cmd))
     t = np.array([s.time for s in steps])
-    x = to_ds(np.array([s.pose for s in steps]))
+    x = to_ds(np.array([s.command for s in steps]))
     sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)
     dx = np.gradient(x, t, axis=0, edge_order=2)
     return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,

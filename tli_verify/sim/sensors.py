@@ -8,8 +8,9 @@ Never a scripted flag: every reading comes from the simulator's state in ``mjDat
   while the soup is carried away.
 * ``s`` -- *soup on the spoon*: at least one bead rests on the ladle: its centre lies in the
   tray's volume (within the tray radius, between the tray floor and one bead diameter above the
-  rim, in the tray frame) and it touches a tray geom (floor or rim) -- or touches such a bead
-  (a second layer).
+  rim, in the tray frame) and it touches a tray geom (a contact with the floor or rim, or its
+  centre within ``FLOOR_GAP`` of resting height over the floor) -- or touches such a bead (a
+  second layer).
 * ``t`` -- *at the target*: the tray frame's origin is above the target bowl (within its
   radius, between its floor and ``T_ABOVE`` over its rim) **and** there is soup to deliver: a
   bead on the ladle, or in the target bowl or the column above it (falling in while
@@ -49,6 +50,8 @@ R_ABOVE = 0.02
 """How far over the soup bowl's rim (m) its region extends."""
 T_ABOVE = 0.25
 """How far over the target bowl's rim (m) "above the target" extends."""
+FLOOR_GAP = 0.003
+"""A bead whose centre is within this (m) of one radius above the tray floor lies on it."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -99,23 +102,35 @@ class ScoopSensors:
         self._is_tray = np.zeros(model.ngeom, dtype=bool)
         self._is_tray[list(self.ids.ladle_geoms)] = True
 
-    def in_tray_volume(self, data: mujoco.MjData) -> BoolArray:
-        """Beads whose centre lies in the tray's volume (tray frame; module doc), shape (30,)."""
+    def _local(self, data: mujoco.MjData) -> FloatArray:
+        """Bead centres in the tray frame, shape (30, 3)."""
         site = self.ids.tray_site
         rot = data.site_xmat[site].reshape(3, 3)
-        local = (data.xpos[self.ids.bead_bodies] - data.site_xpos[site]) @ rot
+        return np.asarray((data.xpos[self.ids.bead_bodies] - data.site_xpos[site]) @ rot)
+
+    def in_tray_volume(self, data: mujoco.MjData) -> BoolArray:
+        """Beads whose centre lies in the tray's volume (tray frame; module doc), shape (30,)."""
+        local = self._local(data)
         radial = np.hypot(local[:, 0], local[:, 1])
         return (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
             (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
 
     def on_ladle(self, data: mujoco.MjData) -> BoolArray:
-        """Beads resting on the ladle (in its volume and touching it, or a bead on it)."""
-        inside = self.in_tray_volume(data)
-        if not inside.any() or data.ncon == 0:
-            return np.zeros_like(inside)
+        """Beads resting on the ladle, shape (30,).
+
+        In the tray's volume and touching a tray geom (a contact), or lying on the tray floor
+        (centre within ``FLOOR_GAP`` of one radius above it: a bead that rolls or bounces on
+        the floor loses its contact for a step now and then), or touching such a bead.
+        """
+        local = self._local(data)
+        radial = np.hypot(local[:, 0], local[:, 1])
+        inside = (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
+            (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
+        if not inside.any():
+            return inside
+        touching = local[:, 2] < BEAD_RADIUS + FLOOR_GAP
         pairs = data.contact.geom[: data.ncon]
         b0, b1 = self._bead_of_geom[pairs[:, 0]], self._bead_of_geom[pairs[:, 1]]
-        touching = np.zeros_like(inside)
         touching[b0[(b0 >= 0) & self._is_tray[pairs[:, 1]]]] = True
         touching[b1[(b1 >= 0) & self._is_tray[pairs[:, 0]]]] = True
         on = inside & touching
