@@ -301,11 +301,12 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
 
     The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
     reacting as a teacher would: once soup is on the spoon mid-sweep it levels the tray and
-    tips it back before lifting (:func:`_react`); every control period the commanded pose (the impedance law's target, which the closed
-    loop integrates: :mod:`tli_verify.sim.loop`) and the sensors from the physics are
-    recorded. The commanded pose, not the measured one: while scooping, the target presses
-    the tray onto the bowl's floor a few mm below where the floor holds it, and a DS learned
-    from the measured heights would hover over the beads.
+    tips it back before lifting (:func:`_react`); every control period the commanded pose
+    (the impedance law's target, which the closed loop integrates:
+    :mod:`tli_verify.sim.loop`) and the sensors from the physics are recorded. The commanded
+    pose, not the measured one: while scooping, the target presses the tray onto the bowl's
+    floor a few mm below where the floor holds it, and a DS learned from the measured heights
+    would hover over the beads.
 
     Parameters
     ----------
