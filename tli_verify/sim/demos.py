@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.demos import Demonstration, demo_to_csv
+from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
 from tli_verify.sim.scene import (
     SOUP_BOWL,
@@ -71,9 +71,10 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
     Parameters
     ----------
     rng : numpy Generator, optional
-        Jitters the start and the carry waypoints (not the scoop itself) when ``jitter > 0``.
+        Jitters the start and the carry waypoints, and shifts the scoop along x by half as
+        much, when ``jitter > 0``.
     jitter : float, optional
-        Uniform jitter half-width (m) of those waypoints.
+        Uniform jitter half-width (m).
 
     Returns
     -------
@@ -99,6 +100,7 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
     if rng is not None and jitter > 0:
         for row in (0, 6, 7):
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
+        w[1:6, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
     return w
 
 
@@ -106,16 +108,16 @@ def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
     while still low (the beads roll against the back rim), then goes on from the lift."""
     lift = 6  # the row of scoop_waypoints that lifts out of the bowl
-    on = interpolate(waypoints, now + 0.4)  # sweep on a little: the beads get fully on
+    on = interpolate(waypoints, now + 0.3)  # sweep on a little: the beads get fully on
     x, y, z, _ = on.tolist()
     head = np.array([
         (now, *cmd.tolist()),
-        (now + 0.4, *on.tolist()),
-        (now + 0.8, x, y - 0.01, z + 0.003, 0.0),
-        (now + 1.2, x, y - 0.005, z + 0.02, CARRY_PITCH),
+        (now + 0.3, *on.tolist()),
+        (now + 0.8, x, y, z + 0.016, CARRY_PITCH),  # tip back about the front edge
+        (now + 1.3, x, y + 0.005, z + 0.025, CARRY_PITCH),
     ])
     tail = waypoints[lift:].copy()
-    tail[:, 0] += now + 2.2 - tail[0, 0]
+    tail[:, 0] += now + 2.3 - tail[0, 0]
     return np.vstack([head, tail])
 
 
@@ -347,20 +349,36 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
                          sensor_names=SENSOR_NAMES, sensors=sensors)
 
 
-def write_demos(directory: str | os.PathLike[str], seeds: Sequence[int] = (1, 2, 3)
-                ) -> list[Path]:
-    """Record demonstrations and write them as ``franka_<k>.csv`` (atomically).
+def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
+                max_tries: int = 20) -> list[Path]:
+    """Record ``count`` successful demonstrations as ``franka_<k>.csv`` (atomically).
+
+    A take whose soup never reaches the target (the readings do not end at ``t``) is
+    discarded and the next seed is tried, as a teacher would redo it.
 
     Returns
     -------
     list of Path
+
+    Raises
+    ------
+    TliError
+        Fewer than ``count`` successful takes in ``max_tries`` seeds.
     """
-    out = []
-    for k, seed in enumerate(seeds, start=1):
-        path = Path(directory) / f"franka_{k}.csv"
+    out: list[Path] = []
+    seed = first_seed
+    while len(out) < count:
+        if seed >= first_seed + max_tries:
+            raise TliError(f"franka demos: only {len(out)} of {count} scripted takes "
+                           f"delivered soup in {max_tries} seeds")
+        path = Path(directory) / f"franka_{len(out) + 1}.csv"
         demo = record_demo(seed, name=str(path))
-        head = (f"# franka scoop demonstration {k} (tli_verify.sim.demos, mocap rig, seed "
-                f"{seed}, dt {CONTROL_DT} s); state = tray (x, y, z in dm, pitch in rad)\n")
+        seed += 1
+        if not demo.sensors[-1, 2]:
+            continue
+        head = (f"# franka scoop demonstration {len(out) + 1} (tli_verify.sim.demos, mocap "
+                f"rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose (x, "
+                "y, z in dm, pitch in rad)\n")
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
     return out
