@@ -57,7 +57,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--trials", type=_count, default=1, help="number of trials (default 1)")
     f.add_argument("--seed", type=_seed, default=0, help="seed of the first trial (default 0)")
     f.add_argument("--certificates", type=Path, default=None, metavar="DIR",
-                   help="directory holding franka-scoop.cert.json (default: the bundled one)")
+                   help="certificates directory of a project holding "
+                   "franka-scoop.cert.json, with models/ and specs/ next to it (default: the "
+                   "bundled files)")
     f.add_argument("--no-modulation", action="store_true", help="learn no cuts (ablation)")
     f.add_argument("--no-replan", action="store_true",
                    help="run the demonstrated mode sequence open loop (ablation)")

@@ -115,7 +115,7 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
         out.append(Perturbation("push", float(rng.uniform(0.5, 6.0)), 0.2,
                                 tuple(float(v) for v in (*(f * d), 0.0, 0.0, 0.0))))
     for _ in range(tilts):
-        out.append(Perturbation("tilt", float(rng.uniform(0.3, 1.2)), 0.3,
+        out.append(Perturbation("tilt", float(rng.uniform(1.5, 2.5)), 0.3,
                                 (0.0, 0.0, 0.0, -20.0, 0.0, 0.0)))
     return out
 
@@ -187,7 +187,8 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
     variant : str
         One of :data:`VARIANTS`.
     root : path-like, optional
-        Project directory with ``specs/``, ``models/`` (default: the bundled files).
+        Project directory with ``specs/``, ``models/`` (default: the parent of
+        ``certificates`` when given, else the bundled files).
     certificates : path-like, optional
         Directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``).
 
@@ -206,7 +207,12 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
 
     if variant not in VARIANTS:
         raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
-    base = Path(root) if root is not None else bundled_dir("models").parent
+    if root is not None:
+        base = Path(root)
+    elif certificates is not None:
+        base = Path(certificates).parent  # a project: models/ and specs/ next to it
+    else:
+        base = bundled_dir("models").parent
     cert_dir = Path(certificates) if certificates is not None else base / "certificates"
     cert = cert_dir / "franka-scoop.cert.json"
     if not cert.is_file():
