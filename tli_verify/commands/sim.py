@@ -70,6 +70,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "summary object")
     f.add_argument("--video", type=output_path, default=None, metavar="OUT.mp4",
                    help="render the first trial to an MP4 (headless: EGL, else OSMesa)")
+    f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
+                   help="after the trials, plot each mode's modulated DS flow in (y, z, "
+                   "pitch) with the cuts learned in them (Fig. 9 style)")
     p.set_defaults(handler=_run)
 
 
@@ -88,6 +91,10 @@ def _run(args: argparse.Namespace) -> int:
         from tli_verify.io import check_output_file
 
         check_output_file(args.video)
+    if args.fig9 is not None:
+        from tli_verify.io import check_output_file
+
+        check_output_file(args.fig9)
         os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless
     try:
         import mujoco  # noqa: F401
@@ -128,6 +135,16 @@ def _run(args: argparse.Namespace) -> int:
     if recorder is not None:
         recorder.save(args.video)
         summary["video"] = str(args.video)
+    if args.fig9 is not None:
+        from tli_verify.demos import load_demos
+        from tli_verify.io import bundled_dir
+        from tli_verify.sim.loop import plot_flow
+
+        demos = load_demos(sorted((bundled_dir("demos") / "franka").glob("*.csv")))
+        plot_flow(policy.model, args.fig9, demos=demos,
+                  title=f"tli sim franka: {variant} flow after {len(results)} trial(s), "
+                  f"{summary['cuts_added']} cut(s) learned")
+        summary["fig9"] = str(args.fig9)
     if args.json:
         sys.stdout.write(canonical_json(summary))
     else:

@@ -353,8 +353,9 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
                 max_tries: int = 20) -> list[Path]:
     """Record ``count`` successful demonstrations as ``franka_<k>.csv`` (atomically).
 
-    A take whose soup never reaches the target (the readings do not end at ``t``) is
-    discarded and the next seed is tried, as a teacher would redo it.
+    A take whose soup never reaches the target (the readings do not end at ``t``), or whose
+    readings go back a mode on the way (soup lost, even for a step), is discarded and the next
+    seed is tried, as a teacher would redo it.
 
     Returns
     -------
@@ -374,8 +375,10 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
         path = Path(directory) / f"franka_{len(out) + 1}.csv"
         demo = record_demo(seed, name=str(path))
         seed += 1
-        if not demo.sensors[-1, 2]:
-            continue
+        r, s_, t = demo.sensors.T
+        stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
+        if not t[-1] or np.any(np.diff(stage) < 0):
+            continue  # no soup delivered, or soup lost on the way (a flicker included)
         head = (f"# franka scoop demonstration {len(out) + 1} (tli_verify.sim.demos, mocap "
                 f"rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose (x, "
                 "y, z in dm, pitch in rad)\n")

@@ -3,7 +3,7 @@
 Never a scripted flag: every reading comes from the simulator's state in ``mjData``.
 
 * ``r`` -- *the spoon is in the soup bowl's region*: the tray frame's origin (site
-  ``ladle_tray``) lies inside the soup bowl's volume, up to ``R_ABOVE`` from its rim. It is
+  ``ladle_tray``) lies inside the soup bowl's volume, extended ``R_ABOVE`` over its rim. It is
   the ladle's geometry against the bowl's, not "a bead touches the ladle": that would stay on
   while the soup is carried away.
 * ``s`` -- *soup on the spoon*: at least one bead rests on the ladle: its centre lies in the
@@ -46,10 +46,8 @@ BoolArray = npt.NDArray[np.bool_]
 FloatArray = npt.NDArray[np.float64]
 
 SENSOR_NAMES = ("r", "s", "t")
-R_ABOVE = -0.002
-"""How far over the soup bowl's rim (m) its region extends: negative, below the rim -- the
-spoon is "in the soup" only once inside the bowl (an empty spoon hovering over the bowl after a
-spill is reaching, mode a, and its DS brings it back to the demonstrated entry first)."""
+R_ABOVE = 0.02
+"""How far over the soup bowl's rim (m) its region extends."""
 T_ABOVE = 0.25
 """How far over the target bowl's rim (m) "above the target" extends."""
 FLOOR_GAP = 0.003
