@@ -8,8 +8,9 @@ Per control period (``CONTROL_DT`` = 20 ms, the certified period):
    modulated DS gives the velocity (cuts are learned online on invariance failures);
 3. the velocity (capped per axis at ``SPEED_CAP``) is integrated to a target pose,
    ``z* <- z* + dt v``, with the DS evaluated at the target ``z*`` (the sampled-data system the
-   certificate covers); ``z*`` restarts at the measured state after a perturbation or when
-   the hand is held back more than ``RESYNC`` from it;
+   certificate covers), kept inside the workspace (:func:`workspace`: the demonstrations'
+   box widened by ``MARGIN``); ``z*`` restarts at the measured state after a perturbation or
+   when the hand is held back more than ``RESYNC`` from it;
 4. the hand's Cartesian impedance law tracks it (:class:`~tli_verify.sim.demos.MocapRig`), for
    10 ``mj_step`` of 2 ms.
 
@@ -21,8 +22,8 @@ Perturbations (seeded, :func:`draw_perturbations`): wrenches in ``xfrc_applied``
 -- a *motion-level push* (a force of 15-30 N for 0.2 s in a random direction) at a random time,
 and a *task-level tilt* (-20 Nm about the world x axis for 0.3 s, which spills every carried
 bead) a random delay after the soup is first on the spoon. The executive is told
-(``perturbed=True``) from the wrench's start until 0.6 s after its end (beads take that long to
-fall off), so the mode changes they cause are replanned, not taken as invariance failures.
+(``perturbed=True``) from the wrench's start until 1.5 s after its end (spilled beads take
+that long to leave the tray), so the mode changes they cause are replanned, not taken as invariance failures.
 
 A trial succeeds when at least one bead ends in the target bowl.
 """
@@ -59,13 +60,17 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
-NOTIFY_AFTER = 0.6
+NOTIFY_AFTER = 1.5
 """Seconds after a wrench ends during which the executive is still told "perturbed"."""
 RESYNC = np.array([0.3, 0.3, 0.3, 0.3])
 """Per-axis distance (dm, dm, dm, rad) between the target and the measured DS state beyond
 which the target restarts at the measured state."""
 SPEED_CAP = np.array([2.0, 2.0, 2.0, 2.0])
 """Per-axis speed limit of the DS velocity (dm/s, rad/s), direction kept."""
+MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
+"""How far (dm, dm, dm, rad) the target may leave the demonstrations' bounding box: the
+workspace limits of the hand (the DS extrapolates poorly far from its data: after a spilling
+tilt it turned the ladle over and drifted 1.5 dm sideways)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +99,21 @@ class Perturbation:
         """The JSON record."""
         return {"kind": self.kind, "start": round(self.start, 4),
                 "duration": self.duration, "wrench": [round(w, 4) for w in self.wrench]}
+
+
+def workspace() -> tuple[FloatArray, FloatArray]:
+    """Bounds of the target pose: the bundled demonstrations' box widened by ``MARGIN``.
+
+    Returns
+    -------
+    lo, hi : ndarray, shape (4,)
+    """
+    from tli_verify.demos import load_demos
+    from tli_verify.io import bundled_dir
+
+    demos = load_demos(sorted((bundled_dir("demos") / "franka").glob("*.csv")))
+    x = np.vstack([d.x for d in demos])
+    return x.min(axis=0) - MARGIN, x.max(axis=0) + MARGIN
 
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
@@ -263,6 +283,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     reading = rig.read()
     ref = to_ds(rig.pose())
+    lo, hi = workspace()
     policy.reset(ref, reading.as_dict())
     modes = [policy.mode]
     applied = [math.nan] * len(perts)
@@ -292,7 +313,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         speed = float(np.max(np.abs(v) / SPEED_CAP))
         if speed > 1.0:
             v = v / speed
-        ref = ref + CONTROL_DT * v
+        ref = np.clip(ref + CONTROL_DT * v, lo, hi)
         rig.command(from_ds(ref))
         rig.step(substeps)
         t += CONTROL_DT
