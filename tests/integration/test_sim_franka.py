@@ -115,3 +115,11 @@ def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str
     err = capsys.readouterr().err
     assert code == 2
     assert err.startswith("error: ") and err.count("\n") == 1
+
+
+def test_fig9_plot_is_written(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "fig9.png"
+    code = main(["sim", "franka", "--no-perturb", "--duration", "0.5", "--fig9", str(out)])
+    assert code == 1  # half a second delivers nothing: the trial fails, the plot is written
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "0/1 trials" in capsys.readouterr().out

@@ -85,16 +85,14 @@ def _run(args: argparse.Namespace) -> int:
         raise TliError(f"--duration must be between 0.5 and 600 s, got {args.duration}")
     if args.certificates is not None and not args.certificates.is_dir():
         raise TliError(f"--certificates {args.certificates}: not a directory")
+    from tli_verify.io import check_output_file
+
+    if args.fig9 is not None:
+        check_output_file(args.fig9)
     if args.video is not None:
         import os
 
-        from tli_verify.io import check_output_file
-
         check_output_file(args.video)
-    if args.fig9 is not None:
-        from tli_verify.io import check_output_file
-
-        check_output_file(args.fig9)
         os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless
     try:
         import mujoco  # noqa: F401
