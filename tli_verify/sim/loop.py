@@ -23,7 +23,8 @@ Perturbations (seeded, :func:`draw_perturbations`): wrenches in ``xfrc_applied``
 and a *task-level tilt* (-20 Nm about the world x axis for 0.3 s, which spills every carried
 bead) a random delay after the soup is first on the spoon. The executive is told
 (``perturbed=True``) from the wrench's start until 1.5 s after its end (spilled beads take
-that long to leave the tray), so the mode changes they cause are replanned, not taken as invariance failures.
+that long to leave the tray), so the mode changes they cause are replanned, not taken as
+invariance failures.
 
 A trial succeeds when at least one bead ends in the target bowl.
 """
