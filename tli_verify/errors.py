@@ -8,6 +8,7 @@ Every error a user can cause is a :class:`TliError`. The CLI turns it into a one
 from __future__ import annotations
 
 __all__ = [
+    "AssetError",
     "CertificateError",
     "DemoError",
     "GateError",
@@ -78,3 +79,8 @@ class GateError(TliError):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
     exit_code = 1
+
+
+class AssetError(TliError):
+    """A simulator asset (the MuJoCo Panda model files) cannot be fetched, fails its pinned
+    sha256, or is missing: run ``python -m tli_verify.sim.assets fetch``."""

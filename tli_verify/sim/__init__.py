@@ -1,0 +1,15 @@
+"""The MuJoCo Franka loop (issue 13): Panda model files, torque-actuated robot, controller.
+
+Submodules (import them directly; ``mujoco`` is imported only by :mod:`~tli_verify.sim.robot`
+and :mod:`~tli_verify.sim.controller`, so this package imports without the ``sim`` extra):
+
+- :mod:`tli_verify.sim.assets`: fetch and verify the Menagerie Panda files (pinned sha256).
+- :mod:`tli_verify.sim.robot`: the Panda with torque motors, gravity/Coriolis compensation,
+  frames and forward kinematics.
+- :mod:`tli_verify.sim.controller`: Cartesian impedance (operational-space) pose control with
+  null-space posture control; the 4-D DS state map (position + spoon pitch).
+"""
+
+from __future__ import annotations
+
+__all__: list[str] = []
