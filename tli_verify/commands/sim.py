@@ -64,6 +64,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--no-replan", action="store_true",
                    help="run the demonstrated mode sequence open loop (ablation)")
     f.add_argument("--no-perturb", action="store_true", help="nominal trials, no wrenches")
+    f.add_argument("--robot", choices=("hand", "panda"), default="hand",
+                   help="hand: the ladle on a free body under a Cartesian impedance law (the "
+                   "demonstrations' rig); panda: on the Panda hand under the operational-space "
+                   "controller (needs the Menagerie assets: python -m tli_verify.sim.assets "
+                   "fetch). Default hand")
     f.add_argument("--duration", type=float, default=20.0,
                    help="step budget per trial, simulated seconds (default 20)")
     f.add_argument("--json", action="store_true", help="one JSON object per trial, then a "
@@ -114,7 +119,7 @@ def _run(args: argparse.Namespace) -> int:
         seed = args.seed + k
         res = run_trial(policy, seed, variant=variant,
                         perturbations=[] if args.no_perturb else None,
-                        duration=args.duration,
+                        duration=args.duration, robot=args.robot,
                         frame=recorder.frame if recorder is not None and k == 0 else None)
         results.append(res)
         if args.json:

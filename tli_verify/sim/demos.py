@@ -385,3 +385,97 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
     return out
+
+
+class PandaRig:
+    """Phase 2: the ladle on the Panda hand, tracked by the operational-space controller.
+
+    The same interface as :class:`MocapRig` (``command``, ``physics_step``, ``step``, ``pose``,
+    ``read``, ``push``, ``carrier``), so :func:`tli_verify.sim.loop.run_trial` runs either.
+    The ladle is fixed under the hand with its grip at Franka's ``tcp`` frame (tool z down,
+    the tray 15 cm below and 12 cm towards -y); the controller
+    (:class:`tli_verify.sim.controller.ImpedanceController`) controls the tray site
+    ``ladle_tray`` directly, with the nominal orientation of the ladle frame at pitch 0, so
+    its DS state is this module's ``(x, y, z, pitch)`` of the tray. Before the trial the arm
+    moves from the home posture to the demonstrations' start while the beads settle.
+
+    Parameters
+    ----------
+    seed : int, optional
+        Bead placement.
+    assets : Path, optional
+        Menagerie assets (default ``$TLI_SIM_ASSETS`` or ``sim/assets``; see
+        :mod:`tli_verify.sim.assets`).
+    """
+
+    def __init__(self, seed: int = 0, *, assets: Path | None = None) -> None:
+        from tli_verify.sim.controller import ImpedanceController
+        from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
+        from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
+
+        spec = panda_spec(assets)
+        set_contact_options(spec)
+        add_scene(spec)
+        back = 0.035 + 0.004 + 0.16 * 0.5
+        up = 0.015 + 0.16 * math.sin(math.pi / 3)
+        add_ladle(spec.body(BODY_HAND), pos=(-back, 0.0, TCP_OFFSET + up),
+                  quat=(0.0, 0.0, 1.0, 0.0))
+        for other in (BODY_HAND, "left_finger", "right_finger"):
+            if spec.body(other) is not None:
+                ex = spec.add_exclude()
+                ex.bodyname1, ex.bodyname2 = "ladle", other
+        spec.worldbody.add_light(pos=[0.5, 0.0, 1.5], dir=[0, 0, -1])
+        try:
+            self.model = spec.compile()
+        except ValueError as exc:  # pragma: no cover - a bug in this module
+            raise TliError(f"sim scene: MuJoCo refused the Panda scene: {exc}") from exc
+        self.data = mujoco.MjData(self.model)
+        self.panda = Panda.from_model(self.model)
+        self.ids = scene_ids(self.model)
+        self.sensors = ScoopSensors(self.model, self.ids)
+        r0 = np.empty(9)
+        mujoco.mju_quat2Mat(r0, ladle_quat(0.0))
+        self.controller = ImpedanceController(self.panda, site=self.ids.tray_site,
+                                              r0=r0.reshape(3, 3))
+        self.push = np.zeros(6)
+        self._carrier = int(self.panda.hand_body)
+        self.data.qpos[self.panda.qpos_adr] = HOME_QPOS
+        mujoco.mj_forward(self.model, self.data)
+        self._pos = np.zeros(3)
+        self._quat = np.zeros(4)
+        start = scoop_waypoints()[0, 1:]
+        here = self.pose()
+        for k in range(1, 51):  # 1 s to the start, then hold while the beads settle
+            self.command(here + (start - here) * k / 50)
+            self.step(10)
+        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+
+    @property
+    def carrier(self) -> int:
+        """Body id of the hand (where wrenches go)."""
+        return self._carrier
+
+    def command(self, pose: npt.ArrayLike) -> None:
+        """Set the controller's target to the tray pose ``(x, y, z, pitch)``."""
+        pos, quat = self.controller.target_pose_from_ds_state(np.asarray(pose, dtype=float))
+        self._pos, self._quat = np.asarray(pos, dtype=float), np.asarray(quat, dtype=float)
+
+    def physics_step(self) -> None:
+        """One physics step: the controller's torques plus :attr:`push` on the hand."""
+        self.data.xfrc_applied[self._carrier] = self.push
+        self.controller.step(self.data, self._pos, self._quat, substeps=1, control_every=1)
+
+    def step(self, n: int = 1) -> None:
+        """``n`` physics steps (torques computed every step)."""
+        self.data.xfrc_applied[self._carrier] = self.push
+        self.controller.step(self.data, self._pos, self._quat, substeps=n, control_every=1)
+
+    def pose(self) -> FloatArray:
+        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
+        return tray_pose(self.data, self.ids.tray_site)
+
+    def read(self) -> Reading:
+        """The sensors now."""
+        return self.sensors.read(self.data)
+
+    follow = MocapRig.follow

@@ -45,7 +45,7 @@ import numpy.typing as npt
 from tli_verify.errors import TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
-from tli_verify.sim.demos import CONTROL_DT, MocapRig, from_ds, to_ds
+from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
 
 __all__ = [
     "VARIANTS",
@@ -61,6 +61,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
+ROBOTS = ("hand", "panda")
 NOTIFY_AFTER = 1.5
 """Seconds after a wrench ends during which the executive is still told "perturbed"."""
 RESYNC = np.array([0.3, 0.3, 0.3, 0.3])
@@ -253,8 +254,8 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = 20.0,
-              settle: float = 1.0, frame: Callable[[MocapRig], None] | None = None
-              ) -> TrialResult:
+              settle: float = 1.0, frame: Callable[[Any], None] | None = None,
+              robot: str = "hand") -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -273,6 +274,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         Seconds simulated after the goal mode's pour, before counting the beads.
     frame : callable, optional
         Called with the rig every control step (video frames).
+    robot : str, optional
+        ``"hand"`` (:class:`~tli_verify.sim.demos.MocapRig`, the impedance-driven free hand) or
+        ``"panda"`` (:class:`~tli_verify.sim.demos.PandaRig`, the arm under the
+        operational-space controller).
 
     Returns
     -------
@@ -280,7 +285,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     """
     t0 = time.perf_counter()
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    rig = MocapRig(seed)
+    if robot not in ROBOTS:
+        raise TliError(f"--robot {robot!r}: one of {', '.join(ROBOTS)}")
+    rig: Any = MocapRig(seed) if robot == "hand" else PandaRig(seed)
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     reading = rig.read()
     ref = to_ds(rig.pose())
@@ -363,7 +370,7 @@ class Recorder:
         self._renderer: Any = None
         self._count = 0
 
-    def _open(self, rig: MocapRig) -> Any:
+    def _open(self, rig: Any) -> Any:
         import mujoco
 
         try:
@@ -374,7 +381,7 @@ class Recorder:
                 f"({' '.join(str(exc).split())[:100]}); try MUJOCO_GL=osmesa, or run without "
                 "--video") from None
 
-    def frame(self, rig: MocapRig) -> None:
+    def frame(self, rig: Any) -> None:
         """Render the current state (every ``every``-th call)."""
         self._count += 1
         if (self._count - 1) % self.every:
@@ -408,7 +415,7 @@ class Recorder:
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
-               duration: float = 20.0) -> list[dict[str, Any]]:
+               duration: float = 20.0, robot: str = "hand") -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
@@ -417,6 +424,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     variant : str, optional
     perturb : bool, optional
     duration : float, optional
+    robot : str, optional
 
     Returns
     -------
@@ -425,7 +433,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     """
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
-                      duration=duration).to_json() for s in seeds]
+                      duration=duration, robot=robot).to_json() for s in seeds]
 
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
