@@ -106,6 +106,7 @@ def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     ["sim", "franka", "--certificates", "/nonexistent/dir"],
     ["sim"],
     ["sim", "cartpole"],
+    ["sim", "franka", "--robot", "ur5"],
 ])
 def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     try:
