@@ -492,12 +492,14 @@ def plot_flow(model: Any, path: str | os.PathLike[str], *,
             yy, zz = np.meshgrid(p[1] + u, p[2] + u)
             pp = p[3] - (n[1] * (yy - p[1]) + n[2] * (zz - p[2]) + n[0] * (x_star[0] - p[0])) \
                 / n[3]
+            pp = np.clip(pp, -1.0, 2.0)  # a plane nearly along the pitch axis: clipped
             ax.plot_surface(yy, zz, pp, color=colors.get(mode, "b"), alpha=0.3)
     for demo in demos or []:
         ax.plot(demo.x[:, 1], demo.x[:, 2], demo.x[:, 3], color="k", lw=1.2, alpha=0.7)
     ax.set_xlabel("y (dm)")
     ax.set_ylabel("z (dm)")
     ax.set_zlabel("pitch (rad)")
+    ax.set_zlim(-1.0, 2.0)
     ax.set_title(title or "Modulated LTL-DS flow per mode (y, z, pitch) with learned cuts")
     ax.legend(loc="upper left", fontsize=8)
     buf = io.BytesIO()
