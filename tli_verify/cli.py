@@ -33,6 +33,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.run",
     "tli_verify.commands.demo",
     "tli_verify.commands.verify",
+    "tli_verify.commands.sim",
 )
 
 

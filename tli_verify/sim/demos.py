@@ -1,0 +1,481 @@
+"""Scripted scooping in the simulator: the waypoints, a mocap-driven ladle, and demonstrations.
+
+The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch):
+
+1. from the start above and beside the soup bowl, down to the bowl's near slope (front tipped
+   down by ``pitch`` 0.15 rad, the tray's underside along the conical floor);
+2. sweep along the floor towards -y through the beads gathered in the middle, then level the
+   tray at the far side (the beads ride over the open front onto the tray);
+3. tip the front up (-0.3 rad) and lift out of the bowl (the rim keeps the beads);
+4. carry to above the target bowl, lower, and pour (front down, 1.3 rad).
+
+Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 2-4 beads delivered.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.demos import Demonstration, demo_to_csv
+from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_text
+from tli_verify.sim.scene import (
+    SOUP_BOWL,
+    SOUP_CENTER,
+    TARGET_CENTER,
+    TRAY_HALF_THICKNESS,
+    TRAY_RADIUS,
+    build_mocap_scene,
+    ladle_quat,
+    reset_beads,
+    scene_ids,
+)
+from tli_verify.sim.sensors import SENSOR_NAMES, Reading, ScoopSensors
+
+__all__ = [
+    "CONTROL_DT",
+    "POSITION_SCALE",
+    "MocapRig",
+    "ScoopStep",
+    "from_ds",
+    "record_demo",
+    "scoop_waypoints",
+    "to_ds",
+    "write_demos",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+SCOOP_PITCH = 0.15
+CARRY_PITCH = -0.3
+POUR_PITCH = 1.3
+
+
+def _tray_height(pitch: float) -> float:
+    """Tray-frame height that puts the tipped front edge 1 mm over the bowl's flat floor."""
+    return float(SOUP_CENTER[2] + SOUP_BOWL.floor + 0.001 + TRAY_RADIUS * math.sin(pitch)
+                 + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
+
+
+def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0
+                    ) -> FloatArray:
+    """Timed waypoints of the scripted scoop (module doc).
+
+    Parameters
+    ----------
+    rng : numpy Generator, optional
+        Jitters the start and the carry waypoints, and shifts the scoop along x by half as
+        much, when ``jitter > 0``.
+    jitter : float, optional
+        Uniform jitter half-width (m).
+
+    Returns
+    -------
+    ndarray, shape (K, 5)
+        Rows ``(time s, x, y, z, pitch rad)``, times increasing from 0.
+    """
+    cx, cy = float(SOUP_CENTER[0]), float(SOUP_CENTER[1])
+    tx, ty = float(TARGET_CENTER[0]), float(TARGET_CENTER[1])
+    low = _tray_height(SCOOP_PITCH)
+    w = np.array([
+        (0.0, cx, 0.05, 0.20, 0.0),                          # start: above, between the bowls
+        (1.0, cx, cy + 0.07, 0.08, SCOOP_PITCH),             # over the near slope
+        (1.6, cx, cy + 0.07, low + 0.007, SCOOP_PITCH),      # down onto it
+        (2.8, cx, cy - 0.035, low, SCOOP_PITCH),             # sweep through the beads
+        (3.1, cx, cy - 0.045, low + 0.004, 0.0),             # level the tray
+        (3.4, cx, cy - 0.03, low + 0.03, CARRY_PITCH),       # tip back
+        (4.4, cx, cy + 0.05, 0.18, CARRY_PITCH),             # lift out
+        (5.4, tx, ty, 0.15, -0.2),                           # carry over the target
+        (6.2, tx, ty, 0.10, -0.2),                           # lower
+        (7.2, tx, ty, 0.10, POUR_PITCH),                     # pour
+        (8.0, tx, ty, 0.10, POUR_PITCH),
+    ])
+    if rng is not None and jitter > 0:
+        for row in (0, 6, 7):
+            w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
+        w[1:6, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
+    return w
+
+
+def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
+    """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
+    while still low (the beads roll against the back rim), then goes on from the lift."""
+    lift = 6  # the row of scoop_waypoints that lifts out of the bowl
+    on = interpolate(waypoints, now + 0.3)  # sweep on a little: the beads get fully on
+    x, y, z, _ = on.tolist()
+    head = np.array([
+        (now, *cmd.tolist()),
+        (now + 0.3, *on.tolist()),
+        (now + 0.8, x, y, z + 0.016, CARRY_PITCH),  # tip back about the front edge
+        (now + 1.3, x, y + 0.005, z + 0.025, CARRY_PITCH),
+    ])
+    tail = waypoints[lift:].copy()
+    tail[:, 0] += now + 2.3 - tail[0, 0]
+    return np.vstack([head, tail])
+
+
+def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
+    """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
+    return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ScoopStep:
+    """One sample of a scripted run.
+
+    Attributes
+    ----------
+    time : float
+    pose : ndarray, shape (4,)
+        The tray's actual ``(x, y, z, pitch)``.
+    reading : Reading
+    command : ndarray, shape (4,)
+        The commanded pose (the impedance law's target) at that time.
+    """
+
+    time: float
+    pose: FloatArray
+    reading: Reading
+    command: FloatArray
+
+
+def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
+    """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
+
+    The pitch is the angle of the tray's front (local +x) below the horizontal, signed: the
+    front points along ``(0, -cos p, -sin p)`` for a pure pitch ``p``.
+    """
+    front = data.site_xmat[site].reshape(3, 3)[:, 0]
+    pitch = math.atan2(-float(front[2]), -float(front[1]))
+    return np.array([*data.site_xpos[site].tolist(), pitch])
+
+
+class MocapRig:
+    """Phase 1: the ladle on a free hand body under Cartesian impedance, the scene, the sensors.
+
+    Each physics step applies ``F = K (p* - p) - D v`` and ``tau = K_r theta - D_r omega`` to
+    the carrier (``theta``: the rotation vector from the ladle's orientation to the target's),
+    plus any perturbation wrench the caller sets in :attr:`push`. ``p*`` and the target
+    orientation come from :meth:`command` (also shown by the mocap marker).
+
+    Parameters
+    ----------
+    seed : int, optional
+        Bead placement (:func:`~tli_verify.sim.scene.reset_beads`).
+    stiffness, rot_stiffness : float, optional
+        ``K`` (N/m) and ``K_r`` (Nm/rad); dampings are critical for the carrier's mass and
+        inertia.
+    """
+
+    def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
+                 rot_stiffness: float = 150.0) -> None:
+        self.k = float(stiffness)
+        self.kr = float(rot_stiffness)
+        self.push = np.zeros(6)
+        self.model = build_mocap_scene()
+        self.data = mujoco.MjData(self.model)
+        self.ids = scene_ids(self.model)
+        self.sensors = ScoopSensors(self.model, self.ids)
+        self._carrier = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY,
+                                              "ladle_carrier"))
+        jnt = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "ladle_free"))
+        self._qadr = int(self.model.jnt_qposadr[jnt])
+        self._dadr = int(self.model.jnt_dofadr[jnt])
+        mass = float(self.model.body_subtreemass[self._carrier])
+        inertia = float(self.model.body_inertia[self._carrier].max()) + 0.12 * 0.05 ** 2
+        self.d = 2.0 * math.sqrt(self.k * mass)
+        self.dr = 2.0 * math.sqrt(self.kr * inertia)
+        self._target_q = np.zeros(4)
+        self._err_q = np.zeros(4)
+        self._rotvec = np.zeros(3)
+        self.place([*self.data.mocap_pos[0].tolist(), 0.0])
+        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+
+    @property
+    def carrier(self) -> int:
+        """Body id of the free body carrying the ladle (where wrenches go)."""
+        return self._carrier
+
+    def command(self, pose: npt.ArrayLike) -> None:
+        """Move the mocap target to ``(x, y, z, pitch)``; the ladle follows through the weld."""
+        p = np.asarray(pose, dtype=np.float64)
+        self.data.mocap_pos[0] = p[:3]
+        self.data.mocap_quat[0] = ladle_quat(float(p[3]))
+
+    def place(self, pose: npt.ArrayLike) -> None:
+        """Teleport the ladle and its target to ``(x, y, z, pitch)`` (at rest)."""
+        p = np.asarray(pose, dtype=np.float64)
+        self.command(p)
+        a, d = self._qadr, self._dadr
+        self.data.qpos[a:a + 3] = p[:3]
+        self.data.qpos[a + 3:a + 7] = ladle_quat(float(p[3]))
+        self.data.qvel[d:d + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def pose(self) -> FloatArray:
+        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
+        return tray_pose(self.data, self.ids.tray_site)
+
+    def read(self) -> Reading:
+        """The sensors now."""
+        return self.sensors.read(self.data)
+
+    def physics_step(self) -> None:
+        """One physics step under the impedance law plus :attr:`push`."""
+        m, d = self.model, self.data
+        a, v = self._qadr, self._dadr
+        wrench = d.xfrc_applied[self._carrier]
+        wrench[:3] = self.k * (d.mocap_pos[0] - d.qpos[a:a + 3]) - self.d * d.qvel[v:v + 3]
+        # orientation error: target * conj(current), as a rotation vector (world frame)
+        cur = d.qpos[a + 3:a + 7]
+        mujoco.mju_negQuat(self._err_q, cur)
+        mujoco.mju_mulQuat(self._err_q, d.mocap_quat[0], self._err_q)
+        mujoco.mju_quat2Vel(self._rotvec, self._err_q, 1.0)
+        # free-joint angular velocity is in the body frame: rotate it to the world frame
+        omega = d.xmat[self._carrier].reshape(3, 3) @ d.qvel[v + 3:v + 6]
+        wrench[3:] = self.kr * self._rotvec - self.dr * omega
+        wrench += self.push
+        mujoco.mj_step(m, d)
+
+    def step(self, n: int = 1) -> None:
+        """``n`` physics steps."""
+        for _ in range(n):
+            self.physics_step()
+
+    def follow(self, waypoints: FloatArray, *, every: int = 10, until: float | None = None
+               ) -> list[ScoopStep]:
+        """Follow timed waypoints from the current time; sample every ``every`` steps.
+
+        Parameters
+        ----------
+        waypoints : ndarray, shape (K, 5)
+            From :func:`scoop_waypoints`.
+        every : int, optional
+        until : float, optional
+            Stop at this script time (default: the last waypoint's).
+
+        Returns
+        -------
+        list of ScoopStep
+        """
+        dt = float(self.model.opt.timestep)
+        end = float(waypoints[-1, 0]) if until is None else float(until)
+        out = []
+        for k in range(round(end / dt)):
+            self.command(interpolate(waypoints, k * dt))
+            self.physics_step()
+            if (k + 1) % every == 0:
+                out.append(ScoopStep(round((k + 1) * dt, 9), self.pose(), self.read(),
+                                     interpolate(waypoints, (k + 1) * dt)))
+        return out
+
+
+CONTROL_DT = 0.02
+"""Control period (s) of the loop and of the recorded demonstrations: 10 physics steps."""
+POSITION_SCALE = 10.0
+"""DS state units: positions in decimetres (so they span about as much as the pitch in
+radians; in metres the learner's SDPs were ill-conditioned: CLARABEL 'optimal_inaccurate')."""
+
+
+def to_ds(pose: npt.ArrayLike) -> FloatArray:
+    """Tray pose ``(x, y, z [m], pitch [rad])`` -> DS state ``(x, y, z [dm], pitch)``."""
+    p = np.array(pose, dtype=np.float64)
+    p[..., :3] *= POSITION_SCALE
+    return p
+
+
+def from_ds(z: npt.ArrayLike) -> FloatArray:
+    """DS state -> tray pose (the inverse of :func:`to_ds`)."""
+    p = np.array(z, dtype=np.float64)
+    p[..., :3] /= POSITION_SCALE
+    return p
+
+
+def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonstration:
+    """One scripted demonstration in the simulator (like kinesthetic teaching).
+
+    The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
+    reacting as a teacher would: once soup is on the spoon mid-sweep it levels the tray and
+    tips it back before lifting (:func:`_react`); every control period the commanded pose
+    (the impedance law's target, which the closed loop integrates:
+    :mod:`tli_verify.sim.loop`) and the sensors from the physics are recorded. The commanded
+    pose, not the measured one: while scooping, the target presses the tray onto the bowl's
+    floor a few mm below where the floor holds it, and a DS learned from the measured heights
+    would hover over the beads.
+
+    Parameters
+    ----------
+    seed : int
+    name : str, optional
+        Shown in messages (``Demonstration.path``).
+    dt : float, optional
+        Sampling period (s), a multiple of the 2 ms physics step.
+
+    Returns
+    -------
+    Demonstration
+        ``x`` shape (T, 4): the DS state (:func:`to_ds`); sensors ``r, s, t``; velocities by finite
+        differences.
+    """
+    rig = MocapRig(seed)
+    waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02)
+    every = round(dt / float(rig.model.opt.timestep))
+    steps = [ScoopStep(0.0, rig.pose(), rig.read(), interpolate(waypoints, 0.0))]
+    sweep = (float(waypoints[2, 0]), float(waypoints[3, 0]))
+    k = 0
+    reacted = False
+    while k * dt < float(waypoints[-1, 0]) - 1e-9:
+        cmd = interpolate(waypoints, k * dt)
+        if steps[-1].reading.s and not reacted and sweep[0] < k * dt < sweep[1]:
+            waypoints = _react(waypoints, k * dt, cmd)  # soup on the spoon: tip back, lift
+            reacted = True
+        for _ in range(every):
+            rig.command(cmd)
+            rig.physics_step()
+        k += 1
+        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), rig.read(), cmd))
+    t = np.array([s.time for s in steps])
+    x = to_ds(np.array([s.command for s in steps]))
+    sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)
+    dx = np.gradient(x, t, axis=0, edge_order=2)
+    return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,
+                         sensor_names=SENSOR_NAMES, sensors=sensors)
+
+
+def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
+                max_tries: int = 20) -> list[Path]:
+    """Record ``count`` successful demonstrations as ``franka_<k>.csv`` (atomically).
+
+    A take whose soup never reaches the target (the readings do not end at ``t``), or whose
+    readings go back a mode on the way (soup lost, even for a step), is discarded and the next
+    seed is tried, as a teacher would redo it.
+
+    Returns
+    -------
+    list of Path
+
+    Raises
+    ------
+    TliError
+        Fewer than ``count`` successful takes in ``max_tries`` seeds.
+    """
+    out: list[Path] = []
+    seed = first_seed
+    while len(out) < count:
+        if seed >= first_seed + max_tries:
+            raise TliError(f"franka demos: only {len(out)} of {count} scripted takes "
+                           f"delivered soup in {max_tries} seeds")
+        path = Path(directory) / f"franka_{len(out) + 1}.csv"
+        demo = record_demo(seed, name=str(path))
+        seed += 1
+        r, s_, t = demo.sensors.T
+        stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
+        if not t[-1] or np.any(np.diff(stage) < 0):
+            continue  # no soup delivered, or soup lost on the way (a flicker included)
+        head = (f"# franka scoop demonstration {len(out) + 1} (tli_verify.sim.demos, mocap "
+                f"rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose (x, "
+                "y, z in dm, pitch in rad)\n")
+        atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
+        out.append(path)
+    return out
+
+
+class PandaRig:
+    """Phase 2: the ladle on the Panda hand, tracked by the operational-space controller.
+
+    The same interface as :class:`MocapRig` (``command``, ``physics_step``, ``step``, ``pose``,
+    ``read``, ``push``, ``carrier``), so :func:`tli_verify.sim.loop.run_trial` runs either.
+    The ladle is fixed under the hand with its grip at Franka's ``tcp`` frame (tool z down,
+    the tray 15 cm below and 12 cm towards -y); the controller
+    (:class:`tli_verify.sim.controller.ImpedanceController`) controls the tray site
+    ``ladle_tray`` directly, with the nominal orientation of the ladle frame at pitch 0, so
+    its DS state is this module's ``(x, y, z, pitch)`` of the tray. Before the trial the arm
+    moves from the home posture to the demonstrations' start while the beads settle.
+
+    Parameters
+    ----------
+    seed : int, optional
+        Bead placement.
+    assets : Path, optional
+        Menagerie assets (default ``$TLI_SIM_ASSETS`` or ``sim/assets``; see
+        :mod:`tli_verify.sim.assets`).
+    """
+
+    def __init__(self, seed: int = 0, *, assets: Path | None = None) -> None:
+        from tli_verify.sim.controller import ImpedanceController
+        from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
+        from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
+
+        spec = panda_spec(assets)
+        set_contact_options(spec)
+        add_scene(spec)
+        back = 0.035 + 0.004 + 0.16 * 0.5
+        up = 0.015 + 0.16 * math.sin(math.pi / 3)
+        add_ladle(spec.body(BODY_HAND), pos=(-back, 0.0, TCP_OFFSET + up),
+                  quat=(0.0, 0.0, 1.0, 0.0))
+        for other in (BODY_HAND, "left_finger", "right_finger"):
+            if spec.body(other) is not None:
+                ex = spec.add_exclude()
+                ex.bodyname1, ex.bodyname2 = "ladle", other
+        spec.worldbody.add_light(pos=[0.5, 0.0, 1.5], dir=[0, 0, -1])
+        try:
+            self.model = spec.compile()
+        except ValueError as exc:  # pragma: no cover - a bug in this module
+            raise TliError(f"sim scene: MuJoCo refused the Panda scene: {exc}") from exc
+        self.data = mujoco.MjData(self.model)
+        self.panda = Panda.from_model(self.model)
+        self.ids = scene_ids(self.model)
+        self.sensors = ScoopSensors(self.model, self.ids)
+        r0 = np.empty(9)
+        mujoco.mju_quat2Mat(r0, ladle_quat(0.0))
+        self.controller = ImpedanceController(self.panda, site=self.ids.tray_site,
+                                              r0=r0.reshape(3, 3))
+        self.push = np.zeros(6)
+        self._carrier = int(self.panda.hand_body)
+        self.data.qpos[self.panda.qpos_adr] = HOME_QPOS
+        mujoco.mj_forward(self.model, self.data)
+        self._pos = np.zeros(3)
+        self._quat = np.zeros(4)
+        start = scoop_waypoints()[0, 1:]
+        here = self.pose()
+        for k in range(1, 51):  # 1 s to the start, then hold while the beads settle
+            self.command(here + (start - here) * k / 50)
+            self.step(10)
+        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+
+    @property
+    def carrier(self) -> int:
+        """Body id of the hand (where wrenches go)."""
+        return self._carrier
+
+    def command(self, pose: npt.ArrayLike) -> None:
+        """Set the controller's target to the tray pose ``(x, y, z, pitch)``."""
+        pos, quat = self.controller.target_pose_from_ds_state(np.asarray(pose, dtype=float))
+        self._pos, self._quat = np.asarray(pos, dtype=float), np.asarray(quat, dtype=float)
+
+    def physics_step(self) -> None:
+        """One physics step: the controller's torques plus :attr:`push` on the hand."""
+        self.data.xfrc_applied[self._carrier] = self.push
+        self.controller.step(self.data, self._pos, self._quat, substeps=1, control_every=1)
+
+    def step(self, n: int = 1) -> None:
+        """``n`` physics steps (torques computed every step)."""
+        self.data.xfrc_applied[self._carrier] = self.push
+        self.controller.step(self.data, self._pos, self._quat, substeps=n, control_every=1)
+
+    def pose(self) -> FloatArray:
+        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
+        return tray_pose(self.data, self.ids.tray_site)
+
+    def read(self) -> Reading:
+        """The sensors now."""
+        return self.sensors.read(self.data)
+
+    follow = MocapRig.follow

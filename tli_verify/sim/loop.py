@@ -1,0 +1,508 @@
+"""The closed loop in MuJoCo: LTL-DS drives the ladle through physical scooping (paper Sec. 7.2).
+
+Per control period (``CONTROL_DT`` = 20 ms, the certified period):
+
+1. sensors from the physics (:class:`~tli_verify.sim.sensors.ScoopSensors`), the DS state
+   ``z`` from the tray pose (:func:`~tli_verify.sim.demos.to_ds`);
+2. ``v = LTLDSPolicy.step(z, reading)``: the automaton picks the mode, the mode's certified,
+   modulated DS gives the velocity (cuts are learned online on invariance failures);
+3. the velocity (capped per axis at ``SPEED_CAP``) is integrated to a target pose,
+   ``z* <- z* + dt v``, with the DS evaluated at the target ``z*`` (the sampled-data system the
+   certificate covers), kept inside the workspace (:func:`workspace`: the demonstrations'
+   box widened by ``MARGIN``); ``z*`` restarts at the measured state after a perturbation or
+   when the hand is held back more than ``RESYNC`` from it;
+4. the hand's Cartesian impedance law tracks it (:class:`~tli_verify.sim.demos.MocapRig`), for
+   10 ``mj_step`` of 2 ms.
+
+The "hand" is the free body carrying the ladle under a Cartesian impedance law, not yet the
+Panda under the operational-space controller (that controller is another helper's work: see
+the README, section 10).
+
+Perturbations (seeded, :func:`draw_perturbations`): wrenches in ``xfrc_applied`` on the hand
+-- a *motion-level push* (a force of 15-30 N for 0.2 s in a random direction) at a random time,
+and a *task-level tilt* (-20 Nm about the world x axis for 0.3 s, which spills every carried
+bead) a random delay after the soup is first on the spoon. The executive is told
+(``perturbed=True``) from the wrench's start until 1.5 s after its end (spilled beads take
+that long to leave the tray), so the mode changes they cause are replanned, not taken as
+invariance failures.
+
+A trial succeeds when at least one bead ends in the target bowl.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import TliError
+from tli_verify.runtime.events import CutAdded
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+
+__all__ = [
+    "VARIANTS",
+    "Perturbation",
+    "Recorder",
+    "TrialResult",
+    "draw_perturbations",
+    "load_policy",
+    "plot_flow",
+    "run_trial",
+    "run_trials",
+]
+
+FloatArray = npt.NDArray[np.float64]
+VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
+ROBOTS = ("hand", "panda")
+NOTIFY_AFTER = 1.5
+"""Seconds after a wrench ends during which the executive is still told "perturbed"."""
+RESYNC = np.array([0.3, 0.3, 0.3, 0.3])
+"""Per-axis distance (dm, dm, dm, rad) between the target and the measured DS state beyond
+which the target restarts at the measured state."""
+SPEED_CAP = np.array([2.0, 2.0, 2.0, 2.0])
+"""Per-axis speed limit of the DS velocity (dm/s, rad/s), direction kept."""
+MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
+"""How far (dm, dm, dm, rad) the target may leave the demonstrations' bounding box: the
+workspace limits of the hand (the DS extrapolates poorly far from its data: after a spilling
+tilt it turned the ladle over and drifted 1.5 dm sideways)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Perturbation:
+    """One wrench on the hand.
+
+    Attributes
+    ----------
+    kind : str
+        ``"push"`` (motion level) or ``"tilt"`` (task level: spills).
+    start : float
+        Seconds: after the trial's start (push), or after the soup is first on the spoon
+        (tilt).
+    duration : float
+        Seconds.
+    wrench : tuple of float, length 6
+        Force (N) and torque (Nm) in the world frame.
+    """
+
+    kind: str
+    start: float
+    duration: float
+    wrench: tuple[float, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON record."""
+        return {"kind": self.kind, "start": round(self.start, 4),
+                "duration": self.duration, "wrench": [round(w, 4) for w in self.wrench]}
+
+
+def workspace() -> tuple[FloatArray, FloatArray]:
+    """Bounds of the target pose: the bundled demonstrations' box widened by ``MARGIN``.
+
+    Returns
+    -------
+    lo, hi : ndarray, shape (4,)
+    """
+    from tli_verify.demos import load_demos
+    from tli_verify.io import bundled_dir
+
+    demos = load_demos(sorted((bundled_dir("demos") / "franka").glob("*.csv")))
+    x = np.vstack([d.x for d in demos])
+    return x.min(axis=0) - MARGIN, x.max(axis=0) + MARGIN
+
+
+def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
+    """Seeded perturbations of one trial (module doc).
+
+    Parameters
+    ----------
+    seed : int
+    pushes, tilts : int, optional
+
+    Returns
+    -------
+    list of Perturbation
+    """
+    rng = np.random.default_rng([seed, 29])
+    out = []
+    for _ in range(pushes):
+        d = rng.normal(size=3)
+        d /= float(np.linalg.norm(d))
+        f = rng.uniform(15.0, 30.0)
+        out.append(Perturbation("push", float(rng.uniform(0.5, 6.0)), 0.2,
+                                tuple(float(v) for v in (*(f * d), 0.0, 0.0, 0.0))))
+    for _ in range(tilts):
+        out.append(Perturbation("tilt", float(rng.uniform(1.5, 2.5)), 0.3,
+                                (0.0, 0.0, 0.0, -20.0, 0.0, 0.0)))
+    return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class TrialResult:
+    """One perturbed trial in the simulator.
+
+    Attributes
+    ----------
+    seed : int
+    variant : str
+    success : bool
+        At least one bead ended in the target bowl.
+    delivered : int
+        Beads in the target bowl at the end.
+    modes : tuple of str
+        The mode run at each control step.
+    cuts_added : int
+    sim_time : float
+        Simulated seconds.
+    wall_time : float
+        Seconds of computation.
+    perturbations : tuple of Perturbation
+    applied : tuple of float
+        When each perturbation was applied (simulated seconds; NaN: never, e.g. a tilt in a
+        trial where the soup never got on the spoon).
+    events : tuple of str
+        The executive's events, one line each.
+    """
+
+    seed: int
+    variant: str
+    success: bool
+    delivered: int
+    modes: tuple[str, ...]
+    cuts_added: int
+    sim_time: float
+    wall_time: float
+    perturbations: tuple[Perturbation, ...]
+    applied: tuple[float, ...]
+    events: tuple[str, ...] = field(default=())
+
+    def mode_sequence(self) -> str:
+        """The mode trace as runs: ``"a b c b c d"``."""
+        runs = [m for i, m in enumerate(self.modes) if i == 0 or m != self.modes[i - 1]]
+        return " ".join(runs)
+
+    def to_json(self) -> dict[str, Any]:
+        """The per-trial JSON record of ``tli sim franka --json``."""
+        return {
+            "seed": self.seed, "variant": self.variant, "success": self.success,
+            "delivered": self.delivered, "mode_sequence": self.mode_sequence(),
+            "mode_trace": "".join(self.modes), "cuts_added": self.cuts_added,
+            "sim_time": round(self.sim_time, 3), "wall_time": round(self.wall_time, 3),
+            "perturbations": [dict(p.to_json(), applied_at=None if math.isnan(a) else
+                                   round(a, 3))
+                              for p, a in zip(self.perturbations, self.applied, strict=True)],
+            "events": list(self.events),
+        }
+
+
+def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
+                certificates: str | os.PathLike[str] | None = None) -> LTLDSPolicy:
+    """The executive of ``variant`` for the bundled Franka scoop model, behind its certificate.
+
+    Parameters
+    ----------
+    variant : str
+        One of :data:`VARIANTS`.
+    root : path-like, optional
+        Project directory with ``specs/``, ``models/`` (default: the parent of
+        ``certificates`` when given, else the bundled files).
+    certificates : path-like, optional
+        Directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``).
+
+    Raises
+    ------
+    CertificateError
+        (exit 1) The certificate is missing, does not re-check, or does not cover the model
+        (naming the certificate).
+    """
+    from tli_verify.errors import CertificateError
+    from tli_verify.experiments.scoop import SequencePolicy
+    from tli_verify.io import bundled_dir
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+
+    if variant not in VARIANTS:
+        raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
+    if root is not None:
+        base = Path(root)
+    elif certificates is not None:
+        base = Path(certificates).parent  # a project: models/ and specs/ next to it
+    else:
+        base = bundled_dir("models").parent
+    cert_dir = Path(certificates) if certificates is not None else base / "certificates"
+    cert = cert_dir / "franka-scoop.cert.json"
+    if not cert.is_file():
+        raise CertificateError(f"{cert}: refused: no certificate for models/"
+                               "franka-scoop.model.json (certify it with tli certify)")
+    model = load_model(base / "models" / "franka-scoop.model.json")
+    spec_path = model.spec_path if model.spec_path is not None else \
+        base / "specs" / "franka-scoop.toml"
+    automaton = synthesize(load_spec(spec_path))
+    if variant == "no-replan":
+        return SequencePolicy(automaton, model, cert, dt=CONTROL_DT)
+    return LTLDSPolicy(automaton, model, cert, dt=CONTROL_DT,
+                       learn_cuts=variant != "no-modulation")
+
+
+def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
+              perturbations: list[Perturbation] | None = None, duration: float = 20.0,
+              settle: float = 1.0, frame: Callable[[Any], None] | None = None,
+              robot: str = "hand") -> TrialResult:
+    """One closed-loop trial (module doc).
+
+    Parameters
+    ----------
+    policy : LTLDSPolicy
+        Cuts learned in earlier trials carry over (as on the robot).
+    seed : int
+        Bead placement; the perturbations are drawn with it unless given.
+    variant : str, optional
+        Recorded in the result.
+    perturbations : list of Perturbation, optional
+        Default :func:`draw_perturbations` ``(seed)``; ``[]`` for none.
+    duration : float, optional
+        Step budget (simulated seconds).
+    settle : float, optional
+        Seconds simulated after the goal mode's pour, before counting the beads.
+    frame : callable, optional
+        Called with the rig every control step (video frames).
+    robot : str, optional
+        ``"hand"`` (:class:`~tli_verify.sim.demos.MocapRig`, the impedance-driven free hand) or
+        ``"panda"`` (:class:`~tli_verify.sim.demos.PandaRig`, the arm under the
+        operational-space controller).
+
+    Returns
+    -------
+    TrialResult
+    """
+    t0 = time.perf_counter()
+    perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
+    if robot not in ROBOTS:
+        raise TliError(f"--robot {robot!r}: one of {', '.join(ROBOTS)}")
+    rig: Any = MocapRig(seed) if robot == "hand" else PandaRig(seed)
+    substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
+    reading = rig.read()
+    ref = to_ds(rig.pose())
+    lo, hi = workspace()
+    policy.reset(ref, reading.as_dict())
+    modes = [policy.mode]
+    applied = [math.nan] * len(perts)
+    soup_at: float | None = None
+    n = round(duration / CONTROL_DT)
+    goal_for = 0
+    done_steps = round(2.5 / CONTROL_DT)  # pour for 2.5 s in the goal mode
+    t = 0.0
+    for _ in range(n):
+        if reading.s and soup_at is None:
+            soup_at = t
+        rig.push[:] = 0.0
+        perturbed = False
+        for i, p in enumerate(perts):
+            start = p.start if p.kind == "push" else (
+                p.start + soup_at if soup_at is not None else math.inf)
+            if start <= t < start + p.duration:
+                rig.push += np.array(p.wrench)
+                if math.isnan(applied[i]):
+                    applied[i] = t
+            if start <= t < start + p.duration + NOTIFY_AFTER:
+                perturbed = True
+        z = to_ds(rig.pose())
+        if perturbed or float(np.max(np.abs(z - ref) / RESYNC)) > 1.0:
+            ref = z  # the hand was pushed (or held back): the DS restarts where it is
+        v = policy.step(ref, reading.as_dict(), perturbed=perturbed)
+        speed = float(np.max(np.abs(v) / SPEED_CAP))
+        if speed > 1.0:
+            v = v / speed
+        ref = np.clip(ref + CONTROL_DT * v, lo, hi)
+        rig.command(from_ds(ref))
+        rig.step(substeps)
+        t += CONTROL_DT
+        if frame is not None:
+            frame(rig)
+        reading = rig.read()
+        modes.append(policy.mode)
+        goal_for = goal_for + 1 if policy.done else 0
+        if goal_for >= done_steps:
+            break
+    rig.push[:] = 0.0
+    for _ in range(round(settle / CONTROL_DT)):
+        rig.step(substeps)
+        t += CONTROL_DT
+        if frame is not None:
+            frame(rig)
+    delivered = int(rig.sensors.in_target(rig.data).sum())
+    events = tuple(f"{type(e).__name__} at step {getattr(e, 'step', '?')}"
+                   for e in policy.events)
+    return TrialResult(
+        seed=seed, variant=variant, success=delivered >= 1, delivered=delivered,
+        modes=tuple(modes), cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
+        sim_time=t, wall_time=time.perf_counter() - t0, perturbations=tuple(perts),
+        applied=tuple(applied), events=events)
+
+
+class Recorder:
+    """Headless frames of a trial for a short MP4 (``--video``).
+
+    Rendering needs an OpenGL context without a display: ``tli sim`` sets ``MUJOCO_GL=egl``
+    unless the caller chose (``MUJOCO_GL=osmesa`` is the fallback to try); when no context
+    opens, :class:`~tli_verify.errors.TliError` (exit 2) says so.
+
+    Parameters
+    ----------
+    every : int, optional
+        Keep one control step in ``every`` (default 2: 25 frames/s at 20 ms).
+    size : tuple of int, optional
+        ``(height, width)`` in pixels.
+    """
+
+    def __init__(self, every: int = 2, size: tuple[int, int] = (360, 480)) -> None:
+        self.every = int(every)
+        self.size = size
+        self.frames: list[npt.NDArray[np.uint8]] = []
+        self._renderer: Any = None
+        self._count = 0
+
+    def _open(self, rig: Any) -> Any:
+        import mujoco
+
+        try:
+            return mujoco.Renderer(rig.model, *self.size)
+        except Exception as exc:
+            raise TliError(
+                f"--video: no headless OpenGL with MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
+                f"({' '.join(str(exc).split())[:100]}); try MUJOCO_GL=osmesa, or run without "
+                "--video") from None
+
+    def frame(self, rig: Any) -> None:
+        """Render the current state (every ``every``-th call)."""
+        self._count += 1
+        if (self._count - 1) % self.every:
+            return
+        import mujoco
+
+        if self._renderer is None:
+            self._renderer = self._open(rig)
+        cam = mujoco.MjvCamera()
+        cam.lookat[:] = (0.5, 0.0, 0.06)
+        cam.distance, cam.azimuth, cam.elevation = 0.9, 180.0, -30.0
+        self._renderer.update_scene(rig.data, cam)
+        self.frames.append(self._renderer.render().copy())
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the frames as an MP4 (imageio-ffmpeg), atomically."""
+        import tempfile
+
+        import imageio.v2 as imageio
+
+        from tli_verify.io import atomic_write_bytes
+
+        if not self.frames:
+            raise TliError(f"--video {path}: no frames were rendered")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "video.mp4"
+            imageio.mimwrite(out, list(self.frames),
+                             fps=round(1 / (CONTROL_DT * self.every)),
+                             codec="libx264", macro_block_size=8)
+            atomic_write_bytes(path, out.read_bytes())
+
+
+def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
+               duration: float = 20.0, robot: str = "hand") -> list[dict[str, Any]]:
+    """Trials with one executive (cuts carry over), as JSON records; for worker processes.
+
+    Parameters
+    ----------
+    seeds : list of int
+    variant : str, optional
+    perturb : bool, optional
+    duration : float, optional
+    robot : str, optional
+
+    Returns
+    -------
+    list of dict
+        :meth:`TrialResult.to_json` per seed.
+    """
+    policy = load_policy(variant)
+    return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
+                      duration=duration, robot=robot).to_json() for s in seeds]
+
+
+def plot_flow(model: Any, path: str | os.PathLike[str], *,
+              demos: list[Any] | None = None, title: str = "") -> None:
+    """A Fig. 9-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
+
+    Streamlines: the certified DS of each mode (``model.modes[mode].velocity``, cuts
+    included) integrated at the control period from a grid of starts around its demonstrated
+    region, in the slice ``x`` = the attractor's; the learned cut planes of each mode drawn as
+    patches of their hyperplane in that slice; the demonstrations in black.
+
+    Parameters
+    ----------
+    model : Model
+        E.g. ``policy.model`` after trials (with the cuts learned online).
+    path : path-like
+        PNG to write (atomically).
+    demos : list of Demonstration, optional
+    title : str, optional
+    """
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tli_verify.io import atomic_write_bytes
+
+    colors = {"a": "tab:gray", "b": "tab:orange", "c": "tab:red", "d": "tab:green"}
+    fig = plt.figure(figsize=(8, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    rng = np.random.default_rng(0)
+    for key, mm in sorted(model.modes.items()):
+        mode = key.split("->")[0]
+        x_star = mm.ds.attractor
+        means = np.asarray(mm.ds.means)
+        starts = means[rng.integers(0, len(means), size=10)] + \
+            rng.normal(scale=[0.0, 0.15, 0.1, 0.1], size=(10, 4))
+        starts[:, 0] = x_star[0]
+        for z in starts:
+            pts = [z.copy()]
+            for _ in range(400):
+                v = mm.velocity(pts[-1], dt=CONTROL_DT)
+                pts.append(pts[-1] + CONTROL_DT * v)
+            arr = np.array(pts)
+            ax.plot(arr[:, 1], arr[:, 2], arr[:, 3], color=colors.get(mode, "b"), lw=0.8,
+                    alpha=0.8)
+        ax.scatter([x_star[1]], [x_star[2]], [x_star[3]], color=colors.get(mode, "b"),
+                   marker="*", s=120, edgecolor="k", label=f"mode {mode}: DS and x*")
+        for cut in model.region_cuts(mode):
+            n, p = np.asarray(cut.normal), np.asarray(cut.point)
+            if abs(n[3]) < 1e-9:
+                continue
+            u = np.linspace(-0.4, 0.4, 2)
+            yy, zz = np.meshgrid(p[1] + u, p[2] + u)
+            pp = p[3] - (n[1] * (yy - p[1]) + n[2] * (zz - p[2]) + n[0] * (x_star[0] - p[0])) \
+                / n[3]
+            pp = np.clip(pp, -1.0, 2.0)  # a plane nearly along the pitch axis: clipped
+            ax.plot_surface(yy, zz, pp, color=colors.get(mode, "b"), alpha=0.3)
+    for demo in demos or []:
+        ax.plot(demo.x[:, 1], demo.x[:, 2], demo.x[:, 3], color="k", lw=1.2, alpha=0.7)
+    ax.set_xlabel("y (dm)")
+    ax.set_ylabel("z (dm)")
+    ax.set_zlabel("pitch (rad)")
+    ax.set_zlim(-1.0, 2.0)
+    ax.set_title(title or "Modulated LTL-DS flow per mode (y, z, pitch) with learned cuts")
+    ax.legend(loc="upper left", fontsize=8)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())

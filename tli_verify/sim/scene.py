@@ -1,0 +1,394 @@
+"""The soup-scooping scene in MuJoCo (paper Sec. 7.2, Fig. 8; issue 13 "Scene and sensors").
+
+A table, a soup bowl with 30 beads (radius 8 mm, 2 g), a target bowl, and a ladle: a round tray
+whose rim is open over the front 110 degrees (a closed front lip of 3 mm or more scooped nothing).
+The MJCF is generated from Python with :class:`mujoco.MjSpec`, so the same ladle can hang under a
+mocap body (phase 1, :func:`build_mocap_scene`) or be attached to the Panda hand
+(:func:`add_ladle` on the hand body, :func:`add_scene` for the rest).
+
+World frame: z up, the table top at ``z = 0``, the Panda base (when present) at the origin. The
+task moves in the y-z plane: the soup bowl at ``SOUP_CENTER`` (y < 0), the target bowl at
+``TARGET_CENTER`` (y > 0), both at x = 0.5 m.
+
+Ladle frame (site ``ladle_tray``): origin at the centre of the tray floor's top face, local +x the
+open front (the scooping direction), local +z the tray normal. At pitch 0 the front faces world -y
+(towards the soup, away from the target); a positive pitch (a rotation about world +x) tips the
+front down -- scooping at small positive pitch, pouring at large positive pitch.
+
+Contact settings measured to scoop (issue 13): ``condim`` 6, elliptic cones, ``impratio`` 10, a
+2 ms step, ``implicitfast``, ``solimp`` 0.95 0.99 0.001.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import TliError
+
+__all__ = [
+    "BEAD_MASS",
+    "BEAD_RADIUS",
+    "N_BEADS",
+    "SOUP_CENTER",
+    "TARGET_CENTER",
+    "Bowl",
+    "SceneIds",
+    "add_ladle",
+    "add_scene",
+    "build_mocap_scene",
+    "ladle_quat",
+    "reset_beads",
+    "scene_ids",
+    "set_contact_options",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+N_BEADS = 30
+BEAD_RADIUS = 0.008
+BEAD_MASS = 0.002
+SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+FRICTION = (1.0, 0.005, 0.0001)
+
+SOUP_CENTER = np.array([0.5, -0.2, 0.0])
+TARGET_CENTER = np.array([0.5, 0.2, 0.0])
+
+TRAY_RADIUS = 0.035
+TRAY_HALF_THICKNESS = 0.001
+RIM_HEIGHT = 0.015
+RIM_HALF_WIDTH = 0.002
+OPEN_FRONT_DEG = 110.0
+HANDLE_LENGTH = 0.16
+LADLE_MASS = 0.12
+CARRIER_MASS = 1.0
+CARRIER_INERTIA = 0.01
+
+
+@dataclass(frozen=True, slots=True)
+class Bowl:
+    """A round bowl on the table.
+
+    Attributes
+    ----------
+    name : str
+    center : ndarray, shape (3,)
+        Centre of the bowl's base on the table top.
+    radius : float
+        Inner radius (m).
+    floor : float
+        Height of the inner floor's top face above the table (m).
+    height : float
+        Height of the rim's top above the table (m).
+    """
+
+    name: str
+    center: FloatArray
+    radius: float
+    floor: float
+    height: float
+
+    def inside(self, p: FloatArray, *, above: float = 0.0) -> npt.NDArray[np.bool_]:
+        """Points inside the bowl's volume, extended ``above`` metres over the rim.
+
+        Parameters
+        ----------
+        p : ndarray, shape (..., 3)
+        above : float, optional
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+        """
+        d = np.hypot(p[..., 0] - self.center[0], p[..., 1] - self.center[1])
+        z = p[..., 2] - self.center[2]
+        return (d < self.radius) & (z > self.floor - 1e-3) & (z < self.height + above)
+
+
+SOUP_BOWL = Bowl("soup", SOUP_CENTER, radius=0.11, floor=0.008, height=0.045)
+SOUP_FLAT = 0.035
+"""Radius of the soup bowl's flat bottom; its floor rises outside it at ``SOUP_SLOPE``."""
+SOUP_SLOPE = 0.2
+"""Slope (rad) of the soup bowl's conical floor ring: the beads gather in the middle."""
+TARGET_BOWL = Bowl("target", TARGET_CENTER, radius=0.08, floor=0.008, height=0.04)
+
+
+def set_contact_options(spec: mujoco.MjSpec) -> None:
+    """The measured contact settings (module doc) on ``spec``'s options."""
+    spec.option.timestep = 0.002
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+
+
+def _contact(geom: mujoco.MjsGeom) -> mujoco.MjsGeom:
+    geom.condim = 6
+    geom.solimp = list(SOLIMP)
+    geom.friction = list(FRICTION)
+    return geom
+
+
+def _bowl(world: mujoco.MjsBody, bowl: Bowl, rgba: tuple[float, ...], segments: int = 28,
+          *, flat: float | None = None, slope: float = 0.0) -> None:
+    body = world.add_body(name=f"{bowl.name}_bowl", pos=bowl.center.tolist())
+    wall = 0.006
+    _contact(body.add_geom(name=f"{bowl.name}_floor", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                           size=[bowl.radius + wall, bowl.floor / 2, 0],
+                           pos=[0, 0, bowl.floor / 2], rgba=list(rgba)))
+    r = bowl.radius + wall / 2
+    half_len = r * math.tan(math.pi / segments) + 1e-3
+    for k in range(segments):
+        a = 2 * math.pi * k / segments
+        _contact(body.add_geom(
+            name=f"{bowl.name}_wall{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[wall / 2, half_len, bowl.height / 2],
+            pos=[r * math.cos(a), r * math.sin(a), bowl.height / 2],
+            quat=[math.cos(a / 2), 0, 0, math.sin(a / 2)], rgba=list(rgba)))
+    if flat is None:
+        return
+    # a conical ring from the flat bottom up to the wall, of tilted tiles
+    half_t = 0.003
+    run = bowl.radius - flat
+    rise = run * math.tan(slope)
+    half_w = bowl.radius * math.tan(math.pi / segments) + 1e-3
+    qy = np.array([math.cos(-slope / 2), 0.0, math.sin(-slope / 2), 0.0])
+    for k in range(segments):
+        a = 2 * math.pi * k / segments
+        rm = (flat + bowl.radius) / 2 + half_t * math.sin(slope)
+        zm = bowl.floor + rise / 2 - half_t * math.cos(slope)
+        qz = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
+        q = np.empty(4)
+        mujoco.mju_mulQuat(q, qz, qy)
+        _contact(body.add_geom(
+            name=f"{bowl.name}_slope{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[run / 2 / math.cos(slope) + 1e-3, half_w, half_t],
+            pos=[rm * math.cos(a), rm * math.sin(a), zm], quat=q.tolist(), rgba=list(rgba)))
+
+
+def add_scene(spec: mujoco.MjSpec) -> None:
+    """Add the table, both bowls and the 30 beads to ``spec``'s world body.
+
+    The beads start on a grid above the soup bowl; :func:`reset_beads` drops and settles them.
+    """
+    world = spec.worldbody
+    _contact(world.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_BOX,
+                            size=[0.3, 0.5, 0.025], pos=[0.55, 0.0, -0.025],
+                            rgba=[0.55, 0.4, 0.3, 1]))
+    _bowl(world, SOUP_BOWL, (0.85, 0.85, 0.9, 1), flat=SOUP_FLAT, slope=SOUP_SLOPE)
+    _bowl(world, TARGET_BOWL, (0.3, 0.6, 0.3, 1))
+    for i in range(N_BEADS):
+        body = world.add_body(name=f"bead{i}", pos=_bead_grid(i).tolist())
+        body.add_freejoint(name=f"bead{i}_free")
+        _contact(body.add_geom(name=f"bead{i}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                               size=[BEAD_RADIUS, 0, 0], mass=BEAD_MASS,
+                               rgba=[0.95, 0.6, 0.1, 1]))
+
+
+def _bead_grid(i: int) -> FloatArray:
+    """Start positions: layers of a 4x4 grid inside the soup bowl (before settling)."""
+    layer, k = divmod(i, 12)
+    ring = [(-1.5, -0.5), (-1.5, 0.5), (-0.5, -1.5), (-0.5, -0.5), (-0.5, 0.5), (-0.5, 1.5),
+            (0.5, -1.5), (0.5, -0.5), (0.5, 0.5), (0.5, 1.5), (1.5, -0.5), (1.5, 0.5)][k]
+    step = 2.6 * BEAD_RADIUS
+    return SOUP_CENTER + np.array([ring[0] * step, ring[1] * step,
+                                   SOUP_BOWL.floor + BEAD_RADIUS * (1.2 + 2.4 * layer)])
+
+
+def add_ladle(body: mujoco.MjsBody, *, pos: tuple[float, float, float] = (0.0, 0.0, 0.0),
+              quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+              ) -> mujoco.MjsBody:
+    """Attach the ladle under ``body`` (a mocap body, a free body, or the Panda hand).
+
+    Parameters
+    ----------
+    body : mujoco.MjsBody
+    pos, quat : tuple, optional
+        Pose of the ladle frame (module doc) in ``body``'s frame.
+
+    Returns
+    -------
+    mujoco.MjsBody
+        The ladle body (``ladle``), rigidly fixed to ``body``; its site ``ladle_tray`` is the
+        tray frame.
+    """
+    ladle = body.add_body(name="ladle", pos=list(pos), quat=list(quat))
+    rgba = [0.6, 0.6, 0.65, 1]
+    _contact(ladle.add_geom(name="ladle_floor", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                            size=[TRAY_RADIUS, TRAY_HALF_THICKNESS, 0],
+                            pos=[0, 0, -TRAY_HALF_THICKNESS], rgba=rgba,
+                            mass=LADLE_MASS * 0.4))
+    half_open = math.radians(OPEN_FRONT_DEG) / 2
+    n = 14
+    span = 2 * math.pi - 2 * half_open
+    r = TRAY_RADIUS + RIM_HALF_WIDTH
+    half_len = r * math.sin(span / n / 2) + 1e-3
+    for k in range(n):
+        a = half_open + span * (k + 0.5) / n
+        _contact(ladle.add_geom(
+            name=f"ladle_rim{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[RIM_HALF_WIDTH, half_len, RIM_HEIGHT / 2],
+            pos=[r * math.cos(a), r * math.sin(a), RIM_HEIGHT / 2],
+            quat=[math.cos(a / 2), 0, 0, math.sin(a / 2)], rgba=rgba,
+            mass=LADLE_MASS * 0.2 / n))
+    # the handle: from the back of the rim, rising at 60 degrees
+    back = TRAY_RADIUS + 2 * RIM_HALF_WIDTH
+    c, sn = math.cos(math.pi / 3), math.sin(math.pi / 3)
+    _contact(ladle.add_geom(
+        name="ladle_handle", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+        fromto=[-back, 0, RIM_HEIGHT, -back - HANDLE_LENGTH * c, 0,
+                RIM_HEIGHT + HANDLE_LENGTH * sn],
+        size=[0.006, 0, 0], rgba=rgba, mass=LADLE_MASS * 0.4))
+    ladle.add_site(name="ladle_tray", pos=[0, 0, 0], size=[0.004, 0, 0], rgba=[1, 0, 0, 1])
+    ladle.add_site(name="ladle_grip", pos=[-back - HANDLE_LENGTH * c, 0,
+                                           RIM_HEIGHT + HANDLE_LENGTH * sn],
+                   size=[0.004, 0, 0], rgba=[0, 0, 1, 1])
+    return ladle
+
+
+def ladle_quat(pitch: float) -> FloatArray:
+    """World orientation (w, x, y, z) of the ladle frame at ``pitch`` (module doc).
+
+    ``R = Rx(pitch) Rz(-pi/2)``: the open front along world -y at pitch 0, tipped down by a
+    positive pitch.
+
+    Parameters
+    ----------
+    pitch : float
+        Radians.
+
+    Returns
+    -------
+    ndarray, shape (4,)
+    """
+    qz = np.array([math.cos(-math.pi / 4), 0.0, 0.0, math.sin(-math.pi / 4)])
+    qx = np.array([math.cos(pitch / 2), math.sin(pitch / 2), 0.0, 0.0])
+    out = np.empty(4)
+    mujoco.mju_mulQuat(out, qx, qz)
+    return out
+
+
+def build_mocap_scene() -> mujoco.MjModel:
+    """The phase-1 scene: the ladle on a free "hand" body, and a mocap marker of its target.
+
+    The free body ``ladle_carrier`` (1 kg, like the Panda hand; gravity compensated) carries
+    the ladle; :class:`tli_verify.sim.demos.MocapRig` drives it to the pose of the mocap body
+    ``ladle_target`` with a Cartesian impedance law (a spring-damper wrench in
+    ``xfrc_applied``), so perturbation wrenches push and tilt it as they would a hand under
+    impedance control. The marker does not collide.
+
+    Returns
+    -------
+    mujoco.MjModel
+    """
+    spec = mujoco.MjSpec()
+    spec.modelname = "soup_scooping_mocap"
+    set_contact_options(spec)
+    add_scene(spec)
+    start = SOUP_CENTER + np.array([0.0, 0.25, 0.2])
+    q = ladle_quat(0.0)
+    marker = spec.worldbody.add_body(name="ladle_target", mocap=True, pos=start.tolist(),
+                                     quat=q.tolist())
+    marker.add_site(name="target_marker", size=[0.005, 0, 0], rgba=[0, 1, 0, 0.5])
+    carrier = spec.worldbody.add_body(name="ladle_carrier", pos=start.tolist(), quat=q.tolist())
+    carrier.add_freejoint(name="ladle_free")
+    carrier.mass = CARRIER_MASS
+    carrier.inertia = [CARRIER_INERTIA] * 3
+    carrier.explicitinertial = True
+    carrier.gravcomp = 1.0  # as the arm's gravity compensation would
+    add_ladle(carrier).gravcomp = 1.0
+    spec.worldbody.add_light(pos=[0.5, 0.0, 1.5], dir=[0, 0, -1])
+    spec.worldbody.add_camera(name="side", pos=[1.3, 0.0, 0.45],
+                              xyaxes=[0, 1, 0, -0.3, 0, 0.95])
+    try:
+        return spec.compile()
+    except ValueError as exc:  # pragma: no cover - a bug in this module
+        raise TliError(f"sim scene: MuJoCo refused the generated MJCF: {exc}") from exc
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SceneIds:
+    """Ids of the scene's parts in a compiled model (what the sensors read).
+
+    Attributes
+    ----------
+    bead_bodies : ndarray of int, shape (30,)
+    bead_geoms : ndarray of int, shape (30,)
+    bead_qpos : ndarray of int, shape (30,)
+        Address of each bead's free joint in ``qpos`` (7 numbers each).
+    bead_dof : ndarray of int, shape (30,)
+        Address of each bead's free joint in ``qvel`` (6 numbers each).
+    ladle_body : int
+    ladle_geoms : frozenset of int
+        The tray floor and rim (what a bead rests on).
+    tray_site : int
+    """
+
+    bead_bodies: npt.NDArray[np.int64]
+    bead_geoms: npt.NDArray[np.int64]
+    bead_qpos: npt.NDArray[np.int64]
+    bead_dof: npt.NDArray[np.int64]
+    ladle_body: int
+    ladle_geoms: frozenset[int]
+    tray_site: int
+
+
+def scene_ids(model: mujoco.MjModel) -> SceneIds:
+    """Look up the scene's ids in ``model`` (built with :func:`add_scene` + :func:`add_ladle`)."""
+    def need(kind: mujoco.mjtObj, name: str) -> int:
+        i = int(mujoco.mj_name2id(model, kind, name))
+        if i < 0:
+            raise TliError(f"sim scene: the model has no {name!r} "
+                           "(build it with tli_verify.sim.scene)")
+        return i
+
+    bodies = np.array([need(mujoco.mjtObj.mjOBJ_BODY, f"bead{i}") for i in range(N_BEADS)])
+    geoms = np.array([need(mujoco.mjtObj.mjOBJ_GEOM, f"bead{i}") for i in range(N_BEADS)])
+    joints = [need(mujoco.mjtObj.mjOBJ_JOINT, f"bead{i}_free") for i in range(N_BEADS)]
+    ladle = need(mujoco.mjtObj.mjOBJ_BODY, "ladle")
+    tray = {need(mujoco.mjtObj.mjOBJ_GEOM, "ladle_floor")}
+    k = 0
+    while (g := int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"ladle_rim{k}"))) >= 0:
+        tray.add(g)
+        k += 1
+    return SceneIds(bead_bodies=bodies.astype(np.int64), bead_geoms=geoms.astype(np.int64),
+                    bead_qpos=np.array([model.jnt_qposadr[j] for j in joints], dtype=np.int64),
+                    bead_dof=np.array([model.jnt_dofadr[j] for j in joints], dtype=np.int64),
+                    ladle_body=ladle, ladle_geoms=frozenset(tray),
+                    tray_site=need(mujoco.mjtObj.mjOBJ_SITE, "ladle_tray"))
+
+
+def reset_beads(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds, *,
+                seed: int = 0, settle: float = 0.6,
+                step: Callable[[], None] | None = None) -> None:
+    """Put the beads on their grid with a seeded jitter and let them settle in the bowl.
+
+    Parameters
+    ----------
+    model, data : MuJoCo model and data
+        Only the beads are reset; the rest evolves under ``step`` while they settle.
+    ids : SceneIds
+    seed : int, optional
+    settle : float, optional
+        Seconds of simulation to let the beads fall and come to rest.
+    step : callable, optional
+        One physics step (the caller's controller + ``mj_step``); default plain ``mj_step``.
+    """
+    rng = np.random.default_rng([seed, 13])
+    for i in range(N_BEADS):
+        a = int(ids.bead_qpos[i])
+        jitter = rng.uniform(-0.2, 0.2, size=2) * BEAD_RADIUS
+        data.qpos[a:a + 3] = _bead_grid(i) + np.array([jitter[0], jitter[1], 0.0])
+        data.qpos[a + 3:a + 7] = (1.0, 0.0, 0.0, 0.0)
+        d = int(ids.bead_dof[i])
+        data.qvel[d:d + 6] = 0.0
+    mujoco.mj_forward(model, data)
+    for _ in range(round(settle / model.opt.timestep)):
+        if step is None:
+            mujoco.mj_step(model, data)
+        else:
+            step()

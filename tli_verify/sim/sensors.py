@@ -1,0 +1,173 @@
+"""The scooping task's sensors, computed from the physics (paper Sec. 7.2; issue 13).
+
+Never a scripted flag: every reading comes from the simulator's state in ``mjData``.
+
+* ``r`` -- *the spoon is in the soup bowl's region*: the tray frame's origin (site
+  ``ladle_tray``) lies inside the soup bowl's volume, extended ``R_ABOVE`` over its rim. It is
+  the ladle's geometry against the bowl's, not "a bead touches the ladle": that would stay on
+  while the soup is carried away.
+* ``s`` -- *soup on the spoon*: at least one bead rests on the ladle: its centre lies in the
+  tray's volume (within the tray radius, between the tray floor and one bead diameter above the
+  rim, in the tray frame) and it touches a tray geom (a contact with the floor or rim, or its
+  centre within ``FLOOR_GAP`` of resting height over the floor) -- or touches such a bead (a
+  second layer).
+* ``t`` -- *at the target*: the tray frame's origin is above the target bowl (within its
+  radius, between its floor and ``T_ABOVE`` over its rim) **and** there is soup to deliver: a
+  bead on the ladle, or in the target bowl or the column above it (falling in while
+  pouring). An empty spoon over the target is not "at the
+  target": the task is not done, and the executive keeps reaching for the soup.
+
+The spec's modes (``specs/franka-scoop.toml``) label the readings: ``a = !r & !s & !t``,
+``b = r & !s & !t``, ``c = s & !t`` (soup on the spoon overrides the bowl region, as pink
+overrides yellow in the 2-D world), ``d = t``; every reading is labelled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.sim.scene import (
+    BEAD_RADIUS,
+    RIM_HEIGHT,
+    SOUP_BOWL,
+    TARGET_BOWL,
+    TRAY_RADIUS,
+    SceneIds,
+    scene_ids,
+)
+
+__all__ = ["R_ABOVE", "SENSOR_NAMES", "T_ABOVE", "Reading", "ScoopSensors"]
+
+BoolArray = npt.NDArray[np.bool_]
+FloatArray = npt.NDArray[np.float64]
+
+SENSOR_NAMES = ("r", "s", "t")
+R_ABOVE = 0.02
+"""How far over the soup bowl's rim (m) its region extends."""
+T_ABOVE = 0.25
+"""How far over the target bowl's rim (m) "above the target" extends."""
+FLOOR_GAP = 0.003
+"""A bead whose centre is within this (m) of one radius above the tray floor lies on it."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Reading:
+    """One reading and the physical facts behind it.
+
+    Attributes
+    ----------
+    r, s, t : bool
+        The sensors (module doc).
+    on_ladle : ndarray of bool, shape (30,)
+        Beads resting on the ladle.
+    in_target : ndarray of bool, shape (30,)
+        Beads inside the target bowl.
+    tray : ndarray, shape (3,)
+        World position of the tray frame.
+    """
+
+    r: bool
+    s: bool
+    t: bool
+    on_ladle: BoolArray
+    in_target: BoolArray
+    tray: FloatArray
+
+    def as_dict(self) -> dict[str, bool]:
+        """``{"r": .., "s": .., "t": ..}``."""
+        return {"r": self.r, "s": self.s, "t": self.t}
+
+
+class ScoopSensors:
+    """The r, s, t sensors of a scene built by :mod:`tli_verify.sim.scene`.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    ids : SceneIds, optional
+        Default: looked up in ``model``.
+    """
+
+    __slots__ = ("_bead_of_geom", "_is_tray", "ids", "model")
+
+    def __init__(self, model: mujoco.MjModel, ids: SceneIds | None = None) -> None:
+        self.model = model
+        self.ids = scene_ids(model) if ids is None else ids
+        self._bead_of_geom = np.full(model.ngeom, -1, dtype=np.int64)
+        self._bead_of_geom[self.ids.bead_geoms] = np.arange(self.ids.bead_geoms.size)
+        self._is_tray = np.zeros(model.ngeom, dtype=bool)
+        self._is_tray[list(self.ids.ladle_geoms)] = True
+
+    def _local(self, data: mujoco.MjData) -> FloatArray:
+        """Bead centres in the tray frame, shape (30, 3)."""
+        site = self.ids.tray_site
+        rot = data.site_xmat[site].reshape(3, 3)
+        return np.asarray((data.xpos[self.ids.bead_bodies] - data.site_xpos[site]) @ rot)
+
+    def in_tray_volume(self, data: mujoco.MjData) -> BoolArray:
+        """Beads whose centre lies in the tray's volume (tray frame; module doc), shape (30,)."""
+        local = self._local(data)
+        radial = np.hypot(local[:, 0], local[:, 1])
+        return (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
+            (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
+
+    def on_ladle(self, data: mujoco.MjData) -> BoolArray:
+        """Beads resting on the ladle, shape (30,).
+
+        In the tray's volume and touching a tray geom (a contact), or lying on the tray floor
+        (centre within ``FLOOR_GAP`` of one radius above it: a bead that rolls or bounces on
+        the floor loses its contact for a step now and then), or touching such a bead.
+        """
+        local = self._local(data)
+        radial = np.hypot(local[:, 0], local[:, 1])
+        inside = (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
+            (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
+        if not inside.any():
+            return inside
+        touching = local[:, 2] < BEAD_RADIUS + FLOOR_GAP
+        pairs = data.contact.geom[: data.ncon]
+        b0, b1 = self._bead_of_geom[pairs[:, 0]], self._bead_of_geom[pairs[:, 1]]
+        touching[b0[(b0 >= 0) & self._is_tray[pairs[:, 1]]]] = True
+        touching[b1[(b1 >= 0) & self._is_tray[pairs[:, 0]]]] = True
+        on = inside & touching
+        both = (b0 >= 0) & (b1 >= 0)
+        for _ in range(2):  # beads lying on beads that lie on the tray
+            if not both.any():
+                break
+            u, v = b0[both], b1[both]
+            more = on.copy()
+            more[u[on[v]]] = True
+            more[v[on[u]]] = True
+            more &= inside
+            if (more == on).all():
+                break
+            on = more
+        return on
+
+    def in_target(self, data: mujoco.MjData) -> BoolArray:
+        """Beads inside the target bowl, shape (30,)."""
+        return TARGET_BOWL.inside(data.xpos[self.ids.bead_bodies])
+
+    def over_target(self, data: mujoco.MjData) -> BoolArray:
+        """Beads in the target bowl or in the column above it (falling in), shape (30,)."""
+        return TARGET_BOWL.inside(data.xpos[self.ids.bead_bodies], above=T_ABOVE)
+
+    def read(self, data: mujoco.MjData) -> Reading:
+        """The reading at the current state of ``data`` (after ``mj_step``/``mj_forward``).
+
+        Returns
+        -------
+        Reading
+        """
+        tray = data.site_xpos[self.ids.tray_site].copy()
+        on = self.on_ladle(data)
+        target = self.in_target(data)
+        r = bool(SOUP_BOWL.inside(tray, above=R_ABOVE))
+        above_target = bool(TARGET_BOWL.inside(tray, above=T_ABOVE))
+        s = bool(on.any())
+        t = above_target and (s or bool(self.over_target(data).any()))
+        return Reading(r=r, s=s, t=t, on_ladle=on, in_target=target, tray=tray)
