@@ -15,7 +15,7 @@ from tli_verify.io import bundled_dir
 
 pytestmark = pytest.mark.sim
 
-ROOT = bundled_dir("models").parent
+ROOT = bundled_dir("sim") / "franka"  # the Franka project (not in the deployed models/)
 
 
 def _project(tmp: Path) -> Path:

@@ -58,8 +58,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--seed", type=_seed, default=0, help="seed of the first trial (default 0)")
     f.add_argument("--certificates", type=Path, default=None, metavar="DIR",
                    help="certificates directory of a project holding "
-                   "franka-scoop.cert.json, with models/ and specs/ next to it (default: the "
-                   "bundled files)")
+                   "franka-scoop.cert.json, with models/ and specs/ next to it (default: "
+                   "sim/franka/certificates)")
     f.add_argument("--no-modulation", action="store_true", help="learn no cuts (ablation)")
     f.add_argument("--no-replan", action="store_true",
                    help="run the demonstrated mode sequence open loop (ablation)")
@@ -139,11 +139,9 @@ def _run(args: argparse.Namespace) -> int:
         recorder.save(args.video)
         summary["video"] = str(args.video)
     if args.fig9 is not None:
-        from tli_verify.demos import load_demos
-        from tli_verify.io import bundled_dir
-        from tli_verify.sim.loop import plot_flow
+        from tli_verify.sim.loop import bundled_demos, plot_flow
 
-        demos = load_demos(sorted((bundled_dir("demos") / "franka").glob("*.csv")))
+        demos = bundled_demos()
         plot_flow(policy.model, args.fig9, demos=demos,
                   title=f"tli sim franka: {variant} flow after {len(results)} trial(s), "
                   f"{summary['cuts_added']} cut(s) learned")

@@ -103,6 +103,22 @@ class Perturbation:
                 "duration": self.duration, "wrench": [round(w, 4) for w in self.wrench]}
 
 
+def project_dir() -> Path:
+    """The bundled Franka project: ``sim/franka`` with ``specs/``, ``models/``,
+    ``certificates/`` and ``demos/franka/`` (outside the repository's deployed ``models/``:
+    the gate requires campaign evidence this policy does not have yet, README section 11)."""
+    from tli_verify.io import bundled_dir
+
+    return bundled_dir("sim") / "franka"
+
+
+def bundled_demos() -> list[Any]:
+    """The recorded Franka demonstrations (:func:`project_dir` ``/demos/franka``)."""
+    from tli_verify.demos import load_demos
+
+    return load_demos(sorted((project_dir() / "demos" / "franka").glob("*.csv")))
+
+
 def workspace() -> tuple[FloatArray, FloatArray]:
     """Bounds of the target pose: the bundled demonstrations' box widened by ``MARGIN``.
 
@@ -110,11 +126,7 @@ def workspace() -> tuple[FloatArray, FloatArray]:
     -------
     lo, hi : ndarray, shape (4,)
     """
-    from tli_verify.demos import load_demos
-    from tli_verify.io import bundled_dir
-
-    demos = load_demos(sorted((bundled_dir("demos") / "franka").glob("*.csv")))
-    x = np.vstack([d.x for d in demos])
+    x = np.vstack([d.x for d in bundled_demos()])
     return x.min(axis=0) - MARGIN, x.max(axis=0) + MARGIN
 
 
@@ -212,7 +224,7 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         One of :data:`VARIANTS`.
     root : path-like, optional
         Project directory with ``specs/``, ``models/`` (default: the parent of
-        ``certificates`` when given, else the bundled files).
+        ``certificates`` when given, else the bundled ``sim/franka``).
     certificates : path-like, optional
         Directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``).
 
@@ -224,7 +236,6 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
     """
     from tli_verify.errors import CertificateError
     from tli_verify.experiments.scoop import SequencePolicy
-    from tli_verify.io import bundled_dir
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
     from tli_verify.model import load_model
@@ -236,7 +247,7 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
     elif certificates is not None:
         base = Path(certificates).parent  # a project: models/ and specs/ next to it
     else:
-        base = bundled_dir("models").parent
+        base = project_dir()
     cert_dir = Path(certificates) if certificates is not None else base / "certificates"
     cert = cert_dir / "franka-scoop.cert.json"
     if not cert.is_file():
