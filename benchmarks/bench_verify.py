@@ -146,7 +146,7 @@ def main(out_dir: Path) -> str:
         "| backend | wall time | runs/s | target |\n|---|---:|---:|---:|\n"
         f"| 2 processes | {wall2:.1f} s | {RUNS / wall2:.0f} | <= 20 s |\n"
         f"| 1 process | {wall1:.1f} s | {RUNS / wall1:.0f} | |\n"
-        f"| Dask LocalCluster, 2 workers (lead fills) | {dask_cell} | | |\n\n"
+        f"| Dask LocalCluster, 2 workers | {dask_cell} | | |\n\n"
         f"CPU time per run (one core, in-process): drawing {draw_cpu * 1e3:.1f} ms (driver), "
         f"simulation + oracle {sim_cpu * 1e3:.1f} ms (worker), i.e. "
         f"{1 / sim_cpu:.0f} runs/s per worker core. Load average of the machine during the "
