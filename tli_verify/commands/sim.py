@@ -16,29 +16,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
+from tli_verify.commands import int_range, output_path
 
 __all__ = ["register"]
-
-
-def _count(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if not 1 <= n <= 1000:
-        raise argparse.ArgumentTypeError(f"must be between 1 and 1000, got {n}")
-    return n
-
-
-def _seed(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
-    return n
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -54,8 +34,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         description="Run N seeded, perturbed trials of the certified Franka scoop model. "
         "Exit 0: every trial delivered soup; 1: one did not, or the certificate refused the "
         "model; 2: bad arguments.")
-    f.add_argument("--trials", type=_count, default=1, help="number of trials (default 1)")
-    f.add_argument("--seed", type=_seed, default=0, help="seed of the first trial (default 0)")
+    f.add_argument("--trials", type=int_range(1, 1000), default=1,
+                   help="number of trials (default 1)")
+    f.add_argument("--seed", type=int_range(0), default=0,
+                   help="seed of the first trial (default 0)")
     f.add_argument("--certificates", type=Path, default=None, metavar="DIR",
                    help="certificates directory of a project holding "
                    "franka-scoop.cert.json, with models/ and specs/ next to it (default: "

@@ -12,29 +12,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
+from tli_verify.commands import int_range, output_path
 
 __all__ = ["register", "write_report"]
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
-
-
-def _nonneg(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
-    return v
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -47,24 +27,24 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "and write a report (campaign.json, campaign.md, campaign.png, counterexample.json). "
         "Exit 0: no violation; 1: a violation.")
     p.add_argument("--world", required=True, help="world name (its sensor model, regions)")
-    p.add_argument("--examples", type=_positive, default=200, help="cases (default 200)")
-    p.add_argument("--seed", type=_nonneg, default=0, help="seed (default 0)")
+    p.add_argument("--examples", type=int_range(1), default=200, help="cases (default 200)")
+    p.add_argument("--seed", type=int_range(0), default=0, help="seed (default 0)")
     p.add_argument("--no-modulation", action="store_true",
                    help="the ablation without cuts (replanning only)")
-    p.add_argument("--workers", type=_positive, default=None,
+    p.add_argument("--workers", type=int_range(1), default=None,
                    help="worker processes (default: CPU count)")
     p.add_argument("--backend", choices=("process", "dask", "serial"), default="process")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (--backend dask; default: a LocalCluster)")
-    p.add_argument("--batch-size", type=_positive, default=100, help="runs per batch")
-    p.add_argument("--max-pushes", type=_nonneg, default=3,
+    p.add_argument("--batch-size", type=int_range(1), default=100, help="runs per batch")
+    p.add_argument("--max-pushes", type=int_range(0), default=3,
                    help="perturbations per case, at most (default 3)")
-    p.add_argument("--window", type=_positive, default=700,
+    p.add_argument("--window", type=int_range(1), default=700,
                    help="perturbations happen in steps 1..WINDOW (default 700)")
     p.add_argument("--random-starts", action="store_true",
                    help="draw start states too (default: the world's nominal start)")
-    p.add_argument("--lag", type=_nonneg, default=0, help="sensor lag in steps")
-    p.add_argument("--target", type=_nonneg, default=0, metavar="N",
+    p.add_argument("--lag", type=int_range(0), default=0, help="sensor lag in steps")
+    p.add_argument("--target", type=int_range(0), default=0, metavar="N",
                    help="when nothing is found, N more driver-side examples guided by "
                    "hypothesis.target on the robustness margin")
     p.add_argument("--no-shrink", action="store_true", help="do not shrink")

@@ -67,7 +67,6 @@ from __future__ import annotations
 import enum
 import math
 import os
-from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -366,20 +365,10 @@ class Oracle:
         for a, b in automaton.mode_transitions():
             if a != b and a in succ:
                 succ[a].add(b)
-        goals = (frozenset(m for m in run_modes if not succ[m]) if goal_modes is None
+        # the same distances the runtime's planner ranks by (logic layer, not policy code)
+        goals = (frozenset(automaton.sink_modes()) if goal_modes is None
                  else frozenset(goal_modes))
-        preds: dict[str, set[str]] = {}
-        for a, bs in succ.items():
-            for b in bs:
-                preds.setdefault(b, set()).add(a)
-        dist = {g: 0 for g in goals}
-        queue = deque(sorted(goals))
-        while queue:
-            m = queue.popleft()
-            for p in sorted(preds.get(m, ())):
-                if p not in dist:
-                    dist[p] = dist[m] + 1
-                    queue.append(p)
+        dist = automaton.mode_distances(sorted(goals))
         far = len(run_modes) + 1
         planned: dict[str, frozenset[str]] = {}
         nxt: dict[str, str | None] = {}
