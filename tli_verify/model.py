@@ -292,10 +292,30 @@ class ModeModel:
         from tli_verify.boundary.modulation import check_control_period
 
         check_control_period(dt)
-        F = self.ds.velocity(X)
+        return self.modulate(X, self.ds.velocity(X), dt=dt)
+
+    def modulate(self, X: npt.ArrayLike, F: npt.ArrayLike, *, dt: float | None = None
+                 ) -> FloatArray:
+        """``M(x) F`` for DS velocities ``F = f(X)`` already evaluated (``F`` without cuts).
+
+        Lets a caller evaluate one DS for many modes' states at once (the batched executive:
+        models that differ only in their learned cuts share the DS) and modulate per cut set.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, n) or (n,)
+        F : array_like, same shape as ``X``
+            ``self.ds.velocity(X)``.
+        dt : float, optional
+            Control period (see :meth:`velocity`; checked there).
+
+        Returns
+        -------
+        ndarray, same shape as ``X``
+        """
+        F = np.asarray(F, dtype=np.float64)
         if self._modulator is None:
             return F
-
         single = F.ndim == 1
         Xa = np.atleast_2d(np.asarray(X, dtype=np.float64))
         out = self._modulator(Xa, np.atleast_2d(F), dt=dt)

@@ -886,9 +886,19 @@ def run_episodes(
         if not live:
             break
         V = np.zeros_like(X)
+        # the DS once per distinct LPV-DS (episodes whose models differ only in the cuts they
+        # learned share it), then each group's own modulation
+        by_ds: dict[int, tuple[Any, list[int]]] = {}
+        mms = []
         for (_, key), rows in groups.items():
-            pol = policies[rows[0]]
-            V[rows] = pol.model.modes[key].velocity(X[rows], dt=pol.dt)
+            mm = policies[rows[0]].model.modes[key]
+            mms.append((mm, rows))
+            by_ds.setdefault(id(mm.ds), (mm.ds, []))[1].extend(rows)
+        F = np.zeros_like(X)
+        for ds, rows in by_ds.values():
+            F[rows] = ds.velocity(X[rows])
+        for mm, rows in mms:
+            V[rows] = mm.modulate(X[rows], F[rows], dt=policies[rows[0]].dt)
         if np.isfinite(speed_cap):
             from tli_verify.runtime.rollout import cap_speed
 
