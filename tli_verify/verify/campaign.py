@@ -33,6 +33,7 @@ deterministically (``tli replay``).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import queue
@@ -616,6 +617,35 @@ def _budget(n: int) -> int:
     return math.ceil(1.3 * n) + 10
 
 
+@contextlib.contextmanager
+def import_independent_draws() -> Iterator[None]:
+    """Hypothesis generation that does not depend on which modules are imported.
+
+    Hypothesis (6.13x+) sometimes (p = 0.05 a choice) draws a "local constant" harvested from
+    every non-library module in ``sys.modules``, a pool that grows as modules are imported.
+    A campaign that lazily imports a module while running would then draw other cases from the
+    same seed later in the process (measured: the first campaign of a process differed from the
+    next ones). Inside this context that pool is empty, so a seed gives the same cases in any
+    process state. Without the (private) hook the draws still run, only less reproducibly.
+    """
+    try:
+        from hypothesis.internal.conjecture import providers
+    except ImportError:  # pragma: no cover - a hypothesis without the module
+        yield
+        return
+    getter = getattr(providers, "_get_local_constants", None)
+    empty_type = getattr(providers, "Constants", None)
+    if getter is None or empty_type is None:  # pragma: no cover - hypothesis changed
+        yield
+        return
+    empty = empty_type()
+    providers._get_local_constants = lambda: empty
+    try:
+        yield
+    finally:
+        providers._get_local_constants = getter
+
+
 def draw_cases(strategy: Any, n: int, seed: int | str) -> list[Case]:
     """``n`` cases from ``strategy``, deterministic in ``seed`` (hypothesis in this process).
 
@@ -636,8 +666,9 @@ def draw_cases(strategy: Any, n: int, seed: int | str) -> list[Case]:
         return False
 
     try:
-        find(strategy, collect, settings=_settings(_budget(n), [Phase.generate]),
-             random=random.Random(seed))
+        with import_independent_draws():
+            find(strategy, collect, settings=_settings(_budget(n), [Phase.generate]),
+                 random=random.Random(seed))
     except NoSuchExample:
         pass
     return out[:n]
@@ -715,9 +746,10 @@ def shrink(spec: SimSpec, strategy: Any, seed: int | str, examples: int, kind: V
 
     cond = _Shrinker(spec, kind, known)
     try:
-        found = find(strategy, cond, settings=_settings(_budget(examples),
-                                                        [Phase.generate, Phase.shrink]),
-                     random=random.Random(seed))
+        with import_independent_draws():
+            found = find(strategy, cond, settings=_settings(_budget(examples),
+                                                            [Phase.generate, Phase.shrink]),
+                         random=random.Random(seed))
     except NoSuchExample:
         return None, None, cond.simulated
     return found, cond.verdict(found), cond.simulated
@@ -743,9 +775,10 @@ def _targeted(spec: SimSpec, strategy: Any, seed: int, n: int
         return not v.ok
 
     try:
-        found = find(strategy, cond, settings=_settings(n, [Phase.generate, Phase.target,
-                                                            Phase.shrink]),
-                     random=random.Random(seed + 7919))
+        with import_independent_draws():
+            found = find(strategy, cond, settings=_settings(n, [Phase.generate, Phase.target,
+                                                                Phase.shrink]),
+                         random=random.Random(seed + 7919))
     except NoSuchExample:
         return None, None, count[0]
     return found, cache.get(found) or check_case(spec, found), count[0]
