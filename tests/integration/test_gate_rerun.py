@@ -12,8 +12,6 @@ from tests.support.evidence import attach_evidence
 from tli_verify.certify.certificate import issue_certificate, write_certificate
 from tli_verify.cli import main
 
-pytest.importorskip("tli_verify.verify.campaign")  # the verify branch (issue 12 A-C)
-
 
 def test_rerun_blocks_a_model_whose_ds_leaves_its_mode(project: Path,
                                                        capsys: pytest.CaptureFixture[str]
