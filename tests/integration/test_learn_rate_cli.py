@@ -8,17 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tli_verify.cli import main
+from tests.support.cli import run
 from tli_verify.ds.lyapunov import decay_rate, sampled_growth
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:  # argparse usage errors
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _rates(path: Path) -> dict[str, tuple[float, float, float | None]]:

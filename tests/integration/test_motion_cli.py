@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.cli import run
 from tests.support.evidence import attach_evidence
-from tli_verify.cli import main
 
 
 @pytest.fixture
@@ -22,15 +22,6 @@ def project(tmp_path: Path, repo: Path) -> Path:
         shutil.copy(demo, tmp_path / "demos" / demo.name)
     shutil.copy(repo / "specs" / "scoop.toml", tmp_path / "specs" / "scoop.toml")
     return tmp_path
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:  # argparse usage errors
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_error_line(err: str, *fragments: str) -> None:

@@ -1,0 +1,17 @@
+"""Run the ``tli`` CLI in-process and capture what it printed (shared by the CLI tests)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tli_verify.cli import main
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """``tli argv...``: the exit code (argparse usage errors included), stdout and stderr."""
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse usage errors
+        code = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
