@@ -124,3 +124,21 @@ def test_fig9_plot_is_written(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert code == 1  # half a second delivers nothing: the trial fails, the plot is written
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "0/1 trials" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("flag", "sub", "name"), [
+    ("--fig9", "models", "franka-scoop.model.json"),
+    ("--video", "certificates", "franka-scoop.cert.json"),
+    ("--fig9", "specs", "franka-scoop.toml"),
+])
+def test_outputs_never_overwrite_the_project(flag: str, sub: str, name: str, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    certs = _project(tmp_path)
+    victim = tmp_path / sub / name
+    before = victim.read_bytes()
+    code = main(["sim", "franka", "--certificates", str(certs), flag, str(victim)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("error: ") and err.count("\n") == 1
+    assert "would overwrite the input file" in err
+    assert victim.read_bytes() == before
+

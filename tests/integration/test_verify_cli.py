@@ -123,6 +123,10 @@ def test_process_backend_matches_serial(tmp_path: Path,
     (["verify", "--world", "scoop", "--model", "/nonexistent/m.json"], "no such model"),
     (["verify", "--world", "scoop", "--backend", "threads"], "--backend"),
     (["replay", "/nonexistent/case.json"], "no such case file"),
+    # checked before the campaign runs (one line: no campaign note before it)
+    (["verify", "--world", "scoop", "--examples", "5", "--evidence",
+      str(Path(__file__).resolve().parents[2] / "models" / "scoop.model.json")],
+     "would overwrite the input file"),
 ])
 def test_bad_arguments_exit_2_with_one_line(argv: list[str], needle: str, tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:

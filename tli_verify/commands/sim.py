@@ -73,13 +73,19 @@ def _run(args: argparse.Namespace) -> int:
     if args.certificates is not None and not args.certificates.is_dir():
         raise TliError(f"--certificates {args.certificates}: not a directory")
     from tli_verify.io import check_output_file
+    from tli_verify.sim.loop import project_dir
 
+    # the project's files (spec, model, certificate, demonstrations) are inputs: never written
+    base = args.certificates.parent if args.certificates is not None else project_dir()
+    inputs = [f for sub in ("specs", "models", "certificates", "demos")
+              for f in sorted((base / sub).rglob("*")) if f.is_file()]
     if args.fig9 is not None:
-        check_output_file(args.fig9)
+        check_output_file(args.fig9, inputs=inputs, what="Fig. 9 plot")
     if args.video is not None:
         import os
 
-        check_output_file(args.video)
+        check_output_file(args.video, inputs=[*inputs, *([args.fig9] if args.fig9 else [])],
+                          what="video")
         os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless
     try:
         import mujoco  # noqa: F401

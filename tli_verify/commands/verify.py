@@ -86,12 +86,16 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
-    if args.evidence is not None:
-        import importlib.util
+    if args.evidence is not None:  # before any work: never over an input, always writable
+        from tli_verify.io import check_output_file
+        from tli_verify.verify.campaign import sim_spec
+        from tli_verify.verify.evidence import evidence_path_for
 
-        if importlib.util.find_spec("tli_verify.verify.evidence") is None:
-            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
-                           "available in this build")
+        bound = sim_spec(cfg)
+        model = Path(bound.model)
+        check_output_file(args.evidence or evidence_path_for(model, model.parent.parent),
+                          inputs=(bound.spec, bound.model, bound.certificate),
+                          what="campaign evidence")
     progress = not args.json and sys.stderr.isatty()
 
     def note(text: str) -> None:
@@ -105,13 +109,8 @@ def _verify(args: argparse.Namespace) -> int:
     files = write_report(result, out)
     record["report"] = [str(f) for f in files]
     if args.evidence is not None:
-        try:
-            from tli_verify.verify.evidence import (  # type: ignore[import-not-found,unused-ignore]
-                write_campaign_evidence,
-            )
-        except ImportError:
-            raise TliError("--evidence: campaign evidence (tli_verify.verify.evidence) is not "
-                           "available in this build") from None
+        from tli_verify.verify.evidence import write_campaign_evidence
+
         target, _ = write_campaign_evidence(cfg, result, args.evidence or None)
         record["evidence"] = str(target)
     atomic_write_text(out / "campaign.json", canonical_json(record))
