@@ -15,6 +15,9 @@ Models (:mod:`tli_verify.model`)
     ``MAX_ABS_VALUE`` for every number but the covariances; ``MAX_ABS_COVARIANCE``,
     ``COV_MIN_EIGENVALUE`` and ``COV_MAX_CONDITION`` for the GMM covariances; ``PRIOR_SUM_TOL``
     for the mixing weights.
+Campaigns and counterexample cases (:mod:`tli_verify.verify`)
+    ``MAX_CAMPAIGN_STEPS`` for the perturbation window, a case's steps and the sensor lag;
+    ``MAX_PUSHES`` perturbations per case.
 """
 
 from __future__ import annotations
@@ -24,8 +27,10 @@ __all__ = [
     "COV_MIN_EIGENVALUE",
     "MAX_ABS_COVARIANCE",
     "MAX_ABS_VALUE",
+    "MAX_CAMPAIGN_STEPS",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
+    "MAX_PUSHES",
     "MAX_STATE_DIM",
     "PRIOR_SUM_TOL",
 ]
@@ -79,3 +84,10 @@ Inverting a matrix loses about ``log10(cond)`` of the 16 significant digits of a
 
 PRIOR_SUM_TOL = 1.0e-6
 """The GMM priors (all > 0) must sum to 1 within this tolerance."""
+
+MAX_CAMPAIGN_STEPS = 100_000
+"""Largest perturbation window, perturbation step and sensor lag of a campaign or a case, in
+control steps (1,000 s at the scoop world's 10 ms): the run's step budget follows from them."""
+
+MAX_PUSHES = 100
+"""Most perturbations in one case (paper Asm. 2: finitely many)."""

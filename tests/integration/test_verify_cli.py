@@ -166,6 +166,27 @@ def test_replay_of_an_edited_case_names_the_field(found: tuple[int, dict, Path],
     assert code == 2 and "perturbations[0].step" in err
 
 
+@pytest.mark.parametrize(("edit", "needle"), [
+    ({"start": [1e308, 0.0]}, "outside the world's workspace"),
+    ({"window": 10**12}, "MAX_CAMPAIGN_STEPS"),
+    ({"lag": 10**9}, "MAX_CAMPAIGN_STEPS"),
+    ({"perturbations": [{"step": 10**18, "displacement": [1.0, 0.0]}]}, "MAX_CAMPAIGN_STEPS"),
+    ({"perturbations": [{"step": k + 1, "displacement": [0.0, 0.0]} for k in range(101)]},
+     "MAX_PUSHES"),
+])
+def test_replay_refuses_hostile_numbers(edit: dict, needle: str,  # type: ignore[type-arg]
+                                        found: tuple[int, dict, Path],  # type: ignore[type-arg]
+                                        tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Numbers that would stall a replay (a step budget from a huge window or step) or run it
+    from outside the world: exit 2 with one line, before simulating."""
+    doc = {**json.loads((found[2] / "counterexample.json").read_text()), **edit}
+    case = tmp_path / "hostile.json"
+    case.write_text(json.dumps(doc))
+    code, _, err = _run(["replay", str(case)], capsys)
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error:") and needle in err
+
+
 @pytest.mark.slow  # a subprocess that draws 600 cases before it is interrupted (~5-10 s)
 def test_ctrl_c_writes_a_partial_report(tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg"}

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import int_range, output_path
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 
 __all__ = ["register", "write_report"]
 
@@ -37,13 +38,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (--backend dask; default: a LocalCluster)")
     p.add_argument("--batch-size", type=int_range(1), default=100, help="runs per batch")
-    p.add_argument("--max-pushes", type=int_range(0), default=3,
+    p.add_argument("--max-pushes", type=int_range(0, MAX_PUSHES), default=3,
                    help="perturbations per case, at most (default 3)")
-    p.add_argument("--window", type=int_range(1), default=700,
+    p.add_argument("--window", type=int_range(1, MAX_CAMPAIGN_STEPS), default=700,
                    help="perturbations happen in steps 1..WINDOW (default 700)")
     p.add_argument("--random-starts", action="store_true",
                    help="draw start states too (default: the world's nominal start)")
-    p.add_argument("--lag", type=int_range(0), default=0, help="sensor lag in steps")
+    p.add_argument("--lag", type=int_range(0, MAX_CAMPAIGN_STEPS), default=0,
+                   help="sensor lag in steps")
     p.add_argument("--target", type=int_range(0), default=0, metavar="N",
                    help="when nothing is found, N more driver-side examples guided by "
                    "hypothesis.target on the robustness margin")

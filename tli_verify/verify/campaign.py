@@ -50,6 +50,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import CampaignError, TliError
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.verify.oracle import (
@@ -175,8 +176,10 @@ class CampaignConfig:
             raise CampaignError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.workers is not None and self.workers < 1:
             raise CampaignError(f"workers must be >= 1, got {self.workers}")
-        if self.window < 1 or self.max_pushes < 0 or self.lag < 0:
-            raise CampaignError("window must be >= 1, max_pushes and lag >= 0")
+        if not (1 <= self.window <= MAX_CAMPAIGN_STEPS and 0 <= self.lag <= MAX_CAMPAIGN_STEPS
+                and 0 <= self.max_pushes <= MAX_PUSHES):
+            raise CampaignError(f"window must be in [1, {MAX_CAMPAIGN_STEPS}], lag in "
+                                f"[0, {MAX_CAMPAIGN_STEPS}] and max_pushes in [0, {MAX_PUSHES}]")
         if self.target_examples < 0:
             raise CampaignError("target_examples must be >= 0")
 
@@ -879,8 +882,16 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
             (mc is not None and (not isinstance(mc, int) or mc < 0)) or \
             not isinstance(window, int) or window < 1:
         raise CampaignError(f"{p}: lag, modulation, max_cycles or window: malformed")
-    dim = len(WORLDS[doc["world"]].lo)
-    case = case_from_json(doc, dim=dim, where=str(p))
+    if max(lag, window) > MAX_CAMPAIGN_STEPS:
+        raise CampaignError(f"{p}: lag or window: above MAX_CAMPAIGN_STEPS "
+                            f"({MAX_CAMPAIGN_STEPS} steps)")
+    world = WORLDS[doc["world"]]()
+    case = case_from_json(doc, dim=len(world.lo), where=str(p))
+    if case.last_step > MAX_CAMPAIGN_STEPS or len(case.pushes) > MAX_PUSHES:
+        raise CampaignError(f"{p}: perturbations: a step above MAX_CAMPAIGN_STEPS "
+                            f"({MAX_CAMPAIGN_STEPS}) or more than MAX_PUSHES ({MAX_PUSHES})")
+    if not bool(world.in_workspace(np.asarray(case.start)[None])[0]):
+        raise CampaignError(f"{p}: start {list(case.start)}: outside the world's workspace")
     spec = SimSpec(world=doc["world"], lag=lag, spec=paths[0], model=paths[1],
                    certificate=paths[2], hashes=(hashes[0], hashes[1], hashes[2]),
                    modulation=doc["modulation"], max_cycles=mc,
