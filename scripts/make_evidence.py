@@ -3,8 +3,8 @@
 For each ``models/<name>.model.json`` of the repository (or of ``--root DIR``), runs a
 bisimulation campaign (:func:`tli_verify.verify.campaign.run_campaign`) on the model, its
 certificate ``certificates/<name>.cert.json`` and the spec the model names, with the sensor
-model of world ``<name>`` (or the world ``<name>`` starts with, as ``cooking`` for
-``cooking-cb``; ``--world NAME=WORLD`` for a model named otherwise), modulation on,
+model of the world that ships it (``tli_verify.runtime.bundles``; else the world named
+``<name>``; ``--world NAME=WORLD`` for another), modulation on,
 and writes the evidence ``tli gate`` requires (:mod:`tli_verify.verify.evidence`).
 
 Usage (after any bundled model or certificate changed; one command)::
@@ -51,6 +51,7 @@ def _run(args: argparse.Namespace) -> int:
     import importlib
 
     from tli_verify.io import bundled_dir
+    from tli_verify.runtime.bundles import world_of_model
     from tli_verify.worlds import WORLDS
 
     campaign = importlib.import_module("tli_verify.verify.campaign")  # the verify branch's
@@ -69,10 +70,8 @@ def _run(args: argparse.Namespace) -> int:
     status = 0
     for model in models:
         name = model_stem(model)
-        # the world named NAME, else the longest world name NAME starts with (cooking-cb)
-        prefixes = [w for w in WORLDS if name.startswith(f"{w}-")]
-        world = worlds.get(name, name if name in WORLDS or not prefixes
-                           else max(prefixes, key=len))
+        # the world that ships the model (tli run's registry), else the world named NAME
+        world = worlds.get(name) or world_of_model(model) or name
         if world not in WORLDS:
             raise TliError(f"{model}: no world named {world!r} ({', '.join(sorted(WORLDS))}); "
                            f"pass --world {name}=WORLD")

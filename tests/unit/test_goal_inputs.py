@@ -16,7 +16,7 @@ from tli_verify.errors import TliError
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
 from tli_verify.model import load_model
-from tli_verify.runtime.bundles import bundle_for_spec
+from tli_verify.runtime.bundles import bundle_for_spec, world_of_model
 from tli_verify.runtime.executive import LTLDSPolicy
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,6 +33,9 @@ def test_bundle_names_the_cyclic_goal() -> None:
     b = bundle_for_spec("specs/inspection.toml")
     assert b is not None and b.goal_modes == ("b",) and b.goal_inputs == ("rel",)
     assert bundle_for_spec("elsewhere/not-shipped.toml") is None
+    assert world_of_model("models/cooking-cb.model.json") == "cooking"
+    assert world_of_model("models/inspection.model.json") == "inspection"
+    assert world_of_model("models/unknown.model.json") is None
 
 
 def test_done_needs_the_goal_sensors(inspection: tuple) -> None:

@@ -12,7 +12,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["REGISTRY", "Bundle", "bundle_for_spec"]
+__all__ = ["REGISTRY", "Bundle", "bundle_for_spec", "world_of_model"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,4 +80,19 @@ def bundle_for_spec(spec: str | os.PathLike[str]) -> Bundle | None:
         for bundle in bundles:
             if bundle.spec == stem:
                 return bundle
+    return None
+
+
+def world_of_model(model: str | os.PathLike[str]) -> str | None:
+    """The world that ships ``models/<name>.model.json`` (its sensor model), or None.
+
+    Parameters
+    ----------
+    model : path-like
+        A model file path; only its file name counts.
+    """
+    name = Path(model).name
+    for world, bundles in REGISTRY.items():
+        if any(b.model_file == name for b in bundles):
+            return world
     return None
