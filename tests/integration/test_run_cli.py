@@ -6,16 +6,15 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from tli_verify.cli import main
+from tests.support.cli import run
 from tli_verify.io import bundled_dir
 
 
 def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(argv)
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
+    return run(capsys, *argv)
 
 
 def test_json_fields_and_success(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -34,6 +33,24 @@ def test_json_fields_and_success(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert rec["cuts_added"] == sum(e["event"] == "CutAdded" for e in rec["events"])
     assert json.loads((tmp_path / "run.json").read_text()) == rec
     assert (tmp_path / "run.png").stat().st_size > 1000
+
+
+def test_animation_on_request(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--animate N``: run.gif with N frames, the last one after the cut was learned."""
+    from PIL import Image
+
+    code, out, _ = _run(["run", "--world", "scoop", "--start=-5.0,4.0", "--perturb",
+                         "957:6.09,6.01", "--animate", "6", "--out", str(tmp_path), "--json"],
+                        capsys)
+    rec = json.loads(out)
+    assert code == 0 and rec["cuts_added"] == 1
+    assert rec["animation"] == str(tmp_path / "run.gif")
+    with Image.open(tmp_path / "run.gif") as gif:
+        assert gif.format == "GIF" and gif.n_frames == 6
+        first = np.asarray(gif.convert("RGB"))
+        gif.seek(5)
+        assert not np.array_equal(first, np.asarray(gif.convert("RGB")))  # the path moved
+    assert not (tmp_path / "run.gif").with_name("run.gif.tmp").exists()
 
 
 def test_no_modulation_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -72,6 +89,8 @@ def test_explicit_perturbation_is_applied(tmp_path: Path,
     ["--world", "scoop", "--perturb", "5:1,1", "--perturb", "5:2,2"],
     ["--world", "scoop", "--perturb", "5:1,nan"],
     ["--world", "scoop", "--start", "20,0"],
+    ["--world", "scoop", "--animate", "1"],
+    ["--world", "scoop", "--animate", "nan"],
 ])
 def test_bad_arguments_exit_2_with_one_error_line(args: list[str], tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
+from tli_verify.commands import int_range, output_path
 from tli_verify.runtime.bundles import REGISTRY, Bundle
 
 __all__ = ["REGISTRY", "Bundle", "demo_stage", "parse_perturb", "register", "world_setup"]
@@ -69,6 +69,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="with --learn-transitions: write the (grown) spec here, atomically")
     p.add_argument("--out", type=output_path, default=Path("out/run"),
                    help="output directory (default out/run)")
+    p.add_argument("--animate", nargs="?", const=60, default=None, metavar="FRAMES",
+                   type=int_range(2, 1000),
+                   help="also write run.gif to --out: the episode animated in FRAMES frames "
+                   "(default 60; regions, path, cuts as they are learned, the mode)")
     p.add_argument("--json", action="store_true", help="print the episode record as JSON")
     p.add_argument("-o", "--output", type=output_path, default=None, metavar="MODEL.json",
                    help="save the model with the cuts learned in the episode, and a re-issued "
@@ -343,6 +347,12 @@ def _run(args: argparse.Namespace) -> int:
         record["saved"] = {"model": str(args.output), "certificate": str(cert)}
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
+    if args.animate is not None:
+        from tli_verify.experiments.scoop import animate_episode
+
+        animate_episode(world, res, out / "run.gif", frames=args.animate,
+                        title=f"{args.world} ({variant})")
+        record["animation"] = str(out / "run.gif")
     atomic_write_text(out / "run.json", canonical_json(record))
     plot_episode(world, res, out / "run.png", nominal=nominal,
                  title=f"tli run --world {args.world} ({variant}, seed {args.seed})")
@@ -357,6 +367,7 @@ def _run(args: argparse.Namespace) -> int:
             f"{len(perturbations)} perturbation(s), {res.cuts_added} cut(s) added\n"
             + (_growth_line(res) if start_spec is not None else "")
             + f"wrote {out / 'run.json'}, {out / 'run.png'}"
+            + (f", {record['animation']}" if "animation" in record else "")
             + (f", {record['saved']['model']}, {record['saved']['certificate']}"
                if "saved" in record else "")
             + (f", {record['grown_spec']}" if "grown_spec" in record else "") + "\n")

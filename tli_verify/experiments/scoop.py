@@ -63,6 +63,7 @@ __all__ = [
     "ExperimentConfig",
     "SequencePolicy",
     "Setup",
+    "animate_episode",
     "b_to_a_failures",
     "bundled_setup",
     "episode_json",
@@ -462,7 +463,6 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
 
     from tli_verify.plotting import save_figure
 
@@ -472,12 +472,9 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
     fig, grid = plt.subplots(1, ncols, figsize=(4.2 * ncols, 4.6), squeeze=False)
     axes = list(grid[0])
     zoom_ax = axes.pop(1) if zoom_first else None
-    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 300), np.linspace(lo[1], hi[1], 300))
-    idx = world.region_index(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+    idx = _region_grid(world)
     for ax, (label, r) in zip(axes, panels, strict=True):
-        ax.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
-                  cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
-                  vmax=len(world.region_names) - 0.5, interpolation="nearest")
+        _draw_regions(ax, world, idx)
         if nominal is not None:
             ax.plot(nominal.states[:, 0], nominal.states[:, 1], color="0.55", lw=1.0,
                     ls="--", label="nominal")
@@ -493,10 +490,7 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
         ax.plot(S[0, 0], S[0, 1], "ko", ms=4)
         for mode in sorted({mm.mode for mm in r.model.modes.values()}):
             for c in r.model.region_cuts(mode):
-                w, p = np.asarray(c.normal), np.asarray(c.point)
-                d = np.array([-w[1], w[0]])
-                s = np.linspace(-40, 40, 2)
-                ax.plot(p[0] + s * d[0], p[1] + s * d[1], color="tab:blue", lw=1.5)
+                _draw_cut(ax, c)
         for e in r.events:
             if isinstance(e, InvarianceFailure):
                 ax.plot(*e.last_inside, "o", mfc="gold", mec="k", ms=6)
@@ -515,26 +509,119 @@ def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[
         ax.set_xlabel("x1 (spoon orientation)" if scoop else "x1", fontsize=8)
         ax.set_ylabel("x2 (distance to soup)" if scoop else "x2", fontsize=8)
     if zoom_ax is not None:
-        _zoom_panel(zoom_ax, world, res, idx, (lo, hi))
+        _zoom_panel(zoom_ax, world, res, idx)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     save_figure(fig, path, dpi=90)
 
 
-def _zoom_panel(ins: Any, world: ScoopWorld, res: EpisodeResult, idx: npt.NDArray[np.int64],
-                box: tuple[FloatArray, FloatArray]) -> None:
-    """A panel around the last 400 states of ``res``, modes coloured (a black, b orange),
-    the last failure states as red crosses."""
+def _region_grid(world: ScoopWorld) -> npt.NDArray[np.int64]:
+    """The true region index on a 300 x 300 grid of the workspace, shape (300, 300)."""
+    lo, hi = np.array(world.lo), np.array(world.hi)
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 300), np.linspace(lo[1], hi[1], 300))
+    return world.region_index(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+
+
+def _draw_regions(ax: Any, world: ScoopWorld, idx: npt.NDArray[np.int64]) -> None:
+    """The world's true regions in their colours (the background of the episode pictures)."""
     from matplotlib.colors import ListedColormap
 
-    lo, hi = box
+    lo, hi = np.array(world.lo), np.array(world.hi)
+    ax.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
+              cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
+              vmax=len(world.region_names) - 0.5, interpolation="nearest")
+
+
+def _draw_cut(ax: Any, cut: Any) -> None:
+    """A learned cut's line (2-D), in blue."""
+    w, p = np.asarray(cut.normal), np.asarray(cut.point)
+    d = np.array([-w[1], w[0]])
+    s = np.linspace(-40, 40, 2)
+    ax.plot(p[0] + s * d[0], p[1] + s * d[1], color="tab:blue", lw=1.5)
+
+
+def animate_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[str], *,
+                    frames: int = 120, fps: int = 20, title: str = "") -> int:
+    """An animated GIF of one episode (Fig. 7 style), written atomically.
+
+    Each frame shows the true regions, the path so far (black; perturbation jumps are not
+    joined), the current state (red), the cuts learned so far (blue, from each
+    :class:`~tli_verify.runtime.events.CutAdded`'s step) and the step and mode in the title.
+
+    Parameters
+    ----------
+    world : World
+    res : EpisodeResult
+    path : path-like
+        The GIF file.
+    frames : int, optional
+        At most this many frames, evenly spaced over the episode's states.
+    fps : int, optional
+    title : str, optional
+        Prefix of every frame's title.
+
+    Returns
+    -------
+    int
+        Frames written.
+    """
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from tli_verify.io import atomic_write_bytes
+
+    S = res.states
+    pushes = sorted(e.step for e in res.events if isinstance(e, Perturbation))
+    cuts = sorted(((e.step, e.cut) for e in res.events if isinstance(e, CutAdded)),
+                  key=lambda sc: sc[0])
+    shown = np.unique(np.linspace(0, len(S) - 1, max(1, min(frames, len(S)))).astype(int))
+    lo, hi = np.array(world.lo), np.array(world.hi)
+    fig, ax = plt.subplots(figsize=(4.4, 4.6))
+    _draw_regions(ax, world, _region_grid(world))
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    (path_line,) = ax.plot([], [], color="k", lw=1.2)
+    (dot,) = ax.plot([], [], "o", color="tab:red", ms=6)
+    drawn = 0
+    images = []
+    for t in shown:
+        P = S[: t + 1]
+        breaks = [k for k in pushes if k <= t]  # a push lands between states[k-1] and [k]
+        P = np.insert(P, breaks, np.nan, axis=0) if breaks else P
+        path_line.set_data(P[:, 0], P[:, 1])
+        dot.set_data([S[t, 0]], [S[t, 1]])
+        while drawn < len(cuts) and cuts[drawn][0] <= t:
+            _draw_cut(ax, cuts[drawn][1])
+            drawn += 1
+        ax.set_title(f"{title + ': ' if title else ''}step {t}, mode {res.modes[t]}, "
+                     f"{drawn} cut{'' if drawn == 1 else 's'}", fontsize=9)
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
+        images.append(Image.fromarray(rgba[..., :3]).convert("P", palette=Image.Palette.ADAPTIVE))
+    plt.close(fig)
+    buffer = io.BytesIO()
+    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:],
+                   duration=max(1, round(1000 / fps)), loop=0)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    atomic_write_bytes(path, buffer.getvalue())
+    return len(images)
+
+
+def _zoom_panel(ins: Any, world: ScoopWorld, res: EpisodeResult,
+                idx: npt.NDArray[np.int64]) -> None:
+    """A panel around the last 400 states of ``res``, modes coloured (a black, b orange),
+    the last failure states as red crosses."""
     S = res.states[-400:]
     c = S.mean(axis=0)
     half = max(0.3, 0.6 * float(np.max(S.max(axis=0) - S.min(axis=0))))
-    ins.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
-               cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
-               vmax=len(world.region_names) - 0.5, interpolation="nearest")
+    _draw_regions(ins, world, idx)
     modes = res.modes[-400:]
     for i in range(len(S) - 1):
         ins.plot(S[i:i + 2, 0], S[i:i + 2, 1], lw=0.8,
