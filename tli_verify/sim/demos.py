@@ -1,15 +1,18 @@
 """Scripted scooping in the simulator: the waypoints, a mocap-driven ladle, and demonstrations.
 
-The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch):
+The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch). The
+soup bowl's floor is a funnel whose flat pit lies at the far side (-y), so the beads gather
+against the far wall, ahead of the ladle (:data:`~tli_verify.sim.scene.SOUP_PIT`):
 
-1. from the start above and beside the soup bowl, down to the bowl's near slope (front tipped
-   down by ``pitch`` 0.15 rad, the tray's underside along the conical floor);
-2. sweep along the floor towards -y through the beads gathered in the middle, then level the
-   tray at the far side (the beads ride over the open front onto the tray);
+1. from the start above and beside the soup bowl, down onto the funnel's near slope (front
+   tipped down by ``SLOPE_PITCH``), then slide down it towards -y, front edge leading;
+2. push into the pile in the pit (the beads, held by the wall behind them, ride over the open
+   front onto the tray), level the tray;
 3. tip the front up (-0.3 rad) and lift out of the bowl (the rim keeps the beads);
 4. carry to above the target bowl, lower, and pour (front down, 1.3 rad).
 
-Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 2-4 beads delivered.
+Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 12-14 beads delivered
+(with the beads gathered in the bowl's middle instead, 2-4).
 """
 
 from __future__ import annotations
@@ -27,7 +30,6 @@ from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
 from tli_verify.sim.scene import (
-    SOUP_BOWL,
     SOUP_CENTER,
     TARGET_CENTER,
     TRAY_HALF_THICKNESS,
@@ -36,6 +38,7 @@ from tli_verify.sim.scene import (
     ladle_quat,
     reset_beads,
     scene_ids,
+    soup_floor,
 )
 from tli_verify.sim.sensors import SENSOR_NAMES, Debounce, Reading, ScoopSensors
 
@@ -53,14 +56,19 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
+SLOPE_PITCH = 0.3
+"""Pitch (rad) of the tray sliding down the funnel into the pit (front down, steeper than
+the funnel's ``SOUP_SLOPE``, so the front edge leads)."""
 SCOOP_PITCH = 0.15
 CARRY_PITCH = -0.3
 POUR_PITCH = 1.3
 
 
-def _tray_height(pitch: float) -> float:
-    """Tray-frame height that puts the tipped front edge 1 mm over the bowl's flat floor."""
-    return float(SOUP_CENTER[2] + SOUP_BOWL.floor + 0.001 + TRAY_RADIUS * math.sin(pitch)
+def _tray_height(y: float, pitch: float) -> float:
+    """Tray-frame height that puts the tipped front edge (tray frame at ``y``) 1 mm over the
+    soup bowl's floor (:func:`~tli_verify.sim.scene.soup_floor`)."""
+    front = y - TRAY_RADIUS * math.cos(pitch)
+    return float(soup_floor(front) + 0.001 + TRAY_RADIUS * math.sin(pitch)
                  + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
 
 
@@ -95,33 +103,34 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
     """
     cx, cy = float(SOUP_CENTER[0]), float(SOUP_CENTER[1])
     tx, ty = float(TARGET_CENTER[0]), float(TARGET_CENTER[1])
-    low = _tray_height(SCOOP_PITCH)
+    near, mid, far = cy + 0.07, cy, cy - 0.085
     w = np.array([
-        (0.0, cx, 0.05, 0.20, 0.0),                          # start: above, between the bowls
-        (1.0, cx, cy + 0.07, 0.08, SCOOP_PITCH),             # over the near slope
-        (1.6, cx, cy + 0.07, low + 0.007, SCOOP_PITCH),      # down onto it
-        (2.8, cx, cy - 0.035, low, SCOOP_PITCH),             # sweep through the beads
-        (3.1, cx, cy - 0.045, low + 0.004, 0.0),             # level the tray
-        (3.4, cx, cy - 0.03, low + 0.03, CARRY_PITCH),       # tip back
-        (4.4, cx, cy + 0.05, 0.18, CARRY_PITCH),             # lift out
-        (5.4, tx, ty, 0.15, -0.2),                           # carry over the target
-        (6.2, tx, ty, 0.10, -0.2),                           # lower
-        (7.2, tx, ty, 0.10, POUR_PITCH),                     # pour
+        (0.0, cx, 0.05, 0.20, 0.0),                                    # start, between bowls
+        (1.0, cx, near, _tray_height(near, SLOPE_PITCH) + 0.03, SLOPE_PITCH),  # over the slope
+        (1.5, cx, near, _tray_height(near, SLOPE_PITCH) + 0.002, SLOPE_PITCH),  # onto it
+        (2.3, cx, mid, _tray_height(mid, SLOPE_PITCH), SLOPE_PITCH),   # slide down the funnel
+        (3.0, cx, far, _tray_height(far, SCOOP_PITCH) - 0.003, SCOOP_PITCH),  # press into the pile
+        (3.3, cx, far + 0.02, _tray_height(far, 0.0) + 0.003, 0.0),    # level the tray
+        (3.7, cx, far + 0.03, _tray_height(far, 0.0) + 0.02, CARRY_PITCH),  # tip back
+        (4.6, cx, near, 0.12, CARRY_PITCH),                            # lift out
+        (5.4, tx, ty, 0.15, -0.2),                                     # carry over the target
+        (6.2, tx, ty, 0.10, -0.2),                                     # lower
+        (7.2, tx, ty, 0.10, POUR_PITCH),                               # pour
         (8.0, tx, ty, 0.10, POUR_PITCH),
     ])
     if start is not None:
         w[0, 1:] = np.asarray(start, dtype=np.float64)
     if rng is not None and jitter > 0:
-        for row in (0, 6, 7):
+        for row in (0, 7, 8):
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
-        w[1:6, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
+        w[1:7, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
     return w
 
 
 def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
     while still low (the beads roll against the back rim), then goes on from the lift."""
-    lift = 6  # the row of scoop_waypoints that lifts out of the bowl
+    lift = 7  # the row of scoop_waypoints that lifts out of the bowl
     on = interpolate(waypoints, now + 0.3)  # sweep on a little: the beads get fully on
     x, y, z, _ = on.tolist()
     head = np.array([
@@ -350,7 +359,7 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
     sensors = Debounce()  # the readings the executive will see (sensors.Debounce)
     steps = [ScoopStep(0.0, rig.pose(), sensors.update(rig.read()),
                        interpolate(waypoints, 0.0))]
-    sweep = (float(waypoints[2, 0]), float(waypoints[3, 0]))
+    sweep = (float(waypoints[2, 0]), float(waypoints[4, 0]))
     k = 0
     reacted = False
     while k * dt < float(waypoints[-1, 0]) - 1e-9:

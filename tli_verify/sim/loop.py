@@ -152,7 +152,7 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
         out.append(Perturbation("push", float(rng.uniform(0.5, 6.0)), 0.2,
                                 tuple(float(v) for v in (*(f * d), 0.0, 0.0, 0.0))))
     for _ in range(tilts):
-        out.append(Perturbation("tilt", float(rng.uniform(1.5, 2.5)), 0.3,
+        out.append(Perturbation("tilt", float(rng.uniform(0.1, 0.8)), 0.3,
                                 (0.0, 0.0, 0.0, -20.0, 0.0, 0.0)))
     return out
 

@@ -64,6 +64,10 @@ TRAY_HALF_THICKNESS = 0.001
 RIM_HEIGHT = 0.015
 RIM_HALF_WIDTH = 0.002
 OPEN_FRONT_DEG = 110.0
+FRONT_LIP = 0.006
+"""Height (m) of a low lip across the open front: beads get over it when the tray is pushed
+into the pile, and it keeps them from rolling off the front while the tray is levelled
+(with the beads gathered in the bowl's middle, a closed lip of 3 mm scooped nothing; against the wall they are squeezed over 6 mm, and the first bead gets on only once the tray presses into the pile)."""
 HANDLE_LENGTH = 0.16
 LADLE_MASS = 0.12
 CARRIER_MASS = 1.0
@@ -114,7 +118,11 @@ SOUP_BOWL = Bowl("soup", SOUP_CENTER, radius=0.11, floor=0.008, height=0.045)
 SOUP_FLAT = 0.035
 """Radius of the soup bowl's flat bottom; its floor rises outside it at ``SOUP_SLOPE``."""
 SOUP_SLOPE = 0.2
-"""Slope (rad) of the soup bowl's conical floor ring: the beads gather in the middle."""
+"""Slope (rad) of the soup bowl's conical floor ring: the beads gather in the pit."""
+SOUP_PIT = np.array([0.0, -0.06])
+"""Offset (m, in x and y) of the flat pit from the soup bowl's centre: towards the far side
+(-y), the end of the scoop's sweep, so the beads always lie ahead of the ladle and against
+the bowl's wall."""
 TARGET_BOWL = Bowl("target", TARGET_CENTER, radius=0.08, floor=0.008, height=0.04)
 
 
@@ -134,7 +142,8 @@ def _contact(geom: mujoco.MjsGeom) -> mujoco.MjsGeom:
 
 
 def _bowl(world: mujoco.MjsBody, bowl: Bowl, rgba: tuple[float, ...], segments: int = 28,
-          *, flat: float | None = None, slope: float = 0.0) -> None:
+          *, flat: float | None = None, slope: float = 0.0,
+          pit: tuple[float, float] = (0.0, 0.0)) -> None:
     body = world.add_body(name=f"{bowl.name}_bowl", pos=bowl.center.tolist())
     wall = 0.006
     _contact(body.add_geom(name=f"{bowl.name}_floor", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
@@ -151,15 +160,20 @@ def _bowl(world: mujoco.MjsBody, bowl: Bowl, rgba: tuple[float, ...], segments: 
             quat=[math.cos(a / 2), 0, 0, math.sin(a / 2)], rgba=list(rgba)))
     if flat is None:
         return
-    # a conical ring from the flat bottom up to the wall, of tilted tiles
+    # a conical funnel from the flat pit up to the wall, of tilted tiles; the pit is offset by
+    # ``pit`` from the bowl's centre, so each tile runs from the pit's edge to the wall
     half_t = 0.003
-    run = bowl.radius - flat
-    rise = run * math.tan(slope)
-    half_w = bowl.radius * math.tan(math.pi / segments) + 1e-3
     qy = np.array([math.cos(-slope / 2), 0.0, math.sin(-slope / 2), 0.0])
+    c = np.asarray(pit, dtype=np.float64)
     for k in range(segments):
         a = 2 * math.pi * k / segments
-        rm = (flat + bowl.radius) / 2 + half_t * math.sin(slope)
+        u = np.array([math.cos(a), math.sin(a)])
+        cu = float(c @ u)
+        reach = -cu + math.sqrt(cu * cu - float(c @ c) + bowl.radius ** 2)  # pit -> wall
+        run = reach - flat
+        rise = run * math.tan(slope)
+        half_w = reach * math.tan(math.pi / segments) + 1e-3
+        rm = (flat + reach) / 2 + half_t * math.sin(slope)
         zm = bowl.floor + rise / 2 - half_t * math.cos(slope)
         qz = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
         q = np.empty(4)
@@ -167,7 +181,17 @@ def _bowl(world: mujoco.MjsBody, bowl: Bowl, rgba: tuple[float, ...], segments: 
         _contact(body.add_geom(
             name=f"{bowl.name}_slope{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[run / 2 / math.cos(slope) + 1e-3, half_w, half_t],
-            pos=[rm * math.cos(a), rm * math.sin(a), zm], quat=q.tolist(), rgba=list(rgba)))
+            pos=[c[0] + rm * math.cos(a), c[1] + rm * math.sin(a), zm], quat=q.tolist(),
+            rgba=list(rgba)))
+
+
+def soup_floor(y: float, x: float | None = None) -> float:
+    """World height of the soup bowl's floor at ``(x, y)`` (default ``x`` the bowl's centre
+    line): flat in the pit, rising at ``SOUP_SLOPE`` outside it (m)."""
+    px = float(SOUP_CENTER[0] + SOUP_PIT[0]) if x is None else x
+    d = math.hypot(px - float(SOUP_CENTER[0] + SOUP_PIT[0]), y - float(SOUP_CENTER[1] + SOUP_PIT[1]))
+    return float(SOUP_CENTER[2] + SOUP_BOWL.floor + max(0.0, d - SOUP_FLAT)
+                 * math.tan(SOUP_SLOPE))
 
 
 def add_scene(spec: mujoco.MjSpec) -> None:
@@ -179,7 +203,8 @@ def add_scene(spec: mujoco.MjSpec) -> None:
     _contact(world.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_BOX,
                             size=[0.3, 0.5, 0.025], pos=[0.55, 0.0, -0.025],
                             rgba=[0.55, 0.4, 0.3, 1]))
-    _bowl(world, SOUP_BOWL, (0.85, 0.85, 0.9, 1), flat=SOUP_FLAT, slope=SOUP_SLOPE)
+    _bowl(world, SOUP_BOWL, (0.85, 0.85, 0.9, 1), flat=SOUP_FLAT, slope=SOUP_SLOPE,
+          pit=(float(SOUP_PIT[0]), float(SOUP_PIT[1])))
     _bowl(world, TARGET_BOWL, (0.3, 0.6, 0.3, 1))
     for i in range(N_BEADS):
         body = world.add_body(name=f"bead{i}", pos=_bead_grid(i).tolist())
@@ -195,7 +220,7 @@ def _bead_grid(i: int) -> FloatArray:
     ring = [(-1.5, -0.5), (-1.5, 0.5), (-0.5, -1.5), (-0.5, -0.5), (-0.5, 0.5), (-0.5, 1.5),
             (0.5, -1.5), (0.5, -0.5), (0.5, 0.5), (0.5, 1.5), (1.5, -0.5), (1.5, 0.5)][k]
     step = 2.6 * BEAD_RADIUS
-    return SOUP_CENTER + np.array([ring[0] * step, ring[1] * step,
+    return SOUP_CENTER + np.array([SOUP_PIT[0] + ring[0] * step, SOUP_PIT[1] + ring[1] * step,
                                    SOUP_BOWL.floor + BEAD_RADIUS * (1.2 + 2.4 * layer)])
 
 
@@ -243,6 +268,16 @@ def add_ladle(body: mujoco.MjsBody, *, pos: tuple[float, float, float] = (0.0, 0
         fromto=[-back, 0, RIM_HEIGHT, -back - HANDLE_LENGTH * c, 0,
                 RIM_HEIGHT + HANDLE_LENGTH * sn],
         size=[0.006, 0, 0], rgba=rgba, mass=LADLE_MASS * 0.4))
+    if FRONT_LIP > 0:  # a low lip across the open front
+        m = 6
+        half_len_f = r * math.sin(2 * half_open / m / 2) + 1e-3
+        for k in range(m):
+            a = -half_open + 2 * half_open * (k + 0.5) / m
+            _contact(ladle.add_geom(
+                name=f"ladle_lip{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=[RIM_HALF_WIDTH, half_len_f, FRONT_LIP / 2],
+                pos=[r * math.cos(a), r * math.sin(a), FRONT_LIP / 2],
+                quat=[math.cos(a / 2), 0, 0, math.sin(a / 2)], rgba=rgba, mass=1e-3))
     ladle.add_site(name="ladle_tray", pos=[0, 0, 0], size=[0.004, 0, 0], rgba=[1, 0, 0, 1])
     ladle.add_site(name="ladle_grip", pos=[-back - HANDLE_LENGTH * c, 0,
                                            RIM_HEIGHT + HANDLE_LENGTH * sn],
