@@ -19,6 +19,7 @@ moves it to the output atomically, so a failed rendering leaves no partial file.
 from __future__ import annotations
 
 import atexit
+import ctypes.util
 import os
 import subprocess
 import sys
@@ -45,6 +46,8 @@ BACKENDS = ("egl", "osmesa")
 """Headless ``MUJOCO_GL`` backends tried in order when the user set none."""
 INSTALL_HINT = ("install libegl1 and libegl-mesa0 (EGL) or libosmesa6 (OSMesa), "
                 "or run without --video")
+_LIBRARIES = {"egl": "EGL", "osmesa": "OSMesa"}
+"""The shared library each backend loads (named in the error when it is missing)."""
 PROBE_TIMEOUT = 60.0
 """Seconds a probe subprocess may take (importing MuJoCo and opening a context: ~1 s)."""
 CONTROL_DT = 0.02
@@ -112,7 +115,11 @@ def probe_backend(backend: str, *, timeout: float = PROBE_TIMEOUT) -> Probe:
         return Probe(backend, False, f"cannot start {sys.executable}: {exc.strerror}")
     if done.returncode == 0:
         return Probe(backend, True)
-    return Probe(backend, False, _shorten(done.stderr))
+    detail = _shorten(done.stderr)
+    lib = _LIBRARIES.get(backend)
+    if lib is not None and ctypes.util.find_library(lib) is None:
+        detail = f"lib{lib} not found ({detail})"
+    return Probe(backend, False, detail)
 
 
 def choose_backend(env: Mapping[str, str],
