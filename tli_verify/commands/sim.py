@@ -72,6 +72,10 @@ def _run(args: argparse.Namespace) -> int:
         raise TliError(f"--duration must be between 0.5 and 600 s, got {args.duration}")
     if args.certificates is not None and not args.certificates.is_dir():
         raise TliError(f"--certificates {args.certificates}: not a directory")
+    if args.video is not None:  # MuJoCo fixes its OpenGL backend on import (next lines)
+        from tli_verify.sim.render import select_backend
+
+        select_backend()  # MUJOCO_GL: the user's, else egl, else osmesa; none: exit 2
     from tli_verify.io import check_output_file
     from tli_verify.sim.loop import project_dir
 
@@ -82,11 +86,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.fig9 is not None:
         check_output_file(args.fig9, inputs=inputs, what="Fig. 9 plot")
     if args.video is not None:
-        import os
-
         check_output_file(args.video, inputs=[*inputs, *([args.fig9] if args.fig9 else [])],
                           what="video")
-        os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless
     try:
         import mujoco  # noqa: F401
     except ImportError:
@@ -99,7 +100,7 @@ def _run(args: argparse.Namespace) -> int:
     policy = load_policy(variant, certificates=args.certificates)  # exit 1 if not covered
     recorder = None
     if args.video is not None:
-        from tli_verify.sim.loop import Recorder
+        from tli_verify.sim.render import Recorder
 
         recorder = Recorder()
     results = []

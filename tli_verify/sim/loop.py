@@ -46,6 +46,7 @@ from tli_verify.errors import TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+from tli_verify.sim.render import Recorder
 from tli_verify.sim.sensors import Debounce
 
 __all__ = [
@@ -359,72 +360,6 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         modes=tuple(modes), cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
         sim_time=t, wall_time=time.perf_counter() - t0, perturbations=tuple(perts),
         applied=tuple(applied), events=events)
-
-
-class Recorder:
-    """Headless frames of a trial for a short MP4 (``--video``).
-
-    Rendering needs an OpenGL context without a display: ``tli sim`` sets ``MUJOCO_GL=egl``
-    unless the caller chose (``MUJOCO_GL=osmesa`` is the fallback to try); when no context
-    opens, :class:`~tli_verify.errors.TliError` (exit 2) says so.
-
-    Parameters
-    ----------
-    every : int, optional
-        Keep one control step in ``every`` (default 2: 25 frames/s at 20 ms).
-    size : tuple of int, optional
-        ``(height, width)`` in pixels.
-    """
-
-    def __init__(self, every: int = 2, size: tuple[int, int] = (360, 480)) -> None:
-        self.every = int(every)
-        self.size = size
-        self.frames: list[npt.NDArray[np.uint8]] = []
-        self._renderer: Any = None
-        self._count = 0
-
-    def _open(self, rig: Any) -> Any:
-        import mujoco
-
-        try:
-            return mujoco.Renderer(rig.model, *self.size)
-        except Exception as exc:
-            raise TliError(
-                f"--video: no headless OpenGL with MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
-                f"({' '.join(str(exc).split())[:100]}); try MUJOCO_GL=osmesa, or run without "
-                "--video") from None
-
-    def frame(self, rig: Any) -> None:
-        """Render the current state (every ``every``-th call)."""
-        self._count += 1
-        if (self._count - 1) % self.every:
-            return
-        import mujoco
-
-        if self._renderer is None:
-            self._renderer = self._open(rig)
-        cam = mujoco.MjvCamera()
-        cam.lookat[:] = (0.5, 0.0, 0.06)
-        cam.distance, cam.azimuth, cam.elevation = 0.9, 180.0, -30.0
-        self._renderer.update_scene(rig.data, cam)
-        self.frames.append(self._renderer.render().copy())
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the frames as an MP4 (imageio-ffmpeg), atomically."""
-        import tempfile
-
-        import imageio.v2 as imageio
-
-        from tli_verify.io import atomic_write_bytes
-
-        if not self.frames:
-            raise TliError(f"--video {path}: no frames were rendered")
-        with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "video.mp4"
-            imageio.mimwrite(out, list(self.frames),
-                             fps=round(1 / (CONTROL_DT * self.every)),
-                             codec="libx264", macro_block_size=8)
-            atomic_write_bytes(path, out.read_bytes())
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
