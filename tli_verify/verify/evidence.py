@@ -615,8 +615,13 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     found = max(total, sum(by_kind.values()))
     if found:
         kinds = ", ".join(f"{k}: {v}" for k, v in sorted(by_kind.items()) if v) or "-"
-        out.append(f"{shown}: the campaign found {found} violation(s) ({kinds}): not evidence "
-                   "for deployment (tli replay the counterexample, fix the model)")
+        if doc["world"] in PHYSICS_WORLDS:
+            out.append(f"{shown}: physical trials failed the oracle (trials per kind: {kinds}): "
+                       "not evidence for deployment (the counterexample says how to reproduce "
+                       "the first)")
+        else:
+            out.append(f"{shown}: the campaign found {found} violation(s) ({kinds}): not "
+                       "evidence for deployment (tli replay the counterexample, fix the model)")
     elif doc["counterexample"] is not None:
         out.append(f"{shown}: records a counterexample: not evidence for deployment")
     if camp["partial"]:
@@ -660,7 +665,7 @@ def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> lis
     if not trials == int(camp["examples"]) == int(camp["runs"]):
         out.append(f"{shown}: physics.trials {trials} differs from campaign.examples "
                    f"{camp['examples']} / runs {camp['runs']} (one run per trial)")
-    if successes != trials:
+    if successes != trials and not int(doc["violations"]["total"]):
         out.append(f"{shown}: {trials - successes} of {trials} physical trial(s) delivered no "
                    "soup: not evidence for deployment")
     outcomes = phys.get("outcomes")
