@@ -74,9 +74,9 @@ FORGERIES: list[tuple[str, Callable[[], TrialResult], str, str]] = [
         NOMINAL, events=tuple(e for e in NOMINAL.events if e != "ModeChange at step 97")),
      "automaton", "did not report"),
     ("starts in the scooping mode", lambda: replace(
-        NOMINAL, modes=("b",) + NOMINAL_MODES[1:]), "automaton", "not an initial mode"),
+        NOMINAL, modes=("b", *NOMINAL_MODES[1:])), "automaton", "not an initial mode"),
     ("a mode the spec lacks", lambda: replace(
-        NOMINAL, modes=NOMINAL_MODES[:150] + ("z",) + NOMINAL_MODES[151:]),
+        NOMINAL, modes=(*NOMINAL_MODES[:150], "z", *NOMINAL_MODES[151:])),
      "automaton", "'z' is not a mode"),
 ]
 
