@@ -178,3 +178,26 @@ def test_draw_is_the_same_in_a_fresh_process_with_other_modules_imported() -> No
                          timeout=120).stdout
     here = [[p.to_json() for p in draw(s)] for s in range(6)]
     assert json.loads(out) == json.loads(json.dumps(here))
+
+
+def test_the_public_api_fallback_draws_within_bounds_deterministically() -> None:
+    from tli_verify.sim.campaign import _draw_by_find
+
+    strategy = trial_perturbations(min_pushes=1, min_tilts=1)
+    first = _draw_by_find(strategy, 5)
+    assert first == _draw_by_find(strategy, 5)
+    assert [p.kind for p in first] == ["push", "tilt"]
+    for p in first:
+        assert_bounded(p)
+
+
+def test_isolated_draws_restore_hypothesis_state() -> None:
+    from hypothesis.internal.conjecture import providers
+
+    from tli_verify.sim.campaign import isolated_draws
+
+    cache, getter = providers.CONSTANTS_CACHE, providers._get_local_constants
+    with isolated_draws():
+        assert providers.CONSTANTS_CACHE is not cache
+        assert providers._get_local_constants is not getter
+    assert providers.CONSTANTS_CACHE is cache and providers._get_local_constants is getter
