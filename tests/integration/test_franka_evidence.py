@@ -144,3 +144,17 @@ def test_a_full_budget_trial_reproduces_under_rerun(project: Path,
     ok, message = rerun_physics(check_evidence(certs / EVIDENCE),
                                 project / "models" / "franka-scoop.model.json", 1)
     assert ok == (not trial["violations"]) == (code == 0), message
+
+
+def test_a_certificates_directory_by_another_name_is_the_one_bound(
+        project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--certificates DIR`` not named certificates/: the evidence binds the certificate the
+    policy ran behind and is written next to it."""
+    certs = project / "certs"
+    (project / "certificates").rename(certs)
+    code, _, err = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration",
+                       "0.5", "--evidence")
+    assert code == 1 and err == ""  # 0.5 s: nothing delivered, the evidence is written
+    doc = json.loads((certs / EVIDENCE).read_text())
+    assert doc["certificate"] == {"path": "franka-scoop.cert.json",
+                                  "sha256": sha256_file(certs / "franka-scoop.cert.json")}

@@ -95,6 +95,8 @@ def _run(args: argparse.Namespace) -> int:
     base = args.certificates.parent if args.certificates is not None else project_dir()
     inputs = [f for sub in ("specs", "models", "certificates", "demos")
               for f in sorted((base / sub).rglob("*")) if f.is_file()]
+    if args.certificates is not None:  # a certificates directory not named certificates/
+        inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
     if args.fig9 is not None:
         check_output_file(args.fig9, inputs=inputs, what="Fig. 9 plot")
     evidence = None
@@ -102,8 +104,10 @@ def _run(args: argparse.Namespace) -> int:
         from tli_verify.sim.campaign import MODEL_NAME
         from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
+        cert_dir = args.certificates if args.certificates is not None else \
+            base / "certificates"
         evidence = Path(args.evidence) if args.evidence else \
-            base / "certificates" / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
+            cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
         evidence_inputs = [f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)]
         evidence_inputs += [o for o in (args.fig9, args.video) if o is not None]
         check_output_file(evidence, inputs=evidence_inputs, what="campaign evidence")
@@ -137,7 +141,9 @@ def _run(args: argparse.Namespace) -> int:
     config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,
                            robot=args.robot, variant=variant, duration=args.duration,
                            pushes=0 if args.no_perturb else 1,
-                           tilts=0 if args.no_perturb else 1)
+                           tilts=0 if args.no_perturb else 1,
+                           certificates=None if args.certificates is None
+                           else str(args.certificates))
 
     def report(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         if args.json:

@@ -525,6 +525,9 @@ class PhysicsConfig:
         Step budget per trial, simulated seconds.
     pushes, tilts : int
         Perturbations per trial (:func:`draw`).
+    certificates : str or None
+        The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
+        gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
     """
 
     root: str
@@ -535,6 +538,7 @@ class PhysicsConfig:
     duration: float = 20.0
     pushes: int = 1
     tilts: int = 1
+    certificates: str | None = None
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOTS:
@@ -550,9 +554,15 @@ class PhysicsConfig:
             raise TliError("pushes and tilts must be >= 0")
 
     @property
+    def cert_dir(self) -> Path:
+        """``certificates``, default ``<root>/certificates``."""
+        return Path(self.certificates) if self.certificates is not None else \
+            Path(self.root) / "certificates"
+
+    @property
     def certificate(self) -> Path:
-        """``<root>/certificates/franka-scoop.cert.json``."""
-        return Path(self.root) / "certificates" / f"{MODEL_NAME}.cert.json"
+        """``<cert_dir>/franka-scoop.cert.json``."""
+        return self.cert_dir / f"{MODEL_NAME}.cert.json"
 
     @property
     def model(self) -> Path:
@@ -607,7 +617,8 @@ class PhysicsResult:
         return all(v.ok for v in self.verdicts)
 
 
-def project_files(root: str | os.PathLike[str]) -> dict[str, Path]:
+def project_files(root: str | os.PathLike[str],
+                  certificates: str | os.PathLike[str] | None = None) -> dict[str, Path]:
     """The spec (the one the model names), model and certificate of a Franka project.
 
     Raises
@@ -625,16 +636,19 @@ def project_files(root: str | os.PathLike[str]) -> dict[str, Path]:
     if spec is None:
         raise TliError(f"{model}: names no spec")
     return {"spec": Path(spec), "model": model,
-            "certificate": base / "certificates" / f"{MODEL_NAME}.cert.json"}
+            "certificate": (Path(certificates) if certificates is not None
+                            else base / "certificates") / f"{MODEL_NAME}.cert.json"}
 
 
-def hash_files(root: str | os.PathLike[str]) -> tuple[tuple[str, str, str], ...]:
+def hash_files(root: str | os.PathLike[str],
+               certificates: str | os.PathLike[str] | None = None
+               ) -> tuple[tuple[str, str, str], ...]:
     """``(name, path, SHA-256)`` of the project's spec, model and certificate (the certificate
     may be missing: then the policy refuses to load)."""
     from tli_verify.io import sha256_file
 
     return tuple((k, str(p), sha256_file(p) if p.is_file() else "")
-                 for k, p in project_files(root).items())
+                 for k, p in project_files(root, certificates).items())
 
 
 def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
@@ -666,10 +680,10 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     """
     from tli_verify.sim.loop import load_policy, run_trial
 
-    files = hash_files(config.root)
+    files = hash_files(config.root, config.cert_dir)
     if policy is None:
         policy = load_policy(config.variant, root=config.root,
-                             certificates=Path(config.root) / "certificates")
+                             certificates=config.cert_dir)
     t0 = time.perf_counter()
     results: list[TrialResult] = []
     verdicts: list[TrialVerdict] = []
@@ -698,7 +712,7 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
                     "messages": list(verdict.messages), "delivered": res.delivered,
                     "mode_sequence": res.mode_sequence(),
                     "perturbations": [p.to_json() for p in res.perturbations],
-                    "reproduce": f"tli sim franka --certificates {c.root}/certificates "
+                    "reproduce": f"tli sim franka --certificates {c.cert_dir} "
                                  f"--seed {res.seed} --trials 1 --robot {c.robot} "
                                  f"--duration {c.duration:g}"}
     return None
@@ -713,7 +727,7 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
     ----------
     result : PhysicsResult
     path : path-like, optional
-        Default ``<root>/certificates/franka-scoop.campaign.json``.
+        Default ``<cert_dir>/franka-scoop.campaign.json`` (``<root>/certificates``).
     inputs : sequence of path-like, optional
         Other files the evidence must not overwrite (the demonstrations, a plot, ...).
 
@@ -737,7 +751,7 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
 
     c = result.config
     target = Path(path) if path is not None else \
-        Path(c.root) / "certificates" / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
+        c.cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
     check_output_file(target, inputs=list(inputs), what="campaign evidence")
     files = {name: Path(p) for name, p, _ in result.files}
     physics: dict[str, Any] = dict(c.settings())
