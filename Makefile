@@ -53,8 +53,11 @@ test-all: $(STAMP) lint
 bench: $(STAMP)
 	$(PY) -m benchmarks --out benchmarks/results
 
+# The repository's deployed models, then the Franka project (sim/franka: its evidence is the
+# physical campaign, scripts/make_evidence.py --franka).
 gate: $(STAMP)
 	$(VENV)/bin/tli gate
+	$(VENV)/bin/tli gate sim/franka
 
 clean:
 	rm -rf out .pytest_cache .mypy_cache .ruff_cache

@@ -15,6 +15,18 @@ Usage (after any bundled model or certificate changed; one command)::
 Prints one line per model. Exit 0 when every campaign found nothing (the gate then passes on
 the evidence), 1 when one found a violation (its evidence is written anyway, as an honest
 record the gate refuses), 2 on bad arguments or files.
+
+The Franka policy (``sim/franka``, issue 13) has a physical campaign instead: ``--franka`` runs
+``--trials`` (default 30, the gate's minimum) seeded, perturbed MuJoCo trials of the certified
+LTL-DS executive (:func:`tli_verify.sim.campaign.run_physics_campaign`, the same trials as
+``tli sim franka --trials N --seed S --evidence``) and writes
+``sim/franka/certificates/franka-scoop.campaign.json``; ``tli gate sim/franka`` then checks it::
+
+    .venv/bin/python scripts/make_evidence.py --franka [--trials 30] [--seed 0]
+        [--robot hand|panda] [--duration 20] [--root sim/franka]
+
+Re-run it whenever the Franka model or certificate is regenerated (the evidence binds their
+SHA-256). One line per trial on stderr, then the evidence line; exit as above.
 """
 
 from __future__ import annotations
@@ -95,6 +107,35 @@ def _run(args: argparse.Namespace) -> int:
     return status
 
 
+def _run_franka(args: argparse.Namespace) -> int:
+    from tli_verify.sim.campaign import (
+        PhysicsConfig,
+        TrialVerdict,
+        run_physics_campaign,
+        write_physics_evidence,
+    )
+    from tli_verify.sim.loop import TrialResult, project_dir
+
+    root = args.root if args.root is not None else project_dir()
+    config = PhysicsConfig(root=str(root), seed=args.seed, trials=args.trials,
+                           robot=args.robot, duration=args.duration)
+
+    def progress(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
+        judged = "ok" if verdict.ok else ", ".join(verdict.violations)
+        sys.stderr.write(f"  trial {k + 1}/{args.trials} (seed {res.seed}): {judged}; "
+                         f"{res.delivered} bead(s); modes {res.mode_sequence()}\n")
+
+    t0 = time.perf_counter()
+    result = run_physics_campaign(config, on_trial=progress)
+    path, _ = write_physics_evidence(result)
+    shown = path.relative_to(root) if path.is_relative_to(root) else path
+    print(f"{shown}: physical campaign, seed {args.seed}, {args.trials} trial(s) (robot "
+          f"{args.robot}, {args.duration:g} s), {result.successes} delivered, "
+          f"{sum(not v.ok for v in result.verdicts)} failed the oracle, "
+          f"{time.perf_counter() - t0:.1f} s")
+    return 0 if result.ok else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", type=int, default=DEFAULT_EXAMPLES,
@@ -108,11 +149,30 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--world", action="append", default=[], metavar="NAME=WORLD",
                         help="the world of model NAME (default: the world named NAME)")
     parser.add_argument("--root", type=Path, default=None,
-                        help="project directory (default: the repository)")
+                        help="project directory (default: the repository; with --franka "
+                        "sim/franka)")
+    franka = parser.add_argument_group("the Franka policy's physical campaign (issue 13)")
+    franka.add_argument("--franka", action="store_true",
+                        help="run the physical campaign of sim/franka instead")
+    franka.add_argument("--trials", type=int, default=None,
+                        help="perturbed trials (default: the gate's minimum, 30)")
+    franka.add_argument("--robot", default="hand", choices=("hand", "panda"))
+    franka.add_argument("--duration", type=float, default=20.0,
+                        help="step budget per trial, simulated seconds (default 20)")
     args = parser.parse_args(argv)
     if args.examples < 1 or not 0 <= args.seed < 2**32:
         parser.error("--examples must be >= 1 and --seed in [0, 2^32)")
+    if args.franka:
+        from tli_verify.verify.evidence import MIN_PHYSICS_TRIALS
+
+        args.trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
+        if args.trials < 1 or args.seed + args.trials > 2**32:
+            parser.error("--trials must be >= 1, with every trial's seed below 2^32")
+    elif args.trials is not None:
+        parser.error("--trials is for --franka")
     try:
+        if args.franka:
+            return _run_franka(args)
         return _run(args)
     except TliError as exc:
         sys.stderr.write(f"error: {exc}\n")

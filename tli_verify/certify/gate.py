@@ -24,7 +24,12 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      found 0 violations with modulation on, is complete and has at least
      ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
      campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
-     nothing. Evidence that binds no deployed model blocks too.
+     nothing. Evidence that binds no deployed model blocks too. A physical campaign's
+     evidence (world ``franka-physics``, the Franka project ``sim/franka``; issue 13) needs
+     ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
+     re-runs ``N`` physical trials with the recorded robot, variant, duration and seed
+     (:func:`tli_verify.sim.campaign.run_physics_campaign`) and every one must pass the
+     physics oracle.
 
 A directory with no model to deploy fails closed ("nothing to gate"). Any failure blocks.
 """
@@ -40,7 +45,8 @@ from typing import Any
 from tli_verify.certify.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError
 
-__all__ = ["CampaignRunner", "GateItem", "GateReport", "rerun_campaign", "run_gate"]
+__all__ = ["CampaignRunner", "GateItem", "GateReport", "rerun_campaign", "rerun_physics",
+           "run_gate"]
 
 CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
 """``(evidence check, model path, examples) -> (ok, one-line message)``: a ``--rerun``."""
@@ -415,10 +421,20 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
             items.append(GateItem("model", name, False, f"{shown(evidence)}: "
                                   f"{'; '.join(check.problems)}", "campaign"))
             continue
-        items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on world "
-                              f"{check.world!r} with seed {check.seed}: {check.examples} "
-                              f"examples ({check.runs} runs), modulation on, 0 violations; "
-                              "binds its spec, model and certificate (SHA-256)", "campaign"))
+        if check.physics:
+            phys = dict(check.physics)
+            items.append(GateItem(
+                "model", name, True, f"{shown(evidence)}: physical campaign {check.world!r} "
+                f"(robot {phys['robot']}, {phys['variant']}, {phys['duration']:g} s budget): "
+                f"{check.examples} perturbed trials from seed {check.seed} ({phys['pushes']} "
+                f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
+                "violations; binds its spec, model and certificate (SHA-256)", "campaign"))
+        else:
+            items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on world "
+                                  f"{check.world!r} with seed {check.seed}: {check.examples} "
+                                  f"examples ({check.runs} runs), modulation on, 0 violations; "
+                                  "binds its spec, model and certificate (SHA-256)",
+                                  "campaign"))
         if rerun is not None:
             ok, message = (runner or rerun_campaign)(check, model, int(rerun))
             items.append(GateItem("model", name, ok, message, "rerun"))
@@ -450,6 +466,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     (bool, str)
         Whether it found nothing, and one line saying what it ran and found.
     """
+    if check.physics:
+        return rerun_physics(check, model, examples)
     try:
         from tli_verify.verify.campaign import CampaignConfig, run_campaign
     except ImportError as exc:
@@ -481,3 +499,46 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
                        f"reproduce: tli verify --world {check.world} --seed {check.seed} "
                        f"--examples {examples} --model {model}")
     return True, f"{what}: 0 violations"
+
+
+def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
+    """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials
+    with the evidence's seed, robot, variant, duration, pushes and tilts, on the deployed files
+    (the project is the model's ``models/`` parent), each judged by the physics oracle
+    (:func:`tli_verify.sim.campaign.check_trial`).
+
+    Parameters
+    ----------
+    check : tli_verify.verify.evidence.EvidenceCheck
+        A passing check of ``franka-physics`` evidence (its ``physics`` settings).
+    model : Path
+        The deployed model (``<project>/models/franka-scoop.model.json``).
+    trials : int
+
+    Returns
+    -------
+    (bool, str)
+    """
+    try:
+        from tli_verify.sim.campaign import PhysicsConfig, run_physics_campaign, settings_from
+    except ImportError as exc:
+        return False, f"cannot re-run the physical trials (pip install 'tli-verify[sim]'): {exc}"
+    root = model.parent.parent
+    try:
+        config = PhysicsConfig(root=str(root), seed=int(check.seed or 0), trials=int(trials),
+                               **settings_from(dict(check.physics)))
+        result = run_physics_campaign(config)
+    except TliError as exc:
+        return False, f"the re-run physical trials failed: {exc}"
+    what = (f"re-ran {trials} physical trial(s) from seed {config.seed} (robot {config.robot}, "
+            f"{config.variant}, {config.duration:g} s): {result.successes}/{trials} delivered "
+            "soup")
+    found = {k: v for k, v in result.violations.items() if v}
+    if found:
+        bad = next(v for v in result.verdicts if not v.ok)
+        kinds = ", ".join(f"{k} {v}" for k, v in found.items())
+        return False, (f"{what}; violations (trials per kind): {kinds}; first: seed {bad.seed}: "
+                       f"{bad.messages[0]}; reproduce: tli sim franka --certificates "
+                       f"{root / 'certificates'} --seed {bad.seed} --trials 1 --robot "
+                       f"{config.robot} --duration {config.duration:g}")
+    return True, f"{what}, 0 violations"

@@ -156,7 +156,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.add_argument("--rerun", type=_rerun_examples, default=None, metavar="N",
                    help="also re-run a campaign of N examples per deployed model, with its "
-                   "evidence's seed and world; a violation blocks")
+                   "evidence's seed and world (physical evidence: N MuJoCo trials with its "
+                   "seed, robot, variant and duration); a violation blocks")
     p.set_defaults(handler=_gate)
 
 

@@ -5,8 +5,13 @@ Before anything moves, the bundled Franka scoop model must be covered by its cer
 or tampered certificate, or a model it does not cover, is refused with exit 1 naming the
 certificate.
 
-Exit codes: 0 every trial delivered soup; 1 a trial did not (or the certificate refused);
-2 bad arguments.
+Every trial is judged by the physics oracle (:func:`tli_verify.sim.campaign.check_trial`): soup
+delivered, the goal mode reached, the mode trace a run of the task automaton. ``--evidence
+[PATH]`` writes the run as campaign evidence for ``tli gate`` (default
+``<project>/certificates/franka-scoop.campaign.json``; :mod:`tli_verify.verify.evidence`).
+
+Exit codes: 0 every trial passed the oracle (delivered soup); 1 a trial did not (or the
+certificate refused); 2 bad arguments.
 """
 
 from __future__ import annotations
@@ -31,9 +36,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     simsub.required = True
     f = simsub.add_parser(
         "franka", help="perturbed scooping trials (success: a bead ends in the target bowl)",
-        description="Run N seeded, perturbed trials of the certified Franka scoop model. "
-        "Exit 0: every trial delivered soup; 1: one did not, or the certificate refused the "
-        "model; 2: bad arguments.")
+        description="Run N seeded, perturbed trials of the certified Franka scoop model, "
+        "each judged by the physics oracle (soup delivered, goal mode reached, the mode trace "
+        "a run of the task automaton). Exit 0: every trial passed; 1: one did not, or the "
+        "certificate refused the model; 2: bad arguments.")
     f.add_argument("--trials", type=int_range(1, 1000), default=1,
                    help="number of trials (default 1)")
     f.add_argument("--seed", type=int_range(0), default=0,
@@ -60,6 +66,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
                    "pitch) with the cuts learned in them (Fig. 9 style)")
+    f.add_argument("--evidence", nargs="?", const="", default=None, metavar="PATH",
+                   help="write the trials as campaign evidence for tli gate (default "
+                   "<project>/certificates/franka-scoop.campaign.json); the gate needs "
+                   "at least 30 perturbed LTL-DS trials, all passing")
     p.set_defaults(handler=_run)
 
 
@@ -76,6 +86,12 @@ def _run(args: argparse.Namespace) -> int:
         from tli_verify.sim.render import select_backend
 
         select_backend()  # MUJOCO_GL: the user's, else egl, else osmesa; none: exit 2
+    if args.evidence is not None and (args.no_perturb or args.no_modulation or args.no_replan):
+        raise TliError("--evidence: evidence is for the deployed policy under perturbations; "
+                       "not with --no-perturb, --no-modulation or --no-replan")
+    if args.evidence is not None and args.seed + args.trials > 2**32:
+        raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
+                       "2^32")
     from tli_verify.io import check_output_file
     from tli_verify.sim.loop import project_dir
 
@@ -83,8 +99,22 @@ def _run(args: argparse.Namespace) -> int:
     base = args.certificates.parent if args.certificates is not None else project_dir()
     inputs = [f for sub in ("specs", "models", "certificates", "demos")
               for f in sorted((base / sub).rglob("*")) if f.is_file()]
+    if args.certificates is not None:  # a certificates directory not named certificates/
+        inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
     if args.fig9 is not None:
         check_output_file(args.fig9, inputs=inputs, what="Fig. 9 plot")
+    evidence = None
+    if args.evidence is not None:  # before any work: never over an input or another output
+        from tli_verify.sim.campaign import MODEL_NAME
+        from tli_verify.verify.evidence import EVIDENCE_SUFFIX
+
+        cert_dir = args.certificates if args.certificates is not None else \
+            base / "certificates"
+        evidence = Path(args.evidence) if args.evidence else \
+            cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
+        evidence_inputs = [f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)]
+        evidence_inputs += [o for o in (args.fig9, args.video) if o is not None]
+        check_output_file(evidence, inputs=evidence_inputs, what="campaign evidence")
     if args.video is not None:
         check_output_file(args.video, inputs=[*inputs, *([args.fig9] if args.fig9 else [])],
                           what="video")
@@ -93,7 +123,13 @@ def _run(args: argparse.Namespace) -> int:
     except ImportError:
         raise TliError("tli sim needs MuJoCo: pip install 'tli-verify[sim]'") from None
     from tli_verify.io import canonical_json
-    from tli_verify.sim.loop import load_policy, run_trial
+    from tli_verify.sim.campaign import (
+        PhysicsConfig,
+        TrialVerdict,
+        run_physics_campaign,
+        write_physics_evidence,
+    )
+    from tli_verify.sim.loop import TrialResult, load_policy
 
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
@@ -103,27 +139,40 @@ def _run(args: argparse.Namespace) -> int:
         from tli_verify.sim.render import Recorder
 
         recorder = Recorder()
-    results = []
-    for k in range(args.trials):
-        seed = args.seed + k
-        res = run_trial(policy, seed, variant=variant,
-                        perturbations=[] if args.no_perturb else None,
-                        duration=args.duration, robot=args.robot,
-                        frame=recorder.frame if recorder is not None and k == 0 else None)
-        results.append(res)
+    config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,
+                           robot=args.robot, variant=variant, duration=args.duration,
+                           pushes=0 if args.no_perturb else 1,
+                           tilts=0 if args.no_perturb else 1,
+                           certificates=None if args.certificates is None
+                           else str(args.certificates))
+
+    def report(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         if args.json:
-            sys.stdout.write(canonical_json(res.to_json()))
+            sys.stdout.write(canonical_json(dict(res.to_json(),
+                                                 violations=list(verdict.violations))))
         else:
+            judged = "oracle ok" if verdict.ok else \
+                f"oracle: {', '.join(verdict.violations)}"
             sys.stdout.write(
-                f"trial {k + 1}/{args.trials} (seed {seed}, {variant}): "
+                f"trial {k + 1}/{args.trials} (seed {res.seed}, {variant}): "
                 f"{'success' if res.success else 'FAILED'}, {res.delivered} bead(s) delivered; "
-                f"modes {res.mode_sequence()}; {res.cuts_added} cut(s); "
+                f"modes {res.mode_sequence()}; {res.cuts_added} cut(s); {judged}; "
                 f"{res.sim_time:.1f} s simulated in {res.wall_time:.1f} s\n")
         sys.stdout.flush()
-    ok = sum(r.success for r in results)
-    summary = {"summary": True, "variant": variant, "trials": len(results), "successes": ok,
-               "cuts_added": sum(r.cuts_added for r in results),
-               "wall_time": round(sum(r.wall_time for r in results), 2)}
+
+    campaign = run_physics_campaign(config, policy=policy, on_trial=report,
+                                    frame=recorder.frame if recorder is not None else None)
+    results = campaign.results
+    ok = campaign.successes
+    passed = sum(v.ok for v in campaign.verdicts)
+    summary: dict[str, object] = {
+        "summary": True, "variant": variant, "trials": len(results), "successes": ok,
+        "passed": passed, "violations": campaign.violations,
+        "cuts_added": sum(r.cuts_added for r in results),
+        "wall_time": round(sum(r.wall_time for r in results), 2)}
+    if evidence is not None:
+        target, _ = write_physics_evidence(campaign, evidence)
+        summary["evidence"] = str(target)
     if recorder is not None:
         recorder.save(args.video)
         summary["video"] = str(args.video)
@@ -138,6 +187,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         sys.stdout.write(canonical_json(summary))
     else:
-        sys.stdout.write(f"{variant}: {ok}/{len(results)} trials delivered soup"
-                         + (f"; video {args.video}" if args.video is not None else "") + "\n")
-    return 0 if ok == len(results) else 1
+        sys.stdout.write(f"{variant}: {ok}/{len(results)} trials delivered soup, {passed} "
+                         "passed the oracle"
+                         + (f"; video {args.video}" if args.video is not None else "")
+                         + (f"; evidence {summary['evidence']}" if evidence is not None
+                            else "") + "\n")
+    return 0 if passed == len(results) else 1

@@ -356,8 +356,8 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
     waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02, start=start)
     rig = MocapRig(seed, start=waypoints[0, 1:])
     every = round(dt / float(rig.model.opt.timestep))
-    sensors = Debounce()  # the readings the executive will see (sensors.Debounce)
-    steps = [ScoopStep(0.0, rig.pose(), sensors.update(rig.read()),
+    debounce = Debounce()  # the readings the executive will see (sensors.Debounce)
+    steps = [ScoopStep(0.0, rig.pose(), debounce.update(rig.read()),
                        interpolate(waypoints, 0.0))]
     sweep = (float(waypoints[2, 0]), float(waypoints[4, 0]))
     k = 0
@@ -371,7 +371,8 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
             rig.command(cmd)
             rig.physics_step()
         k += 1
-        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), sensors.update(rig.read()), cmd))
+        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), debounce.update(rig.read()),
+                               cmd))
     t = np.array([s.time for s in steps])
     x = to_ds(np.array([s.command for s in steps]))
     sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)

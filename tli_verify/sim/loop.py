@@ -133,7 +133,12 @@ def workspace() -> tuple[FloatArray, FloatArray]:
 
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
-    """Seeded perturbations of one trial (module doc).
+    """Seeded perturbations of one trial, drawn by the campaign strategies.
+
+    :func:`tli_verify.sim.campaign.draw`: hypothesis over
+    :func:`~tli_verify.sim.campaign.trial_perturbations` (pushes of 10-35 N for 0.1-0.3 s in
+    any direction at 0.5-6 s; tilts of -15..-25 Nm about x for 0.2-0.4 s, 0-1.5 s after the
+    soup is carried out of the bowl), deterministic in ``seed`` in any process.
 
     Parameters
     ----------
@@ -144,18 +149,9 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
     -------
     list of Perturbation
     """
-    rng = np.random.default_rng([seed, 29])
-    out = []
-    for _ in range(pushes):
-        d = rng.normal(size=3)
-        d /= float(np.linalg.norm(d))
-        f = rng.uniform(15.0, 30.0)
-        out.append(Perturbation("push", float(rng.uniform(0.5, 6.0)), 0.2,
-                                tuple(float(v) for v in (*(f * d), 0.0, 0.0, 0.0))))
-    for _ in range(tilts):
-        out.append(Perturbation("tilt", float(rng.uniform(0.1, 0.8)), 0.3,
-                                (0.0, 0.0, 0.0, -20.0, 0.0, 0.0)))
-    return out
+    from tli_verify.sim.campaign import draw
+
+    return draw(seed, pushes=pushes, tilts=tilts)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -67,7 +67,9 @@ OPEN_FRONT_DEG = 110.0
 FRONT_LIP = 0.006
 """Height (m) of a low lip across the open front: beads get over it when the tray is pushed
 into the pile, and it keeps them from rolling off the front while the tray is levelled
-(with the beads gathered in the bowl's middle, a closed lip of 3 mm scooped nothing; against the wall they are squeezed over 6 mm, and the first bead gets on only once the tray presses into the pile)."""
+(with the beads gathered in the bowl's middle, a closed lip of 3 mm scooped nothing; against
+the wall they are squeezed over 6 mm, and the first bead gets on only once the tray presses
+into the pile)."""
 HANDLE_LENGTH = 0.16
 LADLE_MASS = 0.12
 CARRIER_MASS = 1.0
@@ -189,7 +191,8 @@ def soup_floor(y: float, x: float | None = None) -> float:
     """World height of the soup bowl's floor at ``(x, y)`` (default ``x`` the bowl's centre
     line): flat in the pit, rising at ``SOUP_SLOPE`` outside it (m)."""
     px = float(SOUP_CENTER[0] + SOUP_PIT[0]) if x is None else x
-    d = math.hypot(px - float(SOUP_CENTER[0] + SOUP_PIT[0]), y - float(SOUP_CENTER[1] + SOUP_PIT[1]))
+    d = math.hypot(px - float(SOUP_CENTER[0] + SOUP_PIT[0]),
+                   y - float(SOUP_CENTER[1] + SOUP_PIT[1]))
     return float(SOUP_CENTER[2] + SOUP_BOWL.floor + max(0.0, d - SOUP_FLAT)
                  * math.tan(SOUP_SLOPE))
 

@@ -23,6 +23,18 @@ campaign with the evidence's seed (:mod:`tli_verify.certify.gate`).
 
 Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
 ``scripts/make_evidence.py`` for every bundled model).
+
+Physical campaigns (issue 13)
+-----------------------------
+The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
+``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
+pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
+by ``tli sim franka --evidence`` or ``scripts/make_evidence.py --franka``
+(:func:`tli_verify.sim.campaign.write_physics_evidence`). Each example is one perturbed physical
+trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
+the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
+both perturbation levels (pushes and tilts). ``tli gate --rerun N`` re-runs ``N`` physical
+trials with the recorded settings.
 """
 
 from __future__ import annotations
@@ -42,6 +54,8 @@ __all__ = [
     "EVIDENCE_SCHEMA_VERSION",
     "EVIDENCE_SUFFIX",
     "MIN_EVIDENCE_EXAMPLES",
+    "MIN_PHYSICS_TRIALS",
+    "PHYSICS_WORLDS",
     "EvidenceCheck",
     "build_evidence",
     "check_evidence",
@@ -63,6 +77,15 @@ With ``N`` examples and no violation, the failure probability per perturbed run 
 ``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
 campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
 evidence (1,000 examples, ``scripts/make_evidence.py``) costs seconds per model."""
+
+
+MIN_PHYSICS_TRIALS = 30
+"""Fewest perturbed physical trials a ``franka-physics`` campaign needs to count as evidence:
+the paper's experiment (Sec. 7.2: 30 perturbed trials, 30 successes). With 30 successes the
+failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
+than the 2-D campaigns' bound, and the gate's line says so."""
+PHYSICS_WORLDS: dict[str, int] = {"franka-physics": MIN_PHYSICS_TRIALS}
+"""Worlds of physical campaigns (:mod:`tli_verify.sim.campaign`) -> their minimum trials."""
 
 
 class _BadInput(EvidenceError):
@@ -128,7 +151,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
                    counterexample: Mapping[str, Any] | None = None,
                    inconclusive: int | None = None,
                    settings: Mapping[str, Any] | None = None,
-                   expected: Mapping[str, str] | None = None) -> dict[str, Any]:
+                   expected: Mapping[str, str] | None = None,
+                   physics: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The evidence document of one finished campaign (with its digest).
 
     Parameters
@@ -165,6 +189,10 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     expected : mapping str -> str, optional
         ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
         that changed since is refused.
+    physics : mapping, optional
+        A physical campaign's block (world in :data:`PHYSICS_WORLDS`): ``robot``, ``variant``,
+        ``duration``, ``pushes``, ``tilts``, ``trials``, ``successes``, ... (schema
+        ``physics``).
 
     Returns
     -------
@@ -203,6 +231,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         doc["campaign"]["inconclusive"] = int(inconclusive)
     if settings is not None:
         doc["campaign"]["settings"] = {str(k): v for k, v in settings.items()}
+    if physics is not None:
+        doc["physics"] = dict(physics)
     for key, sha in (expected or {}).items():
         if doc[key]["sha256"] != sha:
             raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
@@ -385,6 +415,9 @@ class EvidenceCheck:
         The files it binds (resolved), when the file could be read.
     settings : tuple of (str, object)
         The campaign's other recorded parameters (``campaign.settings``).
+    physics : tuple of (str, object)
+        A physical campaign's settings (``physics``: robot, variant, duration, pushes,
+        tilts); empty for a 2-D world.
     """
 
     path: str
@@ -398,6 +431,7 @@ class EvidenceCheck:
     spec_path: str | None = None
     certificate_path: str | None = None
     settings: tuple[tuple[str, Any], ...] = ()
+    physics: tuple[tuple[str, Any], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -419,7 +453,7 @@ def _short(sha: str) -> str:
 def check_evidence(path: str | os.PathLike[str], *,
                    model_path: str | os.PathLike[str] | None = None,
                    valid_certificates: Collection[str | os.PathLike[str]] | None = None,
-                   min_examples: int = MIN_EVIDENCE_EXAMPLES) -> EvidenceCheck:
+                   min_examples: int | None = None) -> EvidenceCheck:
     """Re-check campaign evidence against the files it binds.
 
     Parameters
@@ -433,7 +467,8 @@ def check_evidence(path: str | os.PathLike[str], *,
         certificate must be one of them. Default: only the certificate's hash and the model
         hash it records are compared (``tli check-cert`` re-checks the certificate itself).
     min_examples : int, optional
-        Fewest examples accepted (default :data:`MIN_EVIDENCE_EXAMPLES`).
+        Fewest examples accepted (default :data:`MIN_EVIDENCE_EXAMPLES`; for a physical
+        campaign the world's minimum in :data:`PHYSICS_WORLDS`).
 
     Returns
     -------
@@ -477,14 +512,20 @@ def check_evidence(path: str | os.PathLike[str], *,
             _same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
                         f"certificate of {mpath}")
+    if min_examples is None:
+        min_examples = PHYSICS_WORLDS.get(doc["world"], MIN_EVIDENCE_EXAMPLES)
     problems += _check_campaign(doc, shown, min_examples, passed)
+    problems += _check_physics(doc, shown, passed)
     camp = doc["campaign"]
+    keep = ("robot", "variant", "duration", "pushes", "tilts")
     return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
                          seed=int(camp["seed"]), examples=int(camp["examples"]),
                          runs=int(camp["runs"]), model_path=str(mpath),
                          spec_path=str(named["spec"]),
                          certificate_path=str(named["certificate"]),
-                         settings=tuple(sorted(camp.get("settings", {}).items())))
+                         settings=tuple(sorted(camp.get("settings", {}).items())),
+                         physics=tuple(sorted((k, v) for k, v in doc.get("physics", {}).items()
+                                              if k in keep)))
 
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
@@ -496,9 +537,9 @@ def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str])
     if version != __version__:
         out.append(f"{shown}: written by tli-verify {version}, this is {__version__}: the "
                    "oracle may differ; re-run the campaign with this version")
-    if doc["world"] not in WORLDS:
+    if doc["world"] not in WORLDS and doc["world"] not in PHYSICS_WORLDS:
         out.append(f"{shown}: world {doc['world']!r} is not a known world "
-                   f"({', '.join(sorted(WORLDS))})")
+                   f"({', '.join(sorted([*WORLDS, *PHYSICS_WORLDS]))})")
     else:
         passed.append(f"world {doc['world']!r} (its sensor model) is known")
     return out
@@ -574,8 +615,13 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     found = max(total, sum(by_kind.values()))
     if found:
         kinds = ", ".join(f"{k}: {v}" for k, v in sorted(by_kind.items()) if v) or "-"
-        out.append(f"{shown}: the campaign found {found} violation(s) ({kinds}): not evidence "
-                   "for deployment (tli replay the counterexample, fix the model)")
+        if doc["world"] in PHYSICS_WORLDS:
+            out.append(f"{shown}: physical trials failed the oracle (trials per kind: {kinds}): "
+                       "not evidence for deployment (the counterexample says how to reproduce "
+                       "the first)")
+        else:
+            out.append(f"{shown}: the campaign found {found} violation(s) ({kinds}): not "
+                       "evidence for deployment (tli replay the counterexample, fix the model)")
     elif doc["counterexample"] is not None:
         out.append(f"{shown}: records a counterexample: not evidence for deployment")
     if camp["partial"]:
@@ -585,8 +631,10 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                    "with it: not evidence for it")
     examples, runs = int(camp["examples"]), int(camp["runs"])
     if examples < min_examples:
+        const = "MIN_PHYSICS_TRIALS" if doc["world"] in PHYSICS_WORLDS else \
+            "MIN_EVIDENCE_EXAMPLES"
         out.append(f"{shown}: {examples} example(s), fewer than the minimum {min_examples} "
-                   "(MIN_EVIDENCE_EXAMPLES)")
+                   f"({const})")
     if (camp.get("settings") or {}).get("max_pushes", 1) == 0:
         out.append(f"{shown}: the campaign perturbed nothing (max_pushes 0): not evidence")
     if runs < examples:
@@ -597,3 +645,48 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                       "0 violations")
     return out
 
+
+
+def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
+    """A physical campaign's block: present exactly for a physical world, consistent with the
+    campaign, every trial delivered, the deployed variant, both perturbation levels."""
+    phys = doc.get("physics")
+    if doc["world"] not in PHYSICS_WORLDS:
+        if phys is not None:
+            return [f"{shown}: a physics block for world {doc['world']!r}, which is not a "
+                    "physical campaign"]
+        return []
+    if phys is None:
+        return [f"{shown}: world {doc['world']!r} is a physical campaign but the evidence has "
+                "no physics block"]
+    out: list[str] = []
+    camp = doc["campaign"]
+    trials, successes = int(phys["trials"]), int(phys["successes"])
+    if not trials == int(camp["examples"]) == int(camp["runs"]):
+        out.append(f"{shown}: physics.trials {trials} differs from campaign.examples "
+                   f"{camp['examples']} / runs {camp['runs']} (one run per trial)")
+    if successes != trials and not int(doc["violations"]["total"]):
+        out.append(f"{shown}: {trials - successes} of {trials} physical trial(s) delivered no "
+                   "soup: not evidence for deployment")
+    outcomes = phys.get("outcomes")
+    if outcomes is not None:
+        seeds = [int(o["seed"]) for o in outcomes]
+        first = int(camp["seed"])
+        if len(outcomes) != trials or seeds != list(range(first, first + len(outcomes))):
+            out.append(f"{shown}: physics.outcomes lists {len(outcomes)} trial(s) with seeds "
+                       f"other than {first}..{first + trials - 1}")
+        elif sum(bool(o["success"]) for o in outcomes) != successes or any(
+                o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
+            out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
+                       "violations")
+    if phys["variant"] != "LTL-DS":
+        out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
+                   "policy is LTL-DS (modulation and replanning on): not evidence for it")
+    if int(phys["pushes"]) < 1 or int(phys["tilts"]) < 1:
+        out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
+                   "the evidence must perturb at both levels (motion pushes and task tilts)")
+    if not out:
+        passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
+                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
+                      f"{phys['duration']:g} s budget), all delivered soup")
+    return out

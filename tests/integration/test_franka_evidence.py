@@ -1,0 +1,160 @@
+"""The Franka policy behind the gate (issue 13): ``tli sim franka --evidence``, ``tli gate`` and
+``tli gate --rerun`` on a copy of the current ``sim/franka`` project.
+
+Physical trials cost seconds: these run one trial with a short step budget (the soup is not
+delivered in 2 s, so the oracle rejects it: the evidence is written as an honest record and the
+gate blocks); the full 30-trial campaign is ``scripts/make_evidence.py --franka``.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("mujoco")
+
+from tests.support.cli import run
+from tests.unit.test_physics_evidence import attach_physics, physics_block
+from tli_verify.certify.gate import rerun_physics, run_gate
+from tli_verify.io import bundled_dir, sha256_file
+from tli_verify.verify.evidence import check_evidence
+
+pytestmark = pytest.mark.sim
+
+FRANKA = bundled_dir("sim") / "franka"
+EVIDENCE = "franka-scoop.campaign.json"
+
+
+@pytest.fixture
+def project(tmp_path: Path) -> Path:
+    """A copy of the Franka project's spec, model and certificate."""
+    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+                      ("certificates", "franka-scoop.cert.json")):
+        (tmp_path / sub).mkdir()
+        shutil.copy(FRANKA / sub / name, tmp_path / sub / name)
+    return tmp_path
+
+
+def records(out: str) -> list[dict[str, Any]]:
+    dec = json.JSONDecoder()
+    recs, i = [], 0
+    while i < len(out):
+        if out[i].isspace():
+            i += 1
+            continue
+        obj, i = dec.raw_decode(out, i)
+        recs.append(obj)
+    return recs
+
+
+def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
+        project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    certs = project / "certificates"
+    code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--trials", "1",
+                       "--seed", "3", "--duration", "2", "--json", "--evidence")
+    trial, summary = records(out)
+    assert code == (0 if not trial["violations"] else 1)
+    assert summary["evidence"] == str(certs / EVIDENCE)
+    doc = json.loads((certs / EVIDENCE).read_text())
+    assert doc["world"] == "franka-physics" and doc["campaign"]["seed"] == 3
+    assert doc["campaign"]["examples"] == doc["campaign"]["runs"] == 1
+    phys = doc["physics"]
+    assert (phys["robot"], phys["variant"], phys["duration"]) == ("hand", "LTL-DS", 2.0)
+    assert (phys["pushes"], phys["tilts"], phys["trials"]) == (1, 1, 1)
+    assert phys["successes"] == int(trial["success"])
+    assert phys["outcomes"] == [{"seed": 3, "success": trial["success"],
+                                 "delivered": trial["delivered"],
+                                 "violations": trial["violations"]}]
+    assert doc["violations"]["total"] == len(trial["violations"])
+    for key, path in (("model", project / "models" / "franka-scoop.model.json"),
+                      ("certificate", certs / "franka-scoop.cert.json"),
+                      ("spec", project / "specs" / "franka-scoop.toml")):
+        assert doc[key]["sha256"] == sha256_file(path)
+    recorded = [(p["kind"], p["start"]) for p in trial["perturbations"]]
+    assert [k for k, _ in recorded] == ["push", "tilt"]
+    # one trial of 2 s is no evidence: the gate blocks, one line naming the evidence file
+    code, _, err = run(capsys, "gate", str(project))
+    assert code == 1 and err.count("\n") == 1 and f"certificates/{EVIDENCE}" in err
+    assert "fewer than the minimum 30 (MIN_PHYSICS_TRIALS)" in err
+    # the gate's re-run of the recorded trial reproduces it (same seed, settings, machine)
+    check = check_evidence(certs / EVIDENCE)
+    ok, message = rerun_physics(check, project / "models" / "franka-scoop.model.json", 1)
+    assert ok == (not trial["violations"])
+    assert f"{int(trial['success'])}/1 delivered soup" in message
+
+
+def test_evidence_path_can_be_chosen(project: Path, tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "out" / "e.json"
+    code, out, _ = run(capsys, "sim", "franka", "--certificates", str(project / "certificates"),
+                       "--duration", "0.5", "--evidence", str(target))
+    assert code == 1 and target.is_file() and "evidence" in out  # 0.5 s: nothing delivered
+    assert not (project / "certificates" / EVIDENCE).exists()
+
+
+@pytest.mark.parametrize("extra", [
+    ["--evidence", "{p}/models/franka-scoop.model.json"],
+    ["--evidence", "{p}/certificates/franka-scoop.cert.json"],
+    ["--evidence", "{p}/specs/franka-scoop.toml"],
+    ["--fig9", "{p}/f.png", "--evidence", "{p}/f.png"],
+    ["--evidence", "--no-perturb"],
+    ["--evidence", "--no-modulation"],
+    ["--evidence", "--no-replan"],
+], ids=["model", "certificate", "spec", "fig9", "no-perturb", "no-modulation", "no-replan"])
+def test_evidence_is_refused_before_any_trial(project: Path, extra: list[str],
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    before = {p: p.read_bytes() for p in project.rglob("*") if p.is_file()}
+    code, out, err = run(capsys, "sim", "franka", "--certificates",
+                         str(project / "certificates"),
+                         *[e.replace("{p}", str(project)) for e in extra])
+    assert code == 2 and out == ""
+    assert err.startswith("error: ") and err.count("\n") == 1
+    assert {p: p.read_bytes() for p in project.rglob("*") if p.is_file()} == before
+
+
+def test_gate_rerun_catches_evidence_whose_trials_do_not_hold(
+        project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Evidence claiming 30 delivered trials with a 2 s budget binds the right files, so the
+    campaign line passes; re-running one trial with its settings shows no soup is delivered."""
+    attach_physics(project, physics=physics_block(duration=2.0))
+    report = run_gate(project)
+    assert report.ok, [b.message for b in report.blockers]
+    code, out, err = run(capsys, "gate", str(project), "--rerun", "1")
+    assert code == 1 and err.count("\n") == 1
+    line = next(x for x in out.splitlines() if ": rerun: " in x)
+    assert line.startswith("BLOCK")
+    assert "re-ran 1 physical trial(s) from seed 0 (robot hand, LTL-DS, 2 s)" in line
+    assert "0/1 delivered soup" in line and "delivery 1" in line
+    assert "reproduce: tli sim franka --certificates" in line
+
+
+@pytest.mark.slow
+def test_a_full_budget_trial_reproduces_under_rerun(project: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A trial with the full step budget (it may or may not deliver with the current model):
+    the gate's re-run judges it as the evidence recorded it."""
+    certs = project / "certificates"
+    code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration", "12",
+                       "--json", "--evidence")
+    trial, _ = records(out)
+    ok, message = rerun_physics(check_evidence(certs / EVIDENCE),
+                                project / "models" / "franka-scoop.model.json", 1)
+    assert ok == (not trial["violations"]) == (code == 0), message
+
+
+def test_a_certificates_directory_by_another_name_is_the_one_bound(
+        project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--certificates DIR`` not named certificates/: the evidence binds the certificate the
+    policy ran behind and is written next to it."""
+    certs = project / "certs"
+    (project / "certificates").rename(certs)
+    code, _, err = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration",
+                       "0.5", "--evidence")
+    assert code == 1 and err == ""  # 0.5 s: nothing delivered, the evidence is written
+    doc = json.loads((certs / EVIDENCE).read_text())
+    assert doc["certificate"] == {"path": "franka-scoop.cert.json",
+                                  "sha256": sha256_file(certs / "franka-scoop.cert.json")}

@@ -1,0 +1,105 @@
+"""The physics oracle of the Franka trials (issue 13): forged trials that only one check catches.
+
+A nominal trial's shape (measured: ``tli sim franka --no-perturb``, seed 0: the soup bowl
+reached at step 77, soup on the spoon at step 97, above the target at step 286) is the valid
+reference; each forgery changes one thing and must be flagged by exactly one check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import pytest
+
+pytest.importorskip("mujoco")
+
+from tli_verify.io import bundled_dir
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.sim.campaign import check_trial
+from tli_verify.sim.loop import Perturbation, TrialResult
+
+SPEC = bundled_dir("sim") / "franka" / "specs" / "franka-scoop.toml"
+
+
+@pytest.fixture(scope="module")
+def automaton() -> Any:
+    return synthesize(load_spec(SPEC))
+
+
+def trace(*runs: tuple[str, int]) -> tuple[str, ...]:
+    return tuple(m for mode, n in runs for m in mode * n)
+
+
+def changes(modes: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(f"ModeChange at step {k}" for k in range(1, len(modes))
+                 if modes[k] != modes[k - 1])
+
+
+NOMINAL_MODES = trace(("a", 77), ("b", 20), ("c", 189), ("d", 125))
+NOMINAL = TrialResult(
+    seed=0, variant="LTL-DS", success=True, delivered=3, modes=NOMINAL_MODES, cuts_added=0,
+    sim_time=9.2, wall_time=2.6,
+    perturbations=(Perturbation("push", 2.0, 0.2, (20.0, 0.0, 0.0, 0.0, 0.0, 0.0)),),
+    applied=(2.0,), events=changes(NOMINAL_MODES))
+
+
+def jump(extra: tuple[str, ...] = ()) -> TrialResult:
+    """Soup bowl skipped: a -> c at step 77 (no transition of the automaton)."""
+    modes = trace(("a", 77), ("c", 209), ("d", 125))
+    return replace(NOMINAL, modes=modes, events=changes(modes) + extra)
+
+
+def test_the_nominal_trial_passes(automaton: Any) -> None:
+    verdict = check_trial(NOMINAL, automaton)
+    assert verdict.ok and verdict.violations == () and verdict.replans == 0
+
+
+FORGERIES: list[tuple[str, Callable[[], TrialResult], str, str]] = [
+    ("no bead delivered", lambda: replace(NOMINAL, success=False, delivered=0),
+     "delivery", "no soup delivered"),
+    ("success claimed with no bead", lambda: replace(NOMINAL, delivered=0),
+     "delivery", "no soup delivered"),
+    ("beads delivered but the trial failed", lambda: replace(NOMINAL, success=False),
+     "delivery", "the trial says it failed"),
+    ("the run stops in transport", lambda: replace(
+        NOMINAL, modes=NOMINAL_MODES[:200], events=changes(NOMINAL_MODES[:200])),
+     "reachability", "ends in mode 'c'"),
+    ("a -> c without a replan", jump, "automaton", "no transition of the automaton"),
+    ("a -> c replanned without a cause", lambda: jump(("Replan at step 77",)),
+     "automaton", "no transition of the automaton"),
+    ("a mode change the executive did not report", lambda: replace(
+        NOMINAL, events=tuple(e for e in NOMINAL.events if e != "ModeChange at step 97")),
+     "automaton", "did not report"),
+    ("starts in the scooping mode", lambda: replace(
+        NOMINAL, modes=("b", *NOMINAL_MODES[1:])), "automaton", "not an initial mode"),
+    ("a mode the spec lacks", lambda: replace(
+        NOMINAL, modes=(*NOMINAL_MODES[:150], "z", *NOMINAL_MODES[151:])),
+     "automaton", "'z' is not a mode"),
+]
+
+
+@pytest.mark.parametrize(("name", "forge", "kind", "message"), FORGERIES,
+                         ids=[f[0] for f in FORGERIES])
+def test_each_forgery_is_caught_by_exactly_one_check(
+        automaton: Any, name: str, forge: Callable[[], TrialResult], kind: str,
+        message: str) -> None:
+    verdict = check_trial(forge(), automaton)
+    assert verdict.violations == (kind,), (name, verdict)
+    assert not verdict.ok
+    assert any(message in m for m in verdict.messages), verdict.messages
+
+
+@pytest.mark.parametrize("cause", ["Perturbation", "AssumptionViolationEvent"])
+def test_a_jump_replanned_after_a_perturbation_or_sensor_change_is_a_run(
+        automaton: Any, cause: str) -> None:
+    verdict = check_trial(jump(("Replan at step 77", f"{cause} at step 77")), automaton)
+    assert verdict.ok and verdict.replans == 1
+
+
+def test_the_goal_modes_can_be_given(automaton: Any) -> None:
+    stopped = replace(NOMINAL, modes=NOMINAL_MODES[:200], events=changes(NOMINAL_MODES[:200]))
+    assert check_trial(stopped, automaton, goal_modes=("c", "d")).ok
+    assert check_trial(NOMINAL, automaton, goal_modes=("c",)).violations == ("reachability",)
