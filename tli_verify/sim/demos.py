@@ -61,7 +61,7 @@ SLOPE_PITCH = 0.3
 the funnel's ``SOUP_SLOPE``, so the front edge leads)."""
 SCOOP_PITCH = 0.15
 CARRY_PITCH = -0.3
-POUR_PITCH = 1.3
+POUR_PITCH = 1.5
 
 
 def _tray_height(y: float, pitch: float) -> float:
@@ -109,7 +109,7 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         (1.0, cx, near, _tray_height(near, SLOPE_PITCH) + 0.03, SLOPE_PITCH),  # over the slope
         (1.5, cx, near, _tray_height(near, SLOPE_PITCH) + 0.002, SLOPE_PITCH),  # onto it
         (2.3, cx, mid, _tray_height(mid, SLOPE_PITCH), SLOPE_PITCH),   # slide down the funnel
-        (3.0, cx, far, _tray_height(far, SCOOP_PITCH) - 0.003, SCOOP_PITCH),  # press into the pile
+        (3.0, cx, far, _tray_height(far, SCOOP_PITCH) - 0.006, SCOOP_PITCH),  # press into the pile
         (3.3, cx, far + 0.02, _tray_height(far, 0.0) + 0.003, 0.0),    # level the tray
         (3.7, cx, far + 0.03, _tray_height(far, 0.0) + 0.02, CARRY_PITCH),  # tip back
         (4.6, cx, near, 0.12, CARRY_PITCH),                            # lift out
@@ -220,6 +220,19 @@ class MocapRig:
         self._target_q = np.zeros(4)
         self._err_q = np.zeros(4)
         self._rotvec = np.zeros(3)
+        # views of the arrays physics_step reads and writes, made once (MjData never
+        # reallocates them; each attribute access would build a new array object)
+        d, a, v = self.data, self._qadr, self._dadr
+        self._wrench = d.xfrc_applied[self._carrier]
+        self._lin = d.xfrc_applied[self._carrier, :3]
+        self._ang = d.xfrc_applied[self._carrier, 3:]
+        self._pos = d.qpos[a:a + 3]
+        self._quat = d.qpos[a + 3:a + 7]
+        self._vel = d.qvel[v:v + 3]
+        self._omega_body = d.qvel[v + 3:v + 6]
+        self._xmat = d.xmat[self._carrier].reshape(3, 3)
+        self._mocap_pos = d.mocap_pos[0]
+        self._mocap_quat = d.mocap_quat[0]
         self.place([*self.data.mocap_pos[0].tolist(), 0.0] if start is None else start)
         reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
 
@@ -254,20 +267,23 @@ class MocapRig:
 
     def physics_step(self) -> None:
         """One physics step under the impedance law plus :attr:`push`."""
-        m, d = self.model, self.data
-        a, v = self._qadr, self._dadr
-        wrench = d.xfrc_applied[self._carrier]
-        wrench[:3] = self.k * (d.mocap_pos[0] - d.qpos[a:a + 3]) - self.d * d.qvel[v:v + 3]
+        # F = K (p* - p) - D v, per component in floats (the roundings of numpy's
+        # elementwise operations: the same numbers)
+        k, dv = self.k, self.d
+        self._lin[:] = [k * (t - p) - dv * u for t, p, u in
+                        zip(self._mocap_pos.tolist(), self._pos.tolist(), self._vel.tolist(),
+                            strict=True)]
         # orientation error: target * conj(current), as a rotation vector (world frame)
-        cur = d.qpos[a + 3:a + 7]
-        mujoco.mju_negQuat(self._err_q, cur)
-        mujoco.mju_mulQuat(self._err_q, d.mocap_quat[0], self._err_q)
+        mujoco.mju_negQuat(self._err_q, self._quat)
+        mujoco.mju_mulQuat(self._err_q, self._mocap_quat, self._err_q)
         mujoco.mju_quat2Vel(self._rotvec, self._err_q, 1.0)
         # free-joint angular velocity is in the body frame: rotate it to the world frame
-        omega = d.xmat[self._carrier].reshape(3, 3) @ d.qvel[v + 3:v + 6]
-        wrench[3:] = self.kr * self._rotvec - self.dr * omega
-        wrench += self.push
-        mujoco.mj_step(m, d)
+        omega = (self._xmat @ self._omega_body).tolist()
+        kr, dr = self.kr, self.dr
+        self._ang[:] = [kr * r - dr * o for r, o in zip(self._rotvec.tolist(), omega,
+                                                         strict=True)]
+        self._wrench += self.push
+        mujoco.mj_step(self.model, self.data)
 
     def step(self, n: int = 1) -> None:
         """``n`` physics steps."""

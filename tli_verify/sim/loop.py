@@ -308,7 +308,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     soup_at: float | None = None
     n = round(duration / CONTROL_DT)
     goal_for = 0
-    done_steps = round(2.5 / CONTROL_DT)  # pour for 2.5 s in the goal mode
+    done_steps = round(2.5 / CONTROL_DT)  # pour for 2.5 s in the goal mode, until empty
     t = 0.0
     for _ in range(n):
         if reading.s and not reading.r and soup_at is None:
@@ -340,7 +340,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         reading = sensors.update(rig.read())
         modes.append(policy.mode)
         goal_for = goal_for + 1 if policy.done else 0
-        if goal_for >= done_steps:
+        if goal_for >= done_steps and not reading.s:  # poured: nothing left on the spoon
             break
     rig.push[:] = 0.0
     for _ in range(round(settle / CONTROL_DT)):
