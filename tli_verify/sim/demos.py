@@ -37,7 +37,7 @@ from tli_verify.sim.scene import (
     reset_beads,
     scene_ids,
 )
-from tli_verify.sim.sensors import SENSOR_NAMES, Reading, ScoopSensors
+from tli_verify.sim.sensors import SENSOR_NAMES, Debounce, Reading, ScoopSensors
 
 __all__ = [
     "CONTROL_DT",
@@ -64,8 +64,17 @@ def _tray_height(pitch: float) -> float:
                  + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
 
 
-def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0
-                    ) -> FloatArray:
+RECOVERY_STARTS = (
+    (0.5, 0.10, 0.16, -0.7),
+    (0.5, -0.02, 0.19, -0.5),
+    (0.5, 0.16, 0.12, -0.25),
+)
+"""Start poses ``(x, y, z [m], pitch [rad])`` of the recovery demonstrations: where a spilling
+tilt leaves the ladle between the bowls, tipped back (:func:`write_demos`)."""
+
+
+def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0,
+                    start: npt.ArrayLike | None = None) -> FloatArray:
     """Timed waypoints of the scripted scoop (module doc).
 
     Parameters
@@ -75,6 +84,9 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         much, when ``jitter > 0``.
     jitter : float, optional
         Uniform jitter half-width (m).
+    start : array_like, shape (4,), optional
+        The first waypoint's ``(x, y, z, pitch)`` instead of the nominal start (a recovery
+        demonstration; jittered like the nominal one).
 
     Returns
     -------
@@ -97,6 +109,8 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         (7.2, tx, ty, 0.10, POUR_PITCH),                     # pour
         (8.0, tx, ty, 0.10, POUR_PITCH),
     ])
+    if start is not None:
+        w[0, 1:] = np.asarray(start, dtype=np.float64)
     if rng is not None and jitter > 0:
         for row in (0, 6, 7):
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
@@ -172,10 +186,12 @@ class MocapRig:
     stiffness, rot_stiffness : float, optional
         ``K`` (N/m) and ``K_r`` (Nm/rad); dampings are critical for the carrier's mass and
         inertia.
+    start : array_like, shape (4,), optional
+        Initial ``(x, y, z, pitch)`` of the tray (default: the scene's start, pitch 0).
     """
 
     def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
-                 rot_stiffness: float = 150.0) -> None:
+                 rot_stiffness: float = 150.0, start: npt.ArrayLike | None = None) -> None:
         self.k = float(stiffness)
         self.kr = float(rot_stiffness)
         self.push = np.zeros(6)
@@ -195,7 +211,7 @@ class MocapRig:
         self._target_q = np.zeros(4)
         self._err_q = np.zeros(4)
         self._rotvec = np.zeros(3)
-        self.place([*self.data.mocap_pos[0].tolist(), 0.0])
+        self.place([*self.data.mocap_pos[0].tolist(), 0.0] if start is None else start)
         reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
 
     @property
@@ -298,7 +314,8 @@ def from_ds(z: npt.ArrayLike) -> FloatArray:
     return p
 
 
-def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonstration:
+def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
+                start: npt.ArrayLike | None = None) -> Demonstration:
     """One scripted demonstration in the simulator (like kinesthetic teaching).
 
     The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
@@ -317,6 +334,9 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
         Shown in messages (``Demonstration.path``).
     dt : float, optional
         Sampling period (s), a multiple of the 2 ms physics step.
+    start : array_like, shape (4,), optional
+        Start pose (:func:`scoop_waypoints`); the ladle is placed there before the beads
+        settle.
 
     Returns
     -------
@@ -324,10 +344,12 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
         ``x`` shape (T, 4): the DS state (:func:`to_ds`); sensors ``r, s, t``; velocities by finite
         differences.
     """
-    rig = MocapRig(seed)
-    waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02)
+    waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02, start=start)
+    rig = MocapRig(seed, start=waypoints[0, 1:])
     every = round(dt / float(rig.model.opt.timestep))
-    steps = [ScoopStep(0.0, rig.pose(), rig.read(), interpolate(waypoints, 0.0))]
+    sensors = Debounce()  # the readings the executive will see (sensors.Debounce)
+    steps = [ScoopStep(0.0, rig.pose(), sensors.update(rig.read()),
+                       interpolate(waypoints, 0.0))]
     sweep = (float(waypoints[2, 0]), float(waypoints[3, 0]))
     k = 0
     reacted = False
@@ -340,7 +362,7 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
             rig.command(cmd)
             rig.physics_step()
         k += 1
-        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), rig.read(), cmd))
+        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), sensors.update(rig.read()), cmd))
     t = np.array([s.time for s in steps])
     x = to_ds(np.array([s.command for s in steps]))
     sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)
@@ -350,12 +372,19 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT) -> Demonst
 
 
 def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
-                max_tries: int = 20) -> list[Path]:
-    """Record ``count`` successful demonstrations as ``franka_<k>.csv`` (atomically).
+                max_tries: int = 20,
+                recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS
+                ) -> list[Path]:
+    """Record ``count`` nominal and one recovery demonstration per ``recovery`` start, as
+    ``franka_<k>.csv`` (atomically).
 
-    A take whose soup never reaches the target (the readings do not end at ``t``), or whose
-    readings go back a mode on the way (soup lost, even for a step), is discarded and the next
-    seed is tried, as a teacher would redo it.
+    The recovery takes start where a spilling tilt leaves the ladle (between the bowls, tipped
+    back) and show the whole task from there: a DS learned only from the nominal start
+    turned the tray's front down too slowly and reached the soup tipped back, scooping
+    nothing (the color-tracing world's recovery demonstrations do the same for its dark
+    modes). A take whose soup never reaches the target (the readings do not end at ``t``), or
+    whose readings go back a mode on the way (soup lost), is discarded and the next seed is
+    tried, as a teacher would redo it.
 
     Returns
     -------
@@ -364,24 +393,29 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     Raises
     ------
     TliError
-        Fewer than ``count`` successful takes in ``max_tries`` seeds.
+        Fewer than ``count`` nominal takes, or no take from a recovery start, in
+        ``max_tries`` seeds.
     """
     out: list[Path] = []
+    plan: list[tuple[float, float, float, float] | None] = [None] * count + list(recovery)
     seed = first_seed
-    while len(out) < count:
-        if seed >= first_seed + max_tries:
-            raise TliError(f"franka demos: only {len(out)} of {count} scripted takes "
-                           f"delivered soup in {max_tries} seeds")
-        path = Path(directory) / f"franka_{len(out) + 1}.csv"
-        demo = record_demo(seed, name=str(path))
-        seed += 1
-        r, s_, t = demo.sensors.T
-        stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
-        if not t[-1] or np.any(np.diff(stage) < 0):
-            continue  # no soup delivered, or soup lost on the way (a flicker included)
-        head = (f"# franka scoop demonstration {len(out) + 1} (tli_verify.sim.demos, mocap "
-                f"rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose (x, "
-                "y, z in dm, pitch in rad)\n")
+    for start in plan:
+        for _ in range(max_tries):
+            path = Path(directory) / f"franka_{len(out) + 1}.csv"
+            demo = record_demo(seed, name=str(path), start=start)
+            seed += 1
+            r, s_, t = demo.sensors.T
+            stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
+            if t[-1] and not np.any(np.diff(stage) < 0):
+                break  # else: no soup delivered, or soup lost on the way
+        else:
+            raise TliError(f"franka demos: no scripted take {len(out) + 1} "
+                           f"({'nominal' if start is None else f'from {start}'}) delivered "
+                           f"soup in {max_tries} seeds")
+        what = "nominal" if start is None else f"recovery from {list(start)}"
+        head = (f"# franka scoop demonstration {len(out) + 1}, {what} (tli_verify.sim.demos, "
+                f"mocap rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose "
+                "(x, y, z in dm, pitch in rad)\n")
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
     return out

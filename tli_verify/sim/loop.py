@@ -46,6 +46,7 @@ from tli_verify.errors import TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+from tli_verify.sim.sensors import Debounce
 
 __all__ = [
     "VARIANTS",
@@ -300,7 +301,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         raise TliError(f"--robot {robot!r}: one of {', '.join(ROBOTS)}")
     rig: Any = MocapRig(seed) if robot == "hand" else PandaRig(seed)
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
-    reading = rig.read()
+    sensors = Debounce()
+    reading = sensors.update(rig.read())
     ref = to_ds(rig.pose())
     lo, hi = workspace()
     policy.reset(ref, reading.as_dict())
@@ -312,8 +314,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     done_steps = round(2.5 / CONTROL_DT)  # pour for 2.5 s in the goal mode
     t = 0.0
     for _ in range(n):
-        if reading.s and soup_at is None:
-            soup_at = t
+        if reading.s and not reading.r and soup_at is None:
+            soup_at = t  # the soup is carried out of the bowl: tilts count from here
         rig.push[:] = 0.0
         perturbed = False
         for i, p in enumerate(perts):
@@ -338,7 +340,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         t += CONTROL_DT
         if frame is not None:
             frame(rig)
-        reading = rig.read()
+        reading = sensors.update(rig.read())
         modes.append(policy.mode)
         goal_for = goal_for + 1 if policy.done else 0
         if goal_for >= done_steps:

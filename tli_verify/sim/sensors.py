@@ -40,7 +40,7 @@ from tli_verify.sim.scene import (
     scene_ids,
 )
 
-__all__ = ["R_ABOVE", "SENSOR_NAMES", "T_ABOVE", "Reading", "ScoopSensors"]
+__all__ = ["HOLD", "R_ABOVE", "SENSOR_NAMES", "T_ABOVE", "Debounce", "Reading", "ScoopSensors"]
 
 BoolArray = npt.NDArray[np.bool_]
 FloatArray = npt.NDArray[np.float64]
@@ -52,6 +52,9 @@ T_ABOVE = 0.25
 """How far over the target bowl's rim (m) "above the target" extends."""
 FLOOR_GAP = 0.003
 """A bead whose centre is within this (m) of one radius above the tray floor lies on it."""
+HOLD = 3
+"""Control periods a raw sensor value must hold before the debounced reading takes it
+(:class:`Debounce`: 3 periods of 20 ms)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -171,3 +174,58 @@ class ScoopSensors:
         s = bool(on.any())
         t = above_target and (s or bool(self.over_target(data).any()))
         return Reading(r=r, s=s, t=t, on_ladle=on, in_target=target, tray=tray)
+
+
+class Debounce:
+    """The sensors as the executive sees them: each of r, s, t debounced (paper Sec. 7.2).
+
+    A physical sensor chatters where the physics does: a carried bead that bounces on the
+    tray floor loses its contact for a few milliseconds, and a raw ``s`` would switch
+    the executive c -> a -> c and count each blink as an invariance failure (a cut learned
+    from a bounce). As a real soup sensor is filtered, each sensor here changes only after
+    its raw value has held the new value for ``hold`` consecutive control periods; the
+    first reading is taken as it is. The filtered readings are still functions of the
+    physics (of its last ``hold`` states), never a scripted flag.
+
+    Call :meth:`update` once per control period, with the raw reading of that period.
+
+    Parameters
+    ----------
+    hold : int, optional
+        Default :data:`HOLD`; 1 passes the raw readings through.
+    """
+
+    __slots__ = ("_count", "_state", "hold")
+
+    def __init__(self, hold: int = HOLD) -> None:
+        if hold < 1:
+            raise ValueError(f"hold must be >= 1, got {hold}")
+        self.hold = int(hold)
+        self._state: list[bool] | None = None
+        self._count = [0, 0, 0]
+
+    def update(self, raw: Reading) -> Reading:
+        """The debounced reading after this period's raw ``raw`` (its other fields kept).
+
+        Parameters
+        ----------
+        raw : Reading
+
+        Returns
+        -------
+        Reading
+        """
+        values = [raw.r, raw.s, raw.t]
+        if self._state is None:
+            self._state = values
+        for i, v in enumerate(values):
+            if v == self._state[i]:
+                self._count[i] = 0
+                continue
+            self._count[i] += 1
+            if self._count[i] >= self.hold:
+                self._state[i] = v
+                self._count[i] = 0
+        r, s, t = self._state
+        return Reading(r=r, s=s, t=t, on_ladle=raw.on_ladle, in_target=raw.in_target,
+                       tray=raw.tray)
