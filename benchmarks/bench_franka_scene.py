@@ -19,13 +19,13 @@ Issue 13 targets, measured side by side in one run, one core (``threadpoolctl``)
   loop's CPU time spent inside ``mj_step`` (``mj_step1`` + ``mj_step2`` for the Panda),
   measured in one more run with timers around the MuJoCo calls;
 - **real-time factor** = simulated seconds / closed-loop CPU seconds (target >= 5x);
-- ``TRIALS`` perturbed LTL-DS trials with the free hand (default 30;
-  ``TLI_BENCH_FRANKA_TRIALS``, 0 skips them) on 2 worker processes of one BLAS thread each
-  (seeds split in two halves, each half with its own executive): wall time (target < 10 min
-  on 2 cores) and the success count.
+- ``TRIALS`` perturbed LTL-DS trials per robot (default 30; ``TLI_BENCH_FRANKA_TRIALS``, 0
+  skips them) on 2 worker processes of one BLAS thread each (seeds split in two halves, each
+  half with its own executive): wall time (target < 10 min on 2 cores) and the success count.
 
-Rates are medians of ``REPEATS`` runs (``TLI_BENCH_FRANKA_REPEATS``, default 3). The Panda rows
-need the Menagerie assets (``make sim-assets``); without them they are skipped and say so.
+Rates are medians of ``REPEATS`` runs (``TLI_BENCH_FRANKA_REPEATS``, default 3).
+``TLI_BENCH_FRANKA_ROBOTS`` (default ``hand,panda``) picks the robots. The Panda rows need the
+Menagerie assets (``make sim-assets``); without them they are skipped and say so.
 """
 
 from __future__ import annotations
@@ -222,14 +222,23 @@ def _measure(robot: str, repeats: int) -> dict[str, Any]:
     }
 
 
-def _trials_one_core(seeds: list[int]) -> list[dict[str, Any]]:
+def _trials_one_core(seeds: list[int], robot: str) -> list[dict[str, Any]]:
     """:func:`tli_verify.sim.loop.run_trials` with one BLAS thread (a worker = one core)."""
     from threadpoolctl import threadpool_limits
 
     from tli_verify.sim.loop import run_trials
 
     with threadpool_limits(1):
-        return run_trials(seeds)
+        return run_trials(seeds, robot=robot)
+
+
+def _campaign(trials: int, robot: str) -> tuple[float, int]:
+    """``trials`` perturbed trials on 2 workers: wall seconds and successes."""
+    t0 = time.perf_counter()
+    halves = [list(range(0, trials, 2)), list(range(1, trials, 2))]
+    with ProcessPoolExecutor(2) as pool:
+        recs = [r for part in pool.map(_trials_one_core, halves, [robot] * 2) for r in part]
+    return time.perf_counter() - t0, sum(bool(r["success"]) for r in recs)
 
 
 def main(out_dir: Path) -> str:
@@ -239,24 +248,25 @@ def main(out_dir: Path) -> str:
 
     trials = int(os.environ.get("TLI_BENCH_FRANKA_TRIALS", "30"))
     repeats = max(1, int(os.environ.get("TLI_BENCH_FRANKA_REPEATS", "3")))
+    robots = [r.strip() for r in
+              os.environ.get("TLI_BENCH_FRANKA_ROBOTS", "hand,panda").split(",") if r.strip()]
+    unknown = sorted(set(robots) - set(SEEDS))
+    if unknown:
+        raise TliError(f"TLI_BENCH_FRANKA_ROBOTS: unknown robot {unknown[0]!r} (hand, panda)")
     rows: dict[str, dict[str, Any]] = {}
     skipped: dict[str, str] = {}
     with threadpoolctl.threadpool_limits(1):
-        for robot in ("hand", "panda"):
+        for robot in robots:
             try:
                 rows[robot] = _measure(robot, repeats)
             except AssetError as exc:  # the Menagerie Panda not fetched: say so
                 skipped[robot] = str(exc)
-    t_trials, ok = 0.0, 0
+    campaigns: dict[str, dict[str, float]] = {}
     if trials > 0:
-        t0 = time.perf_counter()
-        halves = [list(range(0, trials, 2)), list(range(1, trials, 2))]
-        with ProcessPoolExecutor(2) as pool:
-            recs = [r for part in pool.map(_trials_one_core, halves) for r in part]
-        t_trials = time.perf_counter() - t0
-        ok = sum(bool(r["success"]) for r in recs)
-    data = {"repeats": repeats, "robots": rows, "skipped": skipped, "trials": trials,
-            "trials_wall_s": t_trials, "successes": ok}
+        for robot in rows:  # the robots whose rig could be built
+            wall, ok = _campaign(trials, robot)
+            campaigns[robot] = {"trials": trials, "wall_s": wall, "successes": ok}
+    data = {"repeats": repeats, "robots": rows, "skipped": skipped, "campaigns": campaigns}
     atomic_write_text(out_dir / "franka_scene.json", canonical_json(data))
 
     def ok_(v: bool) -> str:
@@ -293,11 +303,12 @@ def main(out_dir: Path) -> str:
             f"(max |diff| {r['replay_max_abs_diff']:.1e}), same trial every run: "
             f"{r['same_trial_every_run']}, `mj_step` {r['mj_step_us_per_step']:.0f} us/step "
             f"inside the loop.")
-    if trials > 0:
-        tail = (f"| {trials} perturbed LTL-DS trials, free hand, 2 workers | {t_trials:.0f} s "
-                f"wall, {ok}/{trials} delivered | < 600 s: {ok_(t_trials < 600)} |\n")
-    else:
-        tail = ("| perturbed trials | skipped (`TLI_BENCH_FRANKA_TRIALS=0`) | < 600 s |\n")
+    tail = "".join(
+        f"| {c['trials']:.0f} perturbed LTL-DS trials, {names[robot].split(' (')[0]}, "
+        f"2 workers | {c['wall_s']:.0f} s wall, {c['successes']:.0f}/{c['trials']:.0f} "
+        f"delivered | < 600 s: {ok_(c['wall_s'] < 600)} |\n" for robot, c in campaigns.items())
+    if not campaigns:
+        tail = "| perturbed trials | skipped (`TLI_BENCH_FRANKA_TRIALS=0`) | < 600 s |\n"
     return (
         "## The soup-scooping scene in MuJoCo, 30 beads (`bench_franka_scene`)\n\n"
         + "\n".join(lines) + "\n\n" + "\n\n".join(notes) + "\n\n"
