@@ -190,6 +190,44 @@ def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fractio
     return Fraction(check.dt) if check.dt is not None else Fraction(1, 1000)
 
 
+class _EntryRecord(list[FloatArray]):
+    """A mode's recorded entry states with their pairwise squared distances.
+
+    A list of the states (shape (n,) each; a plain list to every reader) plus ``d2``, shape
+    (m, m): ``d2[i, j] = |x_i - x_j|^2`` for ``i < j``, ``inf`` on and below the diagonal,
+    for the first ``m`` states; :meth:`in_sync` says whether they are the list's states but
+    the newest (``m = len - 1``), as :meth:`LTLDSPolicy._record_entry` leaves it.
+    """
+
+    __slots__ = ("_d2", "_last", "_points")
+    _d2: FloatArray
+    _last: FloatArray
+    _points: FloatArray
+
+    @classmethod
+    def of(cls, states: list[FloatArray], d2: FloatArray) -> _EntryRecord:
+        """The record of ``states`` (shape (m, n) once stacked) with their distances ``d2``."""
+        rec = cls(states)
+        rec._d2 = d2
+        rec._points = np.array(states)
+        rec._last = states[-1]
+        return rec
+
+    def in_sync(self) -> bool:
+        """One state appended since the distances were computed, nothing else changed."""
+        m = self._d2.shape[0]
+        return len(self) == m + 1 and self[m - 1] is self._last
+
+    def with_newest(self) -> FloatArray:
+        """``d2`` of all the states, shape (m + 1, m + 1): the distances to the newest added
+        (the same elementwise squares and summation over the coordinates as for all pairs)."""
+        m = self._d2.shape[0]
+        out = np.full((m + 1, m + 1), np.inf)
+        out[:m, :m] = self._d2
+        out[:m, m] = ((self._points - self[m]) ** 2).sum(axis=-1)
+        return out
+
+
 class LTLDSPolicy:
     """The LTL-DS executive: task automaton + modulated, certified DS per mode (paper eq. 6).
 
@@ -469,16 +507,25 @@ class LTLDSPolicy:
         recorded states goes (a near-duplicate constraint), so long runs stay bounded in memory
         and in the cut QCQP's size while isolated entry states -- the ones a cut could
         otherwise exclude -- are kept.
+
+        The squared distances between the kept states are carried along
+        (:class:`_EntryRecord`), so a full record costs one new row of distances per entry,
+        not all pairs again (a perturbed stretch enters a mode every control period); the
+        same numbers, so the same state goes as when they were all recomputed.
         """
         kept = self._entries.setdefault(mode, [])
         kept.append(x)
         if len(kept) <= MAX_ENTRY_STATES:
             return
-        P = np.array(kept)
-        d2 = ((P[:, None, :] - P[None, :, :]) ** 2).sum(axis=-1)
-        d2[np.tril_indices(len(kept))] = np.inf
+        if isinstance(kept, _EntryRecord) and kept.in_sync():
+            d2 = kept.with_newest()
+        else:  # first time full, or a copy made elsewhere (forks copy the lists)
+            P = np.array(kept)
+            d2 = ((P[:, None, :] - P[None, :, :]) ** 2).sum(axis=-1)
+            d2[np.tril_indices(len(kept))] = np.inf
         i, _ = np.unravel_index(int(np.argmin(d2)), d2.shape)  # i < j: i is the older one
         del kept[int(i)]
+        self._entries[mode] = _EntryRecord.of(kept, np.delete(np.delete(d2, i, 0), i, 1))
 
     def notify_perturbation(self) -> None:
         """The next reading follows a perturbation: a mode exit then is not a failure."""
