@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip("mujoco")
 
-from tli_verify.sim.sensors import Debounce, Reading  # noqa: E402
+from tli_verify.sim.sensors import Debounce, Reading
 
 
 def _reading(r: bool, s: bool, t: bool) -> Reading:
