@@ -54,5 +54,5 @@ def test_hold_one_passes_raw_readings_and_other_fields_are_kept() -> None:
     raw.on_ladle[3] = True
     out = deb.update(raw)
     assert (out.r, out.s, out.t) == (False, True, True) and out.on_ladle[3]
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="hold"):
         Debounce(0)
