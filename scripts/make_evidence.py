@@ -23,7 +23,7 @@ LTL-DS executive (:func:`tli_verify.sim.campaign.run_physics_campaign`, the same
 ``sim/franka/certificates/franka-scoop.campaign.json``; ``tli gate sim/franka`` then checks it::
 
     .venv/bin/python scripts/make_evidence.py --franka [--trials 30] [--seed 0]
-        [--robot hand|panda] [--duration 20] [--root sim/franka]
+        [--robot hand|panda] [--duration 40] [--root sim/franka]
 
 Re-run it whenever the Franka model or certificate is regenerated (the evidence binds their
 SHA-256). One line per trial on stderr, then the evidence line; exit as above.
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     franka.add_argument("--trials", type=int, default=None,
                         help="perturbed trials (default: the gate's minimum, 30)")
     franka.add_argument("--robot", default="hand", choices=("hand", "panda"))
-    franka.add_argument("--duration", type=float, default=20.0,
+    franka.add_argument("--duration", type=float, default=40.0,
                         help="step budget per trial, simulated seconds (default 20)")
     args = parser.parse_args(argv)
     if args.examples < 1 or not 0 <= args.seed < 2**32:

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import int_range, output_path
+from tli_verify.sim import TRIAL_DURATION
 
 __all__ = ["register"]
 
@@ -57,8 +58,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "demonstrations' rig); panda: on the Panda hand under the operational-space "
                    "controller (needs the Menagerie assets: python -m tli_verify.sim.assets "
                    "fetch). Default hand")
-    f.add_argument("--duration", type=float, default=20.0,
-                   help="step budget per trial, simulated seconds (default 20)")
+    f.add_argument("--duration", type=float, default=TRIAL_DURATION,
+                   help="step budget per trial, simulated seconds (default %(default)g)")
     f.add_argument("--json", action="store_true", help="one JSON object per trial, then a "
                    "summary object")
     f.add_argument("--video", type=output_path, default=None, metavar="OUT.mp4",

@@ -12,4 +12,10 @@ and :mod:`~tli_verify.sim.controller`, so this package imports without the ``sim
 
 from __future__ import annotations
 
-__all__: list[str] = []
+__all__ = ["TRIAL_DURATION"]
+
+TRIAL_DURATION = 40.0
+"""Default step budget of a Franka trial (simulated seconds): room for two re-scoops after
+spills (one scoop-carry-pour cycle takes about 10 s; with 20 s most spilled trials ran out of
+time). Here, not in :mod:`~tli_verify.sim.loop`, so the CLI reads it without importing
+MuJoCo (its OpenGL backend is chosen before that import)."""

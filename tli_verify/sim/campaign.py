@@ -56,6 +56,7 @@ from typing import Any
 from hypothesis import strategies as st
 
 from tli_verify.errors import TliError
+from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.loop import VARIANTS, Perturbation, TrialResult
 from tli_verify.verify.strategies import directions
 
@@ -535,7 +536,7 @@ class PhysicsConfig:
     trials: int = 30
     robot: str = "hand"
     variant: str = "LTL-DS"
-    duration: float = 20.0
+    duration: float = TRIAL_DURATION
     pushes: int = 1
     tilts: int = 1
     certificates: str | None = None

@@ -45,6 +45,7 @@ import numpy.typing as npt
 from tli_verify.errors import TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.sensors import Debounce
@@ -262,7 +263,7 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
 
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
-              perturbations: list[Perturbation] | None = None, duration: float = 20.0,
+              perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
               robot: str = "hand") -> TrialResult:
     """One closed-loop trial (module doc).
@@ -359,7 +360,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
-               duration: float = 20.0, robot: str = "hand") -> list[dict[str, Any]]:
+               duration: float = TRIAL_DURATION, robot: str = "hand") -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
