@@ -109,7 +109,7 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         (1.0, cx, near, _tray_height(near, SLOPE_PITCH) + 0.03, SLOPE_PITCH),  # over the slope
         (1.5, cx, near, _tray_height(near, SLOPE_PITCH) + 0.002, SLOPE_PITCH),  # onto it
         (2.3, cx, mid, _tray_height(mid, SLOPE_PITCH), SLOPE_PITCH),   # slide down the funnel
-        (3.0, cx, far, _tray_height(far, SCOOP_PITCH) - 0.006, SCOOP_PITCH),  # press into the pile
+        (3.0, cx, far, _tray_height(far, SCOOP_PITCH) - 0.01, SCOOP_PITCH),  # press into the pile
         (3.3, cx, far + 0.02, _tray_height(far, 0.0) + 0.003, 0.0),    # level the tray
         (3.7, cx, far + 0.03, _tray_height(far, 0.0) + 0.02, CARRY_PITCH),  # tip back
         (4.6, cx, near, 0.12, CARRY_PITCH),                            # lift out

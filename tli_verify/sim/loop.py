@@ -48,6 +48,7 @@ from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
 from tli_verify.sim.render import Recorder
+from tli_verify.sim.retry import StallRetry
 from tli_verify.sim.sensors import Debounce
 
 __all__ = [
@@ -180,6 +181,8 @@ class TrialResult:
         trial where the soup never got on the spoon).
     events : tuple of str
         The executive's events, one line each.
+    retries : int
+        Stalled modes retried from their entry (:mod:`tli_verify.sim.retry`).
     """
 
     seed: int
@@ -193,6 +196,7 @@ class TrialResult:
     perturbations: tuple[Perturbation, ...]
     applied: tuple[float, ...]
     events: tuple[str, ...] = field(default=())
+    retries: int = 0
 
     def mode_sequence(self) -> str:
         """The mode trace as runs: ``"a b c b c d"``."""
@@ -209,7 +213,7 @@ class TrialResult:
             "perturbations": [dict(p.to_json(), applied_at=None if math.isnan(a) else
                                    round(a, 3))
                               for p, a in zip(self.perturbations, self.applied, strict=True)],
-            "events": list(self.events),
+            "events": list(self.events), "retries": self.retries,
         }
 
 
@@ -304,6 +308,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     ref = to_ds(rig.pose())
     lo, hi = workspace()
     policy.reset(ref, reading.as_dict())
+    retry = StallRetry(policy.model, CONTROL_DT)
     modes = [policy.mode]
     applied = [math.nan] * len(perts)
     soup_at: float | None = None
@@ -328,7 +333,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         z = to_ds(rig.pose())
         if perturbed or float(np.max(np.abs(z - ref) / RESYNC)) > 1.0:
             ref = z  # the hand was pushed (or held back): the DS restarts where it is
-        v = policy.step(ref, reading.as_dict(), perturbed=perturbed)
+        v = policy.step(ref, reading.as_dict(), perturbed=perturbed or retry.active)
+        retreat = retry.update(policy.mode, policy.done, ref, z)
+        if retreat is not None:
+            v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
         speed = float(np.max(np.abs(v) / SPEED_CAP))
         if speed > 1.0:
             v = v / speed
@@ -356,7 +364,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         seed=seed, variant=variant, success=delivered >= 1, delivered=delivered,
         modes=tuple(modes), cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
         sim_time=t, wall_time=time.perf_counter() - t0, perturbations=tuple(perts),
-        applied=tuple(applied), events=events)
+        applied=tuple(applied), events=events, retries=retry.retries)
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
