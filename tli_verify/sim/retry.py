@@ -63,7 +63,7 @@ class StallRetry:
     """
 
     def __init__(self, model: Any, dt: float, *, stall_after: float = 1.5,
-                 rest_span: float = 0.15, arrive: float = 0.05,
+                 rest_span: float = 0.25, arrive: float = 0.05,
                  max_retry: float = 4.0) -> None:
         self.model = model
         self.dt = float(dt)
