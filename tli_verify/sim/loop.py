@@ -2,31 +2,34 @@
 
 Per control period (``CONTROL_DT`` = 20 ms, the certified period):
 
-1. sensors from the physics (:class:`~tli_verify.sim.sensors.ScoopSensors`), the DS state
-   ``z`` from the tray pose (:func:`~tli_verify.sim.demos.to_ds`);
+1. sensors from the physics (:class:`~tli_verify.sim.sensors.ScoopSensors`), debounced as the
+   executive sees them (:class:`~tli_verify.sim.sensors.Debounce`), and the DS state ``z`` from
+   the tray pose (:func:`~tli_verify.sim.demos.to_ds`);
 2. ``v = LTLDSPolicy.step(z, reading)``: the automaton picks the mode, the mode's certified,
-   modulated DS gives the velocity (cuts are learned online on invariance failures);
+   modulated DS gives the velocity (cuts are learned online on invariance failures); when the
+   mode has stalled (:class:`~tli_verify.sim.retry.StallRetry`: the ladle stayed put 1.5 s
+   outside the goal mode) the certified DS leading into it takes over until its attractor, and
+   the mode runs again from there;
 3. the velocity (capped per axis at ``SPEED_CAP``) is integrated to a target pose,
    ``z* <- z* + dt v``, with the DS evaluated at the target ``z*`` (the sampled-data system the
    certificate covers), kept inside the workspace (:func:`workspace`: the demonstrations'
    box widened by ``MARGIN``); ``z*`` restarts at the measured state after a perturbation or
    when the hand is held back more than ``RESYNC`` from it;
-4. the hand's Cartesian impedance law tracks it (:class:`~tli_verify.sim.demos.MocapRig`), for
-   10 ``mj_step`` of 2 ms.
+4. the rig's controller tracks it -- the free hand's Cartesian impedance law
+   (:class:`~tli_verify.sim.demos.MocapRig`) or the Panda's operational-space controller
+   (:class:`~tli_verify.sim.demos.PandaRig`) -- for 10 ``mj_step`` of 2 ms.
 
-The "hand" is the free body carrying the ladle under a Cartesian impedance law, not yet the
-Panda under the operational-space controller (that controller is another helper's work: see
-the README, section 10).
+Perturbations (:func:`draw_perturbations`: drawn by the hypothesis strategies of
+:mod:`tli_verify.sim.campaign`, seeded per trial): wrenches in ``xfrc_applied`` on the carrying
+body -- a *motion-level push* at a time in the trial, and a *task-level tilt* about the world x
+axis (it spills) a delay after the soup is carried out of the soup bowl. The executive is told
+(``perturbed=True``) from the wrench's start until ``NOTIFY_AFTER`` after its end (spilled
+beads take that long to leave the tray), so the mode changes they cause are replanned, not
+taken as invariance failures.
 
-Perturbations (seeded, :func:`draw_perturbations`): wrenches in ``xfrc_applied`` on the hand
--- a *motion-level push* (a force of 15-30 N for 0.2 s in a random direction) at a random time,
-and a *task-level tilt* (-20 Nm about the world x axis for 0.3 s, which spills every carried
-bead) a random delay after the soup is first on the spoon. The executive is told
-(``perturbed=True``) from the wrench's start until 1.5 s after its end (spilled beads take
-that long to leave the tray), so the mode changes they cause are replanned, not taken as
-invariance failures.
-
-A trial succeeds when at least one bead ends in the target bowl.
+A trial succeeds when at least one bead ends in the target bowl. It ends when the goal mode
+has poured for 2.5 s and the spoon is empty, or at its step budget
+(:data:`~tli_verify.sim.TRIAL_DURATION`).
 """
 
 from __future__ import annotations
