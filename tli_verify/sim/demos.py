@@ -30,6 +30,7 @@ from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
 from tli_verify.sim.scene import (
+    N_BEADS,
     SOUP_CENTER,
     TARGET_CENTER,
     TRAY_HALF_THICKNESS,
@@ -79,6 +80,10 @@ RECOVERY_STARTS = (
 )
 """Start poses ``(x, y, z [m], pitch [rad])`` of the recovery demonstrations: where a spilling
 tilt leaves the ladle between the bowls, tipped back (:func:`write_demos`)."""
+RECOVERY_BEADS = (18, 15, 12)
+"""Beads left in the soup bowl for each recovery demonstration: a bowl already scooped from,
+whose pile has receded towards the far wall (so mode b's attractor, where the first bead gets
+on, lies deep enough to reach a depleted pile too)."""
 
 
 def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0,
@@ -197,10 +202,13 @@ class MocapRig:
         inertia.
     start : array_like, shape (4,), optional
         Initial ``(x, y, z, pitch)`` of the tray (default: the scene's start, pitch 0).
+    in_bowl : int, optional
+        Beads in the soup bowl (:func:`~tli_verify.sim.scene.reset_beads`).
     """
 
     def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
-                 rot_stiffness: float = 150.0, start: npt.ArrayLike | None = None) -> None:
+                 rot_stiffness: float = 150.0, start: npt.ArrayLike | None = None,
+                 in_bowl: int = N_BEADS) -> None:
         self.k = float(stiffness)
         self.kr = float(rot_stiffness)
         self.push = np.zeros(6)
@@ -234,7 +242,8 @@ class MocapRig:
         self._mocap_pos = d.mocap_pos[0]
         self._mocap_quat = d.mocap_quat[0]
         self.place([*self.data.mocap_pos[0].tolist(), 0.0] if start is None else start)
-        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+        reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step,
+                    in_bowl=in_bowl)
 
     @property
     def carrier(self) -> int:
@@ -340,7 +349,7 @@ def from_ds(z: npt.ArrayLike) -> FloatArray:
 
 
 def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
-                start: npt.ArrayLike | None = None) -> Demonstration:
+                start: npt.ArrayLike | None = None, in_bowl: int = N_BEADS) -> Demonstration:
     """One scripted demonstration in the simulator (like kinesthetic teaching).
 
     The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
@@ -362,6 +371,8 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
     start : array_like, shape (4,), optional
         Start pose (:func:`scoop_waypoints`); the ladle is placed there before the beads
         settle.
+    in_bowl : int, optional
+        Beads in the soup bowl (the rest lie out of the task).
 
     Returns
     -------
@@ -370,7 +381,7 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
         differences.
     """
     waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02, start=start)
-    rig = MocapRig(seed, start=waypoints[0, 1:])
+    rig = MocapRig(seed, start=waypoints[0, 1:], in_bowl=in_bowl)
     every = round(dt / float(rig.model.opt.timestep))
     debounce = Debounce()  # the readings the executive will see (sensors.Debounce)
     steps = [ScoopStep(0.0, rig.pose(), debounce.update(rig.read()),
@@ -399,13 +410,14 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
 
 def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
                 max_tries: int = 20,
-                recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS
-                ) -> list[Path]:
+                recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS,
+                recovery_beads: tuple[int, ...] = RECOVERY_BEADS) -> list[Path]:
     """Record ``count`` nominal and one recovery demonstration per ``recovery`` start, as
     ``franka_<k>.csv`` (atomically).
 
     The recovery takes start where a spilling tilt leaves the ladle (between the bowls, tipped
-    back) and show the whole task from there: a DS learned only from the nominal start
+    back), in a bowl already scooped from (``recovery_beads``), and show the whole task from
+    there: a DS learned only from the nominal start
     turned the tray's front down too slowly and reached the soup tipped back, scooping
     nothing (the color-tracing world's recovery demonstrations do the same for its dark
     modes). A take whose soup never reaches the target (the readings do not end at ``t``), or
@@ -423,12 +435,16 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
         ``max_tries`` seeds.
     """
     out: list[Path] = []
-    plan: list[tuple[float, float, float, float] | None] = [None] * count + list(recovery)
+    if len(recovery_beads) != len(recovery):
+        raise TliError(f"franka demos: {len(recovery)} recovery starts but "
+                       f"{len(recovery_beads)} bead counts")
+    plan: list[tuple[tuple[float, float, float, float] | None, int]] = \
+        [(None, N_BEADS)] * count + list(zip(recovery, recovery_beads, strict=True))
     seed = first_seed
-    for start in plan:
+    for start, beads in plan:
         for _ in range(max_tries):
             path = Path(directory) / f"franka_{len(out) + 1}.csv"
-            demo = record_demo(seed, name=str(path), start=start)
+            demo = record_demo(seed, name=str(path), start=start, in_bowl=beads)
             seed += 1
             r, s_, t = demo.sensors.T
             stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
@@ -438,7 +454,8 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
             raise TliError(f"franka demos: no scripted take {len(out) + 1} "
                            f"({'nominal' if start is None else f'from {start}'}) delivered "
                            f"soup in {max_tries} seeds")
-        what = "nominal" if start is None else f"recovery from {list(start)}"
+        what = "nominal" if start is None else \
+            f"recovery from {list(start)} with {beads} beads in the bowl"
         head = (f"# franka scoop demonstration {len(out) + 1}, {what} (tli_verify.sim.demos, "
                 f"mocap rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose "
                 "(x, y, z in dm, pitch in rad)\n")

@@ -403,7 +403,7 @@ def scene_ids(model: mujoco.MjModel) -> SceneIds:
 
 def reset_beads(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds, *,
                 seed: int = 0, settle: float = 0.6,
-                step: Callable[[], None] | None = None) -> None:
+                step: Callable[[], None] | None = None, in_bowl: int = N_BEADS) -> None:
     """Put the beads on their grid with a seeded jitter and let them settle in the bowl.
 
     Parameters
@@ -416,12 +416,18 @@ def reset_beads(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds, *,
         Seconds of simulation to let the beads fall and come to rest.
     step : callable, optional
         One physics step (the caller's controller + ``mj_step``); default plain ``mj_step``.
+    in_bowl : int, optional
+        How many beads go into the soup bowl; the others rest in a row on the far edge of the
+        table (x = 0.8 m), out of the task (a bowl already scooped from: the demonstrations).
     """
+    if not 1 <= in_bowl <= N_BEADS:
+        raise TliError(f"in_bowl must be between 1 and {N_BEADS}, got {in_bowl}")
     rng = np.random.default_rng([seed, 13])
     for i in range(N_BEADS):
         a = int(ids.bead_qpos[i])
         jitter = rng.uniform(-0.2, 0.2, size=2) * BEAD_RADIUS
-        data.qpos[a:a + 3] = _bead_grid(i) + np.array([jitter[0], jitter[1], 0.0])
+        data.qpos[a:a + 3] = _bead_grid(i) + np.array([jitter[0], jitter[1], 0.0]) \
+            if i < in_bowl else (0.8, -0.45 + 2.5 * BEAD_RADIUS * i, BEAD_RADIUS)
         data.qpos[a + 3:a + 7] = (1.0, 0.0, 0.0, 0.0)
         d = int(ids.bead_dof[i])
         data.qvel[d:d + 6] = 0.0
