@@ -11,13 +11,12 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 pytest.importorskip("mujoco")
 
-from tests.support.cli import run
+from tests.support.cli import json_records, run
 from tests.unit.test_physics_evidence import attach_physics, physics_block
 from tli_verify.certify.gate import rerun_physics, run_gate
 from tli_verify.io import bundled_dir, sha256_file
@@ -39,24 +38,13 @@ def project(tmp_path: Path) -> Path:
     return tmp_path
 
 
-def records(out: str) -> list[dict[str, Any]]:
-    dec = json.JSONDecoder()
-    recs, i = [], 0
-    while i < len(out):
-        if out[i].isspace():
-            i += 1
-            continue
-        obj, i = dec.raw_decode(out, i)
-        recs.append(obj)
-    return recs
-
 
 def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
         project: Path, capsys: pytest.CaptureFixture[str]) -> None:
     certs = project / "certificates"
     code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--trials", "1",
                        "--seed", "3", "--duration", "2", "--json", "--evidence")
-    trial, summary = records(out)
+    trial, summary = json_records(out)
     assert code == (0 if not trial["violations"] else 1)
     assert summary["evidence"] == str(certs / EVIDENCE)
     doc = json.loads((certs / EVIDENCE).read_text())
@@ -140,7 +128,7 @@ def test_a_full_budget_trial_reproduces_under_rerun(project: Path,
     certs = project / "certificates"
     code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration", "12",
                        "--json", "--evidence")
-    trial, _ = records(out)
+    trial, _ = json_records(out)
     ok, message = rerun_physics(check_evidence(certs / EVIDENCE),
                                 project / "models" / "franka-scoop.model.json", 1)
     assert ok == (not trial["violations"]) == (code == 0), message

@@ -10,6 +10,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
+from tests.support.cli import json_records
 from tli_verify.cli import main
 from tli_verify.io import bundled_dir
 
@@ -27,23 +28,12 @@ def _project(tmp: Path) -> Path:
     return tmp / "certificates"
 
 
-def _records(out: str) -> list[dict[str, object]]:
-    dec = json.JSONDecoder()
-    recs, i = [], 0
-    while i < len(out):
-        if out[i].isspace():
-            i += 1
-            continue
-        obj, i = dec.raw_decode(out, i)
-        recs.append(obj)
-    return recs
-
 
 def test_one_nominal_trial_scoops_and_delivers(capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["sim", "franka", "--trials", "1", "--seed", "1", "--no-perturb", "--json",
                  "--duration", "14"])
     out = capsys.readouterr().out
-    trial, summary = _records(out)
+    trial, summary = json_records(out)
     assert code == (0 if trial["success"] else 1)
     assert trial["success"] is True and int(trial["delivered"]) >= 1  # type: ignore[call-overload]
     seq = str(trial["mode_sequence"]).split()

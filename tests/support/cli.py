@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from typing import Any
+
 import pytest
 
 from tli_verify.cli import main
@@ -15,3 +18,16 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
         code = int(exc.code or 0)
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def json_records(out: str) -> list[dict[str, Any]]:
+    """The JSON objects a ``--json`` command printed one after another (pretty-printed)."""
+    dec = json.JSONDecoder()
+    recs, i = [], 0
+    while i < len(out):
+        if out[i].isspace():
+            i += 1
+            continue
+        obj, i = dec.raw_decode(out, i)
+        recs.append(obj)
+    return recs
