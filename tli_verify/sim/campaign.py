@@ -258,30 +258,13 @@ def trial_perturbations(*, max_pushes: int = 1, max_tilts: int = 1, min_pushes: 
 
 @contextlib.contextmanager
 def isolated_draws() -> Iterator[None]:
-    """Hypothesis generation independent of the process's history:
-    :func:`~tli_verify.verify.campaign.import_independent_draws` (no local constants), and a
-    fresh cache of the constants allowed per choice kind (hypothesis's module-level
-    ``CONSTANTS_CACHE``: filled by any earlier draw with the same bounds -- a ``@given`` test,
-    an unguarded ``find`` -- it would bring that draw's local constants back in; measured: a
-    draw after the property tests of this module differed from the same draw in a fresh
-    process)."""
+    """Hypothesis generation independent of the process's history: no local constants and a
+    fresh ``CONSTANTS_CACHE`` (:func:`~tli_verify.verify.campaign.import_independent_draws`,
+    which the 2-D campaigns use too)."""
     from tli_verify.verify.campaign import import_independent_draws
 
     with import_independent_draws():
-        try:
-            from hypothesis.internal.conjecture import providers
-        except ImportError:  # pragma: no cover - hypothesis moved its internals
-            yield
-            return
-        cache = getattr(providers, "CONSTANTS_CACHE", None)
-        if cache is None:  # pragma: no cover - hypothesis changed
-            yield
-            return
-        providers.CONSTANTS_CACHE = type(cache)(1024)
-        try:
-            yield
-        finally:
-            providers.CONSTANTS_CACHE = cache
+        yield
 
 
 _ATTEMPTS = 20

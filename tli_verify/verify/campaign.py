@@ -629,7 +629,11 @@ def import_independent_draws() -> Iterator[None]:
     A campaign that lazily imports a module while running would then draw other cases from the
     same seed later in the process (measured: the first campaign of a process differed from the
     next ones). Inside this context that pool is empty, so a seed gives the same cases in any
-    process state. Without the (private) hook the draws still run, only less reproducibly.
+    process state. The module-level ``CONSTANTS_CACHE`` (constants allowed per choice kind,
+    filled by any earlier draw with the same bounds: a ``@given`` test, an unguarded ``find``)
+    is swapped for a fresh one for the same reason (measured: a draw after a module's property
+    tests differed from the same draw in a fresh process). Without the (private) hooks the
+    draws still run, only less reproducibly.
     """
     try:
         from hypothesis.internal.conjecture import providers
@@ -643,10 +647,15 @@ def import_independent_draws() -> Iterator[None]:
         return
     empty = empty_type()
     providers._get_local_constants = lambda: empty
+    cache = getattr(providers, "CONSTANTS_CACHE", None)
+    if cache is not None:
+        providers.CONSTANTS_CACHE = type(cache)(1024)
     try:
         yield
     finally:
         providers._get_local_constants = getter
+        if cache is not None:
+            providers.CONSTANTS_CACHE = cache
 
 
 def draw_cases(strategy: Any, n: int, seed: int | str) -> list[Case]:
