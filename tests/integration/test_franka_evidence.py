@@ -92,7 +92,9 @@ def test_evidence_path_can_be_chosen(project: Path, tmp_path: Path,
     ["--evidence", "--no-perturb"],
     ["--evidence", "--no-modulation"],
     ["--evidence", "--no-replan"],
-], ids=["model", "certificate", "spec", "fig9", "no-perturb", "no-modulation", "no-replan"])
+    ["--evidence", ""],  # empty: refused, not the default path in the project
+], ids=["model", "certificate", "spec", "fig9", "no-perturb", "no-modulation", "no-replan",
+        "empty"])
 def test_evidence_is_refused_before_any_trial(project: Path, extra: list[str],
                                               capsys: pytest.CaptureFixture[str]) -> None:
     before = {p: p.read_bytes() for p in project.rglob("*") if p.is_file()}

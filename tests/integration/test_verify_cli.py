@@ -127,6 +127,8 @@ def test_process_backend_matches_serial(tmp_path: Path,
     (["verify", "--world", "scoop", "--examples", "5", "--evidence",
       str(Path(__file__).resolve().parents[2] / "models" / "scoop.model.json")],
      "would overwrite the input file"),
+    # an empty PATH is refused, not taken as the default path (the bundled evidence)
+    (["verify", "--world", "scoop", "--examples", "5", "--evidence", ""], "empty path"),
 ])
 def test_bad_arguments_exit_2_with_one_line(argv: list[str], needle: str, tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:

@@ -22,6 +22,23 @@ def output_path(text: str) -> Path:
     return Path(text)
 
 
+class _DefaultPath:
+    """The ``const`` of an optional-argument output (``--evidence [PATH]``): given bare, the
+    command's default path. A sentinel, not ``""``: an empty PATH typed by the user is refused
+    by :func:`output_path` instead of silently meaning the default."""
+
+    def __repr__(self) -> str:
+        return "<default path>"
+
+
+DEFAULT_PATH = _DefaultPath()
+
+
+def chosen_path(value: object) -> Path | None:
+    """The path the user chose for an ``nargs="?"`` output, or None for :data:`DEFAULT_PATH`."""
+    return None if value is DEFAULT_PATH or value is None else Path(str(value))
+
+
 def int_range(lo: int, hi: int | None = None) -> Callable[[str], int]:
     """An argparse ``type``: an integer in ``[lo, hi]`` (``hi`` None: no upper bound).
 

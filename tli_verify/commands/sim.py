@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import int_range, output_path
+from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
 from tli_verify.sim import TRIAL_DURATION
 
 __all__ = ["register"]
@@ -67,7 +67,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
                    "pitch) with the cuts learned in them (Fig. 9 style)")
-    f.add_argument("--evidence", nargs="?", const="", default=None, metavar="PATH",
+    f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
+                   metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
                    "<project>/certificates/franka-scoop.campaign.json); the gate needs "
                    "at least 30 perturbed LTL-DS trials, all passing")
@@ -111,8 +112,7 @@ def _run(args: argparse.Namespace) -> int:
 
         cert_dir = args.certificates if args.certificates is not None else \
             base / "certificates"
-        evidence = Path(args.evidence) if args.evidence else \
-            cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
+        evidence = chosen_path(args.evidence) or cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
         evidence_inputs = [f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)]
         evidence_inputs += [o for o in (args.fig9, args.video) if o is not None]
         check_output_file(evidence, inputs=evidence_inputs, what="campaign evidence")

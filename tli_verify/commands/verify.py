@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import int_range, output_path
+from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 
 __all__ = ["register", "write_report"]
@@ -54,7 +54,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--certificate", type=Path, default=None)
     p.add_argument("--json", action="store_true", help="print the campaign record as JSON")
-    p.add_argument("--evidence", nargs="?", const="", default=None, metavar="PATH",
+    p.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
+                   metavar="PATH",
                    help="also write campaign evidence for the deployment gate (default "
                    "certificates/<name>.campaign.json next to the model's project)")
     p.add_argument("--out", type=output_path, default=Path("out/verify"),
@@ -95,7 +96,8 @@ def _verify(args: argparse.Namespace) -> int:
 
         bound = sim_spec(cfg)
         model = Path(bound.model)
-        check_output_file(args.evidence or evidence_path_for(model, model.parent.parent),
+        chosen = chosen_path(args.evidence)
+        check_output_file(chosen or evidence_path_for(model, model.parent.parent),
                           inputs=(bound.spec, bound.model, bound.certificate),
                           what="campaign evidence")
     progress = not args.json and sys.stderr.isatty()
@@ -113,7 +115,7 @@ def _verify(args: argparse.Namespace) -> int:
     if args.evidence is not None:
         from tli_verify.verify.evidence import write_campaign_evidence
 
-        target, _ = write_campaign_evidence(cfg, result, args.evidence or None)
+        target, _ = write_campaign_evidence(cfg, result, chosen_path(args.evidence))
         record["evidence"] = str(target)
     atomic_write_text(out / "campaign.json", canonical_json(record))
     if args.json:
