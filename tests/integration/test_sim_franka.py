@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from tests.support.cli import json_records
+from tests.support.cli import json_records, run
 from tli_verify.cli import main
 from tli_verify.io import bundled_dir
 
@@ -99,11 +99,7 @@ def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     ["sim", "franka", "--robot", "ur5"],
 ])
 def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse usage errors exit from the parser
-        code = int(exc.code or 0)
-    err = capsys.readouterr().err
+    code, _, err = run(capsys, *argv)
     assert code == 2
     assert err.startswith("error: ") and err.count("\n") == 1
 

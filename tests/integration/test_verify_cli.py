@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.cli import run
 from tli_verify.cli import main
 from tli_verify.errors import WorkerLost
 from tli_verify.verify.backends import ProcessBackend, make_backend
@@ -22,9 +23,7 @@ KINDS = {"invariance", "repeated-exit", "reachability", "automaton", "looping"}
 
 
 def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(argv)
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
+    return run(capsys, *argv)
 
 
 @pytest.fixture(scope="module")
@@ -133,11 +132,7 @@ def test_process_backend_matches_serial(tmp_path: Path,
 def test_bad_arguments_exit_2_with_one_line(argv: list[str], needle: str, tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     full = [*argv, *(["--out", str(tmp_path)] if argv[0] == "verify" else [])]
-    try:
-        code = main(full)
-    except SystemExit as exc:  # argparse usage errors exit from the parser
-        code = int(exc.code or 0)
-    err = capsys.readouterr().err
+    code, _, err = run(capsys, *full)
     assert code == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and needle in lines[0], err
