@@ -138,6 +138,15 @@ def test_a_backend_that_fails_leaves_no_file(existing: bool, tmp_path: Path) -> 
     assert sorted(p.name for p in tmp_path.iterdir()) == (["out.mp4"] if existing else [])
 
 
+def test_a_bogus_backend_without_video_is_a_clear_error(tmp_path: Path) -> None:
+    """Not exit 70: MuJoCo raises on import with an unknown MUJOCO_GL, video or not."""
+    proc = _tli("sim", "franka", "--duration", "0.5", "--no-perturb",
+                env=_env(tmp_path, MUJOCO_GL="bogus"))
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.startswith("error: MuJoCo refused to load with MUJOCO_GL='bogus'")
+    assert proc.stderr.count("\n") == 1
+
+
 _FAIL_MID_VIDEO = """
 import sys
 import tli_verify.sim.loop as loop

@@ -94,6 +94,15 @@ def _run(args: argparse.Namespace) -> int:
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
+    try:  # before anything imports MuJoCo indirectly (sim.loop does)
+        import mujoco  # noqa: F401
+    except ImportError:
+        raise TliError("tli sim needs MuJoCo: pip install 'tli-verify[sim]'") from None
+    except RuntimeError as exc:  # e.g. MUJOCO_GL set to a backend MuJoCo does not know
+        import os
+
+        raise TliError(f"MuJoCo refused to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
+                       f"{' '.join(str(exc).split())[:120]}") from None
     from tli_verify.io import check_output_file
     from tli_verify.sim.loop import project_dir
 
@@ -119,10 +128,6 @@ def _run(args: argparse.Namespace) -> int:
     if args.video is not None:
         check_output_file(args.video, inputs=[*inputs, *([args.fig9] if args.fig9 else [])],
                           what="video")
-    try:
-        import mujoco  # noqa: F401
-    except ImportError:
-        raise TliError("tli sim needs MuJoCo: pip install 'tli-verify[sim]'") from None
     from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import (
         PhysicsConfig,
