@@ -18,7 +18,7 @@ pytest.importorskip("mujoco")
 
 from tests.support.cli import json_records, run
 from tests.unit.test_physics_evidence import attach_physics, physics_block
-from tli_verify.certify.gate import rerun_physics, run_gate
+from tli_verify.deploy.gate import rerun_physics, run_gate
 from tli_verify.io import bundled_dir, sha256_file
 from tli_verify.verify.evidence import check_evidence
 

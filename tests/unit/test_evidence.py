@@ -17,7 +17,7 @@ import pytest
 
 from tests.support.evidence import attach_evidence
 from tli_verify.certify.certificate import issue_certificate, write_certificate
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.cli import main
 from tli_verify.errors import EvidenceError, OutputError
 from tli_verify.io import canonical_json, sha256_file

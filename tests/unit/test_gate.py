@@ -15,7 +15,7 @@ from tli_verify.certify.certificate import (
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import GateError
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from tests.support.cli import run
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.io import bundled_dir, canonical_json
 from tli_verify.verify.evidence import (
     MIN_PHYSICS_TRIALS,

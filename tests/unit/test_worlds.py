@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tli_verify.errors import ModelError
-from tli_verify.worlds.convex import ConvexMode, make_task, random_convex_mode
+from tli_verify.tasks.generate import ConvexMode, make_task, random_convex_mode
 
 
 def test_convex_mode_sensor() -> None:

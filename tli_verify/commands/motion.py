@@ -123,7 +123,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "(--repair then writes a new model with a certifying P).")
     p.add_argument("model", type=Path, metavar="MODEL.json")
     p.add_argument("-o", "--output", type=output_path, default=None, metavar="CERT.json",
-                   help="default: certificates/<name>.cert.json (of the repaired model with "
+                   help="default: certificates/<name>.cert.json of the model's project (of the "
+                   "repaired model with "
                    "--repair)")
     p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
                    help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
@@ -192,13 +193,13 @@ def _learn(args: argparse.Namespace) -> int:
 
 
 def default_certificate_path(model: Path) -> Path:
-    """``certificates/<name>.cert.json`` for ``.../<name>.model.json`` or ``<name>.json``."""
-    name = model.name
-    for suffix in (".model.json", ".json"):
-        if name.endswith(suffix):
-            name = name[: -len(suffix)]
-            break
-    return Path("certificates") / f"{name}.cert.json"
+    """Where the project layout puts a model's certificate
+    (:func:`tli_verify.tasks.project.model_files`): ``ROOT/certificates/<name>.cert.json`` for
+    ``ROOT/models/<name>.model.json``; ``<name>.cert.json`` next to a model outside any
+    ``models/`` folder."""
+    from tli_verify.tasks.project import model_files
+
+    return model_files(model).certificate
 
 
 def _certify(args: argparse.Namespace) -> int:
@@ -282,7 +283,7 @@ def _check_cert(args: argparse.Namespace) -> int:
 
 
 def _gate(args: argparse.Namespace) -> int:
-    from tli_verify.certify.gate import run_gate
+    from tli_verify.deploy.gate import run_gate
 
     report = run_gate(args.directory, rerun=args.rerun)
     for item in report.items:

@@ -731,7 +731,11 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
     import mujoco
 
     from tli_verify.io import check_output_file
-    from tli_verify.verify.evidence import EVIDENCE_SUFFIX, write_evidence
+    from tli_verify.verify.evidence import (
+        EVIDENCE_SUFFIX,
+        deployed_task_block,
+        write_evidence,
+    )
 
     c = result.config
     target = Path(path) if path is not None else \
@@ -749,7 +753,8 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
                      for r, v in zip(result.results, result.verdicts, strict=True)],
     })
     doc = write_evidence(
-        target, world=WORLD, spec=files["spec"], model=files["model"],
+        target, world=WORLD, task=deployed_task_block(files["model"], target.parent),
+        spec=files["spec"], model=files["model"],
         certificate=files["certificate"], seed=c.seed, examples=len(result.results),
         runs=len(result.results), violations=result.violations,
         modulation=c.variant != "no-modulation", partial=False, backend="serial", workers=1,

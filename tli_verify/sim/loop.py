@@ -241,10 +241,8 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         (naming the certificate).
     """
     from tli_verify.errors import CertificateError
-    from tli_verify.experiments.scoop import SequencePolicy
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.runtime.setup import load_setup, make_policy
+    from tli_verify.tasks.project import resolve
 
     if variant not in VARIANTS:
         raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
@@ -254,19 +252,23 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         base = Path(certificates).parent  # a project: models/ and specs/ next to it
     else:
         base = project_dir()
-    cert_dir = Path(certificates) if certificates is not None else base / "certificates"
-    cert = cert_dir / "franka-scoop.cert.json"
-    if not cert.is_file():
+    model = base / "models" / "franka-scoop.model.json"
+    cert = (Path(certificates) / "franka-scoop.cert.json" if certificates is not None
+            else None)
+    if cert is not None and not cert.is_file():
         raise CertificateError(f"{cert}: refused: no certificate for models/"
                                "franka-scoop.model.json (certify it with tli certify)")
-    model = load_model(base / "models" / "franka-scoop.model.json")
-    spec_path = model.spec_path if model.spec_path is not None else \
-        base / "specs" / "franka-scoop.toml"
-    automaton = synthesize(load_spec(spec_path))
-    if variant == "no-replan":
-        return SequencePolicy(automaton, model, cert, dt=CONTROL_DT)
-    return LTLDSPolicy(automaton, model, cert, dt=CONTROL_DT,
-                       learn_cuts=variant != "no-modulation")
+    try:
+        resolved = resolve(model=model, certificate=cert)
+    except TliError as exc:
+        if "certificate" in str(exc):
+            raise CertificateError(f"refused: {exc}") from None
+        raise
+    setup = load_setup(resolved)
+    if abs(setup.task.dt - CONTROL_DT) > 1e-12:
+        raise TliError(f"{setup.task.where}: dt {setup.task.dt:g} s, but the Franka loop "
+                       f"controls at {CONTROL_DT:g} s")
+    return make_policy(setup, variant)
 
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",

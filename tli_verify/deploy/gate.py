@@ -408,7 +408,7 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
         if _irregular(model, "model", shown(model)) is not None:
             continue  # already blocked, never read
         name = shown(model)
-        evidence = evidence_path_for(model, base)
+        evidence = evidence_path_for(model)
         claimed.add(Path(os.path.normpath(evidence.absolute())))
         if not os.path.lexists(evidence):
             items.append(GateItem("model", name, False, f"no campaign evidence "
@@ -480,7 +480,7 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     settings["shrink"] = False
     single = examples <= int(settings.get("batch_size", 100))
     try:
-        config = CampaignConfig(world=check.world, spec=str(check.spec_path), model=str(model),
+        config = CampaignConfig(spec=str(check.spec_path), model=str(model),
                                 certificate=str(check.certificate_path), examples=examples,
                                 seed=check.seed, modulation=True,
                                 backend="serial" if single else "process", **settings)
@@ -489,15 +489,15 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"the re-run campaign failed: {exc}"
     found = {str(getattr(k, "value", k)): int(v) for k, v in dict(result.violations).items()
              if int(v)}
-    what = (f"re-ran {examples} examples with seed {check.seed} on world {check.world!r} "
+    what = (f"re-ran {examples} examples with seed {check.seed} on task {check.world!r} "
             f"({result.runs} runs)")
     if getattr(result, "partial", False):
         return False, f"{what}: interrupted, incomplete"
     if found:
         kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
         return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
-                       f"reproduce: tli verify --world {check.world} --seed {check.seed} "
-                       f"--examples {examples} --model {model}")
+                       f"reproduce: tli verify --model {model} --seed {check.seed} "
+                       f"--examples {examples}")
     return True, f"{what}: 0 violations"
 
 

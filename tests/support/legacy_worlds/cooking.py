@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.demos import Demonstration
-from tli_verify.worlds.base import BoolArray, FloatArray, IntArray, WorldBase
+from tests.support.legacy_worlds.base import BoolArray, FloatArray, IntArray, WorldBase
 
 __all__ = ["CookingWorld"]
 
