@@ -32,6 +32,8 @@ class PhysicsSensors:
     sensor_names: tuple[str, ...] = ("r", "s", "t")
     latent_names: tuple[str, ...] = ()
     cell_based: bool = False
+    physics: bool = True
+    """Its campaigns are physical ones (``tli evidence`` runs MuJoCo trials)."""
 
     def initial_latent(self, batch: int) -> BoolArray:
         """No latent state, shape (batch, 0)."""

@@ -320,7 +320,9 @@ class SensorModel(Protocol):
     (reading, latent)`` with ``x_prev`` and ``x`` of shape (B, n) (``x_prev`` is ``x`` at
     the first step), ``latent`` (B, L) bool, ``reading`` (B, m) bool in :attr:`sensor_names`
     order. ``cell_based`` says whether the reading depends on the states only through the
-    partition cells and layers they lie in (then the closed loop may memoize readings).
+    partition cells and layers they lie in (then the closed loop may memoize readings). A
+    sensor model may also have ``physics = True``: its readings come from a simulator, and its
+    campaigns are physical ones (``tli evidence``).
     """
 
     @property
