@@ -254,7 +254,7 @@ def _evidence(args: argparse.Namespace) -> int:
     check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
                outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
     status = 0
-    for model, resolved, physical in plan:
+    for _, resolved, physical in plan:
         t0 = time.perf_counter()
         if physical:
             ok, line = _physical(args, resolved)

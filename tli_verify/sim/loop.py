@@ -50,6 +50,7 @@ from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+from tli_verify.sim.perturbations import Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
 from tli_verify.sim.sensors import Debounce
@@ -80,34 +81,6 @@ MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
 """How far (dm, dm, dm, rad) the target may leave the demonstrations' bounding box: the
 workspace limits of the hand (the DS extrapolates poorly far from its data: after a spilling
 tilt it turned the ladle over and drifted 1.5 dm sideways)."""
-
-
-@dataclass(frozen=True, slots=True)
-class Perturbation:
-    """One wrench on the hand.
-
-    Attributes
-    ----------
-    kind : str
-        ``"push"`` (motion level) or ``"tilt"`` (task level: spills).
-    start : float
-        Seconds: after the trial's start (push), or after the soup is first on the spoon
-        (tilt).
-    duration : float
-        Seconds.
-    wrench : tuple of float, length 6
-        Force (N) and torque (Nm) in the world frame.
-    """
-
-    kind: str
-    start: float
-    duration: float
-    wrench: tuple[float, ...]
-
-    def to_json(self) -> dict[str, Any]:
-        """The JSON record."""
-        return {"kind": self.kind, "start": round(self.start, 4),
-                "duration": self.duration, "wrench": [round(w, 4) for w in self.wrench]}
 
 
 def project_dir() -> Path:
@@ -154,8 +127,6 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
     -------
     list of Perturbation
     """
-    from tli_verify.sim.campaign import draw
-
     return draw(seed, pushes=pushes, tilts=tilts)
 
 

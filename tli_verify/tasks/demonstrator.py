@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -30,9 +30,29 @@ import numpy.typing as npt
 from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TaskError
 from tli_verify.io import atomic_write_text
+from tli_verify.tasks.fields import number, vector
 
-if TYPE_CHECKING:
-    from tli_verify.tasks.task import Task
+
+class Task(Protocol):
+    """What the demonstrator needs of a task (:class:`tli_verify.tasks.task.Task`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def dim(self) -> int: ...
+
+    @property
+    def where(self) -> str: ...
+
+    @property
+    def sensor_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def demonstrator(self) -> Demonstrator | None: ...
+
+    def sensors(self, X: npt.ArrayLike, latent: npt.ArrayLike | None = None
+                ) -> npt.NDArray[np.bool_]: ...
 
 __all__ = ["Demonstrator", "Script", "min_jerk_path", "write_demos"]
 
@@ -240,8 +260,6 @@ def parse_demonstrator(raw: Any, *, dim: int, where: str) -> Demonstrator:
     TaskError
         (exit 2) Naming the field.
     """
-    from tli_verify.tasks.task import number, vector
-
     here = f"{where}: demonstrator"
     if not isinstance(raw, dict):
         raise TaskError(f"{here}: expected a table")

@@ -349,6 +349,8 @@ def _polytope_projection(An: FloatArray, bn: FloatArray,
             y0 = solver(An, bn, x)
         except (ValueError, RuntimeError, np.linalg.LinAlgError):
             y0 = None
+        if y0 is None and solver is _ldp_candidate and _is_empty(An, bn):
+            raise ValueError("polytope {x : A x <= b} is empty")
         if y0 is None or not np.isfinite(y0).all():
             continue
         passed = [y for y in (*_polished(An, bn, x, y0), y0) if _kkt_ok(An, bn, x, y)]
@@ -356,11 +358,9 @@ def _polytope_projection(An: FloatArray, bn: FloatArray,
             # Prefer the first candidate feasible to rounding (polished ones come first);
             # failing that the least infeasible one: on an ill-conditioned active set
             # (nearly parallel faces) polishing can trade feasibility for stationarity.
-            def violation(y: FloatArray) -> float:
-                return max(float((An @ y - bn).max()), 0.0) / _scale(x, y)
-
-            rounded = [y for y in passed if violation(y) <= 8.0 * _EPS]
-            y = rounded[0] if rounded else min(passed, key=violation)
+            viol = [_violation(An, bn, x, y) for y in passed]
+            rounded = [y for y, v in zip(passed, viol, strict=True) if v <= 8.0 * _EPS]
+            y = rounded[0] if rounded else passed[int(np.argmin(viol))]
             return y, float(_row_norms(x - y))
     if _is_empty(An, bn):
         raise ValueError("polytope {x : A x <= b} is empty")
@@ -374,7 +374,8 @@ def _ldp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArray 
     With ``z = y - x`` the projection is ``min |z| s.t. G z >= h``, ``G = -An``,
     ``h = An x - bn``. NNLS on ``E = [G^T; h^T]``, ``f = e_{n+1}`` gives ``u >= 0``; the
     residual ``r = E u - f`` has ``r_{n+1} = -|r|^2 < 0`` iff the constraints are feasible and
-    then ``z = -r_{1..n} / r_{n+1}``. ``h`` is scaled to ``max h = 1`` first.
+    then ``z = -r_{1..n} / r_{n+1}``. ``h`` is scaled to ``max h = 1`` first. Returns None when
+    ``|r|`` is zero to rounding (the polytope is probably empty).
     """
     n = x.size
     h = An @ x - bn
@@ -386,7 +387,9 @@ def _ldp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArray 
     f[-1] = 1.0
     u, _ = nnls(E, f, maxiter=50 * (E.shape[0] + E.shape[1]))
     r = E @ u - f
-    if not r[-1] < 0.0:
+    # |r|^2 = -r_{n+1} = 1 / (1 + |z / sigma|^2): zero (to rounding) certifies infeasibility;
+    # beyond |z| = 1e10 sigma leave the case to the fallbacks (and the emptiness LP).
+    if not (r[-1] < 0.0 and float(r @ r) > 1e-20):
         return None
     return np.asarray(x - (r[:-1] / r[-1]) * sigma, dtype=np.float64)
 
@@ -415,6 +418,11 @@ def _trust_constr_candidate(An: FloatArray, bn: FloatArray,
                        constraints=[LinearConstraint(An, -np.inf, -h)],
                        options={"gtol": 1e-14, "xtol": 1e-15, "maxiter": 5000})
     return np.asarray(x + res.x, dtype=np.float64)
+
+
+def _violation(An: FloatArray, bn: FloatArray, x: FloatArray, y: FloatArray) -> float:
+    """Largest constraint violation at ``y``, relative to :func:`_scale`."""
+    return max(float((An @ y - bn).max()), 0.0) / _scale(x, y)
 
 
 def _scale(x: FloatArray, y: FloatArray) -> float:

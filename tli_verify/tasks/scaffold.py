@@ -20,7 +20,7 @@ def task_text(name: str, dim: int) -> str:
     rest = [0.0] * (dim - 1)
     lo_rest, hi_rest = [-0.3] * (dim - 1), [0.3] * (dim - 1)
     names = ", ".join(f'"x{i}"' for i in range(dim))
-    return f'''# Task "{name}": what the world is (the spec in ../specs/{name}.toml says what to do).
+    return f'''# Task "{name}": what the world is (../specs/{name}.toml says what to do).
 # Reference: tli_verify.tasks.task (format), tli_verify.tasks.formula (sensor formulas).
 name = "{name}"
 description = "A reaching task: approach the zone, cross it to the goal, stay done."
@@ -146,7 +146,7 @@ From demonstrations to a gated policy:
 
 def ci_text() -> str:
     """A GitHub Actions job that installs tli-verify and runs the gate."""
-    return '''# Deployment gate: blocks a change whose models are uncertified, untested or tampered with.
+    return '''# Deployment gate: blocks models that are uncertified, untested or tampered with.
 # Copy to .github/workflows/tli-gate.yml (GitHub Actions); other CIs run the same commands.
 name: tli-gate
 on: [push, pull_request]

@@ -78,7 +78,6 @@ Asm. 2 (finitely many perturbations).
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
@@ -92,6 +91,7 @@ import numpy.typing as npt
 from tli_verify.errors import TaskError, TliError
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import Demonstrator, parse_demonstrator
+from tli_verify.tasks.fields import number, vector
 from tli_verify.tasks.regions import Primitive, Region, parse_region
 
 __all__ = [
@@ -708,25 +708,6 @@ class Task:
 
 
 # ------------------------------------------------------------------------------ parsing
-def number(raw: Any, where: str, *, lo: float = -math.inf, hi: float = math.inf,
-           integer: bool = False) -> float:
-    """A finite number in ``[lo, hi]`` from a TOML value (bool refused)."""
-    ok = isinstance(raw, int) if integer else isinstance(raw, int | float)
-    if not ok or isinstance(raw, bool) or not math.isfinite(raw) or not lo <= raw <= hi:
-        kind = "an integer" if integer else "a finite number"
-        raise TaskError(f"{where}: expected {kind} in [{lo:g}, {hi:g}], got {raw!r}")
-    return float(raw)
-
-
-def vector(raw: Any, dim: int, where: str) -> FloatArray:
-    """``dim`` finite numbers from a TOML list."""
-    if not isinstance(raw, list) or len(raw) != dim or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in raw):
-        raise TaskError(f"{where}: expected a list of {dim} finite numbers")
-    return np.array(raw, dtype=np.float64)
-
-
 def _keys(raw: Any, allowed: Sequence[str], where: str) -> Mapping[str, Any]:
     if not isinstance(raw, dict):
         raise TaskError(f"{where}: expected a table")
@@ -760,7 +741,7 @@ def load_task(path: str | os.PathLike[str], *,
     path : path-like
     entry_points : callable, optional
         ``name -> object`` resolving a ``sensor_model`` entry point (default:
-        :func:`tli_verify.tasks.registry.entry_point`).
+        :func:`tli_verify.tasks.plugins.entry_point`).
 
     Raises
     ------
@@ -1033,7 +1014,7 @@ def _perturbations(raw: Any, where: str) -> PerturbationBounds:
 def _entry_sensor_model(name: str, where: str, source: TaskSource,
                         entry_points: Callable[[str], Any] | None, dim: int,
                         partition: Partition) -> tuple[SensorModel, TaskSource]:
-    from tli_verify.tasks.registry import entry_point, entry_point_source
+    from tli_verify.tasks.plugins import entry_point, entry_point_source
 
     resolve = entry_points or entry_point
     obj = resolve(name)
