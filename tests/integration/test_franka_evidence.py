@@ -31,7 +31,8 @@ EVIDENCE = "franka-scoop.campaign.json"
 @pytest.fixture
 def project(tmp_path: Path) -> Path:
     """A copy of the Franka project's spec, model and certificate."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp_path / sub).mkdir()
         shutil.copy(FRANKA / sub / name, tmp_path / sub / name)

@@ -323,8 +323,11 @@ def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
     err = capsys.readouterr().err
     assert code == 2 and err.startswith(f"error: --spec {other}") and "[modes]" in err
     assert err.count("\n") == 1
-    # without --learn-transitions the model's own spec is still required
-    code = main(["run", "--task", "scoop", "--spec", str(other), "--out", str(tmp_path)])
+    # without --learn-transitions the model's own spec is still required (the model named
+    # explicitly: by the project layout a spec alone would select models/other.model.json)
+    model = specs_dir.parent / "models" / "scoop.model.json"
+    code = main(["run", "--task", "scoop", "--model", str(model), "--spec", str(other),
+                 "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "not the spec the model names" in err
     # the grown spec may not overwrite an input, nor the spec the model and certificate bind

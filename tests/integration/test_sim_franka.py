@@ -21,7 +21,8 @@ ROOT = bundled_dir("sim") / "franka"  # the Franka project (not in the deployed 
 
 def _project(tmp: Path) -> Path:
     """A copy of the Franka scoop spec, model and certificate; its certificates dir."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp / sub).mkdir(exist_ok=True)
         shutil.copy(ROOT / sub / name, tmp / sub / name)

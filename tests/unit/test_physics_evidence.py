@@ -71,7 +71,8 @@ def attach_physics(project: Path, *, trials: int = MIN_PHYSICS_TRIALS, failed: i
 @pytest.fixture
 def franka(tmp_path: Path) -> Path:
     """A copy of the Franka project (spec, model, certificate) with valid physical evidence."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp_path / sub).mkdir()
         shutil.copy(FRANKA / sub / name, tmp_path / sub / name)

@@ -52,11 +52,12 @@ def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None
                    help="sensor lag in control steps (default: the task's)")
 
 
-def resolve_args(args: argparse.Namespace, *, spec: Path | None = None) -> Any:
-    """:func:`tli_verify.tasks.project.resolve` of the command's task options."""
+def resolve_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
+    """:func:`tli_verify.tasks.project.resolve` of the command's task options (``use_spec``
+    False: ``--spec`` is not the model's spec, e.g. the spec ``--learn-transitions`` grows)."""
     from tli_verify.tasks.project import resolve
 
-    return resolve(task=args.task, spec=args.spec if spec is None else spec, model=args.model,
+    return resolve(task=args.task, spec=args.spec if use_spec else None, model=args.model,
                    certificate=args.certificate, lag=args.lag)
 
 
@@ -192,7 +193,7 @@ def _run(args: argparse.Namespace) -> int:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
     if args.grown_spec is not None and not args.learn_transitions:
         raise TliError("--grown-spec needs --learn-transitions")
-    resolved = resolve_args(args, spec=None if args.learn_transitions else args.spec)
+    resolved = resolve_args(args, use_spec=not args.learn_transitions)
     out: Path = args.out
     saved_cert = model_files(args.output).certificate if args.output is not None else None
     check_plan(inputs=[*resolved.inputs, args.spec],

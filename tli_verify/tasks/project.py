@@ -213,8 +213,10 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
     loaded: Task | None = None
     if isinstance(task, Task):
         loaded = task
-    elif task is not None:
-        loaded = find_task(task)
+    elif task is not None:  # a name: the project of the spec or model first, else this folder
+        anchor = spec if spec is not None else model
+        loaded = find_task(task, project=project_root(anchor) if anchor is not None
+                           else Path.cwd())
     spec_path = Path(spec) if spec is not None else None
     model_path = Path(model) if model is not None else None
     if model_path is None and spec_path is None:

@@ -789,7 +789,10 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
         raise TaskError(f"{where}: name: must not be empty")
     description = _text(data.get("description", ""), f"{where}: description", limit=10_000,
                         one_line=False)
-    st = _keys(data.get("state"), ("names", "lower", "upper"), f"{where}: [state]")
+    if "state" not in data:
+        raise TaskError(f"{where}: missing the [state] table (the workspace box: lower, upper; "
+                        "optional names)")
+    st = _keys(data["state"], ("names", "lower", "upper"), f"{where}: [state]")
     for k in ("lower", "upper"):
         if k not in st:
             raise TaskError(f"{where}: state.{k}: missing (the workspace box)")
