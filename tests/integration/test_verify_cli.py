@@ -116,7 +116,7 @@ def test_process_backend_matches_serial(tmp_path: Path,
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
-    (["verify", "--world", "nowhere"], "unknown world"),
+    (["verify", "--world", "nowhere"], "unknown task"),
     (["verify", "--world", "scoop", "--examples", "0"], "--examples"),
     (["verify", "--world", "scoop", "--scheduler", "tcp://x:1"], "--scheduler"),
     (["verify", "--world", "scoop", "--model", "/nonexistent/m.json"], "no such model"),
@@ -164,7 +164,7 @@ def test_replay_of_an_edited_case_names_the_field(found: tuple[int, dict, Path],
 
 
 @pytest.mark.parametrize(("edit", "needle"), [
-    ({"start": [1e308, 0.0]}, "outside the world's workspace"),
+    ({"start": [1e308, 0.0]}, "outside the workspace of task"),
     ({"window": 10**12}, "MAX_CAMPAIGN_STEPS"),
     ({"lag": 10**9}, "MAX_CAMPAIGN_STEPS"),
     ({"perturbations": [{"step": 10**18, "displacement": [1.0, 0.0]}]}, "MAX_CAMPAIGN_STEPS"),

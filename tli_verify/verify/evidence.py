@@ -25,14 +25,14 @@ no counterexample, modulation on, a complete campaign and at least
 campaign with the evidence's seed (:mod:`tli_verify.deploy.gate`).
 
 Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
-``scripts/make_evidence.py`` for every bundled model).
+``tli evidence DIR`` for every model of a project).
 
 Physical campaigns (issue 13)
 -----------------------------
 The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
 ``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
 pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
-by ``tli sim franka --evidence`` or ``scripts/make_evidence.py --franka``
+by ``tli sim franka --evidence`` or ``tli evidence sim/franka``
 (:func:`tli_verify.sim.campaign.write_physics_evidence`). Each example is one perturbed physical
 trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
 the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
@@ -79,7 +79,7 @@ MIN_EVIDENCE_EXAMPLES = 500
 With ``N`` examples and no violation, the failure probability per perturbed run is below
 ``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
 campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
-evidence (1,000 examples, ``scripts/make_evidence.py``) costs seconds per model."""
+evidence (1,000 examples, ``tli evidence``) costs seconds per model."""
 
 
 MIN_PHYSICS_TRIALS = 30
@@ -595,6 +595,9 @@ def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str])
         out.append(f"{shown}: world {doc['world']!r} and the physics block disagree (a "
                    "physical campaign has world franka-physics and a physics block; a "
                    "kinematic one neither)")
+    elif not physical and doc["world"] != doc["task"]["name"]:
+        out.append(f"{shown}: world {doc['world']!r} is not the name of the task the campaign "
+                   f"ran on ({doc['task']['name']!r}): the evidence was edited")
     return out
 
 
@@ -607,13 +610,18 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
     TliError
         The spec names no task, or the task does not load or fit.
     """
-    from tli_verify.tasks.project import resolve
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+    from tli_verify.tasks.project import spec_task
 
-    resolved = resolve(model=model_path)
-    if resolved.spec_task is None:
-        raise EvidenceError(f"{resolved.spec}: the spec names no task (task = \"NAME\"), so "
-                            "no evidence can be bound to the deployed task")
-    return task_block(resolved.spec_task, base)
+    spec = load_model(model_path).spec_path
+    if spec is None:
+        raise EvidenceError(f"{model_path}: the model names no spec, so it has no task")
+    task = spec_task(load_spec(spec), spec)
+    if task is None:
+        raise EvidenceError(f"{spec}: the spec names no task (task = \"NAME\"), so no "
+                            "evidence can be bound to the deployed task")
+    return task_block(task, base)
 
 
 def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
