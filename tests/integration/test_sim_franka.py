@@ -29,7 +29,6 @@ def _project(tmp: Path) -> Path:
     return tmp / "certificates"
 
 
-
 def test_one_nominal_trial_scoops_and_delivers(capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["sim", "franka", "--trials", "1", "--seed", "1", "--no-perturb", "--json",
                  "--duration", "14"])

@@ -248,7 +248,7 @@ def _refuse(name: str, count: int, rng: np.random.Generator) -> FloatArray:
 
 def test_titles() -> None:
     assert mode_sequence(["a", "a", "b", "a", "b", "b"]) == "abab"
-    assert mode_sequence(["approach", "pull", "pull", "retract"]) == "approach->pull->retract"
+    assert mode_sequence(["approach", "pull", "pull", "retract"]) == "approach-pull-retract"
     r = episode(3, success=False)
     assert episode_title(r, label="LTL-DS", goal_label="the open drawer") == \
         "LTL-DS: ab (no the open drawer in 60 steps, 0 cuts)"

@@ -199,7 +199,7 @@ def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[Wor
         sen.reset(X[i].copy())
         pol.reset(X[i], sen.read(X[i]))
     dt = policies[0].dt
-    cache: dict[tuple[str, int], Any] = {}
+    cache: dict[tuple[str, int], tuple[Any, Any]] = {}
     hist = [X.copy()]
     modes = [[p.mode for p in policies]]
     astates = [[-1 if p.state is None else p.state for p in policies]]
@@ -229,10 +229,14 @@ def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[Wor
             if not mm.cuts:
                 V[rows] = net.velocity(X[rows])
                 continue
+            # keyed by the mode model's identity; the entry keeps the object alive, so its id
+            # cannot be reused by a later model (with other cuts) while the entry exists
             ck = (key, id(mm))
-            if ck not in cache:
-                cache[ck] = modulated(net, mm.cuts, mm.ds.attractor, dt=dt)
-            V[rows] = cache[ck].velocity(X[rows])
+            hit = cache.get(ck)
+            if hit is None or hit[0] is not mm:
+                hit = (mm, modulated(net, mm.cuts, mm.ds.attractor, dt=dt))
+                cache[ck] = hit
+            V[rows] = hit[1].velocity(X[rows])
         X += dt * V
         hist.append(X.copy())
         modes.append([p.mode for p in policies])
