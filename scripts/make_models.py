@@ -40,14 +40,43 @@ ROOT = Path(__file__).resolve().parents[1]
 SEED = 0
 CONTROL_DT = "0.01"
 
-SHARED = {
-    "cooking": ("cooking-cb", "cooking-bc", "cooking-c", "cooking-cc"),
-    "color-tracing": ("color-tracing-a", "color-tracing-b", "color-tracing-c"),
-}
-"""World -> the specs one learned set of DS is bound to."""
+SCOOP = "scoop"
+"""The scoop model is made by its own recipe (scripts/make_demos.py), not here."""
 
-WITH_SPEC = {"inspection": "inspection"}
-"""World -> the spec it is learned with directly."""
+
+def specs_of(task: str) -> tuple[str, ...]:
+    """The bundled specs written over a task (their ``task`` key), expected realizable."""
+    from tli_verify.logic.spec import load_spec
+
+    out = []
+    for path in sorted((ROOT / "specs").glob("*.toml")):
+        spec = load_spec(path)
+        if spec.task == task and spec.expect == "realizable":
+            out.append(path.stem)
+    return tuple(out)
+
+
+def recipes() -> tuple[dict[str, tuple[str, ...]], dict[str, str]]:
+    """Task -> specs of one learned DS set (several specs: learn once, rebind to each), and
+    task -> the one spec it is learned with directly; from the specs' task keys."""
+    from tli_verify.tasks.registry import bundled_tasks
+
+    shared: dict[str, tuple[str, ...]] = {}
+    with_spec: dict[str, str] = {}
+    for task in sorted(bundled_tasks()):
+        if task == SCOOP:
+            continue
+        specs = specs_of(task)
+        if len(specs) > 1:
+            shared[task] = specs
+        elif specs:
+            with_spec[task] = specs[0]
+    return shared, with_spec
+
+
+SHARED, WITH_SPEC = recipes()
+"""Task -> the specs one learned set of DS is bound to; task -> the spec it is learned with
+directly (derived from the specs' ``task`` keys: no list of worlds here)."""
 
 
 def tli(*argv: str) -> None:

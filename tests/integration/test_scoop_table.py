@@ -1,7 +1,7 @@
 """``tli experiment scoop`` gives the same table from ``tasks/scoop.toml`` as from the former
 Python world, for seed 0.
 
-``tests/regressions/scoop_experiment_seed0.json`` holds the table the Python ``ScoopWorld``
+``tests/regressions/tables/scoop_experiment_seed0.json`` holds the table the Python ``ScoopWorld``
 computed (the commit before the worlds became task files): the success counts of every variant
 in every experiment, the Fig. 7 loops, and the Fig. 7 case. The task file must reproduce it:
 the same demonstrations (the scoop demonstrator is bit-identical), the same readings, the same
@@ -21,7 +21,7 @@ import pytest
 
 from tli_verify.cli import main
 
-REFERENCE = json.loads((Path(__file__).resolve().parents[1] / "regressions" /
+REFERENCE = json.loads((Path(__file__).resolve().parents[1] / "regressions" / "tables" /
                         "scoop_experiment_seed0.json").read_text())
 
 

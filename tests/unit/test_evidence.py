@@ -125,7 +125,7 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
     doc["modes"]["b"]["components"][0]["A"][1][1] *= 1.001
     model.write_text(json.dumps(doc))
     cert = project / "certificates" / "scoop.cert.json"
-    write_certificate(issue_certificate(model, cert_path=cert), cert)
+    write_certificate(issue_certificate(model, cert_path=cert, dt="1/100"), cert)
     message = only_campaign_blocks(project)
     assert "models/scoop.model.json: SHA-256" in message
     attach_evidence(project)  # a new campaign on the new files: passes again
@@ -145,7 +145,7 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
      "every example is at least one run"),
     (lambda d: d["campaign"].update(modulation=False), "ran without modulation"),
     (lambda d: d["campaign"].update(partial=True), "interrupted (partial)"),
-    (lambda d: d.update(world="nowhere"), "'nowhere' is not a known world"),
+    (lambda d: d.update(world="nowhere"), "world 'nowhere' is not the name of the task"),
     (lambda d: d["tool"].update(version="0.0.0"), "written by tli-verify 0.0.0"),
 ], ids=["violation", "inconsistent-total", "counterexample", "too-few-examples",
         "too-few-runs", "no-modulation", "partial", "unknown-world", "old-tool"])
@@ -379,7 +379,11 @@ def test_a_spec_naming_no_task_blocks_its_models_evidence(project: Path) -> None
     message = only_the_task_check_fails(project)
     assert "the deployed task cannot be resolved" in message
     assert "the spec names no task" in message
-    assert message in only_campaign_blocks(project)
+    report = run_gate(project)  # the model's own task check blocks too, saying why
+    found = {(b.check, b.message) for b in report.blockers}
+    assert {c for c, _ in found} == {"task", "campaign"}
+    assert any(c == "task" and "names no task" in m for c, m in found)
+    assert any(c == "campaign" and message in m for c, m in found)
 
 
 def test_honest_evidence_binds_the_deployed_specs_task(project: Path, repo: Path) -> None:

@@ -34,7 +34,7 @@ def edit_model(project: Path, edit: Any) -> None:
     edit(doc)
     path.write_text(json.dumps(doc))
     cert = project / "certificates" / "scoop.cert.json"
-    write_certificate(issue_certificate(path, cert_path=cert), cert)
+    write_certificate(issue_certificate(path, cert_path=cert, dt="1/100"), cert)  # the task's
     assert check_certificate(cert).ok
     attach_evidence(project)
 
@@ -49,6 +49,7 @@ def test_gate_passes_on_a_certified_project(project: Path) -> None:
         ("model", "models/scoop.model.json", "dimension"),
         ("model", "models/scoop.model.json", "spec"),
         ("model", "models/scoop.model.json", "modes"),
+        ("model", "models/scoop.model.json", "task"),
         ("model", "models/scoop.model.json", "campaign"),
     ]
 

@@ -69,7 +69,10 @@ ball = { center = [0.8, 0.8, 0.5], radius = 0.1 }
 [regions.egg]
 ellipsoid = { center = [0.5, 0.2, 0.8], matrix = [[100, 0, 0], [0, 25, 0], [0, 0, 400]] }
 [regions.ring]
-difference = [{ box = { lower = [0.6, 0, 0], upper = [1, 0.4, 1] } }, { ball = { center = [0.8, 0.2, 0.5], radius = 0.1 } }]
+difference = [
+  { box = { lower = [0.6, 0, 0], upper = [1, 0.4, 1] } },
+  { ball = { center = [0.8, 0.2, 0.5], radius = 0.1 } },
+]
 [regions.both]
 union = ["orb", { box = { lower = [0, 0.9, 0.9], upper = [0.1, 1, 1] } }]
 layer = true

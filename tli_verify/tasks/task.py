@@ -577,7 +577,9 @@ class Task:
 
     def sample_region(self, name: str, count: int, rng: np.random.Generator) -> FloatArray:
         """``count`` uniform random states of a true region (or layer), shape (count, n), by
-        rejection inside the region's bounding box within the workspace.
+        rejection: from the workspace box, or, for a region whose bounding box fills less than
+        1/64 of it, from that box within the workspace (both are uniform in the region; the
+        first is the former worlds' stream of draws, which seeded anchors rely on).
 
         Raises
         ------
@@ -585,9 +587,17 @@ class Task:
             Unknown region, or one too small to hit (about 1e-4 of its box) or outside the
             workspace.
         """
-        lo, hi = self._region_box(name)
-        if not np.all(lo <= hi):
+        if name not in self.region_names and all(la.name != name
+                                                 for la in self.partition.layers):
+            raise TaskError(f"{self.where}: no region {name!r} (regions: "
+                            f"{', '.join(self.region_names)})")
+        lo, hi = np.array(self.lo), np.array(self.hi)
+        blo, bhi = self._region_box(name)
+        if not np.all(blo <= bhi):
             raise TaskError(f"{self.where}: region {name!r} lies outside the workspace")
+        small = float(np.prod(bhi - blo)) < float(np.prod(hi - lo)) / 64.0
+        if small:
+            lo, hi = blo, bhi
         out: list[FloatArray] = []
         got = 0
         for _ in range(200):

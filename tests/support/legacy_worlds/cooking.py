@@ -41,8 +41,8 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.demos import Demonstration
 from tests.support.legacy_worlds.base import BoolArray, FloatArray, IntArray, WorldBase
+from tli_verify.demos import Demonstration
 
 __all__ = ["CookingWorld"]
 
