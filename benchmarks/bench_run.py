@@ -38,20 +38,14 @@ def _median(fn: object, repeats: int) -> float:
 def main(out_dir: Path) -> str:
     import threadpoolctl
 
-    from tli_verify.experiments.scoop import (
-        ExperimentConfig,
-        bundled_setup,
-        make_policy,
-        random_perturbations,
-        random_start,
-        run_all,
-        run_variant_batch,
-    )
+    from tli_verify.experiments.scoop import ExperimentConfig, run_all, scoop_setup
+    from tli_verify.runtime.episodes import random_perturbations, random_start, run_variant_batch
     from tli_verify.runtime.executive import run_episode
+    from tli_verify.runtime.setup import make_policy
     from tli_verify.runtime.worlds import WorldSensors
 
-    setup = bundled_setup()
-    world = setup.world
+    setup = scoop_setup()
+    world = setup.task
     with threadpoolctl.threadpool_limits(1):
         # one episode of 2,000 steps
         policy = make_policy(setup, "LTL-DS")
@@ -73,7 +67,7 @@ def main(out_dir: Path) -> str:
         # batched vs per-step loop
         rng = np.random.default_rng(0)
         N = 200
-        starts = np.array([random_start(world, rng) for _ in range(N)])
+        starts = np.array([random_start(world, setup.automaton, rng) for _ in range(N)])
         perts = [random_perturbations(rng, 2, world) for _ in range(N)]
         t0 = time.perf_counter()
         res = run_variant_batch(setup, "LTL-DS", starts, perts, steps=3000)

@@ -9,7 +9,7 @@ Side by side in one run:
   ``tli_verify.verify.dask_backend`` exists, else "n/a";
 - Fig. 7 (the unmodulated system looping a -> b -> a -> b): over 10 seeds, the simulations
   until the first counterexample of the campaign's hypothesis drawing (generation order), next
-  to plain random sampling (:func:`tli_verify.experiments.scoop.random_perturbations`: 1-3
+  to plain random sampling (:func:`tli_verify.runtime.episodes.random_perturbations`: 1-3
   perturbations, uniform directions, magnitudes up to the workspace size) on the same budget;
   the median for "any violation" and for "looping" (target median <= 50 for looping).
 """
@@ -35,7 +35,7 @@ def _campaign(backend: str, workers: int, *, examples: int = RUNS, modulation: b
               seed: int = 0) -> Any:
     from tli_verify.verify.campaign import CampaignConfig, run_campaign
 
-    return run_campaign(CampaignConfig(world="scoop", examples=examples, seed=seed,
+    return run_campaign(CampaignConfig(task="scoop", examples=examples, seed=seed,
                                        modulation=modulation, workers=workers,
                                        backend=backend, batch_size=100, shrink=False))
 
@@ -50,9 +50,8 @@ def _first(outcomes: Any, kind: str | None) -> int | None:
 
 def _random_sampling(seed: int) -> tuple[int | None, int | None]:
     """Plain random perturbations of the nominal run, in order, same budget."""
-    from tli_verify.experiments.scoop import random_perturbations
+    from tli_verify.runtime.episodes import random_perturbations
     from tli_verify.verify.campaign import (
-        NOMINAL_STARTS,
         CampaignConfig,
         RunOutcome,
         load,
@@ -61,14 +60,14 @@ def _random_sampling(seed: int) -> tuple[int | None, int | None]:
     )
     from tli_verify.verify.strategies import Case, Push
 
-    spec = sim_spec(CampaignConfig(world="scoop", modulation=False))
+    spec = sim_spec(CampaignConfig(task="scoop", modulation=False))
     world = load(spec).world
     rng = np.random.default_rng([seed, 12])
     items = []
     for i in range(BUDGET):
         table = random_perturbations(rng, int(rng.integers(1, 4)), world)
         pushes = tuple(Push(t, tuple(float(v) for v in d)) for t, d in sorted(table.items()))
-        items.append((i, Case(NOMINAL_STARTS["scoop"], pushes)))
+        items.append((i, Case(world.starts.nominal[0], pushes)))
     outs: list[RunOutcome] = []
     for k in range(0, BUDGET, 100):
         outs += simulate_batch((spec, items[k:k + 100]))
@@ -90,12 +89,20 @@ def main(out_dir: Path) -> str:
     data: dict[str, Any] = {}
     load_before = os.getloadavg()[0]
     # CPU cost per run, in this process (independent of what else the machine runs)
-    from tli_verify.verify.campaign import CampaignConfig, _strategy, draw_cases, load, sim_spec
+    from tli_verify.verify.campaign import (
+        CampaignConfig,
+        _strategy,
+        draw_cases,
+        load,
+        resolve_config,
+        sim_spec,
+    )
     from tli_verify.verify.campaign import simulate_batch as _batch
 
-    spec = sim_spec(CampaignConfig(world="scoop"))
+    _, filled = resolve_config(CampaignConfig(task="scoop"))
+    spec = sim_spec(filled)
     ld = load(spec)
-    strategy = _strategy(CampaignConfig(world="scoop"), ld)
+    strategy = _strategy(filled, ld)
     c0 = time.process_time()
     sample = draw_cases(strategy, 200, 0)
     draw_cpu = (time.process_time() - c0) / len(sample)

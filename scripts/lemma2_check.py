@@ -5,7 +5,7 @@ region ``delta_j`` of the next mode ``j``: the DS then reaches ``delta_j`` in fi
 every start, and the sensors report the transition the automaton waits for. This script learns
 the scoop model from the bundled demonstrations (``demos/scoop_*.csv`` with ``specs/scoop.toml``,
 :func:`tli_verify.model.learn_model`), or loads a model file, draws random starts in each mode's
-*true* region (the paper's scoop world, :mod:`tli_verify.worlds.scoop`), integrates the mode's
+*true* region (the paper's scoop world, ``tasks/scoop.toml``), integrates the mode's
 nominal DS alone (``f`` of paper eq. 4, no cuts; explicit Euler, vectorised over the starts) and
 prints, per mode: the fraction of starts that enter the next mode's region within the horizon
 and the worst entry time. A second table counts the components that satisfy the sampled-data
@@ -13,7 +13,7 @@ condition ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` at ``dt = 1 ms`` (floats, ma
 the smallest certified decay rate, for the learned model and the committed
 ``models/scoop.model.json``.
 
-True regions: the paper's scoop world (:class:`tli_verify.worlds.scoop.ScoopWorld`, workspace
+True regions: the paper's scoop task (``tasks/scoop.toml``, workspace
 ``[-8, 8]^2``); starts are uniform in the states where the world's sensors read the mode,
 entry is membership of the next mode's colour region:
 
@@ -39,21 +39,23 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.model import Model, learn_model, load_model
-from tli_verify.worlds.scoop import MODE_REGION, ScoopWorld
+from tli_verify.tasks.registry import find_task
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 ROOT = Path(__file__).resolve().parents[1]
-WORLD = ScoopWorld()
+WORLD = find_task("scoop")
 """The paper's scoop world: the true regions the starts are drawn from and entries are read in."""
+MODE_REGION = {"a": "white", "b": "yellow", "c": "pink", "d": "green"}
+"""The region each mode of ``specs/scoop.toml`` runs in (nominally)."""
 
 
 def region(mode: str, X: FloatArray) -> BoolArray:
     """Membership of the true region of a scoop mode ``a``, ``b``, ``c`` or ``d``.
 
     Where the world's sensors read the mode's label: b yellow, c pink (with soup on the
-    spoon), d green (soup delivered) -- :data:`tli_verify.worlds.scoop.MODE_REGION` -- and
+    spoon), d green (soup delivered) -- :data:`MODE_REGION` -- and
     a everywhere else, i.e. white and also pink or green with an empty spoon (reached
     without scooping, or after a spill).
     """

@@ -1,6 +1,6 @@
 """Learn and certify the bundled models of the cooking, color-tracing and inspection worlds.
 
-Usage: ``.venv/bin/python scripts/make_models.py [--world cooking|color-tracing|inspection|all]
+Usage: ``.venv/bin/python scripts/make_models.py [--task cooking|color-tracing|inspection|all]
 [--check N [--perturbations K]] [--recovery]`` (from the repository root). ``--check`` learns
 nothing: it runs N seeded perturbed ``tli run`` episodes per bundled spec and prints the
 success counts; ``--recovery`` prints the first tile the color-tracing recovery DS enter from
@@ -18,7 +18,7 @@ Every step is a ``tli`` command, printed before it runs and run in-process throu
   reused, without relearning");
 * **color-tracing**: the same for ``specs/color-tracing-{a,b,c}.toml`` from the tile
   demonstration and the recovery demonstrations out of the dark region
-  (:class:`tli_verify.worlds.ColorTracingWorld`).
+  (``tasks/color-tracing.toml``).
 
 Learning uses ``--control-dt 0.01`` and certification ``--dt 0.01``: the period ``tli run``
 runs at. The scoop model (``models/scoop.model.json``) is not touched here (see
@@ -40,14 +40,43 @@ ROOT = Path(__file__).resolve().parents[1]
 SEED = 0
 CONTROL_DT = "0.01"
 
-SHARED = {
-    "cooking": ("cooking-cb", "cooking-bc", "cooking-c", "cooking-cc"),
-    "color-tracing": ("color-tracing-a", "color-tracing-b", "color-tracing-c"),
-}
-"""World -> the specs one learned set of DS is bound to."""
+SCOOP = "scoop"
+"""The scoop model is made by its own recipe (scripts/make_demos.py), not here."""
 
-WITH_SPEC = {"inspection": "inspection"}
-"""World -> the spec it is learned with directly."""
+
+def specs_of(task: str) -> tuple[str, ...]:
+    """The bundled specs written over a task (their ``task`` key), expected realizable."""
+    from tli_verify.logic.spec import load_spec
+
+    out = []
+    for path in sorted((ROOT / "specs").glob("*.toml")):
+        spec = load_spec(path)
+        if spec.task == task and spec.expect == "realizable":
+            out.append(path.stem)
+    return tuple(out)
+
+
+def recipes() -> tuple[dict[str, tuple[str, ...]], dict[str, str]]:
+    """Task -> specs of one learned DS set (several specs: learn once, rebind to each), and
+    task -> the one spec it is learned with directly; from the specs' task keys."""
+    from tli_verify.tasks.registry import bundled_tasks
+
+    shared: dict[str, tuple[str, ...]] = {}
+    with_spec: dict[str, str] = {}
+    for task in sorted(bundled_tasks()):
+        if task == SCOOP:
+            continue
+        specs = specs_of(task)
+        if len(specs) > 1:
+            shared[task] = specs
+        elif specs:
+            with_spec[task] = specs[0]
+    return shared, with_spec
+
+
+SHARED, WITH_SPEC = recipes()
+"""Task -> the specs one learned set of DS is bound to; task -> the spec it is learned with
+directly (derived from the specs' ``task`` keys: no list of worlds here)."""
 
 
 def tli(*argv: str) -> None:
@@ -104,34 +133,27 @@ def check(world: str, episodes: int, perturbations: int) -> None:
 
     Prints, per bundle: LTL-DS success, episodes with an assumption violation (a perturbation
     or a DS crossing into a region the spec's assumptions rule out), cuts learned. Seeds
-    ``0 .. episodes-1``, as ``tli run --world W --spec S --seed K --perturb random:N``.
+    ``0 .. episodes-1``, as ``tli run --spec S --seed K --perturb random:N``.
     """
     import numpy as np
 
-    from tli_verify.commands.run import (
-        REGISTRY,
-        bundle_policy,
-        initial_start,
-        parse_perturb,
-        world_setup,
-    )
-    from tli_verify.experiments.scoop import random_start, run_variant
+    from tli_verify.commands.run import parse_perturb
+    from tli_verify.runtime.episodes import random_start, run_variant
     from tli_verify.runtime.events import AssumptionViolationEvent
+    from tli_verify.runtime.setup import load_setup, make_policy
+    from tli_verify.tasks.project import resolve
 
-    for bundle in REGISTRY[world]:
-        setup, _ = world_setup(world, spec=ROOT / "specs" / f"{bundle.spec}.toml")
+    for spec in (*SHARED.get(world, ()), *([WITH_SPEC[world]] if world in WITH_SPEC else [])):
+        setup = load_setup(resolve(spec=ROOT / "specs" / f"{spec}.toml"))
         ok = violated = cuts = 0
         for seed in range(episodes):
-            pert = parse_perturb([f"random:{perturbations}"], seed=seed, world=setup.world)
-            rng = np.random.default_rng([seed, 3])
-            x0 = (random_start(setup.world, rng) if world == "scoop"
-                  else initial_start(setup, rng))
-            res = run_variant(setup, "LTL-DS", x0, pert, policy=bundle_policy(setup, "LTL-DS",
-                                                                               bundle))
+            pert = parse_perturb([f"random:{perturbations}"], seed=seed, task=setup.task)
+            x0 = random_start(setup.task, setup.automaton, np.random.default_rng([seed, 3]))
+            res = run_variant(setup, "LTL-DS", x0, pert, policy=make_policy(setup, "LTL-DS"))
             ok += bool(res.success)
             violated += any(isinstance(e, AssumptionViolationEvent) for e in res.events)
             cuts += res.cuts_added
-        sys.stdout.write(f"{bundle.spec}: LTL-DS reached the goal in {ok}/{episodes} episodes "
+        sys.stdout.write(f"{spec}: LTL-DS reached the goal in {ok}/{episodes} episodes "
                          f"(random:{perturbations}); {violated} with an assumption violation; "
                          f"{cuts} cut(s)\n")
 
@@ -146,9 +168,9 @@ def recovery_entries(starts: int = 300, steps: int = 4000) -> None:
     import numpy as np
 
     from tli_verify.model import load_model
-    from tli_verify.worlds import ColorTracingWorld
+    from tli_verify.tasks.registry import find_task
 
-    world = ColorTracingWorld()
+    world = find_task("color-tracing")
     X0 = world.sample_region("dark", starts, np.random.default_rng(0))
     names = np.array([*world.region_names, "none"])
     for spec, mode, nxt in (("color-tracing-a", "d1", "y"), ("color-tracing-b", "d2", "b"),
@@ -159,7 +181,7 @@ def recovery_entries(starts: int = 300, steps: int = 4000) -> None:
         for _ in range(steps):
             X = X + 0.01 * model.velocity(X, mode=mode, next_mode=nxt)
             idx = world.region_index(X)
-            new = (first < 0) & (idx != 0)
+            new = (first < 0) & (idx != world.region_names.index("dark"))
             first[new] = idx[new]
             if (first >= 0).all():
                 break
@@ -174,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     import os
 
     parser = argparse.ArgumentParser(prog="make_models.py")
-    parser.add_argument("--world", choices=[*SHARED, *WITH_SPEC, "all"], default="all")
+    parser.add_argument("--task", "--world", dest="world", choices=[*SHARED, *WITH_SPEC, "all"],
+                        default="all")
     parser.add_argument("--check", type=int, default=0, metavar="N",
                         help="instead of learning: run N seeded perturbed episodes per bundled "
                         "spec and print the success counts")

@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.demo",
     "tli_verify.commands.verify",
     "tli_verify.commands.sim",
+    "tli_verify.commands.task",
 )
 
 

@@ -32,7 +32,6 @@ import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -46,7 +45,6 @@ __all__ = [
     "demo_to_csv",
     "load_demo",
     "load_demos",
-    "make_scoop_demos",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -337,59 +335,3 @@ def demo_to_csv(demo: Demonstration, *, velocities: bool = True) -> str:
         row += ["1" if v else "0" for v in demo.sensors[i]]
         out.write(",".join(row) + "\n")
     return out.getvalue()
-
-
-# --------------------------------------------------------------------------------------------
-# The bundled 2D soup-scooping demonstrations (paper Sec. 7.2, Fig. 1 and 5).
-# --------------------------------------------------------------------------------------------
-
-
-def make_scoop_demos(*, seed: int, n_demos: int = 3, duration: float = 12.0,
-                     dt: float = 0.05) -> list[Demonstration]:
-    """Synthesise 2D soup-scooping demonstrations with sensors ``r, s, t`` (the paper's world).
-
-    The scripted demonstrator of :class:`tli_verify.worlds.scoop.ScoopWorld`: the paper's
-    geometry (Fig. 2; workspace ``[-8, 8]^2``, yellow contact ``x2 <= -4``, pink soup-on-spoon
-    column ``2 <= x1 <= 6``, green target above ``x2 = 6``), paths timed with a minimum-jerk
-    profile so they start and end at rest, read by the world's sensor model. The sensor
-    sequence is ``(!r!s!t) -> (r!s!t) -> (!r s!t) -> (!r!s t)``: modes a (reach), b (scoop),
-    c (transport), d (done) of ``specs/scoop.toml``.
-
-    Parameters
-    ----------
-    seed : int
-        Seed of the start positions and waypoint jitter.
-    n_demos : int, optional
-    duration : float, optional
-        Seconds per demonstration.
-    dt : float, optional
-        Sampling period.
-
-    Returns
-    -------
-    list of Demonstration
-        With analytic velocities.
-    """
-    from tli_verify.worlds.scoop import ScoopWorld
-
-    return ScoopWorld(duration=duration, dt=dt).demonstrate(seed, n_demos)
-
-
-def write_scoop_demos(directory: str | os.PathLike[str], *, seed: int = 0,
-                      n_demos: int = 3) -> list[Path]:
-    """Write :func:`make_scoop_demos` as ``scoop_<i>.csv`` files (atomic writes).
-
-    Parameters
-    ----------
-    directory : path-like
-    seed : int, optional
-    n_demos : int, optional
-
-    Returns
-    -------
-    list of Path
-    """
-    from tli_verify.worlds.base import write_demos
-    from tli_verify.worlds.scoop import ScoopWorld
-
-    return write_demos(ScoopWorld(), directory, seed=seed, n_demos=n_demos, prefix="scoop")

@@ -18,6 +18,7 @@ __all__ = [
     "OutputError",
     "SolverError",
     "SpecError",
+    "TaskError",
     "TliError",
     "UnrealizableError",
     "WorkerLost",
@@ -45,6 +46,11 @@ class TliError(Exception):
 
 class SpecError(TliError):
     """A task specification (TOML, LTL formula) is malformed or outside GR(1)."""
+
+
+class TaskError(TliError, ValueError):
+    """A task file (state space, regions, sensors, goal, starts) is malformed, or a model, spec
+    or evidence does not fit the task it runs on."""
 
 
 class UnrealizableError(TliError):

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import stat
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from functools import cache
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +43,15 @@ __all__ = [
     "check_nesting",
     "check_output_dir",
     "check_output_file",
+    "field_path",
+    "read_json",
     "read_text",
     "sha256_file",
+    "validate_schema",
 ]
 
 PathLike = str | os.PathLike[str]
+_PLAIN_KEY = re.compile(r"^[A-Za-z0-9_]+$")
 
 
 def _umask() -> int:
@@ -371,3 +378,78 @@ def bundled_dir(name: str) -> Path:
     raise TliError(f"the bundled {name}/ directory is not installed next to the tli_verify "
                    f"package ({package.parent / name}): tli demo needs a source checkout of "
                    "tli-verify (pip install -e .)")
+
+
+# --------------------------------------------------------------------------------------------
+# JSON inputs: one reader, one schema validator (models, certificates, evidence, tasks)
+# --------------------------------------------------------------------------------------------
+
+def field_path(parts: Sequence[str | int]) -> str:
+    """Format a JSON location like ``modes.a.components[2].cov`` (odd keys in ``["..."]``)."""
+    out = ""
+    for part in parts:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif _PLAIN_KEY.match(part):
+            out += f".{part}" if out else part
+        else:
+            out += f"[{json.dumps(part)}]"
+    return out or "(top level)"
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not allowed (numbers must be finite)")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # e.g. 1e400, which Python reads as inf
+        raise ValueError(f"number {text} overflows a double (numbers must be finite)")
+    return value
+
+
+def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
+    """Read a JSON file; errors name the file, line and column.
+
+    NaN, Infinity and numbers that overflow a double (``1e400``) are rejected; so are files
+    larger than ``MAX_INPUT_BYTES``, non-regular files and brackets nested deeper than
+    ``MAX_NESTING`` (:func:`tli_verify.io.read_text`).
+    """
+    text = read_text(path, what=what, error=error)
+    try:
+        return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}: line {exc.lineno}, column {exc.colno}: invalid JSON: "
+                    f"{exc.msg}") from None
+    except ValueError as exc:
+        raise error(f"{path}: invalid JSON: {exc}") from None
+    except RecursionError:  # not reached after read_text's nesting check; kept as a backstop
+        raise error(f"{path}: invalid JSON: nested too deeply") from None
+
+
+@cache
+def _validator(name: str) -> Any:
+    import jsonschema
+
+    schema = json.loads(resources.files("tli_verify").joinpath("schemas", name).read_text("utf-8"))
+    cls = jsonschema.validators.validator_for(schema)
+    cls.check_schema(schema)
+    return cls(schema)
+
+
+def validate_schema(data: Any, schema: str, *, where: str, error: type[TliError]) -> None:
+    """Validate ``data`` against ``tli_verify/schemas/<schema>``.
+
+    Raises
+    ------
+    error
+        ``"<where>: <field path>: <what is wrong>"`` for the most relevant violation.
+    """
+    from jsonschema.exceptions import best_match
+
+    errors = sorted(_validator(schema).iter_errors(data),
+                    key=lambda e: [str(p) for p in e.absolute_path])
+    if errors:
+        worst = best_match(errors)
+        message = worst.message if len(worst.message) <= 160 else worst.message[:157] + "..."
+        raise error(f"{where}: {field_path(list(worst.absolute_path))}: {message}")

@@ -36,8 +36,6 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import cache
-from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -48,7 +46,13 @@ import numpy.typing as npt
 from tli_verify.boundary.cuts import Cut
 from tli_verify.ds.lpvds import LPVDS, Clustering, LyapunovKind
 from tli_verify.errors import ModelError, TliError
-from tli_verify.io import atomic_write_text, canonical_json, read_text
+from tli_verify.io import (
+    atomic_write_text,
+    canonical_json,
+    field_path,
+    read_json,
+    validate_schema,
+)
 from tli_verify.limits import (
     COV_MAX_CONDITION,
     COV_MIN_EIGENVALUE,
@@ -78,53 +82,6 @@ FloatArray = npt.NDArray[np.float64]
 SCHEMA_VERSION = 1
 TRANSITION = "->"
 _PLAIN_KEY = re.compile(r"^[A-Za-z0-9_]+$")
-
-
-# --------------------------------------------------------------------------------------------
-# JSON helpers shared with the certificate module
-# --------------------------------------------------------------------------------------------
-
-def field_path(parts: Sequence[str | int]) -> str:
-    """Format a JSON location like ``modes.a.components[2].cov`` (odd keys in ``["..."]``)."""
-    out = ""
-    for part in parts:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif _PLAIN_KEY.match(part):
-            out += f".{part}" if out else part
-        else:
-            out += f"[{json.dumps(part)}]"
-    return out or "(top level)"
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not allowed (numbers must be finite)")
-
-
-def _finite_float(text: str) -> float:
-    value = float(text)
-    if not np.isfinite(value):  # e.g. 1e400, which Python reads as inf
-        raise ValueError(f"number {text} overflows a double (numbers must be finite)")
-    return value
-
-
-def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
-    """Read a JSON file; errors name the file, line and column.
-
-    NaN, Infinity and numbers that overflow a double (``1e400``) are rejected; so are files
-    larger than ``MAX_INPUT_BYTES``, non-regular files and brackets nested deeper than
-    ``MAX_NESTING`` (:func:`tli_verify.io.read_text`).
-    """
-    text = read_text(path, what=what, error=error)
-    try:
-        return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
-    except json.JSONDecodeError as exc:
-        raise error(f"{path}: line {exc.lineno}, column {exc.colno}: invalid JSON: "
-                    f"{exc.msg}") from None
-    except ValueError as exc:
-        raise error(f"{path}: invalid JSON: {exc}") from None
-    except RecursionError:  # not reached after read_text's nesting check; kept as a backstop
-        raise error(f"{path}: invalid JSON: nested too deeply") from None
 
 
 def numeric_limits() -> dict[str, float]:
@@ -185,34 +142,6 @@ def _check_covariance(cov: FloatArray, where: str) -> None:
     if hi / lo > COV_MAX_CONDITION:
         raise ModelError(f"{where}: condition number {hi / lo:.3g} exceeds "
                          f"{COV_MAX_CONDITION:g} (COV_MAX_CONDITION): not safely invertible")
-
-
-@cache
-def _validator(name: str) -> Any:
-    import jsonschema
-
-    schema = json.loads(resources.files("tli_verify").joinpath("schemas", name).read_text("utf-8"))
-    cls = jsonschema.validators.validator_for(schema)
-    cls.check_schema(schema)
-    return cls(schema)
-
-
-def validate_schema(data: Any, schema: str, *, where: str, error: type[TliError]) -> None:
-    """Validate ``data`` against ``tli_verify/schemas/<schema>``.
-
-    Raises
-    ------
-    error
-        ``"<where>: <field path>: <what is wrong>"`` for the most relevant violation.
-    """
-    from jsonschema.exceptions import best_match
-
-    errors = sorted(_validator(schema).iter_errors(data),
-                    key=lambda e: [str(p) for p in e.absolute_path])
-    if errors:
-        worst = best_match(errors)
-        message = worst.message if len(worst.message) <= 160 else worst.message[:157] + "..."
-        raise error(f"{where}: {field_path(list(worst.absolute_path))}: {message}")
 
 
 # --------------------------------------------------------------------------------------------

@@ -62,7 +62,7 @@ run time which one it needs).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
@@ -70,7 +70,9 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.demos import Demonstration
-from tli_verify.errors import DemoError, SpecError
+from tli_verify.errors import DemoError
+from tli_verify.logic.labels import Labeler, spec_labeler
+from tli_verify.logic.labels import runs as _runs
 
 __all__ = [
     "DEFAULT_MODE",
@@ -95,7 +97,6 @@ ENTRY_SAMPLES = 3
 TRANSITION = "->"
 """Separator of per-transition DS keys: ``"<mode>-><next>"``."""
 
-Labeler = Callable[[Mapping[str, bool]], tuple[str, ...]]
 """Maps one sensor reading to the modes whose label holds (empty: no mode)."""
 
 
@@ -118,49 +119,6 @@ def sensor_state_labeler(sensor_names: Sequence[str]) -> Labeler:
         return (" & ".join(n if reading[n] else f"!{n}" for n in names),)
 
     return label
-
-
-def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, str]]:
-    """Segmentation through a spec's ``[modes]`` labels.
-
-    Parameters
-    ----------
-    spec : GR1Spec
-        From :func:`tli_verify.logic.spec.load_spec`; must have a ``[modes]`` table.
-
-    Returns
-    -------
-    labeler : Labeler
-        Reading -> modes whose label holds (via :func:`tli_verify.logic.spec.label_holds`,
-        evaluated once per distinct reading).
-    modes : tuple of str
-        The labelled modes, in the spec's order.
-    labels : mapping of str to str
-        Mode -> label formula (for messages).
-
-    Raises
-    ------
-    SpecError
-        If the spec has no ``[modes]`` table.
-    """
-    from tli_verify.logic.spec import label_holds
-
-    table = getattr(spec, "modes", None)
-    path = getattr(spec, "path", None) or "<spec>"
-    if not table:
-        raise SpecError(f"{path}: no [modes] table: cannot label demonstration samples with "
-                        "modes (add mode = \"sensor formula\" entries, or learn without --spec)")
-    labels = dict(table)
-    modes = tuple(labels)
-    cache: dict[tuple[tuple[str, bool], ...], tuple[str, ...]] = {}
-
-    def label(reading: Mapping[str, bool]) -> tuple[str, ...]:
-        key = tuple(sorted(reading.items()))
-        if key not in cache:
-            cache[key] = tuple(m for m in modes if label_holds(spec, m, reading))  # type: ignore[arg-type]
-        return cache[key]
-
-    return label, modes, MappingProxyType(labels)
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,12 +191,6 @@ class Segmentation:
     modes: tuple[str, ...]
     segments: tuple[Segment, ...]
     data: Mapping[str, ModeData] = field(default_factory=lambda: MappingProxyType({}))
-
-
-def _runs(groups: list[tuple[str, ...]]) -> list[tuple[int, int]]:
-    """Boundaries of maximal runs of equal groups."""
-    bounds = [0] + [i for i in range(1, len(groups)) if groups[i] != groups[i - 1]]
-    return list(zip(bounds, [*bounds[1:], len(groups)], strict=True))
 
 
 def segment_demos(

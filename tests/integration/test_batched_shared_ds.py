@@ -6,16 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from tli_verify.experiments.scoop import (
-    NOMINAL_START,
-    bundled_setup,
-    run_variant,
-    run_variant_batch,
-)
+from tli_verify.experiments.scoop import NOMINAL_START, scoop_setup
+from tli_verify.runtime.episodes import run_variant, run_variant_batch
 
 
 def test_episodes_with_different_learned_cuts_agree_with_single_runs() -> None:
-    setup = bundled_setup()
+    setup = scoop_setup()
     fig7 = {957: np.array([6.09, 6.01])}  # the documented Fig. 7 case (a displacement)
     starts = np.array([NOMINAL_START, NOMINAL_START, [-6.0, 0.0]])
     tables: list[dict[int, np.ndarray]] = [fig7, {}, {340: np.array([0.0, 8.0])}]
@@ -30,7 +26,7 @@ def test_episodes_with_different_learned_cuts_agree_with_single_runs() -> None:
 
 
 def test_modulate_is_velocity_split_in_two() -> None:
-    setup = bundled_setup()
+    setup = scoop_setup()
     res = run_variant(setup, "LTL-DS", NOMINAL_START,
                       {957: np.array([6.09, 6.01])}, steps=3000)
     mm = next(m for m in res.model.modes.values() if m.cuts)
@@ -47,7 +43,7 @@ def test_each_episode_gets_its_own_cut_set_on_the_shared_ds() -> None:
     from tli_verify.runtime.executive import LTLDSPolicy, run_episode, run_episodes
     from tli_verify.runtime.worlds import WorldSensors
 
-    setup = bundled_setup()
+    setup = scoop_setup()
     learned = run_variant(setup, "LTL-DS", NOMINAL_START, {957: np.array([6.09, 6.01])},
                           steps=3000)
     fail = next(e for e in learned.events if isinstance(e, InvarianceFailure))
@@ -57,9 +53,9 @@ def test_each_episode_gets_its_own_cut_set_on_the_shared_ds() -> None:
         return [LTLDSPolicy(setup.automaton, m, setup.certificate)
                 for m in (learned.model, setup.model)]
 
-    batch = run_episodes(policies(), [WorldSensors(setup.world) for _ in range(2)],
+    batch = run_episodes(policies(), [WorldSensors(setup.task) for _ in range(2)],
                          np.array([x0, x0]), steps=40)
-    singles = [run_episode(p, WorldSensors(setup.world), x0, steps=40) for p in policies()]
+    singles = [run_episode(p, WorldSensors(setup.task), x0, steps=40) for p in policies()]
     assert batch[0].modes[:10] != batch[1].modes[:10]  # the cut matters here
     for got, one in zip(batch, singles, strict=True):
         assert got.modes == one.modes

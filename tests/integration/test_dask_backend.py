@@ -141,7 +141,7 @@ def test_an_unreachable_scheduler_is_a_campaign_error() -> None:
 
 
 def test_import_tli_verify_never_imports_dask() -> None:
-    code = ("import sys, tli_verify, tli_verify.cli, tli_verify.certify.gate, "
+    code = ("import sys, tli_verify, tli_verify.cli, tli_verify.deploy.gate, "
             "tli_verify.verify.evidence, tli_verify.verify.dask_backend; "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
     root = str(Path(__file__).resolve().parents[2])

@@ -297,7 +297,7 @@ def test_per_transition_ds_follow_the_plan_and_share_the_cut(tmp_path: Path) -> 
 
 
 def test_shipped_scoop_pair_runs_and_a_tampered_certificate_is_refused(project: Path) -> None:
-    from tli_verify.certify.gate import run_gate
+    from tli_verify.deploy.gate import run_gate
     from tli_verify.logic.spec import load_spec
 
     aut = synthesize(load_spec(project / "specs" / "scoop.toml"))

@@ -10,14 +10,9 @@ import numpy as np
 import pytest
 
 from tli_verify.cli import main
-from tli_verify.experiments.scoop import (
-    VARIANTS,
-    SequencePolicy,
-    bundled_setup,
-    make_policy,
-    random_perturbations,
-    run_variant,
-)
+from tli_verify.experiments.scoop import scoop_setup
+from tli_verify.runtime.episodes import random_perturbations, run_variant
+from tli_verify.runtime.setup import VARIANTS, SequencePolicy, make_policy
 from tli_verify.runtime.worlds import WorldSensors
 
 
@@ -51,7 +46,7 @@ def test_bad_experiment_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[
 def test_no_replan_keeps_running_the_planned_mode() -> None:
     """A spill (c -> a by a push) makes LTL-DS replan to a; the open-loop sequence keeps
     running c's DS (and so never gets soup again)."""
-    setup = bundled_setup()
+    setup = scoop_setup()
     start = np.array([-5.0, 4.0])
     nominal = run_variant(setup, "LTL-DS", start, {})
     t_c = nominal.modes.index("c")
@@ -71,9 +66,9 @@ def test_no_replan_keeps_running_the_planned_mode() -> None:
 
 
 def test_random_perturbations_are_seeded_and_bounded() -> None:
-    world = bundled_setup().world
-    a = random_perturbations(np.random.default_rng(1), 50, world)
-    b = random_perturbations(np.random.default_rng(1), 50, world)
+    task = scoop_setup().task
+    a = random_perturbations(np.random.default_rng(1), 50, task)
+    b = random_perturbations(np.random.default_rng(1), 50, task)
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
     mags = np.array([np.linalg.norm(d) for d in a.values()])
     assert len(a) == 50 and mags.max() <= 16.0 and mags.max() > 8.0
@@ -82,19 +77,20 @@ def test_random_perturbations_are_seeded_and_bounded() -> None:
 
 
 def test_world_sensors_match_the_world_scan() -> None:
-    """The adapter's per-step readings (memoized by region) equal the world's own scan of the
+    """The adapter's per-step readings (memoized by region) equal the task's own scan of the
     whole history, with and without lag."""
     rng = np.random.default_rng(0)
     for lag in (0, 19):
-        world = bundled_setup(lag=lag).world
-        demo = world.demonstrate(lag, 1)[0].x[::4]  # white -> soup -> pink -> green
+        task = scoop_setup(lag=lag).task
+        assert task.lag == lag
+        demo = task.demonstrate(lag, 1)[0].x[::4]  # white -> soup -> pink -> green
         walk = np.cumsum(rng.normal(scale=0.8, size=(300, 2)), axis=0) + demo[-1]
         X = np.clip(np.vstack([demo, walk, demo]), -8, 8)
-        ref = world.sensors(X)
+        ref = task.sensors(X)
         for memo in (True, False):
-            sen = WorldSensors(world, region_cache=memo)
+            sen = WorldSensors(task, region_cache=memo)
             sen.reset(X[0])
             readings = [sen.read(x) for x in X]  # once per step, in order
-            got = np.array([[r[n] for n in world.sensor_names] for r in readings])
+            got = np.array([[r[n] for n in task.sensor_names] for r in readings])
             np.testing.assert_array_equal(got, ref)
         assert ref.any(axis=0).all()  # contact, soup on the spoon, delivered all seen

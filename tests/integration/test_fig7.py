@@ -22,15 +22,14 @@ from tli_verify.experiments.scoop import (
     FIG7_MIN_ROUNDS,
     NOMINAL_START,
     b_to_a_failures,
-    bundled_setup,
     fig7_record,
     fig7_search,
     is_fig7_loop,
     is_fig7_rescue,
-    mode_string,
     plot_fig7,
-    run_variant,
+    scoop_setup,
 )
+from tli_verify.runtime.episodes import mode_string, run_variant
 from tli_verify.runtime.events import CutAdded, InvarianceFailure
 from tli_verify.runtime.executive import EpisodeResult
 
@@ -40,7 +39,7 @@ PUSH = {957: np.array([6.09, 6.01])}
 
 @pytest.fixture(scope="module")
 def episodes() -> dict[str, EpisodeResult]:
-    setup = bundled_setup()
+    setup = scoop_setup()
     return {v: run_variant(setup, v, NOMINAL_START, PUSH, steps=BUDGET)
             for v in ("no-modulation", "LTL-DS")}
 
@@ -85,7 +84,7 @@ def test_ltl_ds_reaches_d_after_the_one_cut_of_its_failure(
 
 
 def test_nominal_run_neither_loops_nor_fails() -> None:
-    nominal = run_variant(bundled_setup(), "no-modulation", NOMINAL_START, {}, steps=BUDGET)
+    nominal = run_variant(scoop_setup(), "no-modulation", NOMINAL_START, {}, steps=BUDGET)
     assert nominal.success and mode_string(nominal) == "abcd"
     assert b_to_a_failures(nominal) == 0 and not is_fig7_loop(nominal, BUDGET)
     assert not is_fig7_rescue(nominal)  # no failure, no cut: not Fig. 7's second row either
@@ -98,7 +97,7 @@ def test_search_finds_the_documented_case_and_draws_it(tmp_path: Path) -> None:
     assert rec["found"] and rec["stage"] == "perturbed nominal run"
     assert rec["start"] == NOMINAL_START.tolist()
     assert rec["perturbations"] == [{"step": 957, "displacement": [6.09, 6.01]}]
-    assert rec["replay"] == "tli run --world scoop --start=-5.0,4.0 --perturb 957:6.09,6.01"
+    assert rec["replay"] == "tli run --task scoop --start=-5.0,4.0 --perturb 957:6.09,6.01"
     nm, ld = rec["no_modulation"], rec["ltl_ds"]
     assert nm["budget_exhausted"] and nm["steps"] == BUDGET and not nm["success"]
     assert nm["b_to_a_failures"] >= FIG7_MIN_ROUNDS and nm["ab_rounds"] >= FIG7_MIN_ROUNDS
@@ -106,13 +105,13 @@ def test_search_finds_the_documented_case_and_draws_it(tmp_path: Path) -> None:
     assert ld["success"] and ld["cuts_added"] == 1 and ld["mode_sequence"] == "abcababcd"
     assert [e["event"] for e in ld["events"]] == ["InvarianceFailure", "CutAdded"]
     png = tmp_path / "fig7.png"
-    plot_fig7(bundled_setup().world, search, png)
+    plot_fig7(scoop_setup().task, search, png)
     assert png.stat().st_size > 10_000
 
 
 def test_replay_from_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                       ) -> None:
-    args = ["run", "--world", "scoop", "--start=-5.0,4.0", "--perturb", "957:6.09,6.01",
+    args = ["run", "--task", "scoop", "--start=-5.0,4.0", "--perturb", "957:6.09,6.01",
             "--json"]
     code = main([*args, "--no-modulation", "--out", str(tmp_path / "plain")])
     plain = json.loads(capsys.readouterr().out)

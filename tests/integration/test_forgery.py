@@ -68,7 +68,7 @@ def fresh(tmp_path: Path, repo: Path) -> Path:
     (tmp_path / "certificates").mkdir()
     cert = tmp_path / "certificates" / "scoop.cert.json"
     write_certificate(issue_certificate(tmp_path / "models" / "scoop.model.json",
-                                        cert_path=cert), cert)
+                                        cert_path=cert, dt="1/100"), cert)  # the task's dt
     attach_evidence(tmp_path)  # binding-only campaign evidence: the gate's other checks pass
     return tmp_path
 

@@ -3,7 +3,7 @@
 
 Physical trials cost seconds: these run one trial with a short step budget (the soup is not
 delivered in 2 s, so the oracle rejects it: the evidence is written as an honest record and the
-gate blocks); the full 30-trial campaign is ``scripts/make_evidence.py --franka``.
+gate blocks); the full 30-trial campaign is ``tli evidence sim/franka``.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ pytest.importorskip("mujoco")
 
 from tests.support.cli import json_records, run
 from tests.unit.test_physics_evidence import attach_physics, physics_block
-from tli_verify.certify.gate import rerun_physics, run_gate
+from tli_verify.deploy.gate import rerun_physics, run_gate
 from tli_verify.io import bundled_dir, sha256_file
-from tli_verify.verify.evidence import check_evidence
+from tli_verify.verify.evidence import check_evidence, deployed_task_block
 
 pytestmark = pytest.mark.sim
 
@@ -31,7 +31,8 @@ EVIDENCE = "franka-scoop.campaign.json"
 @pytest.fixture
 def project(tmp_path: Path) -> Path:
     """A copy of the Franka project's spec, model and certificate."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp_path / sub).mkdir()
         shutil.copy(FRANKA / sub / name, tmp_path / sub / name)
@@ -62,6 +63,10 @@ def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
                       ("certificate", certs / "franka-scoop.cert.json"),
                       ("spec", project / "specs" / "franka-scoop.toml")):
         assert doc[key]["sha256"] == sha256_file(path)
+    # the task the spec names (the project's tasks/franka-scoop.toml), as the gate recomputes it
+    assert doc["task"]["name"] == "franka-scoop"
+    assert doc["task"] == deployed_task_block(project / "models" / "franka-scoop.model.json",
+                                              certs)
     recorded = [(p["kind"], p["start"]) for p in trial["perturbations"]]
     assert [k for k, _ in recorded] == ["push", "tilt"]
     # one trial of 2 s is no evidence: the gate blocks, one line naming the evidence file

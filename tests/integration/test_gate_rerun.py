@@ -24,7 +24,8 @@ def test_rerun_blocks_a_model_whose_ds_leaves_its_mode(project: Path,
     doc["modes"]["c"]["attractor"] = [-3.0, 0.0]
     model.write_text(json.dumps(doc))
     cert = project / "certificates" / "scoop.cert.json"
-    write_certificate(issue_certificate(model, cert_path=cert), cert)
+    dt = json.loads(cert.read_text())["control_period"]["dt"]  # the task's period (1/100 s)
+    write_certificate(issue_certificate(model, cert_path=cert, dt=dt), cert)
     attach_evidence(project)
     assert main(["gate", str(project)]) == 0  # without --rerun: nothing notices
     capsys.readouterr()
@@ -34,6 +35,6 @@ def test_rerun_blocks_a_model_whose_ds_leaves_its_mode(project: Path,
     records = [json.loads(line) for line in out.splitlines()]
     blocked = [r for r in records if r.get("ok") is False]
     assert [(r["check"], r["path"]) for r in blocked] == [("rerun", "models/scoop.model.json")]
-    assert "re-ran 4 examples with seed 0 on world 'scoop'" in blocked[0]["message"]
+    assert "re-ran 4 examples with seed 0 on task 'scoop'" in blocked[0]["message"]
     assert "violations by kind" in blocked[0]["message"]
     assert err.startswith("error: gate blocked: 1 problem(s)") and err.count("\n") == 1

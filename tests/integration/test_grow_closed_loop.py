@@ -4,7 +4,7 @@ From the demonstration-only spec (``tli spec infer demos/scoop_*.csv``: mode cha
 ``a -> b -> c -> d`` only), three perturbed episodes run by the executive with the shipped
 certified model grow the automaton to exactly paper Fig. 5(a), the automaton of
 ``specs/scoop.toml``. Each missing transition is driven by one explicit push (:data:`PUSHES`)
-computed from the world's true regions (:mod:`tli_verify.worlds.scoop`), not found by a lucky
+computed from the task's true regions (``tasks/scoop.toml``), not found by a lucky
 seed: whichever state of its source region the push meets, it lands where the world reads the
 missing edge (:func:`test_each_push_lands_where_the_world_reads_its_edge`), and the episodes
 check that the push meets the run in that region and mode.
@@ -27,11 +27,12 @@ from hypothesis import strategies as st
 from tests.support.omega_oracle import omega_realizable
 from tli_verify.cli import main
 from tli_verify.demos import load_demos
-from tli_verify.experiments.scoop import _pusher, bundled_setup, run_variant
+from tli_verify.experiments.scoop import scoop_setup
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.logic.infer import infer_spec, load_labels
 from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.runtime.episodes import pusher, run_variant
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
     CutAdded,
@@ -41,7 +42,8 @@ from tli_verify.runtime.events import (
     TransitionRefused,
 )
 from tli_verify.runtime.executive import EpisodeResult, LTLDSPolicy, check_coverage
-from tli_verify.worlds.scoop import ScoopWorld
+from tli_verify.tasks.registry import find_task
+from tli_verify.tasks.task import Task
 
 START = (-6.0, 0.0)
 """The start of every episode here (white, left of the soup; ``tli run --start=-6,0``).
@@ -103,9 +105,19 @@ LOOP_BAND = (-0.5, 1.5, -4.5, -4.05)
 soup into white (every point of a 0.5 x 0.25 grid over it does, on the bundled model; x2 = -5
 does not). A property of the learned DS, not of the world's geometry."""
 
-REGION_OF_MODE = {"a": 0, "b": 1, "c": 2, "d": 3}
-"""Mode -> index of its region (``ScoopWorld.region_names``: white, yellow, pink, green);
-pink reads ``c`` only with soup on the spoon, which a run entering pink from yellow has."""
+REGION_OF_MODE = {"a": "white", "b": "yellow", "c": "pink", "d": "green"}
+"""Mode -> name of its region (of ``Task.region_names``); pink reads ``c`` only with soup on
+the spoon, which a run entering pink from yellow has."""
+
+
+def _scoop() -> Task:
+    """The bundled scoop task (``tasks/scoop.toml``)."""
+    return find_task("scoop")
+
+
+def _region_of(task: Task, mode: str) -> int:
+    """The index (in ``task.region_names``) of the region where ``mode`` is read."""
+    return task.region_names.index(REGION_OF_MODE[mode])
 
 
 def _edges(aut: TaskAutomaton) -> set[tuple[Any, ...]]:
@@ -119,29 +131,30 @@ def _edges(aut: TaskAutomaton) -> set[tuple[Any, ...]]:
     return {(desc(t.source), t.sensors, t.off, desc(t.target)) for t in aut.transitions}
 
 
-def _pushed(world: ScoopWorld, push: Push, x: Any) -> np.ndarray:
+def _pushed(world: Task, push: Push, x: Any) -> np.ndarray:
     """The state ``push`` moves ``x`` to, with the pusher the episodes use."""
-    out = _pusher(world, {push.step: push.shift})(push.step, np.asarray(x, dtype=np.float64))
+    out = pusher(world, {push.step: push.shift})(push.step, np.asarray(x, dtype=np.float64))
     assert out is not None
     return out
 
 
-def _check_meets(world: ScoopWorld, res: EpisodeResult, push: Push) -> None:
+def _check_meets(world: Task, res: EpisodeResult, push: Push) -> None:
     """The push met the run in mode ``edge[0]``, inside its source box, and moved it into the
     region of ``edge[1]``."""
     before = res.states[push.step - 1]  # the state the push is applied to
     x1_lo, x1_hi, x2_lo, x2_hi = push.source
     assert res.modes[push.step - 1] == push.edge[0], "re-time the push: the run has moved on"
-    assert world.region_one(before) == REGION_OF_MODE[push.edge[0]]
+    assert world.region_one(before) == _region_of(world, push.edge[0])
     assert x1_lo <= before[0] <= x1_hi and x2_lo <= before[1] <= x2_hi, before
-    assert world.region_one(_pushed(world, push, before)) == REGION_OF_MODE[push.edge[1]]
+    assert world.region_one(_pushed(world, push, before)) == _region_of(world, push.edge[1])
 
 
 @st.composite
 def _in_source(draw: st.DrawFn, push: Push) -> tuple[float, float]:
     x1_lo, x1_hi, x2_lo, x2_hi = push.source
     x = (draw(st.floats(x1_lo, x1_hi)), draw(st.floats(x2_lo, x2_hi)))
-    assume(ScoopWorld().region_one(x) == REGION_OF_MODE[push.edge[0]])
+    task = _scoop()
+    assume(task.region_one(x) == _region_of(task, push.edge[0]))
     return x
 
 
@@ -152,9 +165,9 @@ def test_each_push_lands_where_the_world_reads_its_edge(push: Push, data: st.Dat
     """Geometry only: from every state of its source (region of ``edge[0]`` within the box)
     the push lands in the region of ``edge[1]`` -- which is what makes the episodes below
     independent of where exactly the push meets the run."""
-    world = ScoopWorld()
+    world = _scoop()
     x = data.draw(_in_source(push))
-    assert world.region_one(_pushed(world, push, x)) == REGION_OF_MODE[push.edge[1]]
+    assert world.region_one(_pushed(world, push, x)) == _region_of(world, push.edge[1])
 
 
 @pytest.fixture(scope="module")
@@ -165,7 +178,7 @@ def inferred(repo: Path) -> GR1Spec:
 
 
 def _demo_only_policy(inferred: GR1Spec) -> tuple[Any, LTLDSPolicy]:
-    setup = replace(bundled_setup(), automaton=synthesize(inferred))
+    setup = replace(scoop_setup(), automaton=synthesize(inferred))
     return setup, LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
                               learn_transitions=True)
 
@@ -187,7 +200,7 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
     paper = synthesize(load_spec(specs_dir / "scoop.toml"))
     assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 5(a)
     pol, results = grown
-    world = ScoopWorld()
+    world = _scoop()
     assert all(r.success for r in results)
     for push, r in zip(PUSHES, results, strict=True):
         _check_meets(world, r, push)
@@ -224,14 +237,14 @@ def test_the_ds_leaving_the_soup_by_itself_is_learned_and_cut(inferred: GR1Spec)
     """The other way an edge shows: no push across regions; the DS of ``b`` leaves the soup
     itself (an invariance failure): the edge is learned *and* the exit is cut, same step."""
     setup, pol = _demo_only_policy(inferred)
-    world = ScoopWorld()
+    world = _scoop()
     step, shift = LOOP_PUSH
     r = run_variant(setup, "LTL-DS", np.array(START), {step: shift}, policy=pol)
     assert r.success
     # the push meets the scoop (mode b) and keeps it in the soup, inside the band: b -> b
     assert r.modes[step - 1] == "b"
     landed = _pushed(world, Push(step, shift, ("b", "b"), LOOP_BAND), r.states[step - 1])
-    assert world.region_one(landed) == REGION_OF_MODE["b"]
+    assert world.region_one(landed) == _region_of(world, "b")
     x1_lo, x1_hi, x2_lo, x2_hi = LOOP_BAND
     assert x1_lo <= landed[0] <= x1_hi and x2_lo <= landed[1] <= x2_hi, landed
     ev = [e for e in r.events if isinstance(e, TransitionLearned)]
@@ -240,7 +253,7 @@ def test_the_ds_leaving_the_soup_by_itself_is_learned_and_cut(inferred: GR1Spec)
     at = {type(o) for o in r.events if o.step == ev[0].step}
     assert {InvarianceFailure, CutAdded} <= at and Perturbation not in at
     # the state read at that step is out of the soup, in white
-    assert world.region_one(r.states[ev[0].step - 1]) == REGION_OF_MODE["a"]
+    assert world.region_one(r.states[ev[0].step - 1]) == _region_of(world, "a")
     assert r.cuts_added >= 1 and pol.learned == (("b", "a"),)
 
 
@@ -273,7 +286,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
     per_episode = []
     for i, push in enumerate(PUSHES, start=1):  # the commands of README section 7
         nxt = tmp_path / f"g{i}.toml"
-        code = main(["run", "--world", "scoop", f"--start={START[0]:g},{START[1]:g}",
+        code = main(["run", "--task", "scoop", f"--start={START[0]:g},{START[1]:g}",
                      "--perturb", push.flag, "--spec", str(spec), "--learn-transitions",
                      "--grown-spec", str(nxt), "--out", str(tmp_path / f"run{i}"), "--json"])
         rec = json.loads(capsys.readouterr().out)
@@ -296,7 +309,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
 
 def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["run", "--world", "scoop", "--grown-spec", str(tmp_path / "g.toml"),
+    code = main(["run", "--task", "scoop", "--grown-spec", str(tmp_path / "g.toml"),
                  "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error:") and "--learn-transitions" in err
@@ -305,24 +318,27 @@ def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
     other = tmp_path / "other.toml"
     other.write_text((specs_dir / "scoop.toml").read_text().replace(
         'b = "r & !s & !t"', 'b = "r & !t"'))
-    code = main(["run", "--world", "scoop", "--spec", str(other), "--learn-transitions",
+    code = main(["run", "--task", "scoop", "--spec", str(other), "--learn-transitions",
                  "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith(f"error: --spec {other}") and "[modes]" in err
     assert err.count("\n") == 1
-    # without --learn-transitions the model's own spec is still required
-    code = main(["run", "--world", "scoop", "--spec", str(other), "--out", str(tmp_path)])
+    # without --learn-transitions the model's own spec is still required (the model named
+    # explicitly: by the project layout a spec alone would select models/other.model.json)
+    model = specs_dir.parent / "models" / "scoop.model.json"
+    code = main(["run", "--task", "scoop", "--model", str(model), "--spec", str(other),
+                 "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "not the spec the model names" in err
     # the grown spec may not overwrite an input, nor the spec the model and certificate bind
     named = specs_dir / "scoop.toml"
     before = named.read_bytes()
-    code = main(["run", "--world", "scoop", "--learn-transitions", "--grown-spec",
+    code = main(["run", "--task", "scoop", "--learn-transitions", "--grown-spec",
                  str(specs_dir / ".." / "specs" / "scoop.toml"), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "grown spec would overwrite" in err
     assert named.read_bytes() == before
-    code = main(["run", "--world", "scoop", "--spec", str(other), "--learn-transitions",
+    code = main(["run", "--task", "scoop", "--spec", str(other), "--learn-transitions",
                  "--grown-spec", str(other), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error:") and "grown spec" in err
@@ -330,9 +346,9 @@ def test_cli_growth_usage_errors(tmp_path: Path, specs_dir: Path,
 
 def test_batched_episodes_grow_as_single_episodes(inferred: GR1Spec) -> None:
     """``run_episodes`` (the batched fast path) grows each fork's spec as ``run_episode``."""
-    from tli_verify.experiments.scoop import run_variant_batch
+    from tli_verify.runtime.episodes import run_variant_batch
 
-    setup = replace(bundled_setup(), automaton=synthesize(inferred))
+    setup = replace(scoop_setup(), automaton=synthesize(inferred))
     base = LTLDSPolicy(setup.automaton, setup.model, setup.certificate, spec=inferred,
                        learn_transitions=True)
     # the second start is where the demonstrations start: its run enters c at step 719, so
@@ -343,7 +359,7 @@ def test_batched_episodes_grow_as_single_episodes(inferred: GR1Spec) -> None:
     batch = run_variant_batch(setup, "LTL-DS", starts, perts, policy=base)
     assert base.learned == ()  # forks grow their own copies
     for x0, push, got in zip(starts, pushes, batch, strict=True):
-        _check_meets(setup.world, got, push)
+        _check_meets(setup.task, got, push)
         one = run_variant(setup, "LTL-DS", x0, {push.step: push.shift}, policy=base.fork())
         learned = [(e.from_mode, e.to_mode) for e in got.events
                    if isinstance(e, TransitionLearned)]

@@ -564,5 +564,13 @@ def test_run_refuses_a_spec_other_than_the_certified_one(
         tmp_path: Path, repo: Path, capsys: pytest.CaptureFixture[str]) -> None:
     other = tmp_path / "other.toml"
     other.write_text((repo / "specs" / "scoop.toml").read_text() + "\n# another spec\n")
+    # a spec given alone selects the model of its project (models/<spec stem>.model.json):
+    # here there is none
     code, _, err = run(capsys, "run", "--world", "scoop", "--spec", str(other), "--steps", "5")
+    assert_bad_input(code, err, str(tmp_path / "models" / "other.model.json"),
+                     "no such model file")
+    # a model with a spec other than the one it names (and its certificate binds) is refused
+    code, _, err = run(capsys, "run", "--world", "scoop", "--model",
+                       str(repo / "models" / "scoop.model.json"), "--spec", str(other),
+                       "--steps", "5")
     assert_bad_input(code, err, "not the spec the model names")

@@ -10,6 +10,8 @@ import pytest
 
 from tests.support.cli import run
 from tli_verify.ds.lyapunov import decay_rate, sampled_growth
+from tli_verify.logic.spec import load_spec
+from tli_verify.tasks.registry import find_task
 
 
 def _rates(path: Path) -> dict[str, tuple[float, float, float | None]]:
@@ -29,11 +31,22 @@ def test_default_contracts_and_rate_zero_is_the_old_learner(
     new, old = tmp_path / "new.model.json", tmp_path / "old.model.json"
     assert run(capsys, "learn", *demos, "--spec", spec, "-o", str(new))[0] == 0
     assert run(capsys, "learn", *demos, "--spec", spec, "-o", str(old), "--rate", "0")[0] == 0
-    fresh, plain = _rates(new), _rates(old)
-    for key, (rate, growth, fit_rate) in fresh.items():
-        assert fit_rate is not None and rate >= fit_rate * (1 - 1e-4) > 0.05, key
-        assert growth < 0, key
-        assert json.loads(new.read_text())["modes"][key]["fit"]["control_dt"] == 1e-3
+    # a spec that names no task: the same demos and spec without its `task = "scoop"` line
+    text = (repo / "specs" / "scoop.toml").read_text()
+    taskless = tmp_path / "scoop-taskless.toml"
+    taskless.write_text(text.replace('\ntask = "scoop"', "\n# (no task)", 1))
+    assert load_spec(taskless).task is None and load_spec(spec).task == "scoop"
+    unnamed = tmp_path / "unnamed.model.json"
+    assert run(capsys, "learn", *demos, "--spec", str(taskless), "-o", str(unnamed))[0] == 0
+    # --control-dt defaults to the control period of the spec's task (scoop: 0.01), else 1 ms
+    task_dt = find_task("scoop").dt
+    assert task_dt == 0.01
+    plain = _rates(old)
+    for path, control_dt in ((new, task_dt), (unnamed, 1e-3)):
+        for key, (rate, growth, fit_rate) in _rates(path).items():
+            assert fit_rate is not None and rate >= fit_rate * (1 - 1e-4) > 0.05, key
+            assert growth < 0, key
+            assert json.loads(path.read_text())["modes"][key]["fit"]["control_dt"] == control_dt
     for key, (rate, _, fit_rate) in plain.items():
         assert fit_rate == 0.0
         assert "control_dt" not in json.loads(old.read_text())["modes"][key]["fit"]

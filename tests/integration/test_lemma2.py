@@ -1,8 +1,8 @@
 """Paper Lemma 2 on the scoop task: each mode's DS alone enters the next mode's sensor region.
 
 The model is learned from the bundled demonstrations with the shipped spec (what ``tli learn``
-does); starts are uniform in each mode's true region (the paper's scoop world,
-:mod:`tli_verify.worlds.scoop`: a white, b yellow, c pink, d green). The check
+does); starts are uniform in each mode's true region (the paper's scoop task,
+``tasks/scoop.toml``: a white, b yellow, c pink, d green). The check
 itself is ``scripts/lemma2_check.py`` (loaded from its file), so the test and the printed table
 are the same computation.
 """
@@ -59,8 +59,14 @@ def test_every_mode_hands_over_from_every_start(lemma2: ModuleType, learned: Mod
 
 def test_attractors_have_a_margin_inside_the_next_region(lemma2: ModuleType,
                                                          learned: Model) -> None:
-    from tli_verify.worlds.scoop import TARGET_CENTER
+    from tli_verify.tasks.registry import find_task
 
+    # where the scripted demonstrations end: the middle of green (the last waypoint, no jitter)
+    demonstrator = find_task("scoop").demonstrator
+    assert demonstrator is not None
+    script = demonstrator.scripts[0]
+    assert script.jitter[-1] == 0.0
+    target_center = np.array(script.waypoints[-1])
     a, b, c = (learned.modes[m].ds.attractor for m in "abc")
 
     def margin_box(x: np.ndarray, lo: tuple[float, float], hi: tuple[float, float]) -> float:
@@ -75,7 +81,7 @@ def test_attractors_have_a_margin_inside_the_next_region(lemma2: ModuleType,
     assert margin_box(c, (2.0, 6.0), (6.0, 8.0)) > 0.05
     for x, nxt in ((a, "b"), (b, "c"), (c, "d")):
         assert lemma2.region(nxt, x[None])[0]
-    np.testing.assert_allclose(learned.modes["d"].ds.attractor, TARGET_CENTER, atol=1e-9)
+    np.testing.assert_allclose(learned.modes["d"].ds.attractor, target_center, atol=1e-9)
 
 
 def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None:

@@ -123,8 +123,11 @@ def test_uncertified_pair_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
     (tmp_path / "models").mkdir()
     shutil.copytree(root / "specs", tmp_path / "specs")  # the spec the model names
     shutil.copy(root / "models" / "scoop.model.json", tmp_path / "models" / "m.model.json")
+    # the bundled certificate (covers models/scoop.model.json, not the copy); a --model alone
+    # now takes the certificate of its project layout (certificates/m.cert.json), so pass it
     code, _, err = _run(["run", "--world", "scoop", "--model",
                          str(tmp_path / "models" / "m.model.json"),
+                         "--certificate", str(root / "certificates" / "scoop.cert.json"),
                          "--out", str(tmp_path / "o")], capsys)
     assert code == 1 and "refused" in err and err.count("\n") == 1
 

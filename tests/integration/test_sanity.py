@@ -114,7 +114,7 @@ def test_cli_strict_core_json(specs_dir: Path, capsys: pytest.CaptureFixture[str
     assert records[1]["well_separation"]["kind"] == "safety"
     assert main(["spec", "check", "--core", str(specs_dir / "scoop-unrealizable.toml")]) == 1
     out = capsys.readouterr().out
-    assert "unrealizable core" in out and "scoop-unrealizable.toml:26" in out
+    assert "unrealizable core" in out and "scoop-unrealizable.toml:27" in out
 
 
 WS_TIME_ZERO = ('inputs = ["r"]\noutputs = ["a"]\n[assume]\nsafety = ["G(!r)"]\n'

@@ -21,12 +21,12 @@ ROOT = bundled_dir("sim") / "franka"  # the Franka project (not in the deployed 
 
 def _project(tmp: Path) -> Path:
     """A copy of the Franka scoop spec, model and certificate; its certificates dir."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp / sub).mkdir(exist_ok=True)
         shutil.copy(ROOT / sub / name, tmp / sub / name)
     return tmp / "certificates"
-
 
 
 def test_one_nominal_trial_scoops_and_delivers(capsys: pytest.CaptureFixture[str]) -> None:

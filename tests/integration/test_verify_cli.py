@@ -116,7 +116,7 @@ def test_process_backend_matches_serial(tmp_path: Path,
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
-    (["verify", "--world", "nowhere"], "unknown world"),
+    (["verify", "--world", "nowhere"], "unknown task"),
     (["verify", "--world", "scoop", "--examples", "0"], "--examples"),
     (["verify", "--world", "scoop", "--scheduler", "tcp://x:1"], "--scheduler"),
     (["verify", "--world", "scoop", "--model", "/nonexistent/m.json"], "no such model"),
@@ -164,7 +164,7 @@ def test_replay_of_an_edited_case_names_the_field(found: tuple[int, dict, Path],
 
 
 @pytest.mark.parametrize(("edit", "needle"), [
-    ({"start": [1e308, 0.0]}, "outside the world's workspace"),
+    ({"start": [1e308, 0.0]}, "outside the workspace of task"),
     ({"window": 10**12}, "MAX_CAMPAIGN_STEPS"),
     ({"lag": 10**9}, "MAX_CAMPAIGN_STEPS"),
     ({"perturbations": [{"step": 10**18, "displacement": [1.0, 0.0]}]}, "MAX_CAMPAIGN_STEPS"),
@@ -289,3 +289,153 @@ def test_replay_notes_changed_files(found: tuple[int, dict, Path],  # type: igno
     code, text, err = _run(["replay", str(case), "--json"], capsys)
     assert code == 1 and json.loads(text)["reproduced"] is True
     assert err.startswith("note: model:") and "changed since the case was saved" in err
+
+
+# --------------------------------------------------------------------------------------------
+# a 3-D task of the test's own (the drawer of tests/integration/test_own_task.py, copied)
+# --------------------------------------------------------------------------------------------
+
+DRAWER_TASK = """
+name = "drawer"
+description = "Open a drawer: reach the handle, pull it out, retract to the home pose."
+dt = 0.01
+background = "free"
+spec = "../specs/drawer.toml"
+
+[state]
+names = ["x (m)", "y (m)", "z (m)"]
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+
+[regions.home]
+ball = { center = [0.8, 0.5, 0.78], radius = 0.17 }
+
+[regions.handle]
+box = { lower = [0.45, 0.45, 0.45], upper = [0.55, 0.55, 0.55] }
+
+[regions.slide]
+box = { lower = [0.55, 0.4, 0.4], upper = [0.9, 0.6, 0.65] }
+
+[latches.pulled]
+set = "slide & prev(handle)"
+reset = "!(slide | home)"
+
+[sensors]
+h = "handle"
+o = "pulled & slide"
+r = "pulled & home"
+
+[goal]
+modes = ["d"]
+
+[starts]
+nominal = [[0.2, 0.5, 0.8]]
+
+[perturbations]
+max_magnitude = 0.6
+window = 600
+max_pushes = 3
+
+[demonstrator]
+count = 3
+duration = 10.0
+dt = 0.05
+sigma = 0.01
+
+[[demonstrator.scripts]]
+label = "open"
+start = [0.2, 0.5, 0.8]
+start_jitter = 0.05
+waypoints = [[0.35, 0.5, 0.55], [0.5, 0.5, 0.5], [0.6, 0.5, 0.5], [0.8, 0.5, 0.5],
+             [0.8, 0.5, 0.8]]
+jitter = [1.0, 0.5, 0.5, 0.5, 0.0]
+"""
+
+DRAWER_SPEC = """
+name = "drawer"
+task = "drawer"
+inputs = ["h", "o", "r"]
+outputs = ["a", "b", "c", "d", "p"]
+
+[modes]
+a = "!h & !o & !r"
+b = "h & !o & !r"
+c = "!h & o & !r"
+d = "!h & !o & r"
+
+[assume]
+init = "!h & !o & !r"
+safety = [
+  "G((!h & !o & !r) -> X((!h & !o & !r) | (h & !o & !r)))",
+  "G((h & !o & !r) -> X((h & !o & !r) | (!h & !o & !r) | (!h & o & !r)))",
+]
+liveness = ["GF(!a | h)", "GF(!b | o)", "GF(!c | r)"]
+
+[guarantee]
+init = "a & !p"
+safety = [
+  "G(a -> X(a | b))",
+  "G(b -> X(a | b | c))",
+  "G(X p <-> ((b & X a) | (c & X a) | (c & X b) | (d & X !d)))",
+]
+liveness = ["GF(d | p)"]
+"""
+
+
+def test_verify_on_a_3d_task_reports_3d_pushes(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """``tli verify`` on a 3-D task written as files (task, spec, ``tli demos``, ``tli learn``,
+    ``tli certify``): the counterexample's start and pushes carry 3 coordinates in the JSON
+    record, counterexample.json and campaign.md, and the printed summary shows all 3 (a push
+    (0, 0, -3) was once printed as "(0, 0)"). Without modulation, seed 1 finds an unprovoked
+    exit b -> a after one push within 30 examples (the drawer is robust: most seeds find
+    nothing in 30)."""
+    import re
+
+    project = tmp_path / "drawer"
+    for sub in ("tasks", "specs"):
+        (project / sub).mkdir(parents=True)
+    (project / "tasks" / "drawer.toml").write_text(DRAWER_TASK)
+    spec = project / "specs" / "drawer.toml"
+    spec.write_text(DRAWER_SPEC)
+    model = project / "models" / "drawer.model.json"
+    code, out, err = _run(["demos", str(project / "tasks" / "drawer.toml")], capsys)
+    assert code == 0, err
+    demos = sorted((project / "demos").glob("drawer_*.csv"))
+    assert [p.name for p in demos] == ["drawer_1.csv", "drawer_2.csv", "drawer_3.csv"]
+    code, out, err = _run(["learn", *map(str, demos), "--spec", str(spec), "-o", str(model)],
+                          capsys)
+    assert code == 0, err
+    code, out, err = _run(["certify", str(model)], capsys)
+    assert code == 0 and "dt = 1/100" in out, err  # the task's control period, by default
+    assert (project / "certificates" / "drawer.cert.json").is_file()
+
+    args = ["verify", "--spec", str(spec), "--examples", "30", "--seed", "1", "--no-modulation",
+            "--backend", "serial"]
+    code, text, err = _run([*args, "--json", "--out", str(tmp_path / "json")], capsys)
+    rec = json.loads(text)
+    assert code == 1, (rec["violations"], err)
+    assert rec["task"]["name"] == "drawer" and rec["runs"] == 30
+    ce = rec["counterexample"]
+    assert ce is not None and ce["shrunk"] is True
+    assert len(ce["start"]) == 3
+    pushes = ce["perturbations"]
+    assert pushes, "the counterexample needs a push (the nominal run satisfies the task)"
+    assert all(len(p["displacement"]) == 3 for p in pushes), pushes
+    saved = json.loads((tmp_path / "json" / "counterexample.json").read_text())
+    assert saved["perturbations"] == pushes and len(saved["start"]) == 3
+    # the report lists every push with its 3 coordinates
+    md = (tmp_path / "json" / "campaign.md").read_text()
+    listed = re.findall(r"^- step (\d+): \w+ displacement \[([^\]]*)\]", md, flags=re.M)
+    assert [(int(s), [float(v) for v in d.split(",")]) for s, d in listed] == [
+        (p["step"], p["displacement"]) for p in pushes], md
+    # the printed summary shows all 3 coordinates of every push (not shrunk, to save time: the
+    # counterexample as drawn, saved in that run's counterexample.json)
+    code, text, err = _run([*args, "--no-shrink", "--out", str(tmp_path / "text")], capsys)
+    assert code == 1, err
+    drawn = json.loads((tmp_path / "text" / "counterexample.json").read_text())["perturbations"]
+    assert drawn and all(len(p["displacement"]) == 3 for p in drawn), drawn
+    line = next(ln for ln in text.splitlines() if ln.startswith("first counterexample"))
+    printed = re.findall(r"step (\d+): \w+ \(([^)]*)\)", line)
+    assert [(int(s), d.split(", ")) for s, d in printed] == [
+        (p["step"], [f"{v:.3g}" for v in p["displacement"]]) for p in drawn], line

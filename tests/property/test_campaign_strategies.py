@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
 
 from tli_verify.errors import TliError
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.strategies import (
     Case,
     Push,
@@ -27,13 +28,12 @@ from tli_verify.verify.strategies import (
     starts,
     workspace_size,
 )
-from tli_verify.worlds import ScoopWorld
 
-WORLD = ScoopWorld()
-D = workspace_size(WORLD)
+TASK = find_task("scoop")
+D = workspace_size(TASK)
 
 
-@given(push_sequences(WORLD, max_pushes=4, window=300))
+@given(push_sequences(TASK, max_pushes=4, window=300))
 def test_sequences_are_finite_sorted_and_bounded(seq: tuple[Push, ...]) -> None:
     assert len(seq) <= 4
     steps = [p.step for p in seq]
@@ -45,37 +45,37 @@ def test_sequences_are_finite_sorted_and_bounded(seq: tuple[Push, ...]) -> None:
 
 @given(st.data())
 def test_motion_level_push_stays_in_its_region(data: st.DataObject) -> None:
-    x = np.array(data.draw(starts(WORLD)))
-    (p,) = data.draw(push_sequences(WORLD, max_pushes=1, min_pushes=1, levels=("motion",)))
-    y = apply_push(WORLD, x, p)
-    assert WORLD.region_one(y) == WORLD.region_one(x)
-    assert bool(WORLD.in_workspace(y[None])[0])
+    x = np.array(data.draw(starts(TASK)))
+    (p,) = data.draw(push_sequences(TASK, max_pushes=1, min_pushes=1, levels=("motion",)))
+    y = apply_push(TASK, x, p)
+    assert TASK.region_one(y) == TASK.region_one(x)
+    assert bool(TASK.in_workspace(y[None])[0])
     assert np.linalg.norm(y - x) <= p.magnitude + 1e-9
 
 
 @given(st.data())
 def test_task_level_push_lands_in_its_target_region(data: st.DataObject) -> None:
-    x = np.array(data.draw(starts(WORLD)))
-    (p,) = data.draw(push_sequences(WORLD, max_pushes=1, min_pushes=1, levels=("task",)))
-    y = apply_push(WORLD, x, p)
+    x = np.array(data.draw(starts(TASK)))
+    (p,) = data.draw(push_sequences(TASK, max_pushes=1, min_pushes=1, levels=("task",)))
+    y = apply_push(TASK, x, p)
     assert p.target is not None
-    assert WORLD.region_names[WORLD.region_one(y)] == p.target
+    assert TASK.region_names[TASK.region_one(y)] == p.target
 
 
 @given(st.data())
 def test_free_push_is_the_clipped_displacement(data: st.DataObject) -> None:
-    x = np.array(data.draw(starts(WORLD)))
-    (p,) = data.draw(push_sequences(WORLD, max_pushes=1, min_pushes=1, levels=("free",)))
-    y = apply_push(WORLD, x, p)
-    assert np.allclose(y, np.clip(x + np.array(p.displacement), WORLD.lo, WORLD.hi))
+    x = np.array(data.draw(starts(TASK)))
+    (p,) = data.draw(push_sequences(TASK, max_pushes=1, min_pushes=1, levels=("free",)))
+    y = apply_push(TASK, x, p)
+    assert np.allclose(y, np.clip(x + np.array(p.displacement), TASK.lo, TASK.hi))
 
 
-@given(starts(WORLD, regions=("white", "pink")))
+@given(starts(TASK, regions=("white", "pink")))
 def test_starts_lie_in_the_requested_regions(x: tuple[float, ...]) -> None:
-    assert WORLD.region_names[WORLD.region_one(x)] in ("white", "pink")
+    assert TASK.region_names[TASK.region_one(x)] in ("white", "pink")
 
 
-@given(cases(WORLD, max_pushes=3))
+@given(cases(TASK, max_pushes=3))
 def test_case_json_round_trips(case: Case) -> None:
     assert case_from_json(case_to_json(case), dim=2) == case
 
@@ -110,7 +110,7 @@ def test_shrinks_toward_fewer_smaller_later_perturbations() -> None:
     def big_early(seq: tuple[Push, ...]) -> bool:
         return any(p.magnitude > 3.0 and p.step < 200 for p in seq)
 
-    seq = find(push_sequences(WORLD, max_pushes=4, window=window), big_early,
+    seq = find(push_sequences(TASK, max_pushes=4, window=window), big_early,
                settings=_SHRINK)
     assert len(seq) == 1
     (p,) = seq
@@ -124,7 +124,7 @@ def test_shrinks_a_pair_to_the_latest_pair() -> None:
     def two_big(seq: tuple[Push, ...]) -> bool:
         return sum(p.magnitude > 1.0 for p in seq) >= 2
 
-    seq = find(push_sequences(WORLD, max_pushes=4, window=100), two_big, settings=_SHRINK)
+    seq = find(push_sequences(TASK, max_pushes=4, window=100), two_big, settings=_SHRINK)
     assert [p.step for p in seq] == [99, 100]
     assert all(p.magnitude <= 2.0 for p in seq)
 
@@ -135,6 +135,6 @@ def test_deleting_a_push_keeps_the_others_in_place() -> None:
     def both(seq: tuple[Push, ...]) -> bool:
         return any(p.step < 100 for p in seq) and any(p.step > 200 for p in seq)
 
-    seq = find(push_sequences(WORLD, max_pushes=4, window=300), both, settings=_SHRINK)
+    seq = find(push_sequences(TASK, max_pushes=4, window=300), both, settings=_SHRINK)
     assert [p.step for p in seq] == [99, 300]
     assert all(p.magnitude == 0.0 and p.level == "free" for p in seq)

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tli_verify.certify.certificate import check_certificate
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.io import canonical_json
 
 REPO = Path(__file__).resolve().parents[2]

@@ -181,7 +181,7 @@ def test_draw_is_the_same_in_a_fresh_process_with_other_modules_imported() -> No
 
 
 def test_the_public_api_fallback_draws_within_bounds_deterministically() -> None:
-    from tli_verify.sim.campaign import _draw_by_find
+    from tli_verify.sim.perturbations import _draw_by_find
 
     strategy = trial_perturbations(min_pushes=1, min_tilts=1)
     first = _draw_by_find(strategy, 5)

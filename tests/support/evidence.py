@@ -13,7 +13,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tli_verify.verify.evidence import MIN_EVIDENCE_EXAMPLES, evidence_path_for, write_evidence
+from tli_verify.verify.evidence import (
+    MIN_EVIDENCE_EXAMPLES,
+    evidence_path_for,
+    task_block,
+    write_evidence,
+)
 
 
 def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Path:
@@ -33,17 +38,24 @@ def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Pat
     Path
         The evidence file.
     """
+    from tli_verify.logic.spec import load_spec
     from tli_verify.model import load_model
+    from tli_verify.tasks.project import spec_task
+    from tli_verify.tasks.registry import find_task
 
     model = project / "models" / f"{name}.model.json"
     spec = load_model(model).spec_path or project / "specs" / "scoop.toml"  # none named: any
+    path = evidence_path_for(model)
+    try:  # the task the spec names (the gate binds it), else the bundled scoop task
+        task = spec_task(load_spec(spec), spec) or find_task("scoop")
+    except Exception:
+        task = find_task("scoop")
     fields: dict[str, Any] = {
-        "world": "scoop", "spec": spec, "model": model,
+        "world": task.name, "task": task_block(task, path.parent), "spec": spec, "model": model,
         "certificate": project / "certificates" / f"{name}.cert.json", "seed": 0,
         "examples": MIN_EVIDENCE_EXAMPLES, "runs": MIN_EVIDENCE_EXAMPLES, "violations": {},
         "modulation": True, "backend": "process", "workers": 2,
     }
     fields.update(overrides)
-    path = evidence_path_for(model, project)
     write_evidence(path, **fields)
     return path

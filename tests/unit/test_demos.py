@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tli_verify.demos import demo_to_csv, load_demo, load_demos, make_scoop_demos
+from tli_verify.demos import demo_to_csv, load_demo, load_demos
 from tli_verify.errors import DemoError
+from tli_verify.tasks.registry import find_task
 
 GOOD = """t,x0,x1,r
 0.0,0.0,0.0,0
@@ -16,6 +17,9 @@ GOOD = """t,x0,x1,r
 1.0,2.0,2.0,1
 1.5,3.0,4.5,1
 """
+
+
+SCOOP = find_task("scoop")  # its demonstrator is the former make_scoop_demos, bit for bit
 
 
 def write(tmp_path: Path, text: str, name: str = "d.csv") -> Path:
@@ -55,7 +59,7 @@ def test_velocity_columns_and_comments(tmp_path: Path) -> None:
 
 
 def test_csv_round_trip_is_exact(tmp_path: Path) -> None:
-    original = make_scoop_demos(seed=3, n_demos=1)[0]
+    original = SCOOP.demonstrate(3, 1)[0]
     path = write(tmp_path, demo_to_csv(original))
     again = load_demo(path)
     assert np.array_equal(again.x, original.x)
@@ -66,7 +70,7 @@ def test_csv_round_trip_is_exact(tmp_path: Path) -> None:
 
 
 def test_scoop_demos_follow_the_paper_sensor_sequence() -> None:
-    demos = make_scoop_demos(seed=0)
+    demos = SCOOP.demonstrate(0)
     assert len(demos) == 3
     for demo in demos:
         code = demo.sensors.astype(int) @ np.array([1, 2, 4])
@@ -74,19 +78,19 @@ def test_scoop_demos_follow_the_paper_sensor_sequence() -> None:
                                     if c != p]
         assert changes == [0, 1, 2, 4]  # a -> b -> c -> d
         np.testing.assert_allclose(demo.dx[[0, -1]], 0.0, atol=1e-12)  # at rest at both ends
-    assert np.array_equal(make_scoop_demos(seed=0)[1].x, demos[1].x)
-    assert not np.array_equal(make_scoop_demos(seed=1)[1].x, demos[1].x)
+    assert np.array_equal(SCOOP.demonstrate(0)[1].x, demos[1].x)
+    assert not np.array_equal(SCOOP.demonstrate(1)[1].x, demos[1].x)
 
 
 def test_bundled_demos_are_the_generator_output(repo: Path) -> None:
-    """The committed demos are ``make_scoop_demos(seed=0)``, up to floating point.
+    """The committed demos are ``find_task("scoop").demonstrate(0)``, up to floating point.
 
     The generator's spline solve and evaluation round differently on other CPUs and library
     versions, so values are compared with tolerances (far above rounding, far below any real
     change of the generator). Sensor bits are compared wherever the state is not within 1e-9
-    of a region boundary of the scoop world, where a rounding difference may flip them.
+    of a region boundary of the scoop task, where a rounding difference may flip them.
     """
-    generated = make_scoop_demos(seed=0)
+    generated = SCOOP.demonstrate(0)
     assert len(list((repo / "demos").glob("scoop_*.csv"))) == len(generated)
     for i, demo in enumerate(generated, start=1):
         loaded = load_demo(repo / "demos" / f"scoop_{i}.csv")

@@ -13,17 +13,18 @@ from pathlib import Path
 
 import pytest
 
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.campaign import LEVELS, draw_cases
 from tli_verify.verify.strategies import cases
-from tli_verify.worlds import WORLDS
 
 
 def test_draws_ignore_constants_of_modules_imported_in_between(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    world = WORLDS["scoop"]()
+    task = find_task("scoop")
+    assert task.starts.nominal[0] == (-5.0, 4.5)
 
     def draw() -> list:
-        st = cases(world, start=(-5.0, 4.5), max_pushes=3, window=700, levels=LEVELS)
+        st = cases(task, start=task.starts.nominal[0], max_pushes=3, window=700, levels=LEVELS)
         return draw_cases(st, 120, "determinism")
 
     before = draw()

@@ -17,16 +17,19 @@ import pytest
 
 from tests.support.evidence import attach_evidence
 from tli_verify.certify.certificate import issue_certificate, write_certificate
-from tli_verify.certify.gate import run_gate
 from tli_verify.cli import main
+from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import EvidenceError, OutputError
 from tli_verify.io import canonical_json, sha256_file
 from tli_verify.limits import MAX_INPUT_BYTES
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.evidence import (
     MIN_EVIDENCE_EXAMPLES,
     check_evidence,
+    deployed_task_block,
     evidence_digest,
     evidence_path_for,
+    task_block,
     write_evidence,
 )
 
@@ -122,7 +125,7 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
     doc["modes"]["b"]["components"][0]["A"][1][1] *= 1.001
     model.write_text(json.dumps(doc))
     cert = project / "certificates" / "scoop.cert.json"
-    write_certificate(issue_certificate(model, cert_path=cert), cert)
+    write_certificate(issue_certificate(model, cert_path=cert, dt="1/100"), cert)
     message = only_campaign_blocks(project)
     assert "models/scoop.model.json: SHA-256" in message
     attach_evidence(project)  # a new campaign on the new files: passes again
@@ -142,7 +145,7 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
      "every example is at least one run"),
     (lambda d: d["campaign"].update(modulation=False), "ran without modulation"),
     (lambda d: d["campaign"].update(partial=True), "interrupted (partial)"),
-    (lambda d: d.update(world="nowhere"), "'nowhere' is not a known world"),
+    (lambda d: d.update(world="nowhere"), "world 'nowhere' is not the name of the task"),
     (lambda d: d["tool"].update(version="0.0.0"), "written by tli-verify 0.0.0"),
 ], ids=["violation", "inconsistent-total", "counterexample", "too-few-examples",
         "too-few-runs", "no-modulation", "partial", "unknown-world", "old-tool"])
@@ -180,8 +183,8 @@ def test_missing_evidence_blocks(project: Path) -> None:
     report = run_gate(project)
     assert [(b.kind, b.path, b.check, b.message) for b in report.blockers] == [
         ("model", "models/scoop.model.json", "campaign",
-         "no campaign evidence certificates/scoop.campaign.json (run: python "
-         "scripts/make_evidence.py, or tli verify ... --evidence)")]
+         "no campaign evidence certificates/scoop.campaign.json (run: tli evidence ., or "
+         "tli verify --model models/scoop.model.json --evidence)")]
 
 
 def test_a_symlinked_evidence_file_is_refused_never_followed(project: Path,
@@ -241,15 +244,18 @@ def test_evidence_files_are_not_certificates(project: Path) -> None:
 
 
 def test_evidence_path_mirrors_the_model_path(tmp_path: Path) -> None:
-    assert evidence_path_for(tmp_path / "models" / "scoop.model.json", tmp_path) == \
+    assert evidence_path_for(tmp_path / "models" / "scoop.model.json") == \
         tmp_path / "certificates" / "scoop.campaign.json"
-    assert evidence_path_for(tmp_path / "models" / "sub" / "x.json", tmp_path) == \
+    assert evidence_path_for(tmp_path / "models" / "sub" / "x.json") == \
         tmp_path / "certificates" / "sub" / "x.campaign.json"
+    assert evidence_path_for(tmp_path / "elsewhere" / "x.model.json") == \
+        tmp_path / "elsewhere" / "x.campaign.json"  # outside any models/ folder: next to it
 
 
 def test_write_evidence_refuses_bad_output_and_missing_files(project: Path) -> None:
     fields: dict[str, Any] = {
-        "world": "scoop", "spec": project / "specs" / "scoop.toml",
+        "world": "scoop", "task": task_block(find_task("scoop"), project),
+        "spec": project / "specs" / "scoop.toml",
         "model": project / "models" / "scoop.model.json",
         "certificate": project / "certificates" / "scoop.cert.json", "seed": 1,
         "examples": 10, "runs": 10, "violations": {}, "modulation": True}
@@ -289,3 +295,128 @@ def test_gate_rerun_argument_is_checked(project: Path,
         main(["gate", str(project), "--rerun", "0"])
     assert info.value.code == 2
     assert "--rerun" in capsys.readouterr().err
+
+
+def test_schema_version_1_evidence_without_a_task_is_refused(project: Path) -> None:
+    """Evidence of the former schema (no ``task`` block) binds no task: malformed, blocks."""
+    def downgrade(doc: dict[str, Any]) -> None:
+        doc["schema_version"] = 1
+        del doc["task"]
+
+    forge(project, downgrade)
+    message = only_campaign_blocks(project)
+    assert "malformed campaign evidence" in message
+
+
+# --------------------------------------------------------------------------------------------
+# The task binding: forgeries only the task check catches (the spec, model, certificate and
+# campaign stay valid, the digest is recomputed)
+# --------------------------------------------------------------------------------------------
+
+YELLOW_UPPER = "upper = [inf, -4.0]"  # tasks/scoop.toml: the soup's surface (region yellow)
+
+
+def edited_scoop_task(repo: Path, dest: Path) -> Path:
+    """A copy of ``tasks/scoop.toml`` at ``dest`` whose yellow region ends lower."""
+    text = (repo / "tasks" / "scoop.toml").read_text()
+    assert text.count(YELLOW_UPPER) == 1
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(text.replace(YELLOW_UPPER, "upper = [inf, -4.5]"))
+    return dest
+
+
+def only_the_task_check_fails(project: Path) -> str:
+    """check_evidence refuses the evidence for one reason, the task's; that problem."""
+    check = check_evidence(project / EVIDENCE, model_path=project / "models" / "scoop.model.json")
+    assert len(check.problems) == 1, check.problems
+    assert not any(p.startswith("task ") for p in check.passed), check.passed
+    assert "digest matches the content" in check.passed
+    return check.problems[0]
+
+
+def test_evidence_on_an_edited_copy_of_the_task_is_refused(project: Path, repo: Path) -> None:
+    copy = edited_scoop_task(repo, project / "elsewhere" / "scoop.toml")
+    task = find_task(copy)  # a valid task of the same name, hashed honestly
+    assert task.name == "scoop" and task.source.sha256 == sha256_file(copy)
+    bundled = sha256_file(repo / "tasks" / "scoop.toml")
+    assert task.source.sha256 != bundled
+    forge(project, lambda d: d.update(task=task_block(task, project / "certificates")))
+    doc = json.loads((project / EVIDENCE).read_text())
+    assert doc["task"]["path"] == "../elsewhere/scoop.toml"
+    assert evidence_digest(doc) == doc["digest"]
+    message = only_the_task_check_fails(project)
+    assert "the campaign ran on task 'scoop' (../elsewhere/scoop.toml, SHA-256 " \
+        f"{task.source.sha256[:12]}...)" in message
+    assert "the deployed spec's task is 'scoop' (" in message and bundled[:12] in message
+    assert "another task, or the task changed after the campaign" in message
+    assert message in only_campaign_blocks(project)
+
+
+def test_evidence_on_another_task_is_refused(project: Path, repo: Path) -> None:
+    """The scoop model's evidence made on the cooking task (world and task block both say
+    cooking: a consistent forgery)."""
+    cooking = find_task("cooking")
+    forge(project, lambda d: d.update(world="cooking",
+                                      task=task_block(cooking, project / "certificates")))
+    message = only_the_task_check_fails(project)
+    assert "the campaign ran on task 'cooking' (" in message and "cooking.toml" in message
+    assert sha256_file(repo / "tasks" / "cooking.toml")[:12] in message
+    assert "but the deployed spec's task is 'scoop'" in message
+    assert message in only_campaign_blocks(project)
+
+
+def test_a_spec_naming_no_task_blocks_its_models_evidence(project: Path) -> None:
+    spec = project / "specs" / "scoop.toml"
+    lines = spec.read_text().splitlines(keepends=True)
+    kept = [line for line in lines if not line.startswith("task = ")]
+    assert len(kept) == len(lines) - 1
+    spec.write_text("".join(kept))
+    model = project / "models" / "scoop.model.json"
+    cert = project / "certificates" / "scoop.cert.json"
+    dt = json.loads(cert.read_text())["control_period"]["dt"]  # the task's period (1/100 s)
+    write_certificate(issue_certificate(model, cert_path=cert, dt=dt), cert)  # the new spec
+    attach_evidence(project)  # binds the new files (and the bundled scoop task)
+    message = only_the_task_check_fails(project)
+    assert "the deployed task cannot be resolved" in message
+    assert "the spec names no task" in message
+    report = run_gate(project)  # the model's own task check blocks too, saying why
+    found = {(b.check, b.message) for b in report.blockers}
+    assert {c for c, _ in found} == {"task", "campaign"}
+    assert any(c == "task" and "names no task" in m for c, m in found)
+    assert any(c == "campaign" and message in m for c, m in found)
+
+
+def test_honest_evidence_binds_the_deployed_specs_task(project: Path, repo: Path) -> None:
+    model = project / "models" / "scoop.model.json"
+    check = check_evidence(project / EVIDENCE, model_path=model)
+    assert check.ok, check.problems
+    assert "task 'scoop' is the deployed spec's and matches its SHA-256" in check.passed
+    doc = json.loads((project / EVIDENCE).read_text())
+    bundled = (repo / "tasks" / "scoop.toml").resolve()
+    assert doc["task"] == {
+        "name": "scoop", "kind": "file",
+        "path": Path(os.path.relpath(bundled, (project / "certificates").resolve())).as_posix(),
+        "sha256": sha256_file(bundled)}
+    assert deployed_task_block(model, project / "certificates") == doc["task"]
+    report = run_gate(project)
+    assert report.ok, [b.message for b in report.blockers]
+    line = next(i for i in report.items if i.check == "campaign")
+    assert "campaign on task 'scoop'" in line.message
+    assert "binds its task, spec, model and certificate" in line.message
+
+
+def test_a_project_task_edited_after_the_campaign_blocks(project: Path, repo: Path) -> None:
+    """The spec's task found in the project's own ``tasks/``: bound by that file; a region
+    edited there after the campaign blocks."""
+    (project / "tasks").mkdir()
+    shutil.copy(repo / "tasks" / "scoop.toml", project / "tasks" / "scoop.toml")
+    attach_evidence(project)
+    doc = json.loads((project / EVIDENCE).read_text())
+    assert doc["task"]["path"] == "../tasks/scoop.toml"
+    assert run_gate(project).ok
+    edited_scoop_task(repo, project / "tasks" / "scoop.toml")
+    message = only_the_task_check_fails(project)
+    assert "the deployed spec's task is 'scoop' (../tasks/scoop.toml, SHA-256 " \
+        f"{sha256_file(project / 'tasks' / 'scoop.toml')[:12]}...)" in message
+    assert "the task changed after the campaign" in message
+    assert message in only_campaign_blocks(project)

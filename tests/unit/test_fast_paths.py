@@ -1,6 +1,6 @@
 """Single-state fast paths of the closed loop agree with the general (batched) paths.
 
-The fast paths (``GMM.posterior_one``, ``LPVDS.velocity`` on one state, ``ScoopWorld.region_one``,
+The fast paths (``GMM.posterior_one``, ``LPVDS.velocity`` on one state, ``Task.region_one``,
 the automaton's reading lookup cache, ``WorldSensors`` on the scalar region test) compute the
 same math in plain Python; only float summation order may differ, so floats are compared to
 1e-12 relative and integers/modes exactly.
@@ -24,7 +24,8 @@ from tli_verify.logic.automaton import AssumptionViolation, TaskAutomaton
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
 from tli_verify.runtime.worlds import WorldSensors
-from tli_verify.worlds.scoop import ScoopWorld
+from tli_verify.tasks.registry import find_task
+from tli_verify.tasks.task import Task
 
 
 def _random_ds(rng: np.random.Generator, n: int, k: int) -> LPVDS:
@@ -67,7 +68,7 @@ def test_single_state_velocity_rejects_wrong_dimension() -> None:
 
 
 def test_scoop_scalar_region_test_matches_array_test() -> None:
-    world = ScoopWorld()
+    world = find_task("scoop")
     rng = np.random.default_rng(1)
     edges = [-8.0, -4.0, 2.0, 6.0, 8.0, np.nextafter(-4.0, 0), np.nextafter(2.0, 0),
              np.nextafter(6.0, 7), np.nextafter(6.0, 0), np.nan, np.inf, -np.inf]
@@ -108,7 +109,8 @@ def test_automaton_lookup_cache_matches_uncached(scoop_automaton: TaskAutomaton)
 
 @pytest.mark.parametrize("lag", [0, 3])
 def test_world_sensors_scalar_regions_match_uncached_reads(lag: int) -> None:
-    world = ScoopWorld(lag=lag)
+    world = find_task("scoop").with_lag(lag)
+    assert world.lag == lag
     rng = np.random.default_rng(2 + lag)
     fast, slow = WorldSensors(world), WorldSensors(world, region_cache=False)
     x = np.array([-5.0, 4.0])
@@ -127,7 +129,7 @@ def test_world_sensors_scalar_regions_match_uncached_reads(lag: int) -> None:
 class _PlainSensors:
     """A sensor model that is not a WorldSensors: run_episodes takes the general path."""
 
-    def __init__(self, world: ScoopWorld) -> None:
+    def __init__(self, world: Task) -> None:
         self.inner = WorldSensors(world, region_cache=False)
 
     def reset(self, x0: np.ndarray) -> None:
@@ -138,15 +140,17 @@ class _PlainSensors:
 
 
 def test_batched_fast_path_matches_general_path() -> None:
-    from tli_verify.experiments.scoop import bundled_setup, make_policy, random_start
+    from tli_verify.experiments.scoop import scoop_setup
+    from tli_verify.runtime.episodes import random_start
     from tli_verify.runtime.executive import run_episodes
+    from tli_verify.runtime.setup import make_policy
 
-    setup = bundled_setup()
-    world = setup.world
+    setup = scoop_setup()
+    world = setup.task
     base = make_policy(setup, "LTL-DS")
     rng = np.random.default_rng(5)
     n = 12
-    starts = np.array([random_start(world, rng) for _ in range(n)])
+    starts = np.array([random_start(world, setup.automaton, rng) for _ in range(n)])
     pushes = {(i, t): rng.uniform(-10.0, 10.0, size=2)
               for i in range(n) for t in rng.integers(1, 400, size=2).tolist()}
 
@@ -168,8 +172,9 @@ def test_batched_fast_path_matches_general_path() -> None:
 
 def test_batched_loop_calls_an_overridden_decide() -> None:
     """A subclass's decide() (e.g. the no-replan ablation) is not bypassed by the fast path."""
-    from tli_verify.experiments.scoop import bundled_setup, make_policy
+    from tli_verify.experiments.scoop import scoop_setup
     from tli_verify.runtime.executive import LTLDSPolicy, run_episodes
+    from tli_verify.runtime.setup import make_policy
 
     class Counting(LTLDSPolicy):
         calls = 0
@@ -178,7 +183,7 @@ def test_batched_loop_calls_an_overridden_decide() -> None:
             type(self).calls += 1
             return super().decide(x, sensors, perturbed=perturbed)
 
-    setup = bundled_setup()
+    setup = scoop_setup()
     base = make_policy(setup, "LTL-DS")
     pols = []
     for _ in range(3):
@@ -188,5 +193,5 @@ def test_batched_loop_calls_an_overridden_decide() -> None:
             setattr(p, name, getattr(fork, name))
         pols.append(p)
     starts = np.array([[-5.0, 4.0], [-2.0, -6.0], [7.0, 0.0]])
-    res = run_episodes(pols, [WorldSensors(setup.world) for _ in starts], starts, steps=300)
+    res = run_episodes(pols, [WorldSensors(setup.task) for _ in starts], starts, steps=300)
     assert Counting.calls == sum(r.steps for r in res) > 0

@@ -15,7 +15,7 @@ from tli_verify.certify.certificate import (
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import GateError
 
 
@@ -34,7 +34,7 @@ def edit_model(project: Path, edit: Any) -> None:
     edit(doc)
     path.write_text(json.dumps(doc))
     cert = project / "certificates" / "scoop.cert.json"
-    write_certificate(issue_certificate(path, cert_path=cert), cert)
+    write_certificate(issue_certificate(path, cert_path=cert, dt="1/100"), cert)  # the task's
     assert check_certificate(cert).ok
     attach_evidence(project)
 
@@ -49,6 +49,7 @@ def test_gate_passes_on_a_certified_project(project: Path) -> None:
         ("model", "models/scoop.model.json", "dimension"),
         ("model", "models/scoop.model.json", "spec"),
         ("model", "models/scoop.model.json", "modes"),
+        ("model", "models/scoop.model.json", "task"),
         ("model", "models/scoop.model.json", "campaign"),
     ]
 

@@ -25,7 +25,7 @@ GREEN = (4.0, 7.0)
 
 @pytest.fixture(scope="module")
 def oracle() -> Oracle:
-    return load(sim_spec(CampaignConfig(world="scoop", modulation=True))).oracle
+    return load(sim_spec(CampaignConfig(task="scoop", modulation=True))).oracle
 
 
 def forge(segments: list[tuple[tuple[float, float], str, int]], *,
@@ -169,9 +169,10 @@ def test_certified_deadline_holds_on_simulated_runs(oracle: Oracle) -> None:
     # the certificate predicts the rollout: on real closed-loop runs (LTL-DS, the shipped
     # model) the goal is reached before the oracle's certified deadline, from every
     # disturbed state drawn here
-    from tli_verify.verify.campaign import CampaignConfig, _strategy, draw_cases, simulate
+    from tli_verify.verify.campaign import _strategy, draw_cases, resolve_config, simulate
 
-    cfg = CampaignConfig(world="scoop", modulation=True)
+    # the strategy draws from a config with the task's defaults filled in
+    _, cfg = resolve_config(CampaignConfig(task="scoop", modulation=True))
     spec = sim_spec(cfg)
     cases = draw_cases(_strategy(cfg, load(spec)), 12, "deadline-check")
     for trace, _ in simulate(spec, cases):

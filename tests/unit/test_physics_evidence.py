@@ -18,11 +18,12 @@ from typing import Any
 import pytest
 
 from tests.support.cli import run
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.io import bundled_dir, canonical_json
 from tli_verify.verify.evidence import (
     MIN_PHYSICS_TRIALS,
     check_evidence,
+    deployed_task_block,
     evidence_digest,
     write_evidence,
 )
@@ -51,12 +52,15 @@ def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: in
 def attach_physics(project: Path, *, trials: int = MIN_PHYSICS_TRIALS, failed: int = 0,
                    spec: Path | None = None, model: Path | None = None,
                    certificate: Path | None = None, **overrides: Any) -> Path:
-    """Write ``certificates/franka-scoop.campaign.json`` binding the project's current files."""
+    """Write ``certificates/franka-scoop.campaign.json`` binding the project's current files
+    (and, as ``tli sim franka --evidence`` does, the task the model's spec names)."""
     path = project / EVIDENCE
+    model = model or project / MODEL
     fields: dict[str, Any] = {
         "world": "franka-physics",
+        "task": deployed_task_block(model, path.parent),
         "spec": spec or project / "specs" / "franka-scoop.toml",
-        "model": model or project / MODEL,
+        "model": model,
         "certificate": certificate or project / "certificates" / "franka-scoop.cert.json",
         "seed": 0, "examples": trials, "runs": trials,
         "violations": {"delivery": failed, "reachability": failed, "automaton": 0},
@@ -71,7 +75,8 @@ def attach_physics(project: Path, *, trials: int = MIN_PHYSICS_TRIALS, failed: i
 @pytest.fixture
 def franka(tmp_path: Path) -> Path:
     """A copy of the Franka project (spec, model, certificate) with valid physical evidence."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("models", "franka-scoop.model.json"),
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
                       ("certificates", "franka-scoop.cert.json")):
         (tmp_path / sub).mkdir()
         shutil.copy(FRANKA / sub / name, tmp_path / sub / name)

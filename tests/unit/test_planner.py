@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tli_verify.certify.certificate import issue_certificate, write_certificate
-from tli_verify.certify.gate import run_gate
+from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import ModelError
 from tli_verify.logic.automaton import PlannedStep, TaskAutomaton
 from tli_verify.logic.check import synthesize

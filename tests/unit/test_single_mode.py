@@ -20,7 +20,7 @@ from tli_verify.experiments.single_mode import (
     summarize,
     write_outputs,
 )
-from tli_verify.worlds.convex import ConvexMode
+from tli_verify.tasks.generate import ConvexMode
 
 SQUARE = ConvexMode.from_vertices([[0, 0], [10, 0], [10, 10], [0, 10]])
 GOAL = np.array([5.0, 1.5])

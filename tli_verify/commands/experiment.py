@@ -206,14 +206,14 @@ def _scoop(args: argparse.Namespace) -> int:
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
     """Run the scoop experiment, write its report and figures; return the JSON summary."""
-    from tli_verify.experiments.scoop import bundled_setup, fig7_record, plot_fig7, write_report
+    from tli_verify.experiments.scoop import fig7_record, plot_fig7, scoop_setup, write_report
 
     summary = run_scoop(cfg, workers=workers, fig7_tries=fig7_tries)
     fig7 = summary.pop("fig7")
     png = None
     if fig7 is not None and fig7["found"] is not None:
         png = out / "fig7.png"
-        plot_fig7(bundled_setup(lag=fig7["lag"]).world, fig7, png)
+        plot_fig7(scoop_setup(lag=fig7["lag"]).task, fig7, png)
     summary["fig7"] = None if fig7 is None else fig7_record(fig7)
     files = write_report(summary, out, fig7=fig7, fig7_png=png)
     return summary, files + ([png] if png is not None else [])

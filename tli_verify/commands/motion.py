@@ -106,9 +106,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="certified decay rate of V per DS, A_k^T P + P A_k <= -rate P (1/s; "
                    "default: 0.25 x the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
                    "only, the learner before issue 9)")
-    p.add_argument("--control-dt", type=_control_period, default=1e-3, metavar="DT",
+    p.add_argument("--control-dt", type=_control_period, default=None, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
-                   "(default 0.001 s)")
+                   "(default: the control period of the spec's task, else 0.001 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
@@ -123,11 +123,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "(--repair then writes a new model with a certifying P).")
     p.add_argument("model", type=Path, metavar="MODEL.json")
     p.add_argument("-o", "--output", type=output_path, default=None, metavar="CERT.json",
-                   help="default: certificates/<name>.cert.json (of the repaired model with "
+                   help="default: certificates/<name>.cert.json of the model's project (of the "
+                   "repaired model with "
                    "--repair)")
     p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
                    help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
-                   "1/200; default 0.001); the certificate also covers shorter periods")
+                   "1/200; default: the control period of the task the model's spec names, "
+                   "else 0.001); the certificate also covers shorter periods")
     p.add_argument("--repair", type=output_path, default=None, metavar="NEW.model.json",
                    help="replace each P that does not certify by one found by an SDP (checked "
                    "exactly), write the new model there, and certify it")
@@ -161,11 +163,26 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(handler=_gate)
 
 
+def _task_dt(spec: Path | None) -> Fraction | None:
+    """The control period of the task a spec names (None: no spec, or it names no task)."""
+    if spec is None:
+        return None
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.tasks.project import spec_task
+
+    task = spec_task(load_spec(spec), spec)
+    return None if task is None else Fraction(repr(task.dt))
+
+
 def _learn(args: argparse.Namespace) -> int:
     from tli_verify.model import learn_model, save_model
 
+    control_dt = args.control_dt
+    if control_dt is None:
+        task_dt = _task_dt(args.spec)
+        control_dt = 1e-3 if task_dt is None else float(task_dt)
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
-                        eps=args.eps, rate=args.rate, control_dt=args.control_dt,
+                        eps=args.eps, rate=args.rate, control_dt=control_dt,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
     try:
@@ -192,13 +209,13 @@ def _learn(args: argparse.Namespace) -> int:
 
 
 def default_certificate_path(model: Path) -> Path:
-    """``certificates/<name>.cert.json`` for ``.../<name>.model.json`` or ``<name>.json``."""
-    name = model.name
-    for suffix in (".model.json", ".json"):
-        if name.endswith(suffix):
-            name = name[: -len(suffix)]
-            break
-    return Path("certificates") / f"{name}.cert.json"
+    """Where the project layout puts a model's certificate
+    (:func:`tli_verify.tasks.project.model_files`): ``ROOT/certificates/<name>.cert.json`` for
+    ``ROOT/models/<name>.model.json``; ``<name>.cert.json`` next to a model outside any
+    ``models/`` folder."""
+    from tli_verify.tasks.project import model_files
+
+    return model_files(model).certificate
 
 
 def _certify(args: argparse.Namespace) -> int:
@@ -210,9 +227,9 @@ def _certify(args: argparse.Namespace) -> int:
     from tli_verify.io import check_output_file
     from tli_verify.model import load_model
 
-    dt = args.dt if args.dt is not None else DEFAULT_DT
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
+    dt = args.dt if args.dt is not None else (_task_dt(spec_path) or DEFAULT_DT)
     inputs = [args.model, *([spec_path] if spec_path else [])]
     out: Path = args.output or default_certificate_path(args.repair or args.model)
     if args.repair is not None:
@@ -282,7 +299,7 @@ def _check_cert(args: argparse.Namespace) -> int:
 
 
 def _gate(args: argparse.Namespace) -> int:
-    from tli_verify.certify.gate import run_gate
+    from tli_verify.deploy.gate import run_gate
 
     report = run_gate(args.directory, rerun=args.rerun)
     for item in report.items:

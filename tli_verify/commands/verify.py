@@ -27,7 +27,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "reachability deadline, automaton run, no looping), shrink the first counterexample "
         "and write a report (campaign.json, campaign.md, campaign.png, counterexample.json). "
         "Exit 0: no violation; 1: a violation.")
-    p.add_argument("--world", required=True, help="world name (its sensor model, regions)")
+    from tli_verify.commands.run import add_task_arguments
+
+    add_task_arguments(p, what="campaign")
     p.add_argument("--examples", type=int_range(1), default=200, help="cases (default 200)")
     p.add_argument("--seed", type=int_range(0), default=0, help="seed (default 0)")
     p.add_argument("--no-modulation", action="store_true",
@@ -38,26 +40,23 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (--backend dask; default: a LocalCluster)")
     p.add_argument("--batch-size", type=int_range(1), default=100, help="runs per batch")
-    p.add_argument("--max-pushes", type=int_range(0, MAX_PUSHES), default=3,
-                   help="perturbations per case, at most (default 3)")
-    p.add_argument("--window", type=int_range(1, MAX_CAMPAIGN_STEPS), default=700,
-                   help="perturbations happen in steps 1..WINDOW (default 700)")
-    p.add_argument("--random-starts", action="store_true",
-                   help="draw start states too (default: the world's nominal start)")
-    p.add_argument("--lag", type=int_range(0, MAX_CAMPAIGN_STEPS), default=0,
-                   help="sensor lag in steps")
+    p.add_argument("--max-pushes", type=int_range(0, MAX_PUSHES), default=None,
+                   help="perturbations per case, at most (default: the task's, else 3)")
+    p.add_argument("--window", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
+                   help="perturbations happen in steps 1..WINDOW (default: the task's, else "
+                   "700)")
+    p.add_argument("--random-starts", action="store_true", default=None,
+                   help="draw start states too (default: the task's first nominal start; a "
+                   "task without one draws starts)")
     p.add_argument("--target", type=int_range(0), default=0, metavar="N",
                    help="when nothing is found, N more driver-side examples guided by "
                    "hypothesis.target on the robustness margin")
     p.add_argument("--no-shrink", action="store_true", help="do not shrink")
-    p.add_argument("--spec", type=Path, default=None)
-    p.add_argument("--model", type=Path, default=None)
-    p.add_argument("--certificate", type=Path, default=None)
     p.add_argument("--json", action="store_true", help="print the campaign record as JSON")
     p.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="also write campaign evidence for the deployment gate (default "
-                   "certificates/<name>.campaign.json next to the model's project)")
+                   "certificates/<name>.campaign.json of the model's project)")
     p.add_argument("--out", type=output_path, default=Path("out/verify"),
                    help="report directory (default out/verify)")
     p.set_defaults(handler=_verify)
@@ -81,7 +80,7 @@ def _verify(args: argparse.Namespace) -> int:
     if args.scheduler is not None and args.backend != "dask":
         raise TliError("--scheduler needs --backend dask")
     cfg = CampaignConfig(
-        world=args.world, spec=str(args.spec) if args.spec else None,
+        task=args.task, spec=str(args.spec) if args.spec else None,
         model=str(args.model) if args.model else None,
         certificate=str(args.certificate) if args.certificate else None,
         examples=args.examples, seed=args.seed, modulation=not args.no_modulation,
@@ -89,17 +88,22 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
-    if args.evidence is not None:  # before any work: never over an input, always writable
-        from tli_verify.io import check_output_file
-        from tli_verify.verify.campaign import sim_spec
-        from tli_verify.verify.evidence import evidence_path_for
+    from tli_verify.commands import check_plan
+    from tli_verify.verify.campaign import resolve_config
+    from tli_verify.verify.evidence import evidence_path_for
 
-        bound = sim_spec(cfg)
-        model = Path(bound.model)
-        chosen = chosen_path(args.evidence)
-        check_output_file(chosen or evidence_path_for(model, model.parent.parent),
-                          inputs=(bound.spec, bound.model, bound.certificate),
-                          what="campaign evidence")
+    resolved, _ = resolve_config(cfg)  # before any work: the files, the task, their fit
+    out: Path = args.out
+    evidence = None
+    if args.evidence is not None:
+        evidence = chosen_path(args.evidence) or evidence_path_for(resolved.model)
+    check_plan(inputs=resolved.inputs,
+               outputs=[(out / "campaign.json", "campaign record"),
+                        (out / "campaign.md", "campaign report"),
+                        (out / "campaign.png", "campaign picture"),
+                        (out / "counterexample.json", "counterexample case"),
+                        (out / "counterexample.png", "counterexample picture"),
+                        (evidence, "campaign evidence")])
     progress = not args.json and sys.stderr.isatty()
 
     def note(text: str) -> None:
@@ -107,7 +111,6 @@ def _verify(args: argparse.Namespace) -> int:
             sys.stderr.write(f"note: {text}\n")
 
     result = run_campaign(cfg, progress=progress, on_event=note)
-    out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     record = result.to_json()
     files = write_report(result, out)
@@ -115,13 +118,13 @@ def _verify(args: argparse.Namespace) -> int:
     if args.evidence is not None:
         from tli_verify.verify.evidence import write_campaign_evidence
 
-        target, _ = write_campaign_evidence(cfg, result, chosen_path(args.evidence))
+        target, _ = write_campaign_evidence(result.config, result, evidence)
         record["evidence"] = str(target)
     atomic_write_text(out / "campaign.json", canonical_json(record))
     if args.json:
         sys.stdout.write(canonical_json(record))
     else:
-        sys.stdout.write(_summary(result, out))
+        sys.stdout.write(_summary(result, [out / "campaign.json", *files]))
         if args.evidence is not None:
             sys.stdout.write(f"wrote evidence {record['evidence']}\n")
     if result.partial:
@@ -131,10 +134,11 @@ def _verify(args: argparse.Namespace) -> int:
     return 1 if result.counterexample is not None else 0
 
 
-def _summary(result: Any, out: Path) -> str:
+def _summary(result: Any, files: list[Path]) -> str:
     c = result.config
     bad = {k: n for k, n in result.violations.items() if n}
-    lines = [f"{c.world} ({'LTL-DS' if c.modulation else 'no modulation'}, seed {c.seed}): "
+    lines = [f"{result.task_name} ({'LTL-DS' if c.modulation else 'no modulation'}, seed "
+             f"{c.seed}): "
              f"{result.runs} runs in {result.seconds:.1f} s, task satisfied in "
              f"{result.task_satisfied}, {result.cuts_added} cut(s) added"]
     if result.counterexample is None:
@@ -144,7 +148,7 @@ def _summary(result: Any, out: Path) -> str:
     else:
         ce = result.counterexample
         pert = ", ".join(f"step {p['step']}: {p['level']} "
-                         f"({p['displacement'][0]:.3g}, {p['displacement'][1]:.3g})"
+                         "(" + ", ".join(f"{v:.3g}" for v in p["displacement"]) + ")"
                          + (f" -> {p['target']}" if p["target"] else "")
                          for p in ce["perturbations"]) or "none"
         lines.append("violations: " + ", ".join(f"{k} {n}" for k, n in bad.items()))
@@ -153,10 +157,7 @@ def _summary(result: Any, out: Path) -> str:
                      f"{len(ce['perturbations'])} perturbation(s) [{pert}]: "
                      f"{ce['expected']['violation']} (modes "
                      f"{ce['expected']['oracle_modes'][:40]})")
-    lines.append(f"wrote {out / 'campaign.json'}, {out / 'campaign.md'}, "
-                 f"{out / 'campaign.png'}"
-                 + (f", {out / 'counterexample.json'}, {out / 'counterexample.png'}"
-                    if result.counterexample is not None else ""))
+    lines.append("wrote " + ", ".join(str(f) for f in files))
     return "\n".join(lines) + "\n"
 
 
@@ -171,6 +172,7 @@ def write_report(result: Any, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from tli_verify.errors import TliError
     from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.plotting import save_figure
     from tli_verify.verify.oracle import PRIORITY
@@ -222,11 +224,11 @@ def write_report(result: Any, out: Path) -> list[Path]:
         files.append(cj)
         try:
             files.append(_plot_case(result, cj, out / "counterexample.png"))
-        except Exception as exc:  # a picture must not lose the campaign's results
+        except TliError as exc:  # a picture must not lose the campaign's results
             sys.stderr.write(f"note: counterexample picture not drawn ({exc})\n")
     # --- Markdown
     md = out / "campaign.md"
-    lines = [f"# Bisimulation campaign: {c.world}"
+    lines = [f"# Bisimulation campaign: {result.task_name}"
              + (" (PARTIAL: interrupted)" if result.partial else ""), "",
              f"{result.runs} of {c.examples} runs, seed {c.seed}, "
              f"{'LTL-DS (modulation on)' if c.modulation else 'without modulation'}, "
@@ -275,21 +277,21 @@ def write_report(result: Any, out: Path) -> list[Path]:
 def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
     from dataclasses import replace
 
-    from tli_verify.experiments.scoop import plot_episode
     from tli_verify.verify.campaign import load, read_case, simulate
+    from tli_verify.viz.episodes import plot_episodes
 
     _, spec, case = read_case(case_path)
     ld = load(spec)
     (_, res), = simulate(spec, [case])
-    others = []
+    panels = [("no modulation" if not spec.modulation else "LTL-DS", res)]
     if not spec.modulation:
         (_, fixed), = simulate(replace(spec, modulation=True), [case])
-        others.append(("same case, LTL-DS", fixed))
+        panels.append(("same case, LTL-DS", fixed))
     (_, nominal), = simulate(spec, [replace(case, pushes=())])
-    plot_episode(ld.world, res, png, nominal=nominal, others=others,
-                 title=f"counterexample ({case_path.name}): "
-                       f"{'LTL-DS' if spec.modulation else 'no modulation'}"
-                       + (" (left) vs LTL-DS (right)" if others else ""))
+    plot_episodes(ld.world, panels, png, nominal=nominal,
+                  title=f"counterexample ({case_path.name}): "
+                        f"{'LTL-DS' if spec.modulation else 'no modulation'}"
+                        + (" (left) vs LTL-DS (right)" if len(panels) > 1 else ""))
     return png
 
 

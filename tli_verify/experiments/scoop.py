@@ -1,31 +1,22 @@
 """The multi-modal soup-scooping experiment (paper Sec. 7.2, Fig. 7, appendix "Multi-modal
-Experiments") and the closed-loop episodes behind ``tli run``.
+Experiments").
 
 Pieces:
 
-* :class:`Setup` -- a spec's automaton, a certified model, its certificate and the world
-  (:func:`bundled_setup`: the shipped ``models/scoop.model.json``, certified at ``dt = 1/100``;
-  :func:`learn_setup`: learn and certify from seeded demonstrations of
-  :class:`~tli_verify.worlds.ScoopWorld`);
-* perturbations: ``{step: displacement}`` tables, :func:`random_perturbations` (uniformly random
-  directions, magnitudes uniform up to the workspace size, states kept in the workspace box);
-* the four policies compared (:data:`VARIANTS`):
-
-  - ``LTL-DS``: the executive (:class:`~tli_verify.runtime.executive.LTLDSPolicy`): replanning
-    and cuts learned online;
-  - ``no-modulation``: the executive without cuts (``learn_cuts=False``): replanning only;
-  - ``no-replan``: :class:`SequencePolicy`, the demonstrated mode sequence run open loop
-    (a mode's DS runs until the reading shows the planned next mode; an unexpected reading
-    does not change the DS run), cuts learned as in LTL-DS;
-  - ``BC``: the paper's MLP (:mod:`tli_verify.ds.bc`) per mode under the automaton, with
-    replanning and the cuts the executive learns (a BC policy has no certificate, so the
-    executive runs the certified DS model for its bookkeeping and the BC nets move the state);
-
+* :func:`scoop_setup` (the bundled ``tasks/scoop.toml`` with its spec, model and certificate,
+  certified at ``dt = 1/100``) and :func:`learn_setup` (learn and certify from seeded
+  demonstrations of the scoop task's scripted demonstrator);
+* the four policies compared (:data:`tli_verify.runtime.setup.VARIANTS`: LTL-DS,
+  no-modulation, no-replan, BC) on the same perturbed episodes
+  (:func:`tli_verify.runtime.episodes.random_perturbations`);
 * :func:`run_experiment` (one learned model, many perturbed episodes per variant, batched with
-  :func:`~tli_verify.runtime.executive.run_episodes`), :func:`run_all` (a process pool over
+  :func:`~tli_verify.runtime.episodes.run_variant_batch`), :func:`run_all` (a process pool over
   experiments), :func:`fig7_search` / :func:`find_loop` (paper Fig. 7: the unmodulated system
   loops a -> b -> a ... until its budget, LTL-DS ends it with one cut; :func:`fig7_record`,
   :func:`plot_fig7`), the Markdown report and figures.
+
+This module is the paper's scoop study and names the scoop task on purpose; the generic
+closed loop is :mod:`tli_verify.runtime.setup` and :mod:`tli_verify.runtime.episodes`.
 """
 
 from __future__ import annotations
@@ -33,9 +24,9 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -43,106 +34,49 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
-from tli_verify.logic.automaton import TaskAutomaton
-from tli_verify.model import Model
-from tli_verify.runtime.events import CutAdded, InvarianceFailure, Perturbation
-from tli_verify.runtime.executive import (
-    EpisodeResult,
-    LTLDSPolicy,
-    batch_results,
-    run_episode,
-    run_episodes,
+from tli_verify.runtime.episodes import (
+    mode_runs,
+    mode_string,
+    random_perturbations,
+    random_start,
+    run_variant,
+    run_variant_batch,
 )
-from tli_verify.runtime.worlds import WorldSensors
-from tli_verify.worlds.scoop import ScoopWorld
+from tli_verify.runtime.events import CutAdded, InvarianceFailure
+from tli_verify.runtime.executive import EpisodeResult
+from tli_verify.runtime.setup import VARIANTS, Setup, load_setup
+from tli_verify.tasks.task import Task
 
 __all__ = [
+    "CERT_DT",
     "FIG7_MIN_ROUNDS",
     "NOMINAL_START",
-    "VARIANTS",
     "ExperimentConfig",
-    "SequencePolicy",
-    "Setup",
-    "animate_episode",
     "b_to_a_failures",
-    "bundled_setup",
-    "episode_json",
     "fig7_record",
     "fig7_search",
     "find_loop",
     "is_fig7_loop",
     "is_fig7_rescue",
     "learn_setup",
-    "make_policy",
-    "mode_runs",
-    "plot_episode",
     "plot_fig7",
-    "random_perturbations",
-    "random_start",
     "run_all",
     "run_experiment",
-    "run_variant",
+    "scoop_setup",
     "write_report",
 ]
 
 FloatArray = npt.NDArray[np.float64]
-VARIANTS: tuple[str, ...] = ("LTL-DS", "no-modulation", "no-replan", "BC")
 CERT_DT = "1/100"
 """Control period the scoop models are certified for (and the loops run at)."""
 
 
-@dataclass(frozen=True, slots=True, eq=False)
-class Setup:
-    """What a closed-loop scoop episode runs.
+def scoop_setup(*, lag: int = 0) -> Setup:
+    """The bundled scoop task, spec, model and certificate (:func:`~tli_verify.tasks.project.
+    resolve` of task ``scoop``)."""
+    from tli_verify.tasks.project import resolve
 
-    Attributes
-    ----------
-    automaton : TaskAutomaton
-    model : Model
-        Loaded from ``model.path``.
-    certificate : str
-        Certificate file covering the model.
-    world : ScoopWorld
-    bc : mapping of str to BCPolicy, optional
-        Per-DS-key MLPs (the BC variant).
-    """
-
-    automaton: TaskAutomaton
-    model: Model
-    certificate: str
-    world: ScoopWorld
-    bc: Mapping[str, Any] = field(default_factory=dict)
-
-
-def bundled_setup(*, model: str | os.PathLike[str] | None = None,
-                  certificate: str | os.PathLike[str] | None = None,
-                  spec: str | os.PathLike[str] | None = None, lag: int = 0) -> Setup:
-    """The shipped scoop spec, model and certificate (or the given files).
-
-    Raises
-    ------
-    SpecError, ModelError
-        (exit 2) Unreadable or invalid files.
-    """
-    from tli_verify.io import bundled_dir
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
-
-    model_path = Path(model) if model is not None else bundled_dir("models") / "scoop.model.json"
-    cert_path = (Path(certificate) if certificate is not None
-                 else bundled_dir("certificates") / "scoop.cert.json")
-    loaded = load_model(model_path)
-    named = loaded.spec_path  # the spec the certificate binds (check_certificate hashes it)
-    if spec is not None and named is not None \
-            and Path(os.path.realpath(spec)) != Path(os.path.realpath(named)):
-        raise TliError(f"--spec {spec}: not the spec the model names ({named}); the "
-                       "certificate binds that one, so the automaton must come from it",
-                       exit_code=2)
-    spec_path = Path(spec) if spec is not None else (
-        named if named is not None else bundled_dir("specs") / "scoop.toml")
-    return Setup(automaton=synthesize(load_spec(spec_path)), model=loaded,
-                 certificate=str(cert_path), world=ScoopWorld(lag=lag))
+    return load_setup(resolve(task="scoop", lag=lag))
 
 
 def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
@@ -154,17 +88,18 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
     (unshifted) segments of its mode.
     """
     from tli_verify.certify.certificate import issue_certificate, write_certificate
-    from tli_verify.io import bundled_dir
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
     from tli_verify.model import learn_model, load_model, save_model
-    from tli_verify.worlds import write_demos
+    from tli_verify.tasks.demonstrator import write_demos
+    from tli_verify.tasks.registry import find_task
 
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
-    world = ScoopWorld(lag=lag)
-    spec_path = bundled_dir("specs") / "scoop.toml"
-    demos = write_demos(ScoopWorld(), d, seed=seed, n_demos=n_demos)
+    task = find_task("scoop")
+    spec_path = task.spec_path
+    assert spec_path is not None
+    demos = write_demos(task, d, seed=seed, n_demos=n_demos)
     mpath, cpath = d / "scoop.model.json", d / "scoop.cert.json"
     model = learn_model(demos, out_path=mpath, spec_path=spec_path, seed=seed,
                         control_dt=0.01)
@@ -182,460 +117,8 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
                             labels=labels, shift=False)
         for key, data in seg.data.items():
             bc[key] = train_bc(data.x, data.dx, seed=seed, max_epochs=bc_epochs)
-    return Setup(automaton=synthesize(spec), model=load_model(mpath), certificate=str(cpath),
-                 world=world, bc=bc)
-
-
-# ----------------------------------------------------------------------------- policies
-class SequencePolicy(LTLDSPolicy):
-    """The ``no-replan`` ablation: the demonstrated mode sequence, run open loop.
-
-    The executive's automaton, monitor and cuts run as in LTL-DS (events, ``mode``, ``done``
-    follow the readings), but the DS run is the plan's: mode ``k`` of the sequence
-    ``a -> b -> c -> d`` (each mode's ``next_mode`` from the initial mode) until the reading
-    shows mode ``k + 1``. An unexpected reading (a spill, a knock) changes nothing.
-    """
-
-    __slots__ = ("_idx", "_seq")
-
-    def __init__(self, automaton: TaskAutomaton, model: Model,
-                 certificate: str | os.PathLike[str], **kwargs: Any) -> None:
-        super().__init__(automaton, model, certificate, **kwargs)
-        state: int | None = automaton.initial[0]
-        seq = [automaton.states[automaton.initial[0]].mode]
-        while len(seq) <= len(model.modes) and state is not None:
-            mm = model.modes.get(seq[-1])
-            # a mode with per-transition DS only (cooking's w1 -> y): the automaton's plan
-            nxt = mm.next_mode if mm is not None else self._plan(state)
-            if nxt is None:
-                break
-            seq.append(nxt)
-            state = next((t.target for t in automaton.transitions if t.source == state
-                          and automaton.states[t.target].mode == nxt), None)
-        self._seq: tuple[str, ...] = tuple(seq)
-        self._idx = 0
-
-    def reset(self, x0: npt.ArrayLike, sensors: Any) -> None:
-        """Start at ``x0``; the sequence starts at the mode the reading shows (if in it)."""
-        super().reset(x0, sensors)
-        self._idx = self._seq.index(self.mode) if self.mode in self._seq else 0
-
-    def fork(self) -> SequencePolicy:
-        """A copy for another episode (see :meth:`LTLDSPolicy.fork`)."""
-        new = object.__new__(SequencePolicy)
-        for name in LTLDSPolicy.__slots__:
-            setattr(new, name, getattr(self, name))
-        new.events = list(self.events)
-        new._entries = {k: list(v) for k, v in self._entries.items()}
-        new._plan_cache = dict(self._plan_cache)
-        new._seq = self._seq
-        new._idx = self._idx
-        return new
-
-    def decide(self, x: npt.ArrayLike, sensors: Any, *, perturbed: bool = False) -> str:
-        """Advance the automaton on the reading; return the sequence's DS key."""
-        key = super().decide(x, sensors, perturbed=perturbed)
-        if not key:
-            return key
-        if self._idx + 1 < len(self._seq) and self.mode == self._seq[self._idx + 1]:
-            self._idx += 1
-        mode = self._seq[self._idx]
-        nxt = self._seq[self._idx + 1] if self._idx + 1 < len(self._seq) else None
-        return self.model.key(mode, nxt)
-
-
-def make_policy(setup: Setup, variant: str) -> LTLDSPolicy:
-    """The executive of one variant (``BC`` runs the executive's bookkeeping with cuts).
-
-    Raises
-    ------
-    CertificateError
-        (exit 1) The certificate does not cover the model.
-    """
-    if variant not in VARIANTS:
-        raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
-    if variant == "no-replan":
-        return SequencePolicy(setup.automaton, setup.model, setup.certificate)
-    return LTLDSPolicy(setup.automaton, setup.model, setup.certificate,
-                       learn_cuts=variant != "no-modulation")
-
-
-# ----------------------------------------------------------------------------- perturbations
-def random_start(world: ScoopWorld, rng: np.random.Generator) -> FloatArray:
-    """A uniform random start that reads mode ``a`` (anywhere but yellow), shape (2,)."""
-    lo, hi = np.array(world.lo), np.array(world.hi)
-    while True:
-        x = rng.uniform(lo, hi)
-        if world.region_index(x[None])[0] != 1:
-            return x
-
-
-def random_perturbations(rng: np.random.Generator, count: int, world: ScoopWorld, *,
-                         first: int = 1, last: int = 700) -> dict[int, FloatArray]:
-    """``count`` perturbations at distinct random steps in ``[first, last]``.
-
-    Directions uniform on the circle, magnitudes uniform in ``[0, D]`` with ``D`` the
-    workspace size (its side, 16 for scoop): the paper's "uniformly sampled in all directions
-    of any magnitudes up to the dimension of the entire workspace".
-
-    Returns
-    -------
-    dict of int to ndarray, shape (2,)
-        Step (1-based) -> displacement.
-    """
-    size = float(np.max(np.array(world.hi) - np.array(world.lo)))
-    steps = rng.choice(np.arange(first, last + 1), size=min(count, last - first + 1),
-                       replace=False)
-    out = {}
-    for t in sorted(int(s) for s in steps):
-        ang = rng.uniform(0.0, 2.0 * np.pi)
-        out[t] = rng.uniform(0.0, size) * np.array([np.cos(ang), np.sin(ang)])
-    return out
-
-
-def _pusher(world: ScoopWorld, table: Mapping[int, npt.ArrayLike]
-            ) -> Callable[[int, FloatArray], FloatArray | None]:
-    lo, hi = np.array(world.lo), np.array(world.hi)
-
-    def push(t: int, x: FloatArray) -> FloatArray | None:
-        d = table.get(t)
-        if d is None:
-            return None
-        return np.asarray(np.clip(x + np.asarray(d, dtype=np.float64), lo, hi))
-
-    return push
-
-
-# ----------------------------------------------------------------------------- episodes
-def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
-                perturbations: Mapping[int, npt.ArrayLike] | None = None, *,
-                steps: int = 3000, policy: LTLDSPolicy | None = None) -> EpisodeResult:
-    """One closed-loop episode of a variant (:func:`run_variant_batch` for many)."""
-    if variant == "BC":
-        return run_variant_batch(setup, variant, np.atleast_2d(np.asarray(x0, float)),
-                                 [dict(perturbations or {})], steps=steps, policy=policy)[0]
-    pol = policy if policy is not None else make_policy(setup, variant)
-    return run_episode(pol, WorldSensors(setup.world), x0, steps=steps,
-                       perturb=_pusher(setup.world, perturbations or {}))
-
-
-def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
-                      perturbations: Sequence[Mapping[int, npt.ArrayLike]], *,
-                      steps: int = 3000, policy: LTLDSPolicy | None = None
-                      ) -> list[EpisodeResult]:
-    """Episodes from many starts at once, each with its own perturbation table.
-
-    Every episode starts from the same (fresh) policy: cuts learned in one episode do not carry
-    to the others (each episode is an independent trial).
-    """
-    X = np.asarray(starts, dtype=np.float64)
-    base = policy if policy is not None else make_policy(setup, variant)
-    policies = [base.fork() for _ in range(len(X))]
-    memo: dict[Any, Any] = {}
-    sensors = [WorldSensors(setup.world, cache=memo) for _ in range(len(X))]
-    pushers = [_pusher(setup.world, p) for p in perturbations]
-
-    def perturb(i: int, t: int, x: FloatArray) -> FloatArray | None:
-        return pushers[i](t, x)
-
-    if variant != "BC":
-        return run_episodes(policies, sensors, X, steps=steps, perturb=perturb)
-    return _run_bc(setup, policies, sensors, X, steps=steps, perturb=perturb)
-
-
-def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[WorldSensors],
-            X: FloatArray, *, steps: int,
-            perturb: Callable[[int, int, FloatArray], FloatArray | None]
-            ) -> list[EpisodeResult]:
-    """:func:`run_episodes` with the BC nets moving the state (modulated by the cuts the
-    executive learns for the mode's region, :func:`tli_verify.boundary.modulation.modulated`)."""
-    from tli_verify.boundary.modulation import modulated
-
-    if not setup.bc:
-        raise TliError("the BC variant needs BC nets (learn_setup(..., bc_epochs=...))")
-    X = X.copy()
-    N = len(X)
-    for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
-        sen.reset(X[i].copy())
-        pol.reset(X[i], sen.read(X[i]))
-    dt = policies[0].dt
-    cache: dict[tuple[str, int], Any] = {}
-    hist = [X.copy()]
-    modes = [[p.mode for p in policies]]
-    astates = [[-1 if p.state is None else p.state for p in policies]]
-    active = np.ones(N, dtype=bool)
-    taken = np.zeros(N, dtype=np.int64)
-    for _ in range(steps):
-        groups: dict[tuple[str, int, int], list[int]] = {}
-        for i in np.flatnonzero(active).tolist():
-            pol = policies[i]
-            if pol.done and not pol.holding:
-                active[i] = False
-                continue
-            pushed = perturb(i, int(taken[i]) + 1, X[i].copy())
-            if pushed is not None:
-                X[i] = pushed
-            key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
-            taken[i] += 1
-            if key:
-                groups.setdefault((key, id(pol.model), i if pol.model.modes[key].cuts else -1),
-                                  []).append(i)
-        if not active.any():
-            break
-        V = np.zeros_like(X)
-        for (key, _, _), rows in groups.items():
-            mm = policies[rows[0]].model.modes[key]
-            net = setup.bc.get(key) or setup.bc[mm.mode]
-            if not mm.cuts:
-                V[rows] = net.velocity(X[rows])
-                continue
-            ck = (key, id(mm))
-            if ck not in cache:
-                cache[ck] = modulated(net, mm.cuts, mm.ds.attractor, dt=dt)
-            V[rows] = cache[ck].velocity(X[rows])
-        X += dt * V
-        hist.append(X.copy())
-        modes.append([p.mode for p in policies])
-        astates.append([-1 if p.state is None else p.state for p in policies])
-    return batch_results(policies, hist, modes, astates, taken)
-
-
-def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:
-    """Run-length form ``[[value, first_step], ...]`` of a per-step sequence."""
-    out: list[list[Any]] = []
-    for t, v in enumerate(seq):
-        if not out or out[-1][0] != v:
-            out.append([v, t])
-    return out
-
-
-def mode_string(res: EpisodeResult) -> str:
-    """The modes visited, in order (``"abcd"``, ``"ababab..."``)."""
-    return "".join(str(v) for v, _ in mode_runs(res.modes))
-
-
-def episode_json(res: EpisodeResult, *, world: str, variant: str, seconds: float,
-                 x0: FloatArray, perturbations: Mapping[int, npt.ArrayLike],
-                 dt: float) -> dict[str, Any]:
-    """The ``tli run --json`` record of one episode."""
-    from tli_verify.runtime.events import event_to_json
-
-    return {
-        "world": world,
-        "variant": variant,
-        "success": bool(res.success),
-        "steps": int(res.steps),
-        "dt": dt,
-        "sim_time": res.steps * dt,
-        "seconds": seconds,
-        "start": [float(v) for v in x0],
-        "final_state": [float(v) for v in res.states[-1]],
-        "perturbations": [{"step": int(t),
-                           "displacement": np.asarray(d, dtype=np.float64).tolist()}
-                          for t, d in sorted(perturbations.items())],
-        "mode_sequence": mode_string(res),
-        "mode_trace": mode_runs(res.modes),
-        "automaton_states": mode_runs(res.automaton_states),
-        "cuts_added": int(res.cuts_added),
-        "cuts": {m: [c.to_dict() for c in res.model.region_cuts(m)]
-                 for m in sorted({mm.mode for mm in res.model.modes.values()})
-                 if res.model.region_cuts(m)},
-        "events": [event_to_json(e) for e in res.events],
-    }
-
-
-# ----------------------------------------------------------------------------- figure
-def plot_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[str], *,
-                 nominal: EpisodeResult | None = None, title: str | None = None,
-                 others: Sequence[tuple[str, EpisodeResult]] = (), label: str = "",
-                 zoom_first: bool = False) -> None:
-    """A Fig. 7-style picture: regions, cuts, nominal and perturbed trajectory, mode sequence.
-
-    One panel per episode (``res`` first, then ``others``): the true regions, the trajectory
-    in black with perturbation jumps in red (dashed), the nominal (unperturbed) run in grey,
-    the cuts learned (blue lines), each invariance failure's last in-mode state (yellow
-    circle) and failure state (red cross); the mode sequence in the panel title (after
-    ``label`` for ``res``, the given labels for ``others``). With ``zoom_first`` the first
-    panel is followed by a panel zoomed on the last 400 states of ``res`` (a loop at a
-    boundary), drawn by mode (a black, b orange).
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from tli_verify.plotting import save_figure
-
-    panels = [(label, res), *others]
-    lo, hi = np.array(world.lo), np.array(world.hi)
-    ncols = len(panels) + int(zoom_first)
-    fig, grid = plt.subplots(1, ncols, figsize=(4.2 * ncols, 4.6), squeeze=False)
-    axes = list(grid[0])
-    zoom_ax = axes.pop(1) if zoom_first else None
-    idx = _region_grid(world)
-    for ax, (label, r) in zip(axes, panels, strict=True):
-        _draw_regions(ax, world, idx)
-        if nominal is not None:
-            ax.plot(nominal.states[:, 0], nominal.states[:, 1], color="0.55", lw=1.0,
-                    ls="--", label="nominal")
-        pushes = {e.step for e in r.events if isinstance(e, Perturbation)}
-        S = r.states
-        start = 0
-        for t in sorted(pushes):  # the push lands between states[t-1] and states[t]
-            ax.plot(S[start:t, 0], S[start:t, 1], color="k", lw=1.2)
-            if t < len(S):
-                ax.plot(S[t - 1:t + 1, 0], S[t - 1:t + 1, 1], color="tab:red", lw=1.2, ls="--")
-            start = t
-        ax.plot(S[start:, 0], S[start:, 1], color="k", lw=1.2)
-        ax.plot(S[0, 0], S[0, 1], "ko", ms=4)
-        for mode in sorted({mm.mode for mm in r.model.modes.values()}):
-            for c in r.model.region_cuts(mode):
-                _draw_cut(ax, c)
-        for e in r.events:
-            if isinstance(e, InvarianceFailure):
-                ax.plot(*e.last_inside, "o", mfc="gold", mec="k", ms=6)
-                ax.plot(*e.outside, "x", color="tab:red", ms=7, mew=2)
-        seq = mode_string(r)
-        if len(seq) > 14:
-            seq = seq[:12] + "..."
-        goal = "d" if world.name == "scoop" else "the goal"
-        verdict = f"reaches {goal}" if r.success else f"no {goal} in {r.steps} steps"
-        cuts = f"{r.cuts_added} cut{'' if r.cuts_added == 1 else 's'}"
-        ax.set_title(f"{label + ': ' if label else ''}{seq} ({verdict}, {cuts})", fontsize=9)
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
-        ax.set_aspect("equal")
-        scoop = world.name == "scoop"
-        ax.set_xlabel("x1 (spoon orientation)" if scoop else "x1", fontsize=8)
-        ax.set_ylabel("x2 (distance to soup)" if scoop else "x2", fontsize=8)
-    if zoom_ax is not None:
-        _zoom_panel(zoom_ax, world, res, idx)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    save_figure(fig, path, dpi=90)
-
-
-def _region_grid(world: ScoopWorld) -> npt.NDArray[np.int64]:
-    """The true region index on a 300 x 300 grid of the workspace, shape (300, 300)."""
-    lo, hi = np.array(world.lo), np.array(world.hi)
-    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 300), np.linspace(lo[1], hi[1], 300))
-    return world.region_index(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
-
-
-def _draw_regions(ax: Any, world: ScoopWorld, idx: npt.NDArray[np.int64]) -> None:
-    """The world's true regions in their colours (the background of the episode pictures)."""
-    from matplotlib.colors import ListedColormap
-
-    lo, hi = np.array(world.lo), np.array(world.hi)
-    ax.imshow(idx, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
-              cmap=ListedColormap(list(world.region_colors)), vmin=-0.5,
-              vmax=len(world.region_names) - 0.5, interpolation="nearest")
-
-
-def _draw_cut(ax: Any, cut: Any) -> None:
-    """A learned cut's line (2-D), in blue."""
-    w, p = np.asarray(cut.normal), np.asarray(cut.point)
-    d = np.array([-w[1], w[0]])
-    s = np.linspace(-40, 40, 2)
-    ax.plot(p[0] + s * d[0], p[1] + s * d[1], color="tab:blue", lw=1.5)
-
-
-def animate_episode(world: ScoopWorld, res: EpisodeResult, path: str | os.PathLike[str], *,
-                    frames: int = 120, fps: int = 20, title: str = "") -> int:
-    """An animated GIF of one episode (Fig. 7 style), written atomically.
-
-    Each frame shows the true regions, the path so far (black; perturbation jumps are not
-    joined), the current state (red), the cuts learned so far (blue, from each
-    :class:`~tli_verify.runtime.events.CutAdded`'s step) and the step and mode in the title.
-
-    Parameters
-    ----------
-    world : World
-    res : EpisodeResult
-    path : path-like
-        The GIF file.
-    frames : int, optional
-        At most this many frames, evenly spaced over the episode's states.
-    fps : int, optional
-    title : str, optional
-        Prefix of every frame's title.
-
-    Returns
-    -------
-    int
-        Frames written.
-    """
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from PIL import Image
-
-    from tli_verify.io import atomic_write_bytes
-
-    S = res.states
-    pushes = sorted(e.step for e in res.events if isinstance(e, Perturbation))
-    cuts = sorted(((e.step, e.cut) for e in res.events if isinstance(e, CutAdded)),
-                  key=lambda sc: sc[0])
-    shown = np.unique(np.linspace(0, len(S) - 1, max(1, min(frames, len(S)))).astype(int))
-    lo, hi = np.array(world.lo), np.array(world.hi)
-    fig, ax = plt.subplots(figsize=(4.4, 4.6))
-    _draw_regions(ax, world, _region_grid(world))
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-    (path_line,) = ax.plot([], [], color="k", lw=1.2)
-    (dot,) = ax.plot([], [], "o", color="tab:red", ms=6)
-    drawn = 0
-    images = []
-    for t in shown:
-        P = S[: t + 1]
-        breaks = [k for k in pushes if k <= t]  # a push lands between states[k-1] and [k]
-        P = np.insert(P, breaks, np.nan, axis=0) if breaks else P
-        path_line.set_data(P[:, 0], P[:, 1])
-        dot.set_data([S[t, 0]], [S[t, 1]])
-        while drawn < len(cuts) and cuts[drawn][0] <= t:
-            _draw_cut(ax, cuts[drawn][1])
-            drawn += 1
-        ax.set_title(f"{title + ': ' if title else ''}step {t}, mode {res.modes[t]}, "
-                     f"{drawn} cut{'' if drawn == 1 else 's'}", fontsize=9)
-        fig.canvas.draw()
-        rgba = np.asarray(fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
-        images.append(Image.fromarray(rgba[..., :3]).convert("P", palette=Image.Palette.ADAPTIVE))
-    plt.close(fig)
-    buffer = io.BytesIO()
-    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:],
-                   duration=max(1, round(1000 / fps)), loop=0)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    atomic_write_bytes(path, buffer.getvalue())
-    return len(images)
-
-
-def _zoom_panel(ins: Any, world: ScoopWorld, res: EpisodeResult,
-                idx: npt.NDArray[np.int64]) -> None:
-    """A panel around the last 400 states of ``res``, modes coloured (a black, b orange),
-    the last failure states as red crosses."""
-    S = res.states[-400:]
-    c = S.mean(axis=0)
-    half = max(0.3, 0.6 * float(np.max(S.max(axis=0) - S.min(axis=0))))
-    _draw_regions(ins, world, idx)
-    modes = res.modes[-400:]
-    for i in range(len(S) - 1):
-        ins.plot(S[i:i + 2, 0], S[i:i + 2, 1], lw=0.8,
-                 color="tab:orange" if modes[i] == "b" else "k")
-    outs = np.array([e.outside for e in res.events if isinstance(e, InvarianceFailure)][-60:])
-    if len(outs):
-        ins.plot(outs[:, 0], outs[:, 1], "x", color="tab:red", ms=3)
-    ins.set_xlim(c[0] - half, c[0] + half)
-    ins.set_ylim(c[1] - half, c[1] + half)
-    ins.set_aspect("equal")
-    ins.tick_params(labelsize=7)
-    ins.set_title(f"zoom: its last {len(S)} steps (mode a black, b orange)", fontsize=9)
-    ins.set_xlabel("x1", fontsize=8)
-    ins.set_ylabel("x2", fontsize=8)
+    return Setup(task=task.with_lag(lag), automaton=synthesize(spec), model=load_model(mpath),
+                 certificate=str(cpath), spec=str(spec_path), bc=bc)
 
 
 # ----------------------------------------------------------------------------- experiment
@@ -669,11 +152,13 @@ class ExperimentConfig:
     lag: int = 0
 
 
-def _episode_plan(cfg: ExperimentConfig, exp: int, world: ScoopWorld
+def _episode_plan(cfg: ExperimentConfig, exp: int, setup: Setup
                   ) -> tuple[FloatArray, list[dict[int, FloatArray]]]:
     rng = np.random.default_rng([cfg.seed, exp, 1])
-    starts = np.array([random_start(world, rng) for _ in range(cfg.episodes)])
-    perts = [random_perturbations(rng, int(rng.integers(1, cfg.max_perturbations + 1)), world)
+    starts = np.array([random_start(setup.task, setup.automaton, rng)
+                       for _ in range(cfg.episodes)])
+    perts = [random_perturbations(rng, int(rng.integers(1, cfg.max_perturbations + 1)),
+                                  setup.task)
              for _ in range(cfg.episodes)]
     return starts, perts
 
@@ -686,7 +171,7 @@ def run_experiment(cfg: ExperimentConfig, exp: int) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="tli-scoop-") as tmp:
         setup = learn_setup(cfg.seed * 1000 + exp, n_demos, tmp, lag=cfg.lag,
                             bc_epochs=cfg.bc_epochs)
-        starts, perts = _episode_plan(cfg, exp, setup.world)
+        starts, perts = _episode_plan(cfg, exp, setup)
         out: dict[str, Any] = {"experiment": exp, "demos": n_demos, "variants": {}}
         for variant in VARIANTS:
             res = run_variant_batch(setup, variant, starts, perts, steps=cfg.steps)
@@ -756,7 +241,7 @@ def fig7_search(seed: int, tries: int, steps: int, lag: int = 0) -> dict[str, An
         ``{"lag", "stage", "tries", "seed", "found", "text"}``; ``found`` is :func:`find_loop`'s
         record (with the episodes, not JSON-ready; :func:`fig7_record` makes it so) or None.
     """
-    setup = bundled_setup(lag=lag)
+    setup = scoop_setup(lag=lag)
     tried = []
     for stage, start in (("perturbed nominal run", NOMINAL_START), ("random start", None)):
         f = find_loop(setup, seed=seed, tries=tries, steps=steps, start=start,
@@ -792,7 +277,7 @@ def _fig7_text(f: Mapping[str, Any], lag: int, stage: str, tries: int) -> str:
             f"the spoon straight back, {f['loops']} times, until the budget of {p.steps} "
             f"steps runs out; LTL-DS runs {mode_string(r)}: the first b -> a failure adds "
             f"{r.cuts_added} cut to mode b, which is never crossed again, and d is reached at "
-            f"step {r.steps}. Replay: tli run --world scoop {_replay_args(f)} "
+            f"step {r.steps}. Replay: tli run --task scoop {_replay_args(f)} "
             "[--no-modulation].")
 
 
@@ -830,7 +315,7 @@ def is_fig7_rescue(res: EpisodeResult) -> bool:
             and len(cuts) == 1 and cuts[0].mode == "b")
 
 
-def _rounded_perturbations(rng: np.random.Generator, count: int, world: ScoopWorld, *,
+def _rounded_perturbations(rng: np.random.Generator, count: int, world: Task, *,
                            last: int) -> dict[int, FloatArray]:
     table = random_perturbations(rng, count, world, last=last)
     return {t: np.array([float(f"{v:.2f}") for v in d]) for t, d in table.items()}
@@ -864,8 +349,9 @@ def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 300
         starts = np.tile(x0, (tries, 1))
     else:
         last = 700
-        starts = np.array([random_start(setup.world, rng) for _ in range(tries)])
-    perts = [_rounded_perturbations(rng, perturbations, setup.world, last=last)
+        starts = np.array([random_start(setup.task, setup.automaton, rng)
+                           for _ in range(tries)])
+    perts = [_rounded_perturbations(rng, perturbations, setup.task, last=last)
              if perturbations else {} for _ in range(tries)]
     plain = run_variant_batch(setup, "no-modulation", starts, perts, steps=steps)
     order = [i for i in range(tries) if is_fig7_loop(plain[i], steps, min_rounds=min_rounds)]
@@ -904,7 +390,7 @@ def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
         "start": [float(v) for v in f["start"]],
         "perturbations": [{"step": int(t), "displacement": [float(v) for v in d]}
                           for t, d in sorted(f["perturbations"].items())],
-        "replay": f"tli run --world scoop {_replay_args(f)}",
+        "replay": f"tli run --task scoop {_replay_args(f)}",
         "no_modulation": {
             "success": bool(p.success), "steps": int(p.steps),
             "budget_exhausted": bool(not p.success),
@@ -925,32 +411,34 @@ def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def plot_fig7(world: ScoopWorld, search: Mapping[str, Any],
+def plot_fig7(task: Task, search: Mapping[str, Any],
               path: str | os.PathLike[str]) -> None:
     """Fig. 7-style picture of a case :func:`fig7_search` found (PNG, atomic).
 
-    Three panels (:func:`plot_episode`): the unmodulated run looping until its budget, its
-    last 400 steps zoomed on the loop at the soup's surface, and LTL-DS with the cut it added
-    (blue); the unperturbed run from the same start is dashed grey.
+    Three panels (:func:`tli_verify.viz.episodes.plot_episodes`): the unmodulated run looping
+    until its budget, its last 400 steps zoomed on the loop at the soup's surface, and LTL-DS
+    with the cut it added (blue); the unperturbed run from the same start is dashed grey.
 
     Raises
     ------
     TliError
         The search found no case.
     """
+    from tli_verify.viz.episodes import plot_episodes
+
     f = search["found"]
     if f is None:
         raise TliError("no Fig. 7 case to draw (the search found none)")
     p, r = f["no_modulation"], f["ltl_ds"]
     nominal = None
     if f["perturbations"]:
-        nominal = run_variant(bundled_setup(lag=search["lag"]), "no-modulation", f["start"],
+        nominal = run_variant(scoop_setup(lag=search["lag"]), "no-modulation", f["start"],
                               {}, steps=p.steps)
-    plot_episode(world, p, path, nominal=nominal, label="no modulation",
-                 others=[("LTL-DS", r)], zoom_first=True,
-                 title=f"Fig. 7: without modulation a -> b -> a ... until the budget "
-                       f"({b_to_a_failures(p)} b -> a failures in {p.steps} steps); LTL-DS "
-                       "cuts the first b -> a failure (blue) and reaches d")
+    plot_episodes(task, [("no modulation", p), ("LTL-DS", r)], path, nominal=nominal,
+                  zoom_first=True, goal_label="d",
+                  title=f"Fig. 7: without modulation a -> b -> a ... until the budget "
+                        f"({b_to_a_failures(p)} b -> a failures in {p.steps} steps); LTL-DS "
+                        "cuts the first b -> a failure (blue) and reaches d")
 
 
 # ----------------------------------------------------------------------------- report

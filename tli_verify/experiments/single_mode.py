@@ -3,7 +3,7 @@
 Protocol (one *trial* = one random convex mode):
 
 1. Draw a convex polygon mode, an attractor inside it and 1-3 synthetic demonstrations
-   (:func:`tli_verify.worlds.convex.make_task`).
+   (:func:`tli_verify.tasks.generate.make_task`).
 2. Learn an LPV-DS (:func:`tli_verify.ds.lpvds.learn_lpvds`) and the BC baseline
    (:func:`tli_verify.ds.bc.train_bc`) from the demonstrations.
 3. For each noise level (0%, 5%, 30% of the workspace side) draw 100 start states: demonstrated
@@ -331,7 +331,7 @@ def run_trial(
     """
     from tli_verify.ds.bc import train_bc
     from tli_verify.ds.lpvds import learn_lpvds
-    from tli_verify.worlds.convex import make_task
+    from tli_verify.tasks.generate import make_task
 
     t0 = time.perf_counter()
     (task_rng, start_rng, cut_rng, held_rng), ds_seed, bc_seed = _trial_seeds(config.seed, trial)

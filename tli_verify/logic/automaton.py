@@ -297,7 +297,7 @@ class TaskAutomaton:
 
         This is the one planner of the toolkit: the executive runs what it returns
         (:class:`tli_verify.runtime.executive.LTLDSPolicy`) and the deployment gate checks
-        its coverage with it (:func:`tli_verify.certify.gate.run_gate`, check ``modes``), so
+        its coverage with it (:func:`tli_verify.deploy.gate.run_gate`, check ``modes``), so
         a model the gate passes has a DS in every state the executive can enter.
 
         Rules, in state ``s`` of mode ``m`` with the other modes ``M`` it can move to:

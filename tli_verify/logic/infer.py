@@ -171,7 +171,8 @@ def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[
     """Label every sample (:func:`~tli_verify.segmentation.spec_labeler`) and collect the
     runs of equal label groups. Unlike :func:`~tli_verify.segmentation.segment_demos` this
     needs no DS training data: a group seen for one sample is a valid observation."""
-    from tli_verify.segmentation import _runs, spec_labeler
+    from tli_verify.logic.labels import runs as _runs
+    from tli_verify.logic.labels import spec_labeler
 
     # A minimal spec carrying the labels, for spec_labeler (label evaluation and messages).
     holder = GR1Spec(name="labels", inputs=tuple(sensors), outputs=tuple(labels),

@@ -24,6 +24,11 @@ labels of sensor states"): exactly one mode at a time and a mode only where its 
 (guarantees), and sensors that always show some mode's label (an assumption, paper Asm. 3).
 ``tli spec check --explain`` lists them.
 
+``task = "NAME"`` (or a path to a task file, relative to the spec) names the task whose sensors
+the spec's inputs are (:mod:`tli_verify.tasks`); ``[goal]`` (``modes = ["d"]``, ``sensors =
+["rel"]``) says what completes an episode when it is not the automaton's sink modes (a cyclic
+task), and overrides the task's goal.
+
 ``expect = "unrealizable"`` marks a spec shipped on purpose as an unrealizable example, and
 ``expect = "not-well-separated"`` one that is realizable only vacuously; the default is
 ``"realizable"`` (and well-separated). The deployment gate checks that every spec's verdict
@@ -60,7 +65,8 @@ __all__ = [
 ]
 
 _TOP_KEYS = frozenset(
-    {"name", "description", "inputs", "outputs", "modes", "assume", "guarantee", "expect"}
+    {"name", "description", "inputs", "outputs", "modes", "assume", "guarantee", "expect",
+     "task", "goal"}
 )
 _SIDE_KEYS = frozenset({"init", "safety", "liveness"})
 EXPECTATIONS = ("realizable", "unrealizable", "not-well-separated")
@@ -146,6 +152,12 @@ class GR1Spec:
         ``"not-well-separated"`` (shipped on purpose as a bad example).
     description : str
         Free text.
+    task : str or None
+        The task the spec is written over: a task name, or a task file relative to the spec.
+    goal_modes : tuple of str or None
+        Modes that complete an episode (``[goal] modes``; None: not given).
+    goal_sensors : tuple of str
+        Sensors that must also read true there (``[goal] sensors``).
     """
 
     name: str
@@ -157,6 +169,9 @@ class GR1Spec:
     path: str | None = None
     expect: str = "realizable"
     description: str = ""
+    task: str | None = None
+    goal_modes: tuple[str, ...] | None = None
+    goal_sensors: tuple[str, ...] = ()
 
     @property
     def expect_realizable(self) -> bool:
@@ -237,6 +252,12 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     guarantee = _side(data.get("guarantee", {}), "guarantee", inputs, outputs, where, lines)
     if modes is not None:
         assume, guarantee = _add_mode_constraints(modes, outputs, assume, guarantee)
+    task = data.get("task")
+    if task is not None and (not isinstance(task, str) or not task.strip() or len(task) > 1000
+                             or any(ord(ch) < 0x20 for ch in task)):
+        raise SpecError(f"{where}:{lines.key('task') or 1}: 'task' must be a task name or a "
+                        "task file path (one line)")
+    goal_modes, goal_sensors = _goal(data.get("goal"), inputs, outputs, modes, where, lines)
     return GR1Spec(
         name=name,
         inputs=inputs,
@@ -247,7 +268,41 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         path=path,
         expect=expect,
         description=description,
+        task=task,
+        goal_modes=goal_modes,
+        goal_sensors=goal_sensors,
     )
+
+
+def _goal(raw: Any, inputs: tuple[str, ...], outputs: tuple[str, ...],
+          modes: dict[str, str] | None, where: str, lines: _LineFinder
+          ) -> tuple[tuple[str, ...] | None, tuple[str, ...]]:
+    """The ``[goal]`` table: goal modes (outputs that are modes) and goal sensors (inputs)."""
+    if raw is None:
+        return None, ()
+    loc = f"{where}:{lines.section('goal') + 1}"
+    if not isinstance(raw, dict):
+        raise SpecError(f"{loc}: [goal] must be a table with modes and sensors")
+    unknown = sorted(set(raw) - {"modes", "sensors"})
+    if unknown:
+        raise SpecError(f"{loc}: [goal]: unknown key {unknown[0]!r} (allowed: modes, sensors)")
+    mode_names = tuple(o for o in outputs if modes is None or o in modes)
+    gm = raw.get("modes")
+    if gm is not None and (not isinstance(gm, list) or not gm
+                           or not all(isinstance(m, str) for m in gm)):
+        raise SpecError(f"{loc}: goal.modes: expected a non-empty list of mode names")
+    for m in gm or ():
+        if m not in mode_names:
+            raise SpecError(f"{loc}: goal.modes: {m!r} is not a mode of the spec "
+                            f"({', '.join(mode_names)})")
+    gs = raw.get("sensors", [])
+    if not isinstance(gs, list) or not all(isinstance(v, str) for v in gs):
+        raise SpecError(f"{loc}: goal.sensors: expected a list of input names")
+    for v in gs:
+        if v not in inputs:
+            raise SpecError(f"{loc}: goal.sensors: {v!r} is not an input of the spec "
+                            f"({', '.join(inputs)})")
+    return (None if gm is None else tuple(gm)), tuple(gs)
 
 
 def _too_deep(data: Any) -> str | None:

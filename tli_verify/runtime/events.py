@@ -5,6 +5,7 @@ Every event carries the control step ``step`` (0 = the ``reset`` reading) at whi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,9 +26,20 @@ __all__ = [
     "TransitionLearned",
     "TransitionRefused",
     "event_to_json",
+    "mode_sequence",
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def mode_sequence(modes: Sequence[str]) -> str:
+    """The modes visited, in order, run-length collapsed: ``"abcd"`` when every name is one
+    character, else joined by ``-`` (``"w1-y-d1"``). The one form every report uses."""
+    runs: list[str] = []
+    for m in modes:
+        if not runs or runs[-1] != m:
+            runs.append(str(m))
+    return "".join(runs) if all(len(m) == 1 for m in runs) else "-".join(runs)
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,13 +1,12 @@
-"""Adapt a task world (:mod:`tli_verify.worlds`) to the executive's :class:`SensorModel`.
+"""Adapt a task (:mod:`tli_verify.tasks`) to the executive's :class:`SensorModel`.
 
-Imports go one way: the runtime consumes worlds (this module imports
-:mod:`tli_verify.worlds.base` for the protocol only); worlds never import the runtime.
+Imports go one way: the runtime consumes tasks; tasks never import the runtime.
 
-A world's sensor model is batched and stateful (:meth:`tli_verify.worlds.base.WorldBase.read`:
+A task's sensor model is batched and stateful (:meth:`tli_verify.tasks.task.Task.read`:
 ``(x_prev, x, latent) -> (reading, latent)``, with a lag of ``L`` steps: the reading at step
 ``k`` is computed from the state at step ``max(k - L, 0)``). :class:`WorldSensors` keeps one
 episode's history and latent state and answers ``read(x)`` once per control step, exactly as
-:meth:`~tli_verify.worlds.base.WorldBase.sensors` scans a whole history.
+:meth:`~tli_verify.tasks.task.Task.sensors` scans a whole history.
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.worlds.base import World
+from tli_verify.tasks.task import Task
 
 __all__ = ["WorldSensors"]
 
@@ -31,16 +30,17 @@ Hit = tuple[dict[str, bool], tuple[bool, ...], frozenset[str]]
 
 
 class WorldSensors:
-    """One episode's sensor model of a world (the runtime's ``SensorModel`` protocol).
+    """One episode's sensor model of a task (the runtime's ``SensorModel`` protocol).
 
     Parameters
     ----------
-    world : World
-        E.g. :class:`tli_verify.worlds.ScoopWorld`; its ``lag`` is honoured.
+    world : Task
+        Its ``lag`` is honoured.
     cache : dict, optional
-        Reading memo shared between episodes of one world (see Notes); default: its own.
+        Reading memo shared between episodes of one task (see Notes); default: its own.
     region_cache : bool, optional
-        Memoize ``world.read`` on ``(region of x_prev, region of x, latent)`` (default True).
+        Memoize ``world.read`` on ``(cells and layers of x_prev, of x, latent)`` (default:
+        when the task's sensor model is ``cell_based``).
 
     Notes
     -----
@@ -48,27 +48,30 @@ class WorldSensors:
     latent state (scooping: soup on the spoon) starts at ``world.initial_latent`` on
     :meth:`reset`.
 
-    Every bundled world's ``read`` depends on the states only through their true regions
-    (``world.region_index``) and on the latent state, so one reading per ``(region before,
-    region now, latent)`` is exact and saves the batched call's overhead on a single state
-    (about 30 of 40 microseconds per step); ``region_cache=False`` calls ``world.read`` every
-    step (for a world whose sensors look at more than the region). A shared ``cache`` must only
-    be shared by sensors of the same world.
+    A task file's sensors (formulas over regions and latches) depend on the states only through
+    the partition cell and the layers they lie in (``Task.reading_key_one``) and on the latent
+    state, so one reading per ``(key before, key now, latent)`` is exact and saves the batched
+    call's overhead on a single state (about 30 of 40 microseconds per step); a Python sensor
+    model that is not ``cell_based`` is read every step. A shared ``cache`` must only be
+    shared by sensors of the same task.
     """
 
     __slots__ = ("_cache", "_hist", "_latent", "_one", "_prev", "names", "region_cache",
                  "world")
 
-    def __init__(self, world: World, *, cache: dict[Key, Hit] | None = None,
-                 region_cache: bool = True) -> None:
+    def __init__(self, world: Task, *, cache: dict[Key, Hit] | None = None,
+                 region_cache: bool | None = None) -> None:
         self.world = world
         self.names = tuple(world.sensor_names)
+        if region_cache is None:
+            region_cache = bool(getattr(world.sensor_model, "cell_based", False))
         self.region_cache = bool(region_cache)
         self._cache = {} if cache is None else cache
         self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)  # (x (n,), region)
         self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
         self._prev: tuple[FloatArray, int] | None = None
-        self._one: Callable[[list[float]], int] | None = getattr(world, "region_one", None)
+        self._one: Callable[[list[float]], int] | None = getattr(world, "reading_key_one",
+                                                                 None)
 
     def reset(self, x0: FloatArray) -> None:
         """Start an episode at ``x0`` (history and latent state cleared)."""
@@ -103,9 +106,9 @@ class WorldSensors:
         if not self.region_cache:
             region = -1
         elif self._one is not None and point is not None:
-            region = self._one(point)  # the world's scalar region test
+            region = self._one(point)  # the task's scalar cell-and-layers key
         else:
-            region = int(self.world.region_index(xa[None, :])[0])
+            region = self.world.reading_key_one(xa.tolist())
         self._hist.append((xa, region))
         lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
         prev = lagged if self._prev is None else self._prev

@@ -50,6 +50,7 @@ from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+from tli_verify.sim.perturbations import Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
 from tli_verify.sim.sensors import Debounce
@@ -80,34 +81,6 @@ MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
 """How far (dm, dm, dm, rad) the target may leave the demonstrations' bounding box: the
 workspace limits of the hand (the DS extrapolates poorly far from its data: after a spilling
 tilt it turned the ladle over and drifted 1.5 dm sideways)."""
-
-
-@dataclass(frozen=True, slots=True)
-class Perturbation:
-    """One wrench on the hand.
-
-    Attributes
-    ----------
-    kind : str
-        ``"push"`` (motion level) or ``"tilt"`` (task level: spills).
-    start : float
-        Seconds: after the trial's start (push), or after the soup is first on the spoon
-        (tilt).
-    duration : float
-        Seconds.
-    wrench : tuple of float, length 6
-        Force (N) and torque (Nm) in the world frame.
-    """
-
-    kind: str
-    start: float
-    duration: float
-    wrench: tuple[float, ...]
-
-    def to_json(self) -> dict[str, Any]:
-        """The JSON record."""
-        return {"kind": self.kind, "start": round(self.start, 4),
-                "duration": self.duration, "wrench": [round(w, 4) for w in self.wrench]}
 
 
 def project_dir() -> Path:
@@ -154,8 +127,6 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
     -------
     list of Perturbation
     """
-    from tli_verify.sim.campaign import draw
-
     return draw(seed, pushes=pushes, tilts=tilts)
 
 
@@ -241,10 +212,8 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         (naming the certificate).
     """
     from tli_verify.errors import CertificateError
-    from tli_verify.experiments.scoop import SequencePolicy
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.runtime.setup import load_setup, make_policy
+    from tli_verify.tasks.project import resolve
 
     if variant not in VARIANTS:
         raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
@@ -254,19 +223,23 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         base = Path(certificates).parent  # a project: models/ and specs/ next to it
     else:
         base = project_dir()
-    cert_dir = Path(certificates) if certificates is not None else base / "certificates"
-    cert = cert_dir / "franka-scoop.cert.json"
-    if not cert.is_file():
+    model = base / "models" / "franka-scoop.model.json"
+    cert = (Path(certificates) / "franka-scoop.cert.json" if certificates is not None
+            else None)
+    if cert is not None and not cert.is_file():
         raise CertificateError(f"{cert}: refused: no certificate for models/"
                                "franka-scoop.model.json (certify it with tli certify)")
-    model = load_model(base / "models" / "franka-scoop.model.json")
-    spec_path = model.spec_path if model.spec_path is not None else \
-        base / "specs" / "franka-scoop.toml"
-    automaton = synthesize(load_spec(spec_path))
-    if variant == "no-replan":
-        return SequencePolicy(automaton, model, cert, dt=CONTROL_DT)
-    return LTLDSPolicy(automaton, model, cert, dt=CONTROL_DT,
-                       learn_cuts=variant != "no-modulation")
+    try:
+        resolved = resolve(model=model, certificate=cert)
+    except TliError as exc:
+        if "certificate" in str(exc):
+            raise CertificateError(f"refused: {exc}") from None
+        raise
+    setup = load_setup(resolved)
+    if abs(setup.task.dt - CONTROL_DT) > 1e-12:
+        raise TliError(f"{setup.task.where}: dt {setup.task.dt:g} s, but the Franka loop "
+                       f"controls at {CONTROL_DT:g} s")
+    return make_policy(setup, variant)
 
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",

@@ -44,7 +44,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -72,7 +72,6 @@ from tli_verify.verify.strategies import (
 
 __all__ = [
     "CASE_KIND",
-    "NOMINAL_STARTS",
     "CampaignConfig",
     "CampaignResult",
     "Loaded",
@@ -97,8 +96,8 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 CASE_KIND = "tli-verify/bisimulation-case"
-NOMINAL_STARTS: dict[str, tuple[float, ...]] = {"scoop": (-5.0, 4.5)}
-"""The start of the scripted demonstrator's nominal run, per world (the default start)."""
+CASE_VERSION = 2
+"""Version 2 binds the task (``files.task``); version 1 named a bundled world (``world``)."""
 
 
 # ------------------------------------------------------------------------------ config
@@ -108,11 +107,11 @@ class CampaignConfig:
 
     Attributes
     ----------
-    world : str
-        World name (:data:`tli_verify.worlds.WORLDS`); its sensor model and true regions.
+    task : str or None
+        A task name or task file (:func:`tli_verify.tasks.registry.find_task`): its sensor
+        model, true regions, starts and perturbation bounds (default: the task the spec names).
     spec, model, certificate : str or None
-        Files (default: the bundled ``models/<world>.model.json``, its certificate, and the
-        spec the model names).
+        Files, resolved by the project rules (:func:`tli_verify.tasks.project.resolve`).
     examples : int
         Cases drawn and simulated.
     seed : int
@@ -126,18 +125,19 @@ class CampaignConfig:
         Dask scheduler address (``--backend dask``).
     batch_size : int
         Runs per batch (one task).
-    max_pushes : int
-        Perturbations per case, at most.
-    window : int
-        Perturbations happen in steps ``1..window``.
+    max_pushes : int or None
+        Perturbations per case, at most (default: the task's ``perturbations.max_pushes``).
+    window : int or None
+        Perturbations happen in steps ``1..window`` (default: the task's).
     levels : tuple of str
         Perturbation levels (:data:`~tli_verify.verify.strategies.LEVELS`).
     start : tuple of float or None
-        Fixed start (default: :data:`NOMINAL_STARTS` of the world; ``random_starts`` draws).
-    random_starts : bool
-        Draw starts too (in the regions whose first reading the spec allows).
-    lag : int
-        Sensor lag of the world (steps).
+        Fixed start (default: the task's first nominal start).
+    random_starts : bool or None
+        Draw starts too (in the regions whose first reading the spec allows); default: when
+        the task has no nominal start.
+    lag : int or None
+        Sensor lag (steps; default: the task's).
     max_cycles : int or None
         Loop bound of the oracle (default: the number of modes).
     shrink : bool
@@ -146,7 +146,7 @@ class CampaignConfig:
         Extra driver-side targeted examples when nothing was found (0: none).
     """
 
-    world: str = "scoop"
+    task: str | None = None
     spec: str | None = None
     model: str | None = None
     certificate: str | None = None
@@ -157,12 +157,12 @@ class CampaignConfig:
     backend: str = "process"
     scheduler: str | None = None
     batch_size: int = 100
-    max_pushes: int = 3
-    window: int = 700
+    max_pushes: int | None = None
+    window: int | None = None
     levels: tuple[str, ...] = LEVELS
     start: tuple[float, ...] | None = None
-    random_starts: bool = False
-    lag: int = 0
+    random_starts: bool | None = None
+    lag: int | None = None
     max_cycles: int | None = None
     shrink: bool = True
     target_examples: int = 0
@@ -176,8 +176,9 @@ class CampaignConfig:
             raise CampaignError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.workers is not None and self.workers < 1:
             raise CampaignError(f"workers must be >= 1, got {self.workers}")
-        if not (1 <= self.window <= MAX_CAMPAIGN_STEPS and 0 <= self.lag <= MAX_CAMPAIGN_STEPS
-                and 0 <= self.max_pushes <= MAX_PUSHES):
+        if not ((self.window is None or 1 <= self.window <= MAX_CAMPAIGN_STEPS)
+                and (self.lag is None or 0 <= self.lag <= MAX_CAMPAIGN_STEPS)
+                and (self.max_pushes is None or 0 <= self.max_pushes <= MAX_PUSHES)):
             raise CampaignError(f"window must be in [1, {MAX_CAMPAIGN_STEPS}], lag in "
                                 f"[0, {MAX_CAMPAIGN_STEPS}] and max_pushes in [0, {MAX_PUSHES}]")
         if self.target_examples < 0:
@@ -186,9 +187,15 @@ class CampaignConfig:
 
 @dataclass(frozen=True, slots=True)
 class SimSpec:
-    """What a worker needs to rebuild the setup (files by path and SHA-256; picklable)."""
+    """What a worker needs to rebuild the setup (files by path and SHA-256; picklable).
 
-    world: str
+    ``task`` is the task file's path, or the name of an entry-point task (a worker finds it in
+    the installed metadata); ``task_sha256`` is what binds it (the file's SHA-256, or the
+    entry point's source SHA-256).
+    """
+
+    task: str
+    task_sha256: str
     lag: int
     spec: str
     model: str
@@ -256,7 +263,10 @@ class CampaignResult:
     events : tuple of str
         Notable events (worker lost, ...).
     files : dict
-        ``spec``, ``model``, ``certificate``: ``{"path", "sha256"}``.
+        ``spec``, ``model``, ``certificate``: ``{"path", "sha256"}``; ``task``: ``{"path" or
+        "entry_point", "sha256"}``.
+    task_name : str
+        The task's name.
     """
 
     config: CampaignConfig
@@ -275,12 +285,13 @@ class CampaignResult:
     shrink_steps: int = 0
     events: tuple[str, ...] = ()
     files: dict[str, Any] = field(default_factory=dict)
+    task_name: str = ""
 
     def to_json(self) -> dict[str, Any]:
         """The ``tli verify --json`` record."""
         c = self.config
         return {
-            "world": c.world,
+            "task": {"name": self.task_name, **self.files.get("task", {})},
             "examples": c.examples,
             "seed": c.seed,
             "modulation": c.modulation,
@@ -313,58 +324,82 @@ class CampaignResult:
 
 
 # ------------------------------------------------------------------------------ setup
-def _resolve(cfg: CampaignConfig) -> tuple[Path, Path, Path]:
-    from tli_verify.io import bundled_dir
-    from tli_verify.model import load_model
-    from tli_verify.worlds import WORLDS
-
-    if cfg.world not in WORLDS:
-        raise CampaignError(f"--world {cfg.world!r}: unknown world (worlds: "
-                            f"{', '.join(sorted(WORLDS))})")
-    model = Path(cfg.model) if cfg.model else bundled_dir("models") / f"{cfg.world}.model.json"
-    if not model.is_file():
-        raise CampaignError(f"{model}: no such model file (pass --model for world "
-                            f"{cfg.world!r})")
-    if cfg.certificate:
-        cert = Path(cfg.certificate)
-    elif cfg.model:
-        from tli_verify.commands.run import certificate_next_to
-
-        cert = certificate_next_to(model)
-    else:
-        cert = bundled_dir("certificates") / f"{cfg.world}.cert.json"
-    if not cert.is_file():
-        raise CampaignError(f"{cert}: no such certificate file")
-    named = load_model(model).spec_path
-    if cfg.spec:
-        spec = Path(cfg.spec)
-        if named is not None and Path(os.path.realpath(spec)) != named:
-            raise CampaignError(f"--spec {spec}: not the spec the model names ({named}); the "
-                                "certificate binds that one")
-    elif named is not None:
-        spec = named
-    else:
-        spec = bundled_dir("specs") / f"{cfg.world}.toml"
-    if not spec.is_file():
-        raise CampaignError(f"{spec}: no such spec file")
-    return spec, model, cert
-
-
-def sim_spec(cfg: CampaignConfig) -> SimSpec:
-    """Resolve the files of a config and hash them.
+def task_ref(task: Any) -> tuple[str, str]:
+    """How a worker finds a task again, and what binds it: ``(task file path, its SHA-256)``,
+    or ``(entry point name, its source SHA-256)``.
 
     Raises
     ------
     CampaignError
-        (exit 2) Unknown world, missing files.
+        (exit 2) A task built in memory (it cannot be bound or found by a worker).
+    """
+    src = task.source
+    if src.kind == "file" and src.path is not None and src.sha256 is not None:
+        return src.path, src.sha256
+    if src.kind == "entry-point" and src.entry_point is not None and src.source_sha256:
+        return src.entry_point, src.source_sha256
+    raise CampaignError(f"task {task.name!r} was built in memory: campaigns need a task file "
+                        "or an entry-point task")
+
+
+def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
+    """The config's files by the project rules, and the config with the task's defaults
+    filled in (window, max_pushes, lag, start or random starts).
+
+    Raises
+    ------
+    TaskError, CampaignError
+        (exit 2) Missing files, a model or spec that does not fit the task, a start outside
+        the workspace or of the wrong dimension.
+    """
+    from tli_verify.tasks.project import resolve
+
+    resolved = resolve(task=cfg.task, spec=cfg.spec, model=cfg.model,
+                       certificate=cfg.certificate, lag=cfg.lag)
+    task = resolved.task
+    start = cfg.start
+    random_starts = cfg.random_starts
+    if random_starts is None:
+        random_starts = start is None and not task.starts.nominal
+    if not random_starts and start is None:
+        if not task.starts.nominal:
+            raise CampaignError(f"task {task.name!r} has no nominal start ([starts] nominal): "
+                                "pass a start or use random starts")
+        start = task.starts.nominal[0]
+    if start is not None:
+        if len(start) != task.dim:
+            raise CampaignError(f"start: expected {task.dim} coordinates (task "
+                                f"{task.name!r}), got {len(start)}")
+        if not bool(task.in_workspace(np.asarray(start, dtype=np.float64)[None])[0]):
+            raise CampaignError(f"start {list(start)}: outside the workspace of task "
+                                f"{task.name!r}")
+    filled = replace(cfg, window=task.perturbations.window if cfg.window is None else cfg.window,
+                     max_pushes=(task.perturbations.max_pushes if cfg.max_pushes is None
+                                 else cfg.max_pushes),
+                     lag=task.lag, random_starts=bool(random_starts),
+                     start=None if random_starts else tuple(float(v) for v in start or ()))
+    return resolved, filled
+
+
+def sim_spec(cfg: CampaignConfig) -> SimSpec:
+    """Resolve the files of a config (its task defaults filled in) and hash them.
+
+    Raises
+    ------
+    CampaignError, TaskError
+        (exit 2) Unknown task, missing files, files that do not fit.
     """
     from tli_verify.io import sha256_file
 
-    spec, model, cert = _resolve(cfg)
-    return SimSpec(world=cfg.world, lag=cfg.lag, spec=str(spec), model=str(model),
-                   certificate=str(cert),
-                   hashes=(sha256_file(spec), sha256_file(model), sha256_file(cert)),
-                   modulation=cfg.modulation, max_cycles=cfg.max_cycles, window=cfg.window)
+    resolved, filled = resolve_config(cfg)
+    ref, sha = task_ref(resolved.task)
+    assert filled.window is not None
+    assert filled.lag is not None
+    return SimSpec(task=ref, task_sha256=sha, lag=filled.lag, spec=str(resolved.spec),
+                   model=str(resolved.model), certificate=str(resolved.certificate),
+                   hashes=(sha256_file(resolved.spec), sha256_file(resolved.model),
+                           sha256_file(resolved.certificate)),
+                   modulation=cfg.modulation, max_cycles=cfg.max_cycles, window=filled.window)
 
 
 class WatchedPolicy(LTLDSPolicy):
@@ -387,12 +422,7 @@ class WatchedPolicy(LTLDSPolicy):
 
     def watch(self, after: int, limit: int, max_cuts: int) -> WatchedPolicy:
         """A fork for one episode with the watchdog armed."""
-        new = object.__new__(WatchedPolicy)
-        for name in LTLDSPolicy.__slots__:
-            setattr(new, name, getattr(self, name))
-        new.events = list(self.events)
-        new._entries = {k: list(v) for k, v in self._entries.items()}
-        new._plan_cache = dict(self._plan_cache)
+        new = cast(WatchedPolicy, self.fork())
         new._after = int(after)
         new._limit = int(limit)
         new._max_cuts = int(max_cuts)
@@ -435,6 +465,24 @@ class Loaded:
     limit: int
 
 
+def load_task(spec: SimSpec) -> Any:
+    """The task of a :class:`SimSpec`, checked against the hash the driver bound.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) The task changed since the campaign resolved it.
+    """
+    from tli_verify.tasks.registry import find_task
+
+    task = find_task(spec.task)
+    _, sha = task_ref(task)
+    if sha != spec.task_sha256:
+        raise CampaignError(f"{spec.task}: the task changed during the campaign (SHA-256 "
+                            "differs)")
+    return task.with_lag(spec.lag)
+
+
 @lru_cache(maxsize=4)
 def load(spec: SimSpec) -> Loaded:
     """Load (once per process) what the runs of a :class:`SimSpec` need.
@@ -446,30 +494,31 @@ def load(spec: SimSpec) -> Loaded:
         campaign).
     """
     from tli_verify.io import sha256_file
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
-    from tli_verify.runtime.bundles import bundle_for_spec
-    from tli_verify.worlds import WORLDS
+    from tli_verify.runtime.setup import check_goal
+    from tli_verify.tasks.project import resolve
 
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
         if sha256_file(path) != want:
             raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
-    world = WORLDS[spec.world](lag=spec.lag)
+    task = load_task(spec)
+    resolved = resolve(task=task, spec=spec.spec, model=spec.model,
+                       certificate=spec.certificate)
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+
     automaton = synthesize(load_spec(spec.spec))
     model = load_model(spec.model)
-    # the goal a world ships with its spec (a cyclic task's goal mode and sensors); else the
-    # automaton's sink modes -- one goal for the policy and the oracle
-    bundle = bundle_for_spec(spec.spec)
-    goal_modes = bundle.goal_modes if bundle is not None else None
-    goal_inputs = bundle.goal_inputs if bundle is not None else ()
+    # one goal for the policy and the oracle: the spec's, else the task's, else the sinks
+    goal_modes = check_goal(automaton, resolved.goal, where=spec.spec)
+    goal_inputs = resolved.goal.sensors
     base = WatchedPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation,
-                         goal_modes=goal_modes, goal_inputs=goal_inputs)
-    oracle = Oracle.build(world, automaton, model, spec.certificate, dt=base.dt,
+                         goal_modes=goal_modes, goal_inputs=goal_inputs, dt=task.dt)
+    oracle = Oracle.build(task, automaton, model, spec.certificate, dt=base.dt,
                           max_cycles=spec.max_cycles, goal_modes=goal_modes,
                           goal_inputs=goal_inputs)
     limit = 5 * (oracle.max_cycles + len(automaton.modes) + 1)
-    return Loaded(world=world, automaton=automaton, model=model,
+    return Loaded(world=task, automaton=automaton, model=model,
                   certificate=spec.certificate, policy=base, oracle=oracle,
                   budget=oracle.budget(spec.window), limit=limit)
 
@@ -570,7 +619,7 @@ def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunO
     """
     import threadpoolctl
 
-    from tli_verify.experiments.scoop import mode_string
+    from tli_verify.runtime.episodes import mode_string
 
     spec, items = job
     with threadpoolctl.threadpool_limits(1):
@@ -589,21 +638,19 @@ def check_case(spec: SimSpec, case: Case) -> Verdict:
 
 # ------------------------------------------------------------------------------ drawing
 def _strategy(cfg: CampaignConfig, ld: Loaded) -> Any:
-    start = None
-    if not cfg.random_starts:
-        start = cfg.start if cfg.start is not None else NOMINAL_STARTS.get(cfg.world)
-        if start is None:
-            raise CampaignError(f"world {cfg.world!r} has no nominal start: pass a start or "
-                                "use random starts")
-        if len(start) != ld.model.dim:
-            raise CampaignError(f"start: expected {ld.model.dim} coordinates, got "
-                                f"{len(start)}")
-        if not bool(ld.world.in_workspace(np.asarray(start)[None])[0]):
-            raise CampaignError(f"start {list(start)}: outside the workspace")
-    return cases(ld.world, start=start, max_pushes=cfg.max_pushes, window=cfg.window,
-                 levels=cfg.levels,
-                 start_regions=start_regions(ld.world, ld.automaton) if start is None
-                 else None)
+    """The cases of a filled-in config (:func:`resolve_config`): its start or random starts,
+    the task's perturbation bound."""
+    task = ld.world
+    assert cfg.max_pushes is not None
+    assert cfg.window is not None
+    regions = None
+    if cfg.random_starts:
+        regions = start_regions(task, ld.automaton)
+        if task.starts.region is not None:
+            regions = tuple(r for r in regions if r == task.starts.region) or regions
+    return cases(task, start=None if cfg.random_starts else cfg.start,
+                 max_pushes=cfg.max_pushes, window=cfg.window, levels=cfg.levels,
+                 max_magnitude=task.perturbations.max_magnitude, start_regions=regions)
 
 
 def _settings(n: int, phases: Sequence[Any]) -> Any:
@@ -797,18 +844,31 @@ def _targeted(spec: SimSpec, strategy: Any, seed: int, n: int
 
 
 # ------------------------------------------------------------------------------ cases
-def _files(spec: SimSpec) -> dict[str, dict[str, str]]:
-    """The files of a run, paths relative to the repository root when under it."""
+def _shown_path(path: str) -> str:
+    """A file's path relative to the repository root when under it, else absolute."""
     from tli_verify.io import bundled_dir
 
-    root = Path(os.path.realpath(bundled_dir("models").parent))
-    out = {}
+    try:
+        root = Path(os.path.realpath(bundled_dir("models").parent))
+    except TliError:
+        root = None
+    real = Path(os.path.realpath(path))
+    return str(real.relative_to(root)) if root is not None and real.is_relative_to(root) \
+        else str(real)
+
+
+def _files(spec: SimSpec) -> dict[str, dict[str, str]]:
+    """The files of a run (paths relative to the repository root when under it) and the task
+    (a file, or an entry point by name), each with the SHA-256 that binds it."""
+    out: dict[str, dict[str, str]] = {}
     for name, path, h in zip(("spec", "model", "certificate"),
                              (spec.spec, spec.model, spec.certificate), spec.hashes,
                              strict=True):
-        real = Path(os.path.realpath(path))
-        shown = str(real.relative_to(root)) if real.is_relative_to(root) else str(real)
-        out[name] = {"path": shown, "sha256": h}
+        out[name] = {"path": _shown_path(path), "sha256": h}
+    if os.path.isfile(spec.task):
+        out["task"] = {"path": _shown_path(spec.task), "sha256": spec.task_sha256}
+    else:
+        out["task"] = {"entry_point": spec.task, "sha256": spec.task_sha256}
     return out
 
 
@@ -820,8 +880,7 @@ def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
     primary = kind if kind is not None and kind in verdict.kinds else verdict.primary
     return {
         "kind": CASE_KIND,
-        "version": 1,
-        "world": spec.world,
+        "version": CASE_VERSION,
         "lag": spec.lag,
         "modulation": spec.modulation,
         "max_cycles": spec.max_cycles,
@@ -863,46 +922,79 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
     files = doc.get("files")
     if not isinstance(files, dict):
         raise CampaignError(f"{p}: files: expected an object")
+    def located(fp: Path) -> Path:
+        if fp.is_absolute():
+            return fp
+        from tli_verify.io import bundled_dir
+
+        candidates = [p.parent / fp]
+        try:
+            candidates.append(bundled_dir("models").parent / fp)
+        except TliError:
+            pass
+        return next((c for c in candidates if c.is_file()), candidates[0])
+
+    version = doc.get("version")
+    if version not in (1, CASE_VERSION) or isinstance(version, bool):
+        raise CampaignError(f"{p}: version: {version!r} is not a case version this tli-verify "
+                            f"reads (1 or {CASE_VERSION})")
     paths: list[str] = []
     hashes: list[str] = []
     for name in ("spec", "model", "certificate"):
         entry = files.get(name)
         if not isinstance(entry, dict) or not isinstance(entry.get("path"), str):
             raise CampaignError(f"{p}: files.{name}.path: expected a string")
-        fp = Path(entry["path"])
-        if not fp.is_absolute():
-            from tli_verify.io import bundled_dir
-
-            candidates = [p.parent / fp, bundled_dir("models").parent / fp]
-            fp = next((c for c in candidates if c.is_file()), candidates[0])
+        fp = located(Path(entry["path"]))
         if not fp.is_file():
             raise CampaignError(f"{p}: files.{name}.path: {fp}: no such file")
         paths.append(str(fp))
         hashes.append(sha256_file(fp))
-    for name in ("world", "lag", "modulation"):
+    for name in ("lag", "modulation"):
         if name not in doc:
             raise CampaignError(f"{p}: {name}: missing")
-    from tli_verify.worlds import WORLDS
+    from tli_verify.tasks.registry import find_task
 
-    if doc["world"] not in WORLDS:
-        raise CampaignError(f"{p}: world: unknown world {doc['world']!r}")
+    if version == 1:  # a bundled world by name
+        if not isinstance(doc.get("world"), str):
+            raise CampaignError(f"{p}: world: expected a task name (case version 1)")
+        task = find_task(doc["world"])
+    else:
+        entry = files.get("task")
+        if not isinstance(entry, dict) or not (isinstance(entry.get("path"), str)
+                                               or isinstance(entry.get("entry_point"), str)):
+            raise CampaignError(f"{p}: files.task: expected a task path or entry_point")
+        if isinstance(entry.get("path"), str):
+            tp = located(Path(entry["path"]))
+            if not tp.is_file():
+                raise CampaignError(f"{p}: files.task.path: {tp}: no such task file")
+            task = find_task(tp)
+        else:
+            task = find_task(entry["entry_point"])
+    task_path, task_sha = task_ref(task)
     lag, mc, window = doc["lag"], doc.get("max_cycles"), doc.get("window", 700)
-    if not isinstance(lag, int) or lag < 0 or not isinstance(doc["modulation"], bool) or \
-            (mc is not None and (not isinstance(mc, int) or mc < 0)) or \
-            not isinstance(window, int) or window < 1:
+    if not isinstance(lag, int) or isinstance(lag, bool) or lag < 0 or \
+            not isinstance(doc["modulation"], bool) or \
+            (mc is not None and (not isinstance(mc, int) or isinstance(mc, bool) or mc < 0)) \
+            or not isinstance(window, int) or isinstance(window, bool) or window < 1:
         raise CampaignError(f"{p}: lag, modulation, max_cycles or window: malformed")
     if max(lag, window) > MAX_CAMPAIGN_STEPS:
         raise CampaignError(f"{p}: lag or window: above MAX_CAMPAIGN_STEPS "
                             f"({MAX_CAMPAIGN_STEPS} steps)")
-    world = WORLDS[doc["world"]]()
-    case = case_from_json(doc, dim=len(world.lo), where=str(p))
+    case = case_from_json(doc, dim=task.dim, where=str(p))
     if case.last_step > MAX_CAMPAIGN_STEPS or len(case.pushes) > MAX_PUSHES:
         raise CampaignError(f"{p}: perturbations: a step above MAX_CAMPAIGN_STEPS "
                             f"({MAX_CAMPAIGN_STEPS}) or more than MAX_PUSHES ({MAX_PUSHES})")
-    if not bool(world.in_workspace(np.asarray(case.start)[None])[0]):
-        raise CampaignError(f"{p}: start {list(case.start)}: outside the world's workspace")
-    spec = SimSpec(world=doc["world"], lag=lag, spec=paths[0], model=paths[1],
-                   certificate=paths[2], hashes=(hashes[0], hashes[1], hashes[2]),
+    if not bool(task.in_workspace(np.asarray(case.start)[None])[0]):
+        raise CampaignError(f"{p}: start {list(case.start)}: outside the workspace of task "
+                            f"{task.name!r}")
+    for i, push in enumerate(case.pushes):
+        if push.target is not None and push.target not in task.region_names:
+            raise CampaignError(f"{p}: perturbations[{i}].target: unknown region "
+                                f"{push.target!r} of task {task.name!r} (regions: "
+                                f"{', '.join(task.region_names)})")
+    spec = SimSpec(task=task_path, task_sha256=task_sha, lag=lag, spec=paths[0],
+                   model=paths[1], certificate=paths[2],
+                   hashes=(hashes[0], hashes[1], hashes[2]),
                    modulation=doc["modulation"], max_cycles=mc,
                    window=max(window, case.last_step))
     return doc, spec, case
@@ -930,6 +1022,9 @@ def replay_case(path: str | os.PathLike[str], *, modulation: bool | None = None
              zip(("spec", "model", "certificate"), (spec.spec, spec.model, spec.certificate),
                  spec.hashes, (doc["files"][n] for n in ("spec", "model", "certificate")),
                  strict=True) if entry.get("sha256") != h]
+    saved_task = doc["files"].get("task")
+    if isinstance(saved_task, dict) and saved_task.get("sha256") != spec.task_sha256:
+        notes.append(f"task: {spec.task} changed since the case was saved (SHA-256 differs)")
     if modulation is not None:
         spec = replace(spec, modulation=modulation)
     verdict = check_case(spec, case)
@@ -998,6 +1093,7 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         if on_event is not None:
             on_event(text)
 
+    _, config = resolve_config(config)  # the task's defaults filled in (recorded as run)
     spec = sim_spec(config)
     ld = load(spec)
     strategy = _strategy(config, ld)
@@ -1111,4 +1207,4 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         partial=partial, outcomes=ordered, seconds=time.perf_counter() - t0,
         inconclusive=sum(1 for o in ordered if not o.verdict.conclusive),
         shrink_steps=shrink_steps, events=tuple(events),
-        files=_files(spec))
+        files=_files(spec), task_name=ld.world.name)

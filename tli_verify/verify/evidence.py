@@ -7,7 +7,10 @@ Sec. 4.4, Thm. 2, Asm. 2) ran on *its exact files* and found nothing. The eviden
 certificate's convention, :mod:`tli_verify.certify.certificate`):
 
 * the spec, the model and the certificate (paths relative to the evidence file's directory);
-* the world whose sensor model the campaign ran (``tli_verify.worlds.WORLDS``);
+* the task the campaign ran on (``task``): a task file by its SHA-256, an entry point by its
+  distribution, version and the SHA-256 of its module's source. The gate recomputes it for the
+  task the deployed spec names (:func:`tli_verify.tasks.project.resolve`) and blocks on any
+  difference: another task's evidence, an edited region, a renamed task;
 * the seed, the number of examples (perturbation sequences) and of runs (simulations), whether
   modulation was on (it must be: that is the deployed policy) and whether the campaign was
   interrupted (``partial``: then it is not evidence);
@@ -19,17 +22,17 @@ a symlink), recomputes the digest and the three hashes, requires the spec to be 
 model names and the certificate to cover the model, and requires ``violations.total == 0``,
 no counterexample, modulation on, a complete campaign and at least
 :data:`MIN_EVIDENCE_EXAMPLES` examples. ``tli gate --rerun N`` additionally re-runs a short
-campaign with the evidence's seed (:mod:`tli_verify.certify.gate`).
+campaign with the evidence's seed (:mod:`tli_verify.deploy.gate`).
 
 Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
-``scripts/make_evidence.py`` for every bundled model).
+``tli evidence DIR`` for every model of a project).
 
 Physical campaigns (issue 13)
 -----------------------------
 The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
 ``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
 pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
-by ``tli sim franka --evidence`` or ``scripts/make_evidence.py --franka``
+by ``tli sim franka --evidence`` or ``tli evidence sim/franka``
 (:func:`tli_verify.sim.campaign.write_physics_evidence`). Each example is one perturbed physical
 trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
 the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
@@ -67,7 +70,7 @@ __all__ = [
     "write_evidence",
 ]
 
-EVIDENCE_SCHEMA_VERSION = 1
+EVIDENCE_SCHEMA_VERSION = 2
 EVIDENCE_KIND = "tli-verify/campaign-evidence"
 EVIDENCE_SUFFIX = ".campaign.json"
 MIN_EVIDENCE_EXAMPLES = 500
@@ -76,7 +79,7 @@ MIN_EVIDENCE_EXAMPLES = 500
 With ``N`` examples and no violation, the failure probability per perturbed run is below
 ``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
 campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
-evidence (1,000 examples, ``scripts/make_evidence.py``) costs seconds per model."""
+evidence (1,000 examples, ``tli evidence``) costs seconds per model."""
 
 
 MIN_PHYSICS_TRIALS = 30
@@ -101,36 +104,29 @@ def evidence_digest(doc: Mapping[str, Any]) -> str:
 
 
 def model_stem(model_path: str | os.PathLike[str]) -> str:
-    """``scoop`` for ``models/scoop.model.json`` (also ``scoop.json``)."""
-    return Path(model_path).name.removesuffix(".json").removesuffix(".model")
+    """``scoop`` for ``models/scoop.model.json`` (:func:`tli_verify.tasks.project.model_stem`)."""
+    from tli_verify.tasks.project import model_stem as stem
+
+    return stem(model_path)
 
 
-def evidence_path_for(model_path: str | os.PathLike[str],
-                      root: str | os.PathLike[str] = ".") -> Path:
-    """Where the gate looks for a deployed model's evidence.
-
-    ``ROOT/models/SUB/NAME.model.json`` -> ``ROOT/certificates/SUB/NAME.campaign.json``; a model
-    outside ``ROOT/models`` -> ``certificates/NAME.campaign.json`` next to its own directory.
+def evidence_path_for(model_path: str | os.PathLike[str]) -> Path:
+    """Where a model's campaign evidence lives: the project rule
+    (:func:`tli_verify.tasks.project.model_files`): ``ROOT/models/SUB/NAME.model.json`` ->
+    ``ROOT/certificates/SUB/NAME.campaign.json``; a model outside any ``models/`` folder ->
+    ``NAME.campaign.json`` next to it.
 
     Parameters
     ----------
     model_path : path-like
-    root : path-like, optional
-        The project directory (default ``.``).
 
     Returns
     -------
     Path
     """
-    mpath = Path(model_path)
-    models = Path(root) / "models"
-    try:
-        sub = Path(os.path.normpath(mpath.absolute())).parent.relative_to(
-            os.path.normpath(models.absolute()))
-        base = Path(root) / "certificates" / sub
-    except ValueError:
-        base = mpath.parent.parent / "certificates"
-    return base / (model_stem(mpath) + EVIDENCE_SUFFIX)
+    from tli_verify.tasks.project import model_files
+
+    return model_files(model_path).evidence
 
 
 def _relpath(target: Path, base_dir: Path) -> str:
@@ -143,7 +139,32 @@ def _file_entry(path: Path, base: Path, what: str) -> dict[str, str]:
     return {"path": _relpath(path, base), "sha256": sha256_file(path)}
 
 
+def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
+    """The evidence's ``task`` block of a task (paths relative to ``base``).
+
+    Raises
+    ------
+    EvidenceError
+        (exit 2) A task built in memory (nothing binds it).
+    """
+    src = task.source
+    if src.kind == "file" and src.path is not None and src.sha256 is not None:
+        out: dict[str, Any] = {"name": task.name, "kind": "file",
+                               "path": _relpath(Path(src.path), Path(base)),
+                               "sha256": src.sha256}
+    elif src.kind == "entry-point" and src.source_sha256 is not None:
+        out = {"name": task.name, "kind": "entry-point", "sha256": src.source_sha256}
+    else:
+        raise EvidenceError(f"task {task.name!r} was built in memory: evidence needs a task "
+                            "file or an entry-point task", exit_code=2)
+    if src.entry_point is not None and src.source_sha256 is not None:
+        out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
+                              "version": src.version, "source_sha256": src.source_sha256}
+    return out
+
+
 def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
+                   task: Mapping[str, Any],
                    spec: str | os.PathLike[str], model: str | os.PathLike[str],
                    certificate: str | os.PathLike[str], seed: int, examples: int, runs: int,
                    violations: Mapping[str, int], modulation: bool, partial: bool = False,
@@ -160,7 +181,9 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     evidence_path : path-like
         Where it will be written (its paths are relative to that directory).
     world : str
-        Name of the world whose sensor model ran (``tli_verify.worlds.WORLDS``).
+        The task's name, or a physical campaign's kind (:data:`PHYSICS_WORLDS`).
+    task : mapping
+        The task the campaign ran on (:func:`task_block`).
     spec, model, certificate : path-like
         The files the campaign ran; hashed now (SHA-256 of their bytes).
     seed : int
@@ -215,6 +238,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         "kind": EVIDENCE_KIND,
         "tool": {"name": "tli-verify", "version": __version__},
         "world": str(world),
+        "task": dict(task),
         "spec": _file_entry(Path(spec), base, "spec"),
         "model": _file_entry(Path(model), base, "model"),
         "certificate": _file_entry(Path(certificate), base, "certificate"),
@@ -304,7 +328,8 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     """
     files = _campaign_files(config, result)
     model = files["model"][0]
-    target = Path(path) if path is not None else evidence_path_for(model, model.parent.parent)
+    target = Path(path) if path is not None else evidence_path_for(model)
+    task = _campaign_task(result)
     counterexample = getattr(result, "counterexample", None)
     if counterexample is not None and not isinstance(counterexample, Mapping):
         to_json = getattr(counterexample, "to_json", None)
@@ -312,7 +337,8 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     backend = getattr(config, "backend", None)
     inconclusive = getattr(result, "inconclusive", None)
     doc = write_evidence(
-        target, world=str(config.world), spec=files["spec"][0], model=model,
+        target, world=str(task.name), task=task_block(task, target.parent),
+        spec=files["spec"][0], model=model,
         certificate=files["certificate"][0], seed=int(config.seed),
         examples=int(config.examples), runs=int(result.runs),
         violations=_counts(result.violations), modulation=bool(config.modulation),
@@ -324,7 +350,7 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     return target, doc
 
 
-_CORE = frozenset({"world", "spec", "model", "certificate", "examples", "seed", "modulation",
+_CORE = frozenset({"task", "spec", "model", "certificate", "examples", "seed", "modulation",
                    "workers", "backend", "scheduler"})
 """Config fields recorded elsewhere in the evidence, or where (not what) the campaign ran."""
 
@@ -379,6 +405,32 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
             raise EvidenceError(f"campaign evidence needs the campaign's {name} file; neither "
                                 "the result nor the config names it", exit_code=2)
     return out
+
+
+def _campaign_task(result: Any) -> Any:
+    """The task a campaign ran on (``result.files["task"]``), checked against the SHA-256 it
+    ran at."""
+    from tli_verify.tasks.registry import find_task
+
+    entry = (getattr(result, "files", None) or {}).get("task")
+    if not isinstance(entry, Mapping):
+        raise EvidenceError("campaign evidence needs the campaign's task; the result names "
+                            "none", exit_code=2)
+    if entry.get("path"):
+        p = Path(str(entry["path"]))
+        if not p.is_absolute():
+            from tli_verify.io import bundled_dir
+
+            p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+        task = find_task(p)
+        sha = task.source.sha256
+    else:
+        task = find_task(str(entry["entry_point"]))
+        sha = task.source.source_sha256
+    if sha != entry.get("sha256"):
+        raise EvidenceError(f"{task.where}: the task changed since the campaign ran it "
+                            "(SHA-256 differs): re-run the campaign", exit_code=2)
+    return task
 
 
 def _counts(violations: Any) -> dict[str, int]:
@@ -508,6 +560,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                         f"not the deployed model {mpath}: the evidence binds another model")
     seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
     problems += _check_files(doc, shown, mpath, named, seen, passed)
+    if mpath.is_file():
+        problems += _check_task(doc, shown, mpath, base, passed)
     if valid_certificates is not None and named["certificate"].is_file() and not any(
             _same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
@@ -530,19 +584,66 @@ def check_evidence(path: str | os.PathLike[str], *,
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
     from tli_verify import __version__
-    from tli_verify.worlds import WORLDS
 
     out: list[str] = []
     version = doc["tool"]["version"]
     if version != __version__:
         out.append(f"{shown}: written by tli-verify {version}, this is {__version__}: the "
                    "oracle may differ; re-run the campaign with this version")
-    if doc["world"] not in WORLDS and doc["world"] not in PHYSICS_WORLDS:
-        out.append(f"{shown}: world {doc['world']!r} is not a known world "
-                   f"({', '.join(sorted([*WORLDS, *PHYSICS_WORLDS]))})")
-    else:
-        passed.append(f"world {doc['world']!r} (its sensor model) is known")
+    physical = doc["world"] in PHYSICS_WORLDS
+    if physical != (doc.get("physics") is not None):
+        out.append(f"{shown}: world {doc['world']!r} and the physics block disagree (a "
+                   "physical campaign has world franka-physics and a physics block; a "
+                   "kinematic one neither)")
+    elif not physical and doc["world"] != doc["task"]["name"]:
+        out.append(f"{shown}: world {doc['world']!r} is not the name of the task the campaign "
+                   f"ran on ({doc['task']['name']!r}): the evidence was edited")
     return out
+
+
+def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[str, Any]:
+    """The ``task`` block evidence for a deployed model must carry: the task its spec names,
+    as the project resolver finds it (:func:`tli_verify.tasks.project.resolve`).
+
+    Raises
+    ------
+    TliError
+        The spec names no task, or the task does not load or fit.
+    """
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+    from tli_verify.tasks.project import spec_task
+
+    spec = load_model(model_path).spec_path
+    if spec is None:
+        raise EvidenceError(f"{model_path}: the model names no spec, so it has no task")
+    task = spec_task(load_spec(spec), spec)
+    if task is None:
+        raise EvidenceError(f"{spec}: the spec names no task (task = \"NAME\"), so no "
+                            "evidence can be bound to the deployed task")
+    return task_block(task, base)
+
+
+def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
+                passed: list[str]) -> list[str]:
+    """The evidence's task is the deployed spec's task, byte for byte (or source for source)."""
+    try:
+        want = deployed_task_block(mpath, base)
+    except TliError as exc:
+        return [f"{shown}: the deployed task cannot be resolved: {exc}"]
+    got = doc["task"]
+    if got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]:
+        where = want.get("path") or want.get("entry_point", {}).get("name")
+        return [f"{shown}: the campaign ran on task {got.get('name')!r} "
+                f"({got.get('path') or got.get('entry_point', {}).get('name')}, SHA-256 "
+                f"{_short(str(got.get('sha256')))}), but the deployed spec's task is "
+                f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): another "
+                "task, or the task changed after the campaign"]
+    if "entry_point" in want and got.get("entry_point") != want["entry_point"]:
+        return [f"{shown}: the task's entry point {want['entry_point']['name']!r} differs "
+                "from the one the campaign ran (distribution, version or source)"]
+    passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
+    return []
 
 
 def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],

@@ -53,13 +53,15 @@ Per mode on the planned path to the goal, from the entry value ``v``::
     N_mode = max(ln(v / c) / (lambda dt), ln(v / c) / -ln(rho)) + lag + 1   steps,
 
 with ``c = lambda_min(P) r^2`` and ``r`` the radius of a ball around ``x*`` inside the true
-region that contains ``x*`` (Lemma 2: the next mode's region; ray bisection in 72 directions,
-times 0.9). The first ``v`` is ``V`` at the disturbed state; a later mode's entry value is
-bounded by ``lambda_max(P_j) (|x*_i - x*_j| + sqrt(v_i / lambda_min(P_i)))^2`` (the state stays
-in the previous sublevel set). The deadline is ``ceil(factor * sum N_mode) + slack`` with a
+region that contains ``x*`` (Lemma 2: the next mode's region), computed exactly per region
+shape in any dimension (:meth:`tli_verify.tasks.task.Task.clearance`: the distance from ``x*``
+to the nearest boundary of a shape that decides its region; exact for a convex region, a
+guaranteed lower bound for unions and differences). The first ``v`` is ``V`` at the
+disturbed state; a later mode's entry value is bounded by
+``lambda_max(P_j) (|x*_i - x*_j| + sqrt(v_i / lambda_min(P_i)))^2`` (the state stays in the
+previous sublevel set). The deadline is ``ceil(factor * sum N_mode) + slack`` with a
 documented margin (default ``factor = 1.5``, ``slack = 50`` steps) for what neither rate
-covers: the modulated step in discrete time (Thm. 1 is continuous-time) and the radius
-estimate.
+covers: the modulated step in discrete time (Thm. 1 is continuous-time).
 """
 
 from __future__ import annotations
@@ -405,7 +407,7 @@ class Oracle:
             eig = np.linalg.eigvalsh(P)
             params[m] = _ModeParams(P=P, attractor=np.asarray(ds.attractor, dtype=np.float64),
                                     rate=rate, rho=rho,
-                                    radius=_inner_radius(world, ds.attractor),
+                                    radius=max(float(world.clearance(ds.attractor)), 1e-9),
                                     lam_min=float(eig.min()), lam_max=float(eig.max()))
         return cls(world=world, automaton=automaton, dt=float(dt), goals=goals,
                    planned=planned, path=path, params=params,
@@ -654,11 +656,9 @@ class Oracle:
 
 
 def _runs(modes: Sequence[str]) -> str:
-    out: list[str] = []
-    for m in modes:
-        if not out or out[-1] != m:
-            out.append(m)
-    return "".join(out) if all(len(m) == 1 for m in out) else "-".join(out)
+    from tli_verify.runtime.events import mode_sequence
+
+    return mode_sequence(modes)
 
 
 def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
@@ -672,28 +672,3 @@ def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
         w = sla.eigh(M.T @ P @ M, P, eigvals_only=True)
         worst = max(worst, float(np.max(w)))
     return worst * (1.0 + 1e-9)
-
-
-def _inner_radius(world: Any, point: npt.ArrayLike, *, rays: int = 72) -> float:
-    """Radius of a ball around ``point`` inside its true region (ray bisection, times 0.9);
-    in the workspace box too."""
-    x = np.asarray(point, dtype=np.float64)
-    region = int(world.region_index(x[None])[0])
-    size = float(np.max(np.asarray(world.hi) - np.asarray(world.lo)))
-    n = x.size
-    if n == 2:
-        ang = np.linspace(0.0, 2.0 * np.pi, rays, endpoint=False)
-        dirs = np.column_stack([np.cos(ang), np.sin(ang)])
-    else:
-        dirs = np.vstack([np.eye(n), -np.eye(n)])
-    best = size
-    for d in dirs:
-        lo_s, hi_s = 0.0, size
-        for _ in range(40):
-            mid = 0.5 * (lo_s + hi_s)
-            if int(world.region_index((x + mid * d)[None])[0]) == region:
-                lo_s = mid
-            else:
-                hi_s = mid
-        best = min(best, lo_s)
-    return max(0.9 * best, 1e-6)

@@ -6,9 +6,9 @@ strategies are public and composable, so users can write their own properties::
 
     from hypothesis import given
     from tli_verify.verify.strategies import cases, target_robustness
-    from tli_verify.worlds import ScoopWorld
+    from tli_verify.tasks.registry import find_task
 
-    @given(cases(ScoopWorld(), max_pushes=2))
+    @given(cases(find_task("scoop"), max_pushes=2))
     def test_my_policy(case):
         verdict = my_check(case)          # e.g. campaign.check_case(setup, case)
         target_robustness(verdict.robustness)
@@ -321,7 +321,10 @@ def target_robustness(robustness: float, *, label: str = "negated robustness") -
 def region_anchor(world: Any, region: str) -> FloatArray:
     """A reference point inside a true region (deterministic): the sampled state of the region
     nearest the mean of 400 uniform samples (seed 0), shape (n,)."""
-    key = (type(world).__name__, getattr(world, "lag", 0), region)
+    src = getattr(world, "source", None)
+    key = (str(getattr(world, "name", type(world).__name__)),
+           str(getattr(src, "sha256", None) or getattr(src, "source_sha256", None) or id(world)),
+           region)
     hit = _ANCHORS.get(key)
     if hit is None:
         pts = world.sample_region(region, 400, np.random.default_rng(0))
@@ -331,7 +334,7 @@ def region_anchor(world: Any, region: str) -> FloatArray:
     return hit
 
 
-_ANCHORS: dict[tuple[str, int, str], FloatArray] = {}
+_ANCHORS: dict[tuple[str, str, str], FloatArray] = {}
 
 
 def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> FloatArray:

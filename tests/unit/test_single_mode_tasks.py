@@ -1,4 +1,5 @@
-"""Random convex modes and synthetic demonstrations (paper appendix F)."""
+"""The single-mode study's tasks (tli_verify.tasks.generate): random convex modes and
+synthetic demonstrations (paper appendix F), a mode being a polytope region of a task."""
 
 from __future__ import annotations
 
@@ -6,7 +7,9 @@ import numpy as np
 import pytest
 
 from tli_verify.errors import ModelError
-from tli_verify.worlds.convex import ConvexMode, make_task, random_convex_mode
+from tli_verify.tasks.generate import ConvexMode, make_task, polygon_task, random_convex_mode
+from tli_verify.tasks.regions import Polytope
+from tli_verify.tasks.task import Task
 
 
 def test_convex_mode_sensor() -> None:
@@ -14,6 +17,15 @@ def test_convex_mode_sensor() -> None:
     X = np.array([[1.0, 0.5], [2.0, 0.5], [2.1, 0.5], [-0.1, 0.0]])
     np.testing.assert_array_equal(mode.contains(X), [True, True, False, False])
     np.testing.assert_allclose(mode.margin(X), [0.5, 0.0, -0.1, -0.1])
+    assert isinstance(mode, Polytope)  # a task region
+    assert [mode.contains_one(x) for x in X.tolist()] == [True, True, False, False]
+    task = polygon_task(mode, 3.0)  # the mode as region "mode", read by the sensor "inside"
+    assert isinstance(task, Task)
+    assert task.region_names == ("mode", "outside") and task.sensor_names == ("inside",)
+    assert (task.lo, task.hi) == ((0.0, 0.0), (3.0, 3.0))
+    in_box = task.in_workspace(X)
+    np.testing.assert_array_equal(in_box, [True, True, True, False])
+    np.testing.assert_array_equal(task.sensors(X[in_box])[:, 0], [True, True, False])
     with pytest.raises(ModelError, match="convex"):
         ConvexMode.from_vertices([[0, 0], [2, 0], [1, 0.2], [2, 1], [0, 1]])
     with pytest.raises(ModelError, match="convex"):
@@ -38,6 +50,18 @@ def test_random_task(seed: int) -> None:
         steps = np.linalg.norm(np.diff(d.X, axis=0), axis=1)
         assert np.all(steps < 0.5)
     assert task.states.shape == (200 * len(task.demos), 2)
+    # the task of the mode: region "mode" is the polygon, the sensor "inside" reads it
+    mode_task = task.task
+    assert isinstance(mode_task, Task)
+    assert mode_task.region_names == ("mode", "outside") and mode_task.sensor_names == ("inside",)
+    assert (mode_task.lo, mode_task.hi) == ((0.0, 0.0), (task.workspace, task.workspace))
+    X = np.concatenate([task.states,
+                        np.random.default_rng(seed).uniform(0, task.workspace, (500, 2))])
+    inside = mode.contains(X)
+    assert inside.any() and not inside.all()
+    np.testing.assert_array_equal(mode_task.in_region("mode", X), inside)
+    np.testing.assert_array_equal(mode_task.sensors(X)[:, 0], inside)
+    assert mode_task.sensors(task.demos[0].X).all()  # a demonstration never leaves the mode
 
 
 def test_seeded_and_inside_sampling() -> None:

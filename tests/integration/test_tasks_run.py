@@ -1,6 +1,6 @@
-"""``tli run --world W`` on every world's bundled, certified model (issue 11 B).
+"""``tli run --task T`` on every bundled task's certified model (issue 11 B).
 
-Each world: one seeded perturbed episode reaches its goal with LTL-DS (through the CLI, on
+Each task: one seeded perturbed episode reaches its goal with LTL-DS (through the CLI, on
 the shipped spec, model and certificate). Cooking: the DS learned once are shared by the four
 models of cooking-cb/bc/c/cc bit for bit, each certified for its own spec; cooking-c's
 green -> white DS (the detour demonstration) runs after a push into the broccoli. Color
@@ -26,7 +26,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, dict
     return code, json.loads(out)
 
 
-@pytest.mark.parametrize(("world", "spec", "seed", "first", "goal"), [
+@pytest.mark.parametrize(("task", "spec", "seed", "first", "goal"), [
     ("scoop", None, 2, "a", "d"),
     ("cooking", None, 1, "w1", "d2"),
     ("cooking", "cooking-bc", 0, "w1", "d2"),
@@ -36,9 +36,9 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, dict
     ("inspection", None, 3, "a", "b"),
 ])
 def test_a_seeded_perturbed_episode_reaches_the_goal(
-        repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], world: str,
+        repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], task: str,
         spec: str | None, seed: int, first: str, goal: str) -> None:
-    argv = ["--world", world, "--seed", str(seed), "--perturb", "random:2",
+    argv = ["--task", task, "--seed", str(seed), "--perturb", "random:2",
             "--out", str(tmp_path)]
     if spec is not None:
         argv += ["--spec", str(repo / "specs" / f"{spec}.toml")]
@@ -53,14 +53,14 @@ def test_a_seeded_perturbed_episode_reaches_the_goal(
 
 def test_inspection_is_done_at_the_release_not_on_entering_the_line(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, rec = _run(["--world", "inspection", "--seed", "2", "--out", str(tmp_path)], capsys)
+    code, rec = _run(["--task", "inspection", "--seed", "2", "--out", str(tmp_path)], capsys)
     assert code == 0
-    from tli_verify.worlds import InspectionWorld
+    from tli_verify.tasks.registry import find_task
 
     end = np.array(rec["final_state"])
     # the release station (8 <= x1 <= 9 on the line), not the entry of the track
-    assert InspectionWorld().true_mode(end[None])[0] == "release"
-    code, rec = _run(["--world", "inspection", "--seed", "2", "--steps", "60",
+    assert find_task("inspection").true_mode(end[None])[0] == "release"
+    code, rec = _run(["--task", "inspection", "--seed", "2", "--steps", "60",
                       "--out", str(tmp_path)], capsys)
     assert code == 1 and rec["success"] is False  # on the line, not yet released
 
@@ -69,7 +69,7 @@ def test_cooking_c_runs_the_detour_ds_after_a_push_into_the_broccoli(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], repo: Path) -> None:
     # from white, pushed into green at step 20: cooking-c's automaton runs g -> w (the DS
     # learned from the detour demonstration only), then chicken, then the pot
-    code, rec = _run(["--world", "cooking", "--spec", str(repo / "specs" / "cooking-c.toml"),
+    code, rec = _run(["--task", "cooking", "--spec", str(repo / "specs" / "cooking-c.toml"),
                       "--start", "5,2", "--perturb", "20:3.5,4", "--out", str(tmp_path)],
                      capsys)
     assert code == 0
@@ -78,9 +78,9 @@ def test_cooking_c_runs_the_detour_ds_after_a_push_into_the_broccoli(
 
 def test_a_model_given_without_spec_runs_to_the_goal_of_the_spec_it_names(
         repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # cooking-cc repeats forever (no sink mode): its bundle names the goal d; --model alone
-    # must pick that bundle through the spec the model names, not the world's default
-    code, rec = _run(["--world", "cooking", "--model",
+    # cooking-cc repeats forever (no sink mode): its spec names the goal d; --model alone
+    # must pick that goal through the spec the model names, not the task's default spec
+    code, rec = _run(["--task", "cooking", "--model",
                       str(repo / "models" / "cooking-cc.model.json"), "--certificate",
                       str(repo / "certificates" / "cooking-cc.cert.json"), "--seed", "1",
                       "--out", str(tmp_path)], capsys)
@@ -91,7 +91,7 @@ def test_no_replan_runs_a_model_with_per_transition_ds_only(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # cooking-cb's w1 has only 'w1->y': the open-loop sequence follows the automaton's plan
     # (it used to stop at w1 and exit 2, "no DS for 'w1'")
-    code, rec = _run(["--world", "cooking", "--seed", "3", "--perturb", "random:2",
+    code, rec = _run(["--task", "cooking", "--seed", "3", "--perturb", "random:2",
                       "--no-replan", "--out", str(tmp_path)], capsys)
     assert code in (0, 1) and rec["variant"] == "no-replan"
     assert [m for m, _ in rec["mode_trace"]][:2] == ["w1", "y"]

@@ -236,7 +236,52 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     items.append(GateItem("model", name, True, f"names {shown(spec_path)}: realizable"
                           f"{', well-separated' if result.well_separated else ''}", "spec"))
     items.append(_modes_item(model, name, result.spec, shown(spec_path)))
+    items.append(_task_item(model, name, result.spec, spec_path, shown,
+                            [c for _, c in covering]))
     return items
+
+
+def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
+               shown: Callable[[Path], str], checks: list[CertCheck]) -> GateItem:
+    """The task the spec names: it loads, fits the model (dimension) and the spec (sensors,
+    goal), its goal is reachable, and the model's certificate covers its control period."""
+    from fractions import Fraction
+
+    from tli_verify.logic.check import synthesize
+    from tli_verify.runtime.setup import check_goal
+    from tli_verify.tasks.project import spec_task
+    from tli_verify.tasks.task import Goal
+
+    try:
+        task = spec_task(spec, spec_path)
+    except TliError as exc:
+        return GateItem("model", name, False, f"its spec's task does not load: {exc}", "task")
+    if task is None:
+        return GateItem("model", name, False, f"its spec {shown(spec_path)} names no task "
+                        "(task = \"NAME\"): nothing says which world the policy runs in",
+                        "task")
+    problems = []
+    if task.dim != model.dim:
+        problems.append(f"task {task.name!r} is {task.dim}-D, the model {model.dim}-D")
+    if set(task.sensor_names) != set(spec.inputs):
+        problems.append(f"task {task.name!r} has sensors {', '.join(task.sensor_names)}, the "
+                        f"spec's inputs are {', '.join(spec.inputs)}")
+    goal = (Goal(spec.goal_modes, spec.goal_sensors)
+            if spec.goal_modes is not None or spec.goal_sensors else task.goal)
+    try:
+        modes = check_goal(synthesize(spec), goal, where=shown(spec_path))
+    except TliError as exc:
+        problems.append(str(exc))
+        modes = ()
+    periods = [Fraction(c.dt) for c in checks if c.dt]
+    if periods and Fraction(repr(task.dt)) > max(periods):
+        problems.append(f"task {task.name!r} runs at dt = {task.dt:g} s, longer than the "
+                        f"certified {max(periods)} s: the runtime refuses it")
+    if problems:
+        return GateItem("model", name, False, "; ".join(problems), "task")
+    return GateItem("model", name, True, f"runs in task {task.name!r} ({task.where}): "
+                    f"{task.dim}-D, sensors {', '.join(task.sensor_names)}, goal "
+                    f"{', '.join(modes)} reachable, dt {task.dt:g} s certified", "task")
 
 
 def _dimension_item(model: Any, name: str) -> GateItem:
@@ -408,12 +453,12 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
         if _irregular(model, "model", shown(model)) is not None:
             continue  # already blocked, never read
         name = shown(model)
-        evidence = evidence_path_for(model, base)
+        evidence = evidence_path_for(model)
         claimed.add(Path(os.path.normpath(evidence.absolute())))
         if not os.path.lexists(evidence):
             items.append(GateItem("model", name, False, f"no campaign evidence "
-                                  f"{shown(evidence)} (run: python scripts/make_evidence.py, or "
-                                  "tli verify ... --evidence)", "campaign"))
+                                  f"{shown(evidence)} (run: tli evidence {shown(base)}, or "
+                                  f"tli verify --model {name} --evidence)", "campaign"))
             continue
         valid = [c for c, _ in certified.get(model.resolve(), [])]
         check = check_evidence(evidence, model_path=model, valid_certificates=valid)
@@ -428,12 +473,12 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                 f"(robot {phys['robot']}, {phys['variant']}, {phys['duration']:g} s budget): "
                 f"{check.examples} perturbed trials from seed {check.seed} ({phys['pushes']} "
                 f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
-                "violations; binds its spec, model and certificate (SHA-256)", "campaign"))
+                "violations; binds its task, spec, model and certificate (SHA-256)", "campaign"))
         else:
-            items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on world "
+            items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on task "
                                   f"{check.world!r} with seed {check.seed}: {check.examples} "
                                   f"examples ({check.runs} runs), modulation on, 0 violations; "
-                                  "binds its spec, model and certificate (SHA-256)",
+                                  "binds its task, spec, model and certificate (SHA-256)",
                                   "campaign"))
         if rerun is not None:
             ok, message = (runner or rerun_campaign)(check, model, int(rerun))
@@ -480,7 +525,7 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     settings["shrink"] = False
     single = examples <= int(settings.get("batch_size", 100))
     try:
-        config = CampaignConfig(world=check.world, spec=str(check.spec_path), model=str(model),
+        config = CampaignConfig(spec=str(check.spec_path), model=str(model),
                                 certificate=str(check.certificate_path), examples=examples,
                                 seed=check.seed, modulation=True,
                                 backend="serial" if single else "process", **settings)
@@ -489,15 +534,15 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"the re-run campaign failed: {exc}"
     found = {str(getattr(k, "value", k)): int(v) for k, v in dict(result.violations).items()
              if int(v)}
-    what = (f"re-ran {examples} examples with seed {check.seed} on world {check.world!r} "
+    what = (f"re-ran {examples} examples with seed {check.seed} on task {check.world!r} "
             f"({result.runs} runs)")
     if getattr(result, "partial", False):
         return False, f"{what}: interrupted, incomplete"
     if found:
         kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
         return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
-                       f"reproduce: tli verify --world {check.world} --seed {check.seed} "
-                       f"--examples {examples} --model {model}")
+                       f"reproduce: tli verify --model {model} --seed {check.seed} "
+                       f"--examples {examples}")
     return True, f"{what}: 0 violations"
 
 

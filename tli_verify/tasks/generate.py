@@ -1,6 +1,8 @@
-"""The single convex mode world of the paper's single-mode study (Sec. 7.1, appendix F).
+"""Seeded random single-mode tasks: the paper's single-mode study (Sec. 7.1, appendix F).
 
-A random convex polygon is the mode; its sensor reports whether the state is inside. An
+A random convex polygon is the mode -- a :class:`~tli_verify.tasks.regions.Polytope` region of
+a :class:`~tli_verify.tasks.task.Task` built here in memory, whose one sensor ``inside``
+reports whether the state lies in it (the same task type the task files load). An
 attractor ``x*`` lies inside, and 1-3 synthetic "human" demonstrations run from far inside the
 mode to ``x*``. Everything random takes a seed (``numpy.random.Generator``).
 
@@ -13,35 +15,36 @@ vanishes at both ends like a human reaching motion, and sampled at 200 states ea
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import ModelError
+from tli_verify.tasks.regions import Polytope
+from tli_verify.tasks.task import Task
 
-__all__ = ["ConvexMode", "Demo", "SingleModeTask", "make_task", "random_convex_mode"]
+__all__ = ["ConvexMode", "Demo", "SingleModeTask", "make_task", "polygon_task",
+           "random_convex_mode"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ConvexMode:
-    """A convex polygon ``{x : A x <= b}`` in the plane.
+class ConvexMode(Polytope):
+    """A convex polygon ``{x : A x <= b}`` in the plane: a polytope region with its vertices.
 
     Attributes
     ----------
-    vertices : ndarray, shape (k, 2)
-        Counter-clockwise vertices.
     A : ndarray, shape (k, 2)
         Unit outward edge normals.
     b : ndarray, shape (k,)
         Offsets: the mode is ``A x <= b``.
+    vertices : ndarray, shape (k, 2)
+        Counter-clockwise vertices.
     """
 
-    vertices: FloatArray
-    A: FloatArray
-    b: FloatArray
+    vertices: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @classmethod
     def from_vertices(cls, vertices: npt.ArrayLike) -> ConvexMode:
@@ -64,7 +67,7 @@ class ConvexMode:
         b = np.einsum("ij,ij->i", N, V)
         for arr in (V, N, b):
             arr.setflags(write=False)
-        return cls(vertices=V, A=N, b=b)
+        return cls(A=N, b=b, vertices=V)
 
     def margin(self, X: npt.ArrayLike) -> FloatArray:
         """Signed distance inside the polygon: ``min_j (b_j - A_j . x)``, shape (N,).
@@ -112,6 +115,20 @@ class Demo:
     Xdot: FloatArray
 
 
+def polygon_task(mode: ConvexMode, workspace: float, *, name: str = "single-mode") -> Task:
+    """The task of one convex mode: the polygon is region ``mode`` of the square workspace
+    ``[0, workspace]^2`` (the rest is ``outside``), read by the one sensor ``inside``."""
+    from tli_verify.tasks import formula
+    from tli_verify.tasks.task import FormulaSensors, NamedRegion, Partition
+
+    partition = Partition((NamedRegion("mode", mode, "#9ed99b"),), "outside", "#ffffff")
+    sensors = FormulaSensors(partition, (("inside", formula.parse(
+        "mode", names={"mode", "outside"}, where=f"{name}: sensors.inside")),))
+    return Task(name=name, description="a random convex mode (paper Sec. 7.1)",
+                state_names=("x0", "x1"), lo=(0.0, 0.0), hi=(float(workspace),) * 2,
+                partition=partition, sensor_model=sensors)
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class SingleModeTask:
     """A single-mode reaching task: the mode, its attractor and the demonstrations.
@@ -119,6 +136,7 @@ class SingleModeTask:
     Attributes
     ----------
     mode : ConvexMode
+        The mode's region.
     attractor : ndarray, shape (2,)
     demos : tuple of Demo
     workspace : float
@@ -129,6 +147,11 @@ class SingleModeTask:
     attractor: FloatArray
     demos: tuple[Demo, ...]
     workspace: float
+
+    @property
+    def task(self) -> Task:
+        """The task (:func:`polygon_task`): the mode as region ``mode``, sensor ``inside``."""
+        return polygon_task(self.mode, self.workspace)
 
     @property
     def states(self) -> FloatArray:

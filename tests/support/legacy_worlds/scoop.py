@@ -42,8 +42,8 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
+from tests.support.legacy_worlds.base import BoolArray, FloatArray, IntArray, WorldBase
 from tli_verify.demos import Demonstration
-from tli_verify.worlds.base import BoolArray, FloatArray, IntArray, WorldBase
 
 __all__ = ["MODE_REGION", "SCOOP_WAYPOINTS", "ScoopWorld"]
 

@@ -1,0 +1,315 @@
+"""``tli task check|list``, ``tli demos``, ``tli init`` and ``tli evidence``: tasks as files.
+
+* ``tli task check FILE...`` loads task files (or names) and prints what each declares;
+  ``--picture OUT.png`` draws the regions (pairwise projections beyond 2-D).
+* ``tli task list`` lists the tasks the registry knows (bundled files, entry points).
+* ``tli demos TASK`` writes the task's scripted demonstrations as CSV files.
+* ``tli init DIR`` scaffolds a project for a new task: a commented task file and spec, the
+  folders, a README with the commands, and a CI snippet that runs the gate.
+* ``tli evidence [DIR]`` runs the campaign of every model of a project and writes the evidence
+  ``tli gate`` requires (the physical campaign for a task whose sensors physics computes).
+
+Exit codes: 0 success, 1 a campaign found a violation (``evidence``), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from tli_verify.commands import check_plan, int_range, output_path
+
+__all__ = ["register"]
+
+DEFAULT_EXAMPLES = 1000
+"""Examples per model of ``tli evidence``: 2x the gate's minimum (the 95% bound on the failure
+probability is then 0.3%)."""
+
+
+def register(sub: argparse._SubParsersAction[Any]) -> None:
+    """Register ``tli task``, ``tli demos``, ``tli init`` and ``tli evidence``."""
+    task = sub.add_parser("task", help="check and list task files (state space, regions, "
+                          "sensors, goal)")
+    tsub = task.add_subparsers(dest="task_command", metavar="SUBCOMMAND",
+                               parser_class=type(task))
+    task.set_defaults(handler=lambda _a: _usage(task))
+    check = tsub.add_parser("check", help="load task files and print what each declares",
+                            description="Exit 0 if every task loads, 2 on the first that does "
+                            "not (one error line naming the file and field).")
+    check.add_argument("tasks", nargs="+", metavar="TASK", help="task files or names")
+    check.add_argument("--picture", type=output_path, default=None, metavar="OUT.png",
+                       help="draw the (first) task's regions (pairwise projections in n-D)")
+    check.add_argument("--json", action="store_true", help="one JSON object per task")
+    check.set_defaults(handler=_check)
+    lst = tsub.add_parser("list", help="the tasks the registry knows")
+    lst.add_argument("--project", type=Path, default=None,
+                     help="also a project's tasks/ (default: none)")
+    lst.set_defaults(handler=_list)
+
+    demos = sub.add_parser(
+        "demos", help="write a task's scripted demonstrations as CSV files",
+        description="Seeded minimum-jerk demonstrations through the task's [demonstrator] "
+        "scripts, read by the task's sensors; one CSV per demonstration (tli learn reads "
+        "them).")
+    demos.add_argument("task", metavar="TASK", help="task file or name")
+    demos.add_argument("--out", type=output_path, default=None,
+                       help="directory (default: demos/ of the task's project)")
+    demos.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
+    demos.add_argument("--count", type=int_range(1, 1000), default=None,
+                       help="demonstrations (default: the demonstrator's count)")
+    demos.add_argument("--prefix", default=None, help="file name prefix (default: the task's "
+                       "name)")
+    demos.add_argument("--picture", type=output_path, default=None, metavar="OUT.png",
+                       help="also draw the regions with the demonstrations")
+    demos.set_defaults(handler=_demos)
+
+    init = sub.add_parser(
+        "init", help="scaffold a project for a new task (task, spec, folders, CI snippet)",
+        description="Writes DIR/tasks/NAME.toml (a commented task: workspace, regions, "
+        "sensors, goal, demonstrator), DIR/specs/NAME.toml (a realizable 3-mode spec over its "
+        "sensors), the folders demos/, models/, certificates/, DIR/README.md with the "
+        "commands from demonstrations to the gate, and DIR/ci/tli-gate.yml. Refuses to "
+        "overwrite existing files.")
+    init.add_argument("directory", type=Path, metavar="DIR")
+    init.add_argument("--name", default="mytask", help="task name (default mytask)")
+    init.add_argument("--dim", type=int_range(1, 32), default=2,
+                      help="state dimension of the template (default 2)")
+    init.set_defaults(handler=_init)
+
+    ev = sub.add_parser(
+        "evidence", help="campaign evidence for every model of a project (for tli gate)",
+        description="For each DIR/models/*.model.json: a bisimulation campaign on the model, "
+        "its certificate, the spec it names and the spec's task, with the task's defaults; "
+        "writes DIR/certificates/<name>.campaign.json. A task whose sensors physics computes "
+        "gets its physical campaign (MuJoCo trials). Exit 0 when no campaign found a "
+        "violation, 1 otherwise (the evidence is written either way, as an honest record).")
+    ev.add_argument("directory", nargs="?", type=Path, default=Path("."), metavar="DIR")
+    ev.add_argument("--examples", type=int_range(1, 10_000_000), default=DEFAULT_EXAMPLES,
+                    help=f"examples per model (default {DEFAULT_EXAMPLES})")
+    ev.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
+    ev.add_argument("--workers", type=int_range(1, 256), default=None)
+    ev.add_argument("--backend", choices=("process", "serial", "dask"), default="process")
+    ev.add_argument("--only", nargs="+", default=None, metavar="NAME",
+                    help="only these models (models/NAME.model.json)")
+    ev.add_argument("--trials", type=int_range(1, 100_000), default=None,
+                    help="physical campaigns: trials (default: the gate's minimum, 30)")
+    ev.add_argument("--robot", choices=("hand", "panda"), default="hand",
+                    help="physical campaigns: the robot")
+    ev.add_argument("--duration", type=float, default=40.0,
+                    help="physical campaigns: budget per trial (simulated seconds)")
+    ev.set_defaults(handler=_evidence)
+
+
+def _usage(parser: argparse.ArgumentParser) -> int:
+    parser.print_help(sys.stderr)
+    return 2
+
+
+# ------------------------------------------------------------------------------ task check
+def _summary(task: Any) -> dict[str, Any]:
+    part = task.partition
+    return {
+        "task": task.name, "file": task.source.path, "dimension": task.dim,
+        "state": list(task.state_names),
+        "workspace": {"lower": list(task.lo), "upper": list(task.hi)},
+        "regions": [c.name for c in part.cells], "background": part.background,
+        "layers": [la.name for la in part.layers], "sensors": list(task.sensor_names),
+        "latches": list(task.latent_names), "lag": task.lag, "dt": task.dt,
+        "goal": task.goal.to_dict(), "nominal_starts": [list(s) for s in task.starts.nominal],
+        "demonstrator": (None if task.demonstrator is None
+                         else {"count": task.demonstrator.count,
+                               "scripts": len(task.demonstrator.scripts)}),
+        "spec": task.spec, "sha256": task.source.sha256 or task.source.source_sha256,
+    }
+
+
+def _check(args: argparse.Namespace) -> int:
+    from tli_verify.io import canonical_json
+    from tli_verify.tasks.registry import find_task
+
+    loaded = [find_task(t) for t in args.tasks]
+    if args.picture is not None:
+        from tli_verify.viz.regions import plot_task
+
+        check_plan(inputs=[t.source.path for t in loaded], outputs=[(args.picture, "picture")])
+    for task in loaded:
+        s = _summary(task)
+        if args.json:
+            sys.stdout.write(canonical_json(s))
+            continue
+        sys.stdout.write(
+            f"{task.where}: task {task.name!r}, {task.dim}-D ({', '.join(task.state_names)}); "
+            f"regions {', '.join(s['regions']) or 'none'} (background {s['background']}"
+            + (f"; layers {', '.join(s['layers'])}" if s["layers"] else "") + "); sensors "
+            f"{', '.join(task.sensor_names)}"
+            + (f"; latches {', '.join(task.latent_names)}" if task.latent_names else "")
+            + f"; goal {'sink modes' if task.goal.modes is None else ', '.join(task.goal.modes)}"
+            + (f" with {', '.join(task.goal.sensors)}" if task.goal.sensors else "")
+            + f"; dt {task.dt:g} s, lag {task.lag}\n")
+    if args.picture is not None:
+        plot_task(loaded[0], args.picture)
+        if not args.json:
+            sys.stdout.write(f"wrote {args.picture}\n")
+    return 0
+
+
+def _list(args: argparse.Namespace) -> int:
+    from tli_verify.tasks.registry import bundled_tasks, task_names
+
+    bundled = bundled_tasks()
+    for name in task_names(args.project):
+        where = bundled.get(name)
+        sys.stdout.write(f"{name}\t{where if where is not None else 'entry point / project'}\n")
+    return 0
+
+
+# ------------------------------------------------------------------------------ demos
+def _demos(args: argparse.Namespace) -> int:
+    from tli_verify.errors import TaskError
+    from tli_verify.tasks.demonstrator import write_demos
+    from tli_verify.tasks.project import project_root
+    from tli_verify.tasks.registry import find_task
+
+    task = find_task(args.task)
+    if task.demonstrator is None:
+        raise TaskError(f"{task.where}: no [demonstrator] table: the task cannot write "
+                        "demonstrations (record your own as CSV files)")
+    out = args.out
+    if out is None:
+        out = (project_root(task.source.path) / "demos" if task.source.path is not None
+               else Path("demos"))
+    prefix = args.prefix or task.name
+    if not prefix.replace("-", "_").replace(".", "_").isidentifier():
+        raise TaskError(f"--prefix {prefix!r}: letters, digits, '-', '_' and '.' only")
+    count = args.count or task.demonstrator.count
+    files = [out / f"{prefix}_{i}.csv" for i in range(1, count + 1)]
+    check_plan(inputs=[task.source.path],
+               outputs=[*((f, "demonstration") for f in files), (args.picture, "picture")])
+    paths = write_demos(task, out, seed=args.seed, n_demos=count, prefix=prefix)
+    for p in paths:
+        sys.stdout.write(f"wrote {p}\n")
+    if args.picture is not None:
+        from tli_verify.demos import load_demo
+        from tli_verify.viz.regions import plot_task
+
+        plot_task(task, args.picture, demos=[load_demo(p) for p in paths])
+        sys.stdout.write(f"wrote {args.picture}\n")
+    return 0
+
+
+# ------------------------------------------------------------------------------ init
+def _init(args: argparse.Namespace) -> int:
+    from tli_verify.errors import OutputError, TaskError
+    from tli_verify.io import atomic_write_text
+    from tli_verify.tasks.formula import is_name
+    from tli_verify.tasks.scaffold import scaffold
+
+    name = args.name
+    if not is_name(name.replace("-", "_")) or len(name) > 64:
+        raise TaskError(f"--name {name!r}: letters, digits, '_' and '-' only (a task name)")
+    root: Path = args.directory
+    if root.exists() and not root.is_dir():
+        raise OutputError(f"{root}: exists and is not a directory")
+    files = scaffold(name, args.dim)
+    targets = [(root / rel, what) for rel, (what, _) in files.items()]
+    existing = [str(p) for p, _ in targets if p.exists()]
+    if existing:
+        raise OutputError(f"{existing[0]}: exists; tli init never overwrites a file (choose an "
+                          "empty directory)")
+    check_plan(inputs=[], outputs=targets)
+    for folder in ("tasks", "specs", "demos", "models", "certificates", "ci"):
+        (root / folder).mkdir(parents=True, exist_ok=True)
+    for rel, (_, text) in files.items():
+        atomic_write_text(root / rel, text)
+        sys.stdout.write(f"wrote {root / rel}\n")
+    sys.stdout.write(f"next: see {root / 'README.md'} (tli demos, learn, certify, verify "
+                     "--evidence, gate)\n")
+    return 0
+
+
+# ------------------------------------------------------------------------------ evidence
+def _evidence(args: argparse.Namespace) -> int:
+    from tli_verify.errors import TliError
+    from tli_verify.tasks.project import model_files, model_stem, resolve
+
+    root: Path = args.directory
+    if not root.is_dir():
+        raise TliError(f"{root}: not a directory")
+    models = sorted((root / "models").glob("*.model.json"))
+    if args.only:
+        models = [m for m in models if model_stem(m) in set(args.only)]
+        missing = sorted(set(args.only) - {model_stem(m) for m in models})
+        if missing:
+            raise TliError(f"--only: no models/{missing[0]}.model.json under {root}")
+    if not models:
+        raise TliError(f"{root / 'models'}: no *.model.json to make evidence for")
+    plan = []
+    for model in models:  # every model resolves, and no evidence overwrites an input, first
+        resolved = resolve(model=model)
+        physical = bool(getattr(resolved.task.sensor_model, "physics", False))
+        plan.append((model, resolved, physical))
+    check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
+               outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
+    status = 0
+    for _, resolved, physical in plan:
+        t0 = time.perf_counter()
+        if physical:
+            ok, line = _physical(args, resolved)
+        else:
+            ok, line = _kinematic(args, resolved)
+        sys.stdout.write(f"{line} ({time.perf_counter() - t0:.1f} s)\n")
+        status |= 0 if ok else 1
+    return status
+
+
+def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
+    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    from tli_verify.verify.evidence import write_campaign_evidence
+
+    config = CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
+                            certificate=str(resolved.certificate), examples=args.examples,
+                            seed=args.seed, modulation=True, workers=args.workers,
+                            backend=args.backend)
+    result = run_campaign(config, progress=sys.stderr.isatty())
+    path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
+    total = doc["violations"]["total"]
+    return (not total and not result.partial,
+            f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
+            f"{result.runs} runs, {total} violation(s)")
+
+
+def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
+    from tli_verify.errors import TliError
+
+    try:
+        from tli_verify.sim.campaign import (
+            PhysicsConfig,
+            run_physics_campaign,
+            write_physics_evidence,
+        )
+    except ImportError as exc:  # pragma: no cover - the sim extra is missing
+        raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
+                       f"install 'tli-verify[sim]'): {exc}") from None
+    from tli_verify.verify.evidence import MIN_PHYSICS_TRIALS
+
+    trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
+    if args.seed + trials > 2**32:
+        raise TliError("--seed + --trials: every trial's seed must be below 2^32")
+    root = Path(resolved.model).parent.parent
+    config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
+                           duration=args.duration)
+
+    def progress(k: int, res: Any, verdict: Any) -> None:
+        judged = "ok" if verdict.ok else ", ".join(verdict.violations)
+        sys.stderr.write(f"  trial {k + 1}/{trials} (seed {res.seed}): {judged}; "
+                         f"{res.delivered} bead(s); modes {res.mode_sequence()}\n")
+
+    result = run_physics_campaign(config, on_trial=progress)
+    path, _ = write_physics_evidence(result, resolved.evidence)
+    return result.ok, (f"{path}: physical campaign of task {resolved.task.name!r}, seed "
+                       f"{args.seed}, {trials} trial(s) (robot {args.robot}, "
+                       f"{args.duration:g} s), {result.successes} delivered, "
+                       f"{sum(not v.ok for v in result.verdicts)} failed the oracle")

@@ -1,0 +1,199 @@
+"""What a closed-loop run needs, loaded once: the task, its automaton, the certified model.
+
+:func:`load_setup` turns the files the project resolver found
+(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task (the world), the
+automaton synthesized from the spec, the model, its certificate and the goal. It refuses a goal
+the automaton cannot reach. :func:`make_policy` builds the executive of one of the policies
+compared in the paper (:data:`VARIANTS`):
+
+- ``LTL-DS``: the executive (:class:`~tli_verify.runtime.executive.LTLDSPolicy`): replanning
+  and cuts learned online;
+- ``no-modulation``: the executive without cuts (``learn_cuts=False``): replanning only;
+- ``no-replan``: :class:`SequencePolicy`, the demonstrated mode sequence run open loop (a
+  mode's DS runs until the reading shows the planned next mode; an unexpected reading does not
+  change the DS run), cuts learned as in LTL-DS;
+- ``BC``: the paper's MLP per mode under the automaton (replanning, cuts; a BC policy has no
+  certificate, so the executive runs the certified DS model for its bookkeeping and the BC nets
+  move the state; :func:`tli_verify.runtime.episodes.run_variant_batch`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy.typing as npt
+
+from tli_verify.errors import TaskError, TliError
+from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.model import Model
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.tasks.task import Goal, Task
+
+__all__ = ["VARIANTS", "SequencePolicy", "Setup", "check_goal", "load_setup", "make_policy"]
+
+VARIANTS: tuple[str, ...] = ("LTL-DS", "no-modulation", "no-replan", "BC")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Setup:
+    """What a closed-loop episode runs.
+
+    Attributes
+    ----------
+    task : Task
+        The world: sensors, true regions, workspace (its ``lag`` is the run's).
+    automaton : TaskAutomaton
+    model : Model
+    certificate : str
+        The certificate file covering the model.
+    goal : Goal
+    spec : str
+        The spec file the automaton comes from.
+    bc : mapping of str to BCPolicy, optional
+        Per-DS-key MLPs (the BC variant).
+    """
+
+    task: Task
+    automaton: TaskAutomaton
+    model: Model
+    certificate: str
+    goal: Goal = field(default_factory=Goal)
+    spec: str = ""
+    bc: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def world(self) -> Task:
+        """The task (the name the episode runners use)."""
+        return self.task
+
+    def with_lag(self, lag: int) -> Setup:
+        """The same setup with another sensor lag."""
+        return replace(self, task=self.task.with_lag(lag))
+
+
+def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str, ...]:
+    """The goal modes, checked: every mode the automaton can run reaches one of them.
+
+    Returns
+    -------
+    tuple of str
+        The goal modes (the sink modes when the goal names none).
+
+    Raises
+    ------
+    TaskError
+        (exit 2) A goal mode the automaton never runs, a goal with no mode (no sink and none
+        named), or a mode from which the mode graph cannot reach the goal.
+    """
+    run = sorted({s.mode for s in automaton.states})
+    modes = tuple(automaton.sink_modes()) if goal.modes is None else tuple(goal.modes)
+    if not modes:
+        raise TaskError(f"{where}: the automaton {automaton.name!r} has no sink mode, so an "
+                        "episode never ends: name the goal ([goal] modes = [...] in the spec "
+                        "or the task)")
+    absent = [m for m in modes if m not in run]
+    if absent:
+        raise TaskError(f"{where}: goal mode {absent[0]!r} is never run by the automaton "
+                        f"{automaton.name!r} (it runs {', '.join(run)})")
+    dist = automaton.mode_distances(list(modes))
+    stuck = [m for m in run if m not in dist]
+    if stuck:
+        raise TaskError(f"{where}: the automaton {automaton.name!r} cannot reach the goal "
+                        f"({', '.join(modes)}) from mode {stuck[0]!r}: no path in its mode "
+                        "graph, so no episode from there can succeed")
+    return modes
+
+
+def load_setup(resolved: Any) -> Setup:
+    """Load what :func:`tli_verify.tasks.project.resolve` found.
+
+    Raises
+    ------
+    SpecError, ModelError, TaskError
+        (exit 2) Unreadable files; an unreachable goal.
+    """
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+
+    automaton = synthesize(load_spec(resolved.spec))
+    check_goal(automaton, resolved.goal, where=str(resolved.spec))
+    return Setup(task=resolved.task, automaton=automaton, model=load_model(resolved.model),
+                 certificate=str(resolved.certificate), goal=resolved.goal,
+                 spec=str(resolved.spec))
+
+
+class SequencePolicy(LTLDSPolicy):
+    """The ``no-replan`` ablation: the demonstrated mode sequence, run open loop.
+
+    The executive's automaton, monitor and cuts run as in LTL-DS (events, ``mode``, ``done``
+    follow the readings), but the DS run is the plan's: mode ``k`` of the sequence (each
+    mode's ``next_mode`` from the initial mode) until the reading shows mode ``k + 1``. An
+    unexpected reading (a spill, a knock) changes nothing.
+    """
+
+    __slots__ = ("_idx", "_seq")
+
+    def __init__(self, automaton: TaskAutomaton, model: Model,
+                 certificate: str | os.PathLike[str], **kwargs: Any) -> None:
+        super().__init__(automaton, model, certificate, **kwargs)
+        state: int | None = automaton.initial[0]
+        seq = [automaton.states[automaton.initial[0]].mode]
+        while len(seq) <= len(model.modes) and state is not None:
+            mm = model.modes.get(seq[-1])
+            # a mode with per-transition DS only (cooking's w1 -> y): the automaton's plan
+            nxt = mm.next_mode if mm is not None else self._plan(state)
+            if nxt is None:
+                break
+            seq.append(nxt)
+            state = next((t.target for t in automaton.transitions if t.source == state
+                          and automaton.states[t.target].mode == nxt), None)
+        self._seq: tuple[str, ...] = tuple(seq)
+        self._idx = 0
+
+    def reset(self, x0: npt.ArrayLike, sensors: Any) -> None:
+        """Start at ``x0``; the sequence starts at the mode the reading shows (if in it)."""
+        super().reset(x0, sensors)
+        self._idx = self._seq.index(self.mode) if self.mode in self._seq else 0
+
+    def decide(self, x: npt.ArrayLike, sensors: Any, *, perturbed: bool = False) -> str:
+        """Advance the automaton on the reading; return the sequence's DS key."""
+        key = super().decide(x, sensors, perturbed=perturbed)
+        if not key:
+            return key
+        if self._idx + 1 < len(self._seq) and self.mode == self._seq[self._idx + 1]:
+            self._idx += 1
+        mode = self._seq[self._idx]
+        nxt = self._seq[self._idx + 1] if self._idx + 1 < len(self._seq) else None
+        return self.model.key(mode, nxt)
+
+
+def make_policy(setup: Setup, variant: str, **kwargs: Any) -> LTLDSPolicy:
+    """The executive of one variant, with the setup's goal and control period.
+
+    Parameters
+    ----------
+    setup : Setup
+    variant : str
+        One of :data:`VARIANTS` (``BC`` runs the executive's bookkeeping with cuts).
+    **kwargs
+        More keyword arguments of :class:`~tli_verify.runtime.executive.LTLDSPolicy`
+        (``spec``, ``learn_transitions``).
+
+    Raises
+    ------
+    CertificateError
+        (exit 1) The certificate does not cover the model, or not the task's control period.
+    """
+    if variant not in VARIANTS:
+        raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
+    if variant == "no-replan":
+        return SequencePolicy(setup.automaton, setup.model, setup.certificate,
+                              goal_modes=setup.goal.modes, goal_inputs=setup.goal.sensors,
+                              dt=setup.task.dt, **kwargs)
+    return LTLDSPolicy(setup.automaton, setup.model, setup.certificate,
+                       learn_cuts=variant != "no-modulation", goal_modes=setup.goal.modes,
+                       goal_inputs=setup.goal.sensors, dt=setup.task.dt, **kwargs)
