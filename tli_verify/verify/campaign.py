@@ -433,8 +433,8 @@ class WatchedPolicy(LTLDSPolicy):
 
     @property
     def done(self) -> bool:
-        """In a goal mode, or the watchdog fired."""
-        if self._mode in self.goal_modes:
+        """At the goal (a goal mode with the goal's sensors read), or the watchdog fired."""
+        if LTLDSPolicy.done.fget(self):  # type: ignore[attr-defined]
             return True
         if self._steps >= self._after:
             n = len(self.events)
@@ -598,7 +598,8 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
         cuts = tuple(CutRecord(e.step, e.mode, tuple(e.cut.normal.tolist()),
                                tuple(e.cut.point.tolist()))
                      for e in res.events if isinstance(e, CutAdded))
-        if res.success and res.modes[-1] not in ld.policy.goal_modes:  # the watchdog, not d
+        if res.success and not LTLDSPolicy.done.fget(policies[i]):  # type: ignore[attr-defined]
+            # the watchdog ended the run, not the goal
             res = replace(res, success=False)
         out.append((Trace(states=S, read_states=R, modes=res.modes,
                           pushes=tuple(sorted(t for t in pushed[i] if t <= res.steps)),
