@@ -116,7 +116,7 @@ def test_gate_rerun_catches_evidence_whose_trials_do_not_hold(
     """Evidence claiming 30 delivered trials with a 2 s budget binds the right files, so the
     campaign line passes; re-running one trial with its settings shows no soup is delivered."""
     attach_physics(project, physics=physics_block(duration=2.0))
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert report.ok, [b.message for b in report.blockers]
     code, out, err = run(capsys, "gate", str(project), "--rerun", "1")
     assert code == 1 and err.count("\n") == 1

@@ -475,6 +475,8 @@ class EvidenceCheck:
         The files it binds (resolved), when the file could be read.
     settings : tuple of (str, object)
         The campaign's other recorded parameters (``campaign.settings``).
+    digest : str or None
+        The evidence's recorded digest (the gate derives its re-run seeds from it).
     physics : tuple of (str, object)
         A physical campaign's settings (``physics``: robot, variant, duration, pushes,
         tilts); empty for a 2-D world.
@@ -492,6 +494,7 @@ class EvidenceCheck:
     certificate_path: str | None = None
     settings: tuple[tuple[str, Any], ...] = ()
     physics: tuple[tuple[str, Any], ...] = ()
+    digest: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -587,7 +590,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                          certificate_path=str(named["certificate"]),
                          settings=tuple(sorted(camp.get("settings", {}).items())),
                          physics=tuple(sorted((k, v) for k, v in doc.get("physics", {}).items()
-                                              if k in keep)))
+                                              if k in keep)),
+                         digest=str(doc["digest"]))
 
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
