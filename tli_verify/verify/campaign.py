@@ -192,7 +192,7 @@ class CampaignConfig:
         whole("window", 1, MAX_CAMPAIGN_STEPS, optional=True)
         whole("lag", 0, MAX_CAMPAIGN_STEPS, optional=True)
         whole("max_pushes", 0, MAX_PUSHES, optional=True)
-        whole("max_cycles", 0, 10_000, optional=True)
+        whole("max_cycles", 0, MAX_CAMPAIGN_STEPS, optional=True)
         whole("target_examples", 0, MAX_EXAMPLES)
         for name in ("modulation", "shrink"):
             if not isinstance(getattr(self, name), bool):
