@@ -10,19 +10,53 @@ resolve to one of the command's inputs (conventions in :mod:`tli_verify.commands
 Each subcommand group lives in its own module under :mod:`tli_verify.commands` and exposes
 ``register(subparsers)``; the modules are imported only to build the parser, and they import
 their heavy dependencies inside the handlers, so ``tli --help`` stays fast.
+
+The environment is set up before anything is dispatched (:func:`main`), so that a hostile one
+is bad input (exit 2, one ``error:`` line), never an internal error (70) or a traceback:
+
+* **standard output closed** (``tli ... >&-``): refused before any work, exit 2 ("standard
+  output is closed"). Most commands' result *is* their output (a verdict, JSON), so running
+  with nowhere to print it would lose it; redirect to ``/dev/null`` to drop it on purpose.
+  Closed descriptors 0-2 are first reopened on ``/dev/null``, so that no file the command
+  opens can land on them. A closed standard input reads as empty; a closed standard error
+  drops the messages (the exit code still tells).
+* **standard output unwritable** (``> /dev/full``, a disk full, an I/O error): writes to
+  :data:`sys.stdout` go through a stand-in that turns the failure into exit 2 and ``error:
+  cannot write standard output: <reason>``; the output is flushed inside :func:`main` (not at
+  the interpreter's exit), and what could not be written is dropped so that the exit does not
+  fail a second time. A reader that left (``tli ... | head``, a broken pipe) is not an error:
+  the rest of the output is dropped, and the exit is the command's code if it had finished,
+  else 0.
+  Writes to :data:`sys.stderr` that fail are dropped.
+* **an encoding that cannot show a path** (``PYTHONIOENCODING=ascii``, a file name that is
+  not UTF-8): standard output and error use ``errors="backslashreplace"`` (unless already
+  lenient), so ``spéc.toml`` prints as ``sp\\xe9c.toml``.
+* **matplotlib**: the CLI is headless; ``MPLBACKEND`` is set to ``agg`` whatever the
+  environment says (a bogus or GUI backend would fail when a picture is drawn).
+* **a deleted working directory**: refused before the handler runs (exit 2, "the working
+  directory no longer exists"): relative paths cannot resolve there, and the project
+  resolver and the output checks need the working directory; ``--help`` still works.
+* **SIGTERM** stops ``tli`` as Ctrl-C does (:class:`KeyboardInterrupt`): ``finally:`` blocks
+  run, temporary files are removed, a campaign writes its partial report; exit 130 and
+  ``error: interrupted``. Processes forked from ``tli`` keep the default (SIGTERM ends them).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
+import signal
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 from tli_verify import __version__
-from tli_verify.errors import TliError
+from tli_verify.errors import OutputError, TliError
 
 __all__ = ["build_parser", "check_paths", "main"]
 
@@ -90,38 +124,238 @@ def check_paths(args: argparse.Namespace) -> None:
             inputs.append(output)
     out = getattr(args, "out", None)
     if isinstance(out, Path):
+        from tli_verify.commands import check_report_dir
+
         check_output_dir(out)
+        check_report_dir(out)
+
+
+class _StdoutError(OutputError):
+    """Standard output cannot be written (exit 2); raised by :class:`_Stream`."""
+
+
+class _Stream:
+    """A stand-in for :data:`sys.stdout` or :data:`sys.stderr` (module doc).
+
+    Everything but :meth:`write`, :meth:`writelines` and :meth:`flush` is the wrapped
+    stream's. On standard output (``strict``) a failed write is :class:`_StdoutError`, a
+    broken pipe stays :class:`BrokenPipeError`; on standard error a failed write is dropped.
+    """
+
+    def __init__(self, stream: Any, *, strict: bool) -> None:
+        self._stream = stream
+        self._strict = strict
+
+    def _failed(self, exc: Exception) -> None:
+        if not self._strict:
+            return
+        if isinstance(exc, BrokenPipeError):
+            raise exc
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise _StdoutError(f"cannot write standard output: {reason}") from None
+
+    def write(self, text: str) -> int:
+        try:
+            return int(self._stream.write(text))
+        except (OSError, ValueError) as exc:  # ValueError: the stream was closed
+            self._failed(exc)
+            return len(text)
+
+    def writelines(self, lines: Any) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except (OSError, ValueError) as exc:
+            self._failed(exc)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def _say(line: str) -> None:
+    """Write one line to standard error; never fails (there is nowhere left to report)."""
+    try:
+        if sys.stderr is not None:
+            sys.stderr.write(line + "\n")
+            sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
+
+
+def _plug_closed_descriptors() -> None:
+    """Reopen closed descriptors 0, 1 and 2 on ``/dev/null`` (no file may land on them)."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                null = os.open(os.devnull, os.O_RDWR)
+                if null != fd:
+                    os.dup2(null, fd)
+                    os.close(null)
+            except OSError:  # pragma: no cover - no /dev/null: nothing better to do
+                pass
+
+
+def _lenient(stream: Any) -> Any:
+    """Make ``stream`` print what its encoding cannot show as backslash escapes; return its
+    former ``errors`` (``None`` if unchanged)."""
+    errors = getattr(stream, "errors", None)
+    if errors != "strict":
+        return None
+    try:
+        stream.reconfigure(errors="backslashreplace")
+    except (AttributeError, ValueError, OSError):
+        return None
+    return errors
+
+
+def _drop_stdout(stream: Any) -> None:
+    """Point standard output's descriptor at ``/dev/null``: what is still buffered is dropped
+    there, and the interpreter's final flush succeeds."""
+    with contextlib.suppress(Exception):
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, stream.fileno())
+        finally:
+            os.close(null)
+
+
+def _flush_quietly(stream: Any) -> None:
+    try:
+        stream.flush()
+    except Exception:
+        _drop_stdout(stream)
+
+
+def _check_cwd() -> None:
+    """Refuse a working directory that no longer exists (module doc).
+
+    Raises
+    ------
+    TliError
+        (exit 2) ``os.getcwd()`` fails.
+    """
+    try:
+        os.getcwd()
+    except OSError as exc:
+        try:  # Linux names the deleted directory: "/old/path (deleted)"
+            was = os.readlink("/proc/self/cwd").removesuffix(" (deleted)")
+        except OSError:
+            was = ""
+        detail = f"was {was}" if was else exc.strerror or str(exc)
+        what = "no longer exists" if isinstance(exc, FileNotFoundError) else \
+            "cannot be read"
+        raise TliError(f"the working directory {what} ({detail}); cd to an existing "
+                       "directory and rerun") from None
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Python was when it arrived (handled as Ctrl-C)."""
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """While inside, SIGTERM raises :class:`_Terminated` in this process (a forked child
+    still dies of it); the former handler is restored after."""
+    me = os.getpid()
+
+    def on_sigterm(signum: int, frame: FrameType | None) -> None:
+        if os.getpid() != me:  # a child forked from here: die as SIGTERM would kill it
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        raise _Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, on_sigterm)
+    except ValueError:  # not the main thread: signals are not ours to handle
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``tli`` and return its exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    handler = getattr(args, "handler", None)
-    if handler is None:
-        parser.print_help(sys.stderr)
+    """Run ``tli`` and return its exit code (the environment set up first: module doc)."""
+    _plug_closed_descriptors()
+    if sys.stdout is None:  # descriptor 1 was closed when Python started
+        _say("error: standard output is closed; redirect it (to /dev/null to drop the "
+             "output) and rerun")
         return 2
+    os.environ["MPLBACKEND"] = "agg"  # headless, before anything imports matplotlib
+    saved: tuple[Any, Any, Any] = (sys.stdin, sys.stdout, sys.stderr)
+    err: Any = sys.stderr if sys.stderr is not None else open(os.devnull, "w")
+    if sys.stdin is None:  # descriptor 0 was closed: read as empty
+        sys.stdin = open(os.devnull)
+    out = sys.stdout
+    errors = (_lenient(out), _lenient(err))
+    sys.stdout = _Stream(out, strict=True)
+    sys.stderr = _Stream(err, strict=False)
     try:
-        check_paths(args)
-        return int(handler(args))
+        with _sigterm_interrupts():
+            try:
+                return _dispatch(argv, out)
+            except KeyboardInterrupt:  # a second one, while the first was being reported
+                _say("error: interrupted")
+                return 130
+    finally:
+        _flush_quietly(err)
+        sys.stdin, sys.stdout, sys.stderr = saved
+        for stream, former in zip((out, err), errors, strict=True):
+            if former is not None:
+                with contextlib.suppress(Exception):
+                    stream.reconfigure(errors=former)
+
+
+def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
+    """Parse, check and run one command; its output flushed, its errors one line (main)."""
+    debug = "--debug" in list(sys.argv[1:] if argv is None else argv)
+    code: int | None = None
+    try:
+        try:
+            parser = build_parser()
+            args = parser.parse_args(argv)
+            debug = bool(args.debug)
+            handler = getattr(args, "handler", None)
+            if handler is None:
+                parser.print_help(sys.stderr)
+                code = 2
+            else:
+                _check_cwd()
+                check_paths(args)
+                code = int(handler(args))
+        except SystemExit:  # argparse: --help, --version, usage errors
+            sys.stdout.flush()  # raises _StdoutError if it cannot be written
+            raise
+        sys.stdout.flush()  # here, not at the interpreter's exit (module doc)
+        return code
     except TliError as exc:
-        if args.debug:
+        if isinstance(exc, _StdoutError):
+            _drop_stdout(out)
+        elif debug:
             traceback.print_exc()
-        sys.stderr.write(f"error: {exc}\n")
+        _say(f"error: {exc}")
+        _flush_quietly(sys.stdout)
         return exc.exit_code
     except BrokenPipeError:  # e.g. `tli ... | head`: the reader left; not an error of ours
-        sys.stderr.close()
-        return 0
-    except KeyboardInterrupt:
-        sys.stderr.write("error: interrupted\n")
+        _drop_stdout(out)
+        return 0 if code is None else code
+    except KeyboardInterrupt as exc:
+        _flush_quietly(sys.stdout)
+        _say("error: interrupted" + (" (SIGTERM)" if isinstance(exc, _Terminated) else ""))
         return 130
     except Exception as exc:  # an internal bug: still one line unless --debug
-        if args.debug:
+        if debug:
             traceback.print_exc()
-        sys.stderr.write(
-            f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())}); "
-            "rerun with --debug for a traceback\n"
-        )
+        _say(f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+             "rerun with --debug for a traceback")
+        _flush_quietly(sys.stdout)
         return 70
 
 

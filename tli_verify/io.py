@@ -44,6 +44,7 @@ __all__ = [
     "check_output_dir",
     "check_output_file",
     "field_path",
+    "parse_json",
     "read_json",
     "read_text",
     "sha256_file",
@@ -408,16 +409,40 @@ def _finite_float(text: str) -> float:
     return value
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object, refusing a repeated key (``json`` keeps the last one silently, so an
+    inserted ``"total": 0`` before ``"total": 7`` would be read as 7 while a digest over the
+    parsed document still matched)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"duplicate key {key!r} in an object")
+        out[key] = value
+    return out
+
+
+def parse_json(text: str) -> Any:
+    """``json.loads`` as every reader of tli-verify does: no NaN or Infinity, no number that
+    overflows a double, no duplicate key.
+
+    Raises
+    ------
+    ValueError, json.JSONDecodeError
+    """
+    return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float,
+                      object_pairs_hook=_unique_keys)
+
+
 def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
     """Read a JSON file; errors name the file, line and column.
 
-    NaN, Infinity and numbers that overflow a double (``1e400``) are rejected; so are files
-    larger than ``MAX_INPUT_BYTES``, non-regular files and brackets nested deeper than
-    ``MAX_NESTING`` (:func:`tli_verify.io.read_text`).
+    NaN, Infinity, numbers that overflow a double (``1e400``) and duplicate keys are rejected
+    (:func:`parse_json`); so are files larger than ``MAX_INPUT_BYTES``, non-regular files and
+    brackets nested deeper than ``MAX_NESTING`` (:func:`tli_verify.io.read_text`).
     """
     text = read_text(path, what=what, error=error)
     try:
-        return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+        return parse_json(text)
     except json.JSONDecodeError as exc:
         raise error(f"{path}: line {exc.lineno}, column {exc.colno}: invalid JSON: "
                     f"{exc.msg}") from None

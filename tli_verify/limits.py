@@ -27,10 +27,13 @@ __all__ = [
     "COV_MIN_EIGENVALUE",
     "MAX_ABS_COVARIANCE",
     "MAX_ABS_VALUE",
+    "MAX_BATCH_SIZE",
     "MAX_CAMPAIGN_STEPS",
+    "MAX_EXAMPLES",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
     "MAX_PUSHES",
+    "MAX_SEED",
     "MAX_STATE_DIM",
     "PRIOR_SUM_TOL",
 ]
@@ -91,3 +94,12 @@ control steps (1,000 s at the scoop world's 10 ms): the run's step budget follow
 
 MAX_PUSHES = 100
 """Most perturbations in one case (paper Asm. 2: finitely many)."""
+
+MAX_EXAMPLES = 10_000_000
+"""Most cases of one campaign (``tli verify --examples``; the evidence schema's bound)."""
+
+MAX_BATCH_SIZE = 10_000
+"""Most runs in one batch of a campaign (each chunk of draws is ``batch_size + 10`` cases)."""
+
+MAX_SEED = 2**32 - 1
+"""Largest seed of a campaign, an episode or a study (numpy and hypothesis take 32 bits)."""

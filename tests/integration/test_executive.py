@@ -307,11 +307,11 @@ def test_shipped_scoop_pair_runs_and_a_tampered_certificate_is_refused(project: 
     assert pol.goal_modes == ("d",) and pol.dt == pytest.approx(1e-2)  # the certified period
     pol.reset(np.full(pol.model.dim, -5.0), {})
     assert (pol.mode, pol.planned, pol.key) == ("a", "b", "a")
-    assert run_gate(project).ok  # the gate and the executive agree on the genuine pair
+    assert run_gate(project, rerun=0).ok  # the gate and the executive agree on the genuine pair
     doc = json.loads(cert.read_text())
     doc["control_period"]["dt"] = "1/10"  # a longer certified period, digest left stale
     cert.write_text(json.dumps(doc))
-    assert not run_gate(project).ok
+    assert not run_gate(project, rerun=0).ok
     with pytest.raises(CertificateError, match="does not re-check"):
         LTLDSPolicy(aut, load_model(mpath), cert)
 

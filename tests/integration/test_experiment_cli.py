@@ -54,12 +54,12 @@ def test_quick_json_contract(quick: tuple[subprocess.CompletedProcess[str], Path
 
 
 @pytest.mark.parametrize(("args", "needle"), [
-    (["--trials", "0"], "--trials must be >= 1"),
-    (["--seed", "-3"], "--seed must be >= 0"),
-    (["--workers", "0"], "--workers must be >= 1"),
-    (["--trials", "two"], "invalid int value"),
-    (["--ds-eps", "0"], "DS stability margin must be positive"),
-    (["--ds-eps", "nan"], "DS stability margin must be positive"),
+    (["--trials", "0"], "argument --trials: must be between 1 and 100000, got 0"),
+    (["--seed", "-3"], "argument --seed: must be between 0 and 4294967295, got -3"),
+    (["--workers", "0"], "argument --workers: must be between 1 and 256, got 0"),
+    (["--trials", "two"], "argument --trials: expected an integer, got 'two'"),
+    (["--ds-eps", "0"], "argument --ds-eps: must be > 0, got '0'"),
+    (["--ds-eps", "nan"], "argument --ds-eps: must be a finite number, got 'nan'"),
 ])
 def test_bad_input_exits_2(args: list[str], needle: str, tmp_path: Path) -> None:
     proc = _tli("experiment", "single-mode", *args, "--out", str(tmp_path / "o"), cwd=REPO)

@@ -38,9 +38,12 @@ def test_quick_experiment_table(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 
 def test_bad_experiment_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["experiment", "scoop", "--quick", "--episodes", "0", "--out", str(tmp_path)])
-    err = capsys.readouterr().err
+    from tests.support.cli import run
+
+    code, _, err = run(capsys, "experiment", "scoop", "--quick", "--episodes", "0", "--out",
+                       str(tmp_path))
     assert code == 2 and err.startswith("error:") and err.count("\n") == 1
+    assert "--episodes: must be between 1 and 100000, got 0" in err
 
 
 def test_no_replan_keeps_running_the_planned_mode() -> None:

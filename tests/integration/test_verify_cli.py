@@ -203,9 +203,11 @@ def test_ctrl_c_writes_a_partial_report(tmp_path: Path) -> None:
     err = "".join(seen) + err
     assert proc.returncode == 130, err
     assert err.strip().splitlines()[-1].startswith("error: interrupted")
-    rec = json.loads((tmp_path / "campaign.json").read_text())
+    # a partial result never replaces a complete one: the report goes to OUT/partial/
+    assert not (tmp_path / "campaign.json").exists()
+    rec = json.loads((tmp_path / "partial" / "campaign.json").read_text())
     assert rec["partial"] is True and rec["runs"] < 600
-    assert "PARTIAL" in (tmp_path / "campaign.md").read_text()
+    assert "PARTIAL" in (tmp_path / "partial" / "campaign.md").read_text()
 
 
 def _die_once(item: tuple[str, int]) -> int:

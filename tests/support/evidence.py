@@ -54,7 +54,8 @@ def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Pat
         "world": task.name, "task": task_block(task, path.parent), "spec": spec, "model": model,
         "certificate": project / "certificates" / f"{name}.cert.json", "seed": 0,
         "examples": MIN_EVIDENCE_EXAMPLES, "runs": MIN_EVIDENCE_EXAMPLES, "violations": {},
-        "modulation": True, "backend": "process", "workers": 2,
+        "modulation": True, "backend": "process", "workers": 2, "inconclusive": 0,
+        "settings": {"window": 700, "max_pushes": 3, "batch_size": 100},
     }
     fields.update(overrides)
     write_evidence(path, **fields)

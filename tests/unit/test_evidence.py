@@ -38,7 +38,7 @@ EVIDENCE = Path("certificates") / "scoop.campaign.json"
 
 def only_campaign_blocks(project: Path) -> str:
     """The gate blocks on the campaign line of the model, and on nothing else; its message."""
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     found = [(b.kind, b.path, b.check) for b in report.blockers]
     assert found == [("model", "models/scoop.model.json", "campaign")], \
         [f"{b.path}: {b.check}: {b.message}" for b in report.blockers]
@@ -70,7 +70,7 @@ def leaves(obj: Any, prefix: tuple[Any, ...] = ()) -> Iterator[tuple[Any, ...]]:
 
 
 def test_fresh_evidence_passes_and_binds_the_three_files(project: Path) -> None:
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert report.ok, [b.message for b in report.blockers]
     line = [i for i in report.items if i.check == "campaign"]
     assert len(line) == 1 and line[0].ok
@@ -129,7 +129,7 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
     message = only_campaign_blocks(project)
     assert "models/scoop.model.json: SHA-256" in message
     attach_evidence(project)  # a new campaign on the new files: passes again
-    assert run_gate(project).ok
+    assert run_gate(project, rerun=0).ok
 
 
 @pytest.mark.parametrize(("edit", "said"), [
@@ -180,7 +180,7 @@ def test_every_field_edited_without_the_digest_is_caught(project: Path) -> None:
 
 def test_missing_evidence_blocks(project: Path) -> None:
     (project / EVIDENCE).unlink()
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert [(b.kind, b.path, b.check, b.message) for b in report.blockers] == [
         ("model", "models/scoop.model.json", "campaign",
          "no campaign evidence certificates/scoop.campaign.json (run: tli evidence ., or "
@@ -232,14 +232,14 @@ def test_a_huge_evidence_file_is_not_read(project: Path) -> None:
 
 def test_evidence_of_no_deployed_model_blocks(project: Path) -> None:
     shutil.copy(project / EVIDENCE, project / "certificates" / "ghost.campaign.json")
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert [(b.kind, b.path) for b in report.blockers] == [
         ("evidence", "certificates/ghost.campaign.json")]
     assert "binds no deployed model" in report.blockers[0].message
 
 
 def test_evidence_files_are_not_certificates(project: Path) -> None:
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert report.count("certificate") == 1  # scoop.cert.json only
 
 
@@ -379,7 +379,7 @@ def test_a_spec_naming_no_task_blocks_its_models_evidence(project: Path) -> None
     message = only_the_task_check_fails(project)
     assert "the deployed task cannot be resolved" in message
     assert "the spec names no task" in message
-    report = run_gate(project)  # the model's own task check blocks too, saying why
+    report = run_gate(project, rerun=0)  # the model's own task check blocks too, saying why
     found = {(b.check, b.message) for b in report.blockers}
     assert {c for c, _ in found} == {"task", "campaign"}
     assert any(c == "task" and "names no task" in m for c, m in found)
@@ -398,7 +398,7 @@ def test_honest_evidence_binds_the_deployed_specs_task(project: Path, repo: Path
         "path": Path(os.path.relpath(bundled, (project / "certificates").resolve())).as_posix(),
         "sha256": sha256_file(bundled)}
     assert deployed_task_block(model, project / "certificates") == doc["task"]
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert report.ok, [b.message for b in report.blockers]
     line = next(i for i in report.items if i.check == "campaign")
     assert "campaign on task 'scoop'" in line.message
@@ -413,7 +413,7 @@ def test_a_project_task_edited_after_the_campaign_blocks(project: Path, repo: Pa
     attach_evidence(project)
     doc = json.loads((project / EVIDENCE).read_text())
     assert doc["task"]["path"] == "../tasks/scoop.toml"
-    assert run_gate(project).ok
+    assert run_gate(project, rerun=0).ok
     edited_scoop_task(repo, project / "tasks" / "scoop.toml")
     message = only_the_task_check_fails(project)
     assert "the deployed spec's task is 'scoop' (../tasks/scoop.toml, SHA-256 " \

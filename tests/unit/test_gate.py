@@ -22,7 +22,7 @@ from tli_verify.errors import GateError
 def blockers(root: Path, *, campaign: bool = False) -> list[str]:
     """What blocks, without the campaign-evidence lines unless ``campaign`` (the tests of the
     other checks edit files, which makes the fixture's evidence stale too)."""
-    return [f"{b.kind} {b.path}: {b.message}" for b in run_gate(root).blockers
+    return [f"{b.kind} {b.path}: {b.message}" for b in run_gate(root, rerun=0).blockers
             if campaign or b.check != "campaign"]
 
 
@@ -40,7 +40,7 @@ def edit_model(project: Path, edit: Any) -> None:
 
 
 def test_gate_passes_on_a_certified_project(project: Path) -> None:
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     assert report.ok
     assert [(i.kind, i.path, i.check) for i in report.items] == [
         ("spec", "specs/scoop.toml", "re-check"),
@@ -83,7 +83,7 @@ def test_per_transition_model_needs_every_transition_out_of_its_mode(project: Pa
         doc["modes"]["b->a"] = dict(doc["modes"]["b->c"], next_mode="a")
 
     edit_model(project, add_b_a)
-    assert run_gate(project).ok
+    assert run_gate(project, rerun=0).ok
 
 
 def test_model_without_a_spec_or_with_an_unrealizable_one_blocks(project: Path,
@@ -152,20 +152,20 @@ def test_tampered_certificate_blocks(project: Path) -> None:
 
 def test_nothing_to_gate_fails_closed_and_non_directory_is_usage_error(tmp_path: Path,
                                                                        repo: Path) -> None:
-    report = run_gate(tmp_path)
+    report = run_gate(tmp_path, rerun=0)
     assert not report.ok
     assert [f"{b.kind} {b.path}: {b.message}" for b in report.blockers] == [
         "project .: nothing to gate: no model under "
         "models/ to deploy (the gate fails closed)"]
     shutil.copytree(repo / "specs", tmp_path / "specs")  # specs alone: still nothing to deploy
-    assert [b.kind for b in run_gate(tmp_path).blockers] == ["project"]
+    assert [b.kind for b in run_gate(tmp_path, rerun=0).blockers] == ["project"]
     with pytest.raises(GateError, match="not a directory") as info:
-        run_gate(tmp_path / "nope")
+        run_gate(tmp_path / "nope", rerun=0)
     assert info.value.exit_code == 2
 
 
 def test_repository_gate_passes(repo: Path) -> None:
-    report = run_gate(repo)
+    report = run_gate(repo, rerun=0)
     assert report.ok, [f"{b.path}: {b.message}" for b in report.blockers]
     assert report.count("certificate") >= 1
     assert report.count("model") >= 1

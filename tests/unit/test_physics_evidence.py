@@ -94,7 +94,7 @@ def forge(project: Path, edit: Callable[[dict[str, Any]], None]) -> None:
 
 
 def only_campaign_blocks(project: Path) -> str:
-    report = run_gate(project)
+    report = run_gate(project, rerun=0)
     found = [(b.kind, b.path, b.check) for b in report.blockers]
     assert found == [("model", MODEL, "campaign")], \
         [f"{b.path}: {b.check}: {b.message}" for b in report.blockers]
@@ -103,7 +103,7 @@ def only_campaign_blocks(project: Path) -> str:
 
 def test_valid_physical_evidence_passes_the_gate(franka: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
-    report = run_gate(franka)
+    report = run_gate(franka, rerun=0)
     assert report.ok, [b.message for b in report.blockers]
     line = next(i for i in report.items if i.check == "campaign")
     assert "physical campaign 'franka-physics'" in line.message
@@ -122,7 +122,7 @@ def test_a_tampered_model_blocks_naming_it(franka: Path,
     first = next(iter(doc["modes"].values()))
     first["components"][0]["A"][0][0] *= 1.01
     model.write_text(json.dumps(doc))
-    report = run_gate(franka)
+    report = run_gate(franka, rerun=0)
     campaign = next(b for b in report.blockers if b.check == "campaign")
     assert "differs from the evidence's" in campaign.message
     assert "the campaign ran another model" in campaign.message
@@ -147,7 +147,7 @@ def test_a_tampered_certificate_blocks_naming_it(franka: Path,
     cert.write_text(json.dumps(doc))
     code, _, err = run(capsys, "gate", str(franka))
     assert code == 1 and err.count("\n") == 1 and "franka-scoop.cert.json" in err
-    assert any(b.check == "campaign" for b in run_gate(franka).blockers)
+    assert any(b.check == "campaign" for b in run_gate(franka, rerun=0).blockers)
 
 
 def test_evidence_of_another_model_blocks(franka: Path, tmp_path: Path) -> None:

@@ -52,7 +52,7 @@ def test_never_runs_a_per_transition_ds_towards_a_mode_the_state_cannot_reach(
 
     mpath, cert = _edit(project, diverge)
     # every check passes but the campaign evidence, which the re-certified model outdated
-    blockers = run_gate(project).blockers
+    blockers = run_gate(project, rerun=0).blockers
     assert blockers and {b.check for b in blockers} == {"campaign"}
     aut = synthesize(load_spec(project / "specs" / "scoop.toml"))
     pol = LTLDSPolicy(aut, load_model(mpath), cert)
@@ -72,7 +72,7 @@ def test_the_gate_and_the_executive_consult_the_same_planner(
     mpath = project / "models" / "scoop.model.json"
     cert = project / "certificates" / "scoop.cert.json"
     aut = synthesize(load_spec(project / "specs" / "scoop.toml"))
-    assert run_gate(project).ok
+    assert run_gate(project, rerun=0).ok
     LTLDSPolicy(aut, load_model(mpath), cert)
     real = TaskAutomaton.planned_keys
 
@@ -85,7 +85,7 @@ def test_the_gate_and_the_executive_consult_the_same_planner(
 
     monkeypatch.setattr(TaskAutomaton, "planned_keys", diverging)
     sid = next(s.id for s in aut.states if s.mode == "b")
-    blockers = [b.message for b in run_gate(project).blockers]
+    blockers = [b.message for b in run_gate(project, rerun=0).blockers]
     assert len(blockers) == 1 and f"no DS to run in automaton state {sid} (mode 'b')" \
         in blockers[0]
     with pytest.raises(ModelError, match=f"no DS to run in automaton state {sid} "):

@@ -60,6 +60,49 @@ def int_range(lo: int, hi: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def positive_float(text: str) -> float:
+    """An argparse ``type``: a finite number > 0 (``inf``, ``nan`` and 0 refused, naming why)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
+PROJECT_FOLDERS = ("tasks", "specs", "models", "certificates")
+"""The folders of a project the gate reads: a report must not land in one (a JSON report in
+``certificates/`` would be read as a certificate, in ``models/`` as a model)."""
+
+
+def check_report_dir(out: Path | str | None) -> None:
+    """Refuse a report directory (``--out``) that is, or lies directly in, one of a project's
+    :data:`PROJECT_FOLDERS`.
+
+    Raises
+    ------
+    OutputError
+        (exit 2) Naming the folder.
+    """
+    import os
+
+    from tli_verify.errors import OutputError
+
+    if out is None:
+        return
+    p = Path(os.path.abspath(out))
+    for part in (p.name, p.parent.name):
+        if part in PROJECT_FOLDERS:
+            raise OutputError(f"{out}: a report directory inside a project's {part}/ folder: "
+                              f"tli gate reads every file there as a {part[:-1]} file; "
+                              "choose another --out")
+
+
 def check_plan(*, inputs: Iterable[Path | str | None],
                outputs: Iterable[tuple[Path | str | None, str]]) -> None:
     """Refuse, before any work, an output that cannot be written, that is one of the command's

@@ -17,7 +17,8 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from tli_verify.commands import output_path
+from tli_verify.commands import int_range, output_path, positive_float
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
 
 QUICK_TRIALS = 3
 QUICK_BC_EPOCHS = 300
@@ -35,21 +36,23 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "per noise level (0/5/30% of the workspace); cuts learned from invariance failures. "
         "Writes single_mode.json, single_mode.md and PNG figures to --out.",
     )
-    s.add_argument("--trials", type=int, default=None,
+    s.add_argument("--trials", type=int_range(1, 100_000), default=None,
                    help="random modes (default 50; 3 with --quick)")
-    s.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    s.add_argument("--seed", type=int_range(0, MAX_SEED), default=0,
+                   help="master seed (default 0)")
     s.add_argument("--quick", action="store_true",
                    help=f"{QUICK_TRIALS} trials and a short BC training (under a minute)")
     s.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     s.add_argument("--out", type=output_path, default=Path("out/single-mode"),
                    help="output directory (default out/single-mode)")
-    s.add_argument("--workers", type=int, default=None,
+    s.add_argument("--workers", type=int_range(1, 256), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
-    s.add_argument("--max-cuts", type=int, default=20, help="cap on cuts per policy and noise")
+    s.add_argument("--max-cuts", type=int_range(0, 10_000), default=20,
+                   help="cap on cuts per policy and noise")
     s.add_argument("--cut-constraints", choices=("entries", "paper"), default="entries",
                    help="states a new cut keeps inside: every observed entry state (default) "
                    "or only the failure's own x^0 (appendix F as written)")
-    s.add_argument("--ds-eps", type=float, default=1e-3,
+    s.add_argument("--ds-eps", type=positive_float, default=1e-3,
                    help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default 1e-3)")
     s.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s.set_defaults(handler=_single_mode)
@@ -65,14 +68,17 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     c.add_argument("--quick", action="store_true",
                    help="2 experiments x 20 episodes, short BC training, a short Fig. 7 search "
                    "(seconds)")
-    c.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
-    c.add_argument("--experiments", type=int, default=None, help="default 10 (2 with --quick)")
-    c.add_argument("--episodes", type=int, default=None,
+    c.add_argument("--seed", type=int_range(0, MAX_SEED), default=0,
+                   help="master seed (default 0)")
+    c.add_argument("--experiments", type=int_range(1, 1000), default=None,
+                   help="default 10 (2 with --quick)")
+    c.add_argument("--episodes", type=int_range(1, 100_000), default=None,
                    help="per experiment and variant (default 100; 20 with --quick)")
-    c.add_argument("--lag", type=int, default=0, help="sensor lag of the world (default 0)")
-    c.add_argument("--steps", type=int, default=None,
+    c.add_argument("--lag", type=int_range(0, MAX_CAMPAIGN_STEPS), default=0,
+                   help="sensor lag of the task (default 0)")
+    c.add_argument("--steps", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
                    help="step budget per episode at dt = 1/100 (default 3000; 2000 with --quick)")
-    c.add_argument("--workers", type=int, default=None,
+    c.add_argument("--workers", type=int_range(1, 256), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     c.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     c.add_argument("--out", type=output_path, default=Path("out/scoop"),
@@ -194,6 +200,13 @@ def _scoop(args: argparse.Namespace) -> int:
     if workers < 1:
         raise TliError(f"--workers must be >= 1, got {workers}")
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
+    from tli_verify.commands import check_plan
+    from tli_verify.tasks.project import resolve
+
+    bundled = resolve(task="scoop", lag=cfg.lag)  # the scoop study's files are its inputs
+    check_plan(inputs=bundled.inputs,
+               outputs=[(out / n, n) for n in ("scoop.md", "scoop.json", "scoop_success.png",
+                                               "fig7.png")])
     summary, files = scoop_study(cfg, out, workers=workers, fig7_tries=20 if args.quick else 200)
     if args.json:
         sys.stdout.write(canonical_json(summary))

@@ -15,20 +15,13 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
-from tli_verify.errors import CertificateError, GateError, ModelError
+from tli_verify.commands import output_path, positive_float
+from tli_verify.errors import CertificateError, GateError, ModelError, TliError
 
 __all__ = ["demo_stage", "register"]
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
-    return value
+_positive_float = positive_float
 
 
 def _control_period(text: str) -> float:
@@ -163,6 +156,20 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(handler=_gate)
 
 
+def _task_file(spec: Path | None) -> Path | None:
+    """The task file a spec names (an input the outputs must not overwrite), or None."""
+    if spec is None:
+        return None
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.tasks.project import spec_task
+
+    try:
+        task = spec_task(load_spec(spec), spec)
+    except TliError:
+        return None
+    return None if task is None or task.source.path is None else Path(task.source.path)
+
+
 def _task_dt(spec: Path | None) -> Fraction | None:
     """The control period of the task a spec names (None: no spec, or it names no task)."""
     if spec is None:
@@ -175,8 +182,11 @@ def _task_dt(spec: Path | None) -> Fraction | None:
 
 
 def _learn(args: argparse.Namespace) -> int:
+    from tli_verify.commands import check_plan
     from tli_verify.model import learn_model, save_model
 
+    task_file = _task_file(args.spec)
+    check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
     control_dt = args.control_dt
     if control_dt is None:
         task_dt = _task_dt(args.spec)
@@ -230,7 +240,8 @@ def _certify(args: argparse.Namespace) -> int:
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
     dt = args.dt if args.dt is not None else (_task_dt(spec_path) or DEFAULT_DT)
-    inputs = [args.model, *([spec_path] if spec_path else [])]
+    task_file = _task_file(spec_path)
+    inputs = [args.model, *([spec_path] if spec_path else []), *([task_file] if task_file else [])]
     out: Path = args.output or default_certificate_path(args.repair or args.model)
     if args.repair is not None:
         check_output_file(args.repair, inputs=inputs, what="repaired model")

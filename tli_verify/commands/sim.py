@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "certificate refused the model; 2: bad arguments.")
     f.add_argument("--trials", type=int_range(1, 1000), default=1,
                    help="number of trials (default 1)")
-    f.add_argument("--seed", type=int_range(0), default=0,
+    f.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0,
                    help="seed of the first trial (default 0)")
     f.add_argument("--certificates", type=Path, default=None, metavar="DIR",
                    help="certificates directory of a project holding "
@@ -103,31 +103,28 @@ def _run(args: argparse.Namespace) -> int:
 
         raise TliError(f"MuJoCo refused to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
                        f"{' '.join(str(exc).split())[:120]}") from None
-    from tli_verify.io import check_output_file
+    from tli_verify.commands import check_plan
     from tli_verify.sim.loop import project_dir
+    from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
-    # the project's files (spec, model, certificate, demonstrations) are inputs: never written
+    # the project's files (task, spec, model, certificate, demonstrations) are inputs: never
+    # written; its evidence may be replaced by new evidence only
     base = args.certificates.parent if args.certificates is not None else project_dir()
-    inputs = [f for sub in ("specs", "models", "certificates", "demos")
+    inputs = [f for sub in ("tasks", "specs", "models", "certificates", "demos")
               for f in sorted((base / sub).rglob("*")) if f.is_file()]
     if args.certificates is not None:  # a certificates directory not named certificates/
         inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
-    if args.fig9 is not None:
-        check_output_file(args.fig9, inputs=inputs, what="Fig. 9 plot")
     evidence = None
     if args.evidence is not None:  # before any work: never over an input or another output
         from tli_verify.sim.campaign import MODEL_NAME
-        from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
         cert_dir = args.certificates if args.certificates is not None else \
             base / "certificates"
         evidence = chosen_path(args.evidence) or cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
-        evidence_inputs = [f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)]
-        evidence_inputs += [o for o in (args.fig9, args.video) if o is not None]
-        check_output_file(evidence, inputs=evidence_inputs, what="campaign evidence")
-    if args.video is not None:
-        check_output_file(args.video, inputs=[*inputs, *([args.fig9] if args.fig9 else [])],
-                          what="video")
+    check_plan(inputs=[f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)],
+               outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot"),
+                        (evidence, "campaign evidence")])
+    check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot")])
     from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import (
         PhysicsConfig,

@@ -13,7 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.limits import (
+    MAX_BATCH_SIZE,
+    MAX_CAMPAIGN_STEPS,
+    MAX_EXAMPLES,
+    MAX_PUSHES,
+    MAX_SEED,
+)
 
 __all__ = ["register", "write_report"]
 
@@ -30,16 +36,18 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     from tli_verify.commands.run import add_task_arguments
 
     add_task_arguments(p, what="campaign")
-    p.add_argument("--examples", type=int_range(1), default=200, help="cases (default 200)")
-    p.add_argument("--seed", type=int_range(0), default=0, help="seed (default 0)")
+    p.add_argument("--examples", type=int_range(1, MAX_EXAMPLES), default=200,
+                   help="cases (default 200)")
+    p.add_argument("--seed", type=int_range(0, MAX_SEED), default=0, help="seed (default 0)")
     p.add_argument("--no-modulation", action="store_true",
                    help="the ablation without cuts (replanning only)")
-    p.add_argument("--workers", type=int_range(1), default=None,
+    p.add_argument("--workers", type=int_range(1, 256), default=None,
                    help="worker processes (default: CPU count)")
     p.add_argument("--backend", choices=("process", "dask", "serial"), default="process")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (--backend dask; default: a LocalCluster)")
-    p.add_argument("--batch-size", type=int_range(1), default=100, help="runs per batch")
+    p.add_argument("--batch-size", type=int_range(1, MAX_BATCH_SIZE), default=100,
+                   help="runs per batch (default 100)")
     p.add_argument("--max-pushes", type=int_range(0, MAX_PUSHES), default=None,
                    help="perturbations per case, at most (default: the task's, else 3)")
     p.add_argument("--window", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
@@ -48,7 +56,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--random-starts", action="store_true", default=None,
                    help="draw start states too (default: the task's first nominal start; a "
                    "task without one draws starts)")
-    p.add_argument("--target", type=int_range(0), default=0, metavar="N",
+    p.add_argument("--target", type=int_range(0, MAX_EXAMPLES), default=0, metavar="N",
                    help="when nothing is found, N more driver-side examples guided by "
                    "hypothesis.target on the robustness margin")
     p.add_argument("--no-shrink", action="store_true", help="do not shrink")
@@ -64,7 +72,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     r = sub.add_parser(
         "replay", help="replay a saved counterexample (CASE.json) deterministically",
         description="Exit 1: the case's violation reproduces; 0: it no longer does; 2: bad "
-        "case file.")
+        "case file (checked against tli_verify/schemas/case.schema.json, then its files, "
+        "their fit to the task and the limits, before anything runs).")
     r.add_argument("case", type=Path, help="a case file (tli verify's counterexample.json)")
     r.add_argument("--modulation", choices=("case", "on", "off"), default="case",
                    help="run as saved (default), or with modulation on/off")
@@ -111,25 +120,30 @@ def _verify(args: argparse.Namespace) -> int:
             sys.stderr.write(f"note: {text}\n")
 
     result = run_campaign(cfg, progress=progress, on_event=note)
-    out.mkdir(parents=True, exist_ok=True)
+    # a partial result never replaces a complete one: an interrupted campaign's report goes
+    # to OUT/partial/, and it writes no evidence
+    report_dir = out / "partial" if result.partial else out
+    report_dir.mkdir(parents=True, exist_ok=True)
     record = result.to_json()
-    files = write_report(result, out)
+    files = write_report(result, report_dir)
     record["report"] = [str(f) for f in files]
-    if args.evidence is not None:
+    if args.evidence is not None and not result.partial:
         from tli_verify.verify.evidence import write_campaign_evidence
 
         target, _ = write_campaign_evidence(result.config, result, evidence)
         record["evidence"] = str(target)
-    atomic_write_text(out / "campaign.json", canonical_json(record))
+    atomic_write_text(report_dir / "campaign.json", canonical_json(record))
     if args.json:
         sys.stdout.write(canonical_json(record))
     else:
-        sys.stdout.write(_summary(result, [out / "campaign.json", *files]))
-        if args.evidence is not None:
+        sys.stdout.write(_summary(result, [report_dir / "campaign.json", *files]))
+        if "evidence" in record:
             sys.stdout.write(f"wrote evidence {record['evidence']}\n")
     if result.partial:
+        kept = (f"; no evidence written ({evidence} is unchanged)"
+                if args.evidence is not None else "")
         sys.stderr.write(f"error: interrupted after {result.runs} of {cfg.examples} runs; "
-                         f"partial report written to {out / 'campaign.md'}\n")
+                         f"partial report written to {report_dir / 'campaign.md'}{kept}\n")
         return 130
     return 1 if result.counterexample is not None else 0
 
@@ -300,10 +314,12 @@ def _replay(args: argparse.Namespace) -> int:
     from tli_verify.verify.campaign import replay_case
 
     mod = None if args.modulation == "case" else args.modulation == "on"
+    # a bad case file is one error line (exit 2) before anything runs (read_case: the schema,
+    # the limits, the files and their fit to the task)
     doc, verdict, reproduced, notes = replay_case(args.case, modulation=mod)
     for n in notes:
         sys.stderr.write(f"note: {n}\n")
-    want = (doc.get("expected") or {}).get("violation")
+    want = doc["expected"]["violation"]  # validated: a violation kind
     kinds = sorted(k.value for k in verdict.kinds)
     record = {"case": str(args.case), "expected": want, "reproduced": reproduced,
               "violations": kinds,

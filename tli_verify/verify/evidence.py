@@ -57,7 +57,9 @@ __all__ = [
     "EVIDENCE_SCHEMA_VERSION",
     "EVIDENCE_SUFFIX",
     "MIN_EVIDENCE_EXAMPLES",
+    "MIN_MAX_PUSHES",
     "MIN_PHYSICS_TRIALS",
+    "MIN_WINDOW",
     "PHYSICS_WORLDS",
     "EvidenceCheck",
     "build_evidence",
@@ -88,6 +90,12 @@ the paper's experiment (Sec. 7.2: 30 perturbed trials, 30 successes). With 30 su
 failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
 than the 2-D campaigns' bound, and the gate's line says so."""
 PHYSICS_WORLDS: dict[str, int] = {"franka-physics": MIN_PHYSICS_TRIALS}
+MIN_WINDOW = 100
+"""Shortest perturbation window a kinematic campaign must have drawn from (control steps; 1 s
+at 10 ms): pushes confined to the first steps test almost nothing of the mode boundaries."""
+MIN_MAX_PUSHES = 2
+"""Fewest perturbations per case a kinematic campaign must have allowed: with one push at most,
+no case tests a recovery that is itself perturbed (paper Asm. 2: finitely many, not one)."""
 """Worlds of physical campaigns (:mod:`tli_verify.sim.campaign`) -> their minimum trials."""
 
 
@@ -467,6 +475,8 @@ class EvidenceCheck:
         The files it binds (resolved), when the file could be read.
     settings : tuple of (str, object)
         The campaign's other recorded parameters (``campaign.settings``).
+    digest : str or None
+        The evidence's recorded digest (the gate derives its re-run seeds from it).
     physics : tuple of (str, object)
         A physical campaign's settings (``physics``: robot, variant, duration, pushes,
         tilts); empty for a 2-D world.
@@ -484,6 +494,7 @@ class EvidenceCheck:
     certificate_path: str | None = None
     settings: tuple[tuple[str, Any], ...] = ()
     physics: tuple[tuple[str, Any], ...] = ()
+    digest: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -579,7 +590,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                          certificate_path=str(named["certificate"]),
                          settings=tuple(sorted(camp.get("settings", {}).items())),
                          physics=tuple(sorted((k, v) for k, v in doc.get("physics", {}).items()
-                                              if k in keep)))
+                                              if k in keep)),
+                         digest=str(doc["digest"]))
 
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
@@ -624,6 +636,17 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
     return task_block(task, base)
 
 
+def _physics_task(model_path: Path) -> bool:
+    """Whether the deployed spec's task computes its sensors in a simulator."""
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.model import load_model
+    from tli_verify.tasks.project import spec_task
+
+    spec = load_model(model_path).spec_path
+    task = None if spec is None else spec_task(load_spec(spec), spec)
+    return bool(getattr(getattr(task, "sensor_model", None), "physics", False))
+
+
 def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 passed: list[str]) -> list[str]:
     """The evidence's task is the deployed spec's task, byte for byte (or source for source)."""
@@ -632,6 +655,12 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
     except TliError as exc:
         return [f"{shown}: the deployed task cannot be resolved: {exc}"]
     got = doc["task"]
+    physical = doc["world"] in PHYSICS_WORLDS
+    if physical != _physics_task(mpath):
+        return [f"{shown}: a {'physical' if physical else 'kinematic'} campaign, but the "
+                f"deployed task {want['name']!r} is "
+                f"{'kinematic' if physical else 'physical (its sensors come from a simulator)'}"
+                ": the kind of evidence must match the model"]
     if got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]:
         where = want.get("path") or want.get("entry_point", {}).get("name")
         return [f"{shown}: the campaign ran on task {got.get('name')!r} "
@@ -731,19 +760,33 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
         out.append(f"{shown}: the campaign ran without modulation, the deployed policy runs "
                    "with it: not evidence for it")
     examples, runs = int(camp["examples"]), int(camp["runs"])
-    if examples < min_examples:
-        const = "MIN_PHYSICS_TRIALS" if doc["world"] in PHYSICS_WORLDS else \
-            "MIN_EVIDENCE_EXAMPLES"
-        out.append(f"{shown}: {examples} example(s), fewer than the minimum {min_examples} "
-                   f"({const})")
-    if (camp.get("settings") or {}).get("max_pushes", 1) == 0:
-        out.append(f"{shown}: the campaign perturbed nothing (max_pushes 0): not evidence")
+    physical = doc["world"] in PHYSICS_WORLDS
+    inconclusive = camp.get("inconclusive")
+    if not physical and inconclusive is None:
+        out.append(f"{shown}: campaign.inconclusive is missing: the gate counts only runs "
+                   "whose reachability was decided")
+    decided = examples - (int(inconclusive) if inconclusive is not None else 0)
+    if decided < min_examples:
+        const = "MIN_PHYSICS_TRIALS" if physical else "MIN_EVIDENCE_EXAMPLES"
+        what = (f"{examples} example(s)" if decided == examples else
+                f"{decided} decided example(s) ({examples} drawn, {inconclusive} with "
+                "reachability undecided)")
+        out.append(f"{shown}: {what}, fewer than the minimum {min_examples} ({const})")
+    if not physical:
+        settings = camp.get("settings") or {}
+        window, pushes = settings.get("window"), settings.get("max_pushes")
+        if not isinstance(window, int) or isinstance(window, bool) or window < MIN_WINDOW:
+            out.append(f"{shown}: perturbation window {window!r}: campaigns must draw pushes "
+                       f"over at least {MIN_WINDOW} steps (MIN_WINDOW) to count")
+        if not isinstance(pushes, int) or isinstance(pushes, bool) or pushes < MIN_MAX_PUSHES:
+            out.append(f"{shown}: max_pushes {pushes!r}: campaigns must allow at least "
+                       f"{MIN_MAX_PUSHES} perturbations per case (MIN_MAX_PUSHES) to count")
     if runs < examples:
         out.append(f"{shown}: {runs} run(s) for {examples} examples: every example is at "
                    "least one run")
     if not out:
-        passed.append(f"{examples} examples ({runs} runs, seed {camp['seed']}), modulation on, "
-                      "0 violations")
+        passed.append(f"{examples} examples ({runs} runs, {decided} decided, seed "
+                      f"{camp['seed']}), modulation on, 0 violations")
     return out
 
 

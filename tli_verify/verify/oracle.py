@@ -393,7 +393,7 @@ class Oracle:
         params: dict[str, _ModeParams] = {}
         cert_modes = doc.get("modes", {})
         for m in run_modes:
-            if m in goals:
+            if m in goals and not goal_inputs:  # a goal with sensors: its DS brings them
                 continue
             key = model.key(m, nxt[m])
             entry = cert_modes.get(key)
@@ -424,7 +424,8 @@ class Oracle:
         Returns
         -------
         int
-            0 in a goal mode.
+            0 in a goal mode (of a goal without sensors; a goal with sensors, e.g. a cyclic
+            task's release, counts its own DS too: the sensors read true where it converges).
         """
         from tli_verify.certify.reach import max_v_on_box
 
@@ -434,7 +435,7 @@ class Oracle:
         prev: _ModeParams | None = None
         lag = int(getattr(self.world, "lag", 0))
         for m in seq:
-            if m in self.goals:
+            if m in self.goals and (not self.goal_inputs or m not in self.params):
                 break
             p = self.params[m]
             if prev is None:
