@@ -53,7 +53,7 @@ CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
 """``(evidence check, model path, examples) -> (ok, one-line message)``: a re-run."""
 
 DEFAULT_RERUN_EXAMPLES = 50
-"""Examples the gate re-runs by default per deployed model with kinematic evidence (1-3 s
+"""Examples the gate re-runs by default per deployed model with kinematic evidence (~4 s
 per model on one core): a hash proves the evidence's integrity, not its honesty, so the gate
 runs a sample of the campaign itself, on seeds it derives (:func:`rerun_seed`)."""
 DEFAULT_RERUN_TRIALS = 1
