@@ -30,7 +30,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import OutputError, TliError
+from tli_verify.errors import OutputError, TliError, missing
 from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
 
 __all__ = [
@@ -311,6 +311,8 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
         raise error(f"empty path given for the {what} file")
     try:
         st = p.stat()
+    except FileNotFoundError as exc:
+        raise missing(error, f"{p}: cannot read {what} file: {_why(exc)}", p) from None
     except OSError as exc:
         raise error(f"{p}: cannot read {what} file: {_why(exc)}") from None
     if stat.S_ISDIR(st.st_mode):
@@ -345,40 +347,51 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
 # --------------------------------------------------------------------------------------------
 
 def bundled_dir(name: str) -> Path:
-    """A directory of the bundled files (``"specs"``, ``"demos"``), wherever ``tli`` runs from.
+    """A directory of the bundled project (``"specs"``, ``"demos"``, ``"sim"``, ...), wherever
+    ``tli`` runs from.
 
-    The bundled specs and demonstrations live at the top of the source tree, next to the
-    ``tli_verify`` package (an editable install or a checkout). Looked up relative to the
-    package, never to the working directory, so ``tli demo`` behaves the same from anywhere.
+    The bundled project (``tasks/``, ``specs/``, ``demos/``, ``models/``, ``certificates/`` and
+    ``sim/franka/``, ``sim/PROVENANCE.md``) is package data: a built wheel ships it under
+    ``tli_verify/data/`` (``setup.py`` copies it there), read through :mod:`importlib.resources`.
+    A checkout or an editable install has no ``data/``: the folders stay at the top of the
+    source tree, next to the ``tli_verify`` package (the tree the CI gate checks). Looked up
+    relative to the package, never to the working directory, so ``tli demo`` behaves the same
+    from anywhere.
 
     Parameters
     ----------
     name : str
-        ``"specs"`` or ``"demos"``.
+        A top-level folder of the bundled project: ``"tasks"``, ``"specs"``, ``"demos"``,
+        ``"models"``, ``"certificates"`` or ``"sim"``.
 
     Returns
     -------
     Path
-        The directory, relative to the working directory when it lies under it (so messages
-        read ``specs/scoop.toml`` in a checkout), absolute otherwise.
+        The directory (a real path: wheels are installed unpacked), relative to the working
+        directory when it lies under it (so messages read ``specs/scoop.toml`` in a checkout),
+        absolute otherwise. ``bundled_dir("models").parent`` is the bundled project's root.
 
     Raises
     ------
     TliError
-        (exit 2) The directory is not there (a wheel install ships the package only), saying
-        what is needed.
+        (exit 2) The directory is in neither place (a broken installation), saying where it
+        was looked for.
     """
-    package = Path(__file__).resolve().parent
-    for root in (package / "data", package.parent):
-        if (root / name).is_dir():
-            found = root / name
+    package = resources.files("tli_verify")
+    packaged = package / "data" / name
+    candidates = [Path(os.fspath(packaged))] if isinstance(packaged, os.PathLike) else []
+    if isinstance(package, os.PathLike):  # a checkout: the folder next to the package
+        candidates.append(Path(os.fspath(package)).resolve().parent / name)
+    for found in candidates:
+        if found.is_dir():
             try:
-                return found.relative_to(Path.cwd().resolve())
-            except ValueError:
-                return found
-    raise TliError(f"the bundled {name}/ directory is not installed next to the tli_verify "
-                   f"package ({package.parent / name}): tli demo needs a source checkout of "
-                   "tli-verify (pip install -e .)")
+                return found.resolve().relative_to(Path.cwd().resolve())
+            except (ValueError, OSError):
+                return found.resolve()
+    shown = ", ".join(str(c) for c in candidates) or f"{package}/data/{name}"
+    raise TliError(f"the bundled {name}/ directory is missing (looked for {shown}): the "
+                   "tli-verify installation is incomplete; reinstall it (a wheel ships the "
+                   "bundled project under tli_verify/data/, a checkout has it at its top)")
 
 
 # --------------------------------------------------------------------------------------------

@@ -612,6 +612,16 @@ def relocate_model(model: Model, out_path: str | os.PathLike[str], *,
                  spec=spec, path=str(out_path), source=source)
 
 
+def _rate_choice_record(info: Any) -> dict[str, float]:
+    """The rate choice of a :class:`~tli_verify.ds.lpvds.FitInfo` as model ``fit`` keys (none
+    when the rate was forced or the fixed factor)."""
+    if info.rate_budget is None:
+        return {}
+    return {"rate_budget": float(info.rate_budget),
+            "rate_reference_rmse": float(info.reference_rmse),
+            "rate_rmse": float(info.rate_rmse), "data_rate": float(info.data_rate)}
+
+
 def learn_model(
     demo_paths: Sequence[str | os.PathLike[str]],
     *,
@@ -620,6 +630,7 @@ def learn_model(
     seed: int = 0,
     eps: float = 1e-3,
     rate: float | None = None,
+    rate_budget: float | None = 0.03,
     control_dt: float | None = 1e-3,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
@@ -640,9 +651,18 @@ def learn_model(
     eps : float, optional
         LMI margin ``A_k^T P + P A_k <= -eps I``.
     rate : float, optional
-        Certified decay rate of ``V`` imposed on every DS (1/time). Default (None): a quarter
-        of the data's own rate (``RATE_FACTOR``), per DS; ``0`` with ``eps=1e-3``: the learner
-        before issue 9 (margin only). See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+        Certified decay rate of ``V`` forced on every DS (1/time); ``0`` with ``eps=1e-3``:
+        the learner before issue 9 (margin only). Default (None): chosen per DS under
+        ``rate_budget``. See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+    rate_budget : float, optional
+        With ``rate`` None, per DS: fit at rate 0 first, then impose the largest rate of a
+        half-octave grid up to the data's own rate whose fit's training velocity RMSE is within
+        ``1 + rate_budget`` of the rate-0 fit's (:func:`tli_verify.ds.lyapunov.choose_rate`;
+        default ``RATE_BUDGET`` = 0.03). Recorded in each DS's ``fit``: ``rate`` (the chosen
+        rate, which ``tli certify`` then proves: the certified decay rate is at least it),
+        ``rate_budget``, ``rate_reference_rmse`` (rate-0 fit), ``rate_rmse`` (fit at ``rate``)
+        and ``data_rate``. None: the fixed quarter of the data's own rate (``RATE_FACTOR``),
+        the default before the choice.
     control_dt : float, optional
         Control period at which the learned DS must also decrease ``V`` per explicit step
         (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.
@@ -681,17 +701,17 @@ def learn_model(
     for key, data in seg.data.items():
         try:
             ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
-                                   rate=rate, control_dt=control_dt, clustering=clustering,
-                                   lyapunov=lyapunov)
+                                   rate=rate, rate_budget=rate_budget, control_dt=control_dt,
+                                   clustering=clustering, lyapunov=lyapunov)
         except TliError as exc:  # e.g. an infeasible SDP: say which mode's data it was
-            raise type(exc)(f"mode {key!r} ({len(data.x)} samples): {exc}",
-                            exit_code=exc.exit_code) from None
+            raise type(exc)(f"mode {key!r} ({len(data.x)} samples): {exc}") from None
         fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
                "n_components": info.n_components, "eps": info.eps, "rate": info.rate,
                "seed": info.seed, "solver": info.solver, "status": info.status,
                "n_samples": info.n_samples}
         if info.control_dt is not None:
             fit["control_dt"] = info.control_dt
+        fit.update(_rate_choice_record(info))
         learned[key] = ModeModel(key=key, mode=data.mode, next_mode=data.next_mode, ds=ds,
                                  fit=MappingProxyType(fit))
     source = {"tool": f"tli-verify {__version__}",

@@ -20,6 +20,7 @@ import pytest
 
 from tests.support.instances import CHAIN_SPEC
 from tli_verify.certify.certificate import check_certificate, issue_certificate, write_certificate
+from tli_verify.commands import exit_code
 from tli_verify.errors import CertificateError
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import synthesize
@@ -216,7 +217,7 @@ def test_uncertified_or_tampered_model_is_refused(tmp_path: Path) -> None:
     assert not check_certificate(cert).ok
     with pytest.raises(CertificateError) as info:
         LTLDSPolicy(aut, load_model(mpath), cert)
-    assert info.value.exit_code == 1
+    assert exit_code(info.value) == 1
 
 
 def test_policy_pickles_mid_episode(looping: tuple[TaskAutomaton, Model, Path]) -> None:

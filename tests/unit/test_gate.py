@@ -15,6 +15,7 @@ from tli_verify.certify.certificate import (
     issue_certificate,
     write_certificate,
 )
+from tli_verify.commands import exit_code
 from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import GateError
 
@@ -161,7 +162,7 @@ def test_nothing_to_gate_fails_closed_and_non_directory_is_usage_error(tmp_path:
     assert [b.kind for b in run_gate(tmp_path, rerun=0).blockers] == ["project"]
     with pytest.raises(GateError, match="not a directory") as info:
         run_gate(tmp_path / "nope", rerun=0)
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
 
 
 def test_repository_gate_passes(repo: Path) -> None:

@@ -13,6 +13,7 @@ import pytest
 import tli_verify
 from tli_verify.boundary.cuts import Cut
 from tli_verify.boundary.modulation import modulate
+from tli_verify.commands import exit_code
 from tli_verify.errors import ModelError
 from tli_verify.model import load_model, model_from_dict, model_to_dict, save_model
 
@@ -196,7 +197,7 @@ def test_validation_names_file_and_field(tmp_path: Path, path: list[str | int], 
                                          message: str) -> None:
     with pytest.raises(ModelError, match=message) as info:
         load_model(write(tmp_path, mutate(path, value)))
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
     assert str(info.value).startswith(str(tmp_path / "m.json"))
 
 

@@ -45,7 +45,7 @@ from tli_verify.certify.exact import (
     check_lyapunov,
     parse_rational,
 )
-from tli_verify.errors import CertificateError, ModelError
+from tli_verify.errors import CertificateError, ModelError, bad_input, missing
 from tli_verify.io import atomic_write_text, canonical_json, sha256_file
 
 __all__ = [
@@ -192,9 +192,9 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     try:
         dt_q = parse_rational(dt, what="dt")
     except ValueError as exc:
-        raise CertificateError(str(exc), exit_code=2) from None
+        raise bad_input(CertificateError, str(exc)) from None
     if dt_q <= 0:
-        raise CertificateError(f"dt: control period {dt} must be positive", exit_code=2)
+        raise bad_input(CertificateError, f"dt: control period {dt} must be positive")
     mpath = Path(model_path)
     model = load_model(mpath)
     base = Path(cert_path).parent
@@ -287,13 +287,13 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
 
     cpath = Path(cert_path)
     if cpath.is_dir():
-        raise CertificateError(f"{cpath}: is a directory, expected a certificate file",
-                               exit_code=2)
+        raise bad_input(CertificateError,
+                        f"{cpath}: is a directory, expected a certificate file")
     if cpath.exists() and not cpath.is_file():
-        raise CertificateError(f"{cpath}: not a regular file (a device, FIFO or socket); "
-                               "refused, never read", exit_code=2)
+        raise bad_input(CertificateError, f"{cpath}: not a regular file (a device, FIFO or "
+                        "socket); refused, never read")
     if not cpath.is_file():
-        raise CertificateError(f"{cpath}: no such certificate file", exit_code=2)
+        raise missing(CertificateError, f"{cpath}: no such certificate file", cpath)
     problems: list[str] = []
     passed: list[str] = []
     try:

@@ -329,7 +329,7 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
     if tuple(start.inputs) != tuple(named.inputs) or start.modes != named.modes:
         raise TliError(f"--spec {spec}: its sensors or [modes] labels differ from those of "
                        f"{named_path}, the spec the model names (its DS were learned on those "
-                       "labels)", exit_code=2)
+                       "labels)")
     return start
 
 

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
+from tli_verify.commands import exit_code, output_path
 from tli_verify.errors import TliError
 
 
@@ -102,7 +102,7 @@ def _check(args: argparse.Namespace) -> int:
             result = check_spec_file(path, core=args.core, hints=args.hints)
         except TliError as exc:
             sys.stderr.write(f"error: {exc}\n")
-            worst = max(worst, exc.exit_code)
+            worst = max(worst, exit_code(exc))
             continue
         if not result.realizable or (args.strict and not result.well_separated):
             worst = max(worst, 1)

@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.certify.certificate import CertCheck, check_certificate
-from tli_verify.errors import GateError, TliError
+from tli_verify.errors import GateError, TliError, bad_input
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
            "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed",
@@ -414,7 +414,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     """
     base = Path(root)
     if not base.is_dir():
-        raise GateError(f"{base}: not a directory", exit_code=2)
+        raise bad_input(GateError, f"{base}: not a directory")
 
     def shown(p: Path) -> str:
         for a, b in ((p.absolute(), base.absolute()), (p.resolve(), base.resolve())):

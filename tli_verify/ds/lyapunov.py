@@ -18,6 +18,9 @@ the Clarabel interior-point solver:
 2. :func:`fit_a` fits the ``A_k`` to the velocities by least squares with ``P`` fixed, under the
    LMIs ``A_k^T P + P A_k <= -eps I`` -- an SDP with K small semidefinite cones.
 
+:func:`choose_rate` picks the decay rate the A-fit imposes: the largest on a grid up to the data's
+own rate whose fit stays within an accuracy budget (:data:`RATE_BUDGET`) of the rate-0 fit.
+
 :func:`find_p` solves the remaining direction (``A_k`` fixed, search ``P``); ``tli certify`` uses
 it when a model's own ``P`` does not certify.
 
@@ -45,15 +48,20 @@ from tli_verify.errors import SolverError
 
 __all__ = [
     "DEFAULT_CONTROL_DT",
+    "RATE_BUDGET",
     "RATE_FACTOR",
+    "RATE_GRID",
     "SOLVER",
+    "RateChoice",
     "SolveInfo",
+    "choose_rate",
     "data_rate",
     "decay_rate",
     "estimate_p",
     "find_p",
     "fit_a",
     "sampled_growth",
+    "velocity_rmse",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -63,13 +71,29 @@ SOLVER = "CLARABEL"
 
 
 RATE_FACTOR = 0.25
-"""Default decay rate of ``V`` imposed by the learner, as a fraction of :func:`data_rate`.
+"""Fixed-factor decay rate of ``V``, as a fraction of :func:`data_rate`: the default of
+:func:`tli_verify.ds.lpvds.learn_lpvds` without a ``rate_budget``, and the learner's default
+before the per-DS choice (:func:`choose_rate`, the default of ``tli learn``).
 
 Chosen on the LASA benchmark (``benchmarks/bench_lasa.py``, method PC-GMM + P-QLF, medians over
 26 shapes against the old margin-only learner): factor 0.1 costs nothing measurable (RMSE and
 DTWD within 1%) for a 100x larger certified rate; 0.25 costs +5% RMSE and +14% DTWD for 250x;
 0.5 costs +17% RMSE and +49% DTWD. A quarter of the data's own rate keeps the certified decay
 useful as a reachability deadline (``V`` halves within ``ln 2 / rate``) at a bounded cost."""
+
+RATE_BUDGET = 0.03
+"""Default accuracy budget of the per-DS rate choice (:func:`choose_rate`, ``tli learn``).
+
+The learner certifies the largest rate of :data:`RATE_GRID` whose fit's training velocity RMSE
+stays within ``1 + RATE_BUDGET`` of the rate-0 fit's (the plain ``eps`` margin, ``--rate 0``).
+The fixed factor :data:`RATE_FACTOR` cost up to ~9% RMSE on some LASA shapes and almost nothing
+on others; a budget spends the same accuracy everywhere (``benchmarks/bench_lasa.py``)."""
+
+RATE_GRID = tuple(2.0 ** (-j / 2) for j in range(13))
+"""Candidate rates of :func:`choose_rate`, as fractions of :func:`data_rate`: half-octave steps
+from 1 (the data's own rate) down to 1/64. Each candidate is rounded *down* to 3 significant
+digits, so the 4-digit rate the certificate states
+(:func:`tli_verify.certify.exact.certified_decay_rate`) is never below the chosen one."""
 
 DEFAULT_CONTROL_DT = 1e-3
 """Default control period (s) of the sampled-data constraint of the learner (a Franka's 1 kHz)."""
@@ -480,3 +504,173 @@ def find_p(A: npt.ArrayLike, *, eps: float = 1e-6,
     info = _solve(cp.Problem(cp.Minimize(kappa), constraints), "P-search")
     value = np.asarray(P.value, dtype=np.float64)
     return 0.5 * (value + value.T), info
+
+
+def velocity_rmse(X: npt.ArrayLike, dX: npt.ArrayLike, gamma: npt.ArrayLike,
+                  attractor: npt.ArrayLike, A: npt.ArrayLike) -> float:
+    """Velocity RMSE ``sqrt(mean_i |xdot_i - sum_k gamma_k(x_i) A_k (x_i - x*)|^2)`` (float).
+
+    Parameters
+    ----------
+    X, dX : array_like, shape (N, n)
+    gamma : array_like, shape (N, K)
+    attractor : array_like, shape (n,)
+    A : array_like, shape (K, n, n)
+
+    Returns
+    -------
+    float
+        In the units of ``dX``; 0 for no samples.
+    """
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    if not Xa.size:
+        return 0.0
+    F = np.einsum("ik,kab,ib->ia", np.asarray(gamma, dtype=np.float64),
+                  np.asarray(A, dtype=np.float64), Xa - xs)
+    return float(np.sqrt(np.mean(np.sum((F - dXa) ** 2, axis=1))))
+
+
+@dataclass(frozen=True, slots=True)
+class RateChoice:
+    """The decay rate :func:`choose_rate` picked, and the fit at that rate.
+
+    Attributes
+    ----------
+    rate : float
+        Chosen rate (1/time), 3 significant digits; 0 when the data do not move.
+    A : ndarray, shape (K, n, n)
+        The A-fit at ``rate`` (with the sampled-data constraint when ``dt`` was given).
+    info : SolveInfo
+        Its solve.
+    rmse : float
+        Training velocity RMSE of that fit.
+    reference_rmse : float
+        Training velocity RMSE of the rate-0 fit (plain ``eps`` margin, continuous time).
+    budget : float
+        The accuracy budget: ``rmse <= (1 + budget) reference_rmse`` (when ``within_budget``).
+    data_rate : float
+        :func:`data_rate` of the data (the grid's top).
+    within_budget : bool
+        False only when even the grid's smallest rate costs more than the budget; the smallest
+        rate is chosen then (the learner keeps a positive certified rate).
+    tried : tuple of (rate, rmse)
+        Every candidate solved, in order (``rmse`` inf for a solver failure).
+    """
+
+    rate: float
+    A: FloatArray
+    info: SolveInfo
+    rmse: float
+    reference_rmse: float
+    budget: float
+    data_rate: float
+    within_budget: bool
+    tried: tuple[tuple[float, float], ...]
+
+
+def _round_down(x: float, digits: int) -> float:
+    """``x > 0`` rounded down to ``digits`` significant decimal digits (exactly, then to float)."""
+    import math
+    from fractions import Fraction
+
+    unit = Fraction(10) ** (math.floor(math.log10(x)) - digits + 1)
+    return float(math.floor(Fraction(x) / unit) * unit)
+
+
+def choose_rate(
+    X: npt.ArrayLike,
+    dX: npt.ArrayLike,
+    gamma: npt.ArrayLike,
+    attractor: npt.ArrayLike,
+    P: npt.ArrayLike,
+    *,
+    eps: float = 1e-3,
+    dt: float | None = None,
+    budget: float = RATE_BUDGET,
+    grid: tuple[float, ...] = RATE_GRID,
+) -> RateChoice:
+    """The largest decay rate on a grid whose A-fit stays within an accuracy budget.
+
+    1. Reference: :func:`fit_a` at ``rate = 0`` (the plain ``eps`` margin, continuous time: the
+       program of ``--rate 0``), with training velocity RMSE ``e_0`` (:func:`velocity_rmse`).
+    2. Candidates: ``rate_j = grid_j * data_rate(X, dX, attractor)``, rounded down to 3
+       significant digits (largest first). A candidate is *within budget* when the A-fit at
+       ``rate_j`` (with the sampled-data constraint at ``dt``, exactly the fit the learner
+       keeps) has RMSE ``e_j <= (1 + budget) e_0 + 1e-6 rms|xdot|`` (the absolute term only
+       keeps an exact fit, ``e_0 ~ 0``, from rejecting every rate on solver noise).
+    3. Bisection over the grid index for the largest rate within budget. The continuous-time
+       feasible sets shrink as the rate grows, so ``e_j`` grows with the rate (up to the tiny
+       ridge term and the sampled-data re-solve of :func:`fit_a`); the result is a rate within
+       budget whose next larger grid rate is not. ``ceil(log2(len(grid) + 1))`` candidate
+       solves (4 for the default grid) besides the reference: 5 A-fits instead of 1.
+
+    A candidate whose solve fails (:class:`~tli_verify.errors.SolverError`) counts as outside
+    the budget. When no candidate is within budget the smallest is chosen (``within_budget``
+    False). Deterministic: no randomness, a fixed number of solves for given data.
+
+    Parameters
+    ----------
+    X, dX, gamma, attractor, P, eps, dt
+        As for :func:`fit_a`.
+    budget : float, optional
+        Relative RMSE increase allowed over the rate-0 fit (default :data:`RATE_BUDGET`).
+    grid : tuple of float, optional
+        Candidate rates as fractions of :func:`data_rate`, decreasing (default
+        :data:`RATE_GRID`).
+
+    Returns
+    -------
+    RateChoice
+
+    Raises
+    ------
+    SolverError
+        The reference fit fails, ``eps`` is not positive, the budget is not finite and >= 0,
+        or the smallest candidate's fit fails when every candidate is outside the budget.
+    """
+    import math
+
+    if not (math.isfinite(budget) and budget >= 0.0):
+        raise SolverError(f"rate budget must be finite and >= 0, got {budget}")
+    if not eps > 0.0:
+        raise SolverError(f"the rate choice needs a positive margin eps for its rate-0 reference "
+                          f"fit, got eps={eps}")
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    r_data = data_rate(Xa, dXa, xs)
+    A_ref, info_ref = fit_a(Xa, dXa, gamma, xs, P, eps=eps)
+    e_ref = velocity_rmse(Xa, dXa, gamma, xs, A_ref)
+    rms = float(np.sqrt(np.mean(np.sum(dXa**2, axis=1)))) if dXa.size else 0.0
+    limit = (1.0 + budget) * e_ref + 1e-6 * rms
+    rates = sorted({_round_down(f * r_data, 3) for f in grid if f * r_data > 0.0},
+                   reverse=True)
+    if not rates:  # the data do not move: nothing to choose, the margin-only fit
+        return RateChoice(0.0, A_ref, info_ref, e_ref, e_ref, float(budget), r_data, True, ())
+    fits: dict[int, tuple[FloatArray, SolveInfo, float]] = {}
+    errors: dict[int, SolverError] = {}
+    tried: list[tuple[float, float]] = []
+
+    def within(j: int) -> bool:
+        try:
+            A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=rates[j], dt=dt)
+        except SolverError as exc:
+            errors[j] = exc
+            tried.append((rates[j], math.inf))
+            return False
+        e = velocity_rmse(Xa, dXa, gamma, xs, A)
+        fits[j] = (A, info, e)
+        tried.append((rates[j], e))
+        return e <= limit
+
+    lo, hi = -1, len(rates)  # invariant: rates[lo] outside (or none), rates[hi] within (or none)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if within(mid):
+            hi = mid
+        else:
+            lo = mid
+    ok = hi < len(rates)
+    j = hi if ok else len(rates) - 1
+    if j not in fits:  # every candidate outside the budget and the smallest one failed
+        raise errors[j]
+    A, info, e = fits[j]
+    return RateChoice(rates[j], A, info, e, e_ref, float(budget), r_data, ok, tuple(tried))

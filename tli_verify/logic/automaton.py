@@ -28,7 +28,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from tli_verify.errors import SpecError, TliError
+from tli_verify.errors import CheckFailed, SpecError
 from tli_verify.logic.escape import dot_string
 from tli_verify.logic.gr1 import Solution, _goals_or_true, cube
 
@@ -50,10 +50,8 @@ MAX_AUTOMATON_EDGES = 50_000
 """Most edges (reading cubes) an extracted task automaton may have."""
 
 
-class AssumptionViolation(TliError):
+class AssumptionViolation(CheckFailed):
     """A sensor reading the environment assumptions rule out (no transition for it)."""
-
-    exit_code = 1
 
 
 @dataclass(frozen=True, slots=True)

@@ -316,7 +316,7 @@ class LTLDSPolicy:
         unknown = sorted(set(goal_inputs) - set(automaton.inputs))
         if unknown:
             raise TliError(f"goal_inputs: {unknown[0]!r} is not a sensor of the automaton "
-                           f"({', '.join(automaton.inputs)})", exit_code=2)
+                           f"({', '.join(automaton.inputs)})")
         self.goal_inputs = frozenset(goal_inputs)
         self._plan_cache: dict[int, PlannedStep] = plan_states(
             automaton, model, self.goal_modes, str(model.path))
@@ -328,14 +328,14 @@ class LTLDSPolicy:
             if tuple(spec.inputs) != tuple(automaton.inputs) or \
                     tuple(spec.mode_names) != tuple(automaton.modes):
                 raise TliError(f"{spec.path or spec.name}: not the spec of the automaton "
-                               f"{automaton.name!r} (inputs or modes differ)", exit_code=2)
+                               f"{automaton.name!r} (inputs or modes differ)")
             self._spec_text = spec_to_toml(spec)
         elif self.learn_transitions:
             raise TliError("learn_transitions needs the spec the automaton was synthesized "
-                           "from (spec=...)", exit_code=2)
+                           "from (spec=...)")
         if self.learn_transitions and spec is not None and spec.modes is None:
             raise TliError(f"{spec.path or spec.name}: learn_transitions needs a [modes] table "
-                           "(which mode a reading shows)", exit_code=2)
+                           "(which mode a reading shows)")
         self._learned: tuple[tuple[str, str], ...] = ()
         self._refused: frozenset[tuple[str, frozenset[str]]] = frozenset()
         self.automaton = automaton

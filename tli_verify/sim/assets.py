@@ -36,7 +36,13 @@ from pathlib import Path, PurePosixPath
 from typing import NoReturn
 
 from tli_verify.errors import AssetError, TliError
-from tli_verify.io import atomic_write_text, canonical_json, parse_json, sha256_file
+from tli_verify.io import (
+    atomic_write_text,
+    bundled_dir,
+    canonical_json,
+    parse_json,
+    sha256_file,
+)
 
 __all__ = [
     "ASSETS_ENV",
@@ -95,11 +101,17 @@ class FetchResult:
 
 
 def assets_dir() -> Path:
-    """The simulator assets directory: ``$TLI_SIM_ASSETS`` or ``<repo>/sim/assets``."""
+    """The simulator assets directory: ``$TLI_SIM_ASSETS``, else ``assets/`` beside the bundled
+    ``sim/franka`` project (:func:`tli_verify.io.bundled_dir`): ``<repo>/sim/assets`` in a
+    checkout, ``tli_verify/data/sim/assets`` in a wheel install (inside the package, never a
+    top-level ``sim/`` in site-packages). Always absolute."""
     env = os.environ.get(ASSETS_ENV)
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[2] / "sim" / "assets"
+    try:
+        return Path(os.path.abspath(bundled_dir("sim"))) / "assets"
+    except TliError:  # no bundled sim/ at all: where a checkout keeps it
+        return Path(__file__).resolve().parents[2] / "sim" / "assets"
 
 
 def panda_dir(root: Path | None = None) -> Path:
@@ -384,7 +396,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{folder}: ok")
     except TliError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        return 2  # every AssetError is bad input (tli_verify.cli.exit_code)
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

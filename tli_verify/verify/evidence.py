@@ -15,7 +15,10 @@ certificate's convention, :mod:`tli_verify.certify.certificate`):
   modulation was on (it must be: that is the deployed policy) and whether the campaign was
   interrupted (``partial``: then it is not evidence);
 * the violations found, by kind (``total`` must be 0 to deploy) and the counterexample (null);
-* the tool version; and ``digest``, the SHA-256 of the canonical JSON of everything else.
+* what the campaign means, :data:`CAMPAIGN_SEMANTICS` (``campaign_semantics``: the gate requires
+  this tool's), and the tool version (``tool``: information only, never compared, so a release
+  that changes nothing a campaign means keeps the evidence valid); and ``digest``, the SHA-256
+  of the canonical JSON of everything else.
 
 Nothing in it is trusted: :func:`check_evidence` re-reads it (bounded, regular files only, never
 a symlink), recomputes the digest and the three hashes, requires the spec to be the one the
@@ -49,10 +52,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import EvidenceError, TliError
+from tli_verify.errors import EvidenceError, TliError, missing
 from tli_verify.io import atomic_write_text, canonical_json, check_output_file, sha256_file
 
 __all__ = [
+    "CAMPAIGN_SEMANTICS",
     "EVIDENCE_KIND",
     "EVIDENCE_SCHEMA_VERSION",
     "EVIDENCE_SUFFIX",
@@ -72,7 +76,32 @@ __all__ = [
     "write_evidence",
 ]
 
-EVIDENCE_SCHEMA_VERSION = 2
+EVIDENCE_SCHEMA_VERSION = 3
+"""Version of the evidence file format (``campaign.schema.json``). 3: ``campaign_semantics``
+recorded and required (2 compared the tool version instead; 1 bound no task)."""
+CAMPAIGN_SEMANTICS = 1
+"""What a campaign's verdict means; evidence recorded under another value does not count.
+
+Evidence records it (``campaign_semantics``) and ``tli gate`` requires this tool's value, so
+evidence stays valid across releases of tli-verify that change nothing a campaign means
+(the tool version is recorded as information only), and is refused, asking for a new
+campaign, after one that does.
+
+Bump rule: increment it (and re-run ``tli evidence .`` and ``tli evidence sim/franka``) in the
+change that alters what a campaign of given files, seed and settings establishes:
+
+* the oracle: what counts as a violation (invariance, reachability, looping), its kinds, its
+  tolerances or the simulation it judges (the executive, the sensor debouncing, the cuts, the
+  modulation, the integration of a kinematic world; the physical trial's success criterion);
+* the strategies' encoding: how a seed and the settings become perturbation sequences
+  (:mod:`tli_verify.verify.strategies`, :mod:`tli_verify.sim.perturbations`), so that the same
+  recorded seed would draw other cases, or the settings mean other bounds;
+* the deadline computation: the number of steps (or seconds) a run gets to reach the goal
+  before it counts as a failure.
+
+Do not bump it for refactors, speed-ups, messages, new commands or a release by itself; a
+change of the evidence *file format* bumps :data:`EVIDENCE_SCHEMA_VERSION` instead.
+History: 1 (tli-verify 0.1.0) is the first recorded value."""
 EVIDENCE_KIND = "tli-verify/campaign-evidence"
 EVIDENCE_SUFFIX = ".campaign.json"
 MIN_EVIDENCE_EXAMPLES = 500
@@ -99,10 +128,8 @@ no case tests a recovery that is itself perturbed (paper Asm. 2: finitely many, 
 """Worlds of physical campaigns (:mod:`tli_verify.sim.campaign`) -> their minimum trials."""
 
 
-class _BadInput(EvidenceError):
-    """Evidence that cannot be built from what was given (exit 2)."""
-
-    exit_code = 2
+class _BadInput(EvidenceError, ValueError):
+    """Evidence that cannot be built from what was given (bad input, not a verdict)."""
 
 
 def evidence_digest(doc: Mapping[str, Any]) -> str:
@@ -143,7 +170,7 @@ def _relpath(target: Path, base_dir: Path) -> str:
 
 def _file_entry(path: Path, base: Path, what: str) -> dict[str, str]:
     if not path.is_file():
-        raise EvidenceError(f"{path}: {what} file not found", exit_code=2)
+        raise missing(EvidenceError, f"{path}: {what} file not found", path)
     return {"path": _relpath(path, base), "sha256": sha256_file(path)}
 
 
@@ -163,8 +190,8 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
     elif src.kind == "entry-point" and src.source_sha256 is not None:
         out = {"name": task.name, "kind": "entry-point", "sha256": src.source_sha256}
     else:
-        raise EvidenceError(f"task {task.name!r} was built in memory: evidence needs a task "
-                            "file or an entry-point task", exit_code=2)
+        raise _BadInput(f"task {task.name!r} was built in memory: evidence needs a task "
+                        "file or an entry-point task")
     if src.entry_point is not None and src.source_sha256 is not None:
         out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
                               "version": src.version, "source_sha256": src.source_sha256}
@@ -245,6 +272,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         "schema_version": EVIDENCE_SCHEMA_VERSION,
         "kind": EVIDENCE_KIND,
         "tool": {"name": "tli-verify", "version": __version__},
+        "campaign_semantics": CAMPAIGN_SEMANTICS,
         "world": str(world),
         "task": dict(task),
         "spec": _file_entry(Path(spec), base, "spec"),
@@ -267,10 +295,9 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         doc["physics"] = dict(physics)
     for key, sha in (expected or {}).items():
         if doc[key]["sha256"] != sha:
-            raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
-                                f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
-                                f"{doc[key]['sha256'][:12]}... now): re-run the campaign",
-                                exit_code=2)
+            raise _BadInput(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
+                            f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
+                            f"{doc[key]['sha256'][:12]}... now): re-run the campaign")
     doc["digest"] = evidence_digest(doc)
     validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
     return doc
@@ -410,8 +437,8 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
         elif getattr(config, name, None):
             out[name] = (Path(getattr(config, name)), None)
         else:
-            raise EvidenceError(f"campaign evidence needs the campaign's {name} file; neither "
-                                "the result nor the config names it", exit_code=2)
+            raise _BadInput(f"campaign evidence needs the campaign's {name} file; neither "
+                            "the result nor the config names it")
     return out
 
 
@@ -422,8 +449,8 @@ def _campaign_task(result: Any) -> Any:
 
     entry = (getattr(result, "files", None) or {}).get("task")
     if not isinstance(entry, Mapping):
-        raise EvidenceError("campaign evidence needs the campaign's task; the result names "
-                            "none", exit_code=2)
+        raise _BadInput("campaign evidence needs the campaign's task; the result names "
+                        "none")
     if entry.get("path"):
         p = Path(str(entry["path"]))
         if not p.is_absolute():
@@ -436,8 +463,8 @@ def _campaign_task(result: Any) -> Any:
         task = find_task(str(entry["entry_point"]))
         sha = task.source.source_sha256
     if sha != entry.get("sha256"):
-        raise EvidenceError(f"{task.where}: the task changed since the campaign ran it "
-                            "(SHA-256 differs): re-run the campaign", exit_code=2)
+        raise _BadInput(f"{task.where}: the task changed since the campaign ran it "
+                        "(SHA-256 differs): re-run the campaign")
     return task
 
 
@@ -549,6 +576,12 @@ def check_evidence(path: str | os.PathLike[str], *,
         return EvidenceCheck(shown, (f"{shown}: no such campaign evidence file",))
     try:
         doc = read_json(epath, what="campaign evidence", error=EvidenceError)
+        if (isinstance(doc, Mapping) and doc.get("kind") == EVIDENCE_KIND
+                and doc.get("schema_version") == 2):
+            return EvidenceCheck(shown, (
+                f"{shown}: evidence schema 2, written by an earlier tli-verify that recorded no "
+                f"campaign semantics (this tool's is {CAMPAIGN_SEMANTICS}): re-run the "
+                "campaign (tli evidence DIR, or tli verify ... --evidence)",))
         validate_schema(doc, "campaign.schema.json", where=shown, error=EvidenceError)
     except EvidenceError as exc:
         return EvidenceCheck(shown, (f"malformed campaign evidence: {exc}",))
@@ -595,13 +628,19 @@ def check_evidence(path: str | os.PathLike[str], *,
 
 
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
-    from tli_verify import __version__
-
+    """The campaign semantics are this tool's (:data:`CAMPAIGN_SEMANTICS`; the tool version
+    is not compared) and the world agrees with the task and the physics block."""
     out: list[str] = []
+    semantics = doc["campaign_semantics"]
     version = doc["tool"]["version"]
-    if version != __version__:
-        out.append(f"{shown}: written by tli-verify {version}, this is {__version__}: the "
-                   "oracle may differ; re-run the campaign with this version")
+    if semantics != CAMPAIGN_SEMANTICS:
+        out.append(f"{shown}: campaign semantics {semantics} (written by tli-verify {version}), "
+                   f"this tool's are {CAMPAIGN_SEMANTICS}: the oracle, the perturbation "
+                   "strategies or the deadlines changed what a campaign means; re-run the "
+                   "campaign with this version")
+    else:
+        passed.append(f"campaign semantics {semantics} are this tool's (written by tli-verify "
+                      f"{version})")
     physical = doc["world"] in PHYSICS_WORLDS
     if physical != (doc.get("physics") is not None):
         out.append(f"{shown}: world {doc['world']!r} and the physics block disagree (a "
@@ -668,11 +707,26 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 f"{_short(str(got.get('sha256')))}), but the deployed spec's task is "
                 f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): another "
                 "task, or the task changed after the campaign"]
-    if "entry_point" in want and got.get("entry_point") != want["entry_point"]:
+    if "entry_point" in want and not _same_entry_point(got.get("entry_point"),
+                                                       want["entry_point"]):
         return [f"{shown}: the task's entry point {want['entry_point']['name']!r} differs "
                 "from the one the campaign ran (distribution, version or source)"]
     passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
     return []
+
+
+def _same_entry_point(got: Any, want: Mapping[str, Any]) -> bool:
+    """The entry point the campaign ran is the deployed one: same name, distribution, source
+    and version. The version of tli-verify's own entry points is not compared (it is the tool
+    version: :data:`CAMPAIGN_SEMANTICS` binds what tli-verify's code means); a third-party
+    distribution's version is (its module's dependencies may have changed)."""
+    from tli_verify._version import DISTRIBUTION
+
+    if not isinstance(got, Mapping):
+        return False
+    ignore = {"version"} if want.get("distribution") == DISTRIBUTION else set()
+    keys = (set(got) | set(want)) - ignore
+    return all(got.get(k) == want.get(k) for k in keys)
 
 
 def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],

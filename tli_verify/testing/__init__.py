@@ -1,0 +1,89 @@
+"""Property tests of a certified policy: the public testing API of tli-verify.
+
+A property test of your own policy, on your own task, in any dimension::
+
+    from hypothesis import given
+    from tli_verify.testing import assert_satisfies, cases, project
+
+    drawer = project(__file__)   # the project's model, its spec, task and certificate
+
+    @given(cases(drawer, max_pushes=2))
+    def test_the_drawer_survives_pushes(case):
+        assert_satisfies(drawer, case)
+
+* :func:`project` -- resolve the files by the project rules (the ones every ``tli`` command
+  follows) and load the closed loop: a :class:`Project`;
+* :func:`cases` -- hypothesis strategies of perturbation sequences with the task's defaults
+  (starts, window, count and magnitude of the pushes), shrinking toward fewer, smaller, later
+  perturbations;
+* :func:`check`, :func:`check_many` -- simulate cases and return the oracle's verdicts (the four
+  checks of ``tli verify``);
+* :func:`assert_satisfies` -- passes only when the run is decided, reached a goal mode and
+  violated nothing; otherwise an :class:`AssertionError` showing the (shrunk) case and the
+  ``tli replay PATH`` command of the regression case file it saved;
+* the pytest plugin (:mod:`tli_verify.testing.plugin`, loaded by pytest): the ``tli_project``
+  fixture, ``--tli-examples`` and ``--tli-seed``, and saved cases replayed as tests
+  (``--tli-cases DIR``); docs/howto/property-tests.md.
+
+Importing this package is cheap: its names load their modules (hypothesis, the simulator) when
+first used.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from tli_verify.testing.projects import Project, project
+    from tli_verify.testing.runner import (
+        assert_satisfies,
+        check,
+        check_many,
+        replay_command,
+        save_case,
+    )
+    from tli_verify.testing.strategies import cases
+    from tli_verify.verify.oracle import Verdict
+    from tli_verify.verify.strategies import Case, Push
+
+_NAMES: dict[str, str] = {
+    "Project": "tli_verify.testing.projects",
+    "project": "tli_verify.testing.projects",
+    "cases": "tli_verify.testing.strategies",
+    "check": "tli_verify.testing.runner",
+    "check_many": "tli_verify.testing.runner",
+    "assert_satisfies": "tli_verify.testing.runner",
+    "save_case": "tli_verify.testing.runner",
+    "replay_command": "tli_verify.testing.runner",
+    "Case": "tli_verify.verify.strategies",
+    "Push": "tli_verify.verify.strategies",
+    "Verdict": "tli_verify.verify.oracle",
+}
+
+__all__ = [
+    "Case",
+    "Project",
+    "Push",
+    "Verdict",
+    "assert_satisfies",
+    "cases",
+    "check",
+    "check_many",
+    "project",
+    "replay_command",
+    "save_case",
+]
+
+
+def __getattr__(name: str) -> Any:
+    module = _NAMES.get(name)
+    if module is None:
+        raise AttributeError(f"module 'tli_verify.testing' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

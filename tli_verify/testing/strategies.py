@@ -1,0 +1,149 @@
+"""Hypothesis strategies for the perturbation sequences of any task, in any dimension.
+
+:func:`cases` draws :class:`~tli_verify.verify.strategies.Case` objects (a start and a finite
+perturbation sequence) with the defaults of a task -- its nominal start (or random starts in
+the regions the spec's initial assumption allows), its perturbation window, count and
+magnitude bound -- by :func:`tli_verify.verify.strategies.cases`, so a case shrinks toward
+fewer, smaller, later perturbations, as ``tli verify``'s counterexamples do.
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+from tli_verify.verify.strategies import LEVELS
+
+if TYPE_CHECKING:  # pragma: no cover - types only
+    from hypothesis.strategies import SearchStrategy
+
+    from tli_verify.testing.projects import Project
+    from tli_verify.verify.strategies import Case
+
+__all__ = ["cases", "is_tli_strategy"]
+
+_OURS: weakref.WeakSet[Any] = weakref.WeakSet()
+"""Strategies built here: the pytest plugin applies ``--tli-examples`` and ``--tli-seed`` to the
+``@given`` tests that draw from one."""
+
+
+def is_tli_strategy(strategy: object) -> bool:
+    """Whether ``strategy`` was built by :func:`cases`."""
+    try:
+        return strategy in _OURS
+    except TypeError:  # not weak-referenceable: not ours
+        return False
+
+
+def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None, *,
+          max_pushes: int | None = None, window: int | None = None,
+          levels: Sequence[str] = LEVELS, start: Sequence[float] | None = None,
+          random_starts: bool | None = None, max_magnitude: float | None = None,
+          min_pushes: int = 0) -> SearchStrategy[Case]:
+    """Cases of a project's (or a task's) closed loop: a start and finitely many perturbations.
+
+    Parameters
+    ----------
+    project_or_task : Project, Task, str or path-like, optional
+        A :class:`~tli_verify.testing.Project` (its task, and for random starts its spec's
+        initial assumption); a task, task name or task file; default: the plugin's project
+        (``--tli-project``, else the working directory), resolved when the first case is drawn.
+    max_pushes : int, optional
+        At most this many perturbations (default: the task's ``perturbations.max_pushes``).
+    window : int, optional
+        Perturbations happen in steps ``1..window`` (default: the task's); a check's step
+        budget covers the last one whatever the window.
+    levels : sequence of str, optional
+        Perturbation levels, a subset of ``("free", "motion", "task")`` (default: all).
+    start : sequence of float, optional
+        A fixed start (default: the task's first nominal start).
+    random_starts : bool, optional
+        Draw the start too (default: when the task has no nominal start and ``start`` is not
+        given): in the task's ``starts.region``, else in the regions whose first reading the
+        spec allows (a project), else anywhere in the workspace (a task alone).
+    max_magnitude : float, optional
+        Largest displacement (default: the task's bound, else the workspace size).
+    min_pushes : int, optional
+        At least this many perturbations.
+
+    Returns
+    -------
+    SearchStrategy of Case
+        Shrinks toward fewer, smaller, later perturbations
+        (:mod:`tli_verify.verify.strategies`).
+
+    Raises
+    ------
+    TliError
+        A bad option (a level that is not one, a window < 1, a start of the wrong dimension).
+
+    Examples
+    --------
+    >>> from hypothesis import given
+    >>> from tli_verify.testing import assert_satisfies, cases, project
+    >>> drawer = project("path/to/project")                    # doctest: +SKIP
+    >>> @given(cases(drawer, max_pushes=2, levels=("task",)))  # doctest: +SKIP
+    ... def test_pushes(case):
+    ...     assert_satisfies(drawer, case)
+    """
+    options: dict[str, Any] = {
+        "max_pushes": max_pushes, "window": window, "levels": tuple(levels), "start": start,
+        "random_starts": random_starts, "max_magnitude": max_magnitude,
+        "min_pushes": min_pushes}
+    if project_or_task is None:
+        from hypothesis import strategies as st
+
+        from tli_verify.testing.projects import default_project
+
+        out: SearchStrategy[Case] = st.deferred(lambda: _build(default_project(), options))
+    else:
+        out = _build(project_or_task, options)
+    _OURS.add(out)
+    return out
+
+
+def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
+    from tli_verify.errors import TliError
+    from tli_verify.testing.projects import Project
+    from tli_verify.verify.strategies import cases as _cases
+
+    proj = source if isinstance(source, Project) else None
+    if proj is not None:
+        task = proj.task
+    elif isinstance(source, str | os.PathLike):
+        from tli_verify.tasks.registry import find_task
+
+        task = find_task(source)
+    else:
+        task = source
+    perturb = task.perturbations
+    start = o["start"]
+    random_starts = o["random_starts"]
+    if random_starts is None:
+        random_starts = start is None and not task.starts.nominal
+    regions: tuple[str, ...] | None = None
+    if random_starts:
+        start = None
+        if proj is not None:
+            from tli_verify.verify.campaign import start_regions
+
+            regions = start_regions(task, proj.loaded.automaton)
+        if task.starts.region is not None:
+            regions = (task.starts.region,) if regions is None or \
+                task.starts.region in regions else regions
+    elif start is None:
+        start = task.starts.nominal[0]
+    if start is not None:
+        if len(start) != task.dim:
+            raise TliError(f"cases: start: expected {task.dim} coordinates (task "
+                           f"{task.name!r}), got {len(start)}")
+        start = tuple(float(v) for v in start)
+    return _cases(task, start=start,
+                  max_pushes=perturb.max_pushes if o["max_pushes"] is None else o["max_pushes"],
+                  window=perturb.window if o["window"] is None else o["window"],
+                  levels=o["levels"],
+                  max_magnitude=(perturb.max_magnitude if o["max_magnitude"] is None
+                                 else o["max_magnitude"]),
+                  min_pushes=o["min_pushes"], start_regions=regions)
