@@ -8,7 +8,7 @@ export MPLBACKEND := Agg
 
 LOCK_VENV := .venv-lock
 
-.PHONY: demo test test-all lint bench gate clean venv constraints sim-assets
+.PHONY: demo test test-all lint bench gate docs clean venv constraints sim-assets
 
 venv: $(STAMP)
 
@@ -60,5 +60,11 @@ gate: $(STAMP)
 	$(VENV)/bin/tli gate
 	$(VENV)/bin/tli gate sim/franka
 
+# The docs site (docs/, Sphinx + MyST + numpydoc + sphinx-argparse): warnings are errors.
+# The API, CLI, file-format and benchmark pages are generated from the code, the JSON Schemas
+# and benchmarks/results/ at build time. Open docs/_build/html/index.html.
+docs: $(STAMP)
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf out .pytest_cache .mypy_cache .ruff_cache docs/_build

@@ -47,8 +47,8 @@ def main() -> int:
     for a, b in PERTURBATIONS:
         spec = add_transition(spec, a, b)
         print(f"+ {a}->{b} (perturbation): mode changes {_changes(spec)}")
-    paper = synthesize(load_spec(paper_path)).to_json()
-    ours = synthesize(spec).to_json()
+    paper = synthesize(load_spec(paper_path)).to_dict()
+    ours = synthesize(spec).to_dict()
     same = ({k: v for k, v in ours.items() if k != "name"}
             == {k: v for k, v in paper.items() if k != "name"})
     print(f"grown automaton == specs/scoop.toml automaton (Fig. 5(a)): {same}")

@@ -39,12 +39,14 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.logic.automaton import TaskAutomaton
     from tli_verify.logic.check import check_spec, synthesize
     from tli_verify.logic.spec import GR1Spec, load_spec
-    from tli_verify.model import Model, load_model
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.tasks.project import resolve
     from tli_verify.tasks.registry import find_task
     from tli_verify.tasks.task import Task, load_task
-    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    from tli_verify.verify.campaign import run_campaign
+    from tli_verify.verify.config import CampaignConfig
 
 _NAMES: dict[str, str] = {
     "__version__": "tli_verify._version",
@@ -63,8 +65,8 @@ _NAMES: dict[str, str] = {
     "load_demos": "tli_verify.demos",
     "Demonstration": "tli_verify.demos",
     "learn": "tli_verify.api",
-    "Model": "tli_verify.model",
-    "load_model": "tli_verify.model",
+    "Model": "tli_verify.model.types",
+    "load_model": "tli_verify.model.serialize",
     "save_model": "tli_verify.api",
     # certificates (paper eq. 4, checked exactly)
     "certify": "tli_verify.api",
@@ -74,7 +76,7 @@ _NAMES: dict[str, str] = {
     "LTLDSPolicy": "tli_verify.runtime.executive",
     "run": "tli_verify.api",
     # campaigns and the gate
-    "CampaignConfig": "tli_verify.verify.campaign",
+    "CampaignConfig": "tli_verify.verify.config",
     "run_campaign": "tli_verify.verify.campaign",
     "run_gate": "tli_verify.deploy.gate",
     "GateReport": "tli_verify.deploy.gate",

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy.typing as npt
 
-from tli_verify.errors import CertificateError, TliError
+from tli_verify.errors import CertificateError, ModelError, SpecError, TaskError, bad_input
 
 __all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
 
@@ -51,8 +51,8 @@ def _spec_path(spec: Any) -> Path | None:
         return Path(spec)
     path = getattr(spec, "path", None)
     if path is None:
-        raise TliError("spec: a GR1Spec loaded from a file is needed (the model and its "
-                       "certificate bind the spec file); use load_spec(path)")
+        raise bad_input(SpecError, "spec: a GR1Spec loaded from a file is needed (the model "
+                        "and its certificate bind the spec file); use load_spec(path)")
     return Path(path)
 
 
@@ -71,7 +71,7 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
     out : path-like, optional
         Also save the model there (atomically).
     **options
-        More keyword arguments of :func:`tli_verify.model.learn_model` (``eps``, ``rate``,
+        More keyword arguments of :func:`tli_verify.model.learn.learn_model` (``eps``, ``rate``,
         ``control_dt``, ``clustering``, ``lyapunov``).
 
     Returns
@@ -80,7 +80,7 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
     """
     from tli_verify.demos import Demonstration, demo_to_csv
     from tli_verify.io import atomic_write_text
-    from tli_verify.model import learn_model
+    from tli_verify.model.learn import learn_model
 
     spec_path = _spec_path(spec)
     with tempfile.TemporaryDirectory(prefix="tli-learn-") as tmp:
@@ -101,7 +101,7 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
         model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, **options)
         if out is not None:
             save_model(model, out)
-            from tli_verify.model import load_model
+            from tli_verify.model.serialize import load_model
 
             return load_model(out)
         return model
@@ -120,8 +120,8 @@ def save_model(model: Any, path: PathLike) -> Any:
     -------
     Model
     """
-    from tli_verify.model import load_model, relocate_model
-    from tli_verify.model import save_model as _save
+    from tli_verify.model.serialize import load_model, relocate_model
+    from tli_verify.model.serialize import save_model as _save
 
     _save(relocate_model(model, path), path)
     return load_model(path)
@@ -161,13 +161,13 @@ class Certificate:
 
     @property
     def ok(self) -> bool:
-        """Whether it re-checks exactly now (:func:`tli_verify.certify.certificate.
+        """Whether it re-checks exactly now (:func:`tli_verify.certification.certificate.
         check_certificate`: digest, hashes, P, the Lyapunov and sampled-data conditions)."""
         return bool(self.check().ok)
 
     def check(self) -> Any:
-        """The exact re-check (a :class:`~tli_verify.certify.certificate.CertCheck`)."""
-        from tli_verify.certify.certificate import check_certificate
+        """The exact re-check (a :class:`~tli_verify.certification.certificate.CertCheck`)."""
+        from tli_verify.certification.certificate import check_certificate
 
         return check_certificate(self.path)
 
@@ -191,7 +191,7 @@ class Certificate:
         Certificate
             Re-issued for the files written.
         """
-        from tli_verify.model import load_model
+        from tli_verify.model.serialize import load_model
 
         mpath = Path(self.model_path)
         if model is not None:
@@ -224,8 +224,10 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
     CertificateError
         A DS does not certify with the model's own P (naming the mode and the condition).
     """
-    from tli_verify.certify.certificate import DEFAULT_DT, issue_certificate, write_certificate
-    from tli_verify.model import Model, load_model
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
+    from tli_verify.defaults import DEFAULT_DT
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model
 
     tmp = None
     if isinstance(model, Model):
@@ -259,7 +261,7 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
 def _same_bytes(model: Any, path: Path) -> bool:
     """Whether the model object is the file's content (cuts learned in memory make it not)."""
     from tli_verify.io import canonical_json
-    from tli_verify.model import model_to_dict, relocate_model
+    from tli_verify.model.serialize import model_to_dict, relocate_model
 
     return canonical_json(model_to_dict(relocate_model(model, path))) == \
         path.read_text(encoding="utf-8")
@@ -288,10 +290,12 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
     Raises
     ------
     CertificateError
-        (exit 1) The certificate does not cover the model.
+        The certificate does not cover the model (also a ValueError when the model was never
+        saved).
     """
     from tli_verify.logic.automaton import TaskAutomaton
-    from tli_verify.model import Model, load_model
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model
     from tli_verify.runtime.setup import Setup, check_goal
     from tli_verify.runtime.setup import make_policy as _make
     from tli_verify.tasks.project import resolve
@@ -301,13 +305,13 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
         if model.path is None and isinstance(certificate, Certificate):
             model = load_model(certificate.model_path)
         elif model.path is None:
-            raise CertificateError("the model was never saved: certify(model) first (a "
-                                   "certificate binds a model file)")
+            raise bad_input(CertificateError, "the model was never saved: certify(model) "
+                            "first (a certificate binds a model file)")
     else:
         model = load_model(model)
     spec_file = model.spec_path
     if spec_file is None:
-        raise TliError("the model names no spec: learn it with spec=...")
+        raise bad_input(ModelError, "the model names no spec: learn it with spec=...")
     resolved = resolve(task=task, spec=spec_file, model=model.path, certificate=cpath)
     if isinstance(spec, TaskAutomaton):
         automaton = spec
@@ -345,8 +349,9 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
     """
     import numpy as np
 
+    from tli_verify.defaults import Stream, rng
     from tli_verify.runtime.episodes import pusher, random_start
-    from tli_verify.runtime.executive import run_episode
+    from tli_verify.runtime.loop import run_episode
     from tli_verify.runtime.worlds import WorldSensors
     from tli_verify.tasks.project import spec_task
     from tli_verify.tasks.registry import find_task
@@ -362,9 +367,9 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
         spec = policy.model.spec_path
         found = spec_task(load_spec(spec), spec) if spec is not None else None
         if found is None:
-            raise TliError("run: the policy's spec names no task: pass task=...")
+            raise bad_input(TaskError, "run: the policy's spec names no task: pass task=...")
         world = found
     x0 = (np.asarray(start, dtype=np.float64) if start is not None
-          else random_start(world, policy.automaton, np.random.default_rng([seed, 3])))
+          else random_start(world, policy.automaton, rng(seed, Stream.START)))
     return run_episode(policy.fork(), WorldSensors(world), x0, steps=steps,
                        perturb=pusher(world, dict(perturbations or {})))

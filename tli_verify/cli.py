@@ -87,7 +87,8 @@ class _Version(argparse.Action):
                  values: Any, option_string: str | None = None) -> None:
         from tli_verify._version import __version__
 
-        parser.exit(message=f"tli-verify {__version__}\n")
+        sys.stdout.write(f"tli-verify {__version__}\n")  # stdout, as argparse's "version"
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:

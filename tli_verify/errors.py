@@ -17,7 +17,6 @@ package prints errors or warnings.
 from __future__ import annotations
 
 import errno
-from functools import cache
 
 __all__ = [
     "AssetError",
@@ -121,16 +120,21 @@ class CampaignError(InputError):
     """A campaign's configuration, case file or backend is unusable (exit 2)."""
 
 
-@cache
+_VARIANTS: dict[tuple[type, ...], type[TliError]] = {}
+
+
 def _variant(cls: type[TliError], *builtins: type[Exception]) -> type[TliError]:
     """``cls`` that is also each of ``builtins`` (one class per combination, so ``except``
     clauses and pickling see a stable type)."""
+    key = (cls, *builtins)
+    found = _VARIANTS.get(key)
+    if found is not None:
+        return found
     extra = tuple(b for b in builtins if not issubclass(cls, b))
-    if not extra:
-        return cls
-    return type(cls.__name__, (cls, *extra), {
+    made: type[TliError] = cls if not extra else type(cls.__name__, (cls, *extra), {
         "__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__,
         "__reduce__": _reduce, "_tli_variant": (cls, builtins)})
+    return _VARIANTS.setdefault(key, made)
 
 
 def _reduce(self: BaseException) -> tuple[object, ...]:

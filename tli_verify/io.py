@@ -34,11 +34,13 @@ from tli_verify.errors import OutputError, TliError, missing
 from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
 
 __all__ = [
+    "BUNDLED_FOLDERS",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
     "atomic_write_bytes",
     "atomic_write_text",
     "bundled_dir",
+    "bundled_root",
     "canonical_json",
     "check_nesting",
     "check_output_dir",
@@ -346,52 +348,95 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
 # Bundled files
 # --------------------------------------------------------------------------------------------
 
-def bundled_dir(name: str) -> Path:
-    """A directory of the bundled project (``"specs"``, ``"demos"``, ``"sim"``, ...), wherever
-    ``tli`` runs from.
+BUNDLED_FOLDERS = ("tasks", "specs", "demos", "models", "certificates", "sim")
+"""The top-level folders of the bundled project (``sim`` holds ``franka/`` and
+``PROVENANCE.md``; its ``assets/``, fetched at run time, is never packaged)."""
 
-    The bundled project (``tasks/``, ``specs/``, ``demos/``, ``models/``, ``certificates/`` and
-    ``sim/franka/``, ``sim/PROVENANCE.md``) is package data: a built wheel ships it under
-    ``tli_verify/data/`` (``setup.py`` copies it there), read through :mod:`importlib.resources`.
-    A checkout or an editable install has no ``data/``: the folders stay at the top of the
-    source tree, next to the ``tli_verify`` package (the tree the CI gate checks). Looked up
-    relative to the package, never to the working directory, so ``tli demo`` behaves the same
-    from anywhere.
 
-    Parameters
-    ----------
-    name : str
-        A top-level folder of the bundled project: ``"tasks"``, ``"specs"``, ``"demos"``,
-        ``"models"``, ``"certificates"`` or ``"sim"``.
+def _bundled_root_abs() -> Path:
+    """The bundled project's root, absolute and resolved (see :func:`bundled_root`)."""
+    package = resources.files("tli_verify")
+    if not isinstance(package, os.PathLike):  # e.g. a zipped install: no real files
+        raise TliError(f"tli-verify is installed as {package!r}, not as files on disk: the "
+                       "bundled project needs an unpacked installation (pip install)")
+    here = Path(os.fspath(package)).resolve()
+    packaged = here / "data"
+    if packaged.is_dir():  # an installed wheel: package data
+        return packaged
+    source_tree = here.parent
+    if (source_tree / "pyproject.toml").is_file():  # a checkout or an editable install
+        return source_tree
+    raise TliError(f"the bundled project is missing (looked for {packaged}, and for a source "
+                   f"tree at {source_tree}): the tli-verify installation is incomplete; "
+                   "reinstall it (a wheel ships the bundled project under tli_verify/data/, "
+                   "a checkout has it at its top)")
+
+
+def _shown_path(p: Path) -> Path:
+    """Relative to the working directory when under it, else absolute."""
+    try:
+        return p.relative_to(Path.cwd().resolve())
+    except (ValueError, OSError):
+        return p
+
+
+def bundled_root() -> Path:
+    """The root of the bundled project (the folder holding its ``tasks/``, ``specs/``,
+    ``demos/``, ``models/``, ``certificates/`` and ``sim/``), wherever ``tli`` runs from.
+
+    The one resolver of bundled files (:func:`bundled_dir` is a folder of it). The bundled
+    project is package data: a built wheel ships it under ``tli_verify/data/`` (``setup.py``
+    copies it there), found through :func:`importlib.resources.files`. A checkout or an
+    editable install has no ``data/``: the project is the source tree itself (the folder with
+    ``pyproject.toml`` next to the ``tli_verify`` package, the tree the CI gate checks).
+    Looked up relative to the package, never to the working directory, so ``tli demo``
+    behaves the same from anywhere.
 
     Returns
     -------
     Path
-        The directory (a real path: wheels are installed unpacked), relative to the working
-        directory when it lies under it (so messages read ``specs/scoop.toml`` in a checkout),
-        absolute otherwise. ``bundled_dir("models").parent`` is the bundled project's root.
+        A real path (wheels are installed unpacked), relative to the working directory when it
+        lies under it (so messages read ``specs/scoop.toml`` in a checkout; ``.`` at its top),
+        absolute otherwise.
 
     Raises
     ------
     TliError
-        (exit 2) The directory is in neither place (a broken installation), saying where it
-        was looked for.
+        (exit 2) Neither place exists (a broken installation), saying where it looked.
     """
-    package = resources.files("tli_verify")
-    packaged = package / "data" / name
-    candidates = [Path(os.fspath(packaged))] if isinstance(packaged, os.PathLike) else []
-    if isinstance(package, os.PathLike):  # a checkout: the folder next to the package
-        candidates.append(Path(os.fspath(package)).resolve().parent / name)
-    for found in candidates:
-        if found.is_dir():
-            try:
-                return found.resolve().relative_to(Path.cwd().resolve())
-            except (ValueError, OSError):
-                return found.resolve()
-    shown = ", ".join(str(c) for c in candidates) or f"{package}/data/{name}"
-    raise TliError(f"the bundled {name}/ directory is missing (looked for {shown}): the "
-                   "tli-verify installation is incomplete; reinstall it (a wheel ships the "
-                   "bundled project under tli_verify/data/, a checkout has it at its top)")
+    return _shown_path(_bundled_root_abs())
+
+
+def bundled_dir(name: str) -> Path:
+    """A directory of the bundled project (``"specs"``, ``"demos"``, ``"sim"``, ...):
+    ``bundled_root() / name`` (:func:`bundled_root`), checked to exist.
+
+    Parameters
+    ----------
+    name : str
+        A top-level folder of the bundled project (:data:`BUNDLED_FOLDERS`): ``"tasks"``,
+        ``"specs"``, ``"demos"``, ``"models"``, ``"certificates"`` or ``"sim"``.
+
+    Returns
+    -------
+    Path
+        The directory, relative to the working directory when it lies under it, absolute
+        otherwise. ``bundled_dir("models").parent`` is :func:`bundled_root`.
+
+    Raises
+    ------
+    TliError
+        (exit 2) The directory is missing (a broken installation), saying where it looked.
+    """
+    if name not in BUNDLED_FOLDERS:
+        raise ValueError(f"bundled_dir: {name!r} is not a folder of the bundled project "
+                         f"({', '.join(BUNDLED_FOLDERS)})")
+    found = _bundled_root_abs() / name
+    if not found.is_dir():
+        raise TliError(f"the bundled {name}/ directory is missing ({found}): the tli-verify "
+                       "installation is incomplete; reinstall it (a wheel ships the bundled "
+                       "project under tli_verify/data/, a checkout has it at its top)")
+    return _shown_path(found)
 
 
 # --------------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ A hostile or broken input must never crash the tool, exhaust memory, stall it, o
 certified: it is refused as bad input (exit 2) with one line that names the limit, the file and
 the place (``docs/design.md``, "Errors and limits"; README, "Errors and limits"). These are the
 limits the readers enforce; the certificate records the numeric ones
-(:func:`tli_verify.model.numeric_limits`).
+(:func:`tli_verify.model.types.numeric_limits`).
 
 Size and shape of input files (:mod:`tli_verify.io`)
     ``MAX_INPUT_BYTES``, ``MAX_NESTING``; only regular files are read (no devices, FIFOs or

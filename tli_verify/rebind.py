@@ -33,7 +33,8 @@ from types import MappingProxyType
 from typing import Any
 
 from tli_verify.errors import DemoError, ModelError
-from tli_verify.model import Model, ModeModel, relocate_model
+from tli_verify.model.serialize import relocate_model
+from tli_verify.model.types import Model, ModeModel
 
 __all__ = ["reading_of", "rebind_model"]
 
@@ -79,7 +80,7 @@ def rebind_model(learned: Model, spec_path: str | os.PathLike[str],
         The spec to bind to (must have a ``[modes]`` table and be realizable).
     out_path : path-like
         Where the bound model will be written (its spec and demo paths are made relative to
-        it; see :func:`tli_verify.model.save_model`).
+        it; see :func:`tli_verify.model.serialize.save_model`).
 
     Returns
     -------

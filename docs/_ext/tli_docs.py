@@ -53,17 +53,51 @@ def drop_issue_refs(text: str) -> str:
     return text
 
 
+_HEADING = re.compile(r"^(#{1,6})(?= )", re.MULTILINE)
+
+
+def benchmark_markdown(text: str) -> str:
+    """A ``benchmarks/results/*.md`` file as a docs section.
+
+    History references dropped; the file's own title (``# Benchmark results``) dropped (the page
+    has one); every section heading one level below the page title (``make bench`` writes some
+    sections with ``###``); links into ``docs/img/`` made relative to ``docs/reference/``.
+    """
+    text = drop_issue_refs(text)
+    text = re.sub(r"\A# [^\n]*\n+", "", text)
+    text = _HEADING.sub("##", text)
+    return text.replace("](../../docs/img/", "](../img/")
+
+
 def _on_include_read(app: Sphinx, relative_path: Path, parent_docname: str,
                      content: list[str]) -> None:
     if "benchmarks" in Path(relative_path).parts:
-        content[0] = drop_issue_refs(content[0])
+        content[0] = benchmark_markdown(content[0])
+
+
+_RELATIVE_REF = re.compile(r":(mod|func|class|data|meth|attr|exc):`(~?)\.([A-Za-z_][\w.]*)`")
+
+
+def absolute_refs(text: str, module: str, *, is_package: bool = False) -> str:
+    """Relative roles of a module docstring (``:mod:`.strategies```) made absolute: a name of
+    the module's package (``tli_verify.verify.strategies``), not every object whose name ends
+    so (Sphinx would find ``tli_verify.testing.strategies`` too and warn)."""
+    package = module if is_package else module.rsplit(".", 1)[0]
+
+    def repl(m: re.Match[str]) -> str:
+        return f":{m.group(1)}:`{m.group(2) or '~'}{package}.{m.group(3)}`"
+
+    return _RELATIVE_REF.sub(repl, text)
 
 
 def _on_docstring(app: Sphinx, what: str, name: str, obj: Any, options: Any,
                   lines: list[str]) -> None:
     text = "\n".join(lines)
-    if re.search(_ISSUE, text):
-        lines[:] = drop_issue_refs(text).split("\n")
+    new = drop_issue_refs(text) if re.search(_ISSUE, text) else text
+    if what == "module":
+        new = absolute_refs(new, name, is_package=hasattr(obj, "__path__"))
+    if new != text:
+        lines[:] = new.split("\n")
 
 
 # --------------------------------------------------------------------------------------------
@@ -290,7 +324,7 @@ class SchemaFields(Directive):
 # --------------------------------------------------------------------------------------------
 
 _FLOW = ["tli_verify._version", "tli_verify.logic", "tli_verify.tasks", "tli_verify.demos",
-         "tli_verify.api", "tli_verify.model", "tli_verify.certify", "tli_verify.runtime",
+         "tli_verify.api", "tli_verify.model", "tli_verify.certification", "tli_verify.runtime",
          "tli_verify.verify", "tli_verify.deploy", "tli_verify.errors"]
 
 
@@ -390,7 +424,7 @@ def module_index_rst(package_name: str = "tli_verify") -> list[str]:
         for name in groups[top]:
             lines += [f".. automodule:: {name}"]
             if name.rsplit(".", 1)[-1] in public and name.count(".") == 1:
-                # a subpackage whose name is also a public function (tli_verify.certify):
+                # a subpackage whose name is also a public function (tli_verify.certification):
                 # the API page owns the name
                 lines += ["   :no-index:"]
             if name in WITH_MEMBERS:
@@ -420,9 +454,11 @@ _RST_SPECIAL = re.compile(r"([\\*|`])|(_)(?=\W|$)")
 
 
 def rst_text(text: str | None) -> str | None:
-    """Plain help text as reST: ``*``, ``|``, backquotes and trailing ``_`` stay literal."""
+    """Plain help text as reST: ``*``, ``|``, backquotes and trailing ``_`` stay literal;
+    history references dropped (the changelog has them)."""
     if text is None or text is argparse.SUPPRESS:
         return text
+    text = drop_issue_refs(text)
     return _RST_SPECIAL.sub(lambda m: "\\" + (m.group(1) or m.group(2)), text)
 
 

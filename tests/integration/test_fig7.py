@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tli_verify.cli import main
-from tli_verify.experiments.scoop import (
+from tli_verify.experiments.fig7 import (
     FIG7_MIN_ROUNDS,
     NOMINAL_START,
     b_to_a_failures,
@@ -26,12 +26,12 @@ from tli_verify.experiments.scoop import (
     fig7_search,
     is_fig7_loop,
     is_fig7_rescue,
-    plot_fig7,
-    scoop_setup,
 )
+from tli_verify.experiments.fig7_plot import plot_fig7
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import mode_string, run_variant
 from tli_verify.runtime.events import CutAdded, InvarianceFailure
-from tli_verify.runtime.executive import EpisodeResult
+from tli_verify.runtime.loop import EpisodeResult
 
 BUDGET = 3000
 PUSH = {957: np.array([6.09, 6.01])}

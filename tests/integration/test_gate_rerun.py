@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.cli import main
 
 

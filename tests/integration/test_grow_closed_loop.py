@@ -27,11 +27,12 @@ from hypothesis import strategies as st
 from tests.support.omega_oracle import omega_realizable
 from tli_verify.cli import main
 from tli_verify.demos import load_demos
-from tli_verify.experiments.scoop import scoop_setup
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.logic.infer import infer_spec, load_labels
 from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.runtime.coverage import check_coverage
 from tli_verify.runtime.episodes import pusher, run_variant
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
@@ -41,7 +42,8 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
-from tli_verify.runtime.executive import EpisodeResult, LTLDSPolicy, check_coverage
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import EpisodeResult
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tli_verify.ds.lyapunov import decay_rate, sampled_growth
-from tli_verify.model import Model
+from tli_verify.model.types import Model
 
 N_STARTS = 300
 DT = 0.01
@@ -94,7 +94,7 @@ def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None
 
 
 def test_committed_model_satisfies_lemma2(lemma2: ModuleType, repo: Path) -> None:
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     committed = load_model(repo / "models" / "scoop.model.json")
     fit = committed.modes["a"].fit or {}

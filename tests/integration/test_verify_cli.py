@@ -250,7 +250,7 @@ def broken(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The shipped model with mode b's attractor moved into white (above the soup): b's DS
     leaves yellow, a's DS brings the spoon back, forever (a deliberately broken model; its
     certificate is re-issued, stability does not depend on x*)."""
-    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.io import bundled_dir
 
     d = tmp_path_factory.mktemp("broken")

@@ -21,14 +21,14 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     check_certificate,
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.repair import repair_model
+from tli_verify.certification.repair import repair_model
 from tli_verify.errors import CertificateError
-from tli_verify.model import load_model, save_model
+from tli_verify.model.serialize import load_model, save_model
 
 
 def _spd(rng: np.random.Generator, n: int, lo: float) -> np.ndarray:

@@ -151,13 +151,13 @@ def test_checker_catches_a_wrong_strategy(specs_dir: Path) -> None:
     """The checker can fail: redirect one scoop transition to a forbidden mode."""
     spec = load_spec(specs_dir / "scoop.toml")
     aut = synthesize(spec)
-    data = aut.to_json()
+    data = aut.to_dict()
     d_state = next(s["id"] for s in data["states"] if s["mode"] == "d")
     a_state = next(t for t in data["transitions"] if aut.states[t["from"]].mode == "a"
                    and t["sensors"] == [])
     a_state["to"] = d_state  # a -> d is not a valid mode transition
     with pytest.raises(AssertionError):
-        verify_strategy(spec, TaskAutomaton.from_json(data))
+        verify_strategy(spec, TaskAutomaton.from_dict(data))
 
 
 @settings(max_examples=25, deadline=None)

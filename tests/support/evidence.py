@@ -39,7 +39,7 @@ def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Pat
         The evidence file.
     """
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
     from tli_verify.tasks.registry import find_task
 

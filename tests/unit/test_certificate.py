@@ -13,18 +13,18 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     certificate_digest,
     check_certificate,
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.repair import repair_model
+from tli_verify.certification.repair import repair_model
 from tli_verify.commands import exit_code
 from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import CertificateError
 from tli_verify.io import canonical_json, sha256_file
-from tli_verify.model import load_model, save_model
+from tli_verify.model.serialize import load_model, save_model
 
 
 def small_model(A1: list[list[float]], P: list[list[float]] | None = None,

@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.cli import main
 from tli_verify.commands import exit_code
 from tli_verify.deploy.gate import run_gate
@@ -300,14 +300,16 @@ def test_gate_rerun_argument_is_checked(project: Path,
 
 
 def test_schema_version_1_evidence_without_a_task_is_refused(project: Path) -> None:
-    """Evidence of the former schema (no ``task`` block) binds no task: malformed, blocks."""
+    """Evidence of a former schema (1: no ``task`` block) binds no task: it blocks, saying to
+    re-run the campaign."""
     def downgrade(doc: dict[str, Any]) -> None:
         doc["schema_version"] = 1
         del doc["task"]
+        del doc["campaign_semantics"]
 
     forge(project, downgrade)
     message = only_campaign_blocks(project)
-    assert "malformed campaign evidence" in message
+    assert "evidence schema 1" in message and "re-run the campaign" in message
 
 
 # --------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     check_certificate,
     issue_certificate,
     write_certificate,
@@ -190,7 +190,7 @@ def test_certificate_states_the_declared_numeric_ranges(project: Path) -> None:
     doc = json.loads(cert.read_text())
     assert doc["well_posed"]["velocity_finite"] is True
     doc["well_posed"]["limits"]["max_abs_value"] = 1e300  # claim a laxer range, digest redone
-    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.certification.certificate import certificate_digest
     from tli_verify.io import canonical_json
 
     doc["digest"] = certificate_digest(doc)
@@ -221,7 +221,7 @@ def test_spec_path_through_a_symlink_and_dotdot_binds_the_file_the_os_opens(
     and digest redone) must not pass."""
     import os
 
-    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.certification.certificate import certificate_digest
     from tli_verify.io import canonical_json, sha256_file
 
     outside = tmp_path_factory.mktemp("outside")

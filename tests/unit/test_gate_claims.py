@@ -121,7 +121,7 @@ def test_forged_settings_are_refused_naming_the_field(key: str, value: Any) -> N
     """Recorded settings are validated like the CLI's options before any re-run (the gate
     builds its re-run config through the same checks): a forged one is one error naming it,
     never a TypeError or a campaign of 10^12 runs per batch."""
-    from tli_verify.verify.campaign import CampaignConfig
+    from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import settings_for_config
 
     recorded = {"window": 700, "max_pushes": 3, "batch_size": 100, key: value}

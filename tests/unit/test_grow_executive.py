@@ -15,11 +15,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.errors import TliError
 from tli_verify.logic.check import check_spec, synthesize
 from tli_verify.logic.spec import parse_spec
-from tli_verify.model import Model, load_model, model_from_dict, save_model
+from tli_verify.model.serialize import load_model, model_from_dict, save_model
+from tli_verify.model.types import Model
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
     TransitionLearned,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from tli_verify.certify.exact import check_lyapunov
+from tli_verify.certification.exact import check_lyapunov
 from tli_verify.commands import exit_code
 from tli_verify.ds.lyapunov import (
     data_rate,

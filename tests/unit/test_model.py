@@ -15,7 +15,7 @@ from tli_verify.boundary.cuts import Cut
 from tli_verify.boundary.modulation import modulate
 from tli_verify.commands import exit_code
 from tli_verify.errors import ModelError
-from tli_verify.model import load_model, model_from_dict, model_to_dict, save_model
+from tli_verify.model.serialize import load_model, model_from_dict, model_to_dict, save_model
 
 
 def doc() -> dict[str, Any]:
@@ -238,7 +238,7 @@ from tli_verify.limits import (  # noqa: E402
     MAX_ABS_COVARIANCE,
     MAX_ABS_VALUE,
 )
-from tli_verify.model import numeric_limits  # noqa: E402
+from tli_verify.model.types import numeric_limits  # noqa: E402
 
 HOSTILE = st.one_of(
     st.floats(min_value=MAX_ABS_VALUE, exclude_min=True, allow_infinity=False),

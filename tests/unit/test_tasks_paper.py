@@ -446,13 +446,13 @@ def test_tli_learn_finds_every_mode(repo: Path, tmp_path: Path, name: str, spec:
     if spec:
         argv += ["--spec", str(SPECS / spec)]
     assert main(argv) == 0
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     assert set(load_model(out).modes) == keys
 
 
 def test_color_tracing_dark_modes_have_no_demonstration(repo: Path, tmp_path: Path) -> None:
-    from tli_verify.model import learn_model
+    from tli_verify.model.learn import learn_model
 
     # the paper's demonstration alone (the recoveries 2-7 are ours)
     demos = [repo / "demos" / "color-tracing_1.csv"]
@@ -477,7 +477,7 @@ def test_cooking_ds_learned_once_serve_all_four_automata(repo: Path, tmp_path: P
     keys hand-overs per transition), and the detour demonstration gives cooking-c's planned
     broccoli -> white.
     """
-    from tli_verify.model import learn_model
+    from tli_verify.model.learn import learn_model
 
     demos = sorted((repo / "demos").glob("cooking_*.csv"))
     model = learn_model(demos, out_path=tmp_path / "cooking.model.json", seed=0,

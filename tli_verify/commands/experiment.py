@@ -219,7 +219,10 @@ def _scoop(args: argparse.Namespace) -> int:
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
     """Run the scoop experiment, write its report and figures; return the JSON summary."""
-    from tli_verify.experiments.scoop import fig7_record, plot_fig7, scoop_setup, write_report
+    from tli_verify.experiments.fig7 import fig7_record
+    from tli_verify.experiments.fig7_plot import plot_fig7
+    from tli_verify.experiments.scoop_report import write_report
+    from tli_verify.experiments.scoop_task import scoop_setup
 
     summary = run_scoop(cfg, workers=workers, fig7_tries=fig7_tries)
     fig7 = summary.pop("fig7")

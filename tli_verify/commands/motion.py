@@ -34,7 +34,7 @@ def _control_period(text: str) -> float:
 
 def _rational(text: str) -> Fraction:
     """A positive exact rational (``0.001``, ``1/200``) for ``--dt``."""
-    from tli_verify.certify.exact import parse_rational
+    from tli_verify.certification.exact import parse_rational
 
     try:
         value = parse_rational(text, what="--dt")
@@ -189,15 +189,17 @@ def _task_dt(spec: Path | None) -> Fraction | None:
 
 def _learn(args: argparse.Namespace) -> int:
     from tli_verify.commands import check_plan
+    from tli_verify.defaults import DEFAULT_DT_FLOAT
     from tli_verify.ds.lyapunov import RATE_BUDGET
-    from tli_verify.model import learn_model, save_model
+    from tli_verify.model.learn import learn_model
+    from tli_verify.model.serialize import save_model
 
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
     control_dt = args.control_dt
     if control_dt is None:
         task_dt = _task_dt(args.spec)
-        control_dt = 1e-3 if task_dt is None else float(task_dt)
+        control_dt = DEFAULT_DT_FLOAT if task_dt is None else float(task_dt)
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
                         eps=args.eps, rate=args.rate, control_dt=control_dt,
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
@@ -215,13 +217,17 @@ def _learn(args: argparse.Namespace) -> int:
                   "next_mode": mm.next_mode, "components": mm.ds.n_components,
                   "samples": fit.get("n_samples"), "attractor": mm.ds.attractor.tolist(),
                   "rate": fit.get("rate")}
-        if "rate_budget" in fit:
-            record["rate_budget"] = fit["rate_budget"]
+        for name in ("rate_budget", "rate_within_budget"):
+            if name in fit:
+                record[name] = fit[name]
         if args.json:
             _emit(record)
         else:
             chosen = (f" (RMSE {fit['rate_rmse'] / fit['rate_reference_rmse'] - 1:+.1%} vs "
                       "rate 0)" if fit.get("rate_reference_rmse") else "")
+            if fit.get("rate_within_budget") is False:
+                chosen += (f" -- over the budget {fit['rate_budget']:g}: even the smallest "
+                           "candidate rate costs more, kept")
             sys.stdout.write(f"{key}: K={mm.ds.n_components} components from "
                              f"{fit.get('n_samples')} samples, attractor "
                              f"{[round(v, 4) for v in mm.ds.attractor.tolist()]}, decay rate "
@@ -243,13 +249,10 @@ def default_certificate_path(model: Path) -> Path:
 
 
 def _certify(args: argparse.Namespace) -> int:
-    from tli_verify.certify.certificate import (
-        DEFAULT_DT,
-        issue_certificate,
-        write_certificate,
-    )
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
+    from tli_verify.defaults import DEFAULT_DT
     from tli_verify.io import check_output_file
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
@@ -262,8 +265,8 @@ def _certify(args: argparse.Namespace) -> int:
         inputs.append(args.repair)
     check_output_file(out, inputs=inputs, what="certificate")
     if args.repair is not None:
-        from tli_verify.certify.repair import repair_model
-        from tli_verify.model import save_model
+        from tli_verify.certification.repair import repair_model
+        from tli_verify.model.serialize import save_model
 
         result = repair_model(args.model, args.repair, dt=dt)
         save_model(result.model, args.repair)
@@ -297,7 +300,7 @@ def _certify(args: argparse.Namespace) -> int:
 
 
 def _check_cert(args: argparse.Namespace) -> int:
-    from tli_verify.certify.certificate import check_certificate
+    from tli_verify.certification.certificate import check_certificate
 
     for path, what, error in ((args.certificate, "certificate", CertificateError),
                               (args.model, "model", ModelError)):
@@ -329,7 +332,7 @@ def _gate(args: argparse.Namespace) -> int:
     report = run_gate(args.directory, rerun=args.rerun)
     for item in report.items:
         if args.json:
-            _emit(item.to_json())
+            _emit(item.to_dict())
         else:
             sys.stdout.write(f"{'ok   ' if item.ok else 'BLOCK'} {item.kind:<11} {item.path}: "
                              f"{item.check}: {item.message}\n")
@@ -352,13 +355,14 @@ def demo_stage(out: Path) -> list[str]:
     Writes ``out/motion/scoop.model.json``, ``out/motion/scoop.cert.json`` and a plot
     ``out/motion/scoop_modes.png``; returns one summary line per result.
     """
-    from tli_verify.certify.certificate import (
+    from tli_verify.certification.certificate import (
         check_certificate,
         issue_certificate,
         write_certificate,
     )
     from tli_verify.io import bundled_dir
-    from tli_verify.model import learn_model, save_model
+    from tli_verify.model.learn import learn_model
+    from tli_verify.model.serialize import save_model
 
     demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
     spec = bundled_dir("specs") / "scoop.toml"

@@ -107,7 +107,7 @@ def _check(args: argparse.Namespace) -> int:
         if not result.realizable or (args.strict and not result.well_separated):
             worst = max(worst, 1)
         if args.json:
-            record = result.to_json()
+            record = result.to_dict()
             if args.explain:
                 record["explain"] = [line.strip() for line in _explain(result)]
             sys.stdout.write(json.dumps(record, sort_keys=True) + "\n")
@@ -142,7 +142,7 @@ def write_automaton(automaton: Any, out: Path) -> None:
     if out.suffix == ".dot":
         atomic_write_text(out, automaton.to_dot())
     elif out.suffix == ".json":
-        atomic_write_text(out, canonical_json(automaton.to_json()))
+        atomic_write_text(out, canonical_json(automaton.to_dict()))
     else:
         raise TliError(f"{out}: output must end in .json or .dot")
 
@@ -156,7 +156,7 @@ def _automaton(args: argparse.Namespace) -> int:
     if args.output is not None:
         write_automaton(automaton, args.output)
     if args.json:
-        sys.stdout.write(canonical_json(automaton.to_json()))
+        sys.stdout.write(canonical_json(automaton.to_dict()))
     elif args.output is None:
         sys.stdout.write(f"{args.file}: {len(automaton.states)} states, "
                          f"{len(automaton.transitions)} transitions\n")

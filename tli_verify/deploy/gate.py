@@ -6,7 +6,7 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
 1. every spec under ``DIR/specs/`` re-checks with :func:`tli_verify.logic.check.check_spec_file`
    and gets the verdict it declares (``expect``; realizable specs must also be well-separated);
 2. every certificate under ``DIR/certificates/`` re-checks exactly
-   (:func:`tli_verify.certify.certificate.check_certificate`): digest, model and spec hashes,
+   (:func:`tli_verify.certification.certificate.check_certificate`): digest, model and spec hashes,
    the spec it names is the model's, ``P`` is the model's (the runtime's) ``P``, the cuts, the
    continuous-time, sampled-data and decay-rate conditions;
 3. every model under ``DIR/models/`` -- a *deployed* model -- is bound to its spec and covered:
@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tli_verify.certify.certificate import CertCheck, check_certificate
+from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError, bad_input
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
@@ -106,7 +106,7 @@ class GateItem:
     message: str
     check: str = "re-check"
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """One ``--json`` record."""
         return {"kind": self.kind, "path": self.path, "check": self.check, "ok": self.ok,
                 "message": self.message}
@@ -220,7 +220,7 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
                   certified: dict[Path, list[tuple[Path, CertCheck]]],
                   specs: _Specs) -> list[GateItem]:
     """The per-model binding checks (certificate, spec, modes, dimension)."""
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     name = shown(model_path)
     try:
@@ -550,7 +550,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     if check.physics:
         return rerun_physics(check, model, examples)
     try:
-        from tli_verify.verify.campaign import CampaignConfig, run_campaign
+        from tli_verify.verify.campaign import run_campaign
+        from tli_verify.verify.config import CampaignConfig
     except ImportError as exc:
         return False, f"cannot re-run the campaign: {exc}"
     from tli_verify.verify.evidence import settings_for_config
@@ -593,7 +594,7 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials
     with the evidence's seed, robot, variant, duration, pushes and tilts, on the deployed files
     (the project is the model's ``models/`` parent), each judged by the physics oracle
-    (:func:`tli_verify.sim.campaign.check_trial`).
+    (:func:`tli_verify.sim.trial_oracle.check_trial`).
 
     Parameters
     ----------
@@ -608,7 +609,9 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     (bool, str)
     """
     try:
-        from tli_verify.sim.campaign import PhysicsConfig, run_physics_campaign, settings_from
+        from tli_verify.sim.campaign import run_physics_campaign
+        from tli_verify.sim.physics_config import PhysicsConfig
+        from tli_verify.sim.physics_evidence import settings_from
     except ImportError as exc:
         return False, f"cannot re-run the physical trials (pip install 'tli-verify[sim]'): {exc}"
     root = model.parent.parent

@@ -24,7 +24,7 @@ least like ``exp(-rate t)``, and the per-step decrease at ``dt = 1 ms``,
 ``(I + dt A_k)^T P (I + dt A_k) < P`` with margin at least ``dt rate / 2`` (hence at every
 shorter period too). ``rate=0`` gives back the old program exactly.
 
-Rate choice per DS (``rate_budget``, the default of :func:`tli_verify.model.learn_model` and
+Rate choice per DS (``rate_budget``, the default of :func:`tli_verify.model.learn.learn_model` and
 ``tli learn``): a fixed factor spends accuracy unevenly (on LASA, 0.25x costs +9% RMSE on one
 shape and +1% on another), so :func:`~tli_verify.ds.lyapunov.choose_rate` fits at rate 0 first
 and then certifies the largest rate of a half-octave grid (up to the data's own rate) whose fit's
@@ -44,8 +44,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.gmm import GMM
-from tli_verify.ds.lyapunov import DEFAULT_CONTROL_DT
 from tli_verify.errors import ModelError
 
 __all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
@@ -234,6 +234,9 @@ class FitInfo:
         With a budget: training velocity RMSE of the fit at ``rate``.
     data_rate : float or None
         With a budget: :func:`~tli_verify.ds.lyapunov.data_rate` of the data (the grid's top).
+    rate_within_budget : bool or None
+        With a budget: False when even the grid's smallest rate costs more than the budget
+        (that rate is kept; see :class:`~tli_verify.ds.lyapunov.RateChoice`).
     """
 
     clustering: str
@@ -251,6 +254,7 @@ class FitInfo:
     reference_rmse: float | None = None
     rate_rmse: float | None = None
     data_rate: float | None = None
+    rate_within_budget: bool | None = None
 
 
 def learn_lpvds(
@@ -262,7 +266,7 @@ def learn_lpvds(
     eps: float = 1e-3,
     rate: float | None = None,
     rate_budget: float | None = None,
-    control_dt: float | None = DEFAULT_CONTROL_DT,
+    control_dt: float | None = DEFAULT_DT_FLOAT,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
     max_components: int = 12,
@@ -371,12 +375,13 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
     reference: float | None = None
     error: float | None = None
     own: float | None = None
+    within: bool | None = None
     if chooser is not None:
         choice = choose_rate(Xa, dXa, gamma, xs, P, eps=eps, dt=control_dt, budget=chooser)
         lam, A, info = choice.rate, choice.A, choice.info
         dt = control_dt if lam > 0.0 else None  # rate 0 only when the data do not move
         budget, reference, error = choice.budget, choice.reference_rmse, choice.rmse
-        own = choice.data_rate
+        own, within = choice.data_rate, choice.within_budget
     else:
         lam = RATE_FACTOR * data_rate(Xa, dXa, xs) if rate is None else float(rate)
         if not (np.isfinite(lam) and lam >= 0.0):
@@ -388,5 +393,6 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
                   eps=float(eps), rate=lam, control_dt=None if dt is None else float(dt),
                   seed=int(seed), solver=SOLVER, status=info.status,
                   seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]),
-                  rate_budget=budget, reference_rmse=reference, rate_rmse=error, data_rate=own)
+                  rate_budget=budget, reference_rmse=reference, rate_rmse=error, data_rate=own,
+                  rate_within_budget=within)
     return ds, fit

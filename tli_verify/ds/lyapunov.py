@@ -47,10 +47,10 @@ import numpy.typing as npt
 from tli_verify.errors import SolverError
 
 __all__ = [
-    "DEFAULT_CONTROL_DT",
     "RATE_BUDGET",
     "RATE_FACTOR",
     "RATE_GRID",
+    "RATE_PAD",
     "SOLVER",
     "RateChoice",
     "SolveInfo",
@@ -60,6 +60,7 @@ __all__ = [
     "estimate_p",
     "find_p",
     "fit_a",
+    "rate_candidates",
     "sampled_growth",
     "velocity_rmse",
 ]
@@ -92,11 +93,20 @@ on others; a budget spends the same accuracy everywhere (``benchmarks/bench_lasa
 RATE_GRID = tuple(2.0 ** (-j / 2) for j in range(13))
 """Candidate rates of :func:`choose_rate`, as fractions of :func:`data_rate`: half-octave steps
 from 1 (the data's own rate) down to 1/64. Each candidate is rounded *down* to 3 significant
-digits, so the 4-digit rate the certificate states
-(:func:`tli_verify.certify.exact.certified_decay_rate`) is never below the chosen one."""
+digits (the rate the model records) and imposed with the relative pad :data:`RATE_PAD`, so the
+4-digit rate the certificate states (:func:`tli_verify.certification.exact.certified_decay_rate`) is
+never below the recorded one."""
 
-DEFAULT_CONTROL_DT = 1e-3
-"""Default control period (s) of the sampled-data constraint of the learner (a Franka's 1 kHz)."""
+RATE_PAD = 1e-4
+"""Relative pad of the rate :func:`choose_rate` imposes over the rate it records.
+
+The certificate states ``floor_4 digits(lambda* (1 - 1e-5))`` of the fit's best rate
+``lambda* >= imposed rate``. A 3-digit recorded rate ``r`` is on that 4-digit grid, so the
+stated rate is at least ``r`` iff ``lambda* (1 - 1e-5) >= r``: imposing ``r (1 + RATE_PAD)``
+guarantees it whatever ``eps`` (the ``eps I`` margin alone covers it only for
+``r <= 1e5 eps / lambda_max(P)``, e.g. not for ``--eps 1e-6``), with room for the solver's
+``~1e-9`` constraint tolerance."""
+
 
 
 def data_rate(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike) -> float:
@@ -127,7 +137,8 @@ def decay_rate(P: npt.ArrayLike, A: npt.ArrayLike) -> float:
 
     ``lambda = min_k min eig(-(A_k^T P + P A_k), P)``, a generalized symmetric eigenvalue
     problem; ``dV/dt <= -lambda V`` along every mixture of the ``A_k``. Floating point: a
-    figure for reports and benchmarks, not a certificate (see :mod:`tli_verify.certify.exact`).
+    figure for reports and benchmarks, not a certificate (see
+    :mod:`tli_verify.certification.exact`).
 
     Parameters
     ----------
@@ -404,7 +415,11 @@ def fit_a(
         raise SolverError(f"A-fit: control period dt must be positive, got {dt}")
     Ps = 0.5 * (Pa + Pa.T)
     margin = eps * np.eye(n) + rate * Ps
-    scale = max(float(np.linalg.norm(rhs)), 1e-12)  # unit-scale objective (mm or m alike)
+    # unit-scale objective (mm or m alike); the floor, far below the velocities any fit must
+    # produce (|A_k| >= (eps + rate) / 2 lambda_max(P)), only matters for data that do not
+    # move, whose objective was otherwise scaled by up to 1e24 (Clarabel: 'infeasible')
+    floor = 1e-3 * (eps + rate) * float(np.sqrt(np.trace(H) / H.shape[0]))
+    scale = max(float(np.linalg.norm(rhs)), floor, 1e-12)
     objective = cp.Minimize(cp.sum_squares((L.T @ theta - rhs) / scale))
     continuous = []
     for a in A:
@@ -537,7 +552,9 @@ class RateChoice:
     Attributes
     ----------
     rate : float
-        Chosen rate (1/time), 3 significant digits; 0 when the data do not move.
+        Chosen rate (1/time), 3 significant digits (the fit imposed it padded by
+        :data:`RATE_PAD`, so a certificate of the fit states at least this); 0 when the data do
+        not move.
     A : ndarray, shape (K, n, n)
         The A-fit at ``rate`` (with the sampled-data constraint when ``dt`` was given).
     info : SolveInfo
@@ -551,10 +568,11 @@ class RateChoice:
     data_rate : float
         :func:`data_rate` of the data (the grid's top).
     within_budget : bool
-        False only when even the grid's smallest rate costs more than the budget; the smallest
-        rate is chosen then (the learner keeps a positive certified rate).
+        False only when even the grid's smallest rate costs more than the budget (or its solve
+        failed for every candidate but the smallest); the smallest rate is chosen then (the
+        learner keeps a positive certified rate).
     tried : tuple of (rate, rmse)
-        Every candidate solved, in order (``rmse`` inf for a solver failure).
+        Every candidate solved, in the order solved (``rmse`` inf for a solver failure).
     """
 
     rate: float
@@ -569,12 +587,42 @@ class RateChoice:
 
 
 def _round_down(x: float, digits: int) -> float:
-    """``x > 0`` rounded down to ``digits`` significant decimal digits (exactly, then to float)."""
+    """``x > 0`` rounded down to ``digits`` significant decimal digits (exactly, then to the
+    nearest float: its exact decimal is what a certificate compares with)."""
     import math
     from fractions import Fraction
 
-    unit = Fraction(10) ** (math.floor(math.log10(x)) - digits + 1)
-    return float(math.floor(Fraction(x) / unit) * unit)
+    exact = Fraction(x)
+    exp10 = math.floor(math.log10(x)) - digits + 1
+    if Fraction(10) ** (exp10 + digits) <= exact:  # log10 rounded up across a power of 10
+        exp10 += 1
+    elif Fraction(10) ** (exp10 + digits - 1) > exact:  # ... or down
+        exp10 -= 1
+    unit = Fraction(10) ** exp10
+    return float(math.floor(exact / unit) * unit)
+
+
+def rate_candidates(rate: float, grid: tuple[float, ...] = RATE_GRID) -> tuple[float, ...]:
+    """The candidate rates of :func:`choose_rate` for data of rate ``rate``, largest first.
+
+    ``grid_j * rate`` rounded down to 3 significant digits, duplicates removed; empty when
+    ``rate`` is 0 (data that do not move).
+
+    Parameters
+    ----------
+    rate : float
+        :func:`data_rate` of the data.
+    grid : tuple of float, optional
+        Fractions of ``rate`` (default :data:`RATE_GRID`).
+
+    Returns
+    -------
+    tuple of float
+    """
+    import math
+
+    return tuple(sorted({_round_down(f * rate, 3) for f in grid
+                         if f * rate > 0.0 and math.isfinite(f * rate)}, reverse=True))
 
 
 def choose_rate(
@@ -593,16 +641,23 @@ def choose_rate(
 
     1. Reference: :func:`fit_a` at ``rate = 0`` (the plain ``eps`` margin, continuous time: the
        program of ``--rate 0``), with training velocity RMSE ``e_0`` (:func:`velocity_rmse`).
-    2. Candidates: ``rate_j = grid_j * data_rate(X, dX, attractor)``, rounded down to 3
-       significant digits (largest first). A candidate is *within budget* when the A-fit at
-       ``rate_j`` (with the sampled-data constraint at ``dt``, exactly the fit the learner
-       keeps) has RMSE ``e_j <= (1 + budget) e_0 + 1e-6 rms|xdot|`` (the absolute term only
-       keeps an exact fit, ``e_0 ~ 0``, from rejecting every rate on solver noise).
-    3. Bisection over the grid index for the largest rate within budget. The continuous-time
-       feasible sets shrink as the rate grows, so ``e_j`` grows with the rate (up to the tiny
-       ridge term and the sampled-data re-solve of :func:`fit_a`); the result is a rate within
-       budget whose next larger grid rate is not. ``ceil(log2(len(grid) + 1))`` candidate
-       solves (4 for the default grid) besides the reference: 5 A-fits instead of 1.
+    2. Candidates (:func:`rate_candidates`): ``r_j = grid_j * data_rate(X, dX, attractor)``,
+       rounded down to 3 significant digits, largest first. A candidate is *within budget*
+       when the A-fit imposing ``r_j (1 + RATE_PAD)`` (with the sampled-data constraint at
+       ``dt``: exactly the fit the learner keeps) has RMSE
+       ``e_j <= (1 + budget) e_0 + 1e-6 rms|xdot|`` (the absolute term only keeps an exact fit,
+       ``e_0 ~ 0``, or ``budget = 0`` from rejecting a rate the fit does not feel on solver
+       noise).
+    3. Bisection over the candidate index. Whatever the data, the result is a rate within
+       budget whose next larger candidate was solved and is not (or the largest candidate):
+       the bisection keeps "``r_lo`` outside, ``r_hi`` within" and stops when they are
+       neighbours. It is the *largest* rate within budget when ``e_j`` grows with the rate,
+       which holds up to solver accuracy for the continuous-time fits (their feasible sets
+       shrink as the rate grows; the ``1e-6`` ridge term is what is minimised besides the
+       RMSE) and may fail by a hair where :func:`fit_a` switches between the continuous
+       optimum and the sampled-data re-solve (a different program). ``ceil(log2(m + 1))``
+       candidate solves for ``m`` candidates (4 for the default grid) besides the reference: 5
+       A-fits instead of 1.
 
     A candidate whose solve fails (:class:`~tli_verify.errors.SolverError`) counts as outside
     the budget. When no candidate is within budget the smallest is chosen (``within_budget``
@@ -615,8 +670,8 @@ def choose_rate(
     budget : float, optional
         Relative RMSE increase allowed over the rate-0 fit (default :data:`RATE_BUDGET`).
     grid : tuple of float, optional
-        Candidate rates as fractions of :func:`data_rate`, decreasing (default
-        :data:`RATE_GRID`).
+        Candidate rates as fractions of :func:`data_rate` (default :data:`RATE_GRID`; any
+        order, sorted here).
 
     Returns
     -------
@@ -626,12 +681,12 @@ def choose_rate(
     ------
     SolverError
         The reference fit fails, ``eps`` is not positive, the budget is not finite and >= 0,
-        or the smallest candidate's fit fails when every candidate is outside the budget.
+        or every candidate is outside the budget and the smallest one's fit fails.
     """
     import math
 
-    if not (math.isfinite(budget) and budget >= 0.0):
-        raise SolverError(f"rate budget must be finite and >= 0, got {budget}")
+    if not (isinstance(budget, (int, float)) and math.isfinite(budget) and budget >= 0.0):
+        raise SolverError(f"rate budget must be a finite number >= 0, got {budget!r}")
     if not eps > 0.0:
         raise SolverError(f"the rate choice needs a positive margin eps for its rate-0 reference "
                           f"fit, got eps={eps}")
@@ -641,8 +696,7 @@ def choose_rate(
     e_ref = velocity_rmse(Xa, dXa, gamma, xs, A_ref)
     rms = float(np.sqrt(np.mean(np.sum(dXa**2, axis=1)))) if dXa.size else 0.0
     limit = (1.0 + budget) * e_ref + 1e-6 * rms
-    rates = sorted({_round_down(f * r_data, 3) for f in grid if f * r_data > 0.0},
-                   reverse=True)
+    rates = rate_candidates(r_data, grid)
     if not rates:  # the data do not move: nothing to choose, the margin-only fit
         return RateChoice(0.0, A_ref, info_ref, e_ref, e_ref, float(budget), r_data, True, ())
     fits: dict[int, tuple[FloatArray, SolveInfo, float]] = {}
@@ -651,7 +705,8 @@ def choose_rate(
 
     def within(j: int) -> bool:
         try:
-            A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=rates[j], dt=dt)
+            A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=rates[j] * (1.0 + RATE_PAD),
+                            dt=dt)
         except SolverError as exc:
             errors[j] = exc
             tried.append((rates[j], math.inf))
@@ -669,8 +724,9 @@ def choose_rate(
         else:
             lo = mid
     ok = hi < len(rates)
-    j = hi if ok else len(rates) - 1
-    if j not in fits:  # every candidate outside the budget and the smallest one failed
-        raise errors[j]
+    j = hi if ok else len(rates) - 1  # none within: lo ended on the smallest, solved
+    if j not in fits:
+        raise SolverError(f"rate choice: no candidate rate is within the budget {budget:g} and "
+                          f"the smallest, {rates[j]:g}/s, does not solve: {errors[j]}")
     A, info, e = fits[j]
     return RateChoice(rates[j], A, info, e, e_ref, float(budget), r_data, ok, tuple(tried))

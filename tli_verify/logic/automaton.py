@@ -367,7 +367,7 @@ class TaskAutomaton:
                  for t in self.transitions}
         return [list(p) for p in sorted(pairs)]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (see README, "Task automaton")."""
         return {
             "name": self.name,
@@ -390,8 +390,8 @@ class TaskAutomaton:
         }
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> TaskAutomaton:
-        """Inverse of :meth:`to_json`.
+    def from_dict(cls, data: Mapping[str, Any]) -> TaskAutomaton:
+        """Inverse of :meth:`to_dict`.
 
         Files written before transition cubes (no ``"off"``) list full readings: every
         input not in ``"sensors"`` is false.

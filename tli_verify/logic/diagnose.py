@@ -46,7 +46,7 @@ class Step:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
 
-    def to_json(self) -> dict[str, list[str]]:
+    def to_dict(self) -> dict[str, list[str]]:
         return {"inputs": list(self.inputs), "outputs": list(self.outputs)}
 
     def __str__(self) -> str:
@@ -83,12 +83,12 @@ class Diagnosis:
     final_inputs: tuple[str, ...] | None = None
     hint: str | None = None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "summary": self.summary,
             "formulas": list(self.formulas),
-            "witness": [s.to_json() for s in self.witness],
+            "witness": [s.to_dict() for s in self.witness],
             "loop_start": self.loop_start,
             "final_inputs": None if self.final_inputs is None else list(self.final_inputs),
             "hint": self.hint,

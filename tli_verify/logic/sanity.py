@@ -85,12 +85,12 @@ class WellSeparation:
     witness: tuple[Step, ...] = ()
     loop_start: int | None = None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "well_separated": self.well_separated,
             "kind": self.kind,
             "formulas": list(self.formulas),
-            "witness": [s.to_json() for s in self.witness],
+            "witness": [s.to_dict() for s in self.witness],
             "loop_start": self.loop_start,
         }
 
@@ -117,7 +117,7 @@ class Core:
     formulas: tuple[SpecFormula, ...]
     path: str | None
 
-    def to_json(self) -> list[dict[str, Any]]:
+    def to_dict(self) -> list[dict[str, Any]]:
         return [{"label": f.label, "line": f.line, "text": f.text, "origin": f.origin}
                 for f in self.formulas]
 
@@ -133,7 +133,7 @@ class Hint:
     reason: str
     path: str | None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {"label": self.formula.label, "line": self.formula.line,
                 "text": self.formula.text, "reason": self.reason}
 

@@ -197,6 +197,15 @@ class GR1Spec:
 def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     """Load and validate a spec file.
 
+    Parameters
+    ----------
+    path : path-like
+        A TOML spec file (format: the module docstring).
+
+    Returns
+    -------
+    GR1Spec
+
     Raises
     ------
     SpecError

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -26,7 +27,8 @@ from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_
 from tli_verify.errors import SolverError, TliError
 from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
 
-__all__ = ["SHIFTS", "CutAttempt", "CutLearning", "cut_for_failure", "learn_cuts"]
+__all__ = ["SHIFTS", "CutAttempt", "CutLearning", "OnlineCut", "cut_for_failure", "learn_cuts",
+           "online_cut"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -226,3 +228,70 @@ def learn_cuts(
             return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
                                unsolved=unsolved, fallback=fallback, converged=False)
         cuts.append(new)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class OnlineCut:
+    """The cut the executive learned for one invariance failure, or why none.
+
+    Attributes
+    ----------
+    model : Model or None
+        The model with the cut (:meth:`~tli_verify.model.types.Model.add_cut`: every DS of the mode
+        shares it); None when no cut was added.
+    attempt : CutAttempt or None
+        The QCQP's answer (None when the failure itself was degenerate).
+    error : str or None
+        Why no cut was added (None when one was).
+    """
+
+    model: Any
+    attempt: CutAttempt | None
+    error: str | None
+
+
+def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
+               entries: Sequence[npt.ArrayLike], *, margin: float) -> OnlineCut:
+    """Cut a mode's region after an invariance failure seen online (paper Sec. 5.2).
+
+    Kept inside: every entry state recorded in the mode (earlier failures' ``x^0`` among
+    them), the other DS' attractors of the mode, and a small box around ``x*`` (so ``x*`` is
+    strictly inside); constrained by the mode's earlier cuts (:func:`cut_for_failure`).
+
+    Parameters
+    ----------
+    model : Model
+        The model being run.
+    key : str
+        The model key of the DS that failed.
+    mode : str
+        Its mode (the region cut).
+    failure : InvarianceFailure
+        ``(x^0, x^{T_f-1}, x^{T_f})``.
+    entries : sequence of array_like, each shape (n,)
+        The mode-entry states recorded in the mode.
+    margin : float
+        Separation margin of the cut QCQP.
+
+    Returns
+    -------
+    OnlineCut
+    """
+    from tli_verify.errors import ModelError
+
+    mm = model.modes[key]
+    x_star = mm.ds.attractor
+    last = np.asarray(failure.last_inside, dtype=np.float64)
+    delta = 1e-3 * max(1e-6, float(np.linalg.norm(last - x_star)))
+    box = x_star + delta * np.vstack([np.eye(x_star.size), -np.eye(x_star.size)])
+    others = [model.modes[k].ds.attractor for k in model.keys_of(mode) if k != key]
+    keep = np.vstack([*entries, *others, box])
+    attempt = cut_for_failure(failure, x_star, previous=model.region_cuts(mode),
+                              keep_inside=keep, margin=margin)
+    if attempt.cut is None:
+        return OnlineCut(None, attempt, "no plane through the last in-mode state separates "
+                         "the failure state")
+    try:
+        return OnlineCut(model.add_cut(key, attempt.cut), attempt, None)
+    except ModelError as exc:
+        return OnlineCut(None, attempt, str(exc))

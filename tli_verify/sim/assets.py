@@ -38,7 +38,7 @@ from typing import NoReturn
 from tli_verify.errors import AssetError, TliError
 from tli_verify.io import (
     atomic_write_text,
-    bundled_dir,
+    bundled_root,
     canonical_json,
     parse_json,
     sha256_file,
@@ -101,17 +101,20 @@ class FetchResult:
 
 
 def assets_dir() -> Path:
-    """The simulator assets directory: ``$TLI_SIM_ASSETS``, else ``assets/`` beside the bundled
-    ``sim/franka`` project (:func:`tli_verify.io.bundled_dir`): ``<repo>/sim/assets`` in a
-    checkout, ``tli_verify/data/sim/assets`` in a wheel install (inside the package, never a
-    top-level ``sim/`` in site-packages). Always absolute."""
+    """The simulator assets directory: ``$TLI_SIM_ASSETS``, else ``sim/assets/`` of the bundled
+    project (:func:`tli_verify.io.bundled_root`), beside ``sim/franka``: ``<repo>/sim/assets``
+    in a checkout, ``tli_verify/data/sim/assets`` in a wheel install (inside the package, never
+    a top-level ``sim/`` in site-packages; never packaged). Always absolute.
+
+    Raises
+    ------
+    TliError
+        (exit 2) Without ``$TLI_SIM_ASSETS``, an installation without its bundled project
+        (:func:`~tli_verify.io.bundled_root`)."""
     env = os.environ.get(ASSETS_ENV)
     if env:
         return Path(env)
-    try:
-        return Path(os.path.abspath(bundled_dir("sim"))) / "assets"
-    except TliError:  # no bundled sim/ at all: where a checkout keeps it
-        return Path(__file__).resolve().parents[2] / "sim" / "assets"
+    return Path(os.path.abspath(bundled_root())) / "sim" / "assets"
 
 
 def panda_dir(root: Path | None = None) -> Path:

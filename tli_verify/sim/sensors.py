@@ -80,7 +80,7 @@ class Reading:
     in_target: BoolArray
     tray: FloatArray
 
-    def as_dict(self) -> dict[str, bool]:
+    def to_dict(self) -> dict[str, bool]:
         """``{"r": .., "s": .., "t": ..}``."""
         return {"r": self.r, "s": self.s, "t": self.t}
 

@@ -1,13 +1,15 @@
 """The pytest plugin of tli-verify (entry point ``tli_verify.testing.plugin``, group ``pytest11``).
 
-Installed with tli-verify, so ``pytest`` loads it; it does nothing unless one of its options
-(or ini settings) is given, and importing it imports neither hypothesis nor the simulator.
+Installed with tli-verify, so ``pytest`` loads it. It is inert for a run that uses neither its
+options nor its fixtures nor :mod:`tli_verify.testing`: importing it imports neither
+hypothesis nor the simulator, and it changes no other test.
 
 Fixtures
 --------
 ``tli_project``
     The :class:`~tli_verify.testing.Project` of ``--tli-project PATH`` (ini ``tli_project``),
-    else of the rootdir (session-scoped: resolved and loaded once).
+    else of the rootdir (session-scoped: resolved and loaded once); the same project
+    :func:`tli_verify.testing.cases` draws for when called without one.
 ``tli_case_dir``
     Where :func:`~tli_verify.testing.assert_satisfies` saves failing cases
     (``--tli-case-dir DIR``, ini ``tli_case_dir``; else the project's ``tests/regressions/``,
@@ -21,7 +23,10 @@ Options
 ``--tli-examples N``, ``--tli-seed S``
     ``max_examples`` and the seed of the hypothesis tests that draw from
     :func:`tli_verify.testing.cases` (a ``@given`` argument built by it) or use the
-    ``tli_project`` fixture; other hypothesis tests keep their settings (ini ``tli_examples``).
+    ``tli_project`` fixture (ini ``tli_examples``); a seed also turns the example database off
+    for them, so the run is the seed's. These tests also get ``deadline=None`` unless they set
+    a deadline (a closed-loop run takes far longer than hypothesis's 200 ms default). Other
+    hypothesis tests keep their settings.
 ``--tli-cases DIR`` (repeatable; ini ``tli_cases``, paths relative to the ini file)
     Every ``*.json`` case file directly in DIR becomes a test item that replays it, by the rules
     of the repository's regression cases: a case recorded **without** modulation must still
@@ -59,6 +64,7 @@ class _State:
     seed: int | None = None
     cases: list[Path] = field(default_factory=list)
     saved: tuple[Path | None, Path | None] = (None, None)
+    touched: bool = False
 
 
 _KEY = pytest.StashKey[_State]()
@@ -141,15 +147,22 @@ def _state(config: pytest.Config) -> _State:
     return st
 
 
+ROOTS: list[Path] = []
+"""The rootdirs of the pytest sessions running in this process (innermost last): where
+:func:`tli_verify.testing.projects.default_root` looks without ``--tli-project``."""
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    """Read the options; with none given, nothing else happens."""
+    """Read the options; with none given, nothing else happens (nothing is imported)."""
     st = _state(config)
     config.stash[_KEY] = st
+    ROOTS.append(Path(config.rootpath))
     if st.project is None and st.case_dir is None and not st.cases:
         return
     from tli_verify.testing.projects import DEFAULTS
 
     st.saved = (DEFAULTS.project, DEFAULTS.case_dir)
+    st.touched = True
     if st.project is not None:
         DEFAULTS.project = st.project
     if st.case_dir is not None:
@@ -167,7 +180,11 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_unconfigure(config: pytest.Config) -> None:
     """Restore the process defaults (a pytest run inside a process leaves none behind)."""
     st = config.stash.get(_KEY, None)
-    if st is None or st.saved == (None, None) and st.project is None and st.case_dir is None:
+    if st is None:
+        return
+    if ROOTS:
+        ROOTS.pop()
+    if not st.touched:
         return
     from tli_verify.testing.projects import DEFAULTS
 
@@ -195,58 +212,72 @@ def pytest_report_header(config: pytest.Config) -> list[str] | None:
 
 # ------------------------------------------------------------------------------ fixtures
 @pytest.fixture(scope="session")
-def tli_project(pytestconfig: pytest.Config) -> Project:
-    """The project under test (``--tli-project``, else the rootdir), resolved and loaded once
-    per session."""
-    from tli_verify.testing.projects import project
+def tli_project() -> Project:
+    """The project under test (``--tli-project``, ini ``tli_project``, else the rootdir),
+    resolved and loaded once per session: the one :func:`tli_verify.testing.cases` draws for
+    without a project."""
+    from tli_verify.testing.projects import default_project
 
-    st = pytestconfig.stash.get(_KEY, None)
-    where = st.project if st is not None and st.project is not None else pytestconfig.rootpath
-    return project(where)
+    return default_project()
 
 
 @pytest.fixture(scope="session")
-def tli_case_dir(pytestconfig: pytest.Config, tli_project: Project) -> Path:
+def tli_case_dir(tli_project: Project) -> Path:
     """Where failing cases are saved (``--tli-case-dir``, else the project's
     ``tests/regressions/``, else a temporary directory)."""
     return tli_project.regression_dir
 
 
 # ------------------------------------------------------------------------------ settings
-def _ours(fn: Any) -> bool:
-    """A ``@given`` test drawing from :func:`tli_verify.testing.cases` directly."""
-    handle = getattr(fn, "hypothesis", None)
-    given = getattr(handle, "_given_kwargs", None)
-    if not isinstance(given, dict):
-        return False
-    from tli_verify.testing.strategies import is_tli_strategy
+def _ours(item: pytest.Item) -> bool:
+    """A hypothesis test drawing from :func:`tli_verify.testing.cases` (a ``@given`` argument
+    built by it) or using the ``tli_project`` fixture."""
+    import sys
 
-    return any(is_tli_strategy(s) for s in given.values())
+    fn = getattr(item, "obj", None)
+    if fn is None or not getattr(fn, "is_hypothesis_test", False):
+        return False
+    if "tli_project" in getattr(item, "fixturenames", ()):
+        return True
+    strategies = sys.modules.get("tli_verify.testing.strategies")
+    if strategies is None:  # never imported: no strategy of ours exists
+        return False
+    given = getattr(getattr(fn, "hypothesis", None), "_given_kwargs", None)
+    return isinstance(given, dict) and any(strategies.is_tli_strategy(s)
+                                           for s in given.values())
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """``--tli-examples`` and ``--tli-seed`` on the hypothesis tests that use the testing
-    strategies or the ``tli_project`` fixture."""
-    st = config.stash.get(_KEY, None)
-    if st is None or (st.examples is None and st.seed is None):
-        return
+    """Settings of the hypothesis tests of a closed loop (:func:`_ours`): no deadline unless
+    the test set one (a run simulates thousands of control steps: hypothesis's 200 ms
+    default would fail it at random), ``--tli-examples`` (max_examples) and ``--tli-seed``
+    (the seed, and no example database: the run is the seed's). Other tests are untouched."""
     import sys
 
-    if "hypothesis" not in sys.modules:
+    if "hypothesis" not in sys.modules or ("tli_verify.testing.strategies" not in sys.modules
+                                           and not any("tli_project" in getattr(
+                                               i, "fixturenames", ()) for i in items)):
         return
+    st = config.stash.get(_KEY, None)
+    from datetime import timedelta
+
     from hypothesis import settings
 
     for item in items:
-        fn = getattr(item, "obj", None)
-        if fn is None or not getattr(fn, "is_hypothesis_test", False):
+        if not _ours(item):
             continue
-        if not (_ours(fn) or "tli_project" in getattr(item, "fixturenames", ())):
-            continue
-        if st.examples is not None:
-            current = getattr(fn, "_hypothesis_internal_use_settings", None)
-            fn._hypothesis_internal_use_settings = settings(current, max_examples=st.examples)
-        if st.seed is not None:
+        fn = item.obj  # type: ignore[attr-defined]
+        current = getattr(fn, "_hypothesis_internal_use_settings", None) or settings()
+        changes: dict[str, Any] = {}
+        if current.deadline == timedelta(milliseconds=200):  # hypothesis's default
+            changes["deadline"] = None
+        if st is not None and st.examples is not None:
+            changes["max_examples"] = st.examples
+        if st is not None and st.seed is not None:
             fn._hypothesis_internal_use_seed = st.seed
+            changes["database"] = None
+        if changes:
+            fn._hypothesis_internal_use_settings = settings(current, **changes)
 
 
 # ------------------------------------------------------------------------------ cases
@@ -282,7 +313,7 @@ class CaseItem(pytest.Item):
     def runtest(self) -> None:
         """Replay the case (and, for a no-modulation case, the same case under LTL-DS)."""
         from tli_verify.errors import TliError
-        from tli_verify.verify.campaign import replay_case
+        from tli_verify.verify.cases import replay_case
 
         path = self.path
         try:

@@ -3,12 +3,13 @@
 :func:`project` is the entry point of :mod:`tli_verify.testing`: it finds the task, spec, model
 and certificate by the one project resolver (:func:`tli_verify.tasks.project.resolve`, the rules
 every ``tli`` command follows) and holds what a run needs (a
-:class:`~tli_verify.verify.campaign.SimSpec`, as ``tli verify`` builds it).
+:class:`~tli_verify.verify.config.SimSpec`, as ``tli verify`` builds it).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -21,11 +22,12 @@ if TYPE_CHECKING:  # pragma: no cover - types only (the imports below are lazy)
 
     from tli_verify.tasks.project import Resolved
     from tli_verify.tasks.task import Task
-    from tli_verify.verify.campaign import CampaignConfig, Loaded, SimSpec
+    from tli_verify.verify.config import CampaignConfig, SimSpec
     from tli_verify.verify.oracle import Verdict
+    from tli_verify.verify.simulate import Loaded
     from tli_verify.verify.strategies import Case
 
-__all__ = ["DEFAULTS", "Defaults", "Project", "default_project", "project"]
+__all__ = ["DEFAULTS", "Defaults", "Project", "default_project", "default_root", "project"]
 
 PathLike = str | os.PathLike[str]
 _MARKERS = ("models", "specs", "tasks")
@@ -106,7 +108,7 @@ class Project:
     @property
     def loaded(self) -> Loaded:
         """The loaded setup (world, automaton, model, policy, oracle; cached per process)."""
-        from tli_verify.verify.campaign import load
+        from tli_verify.verify.simulate import load
 
         return load(self.sim)
 
@@ -170,8 +172,8 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
         folder that holds it or its nearest ancestor with a ``models/``, ``specs/`` or
         ``tasks/`` folder (so ``project(__file__)`` works from ``PROJECT/tests/``); in a
         project folder, its one model (``models/*.model.json``), else its one spec. Default:
-        the plugin's ``--tli-project`` (``tli_project`` ini option), else the working
-        directory.
+        :func:`default_root` (the plugin's ``--tli-project``, else the pytest rootdir, else
+        the working directory).
     task, spec, model, certificate : path-like, optional
         Override a file, as ``--task``, ``--spec``, ``--model``, ``--certificate`` do (a task
         may also be a name: the project's ``tasks/NAME.toml``, a bundled task, an entry point).
@@ -201,15 +203,15 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     >>> drawer = project("path/to/drawer-project")              # doctest: +SKIP
     >>> drawer = project(spec="specs/drawer.toml", modulation=False)  # doctest: +SKIP
     """
-    from tli_verify.verify.campaign import CampaignConfig, load, resolve_config, sim_spec
+    from tli_verify.verify.config import CampaignConfig, resolve_config, sim_spec
+    from tli_verify.verify.simulate import load
 
     files: dict[str, str | None] = {
         "task": _fs(task), "spec": _fs(spec), "model": _fs(model),
         "certificate": _fs(certificate)}
     root: Path | None = None
     if path is not None or not any(files.values()):
-        where = Path(os.path.abspath(path if path is not None else
-                                     (DEFAULTS.project or Path.cwd())))
+        where = Path(os.path.abspath(path if path is not None else default_root()))
         kind, found, root = _locate(where, files)
         if kind is not None and files.get(kind) is None:
             files[kind] = str(found)
@@ -228,10 +230,34 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     return out
 
 
+def default_root() -> Path:
+    """Where :func:`project` without arguments looks: the plugin's ``--tli-project`` (ini
+    ``tli_project``), else the rootdir of the running pytest session, else the working
+    directory."""
+    if DEFAULTS.project is not None:
+        return DEFAULTS.project
+    plugin = sys.modules.get("tli_verify.testing.plugin")
+    roots = getattr(plugin, "ROOTS", None)
+    if roots:
+        return Path(roots[-1])
+    return Path.cwd()
+
+
 def default_project() -> Project:
-    """The project of the plugin's ``--tli-project`` (else the working directory), resolved
-    once per process."""
-    key = os.path.abspath(DEFAULTS.project or Path.cwd())
+    """The project of :func:`default_root` (the ``tli_project`` fixture's, and the one
+    :func:`~tli_verify.testing.cases` draws for without a project), resolved and loaded once
+    per process and folder.
+
+    Returns
+    -------
+    Project
+
+    Raises
+    ------
+    TaskError, CampaignError
+        As :func:`project`.
+    """
+    key = os.path.abspath(default_root())
     hit = _DEFAULT.get(key)
     if hit is None:
         hit = project(key)

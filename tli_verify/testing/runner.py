@@ -41,10 +41,12 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
     """The step budget of a batch: the certified one (the last perturbation's step plus the
     worst-case deadline), unless given."""
     if budget is not None:
-        if not isinstance(budget, int) or isinstance(budget, bool) or budget < 1:
-            from tli_verify.errors import TliError
+        from tli_verify.errors import CampaignError
+        from tli_verify.limits import MAX_CAMPAIGN_STEPS
 
-            raise TliError(f"budget: expected a positive number of steps, got {budget!r}")
+        if not isinstance(budget, int) or isinstance(budget, bool) or \
+                not 1 <= budget <= MAX_CAMPAIGN_STEPS + proj.loaded.budget:
+            raise CampaignError(f"budget: expected a positive number of steps, got {budget!r}")
         return budget
     last = max((c.last_step for c in cases), default=0)
     return int(proj.loaded.oracle.budget(max(proj.window, last)))
@@ -90,13 +92,16 @@ def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = 
     list of Verdict
         In the order of ``cases``.
     """
-    from tli_verify.verify.campaign import simulate
+    from tli_verify.errors import CampaignError
+    from tli_verify.verify.simulate import simulate
 
+    if not isinstance(batch_size, int) or isinstance(batch_size, bool) or batch_size < 1:
+        raise CampaignError(f"batch_size: expected a positive integer, got {batch_size!r}")
     items = list(cases)
     out: list[Verdict] = []
     oracle = project.loaded.oracle
-    for i in range(0, len(items), max(1, int(batch_size))):
-        batch = items[i:i + max(1, int(batch_size))]
+    for i in range(0, len(items), batch_size):
+        batch = items[i:i + batch_size]
         sims = simulate(project.sim, batch, budget=_budget(project, batch, budget))
         out += oracle.check_many([trace for trace, _ in sims])
     return out
@@ -254,7 +259,7 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
               case_dir: str | os.PathLike[str] | None = None, seed: int = 0) -> Path:
     """Save a violating case as a regression case file (written atomically).
 
-    The file is :func:`tli_verify.verify.campaign.case_document` (``tli replay`` reads it;
+    The file is :func:`tli_verify.verify.cases.case_document` (``tli replay`` reads it;
     the plugin's ``--tli-cases`` replays it as a test); files under the project folder are
     named relative to the case file when it lies in the project too (the project moves with
     its cases). Its name is ``TASK-MODE-KIND-DIGEST.json``, the digest of the case and the
@@ -281,7 +286,7 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
         The verdict violates nothing.
     """
     from tli_verify.io import atomic_write_text, canonical_json
-    from tli_verify.verify.campaign import case_document
+    from tli_verify.verify.cases import case_document
 
     doc = case_document(project.sim, case, verdict, seed=seed, shrunk=_in_hypothesis())
     target = Path(os.path.abspath(case_dir)) if case_dir is not None else \

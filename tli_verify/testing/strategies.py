@@ -9,6 +9,7 @@ fewer, smaller, later perturbations, as ``tli verify``'s counterexamples do.
 
 from __future__ import annotations
 
+import math
 import os
 import weakref
 from collections.abc import Sequence
@@ -76,8 +77,11 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
 
     Raises
     ------
-    TliError
-        A bad option (a level that is not one, a window < 1, a start of the wrong dimension).
+    CampaignError
+        (a :class:`ValueError`) A bad option: a level that is not one, a window outside
+        ``[1, MAX_CAMPAIGN_STEPS]``, more pushes than ``MAX_PUSHES`` (a saved case must
+        replay), a start of the wrong dimension or outside the workspace, a fixed start with
+        ``random_starts=True``.
 
     Examples
     --------
@@ -105,7 +109,10 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
 
 
 def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
-    from tli_verify.errors import TliError
+    import numpy as np
+
+    from tli_verify.errors import CampaignError
+    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
     from tli_verify.testing.projects import Project
     from tli_verify.verify.strategies import cases as _cases
 
@@ -116,18 +123,35 @@ def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
         from tli_verify.tasks.registry import find_task
 
         task = find_task(source)
-    else:
+    elif hasattr(source, "perturbations") and hasattr(source, "starts"):
         task = source
+    else:
+        raise CampaignError(f"cases: expected a Project, a task, a task name or a task file, "
+                            f"got {type(source).__name__}")
     perturb = task.perturbations
+    max_pushes = perturb.max_pushes if o["max_pushes"] is None else o["max_pushes"]
+    window = perturb.window if o["window"] is None else o["window"]
+    # what a case file can hold (tli replay refuses more): a saved case must replay
+    for name, value, lo, hi in (("max_pushes", max_pushes, 0, MAX_PUSHES),
+                                ("min_pushes", o["min_pushes"], 0, max_pushes),
+                                ("window", window, 1, MAX_CAMPAIGN_STEPS)):
+        if not isinstance(value, int) or isinstance(value, bool) or not lo <= value <= hi:
+            raise CampaignError(f"cases: {name}: expected an integer in [{lo}, {hi}], got "
+                                f"{value!r}")
+    levels = o["levels"]
+    if not levels or any(lv not in LEVELS for lv in levels) or len(set(levels)) != len(levels):
+        raise CampaignError(f"cases: levels: expected a non-empty subset of "
+                            f"{', '.join(LEVELS)}, got {list(levels)}")
     start = o["start"]
     random_starts = o["random_starts"]
+    if random_starts and start is not None:
+        raise CampaignError("cases: a fixed start and random_starts=True: choose one")
     if random_starts is None:
         random_starts = start is None and not task.starts.nominal
     regions: tuple[str, ...] | None = None
     if random_starts:
-        start = None
         if proj is not None:
-            from tli_verify.verify.campaign import start_regions
+            from tli_verify.verify.simulate import start_regions
 
             regions = start_regions(task, proj.loaded.automaton)
         if task.starts.region is not None:
@@ -137,13 +161,16 @@ def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
         start = task.starts.nominal[0]
     if start is not None:
         if len(start) != task.dim:
-            raise TliError(f"cases: start: expected {task.dim} coordinates (task "
-                           f"{task.name!r}), got {len(start)}")
+            raise CampaignError(f"cases: start: expected {task.dim} coordinates (task "
+                                f"{task.name!r}), got {len(start)}")
         start = tuple(float(v) for v in start)
-    return _cases(task, start=start,
-                  max_pushes=perturb.max_pushes if o["max_pushes"] is None else o["max_pushes"],
-                  window=perturb.window if o["window"] is None else o["window"],
-                  levels=o["levels"],
-                  max_magnitude=(perturb.max_magnitude if o["max_magnitude"] is None
-                                 else o["max_magnitude"]),
-                  min_pushes=o["min_pushes"], start_regions=regions)
+        if not bool(task.in_workspace(np.asarray(start, dtype=np.float64)[None])[0]):
+            raise CampaignError(f"cases: start {list(start)}: outside the workspace of task "
+                                f"{task.name!r}")
+    magnitude = perturb.max_magnitude if o["max_magnitude"] is None else o["max_magnitude"]
+    if magnitude is not None and (isinstance(magnitude, bool) or not isinstance(
+            magnitude, int | float) or not math.isfinite(magnitude) or magnitude < 0):
+        raise CampaignError(f"cases: max_magnitude: expected a finite number >= 0, got "
+                            f"{magnitude!r}")
+    return _cases(task, start=start, max_pushes=max_pushes, window=window, levels=levels,
+                  max_magnitude=magnitude, min_pushes=o["min_pushes"], start_regions=regions)

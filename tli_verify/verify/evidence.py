@@ -4,7 +4,7 @@ A deployed model needs, besides its Lyapunov certificate, evidence that a bisimu
 (``tli verify``: generated perturbation sequences against invariance and reachability, paper
 Sec. 4.4, Thm. 2, Asm. 2) ran on *its exact files* and found nothing. The evidence file (schema
 ``tli_verify/schemas/campaign.schema.json``) binds, by SHA-256 of their exact bytes (the
-certificate's convention, :mod:`tli_verify.certify.certificate`):
+certificate's convention, :mod:`tli_verify.certification.certificate`):
 
 * the spec, the model and the certificate (paths relative to the evidence file's directory);
 * the task the campaign ran on (``task``): a task file by its SHA-256, an entry point by its
@@ -36,7 +36,8 @@ The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evide
 ``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
 pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
 by ``tli sim franka --evidence`` or ``tli evidence sim/franka``
-(:func:`tli_verify.sim.campaign.write_physics_evidence`). Each example is one perturbed physical
+(:func:`tli_verify.sim.physics_evidence.write_physics_evidence`).
+Each example is one perturbed physical
 trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
 the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
 both perturbation levels (pushes and tilts). ``tli gate --rerun N`` re-runs ``N`` physical
@@ -263,8 +264,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
         range (the schema names it).
     """
-    from tli_verify import __version__
-    from tli_verify.model import validate_schema
+    from tli_verify._version import __version__
+    from tli_verify.io import validate_schema
 
     base = Path(evidence_path).parent
     by_kind = {str(k): int(v) for k, v in violations.items()}
@@ -338,7 +339,7 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
 
     Parameters
     ----------
-    config : tli_verify.verify.campaign.CampaignConfig
+    config : tli_verify.verify.config.CampaignConfig
         Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
     result : tli_verify.verify.campaign.CampaignResult
         Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
@@ -367,8 +368,8 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     task = _campaign_task(result)
     counterexample = getattr(result, "counterexample", None)
     if counterexample is not None and not isinstance(counterexample, Mapping):
-        to_json = getattr(counterexample, "to_json", None)
-        counterexample = to_json() if callable(to_json) else {"repr": repr(counterexample)}
+        to_dict = getattr(counterexample, "to_dict", None)
+        counterexample = to_dict() if callable(to_dict) else {"repr": repr(counterexample)}
     backend = getattr(config, "backend", None)
     inconclusive = getattr(result, "inconclusive", None)
     doc = write_evidence(
@@ -430,9 +431,9 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
         if isinstance(entry, Mapping) and entry.get("path"):
             p = Path(str(entry["path"]))
             if not p.is_absolute():
-                from tli_verify.io import bundled_dir
+                from tli_verify.io import bundled_root
 
-                p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+                p = Path(os.path.realpath(bundled_root())) / p
             out[name] = (p, str(entry.get("sha256") or "") or None)
         elif getattr(config, name, None):
             out[name] = (Path(getattr(config, name)), None)
@@ -454,9 +455,9 @@ def _campaign_task(result: Any) -> Any:
     if entry.get("path"):
         p = Path(str(entry["path"]))
         if not p.is_absolute():
-            from tli_verify.io import bundled_dir
+            from tli_verify.io import bundled_root
 
-            p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+            p = Path(os.path.realpath(bundled_root())) / p
         task = find_task(p)
         sha = task.source.sha256
     else:
@@ -565,7 +566,7 @@ def check_evidence(path: str | os.PathLike[str], *,
     EvidenceCheck
         Every problem found (not just the first); never raises for a bad file.
     """
-    from tli_verify.model import read_json, validate_schema
+    from tli_verify.io import read_json, validate_schema
 
     epath = Path(path)
     shown = str(epath)
@@ -576,12 +577,14 @@ def check_evidence(path: str | os.PathLike[str], *,
         return EvidenceCheck(shown, (f"{shown}: no such campaign evidence file",))
     try:
         doc = read_json(epath, what="campaign evidence", error=EvidenceError)
-        if (isinstance(doc, Mapping) and doc.get("kind") == EVIDENCE_KIND
-                and doc.get("schema_version") == 2):
+        old = doc.get("schema_version") if isinstance(doc, Mapping) else None
+        if (type(old) is int and 1 <= old < EVIDENCE_SCHEMA_VERSION
+                and doc.get("kind") == EVIDENCE_KIND):  # an earlier format, not a forgery
             return EvidenceCheck(shown, (
-                f"{shown}: evidence schema 2, written by an earlier tli-verify that recorded no "
-                f"campaign semantics (this tool's is {CAMPAIGN_SEMANTICS}): re-run the "
-                "campaign (tli evidence DIR, or tli verify ... --evidence)",))
+                f"{shown}: evidence schema {old}, written by an earlier tli-verify that "
+                f"recorded no campaign semantics (this tool's are {CAMPAIGN_SEMANTICS}, "
+                f"schema {EVIDENCE_SCHEMA_VERSION}): re-run the campaign (tli evidence DIR, "
+                "or tli verify ... --evidence)",))
         validate_schema(doc, "campaign.schema.json", where=shown, error=EvidenceError)
     except EvidenceError as exc:
         return EvidenceCheck(shown, (f"malformed campaign evidence: {exc}",))
@@ -662,7 +665,7 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
         The spec names no task, or the task does not load or fit.
     """
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
 
     spec = load_model(model_path).spec_path
@@ -678,7 +681,7 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
 def _physics_task(model_path: Path) -> bool:
     """Whether the deployed spec's task computes its sensors in a simulator."""
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
 
     spec = load_model(model_path).spec_path
@@ -733,7 +736,8 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
                  seen: Mapping[str, Path], passed: list[str]) -> list[str]:
     """The three hashes; the spec is the model's; the certificate covers the model. ``named``:
     the files resolved as the OS opens them; ``seen``: as the evidence names them (messages)."""
-    from tli_verify.model import load_model, read_json
+    from tli_verify.io import read_json
+    from tli_verify.model.serialize import load_model
 
     out: list[str] = []
     if not mpath.is_file():

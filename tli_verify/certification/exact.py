@@ -354,7 +354,7 @@ def positive_definite_dyadic(M: Dyadic, approx: npt.ArrayLike | None = None) -> 
         return PDResult(False, "not a non-empty square matrix")
     if n > MAX_EXACT_DIM:
         return PDResult(False, f"dimension {n} exceeds the exact check's limit "
-                        f"{MAX_EXACT_DIM} (tli_verify.certify.exact.MAX_EXACT_DIM)")
+                        f"{MAX_EXACT_DIM} (tli_verify.certification.exact.MAX_EXACT_DIM)")
     bad = [(i, j) for i in range(n) for j in range(i + 1, n) if m[i, j] != m[j, i]]
     if bad:
         i, j = bad[0]
