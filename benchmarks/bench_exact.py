@@ -5,8 +5,8 @@ Baseline: the previous implementation -- floats converted to ``fractions.Fractio
 Ours: :func:`tli_verify.certification.exact.check_lyapunov` (integer matrices, an exact
 congruence to a diagonally dominant matrix, Bareiss as fallback). Both decide the
 continuous-time conditions of the same random stable LPV-DS (K = 12 components); ours
-additionally decides the sampled-data conditions at dt = 1 ms in the "with 1 ms" column. Medians of 3 runs; the baseline is run only
-where it takes under a minute.
+additionally decides the sampled-data conditions at dt = 1 ms in the "with 1 ms" column.
+Medians of 3 runs; the baseline is run only where it takes under a minute.
 
 Run: ``.venv/bin/python -m benchmarks --only exact``.
 """
@@ -103,5 +103,5 @@ def main(out_dir: Path) -> str:
             raise RuntimeError(f"n = {n}: the benchmark's system should certify")
     return ("## Exact certificate check: integer congruence vs Fraction elimination\n\n"
             f"Random stable LPV-DS with K = {K} components sharing a Lyapunov matrix; medians of "
-            f"{REPEATS} runs. Issue 10 measured 5-8 minutes for one n = 120 model with the "
+            f"{REPEATS} runs. An earlier measurement: 5-8 minutes for one n = 120 model with the "
             "Fraction baseline.\n\n" + "\n".join(rows) + "\n")

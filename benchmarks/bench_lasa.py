@@ -1,7 +1,7 @@
 """LASA handwriting benchmark: certified LPV-DS (PC-GMM + P-QLF) against EM/BIC + P = I, each
 with three decay-rate rules of the learner: the per-DS choice under an accuracy budget (the
-default of ``tli learn``, issue 20), the fixed quarter of the data's rate (the default before it,
-issue 9) and rate 0 (margin ``eps = 1e-3`` only, the learner before issue 9).
+default of ``tli learn``), the fixed quarter of the data's rate (the default before it)
+and rate 0 (margin ``eps = 1e-3`` only, the earlier learner).
 
 Protocol (after ds-opt, Figueroa & Billard 2018):
 

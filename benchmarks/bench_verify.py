@@ -1,4 +1,4 @@
-"""Bisimulation campaigns (``tli verify``, issue 12): throughput and search efficiency.
+"""Bisimulation campaigns (``tli verify``): throughput and search efficiency.
 
 Side by side in one run:
 

@@ -104,7 +104,26 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
             from tli_verify.model.serialize import load_model
 
             return load_model(out)
-        return model
+        return _in_memory(model, paths, Path(tmp), spec_path)
+
+
+def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | None) -> Any:
+    """A learned model that has no file: its spec path absolute, and the demonstrations that
+    were objects recorded as ``in-memory:demo_<i>`` (their SHA-256 kept), so nothing points
+    into the deleted temporary folder."""
+    import dataclasses
+    import json
+    from types import MappingProxyType
+
+    from tli_verify.model.serialize import IN_MEMORY
+
+    source = json.loads(json.dumps(dict(model.source or {})))
+    for i, (demo, p) in enumerate(zip(source.get("demos") or [], paths, strict=True)):
+        demo["path"] = (f"{IN_MEMORY}demo_{i + 1}" if p.parent == tmp
+                        else str(p.resolve()))
+    return dataclasses.replace(
+        model, path=None, source=MappingProxyType(source),
+        spec=None if spec_path is None else str(spec_path.resolve()))
 
 
 def save_model(model: Any, path: PathLike) -> Any:
@@ -229,15 +248,15 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
 
-    tmp = None
+    tmp: Path | None = None
     if isinstance(model, Model):
         if model.path is not None and Path(model.path).is_file() and \
                 load_model(model.path).modes.keys() == model.modes.keys() and \
                 _same_bytes(model, Path(model.path)):
             mpath = Path(model.path)
         else:
-            tmp = tempfile.TemporaryDirectory(prefix="tli-certify-")
-            mpath = Path(tmp.name) / "model.json"
+            tmp = Path(tempfile.mkdtemp(prefix="tli-certify-"))
+            mpath = tmp / "model.json"
             save_model(model, mpath)
     else:
         mpath = Path(model)
@@ -248,14 +267,20 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
     if out is not None:
         cpath = Path(out)
     elif tmp is not None:
-        cpath = Path(tmp.name) / "model.cert.json"
+        cpath = tmp / "model.cert.json"
     else:
         from tli_verify.tasks.project import model_files
 
         cpath = model_files(mpath).certificate
     doc = issue_certificate(mpath, cert_path=cpath, dt=dt)
     write_certificate(doc, cpath)
-    return Certificate(doc=doc, path=cpath, model_path=mpath, _tmp=tmp)
+    cert = Certificate(doc=doc, path=cpath, model_path=mpath, _tmp=tmp)
+    if tmp is not None:  # the private folder lives as long as the certificate object
+        import shutil
+        import weakref
+
+        weakref.finalize(cert, shutil.rmtree, tmp, True)
+    return cert
 
 
 def _same_bytes(model: Any, path: Path) -> bool:

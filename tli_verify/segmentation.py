@@ -15,8 +15,8 @@ Consecutive samples with the same modes form a *segment*.
 Attractors -- a deliberate deviation from appendix D. Appendix D (Table 3) puts the attractor
 ``x*_i`` of mode ``i`` at the mean of the *last* states of its segments. Those states read mode
 ``i``, so ``x*_i`` lies in ``delta_i``: the DS converges to a state the next sensor never
-reads, and the transition the automaton waits for need not happen (bundled scoop model before
-issue 9: the attractor of ``a`` 0.056 outside the soup disc; only 44 of 300 random mode-``a``
+reads, and the transition the automaton waits for need not happen (an earlier bundled scoop
+model: the attractor of ``a`` 0.056 outside the soup disc; only 44 of 300 random mode-``a``
 starts ever entered the disc, ``scripts/lemma2_check.py``). Lemma 2's proof needs ``x*_i``
 *strictly* inside the next region ``delta_j``: an asymptotically stable DS reaches ``x*`` only
 in the limit, but every open neighbourhood of it in finite time, so an interior attractor makes

@@ -5,9 +5,9 @@
   one per object definition under ``$defs``.
 * ``tli-public-api`` directive: autodoc entries for every name in ``tli_verify.__all__`` at
   build time, grouped by the module that defines it, in data-flow order.
-* History references ("issue 13") in generated text -- benchmark tables included from
-  ``benchmarks/results/`` and docstrings -- are dropped as the pages are read; the history is
-  in the changelog.
+* History references (the word "issue" and a number) in generated text -- benchmark tables
+  included from ``benchmarks/results/``, docstrings and CLI help -- are dropped as the pages are
+  read; the history is in the changelog.
 """
 
 from __future__ import annotations
@@ -462,12 +462,25 @@ def rst_text(text: str | None) -> str | None:
     return _RST_SPECIAL.sub(lambda m: "\\" + (m.group(1) or m.group(2)), text)
 
 
+def rst_block(text: str | None) -> str | None:
+    """A description or epilog as reST: laid out by hand (indented lines, as a
+    ``RawDescriptionHelpFormatter`` prints them) it becomes a literal block, else
+    :func:`rst_text`."""
+    if text is None or text is argparse.SUPPRESS:
+        return text
+    if any(line[:1].isspace() for line in text.splitlines()[1:] if line.strip()):
+        body = "\n".join("    " + line if line.strip() else "" for line in
+                         drop_issue_refs(text).splitlines())
+        return "::\n\n" + body + "\n"
+    return rst_text(text)
+
+
 def _escape_parser(parser: argparse.ArgumentParser, seen: set[int]) -> None:
     if id(parser) in seen:
         return
     seen.add(id(parser))
-    parser.description = rst_text(parser.description)
-    parser.epilog = rst_text(parser.epilog)
+    parser.description = rst_block(parser.description)
+    parser.epilog = rst_block(parser.epilog)
     for action in parser._actions:
         action.help = rst_text(action.help)
         if isinstance(action, argparse._SubParsersAction):

@@ -1,4 +1,4 @@
-"""The Dask backend (issue 12 E) on a real ``LocalCluster`` of 2 worker processes."""
+"""The Dask backend on a real ``LocalCluster`` of 2 worker processes."""
 
 from __future__ import annotations
 

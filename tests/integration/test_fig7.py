@@ -6,7 +6,7 @@ The documented case (README section 6, ``tli experiment scoop``'s ``fig7`` field
 start (-5, 4), pushed by (6.09, 6.01) before step 957, while transporting the soup (mode c):
 the soup is spilled (c -> a), a's DS brings the spoon back to the soup, and from where it
 enters, b's (scooping) DS rises back out of the soup into white. Before the scooping
-demonstrations (models/scoop.model.json up to issue 11 D) the unmodulated run reached d here.
+demonstrations (an earlier models/scoop.model.json) the unmodulated run reached d here.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The Franka policy behind the gate (issue 13): ``tli sim franka --evidence``, ``tli gate`` and
+"""The Franka policy behind the gate: ``tli sim franka --evidence``, ``tli gate`` and
 ``tli gate --rerun`` on a copy of the current ``sim/franka`` project.
 
 Physical trials cost seconds: these run one trial with a short step budget (the soup is not

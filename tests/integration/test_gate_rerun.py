@@ -1,5 +1,5 @@
 """``tli gate --rerun N`` with the real campaign: evidence that checks does not save a model a
-short seeded re-run catches (issue 12 D)."""
+short seeded re-run catches."""
 
 from __future__ import annotations
 

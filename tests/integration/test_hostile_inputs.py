@@ -1,4 +1,4 @@
-"""Issue 10: hostile inputs never crash the tool, never lose data and never get certified.
+"""Hostile inputs never crash the tool, never lose data and never get certified.
 
 Every case runs the real ``tli`` command line and requires exit 2 (bad input) with ONE
 ``error:`` line naming the culprit -- never the internal-error exit 70, an abort, a hang, or an

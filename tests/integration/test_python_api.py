@@ -24,16 +24,24 @@ def drawer(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_project(tmp_path_factory.mktemp("drawer-api"))
 
 
-def test_the_pipeline_runs_from_python_with_objects(drawer: Path) -> None:
+@pytest.fixture(scope="module")
+def learned(drawer: Path) -> tli.Model:
+    """Learned from demonstrations in memory (no CSV written): a model with no file."""
+    task = tli.load_task(drawer / "tasks" / "drawer.toml")
+    return tli.learn(task.demonstrate(seed=0), spec=tli.load_spec(drawer / "specs" /
+                                                                   "drawer.toml"))
+
+
+def test_the_pipeline_runs_from_python_with_objects(drawer: Path, learned: tli.Model) -> None:
     spec = tli.load_spec(drawer / "specs" / "drawer.toml")
     assert tli.check_spec(spec).realizable
     automaton = tli.synthesize(spec)
     assert "d" in automaton.modes
     task = tli.load_task(drawer / "tasks" / "drawer.toml")
     assert task.dim == 3
-    demos = task.demonstrate(seed=0)  # in memory, no CSV written
-    model = tli.learn(demos, spec=spec)
-    assert isinstance(model, tli.Model) and model.dim == 3
+    model = learned
+    assert isinstance(model, tli.Model) and model.dim == 3 and model.path is None
+    assert all(d["path"].startswith("in-memory:") for d in model.source["demos"])
     cert = tli.certify(model)  # an unsaved model: kept with the certificate
     assert isinstance(cert, tli.Certificate)
     assert cert.ok and cert.dt == Fraction(1, 100)  # the task's own control period
@@ -69,15 +77,21 @@ def test_saved_files_give_the_same_certificate_and_policy(drawer: Path, tmp_path
     assert moved.ok and moved.model_path == tmp_path / "m.model.json"
 
 
-def test_a_certificate_of_another_model_is_refused(drawer: Path) -> None:
+def test_a_certificate_of_another_model_is_refused(drawer: Path, learned: tli.Model) -> None:
     spec_path = drawer / "specs" / "drawer.toml"
-    demos = tli.load_task(drawer / "tasks" / "drawer.toml").demonstrate(seed=0)
-    model = tli.learn(demos, spec=spec_path)
+    model = learned
     other = tli.learn(tli.load_task(drawer / "tasks" / "drawer.toml").demonstrate(seed=1),
                       spec=spec_path)
     cert_other = tli.certify(other)
+    cert = tli.certify(model)  # its private folder (the model file) lives as long as it does
     with pytest.raises(tli.CertificateError):
-        tli.make_policy(spec_path, tli.certify(model).model_path, cert_other)
+        tli.make_policy(spec_path, cert.model_path, cert_other)
+    folder = cert.model_path.parent
+    del cert
+    import gc
+
+    gc.collect()
+    assert not folder.exists()  # nothing left behind
     # never saved, and no certificate object to find its file: bad input, a ValueError
     with pytest.raises(ValueError, match="never saved"):
         tli.make_policy(spec_path, model, cert_other.path)

@@ -1,4 +1,4 @@
-"""``tli run --task T`` on every bundled task's certified model (issue 11 B).
+"""``tli run --task T`` on every bundled task's certified model.
 
 Each task: one seeded perturbed episode reaches its goal with LTL-DS (through the CLI, on
 the shipped spec, model and certificate). Cooking: the DS learned once are shared by the four

@@ -105,7 +105,7 @@ def test_a_users_property_test_of_their_own_3d_task(drawer: Path,
                                            "--hypothesis-show-statistics", *QUIET)
     result.assert_outcomes(passed=2)
     result.stdout.fnmatch_lines(["tli-verify: examples 6; seed 3",
-                                 "*- 6 passing examples, 0 failing examples*"])
+                                 "*- 6 passing, 0 failing, and 0 invalid test cases*"])
 
 
 def test_seed_and_examples_decide_the_cases(drawer: Path, pytester: pytest.Pytester) -> None:
@@ -124,11 +124,11 @@ def test_seed_and_examples_decide_the_cases(drawer: Path, pytester: pytest.Pytes
     runs = []
     for seed in ("7", "7", "8"):
         log.write_text("")
-        result = pytester.runpytest("--tli-project", str(drawer), "--tli-examples", "5",
+        result = pytester.runpytest(f"--tli-project={drawer}", "--tli-examples", "5",
                                     "--tli-seed", seed, *QUIET)
         result.assert_outcomes(passed=1)
         runs.append(log.read_text().splitlines())
-    assert len(runs[0]) == 5 and runs[0] == runs[1] and runs[2] != runs[0]
+    assert len(runs[0]) == 5 and runs[0] == runs[1] and runs[2] != runs[0], runs
     assert all(line.startswith("Case(start=(0.2, 0.5, 0.8), pushes=(") for line in runs[0])
     pushes = re.findall(r"displacement=\(([^)]*)\)", "".join(runs[0] + runs[2]))
     assert pushes and all(len(p.split(",")) == 3 for p in pushes)

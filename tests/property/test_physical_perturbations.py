@@ -1,4 +1,4 @@
-"""The physical perturbation strategies and draws of the Franka campaign (issue 13).
+"""The physical perturbation strategies and draws of the Franka campaign.
 
 Bounds (property tests over the strategies and over seeded draws), the shrinking the encoding
 promises (fewer, smaller, later), and determinism of :func:`draw` in this process and in a fresh

@@ -1,6 +1,6 @@
 """Every extracted strategy is checked against its spec, with an explicit evaluator.
 
-Theorem checked (issue 2): for a realizable GR(1) spec the task automaton is a winning Mealy
+Theorem checked: for a realizable GR(1) spec the task automaton is a winning Mealy
 strategy: (1) for every initial sensor reading allowed by ``theta_e`` (and by the safety
 assumptions at time 0) there is an initial state satisfying ``theta_s``, and every state
 satisfies the ``X``-free safety guarantees (time 0 included); (2) from every state, every
@@ -130,7 +130,7 @@ def verify_strategy(spec: GR1Spec, aut: TaskAutomaton) -> list[int]:
                                   "color-tracing-b", "color-tracing-c"])
 def test_shipped_strategies_win(specs_dir: Path, name: str) -> None:
     spec = load_spec(specs_dir / f"{name}.toml")
-    # Issue 10: no dead ends (e.g. inspection reached them only by readings breaking
+    # No dead ends (e.g. inspection reached them only by readings breaking
     # G(rel -> line), which the environment may not pick).
     assert verify_strategy(spec, synthesize(spec)) == []
 

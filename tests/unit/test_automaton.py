@@ -117,7 +117,7 @@ def test_other_task_automata(specs_dir: Path, name: str, expected: list[list[str
         assert all(b == "y" for a, b in changes if a == "d1")
 
 
-# --- issue 10, class 6: many free inputs -----------------------------------------------------
+# --- hostile specs: many free inputs --------------------------------------------------------------
 
 def _free_spec(n: int, *, name: str = "free") -> str:
     inputs = ", ".join(f'"x{i}"' for i in range(n))
@@ -196,7 +196,7 @@ def test_old_json_without_cubes_reads_full_readings(scoop: TaskAutomaton) -> Non
     assert again.to_dict() == scoop.to_dict()
 
 
-# --- issue 10, class 7: output injection -----------------------------------------------------
+# --- hostile specs: output injection --------------------------------------------------------------
 
 NAMES = st.text(st.characters(blacklist_categories=("Cc", "Cs")), min_size=1, max_size=40)
 

@@ -415,7 +415,7 @@ def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Methods (issue 11, "cut cost in higher dimensions"): the hull method is exact, the local one
+# Methods: the hull method is exact, the local one
 # is a verified separating cut, the enumeration is the baseline they are compared with.
 # --------------------------------------------------------------------------------------------
 

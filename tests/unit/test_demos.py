@@ -165,7 +165,7 @@ def test_missing_file_and_no_files(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Issue 10: limits and clearer messages
+# Limits and clearer messages
 # --------------------------------------------------------------------------------------------
 
 from hypothesis import given, settings  # noqa: E402

@@ -1,4 +1,4 @@
-"""Campaign evidence (issue 12 D): forgeries only the evidence check catches.
+"""Campaign evidence: forgeries only the evidence check catches.
 
 Every forgery below leaves the spec, the model and the certificate valid, so the gate's other
 checks pass; only the ``campaign`` line may block, and must, naming the file and what differs.

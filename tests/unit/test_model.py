@@ -226,7 +226,7 @@ def test_bundled_model_loads(repo: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Issue 10, class 4: every number within a declared range, covariances safely invertible
+# Every number within a declared range, covariances safely invertible
 # --------------------------------------------------------------------------------------------
 
 from hypothesis import given, settings  # noqa: E402

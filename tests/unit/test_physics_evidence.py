@@ -1,4 +1,4 @@
-"""Campaign evidence of the Franka policy's physical campaign (issue 13, world franka-physics).
+"""Campaign evidence of the Franka policy's physical campaign (world franka-physics).
 
 The evidence here binds a copy of the current ``sim/franka`` spec, model and certificate exactly
 as ``tli sim franka --evidence`` does, but its trial outcomes are stated, not simulated (the

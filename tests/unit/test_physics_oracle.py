@@ -1,4 +1,4 @@
-"""The physics oracle of the Franka trials (issue 13): forged trials that only one check catches.
+"""The physics oracle of the Franka trials: forged trials that only one check catches.
 
 A nominal trial's shape (measured: ``tli sim franka --no-perturb``, seed 0: the soup bowl
 reached at step 77, soup on the spoon at step 97, above the target at step 286) is the valid

@@ -1,4 +1,4 @@
-"""The per-DS decay-rate choice under an accuracy budget (issue 20, section 6):
+"""The per-DS decay-rate choice under an accuracy budget:
 :func:`tli_verify.ds.lyapunov.choose_rate` and its use by the learner."""
 
 from __future__ import annotations

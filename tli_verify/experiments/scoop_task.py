@@ -1,7 +1,7 @@
 """The scoop task's closed-loop setups: the bundled one, and ones learned from seeded demos.
 
 :func:`scoop_setup` loads the bundled ``tasks/scoop.toml`` with its spec, model and certificate;
-:func:`learn_setup` learns and certifies a scoop model (at ``dt =`` :data:`CERT_DT`) from seeded
+:func:`learn_setup` learns and certifies a scoop model (at the task's ``dt``) from seeded
 demonstrations of the scoop task's scripted demonstrator, with BC nets per mode if asked. Both
 give a :class:`~tli_verify.runtime.setup.Setup` of the generic closed loop
 (:mod:`tli_verify.runtime.setup`); this module names the scoop task on purpose.
@@ -15,20 +15,16 @@ Policies from Demonstrations", CoRL 2022, Sec. 7.2 and appendix "Multi-modal Exp
 from __future__ import annotations
 
 import os
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 from tli_verify.runtime.setup import Setup, load_setup
 
 __all__ = [
-    "CERT_DT",
     "learn_setup",
     "scoop_setup",
 ]
-
-
-CERT_DT = "1/100"
-"""Control period the scoop models are certified for (and the loops run at)."""
 
 
 def scoop_setup(*, lag: int = 0) -> Setup:
@@ -43,9 +39,9 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
                 lag: int = 0, bc_epochs: int = 0) -> Setup:
     """Learn and certify a scoop model from ``n_demos`` seeded demonstrations.
 
-    Writes ``scoop_<i>.csv``, ``scoop.model.json`` and ``scoop.cert.json`` (at ``dt = 1/100``)
-    under ``directory``; with ``bc_epochs > 0`` also trains one BC net per DS key on the raw
-    (unshifted) segments of its mode.
+    Writes ``scoop_<i>.csv``, ``scoop.model.json`` and ``scoop.cert.json`` (at the task's
+    control period, ``dt = 1/100``) under ``directory``; with ``bc_epochs > 0`` also trains
+    one BC net per DS key on the raw (unshifted) segments of its mode.
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.logic.check import synthesize
@@ -62,10 +58,11 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
     assert spec_path is not None
     demos = write_demos(task, d, seed=seed, n_demos=n_demos)
     mpath, cpath = d / "scoop.model.json", d / "scoop.cert.json"
+    dt = Fraction(repr(task.dt))  # the task's control period: the certificate proves it
     model = learn_model(demos, out_path=mpath, spec_path=spec_path, seed=seed,
-                        control_dt=0.01)
+                        control_dt=float(dt))
     save_model(model, mpath)
-    write_certificate(issue_certificate(mpath, cert_path=cpath, dt=CERT_DT), cpath)
+    write_certificate(issue_certificate(mpath, cert_path=cpath, dt=dt), cpath)
     spec = load_spec(spec_path)
     bc: dict[str, Any] = {}
     if bc_epochs > 0:

@@ -12,7 +12,7 @@ move (no vacuous dead ends where it can avoid them), then the lowest ring, then 
 lexicographically least outputs, so the same spec gives the same automaton,
 byte for byte.
 
-Transitions are built symbolically (issue 10, class 6): the strategy's choice is computed as a
+Transitions are built symbolically: the strategy's choice is computed as a
 BDD over the next readings, and each edge carries a *cube* of readings (inputs required true,
 inputs required false, the rest free), not one edge per valuation. A state records only the
 inputs the strategy ever reads (:attr:`TaskAutomaton.free_inputs` lists the others), so a spec

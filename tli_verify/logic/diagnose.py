@@ -1,6 +1,6 @@
 """Why a GR(1) spec is unrealizable: the failing part, a counter-strategy witness, a hint.
 
-An unrealizable verdict is never a bare "no" (issue 2). The diagnosis names
+An unrealizable verdict is never a bare "no". The diagnosis names
 
 * which part fails: the initial condition, the safety part (the environment can force a state
   where every system move breaks a safety guarantee), or a liveness goal;

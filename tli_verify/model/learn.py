@@ -65,7 +65,7 @@ def learn_model(
         LMI margin ``A_k^T P + P A_k <= -eps I``.
     rate : float, optional
         Certified decay rate of ``V`` forced on every DS (1/time); ``0`` with ``eps=1e-3``:
-        the learner before issue 9 (margin only). Default (None): chosen per DS under
+        the earlier margin-only learner. Default (None): chosen per DS under
         ``rate_budget``. See :func:`tli_verify.ds.lpvds.learn_lpvds`.
     rate_budget : float, optional
         With ``rate`` None, per DS: fit at rate 0 first, then impose the largest rate of a

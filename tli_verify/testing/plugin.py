@@ -229,21 +229,19 @@ def tli_case_dir(tli_project: Project) -> Path:
 
 
 # ------------------------------------------------------------------------------ settings
+_MARK = "_tli_verify_cases"  # tli_verify.testing.strategies.MARK (not imported: inert)
+
+
 def _ours(item: pytest.Item) -> bool:
     """A hypothesis test drawing from :func:`tli_verify.testing.cases` (a ``@given`` argument
     built by it) or using the ``tli_project`` fixture."""
-    import sys
-
     fn = getattr(item, "obj", None)
     if fn is None or not getattr(fn, "is_hypothesis_test", False):
         return False
     if "tli_project" in getattr(item, "fixturenames", ()):
         return True
-    strategies = sys.modules.get("tli_verify.testing.strategies")
-    if strategies is None:  # never imported: no strategy of ours exists
-        return False
     given = getattr(getattr(fn, "hypothesis", None), "_given_kwargs", None)
-    return isinstance(given, dict) and any(strategies.is_tli_strategy(s)
+    return isinstance(given, dict) and any(getattr(s, _MARK, False) is True
                                            for s in given.values())
 
 
@@ -254,18 +252,17 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     (the seed, and no example database: the run is the seed's). Other tests are untouched."""
     import sys
 
-    if "hypothesis" not in sys.modules or ("tli_verify.testing.strategies" not in sys.modules
-                                           and not any("tli_project" in getattr(
-                                               i, "fixturenames", ()) for i in items)):
+    if "hypothesis" not in sys.modules:  # no hypothesis test was collected
+        return
+    ours = [item for item in items if _ours(item)]
+    if not ours:
         return
     st = config.stash.get(_KEY, None)
     from datetime import timedelta
 
     from hypothesis import settings
 
-    for item in items:
-        if not _ours(item):
-            continue
+    for item in ours:
         fn = item.obj  # type: ignore[attr-defined]
         current = getattr(fn, "_hypothesis_internal_use_settings", None) or settings()
         changes: dict[str, Any] = {}

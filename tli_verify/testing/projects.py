@@ -156,6 +156,11 @@ class Project:
         return (f"Project({self.name!r}, model={_rel(self.sim.model, self.root)!r}, "
                 f"modulation={self.modulation})")
 
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """The short repr in hypothesis's reports too (its printer would list every field of
+        a dataclass: the task, the files, the settings)."""
+        printer.text(repr(self))
+
 
 # ---------------------------------------------------------------------------------------------
 def project(path: PathLike | None = None, *, task: PathLike | None = None,

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import os
-import weakref
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -23,19 +22,18 @@ if TYPE_CHECKING:  # pragma: no cover - types only
     from tli_verify.testing.projects import Project
     from tli_verify.verify.strategies import Case
 
-__all__ = ["cases", "is_tli_strategy"]
+__all__ = ["MARK", "cases", "is_tli_strategy"]
 
-_OURS: weakref.WeakSet[Any] = weakref.WeakSet()
-"""Strategies built here: the pytest plugin applies ``--tli-examples`` and ``--tli-seed`` to the
-``@given`` tests that draw from one."""
+MARK = "_tli_verify_cases"
+"""The attribute that marks a strategy built by :func:`cases`: the pytest plugin gives the
+``@given`` tests that draw from one the settings of a closed-loop test (no deadline,
+``--tli-examples``, ``--tli-seed``). An attribute, not a registry: it survives a re-import of
+this module (pytest's in-process runs drop the modules they imported)."""
 
 
 def is_tli_strategy(strategy: object) -> bool:
     """Whether ``strategy`` was built by :func:`cases`."""
-    try:
-        return strategy in _OURS
-    except TypeError:  # not weak-referenceable: not ours
-        return False
+    return getattr(strategy, MARK, False) is True
 
 
 def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None, *,
@@ -104,7 +102,7 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
         out: SearchStrategy[Case] = st.deferred(lambda: _build(default_project(), options))
     else:
         out = _build(project_or_task, options)
-    _OURS.add(out)
+    setattr(out, MARK, True)
     return out
 
 

@@ -1,4 +1,4 @@
-"""Campaign evidence: ``certificates/<name>.campaign.json``, required by ``tli gate`` (issue 12 D).
+"""Campaign evidence: ``certificates/<name>.campaign.json``, required by ``tli gate``.
 
 A deployed model needs, besides its Lyapunov certificate, evidence that a bisimulation campaign
 (``tli verify``: generated perturbation sequences against invariance and reachability, paper
@@ -30,7 +30,7 @@ campaign with the evidence's seed (:mod:`tli_verify.deploy.gate`).
 Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
 ``tli evidence DIR`` for every model of a project).
 
-Physical campaigns (issue 13)
+Physical campaigns
 -----------------------------
 The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
 ``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
@@ -110,7 +110,7 @@ MIN_EVIDENCE_EXAMPLES = 500
 
 With ``N`` examples and no violation, the failure probability per perturbed run is below
 ``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
-campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
+campaign of 1,000 runs takes about 20 s on 2 cores, so the bundled
 evidence (1,000 examples, ``tli evidence``) costs seconds per model."""
 
 
