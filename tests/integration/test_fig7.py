@@ -2,8 +2,9 @@
 until its step budget runs out; LTL-DS reaches d after the one cut its b -> a invariance
 failure produces.
 
-The documented case (README section 6, ``tli experiment scoop``'s ``fig7`` field): the nominal
-start (-5, 4), pushed by (6.09, 6.01) before step 957, while transporting the soup (mode c):
+The documented case (docs/explanation/results.md, "Fig. 7"; ``tli experiment scoop``'s
+``fig7`` field): the nominal start (-5, 4), pushed by (6.09, 6.01) before step 957, while
+transporting the soup (mode c):
 the soup is spilled (c -> a), a's DS brings the spoon back to the soup, and from where it
 enters, b's (scooping) DS rises back out of the soup into white. Before the scooping
 demonstrations (an earlier models/scoop.model.json) the unmodulated run reached d here.

@@ -286,7 +286,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
     spec = tmp_path / "g0.toml"
     spec.write_text(spec_to_toml(inferred))
     per_episode = []
-    for i, push in enumerate(PUSHES, start=1):  # the commands of README section 7
+    for i, push in enumerate(PUSHES, start=1):  # the commands of docs/howto/grow-spec.md
         nxt = tmp_path / f"g{i}.toml"
         code = main(["run", "--task", "scoop", f"--start={START[0]:g},{START[1]:g}",
                      "--perturb", push.flag, "--spec", str(spec), "--learn-transitions",
@@ -299,7 +299,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
         per_episode.append((rec["learned_transitions"], [e["step"] for e in learned],
                             rec["mode_sequence"]))
         spec = nxt
-    # the growth the README walkthrough prints (section 7): one edge per episode, at its push
+    # the growth docs/howto/grow-spec.md prints: one edge per episode, at its push
     assert per_episode == [([["b", "a"]], [340], "ababcd"),
                            ([["c", "a"]], [540], "abcabcd"),
                            ([["c", "b"]], [540], "abcbcd")]

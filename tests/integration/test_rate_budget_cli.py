@@ -1,5 +1,5 @@
 """`tli learn --rate-budget` on a user's own 3-D task, then `tli certify` and `tli check-cert`:
-the certificate proves (at least) the decay rate the learner chose per DS (6)."""
+the certificate proves (at least) the decay rate the learner chose per DS."""
 
 from __future__ import annotations
 

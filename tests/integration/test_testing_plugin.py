@@ -51,6 +51,9 @@ def test_pushed_back_out_of_the_slide(tli_project):
 
 QUIET = ("-p", "no:cacheprovider", "-W", "error",
          "-W", "ignore:builtin type:DeprecationWarning")  # Spot's SWIG bindings on import
+"""Options of the inner pytest runs. The in-process ones (``pytester.runpytest``) drop the
+modules they imported when they end, and numpy cannot be imported twice: each such test loads
+its project in this process first (which also makes the inner runs fast)."""
 
 
 @pytest.fixture(scope="module")
@@ -111,6 +114,9 @@ def test_a_users_property_test_of_their_own_3d_task(drawer: Path,
 def test_seed_and_examples_decide_the_cases(drawer: Path, pytester: pytest.Pytester) -> None:
     """``--tli-seed`` makes the drawn cases the seed's (the same twice, others for another
     seed), ``--tli-examples`` their number; a 3-D task gives 3-D starts and pushes."""
+    from tli_verify.testing import project
+
+    project(drawer)  # loaded once in this process, as the in-process runs below load it
     log = pytester.path / "drawn.txt"
     pytester.makepyfile(test_draw=f'''
         from hypothesis import given
@@ -155,6 +161,76 @@ def test_an_undecided_run_never_passes(drawer: Path, tmp_path: Path) -> None:
     assert "not saved" in str(err.value) and not list(tmp_path.iterdir())
 
 
+def test_a_violation_fails_with_its_case_its_replay_and_a_saved_case(
+        scoop: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A case the ablation fails (the repository's Fig. 7 regression case: it loops): the
+    message names the violation, the case and the ``tli replay`` command of the case file it
+    saved; the file validates against the case schema, is saved once (its name is its
+    digest), and ``tli replay`` reproduces it."""
+    from tli_verify.io import validate_schema
+    from tli_verify.testing import assert_satisfies, check, project, replay_command
+    from tli_verify.verify.strategies import case_from_json
+
+    fig7 = json.loads((REPO / "tests" / "regressions" /
+                       "scoop_fig7_looping_no_modulation.json").read_text())
+    case = case_from_json(fig7, dim=2)
+    ablation = project(scoop, modulation=False)
+    with pytest.raises(AssertionError) as err:
+        assert_satisfies(ablation, case, case_dir=tmp_path)
+    message = str(err.value)
+    (saved,) = tmp_path.iterdir()
+    assert saved.name.startswith("scoop-no-modulation-looping-")
+    assert message.startswith("tli-verify: scoop (no modulation) does not satisfy its spec")
+    assert "  - looping (step " in message and f"case: {case!r}" in message
+    assert f"saved: {saved}" in message and f"replay: {replay_command(saved)}" in message
+    doc = json.loads(saved.read_text())
+    validate_schema(doc, "case.schema.json", where=str(saved), error=AssertionError)
+    assert case_from_json(doc, dim=2) == case and doc["modulation"] is False
+    assert doc["expected"]["violation"] == "looping"
+    with pytest.raises(AssertionError):  # the same case again: the same file
+        assert_satisfies(ablation, case, case_dir=tmp_path)
+    assert list(tmp_path.iterdir()) == [saved]
+    code, text, err_text = run(capsys, "replay", str(saved))
+    assert code == 1 and "REPRODUCED" in text, (text, err_text)
+    assert check(project(scoop), case).ok  # LTL-DS answers it with a cut (paper Thm. 1-2)
+
+
+def test_saved_cases_replay_as_tests_and_ci_sees_them(scoop: Path, tmp_path: Path,
+                                                      pytester: pytest.Pytester) -> None:
+    """``--tli-cases DIR``: a saved ablation case passes (its violation still reproduces,
+    LTL-DS passes it); a copy whose model changed since and a bug report marked open that no
+    longer reproduces fail, naming why; ``--junitxml`` shows them to CI."""
+    from tli_verify.testing import check, project, save_case
+    from tli_verify.verify.strategies import case_from_json
+
+    fig7 = json.loads((REPO / "tests" / "regressions" /
+                       "scoop_fig7_looping_no_modulation.json").read_text())
+    case = case_from_json(fig7, dim=2)
+    ablation = project(scoop, modulation=False)
+    cases = pytester.path / "cases"
+    good = save_case(ablation, case, check(ablation, case), case_dir=cases)
+    stale = json.loads(good.read_text())
+    stale["files"]["model"]["sha256"] = "0" * 64
+    (cases / "stale.json").write_text(json.dumps(stale))
+    fixed = json.loads(good.read_text())
+    fixed.update(modulation=True, open="cut learning fails here")
+    (cases / "fixed.json").write_text(json.dumps(fixed))
+    xml = pytester.path / "report.xml"
+    result = pytester.runpytest(f"--tli-cases={cases}", f"--junitxml={xml}", *QUIET)
+    result.assert_outcomes(passed=1, failed=2)
+    result.stdout.fnmatch_lines_random([
+        "*stale.json: model: *changed since the case was saved*",
+        "*fixed.json: no longer reproduces (looping): the bug is fixed, remove its 'open' "
+        "note*"])
+    suite = ET.parse(xml).getroot().find("testsuite")
+    assert suite is not None and (suite.get("tests"), suite.get("failures")) == ("3", "2")
+    failed = {str(c.get("classname")): str(f.get("message")) for c in suite.iter("testcase")
+              for f in c.iter("failure")}
+    assert sorted(failed) == ["cases.fixed.json", "cases.stale.json"]
+    assert "no longer reproduces" in failed["cases.fixed.json"]
+    assert "changed since the case was saved" in failed["cases.stale.json"]
+
+
 ABLATION_TEST = '''
 from hypothesis import given
 from tli_verify.testing import assert_satisfies, cases
@@ -166,65 +242,43 @@ def test_the_ablation_survives_a_push(tli_project, case):
 '''
 
 
-def test_a_violation_fails_with_the_shrunk_case_its_replay_and_a_saved_case(
+@pytest.mark.slow  # hypothesis shrinks a looping run: ~20 simulations of seconds each
+def test_the_plugin_shrinks_a_violation_and_saves_it_once(
         scoop: Path, pytester: pytest.Pytester, capsys: pytest.CaptureFixture[str]) -> None:
-    """The ablation's property test fails (without modulation the scoop loops or leaves its
-    modes, paper Fig. 7, in about one case in eight: 40 examples find one). The failure shows
-    the shrunk case, the case file it saved and the ``tli replay`` command; the file validates
-    against the case schema and ``tli replay`` reproduces it; ``pytest --junitxml`` reports
-    it; ``--tli-cases`` replays it as a passing test (the ablation still fails it, LTL-DS
-    passes it), and fails a stale copy and a fixed-but-open one, naming why."""
+    """The ablation's property test through the plugin fails (without modulation the scoop
+    loops or leaves its modes in about one case in eight, paper Fig. 7): hypothesis shrinks
+    the case, and the failure shows the shrunk case, the case file saved once (on the final
+    run, not for every failing run of the shrinker) and its ``tli replay`` command; pytest's
+    JUnit XML carries it."""
     from tli_verify.io import validate_schema
-    from tli_verify.testing import Case, Push  # noqa: F401 - the repr below names them
+    from tli_verify.testing import Case, check, project
+    from tli_verify.verify.strategies import case_from_json
 
+    warm = project(scoop, modulation=False)  # in this process: loaded once, imported once
+    assert check(warm, Case(warm.start or ())).ok
     pytester.makepyfile(test_ablation=ABLATION_TEST)
     cases, xml = pytester.path / "cases", pytester.path / "report.xml"
-    result = pytester.runpytest("--tli-project", str(scoop), "--tli-examples", "40",
-                                "--tli-seed", "0", "--tli-case-dir", str(cases),
+    result = pytester.runpytest(f"--tli-project={scoop}", "--tli-examples", "40",
+                                "--tli-seed", "0", f"--tli-case-dir={cases}",
                                 f"--junitxml={xml}", *QUIET)
     result.assert_outcomes(failed=1)
     out = result.stdout.str()
     assert "tli-verify: scoop (no modulation) does not satisfy its spec on this case:" in out
-    saved = [p for p in cases.iterdir()]
-    assert len(saved) == 1 and saved[0].name.startswith("scoop-no-modulation-")
-    case_file = saved[0]
+    (case_file,) = cases.iterdir()
+    assert case_file.name.startswith("scoop-no-modulation-")
     assert f"saved: {case_file}" in out
     replay = re.search(r"^E?\s*replay: (tli replay \S+)$", out, flags=re.M)
-    assert replay is not None, out
-    assert replay.group(1).endswith(case_file.name)
-    # the message shows the shrunk case, the one the file holds
+    assert replay is not None and replay.group(1).endswith(case_file.name), out
     shown = re.search(r"^E?\s*case: (Case\(.*\))$", out, flags=re.M)
     assert shown is not None, out
     doc = json.loads(case_file.read_text())
     validate_schema(doc, "case.schema.json", where=str(case_file), error=AssertionError)
     assert doc["shrunk"] is True and doc["modulation"] is False
+    assert repr(case_from_json(doc, dim=2)) == shown.group(1)  # the file holds the shrunk case
     assert len(doc["perturbations"]) <= 1
-    from tli_verify.verify.strategies import case_from_json
-
-    assert repr(case_from_json(doc, dim=2)) == shown.group(1)
-    assert "Falsifying example" in out
-    # tli replay reproduces it (exit 1), as the message says
-    code, text, err = run(capsys, "replay", str(case_file))
-    assert code == 1 and "REPRODUCED" in text, (text, err)
-    # pytest --junitxml: CI sees the failure and the command
+    code, text, _ = run(capsys, "replay", str(case_file))
+    assert code == 1 and "REPRODUCED" in text
     suite = ET.parse(xml).getroot().find("testsuite")
-    assert suite is not None
-    assert (suite.get("tests"), suite.get("failures")) == ("1", "1")
+    assert suite is not None and (suite.get("tests"), suite.get("failures")) == ("1", "1")
     failure = suite.find("testcase/failure")
-    assert failure is not None and "tli replay" in (failure.text or "")
-    # the saved case replayed as a test; then a stale copy and a fixed-but-open bug report
-    result = pytester.runpytest(str(cases), "--tli-cases", str(cases), *QUIET)
-    result.assert_outcomes(passed=1)
-    forged = pytester.path / "forged"
-    forged.mkdir()
-    stale = json.loads(case_file.read_text())
-    stale["files"]["model"]["sha256"] = "0" * 64
-    (forged / "stale.json").write_text(json.dumps(stale))
-    fixed = json.loads(case_file.read_text())
-    fixed.update(modulation=True, open="cut learning fails here")
-    (forged / "fixed.json").write_text(json.dumps(fixed))
-    result = pytester.runpytest(str(forged), "--tli-cases", str(forged), "-rf", *QUIET)
-    result.assert_outcomes(failed=2)
-    result.stdout.fnmatch_lines_random([
-        "*stale.json: model: *changed since the case was saved*",
-        "*fixed.json: no longer reproduces (*): the bug is fixed, remove its 'open' note*"])
+    assert failure is not None and "replay: tli replay" in (failure.text or "")

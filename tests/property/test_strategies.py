@@ -7,8 +7,9 @@ satisfies the ``X``-free safety guarantees (time 0 included); (2) from every sta
 sensor reading allowed by ``rho_e`` has a transition, and the move satisfies ``rho_s``;
 (3) every cycle of the automaton that visits every environment goal (the ones the
 environment's liveness allows forever) visits every system goal. Readings from which the
-safety assumptions cannot hold forever are not allowed (README, "How it works (logic
-layer)"); they are computed explicitly by :func:`tests.support.explicit_games.safe_readings`.
+safety assumptions cannot hold forever are not allowed (docs/explanation/logic.md, "From
+spec to automaton"); they are computed explicitly by
+:func:`tests.support.explicit_games.safe_readings`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ consequence (where the player's actions can continue forever: ``nu C. exists nex
 C'``; for the assumptions with the outputs quantified as well) is added to the player's
 initial condition and, primed, to its action. For an ``X``-free ``phi`` this is the textbook
 ``init & phi``, ``action & phi'``. The initial conditions given to omega are thus stated the
-way our solver states them (README, "How it works (logic layer)").
+way our solver states them (docs/explanation/logic.md, "From spec to automaton").
 Settings: ``plus_one=False, moore=False, qinit='\\A \\E'`` (Mealy, standard GR(1)).
 """
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import inspect
+import itertools
 import json
 from fractions import Fraction
 from pathlib import Path
@@ -73,11 +74,11 @@ def test_bisection_matches_a_brute_force_over_the_whole_grid(small: tuple[np.nda
     errors = [e for _, e in every]
     assert len(every) == len(RATE_GRID) == 13
     # the monotonicity the bisection relies on holds here (up to solver accuracy) ...
-    assert all(b <= a * (1 + 1e-7) for a, b in zip(errors, errors[1:], strict=False)), errors
+    assert all(b <= a * (1 + 1e-7) for a, b in itertools.pairwise(errors)), errors
     # ... and the budgets below land at different places of the grid, ends included
     rms = float(np.sqrt(np.mean(np.sum(V**2, axis=1))))
     chosen = set()
-    for budget in (0.0, 0.005, 0.01, 0.03, 0.06, 0.5):
+    for budget in (0.0, 0.03, 0.5):
         choice = choose_rate(X, V, G, xs, P, eps=1e-3, dt=DT, budget=budget)
         limit = (1 + budget) * e0 + 1e-6 * rms
         inside = [j for j, e in enumerate(errors) if e <= limit]
@@ -93,7 +94,7 @@ def test_bisection_matches_a_brute_force_over_the_whole_grid(small: tuple[np.nda
         chosen.add(j)
         # the fit kept is the one at the chosen rate: it contracts at least that fast
         assert decay_rate(P, choice.A) >= choice.rate
-    assert 0 in chosen and len(chosen) >= 4, chosen
+    assert 0 in chosen and len(chosen) == 3, chosen
 
 
 def test_the_result_is_locally_maximal_even_when_the_errors_are_not_monotone(

@@ -128,7 +128,7 @@ def test_cases_of_a_task_follow_its_defaults_in_any_dimension(drawer_task: Path)
 ])
 def test_bad_strategy_options_are_value_errors(options: dict[str, object], needle: str,
                                                drawer_task: Path) -> None:
-    with pytest.raises(ValueError, match="^cases: ") as err:
+    with pytest.raises(ValueError, match=r"^cases: ") as err:
         cases(drawer_task, **options)  # type: ignore[arg-type]
     assert needle in str(err.value)
 
@@ -189,3 +189,20 @@ def test_junit_xml_of_a_campaign(tmp_path: Path) -> None:
     assert "tli replay out/verify/counterexample.json" in (failure.text or "")
     skipped = runs[2].find("skipped")
     assert skipped is not None and "undecided" in (skipped.get("message") or "")
+
+
+def test_ini_settings_in_pyproject(pytester: pytest.Pytester) -> None:
+    """The settings a project puts under ``[tool.pytest.ini_options]`` (paths relative to
+    it), shown in the report header."""
+    (pytester.path / "regressions").mkdir()
+    pytester.makepyprojecttoml('''
+        [tool.pytest.ini_options]
+        tli_cases = ["regressions"]
+        tli_examples = "7"
+        tli_case_dir = "saved"
+        ''')
+    pytester.makepyfile("def test_nothing():\n    pass\n")
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines([f"tli-verify: examples 7; cases {pytester.path / 'regressions'};"
+                                 f" case dir {pytester.path / 'saved'}"])

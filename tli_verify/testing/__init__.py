@@ -1,15 +1,16 @@
 """Property tests of a certified policy: the public testing API of tli-verify.
 
-A property test of your own policy, on your own task, in any dimension::
+A property test of your own policy, on your own task, in any dimension (run by pytest from the
+project folder: the plugin's ``tli_project`` fixture is that project)::
 
     from hypothesis import given
-    from tli_verify.testing import assert_satisfies, cases, project
+    from tli_verify.testing import assert_satisfies, cases
 
-    drawer = project(__file__)   # the project's model, its spec, task and certificate
+    @given(case=cases(max_pushes=2))
+    def test_the_drawer_opens_despite_pushes(tli_project, case):
+        assert_satisfies(tli_project, case)
 
-    @given(cases(drawer, max_pushes=2))
-    def test_the_drawer_survives_pushes(case):
-        assert_satisfies(drawer, case)
+Without the fixture: ``drawer = project(__file__)`` and ``cases(drawer)``.
 
 * :func:`project` -- resolve the files by the project rules (the ones every ``tli`` command
   follows) and load the closed loop: a :class:`Project`;
@@ -23,7 +24,8 @@ A property test of your own policy, on your own task, in any dimension::
   ``tli replay PATH`` command of the regression case file it saved;
 * the pytest plugin (:mod:`tli_verify.testing.plugin`, loaded by pytest): the ``tli_project``
   fixture, ``--tli-examples`` and ``--tli-seed``, and saved cases replayed as tests
-  (``--tli-cases DIR``); docs/howto/property-tests.md.
+  (``--tli-cases DIR``); the how-to "Property tests of your own policy"
+  (``docs/howto/property-tests.md``).
 
 Importing this package is cheap: its names load their modules (hypothesis, the simulator) when
 first used.

@@ -18,14 +18,10 @@ from typing import TYPE_CHECKING, Any
 from tli_verify.errors import TaskError
 
 if TYPE_CHECKING:  # pragma: no cover - types only (the imports below are lazy)
-    from hypothesis.strategies import SearchStrategy
-
     from tli_verify.tasks.project import Resolved
     from tli_verify.tasks.task import Task
     from tli_verify.verify.config import CampaignConfig, SimSpec
-    from tli_verify.verify.oracle import Verdict
     from tli_verify.verify.simulate import Loaded
-    from tli_verify.verify.strategies import Case
 
 __all__ = ["DEFAULTS", "Defaults", "Project", "default_project", "default_root", "project"]
 
@@ -132,25 +128,6 @@ class Project:
         """The same files, with modulation on (LTL-DS) or off (the ablation)."""
         return replace(self, config=replace(self.config, modulation=bool(modulation)),
                        sim=replace(self.sim, modulation=bool(modulation)))
-
-    # ------------------------------------------------------------------ shortcuts
-    def cases(self, **options: Any) -> SearchStrategy[Case]:
-        """:func:`tli_verify.testing.cases` of this project."""
-        from tli_verify.testing.strategies import cases
-
-        return cases(self, **options)
-
-    def check(self, case: Case, *, budget: int | None = None) -> Verdict:
-        """:func:`tli_verify.testing.check` of this project."""
-        from tli_verify.testing.runner import check
-
-        return check(self, case, budget=budget)
-
-    def assert_satisfies(self, case: Case, **options: Any) -> Verdict:
-        """:func:`tli_verify.testing.assert_satisfies` of this project."""
-        from tli_verify.testing.runner import assert_satisfies
-
-        return assert_satisfies(self, case, **options)
 
     def __repr__(self) -> str:
         return (f"Project({self.name!r}, model={_rel(self.sim.model, self.root)!r}, "

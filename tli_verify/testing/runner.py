@@ -44,9 +44,10 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
         from tli_verify.errors import CampaignError
         from tli_verify.limits import MAX_CAMPAIGN_STEPS
 
-        if not isinstance(budget, int) or isinstance(budget, bool) or \
-                not 1 <= budget <= MAX_CAMPAIGN_STEPS + proj.loaded.budget:
-            raise CampaignError(f"budget: expected a positive number of steps, got {budget!r}")
+        top = max(MAX_CAMPAIGN_STEPS, int(proj.loaded.budget))
+        if not isinstance(budget, int) or isinstance(budget, bool) or not 1 <= budget <= top:
+            raise CampaignError(f"budget: expected an integer in [1, {top}] (control steps), "
+                                f"got {budget!r}")
         return budget
     last = max((c.last_step for c in cases), default=0)
     return int(proj.loaded.oracle.budget(max(proj.window, last)))
