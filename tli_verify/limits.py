@@ -2,7 +2,7 @@
 
 A hostile or broken input must never crash the tool, exhaust memory, stall it, or get
 certified: it is refused as bad input (exit 2) with one line that names the limit, the file and
-the place (``docs/design.md``, "Errors and limits"; README, "Errors and limits"). These are the
+the place (``docs/reference/limits.md``). These are the
 limits the readers enforce; the certificate records the numeric ones
 (:func:`tli_verify.model.types.numeric_limits`).
 

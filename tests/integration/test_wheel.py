@@ -233,7 +233,7 @@ def test_the_wheel_installs_cleanly_and_runs_from_an_empty_folder(installed: Ins
     assert list(empty.iterdir()) == []
 
 
-@pytest.mark.slow  # about 2 minutes on 2 cores: the whole demo pipeline
+@pytest.mark.slow  # about 90 s on 2 shared cores: the whole demo pipeline
 def test_tli_demo_runs_from_an_empty_folder_with_the_installed_wheel(installed: Installed,
                                                                       tmp_path: Path) -> None:
     """``tli demo --out out``, in an empty folder, with only the wheel installed (no checkout,

@@ -206,3 +206,16 @@ def test_ini_settings_in_pyproject(pytester: pytest.Pytester) -> None:
     result.assert_outcomes(passed=1)
     result.stdout.fnmatch_lines([f"tli-verify: examples 7; cases {pytester.path / 'regressions'};"
                                  f" case dir {pytester.path / 'saved'}"])
+
+
+def test_case_dirs_outside_the_collected_paths_are_collected_too(
+        pytester: pytest.Pytester) -> None:
+    (pytester.path / "tests").mkdir()
+    (pytester.path / "tests" / "test_a.py").write_text("def test_a():\n    pass\n")
+    (pytester.path / "cases").mkdir()
+    (pytester.path / "cases" / "one.json").write_text("{}")
+    (pytester.path / "cases" / "notes.txt").write_text("not a case")
+    result = pytester.runpytest("tests", "--tli-cases", "cases", "--collect-only", "-q",
+                                "-p", "no:cacheprovider")
+    result.stdout.fnmatch_lines(["tests/test_a.py::test_a", "cases/one.json::replay",
+                                 "2 tests collected*"])

@@ -368,7 +368,7 @@ class TaskAutomaton:
         return [list(p) for p in sorted(pairs)]
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (see README, "Task automaton")."""
+        """JSON-ready dict (``docs/reference/file-formats.md``)."""
         return {
             "name": self.name,
             "inputs": list(self.inputs),

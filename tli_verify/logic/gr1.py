@@ -16,7 +16,7 @@ predecessor is ``cpre(Z) = forall X'. (rho_e -> exists Y'. (rho_s & Z'))`` and t
 
 The spec is realizable iff ``forall X. theta_e -> exists Y. theta_s & Z``.
 
-Safety at every position, the first included (README, "How it works (logic layer)").
+Safety at every position, the first included (``docs/explanation/logic.md``).
 ``G(phi)`` means: ``phi`` holds at every position ``i >= 0``, where ``phi`` may mention the
 current and the next values. Each side's safety formulas go into its transition relation as
 written (``X v`` read as ``v'``), and in addition their *current-state consequence* applies

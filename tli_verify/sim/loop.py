@@ -86,7 +86,7 @@ tilt it turned the ladle over and drifted 1.5 dm sideways)."""
 def project_dir() -> Path:
     """The bundled Franka project: ``sim/franka`` with ``specs/``, ``models/``,
     ``certificates/`` and ``demos/franka/`` (outside the repository's deployed ``models/``:
-    the gate requires campaign evidence this policy does not have yet, README section 11)."""
+    the gate requires campaign evidence this policy does not have yet, ``docs/howto/franka.md``)."""
     from tli_verify.io import bundled_dir
 
     return bundled_dir("sim") / "franka"

@@ -125,6 +125,7 @@ def failure_reasons(verdict: Verdict) -> list[str]:
         reasons.append(f"undecided: reachability was not decided: {why}")
     elif not verdict.reached and not verdict.violations:
         reasons.append("the run did not reach a goal mode")
+    assert bool(reasons) != verdict.satisfied  # one definition of passing
     return reasons
 
 

@@ -7,7 +7,7 @@ groups them into batches of 100-1,000 runs and maps a simulation function over t
 they complete.
 
 Dask costs about 1-6 ms per task and a ``LocalCluster`` takes about 5 s to start (measured on
-2 cores, see the README, "Campaign evidence and scale-out"), so a task must carry a batch, never
+2 cores, see ``docs/howto/dask.md``), so a task must carry a batch, never
 one run.
 
 Dask is optional (the ``[cluster]`` extra: ``pip install 'tli-verify[cluster]'``) and imported

@@ -246,8 +246,14 @@ class Verdict:
 
     @property
     def ok(self) -> bool:
-        """No violation."""
+        """No violation (an undecided run is ok too: see :attr:`satisfied`)."""
         return not self.violations
+
+    @property
+    def satisfied(self) -> bool:
+        """The run satisfies the spec: decided, a goal mode reached, no violation (what a
+        property test asserts, :func:`tli_verify.testing.assert_satisfies`)."""
+        return self.conclusive and self.reached and not self.violations
 
     @property
     def kinds(self) -> frozenset[ViolationKind]:
