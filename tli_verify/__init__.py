@@ -19,8 +19,9 @@ change between releases, these do not without a changelog entry.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from tli_verify._lazy import lazy_namespace
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify._version import __version__
@@ -127,14 +128,4 @@ __all__ = [
 
 
 
-def __getattr__(name: str) -> Any:
-    module = _NAMES.get(name)
-    if module is None:
-        raise AttributeError(f"module 'tli_verify' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_namespace("tli_verify", _NAMES, globals(), __all__)

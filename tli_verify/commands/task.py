@@ -292,7 +292,7 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     except ImportError as exc:  # pragma: no cover - the sim extra is missing
         raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
                        f"install 'tli-verify[sim]'): {exc}") from None
-    from tli_verify.verify.evidence import MIN_PHYSICS_TRIALS
+    from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:

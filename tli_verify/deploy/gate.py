@@ -44,6 +44,7 @@ from typing import Any
 
 from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
            "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed",
@@ -494,7 +495,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   f"tli verify --model {name} --evidence)", "campaign"))
             continue
         valid = [c for c, _ in certified.get(model.resolve(), [])]
-        check = check_evidence(evidence, model_path=model, valid_certificates=valid)
+        check = check_evidence(evidence, model_path=model, valid_certificates=valid,
+                               physical=(FRANKA_PHYSICS,))
         if not check.ok:
             items.append(GateItem("model", name, False, f"{shown(evidence)}: "
                                   f"{'; '.join(check.problems)}", "campaign"))

@@ -21,15 +21,14 @@ from typing import Any
 
 from tli_verify.sim.campaign import PhysicsResult
 from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.physics_checks import WORLD
 
 __all__ = [
-    "WORLD",
     "settings_from",
     "write_physics_evidence",
 ]
 
 
-WORLD = "franka-physics"
 """The evidence's world name for the physical campaign (:mod:`tli_verify.verify.evidence`)."""
 
 

@@ -33,12 +33,14 @@ Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
 Physical campaigns
 -----------------------------
 The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
-``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
+``"franka-physics"`` (a :class:`PhysicalWorld`, whose checks live in
+:mod:`tli_verify.sim.physics_checks`) and a ``physics`` block (robot, variant, duration,
 pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
 by ``tli sim franka --evidence`` or ``tli evidence sim/franka``
 (:func:`tli_verify.sim.physics_evidence.write_physics_evidence`).
 Each example is one perturbed physical
-trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
+trial (seconds each), so the minimum is
+:data:`~tli_verify.sim.physics_checks.MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
 the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
 both perturbation levels (pushes and tilts). ``tli gate --rerun N`` re-runs ``N`` physical
 trials with the recorded settings.
@@ -48,7 +50,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,10 +65,9 @@ __all__ = [
     "EVIDENCE_SUFFIX",
     "MIN_EVIDENCE_EXAMPLES",
     "MIN_MAX_PUSHES",
-    "MIN_PHYSICS_TRIALS",
     "MIN_WINDOW",
-    "PHYSICS_WORLDS",
     "EvidenceCheck",
+    "PhysicalWorld",
     "build_evidence",
     "check_evidence",
     "evidence_digest",
@@ -114,19 +115,33 @@ campaign of 1,000 runs takes about 20 s on 2 cores, so the bundled
 evidence (1,000 examples, ``tli evidence``) costs seconds per model."""
 
 
-MIN_PHYSICS_TRIALS = 30
-"""Fewest perturbed physical trials a ``franka-physics`` campaign needs to count as evidence:
-the paper's experiment (Sec. 7.2: 30 perturbed trials, 30 successes). With 30 successes the
-failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
-than the 2-D campaigns' bound, and the gate's line says so."""
-PHYSICS_WORLDS: dict[str, int] = {"franka-physics": MIN_PHYSICS_TRIALS}
 MIN_WINDOW = 100
 """Shortest perturbation window a kinematic campaign must have drawn from (control steps; 1 s
 at 10 ms): pushes confined to the first steps test almost nothing of the mode boundaries."""
 MIN_MAX_PUSHES = 2
 """Fewest perturbations per case a kinematic campaign must have allowed: with one push at most,
 no case tests a recovery that is itself perturbed (paper Asm. 2: finitely many, not one)."""
-"""Worlds of physical campaigns (:mod:`tli_verify.sim.campaign`) -> their minimum trials."""
+
+
+@dataclass(frozen=True, slots=True)
+class PhysicalWorld:
+    """A kind of physical campaign the evidence check accepts; its checks live with its
+    simulator (the MuJoCo Franka's: :data:`tli_verify.sim.physics_checks.FRANKA_PHYSICS`).
+
+    Attributes
+    ----------
+    name : str
+        The evidence's ``world`` (e.g. ``"franka-physics"``).
+    min_trials : int
+        Fewest decided trials that count as evidence.
+    check : callable
+        ``check(doc, shown, passed) -> problems`` on the evidence document (its ``physics``
+        block present), appending what passed to ``passed``.
+    """
+
+    name: str
+    min_trials: int
+    check: Callable[[Mapping[str, Any], str, list[str]], list[str]]
 
 
 class _BadInput(EvidenceError, ValueError):
@@ -217,7 +232,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     evidence_path : path-like
         Where it will be written (its paths are relative to that directory).
     world : str
-        The task's name, or a physical campaign's kind (:data:`PHYSICS_WORLDS`).
+        The task's name, or a physical campaign's kind (a :class:`PhysicalWorld`'s name).
     task : mapping
         The task the campaign ran on (:func:`task_block`).
     spec, model, certificate : path-like
@@ -249,7 +264,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
         that changed since is refused.
     physics : mapping, optional
-        A physical campaign's block (world in :data:`PHYSICS_WORLDS`): ``robot``, ``variant``,
+        A physical campaign's block (world a :class:`PhysicalWorld`): ``robot``, ``variant``,
         ``duration``, ``pushes``, ``tilts``, ``trials``, ``successes``, ... (schema
         ``physics``).
 
@@ -544,7 +559,8 @@ def _short(sha: str) -> str:
 def check_evidence(path: str | os.PathLike[str], *,
                    model_path: str | os.PathLike[str] | None = None,
                    valid_certificates: Collection[str | os.PathLike[str]] | None = None,
-                   min_examples: int | None = None) -> EvidenceCheck:
+                   min_examples: int | None = None,
+                   physical: Sequence[PhysicalWorld] = ()) -> EvidenceCheck:
     """Re-check campaign evidence against the files it binds.
 
     Parameters
@@ -559,7 +575,10 @@ def check_evidence(path: str | os.PathLike[str], *,
         hash it records are compared (``tli check-cert`` re-checks the certificate itself).
     min_examples : int, optional
         Fewest examples accepted (default :data:`MIN_EVIDENCE_EXAMPLES`; for a physical
-        campaign the world's minimum in :data:`PHYSICS_WORLDS`).
+        campaign its world's ``min_trials``).
+    physical : sequence of PhysicalWorld, optional
+        The physical campaigns accepted, with their checks (``tli gate``: the MuJoCo Franka's).
+        Evidence of a physical world not given here is refused.
 
     Returns
     -------
@@ -597,7 +616,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                         "after the campaign wrote it")
     else:
         passed.append("digest matches the content")
-    problems += _check_tool_and_world(doc, shown, passed)
+    worlds = {w.name: w for w in physical}
+    problems += _check_tool_and_world(doc, shown, passed, worlds)
     base = epath.parent
     named = {k: Path(os.path.realpath(base / doc[k]["path"]))
              for k in ("model", "spec", "certificate")}
@@ -608,15 +628,16 @@ def check_evidence(path: str | os.PathLike[str], *,
     seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
     problems += _check_files(doc, shown, mpath, named, seen, passed)
     if mpath.is_file():
-        problems += _check_task(doc, shown, mpath, base, passed)
+        problems += _check_task(doc, shown, mpath, base, passed, worlds)
     if valid_certificates is not None and named["certificate"].is_file() and not any(
             _same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
                         f"certificate of {mpath}")
     if min_examples is None:
-        min_examples = PHYSICS_WORLDS.get(doc["world"], MIN_EVIDENCE_EXAMPLES)
-    problems += _check_campaign(doc, shown, min_examples, passed)
-    problems += _check_physics(doc, shown, passed)
+        world = worlds.get(doc["world"])
+        min_examples = MIN_EVIDENCE_EXAMPLES if world is None else world.min_trials
+    problems += _check_campaign(doc, shown, min_examples, passed, worlds)
+    problems += _check_physics(doc, shown, passed, worlds)
     camp = doc["campaign"]
     keep = ("robot", "variant", "duration", "pushes", "tilts")
     return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
@@ -630,7 +651,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                          digest=str(doc["digest"]))
 
 
-def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
+def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str],
+                          worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     """The campaign semantics are this tool's (:data:`CAMPAIGN_SEMANTICS`; the tool version
     is not compared) and the world agrees with the task and the physics block."""
     out: list[str] = []
@@ -644,7 +666,7 @@ def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str])
     else:
         passed.append(f"campaign semantics {semantics} are this tool's (written by tli-verify "
                       f"{version})")
-    physical = doc["world"] in PHYSICS_WORLDS
+    physical = doc["world"] in worlds
     if physical != (doc.get("physics") is not None):
         out.append(f"{shown}: world {doc['world']!r} and the physics block disagree (a "
                    "physical campaign has world franka-physics and a physics block; a "
@@ -690,14 +712,14 @@ def _physics_task(model_path: Path) -> bool:
 
 
 def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
-                passed: list[str]) -> list[str]:
+                passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     """The evidence's task is the deployed spec's task, byte for byte (or source for source)."""
     try:
         want = deployed_task_block(mpath, base)
     except TliError as exc:
         return [f"{shown}: the deployed task cannot be resolved: {exc}"]
     got = doc["task"]
-    physical = doc["world"] in PHYSICS_WORLDS
+    physical = doc["world"] in worlds
     if physical != _physics_task(mpath):
         return [f"{shown}: a {'physical' if physical else 'kinematic'} campaign, but the "
                 f"deployed task {want['name']!r} is "
@@ -792,7 +814,7 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
 
 
 def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
-                    passed: list[str]) -> list[str]:
+                    passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     out: list[str] = []
     camp, viol = doc["campaign"], doc["violations"]
     by_kind = {k: int(v) for k, v in viol["by_kind"].items()}
@@ -803,7 +825,7 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     found = max(total, sum(by_kind.values()))
     if found:
         kinds = ", ".join(f"{k}: {v}" for k, v in sorted(by_kind.items()) if v) or "-"
-        if doc["world"] in PHYSICS_WORLDS:
+        if doc["world"] in worlds:
             out.append(f"{shown}: physical trials failed the oracle (trials per kind: {kinds}): "
                        "not evidence for deployment (the counterexample says how to reproduce "
                        "the first)")
@@ -818,14 +840,14 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
         out.append(f"{shown}: the campaign ran without modulation, the deployed policy runs "
                    "with it: not evidence for it")
     examples, runs = int(camp["examples"]), int(camp["runs"])
-    physical = doc["world"] in PHYSICS_WORLDS
+    physical = doc["world"] in worlds
     inconclusive = camp.get("inconclusive")
     if not physical and inconclusive is None:
         out.append(f"{shown}: campaign.inconclusive is missing: the gate counts only runs "
                    "whose reachability was decided")
     decided = examples - (int(inconclusive) if inconclusive is not None else 0)
     if decided < min_examples:
-        const = "MIN_PHYSICS_TRIALS" if physical else "MIN_EVIDENCE_EXAMPLES"
+        const = "MIN_PHYSICS_TRIALS" if physical else "MIN_EVIDENCE_EXAMPLES"  # their names
         what = (f"{examples} example(s)" if decided == examples else
                 f"{decided} decided example(s) ({examples} drawn, {inconclusive} with "
                 "reachability undecided)")
@@ -849,11 +871,13 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
 
 
 
-def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
-    """A physical campaign's block: present exactly for a physical world, consistent with the
-    campaign, every trial delivered, the deployed variant, both perturbation levels."""
+def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str],
+                   worlds: Mapping[str, PhysicalWorld]) -> list[str]:
+    """A physics block is present exactly for a physical world; the world's own checks
+    (:attr:`PhysicalWorld.check`) judge it."""
     phys = doc.get("physics")
-    if doc["world"] not in PHYSICS_WORLDS:
+    world = worlds.get(doc["world"])
+    if world is None:
         if phys is not None:
             return [f"{shown}: a physics block for world {doc['world']!r}, which is not a "
                     "physical campaign"]
@@ -861,34 +885,4 @@ def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> lis
     if phys is None:
         return [f"{shown}: world {doc['world']!r} is a physical campaign but the evidence has "
                 "no physics block"]
-    out: list[str] = []
-    camp = doc["campaign"]
-    trials, successes = int(phys["trials"]), int(phys["successes"])
-    if not trials == int(camp["examples"]) == int(camp["runs"]):
-        out.append(f"{shown}: physics.trials {trials} differs from campaign.examples "
-                   f"{camp['examples']} / runs {camp['runs']} (one run per trial)")
-    if successes != trials and not int(doc["violations"]["total"]):
-        out.append(f"{shown}: {trials - successes} of {trials} physical trial(s) delivered no "
-                   "soup: not evidence for deployment")
-    outcomes = phys.get("outcomes")
-    if outcomes is not None:
-        seeds = [int(o["seed"]) for o in outcomes]
-        first = int(camp["seed"])
-        if len(outcomes) != trials or seeds != list(range(first, first + len(outcomes))):
-            out.append(f"{shown}: physics.outcomes lists {len(outcomes)} trial(s) with seeds "
-                       f"other than {first}..{first + trials - 1}")
-        elif sum(bool(o["success"]) for o in outcomes) != successes or any(
-                o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
-            out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
-                       "violations")
-    if phys["variant"] != "LTL-DS":
-        out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
-                   "policy is LTL-DS (modulation and replanning on): not evidence for it")
-    if int(phys["pushes"]) < 1 or int(phys["tilts"]) < 1:
-        out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
-                   "the evidence must perturb at both levels (motion pushes and task tilts)")
-    if not out:
-        passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
-                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
-                      f"{phys['duration']:g} s budget), all delivered soup")
-    return out
+    return world.check(doc, shown, passed)
