@@ -69,7 +69,7 @@ _NAMES: dict[str, str] = {
     "Model": "tli_verify.model.types",
     "load_model": "tli_verify.model.serialize",
     "save_model": "tli_verify.api",
-    # certificates (paper eq. 4, checked exactly)
+    # certificates (paper eq. 5, checked exactly)
     "certify": "tli_verify.api",
     "Certificate": "tli_verify.api",
     # the executive (paper eq. 6) and one episode

@@ -13,7 +13,7 @@ library returns, so a pipeline runs from Python without writing anything until t
     policy = tli.make_policy(spec, model, cert)                          # certified executive
     episode = tli.run(policy, task="tasks/drawer.toml", start=[-0.6, 0, 0])
 
-A certificate binds the exact bytes of a model *file* (paper eq. 4 is re-checked exactly on
+A certificate binds the exact bytes of a model *file* (paper eq. 5 is re-checked exactly on
 what is deployed): :func:`certify` of a model that was never saved writes it, with its spec
 path, into a private temporary folder the :class:`Certificate` keeps alive; :meth:`Certificate.
 save` writes the pair where you want it (re-issued for the saved model's bytes).
@@ -21,7 +21,7 @@ save` writes the pair where you want it (re-issued for the saved model's bytes).
 References
 ----------
 Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
-Policies from Demonstrations", CoRL 2022: eq. 3 (the GR(1) spec), eq. 4 (the Lyapunov
+Policies from Demonstrations", CoRL 2022: eq. 3 (the GR(1) spec), eq. 5 (the Lyapunov
 conditions a certificate proves), eq. 6 (the executive), Sec. 4.4 (campaigns).
 """
 

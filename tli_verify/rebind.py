@@ -1,6 +1,6 @@
-"""Bind one set of learned DS to a spec's modes, without relearning (paper appendix F).
+"""Bind one set of learned DS to a spec's modes, without relearning (paper appendix G).
 
-Paper appendix "Generalization" (cooking, Fig. 7): per-transition DS learned once are reused,
+Paper appendix "Generalization" (cooking, Fig. 10): per-transition DS learned once are reused,
 *without relearning*, under several task automata (``specs/cooking-cb/bc/c/cc.toml``). Learned
 without a spec (``tli learn`` without ``--spec``), a model has one DS per demonstrated *sensor*
 transition, its modes named by the full reading (``"!ch & br & !pot"``,

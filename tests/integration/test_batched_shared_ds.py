@@ -1,6 +1,6 @@
 """Batched episodes whose executives learn *different* cuts share each mode's DS evaluation
 (``run_episodes``: the LPV-DS once per distinct DS, then each cut set's modulation) and still
-agree with one-at-a-time episodes (paper eq. 5: ``M(x) f(x)``, ``f`` independent of the cuts)."""
+agree with one-at-a-time episodes (paper eq. 7: ``M(x) f(x)``, ``f`` independent of the cuts)."""
 
 from __future__ import annotations
 

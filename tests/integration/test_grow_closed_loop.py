@@ -1,8 +1,8 @@
-"""Closed-loop spec growth (``--learn-transitions``, paper appendix E) on the scoop world.
+"""Closed-loop spec growth (``--learn-transitions``, paper appendix F) on the scoop world.
 
 From the demonstration-only spec (``tli spec infer demos/scoop_*.csv``: mode changes
 ``a -> b -> c -> d`` only), three perturbed episodes run by the executive with the shipped
-certified model grow the automaton to exactly paper Fig. 5(a), the automaton of
+certified model grow the automaton to exactly paper Fig. 3(a), the automaton of
 ``specs/scoop.toml``. Each missing transition is driven by one explicit push (:data:`PUSHES`)
 computed from the task's true regions (``tasks/scoop.toml``), not found by a lucky
 seed: whichever state of its source region the push meets, it lands where the world reads the
@@ -200,7 +200,7 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
         tmp_path: Path) -> None:
     demo_only = synthesize(inferred)
     paper = synthesize(load_spec(specs_dir / "scoop.toml"))
-    assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 5(a)
+    assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 3(a)
     pol, results = grown
     world = _scoop()
     assert all(r.success for r in results)
@@ -220,7 +220,7 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
     # no reading was left unexplained once the spec had grown
     assert not any(isinstance(e, (AssumptionViolationEvent, TransitionRefused))
                    for r in results for e in r.events)
-    # the grown automaton is Fig. 5(a): same edges, same mode graph
+    # the grown automaton is Fig. 3(a): same edges, same mode graph
     assert _edges(pol.automaton) == _edges(paper)
     assert pol.automaton.mode_transitions() == paper.mode_transitions()
     # the grown spec, written as TOML, is accepted by `tli spec check` and gives that automaton
@@ -273,7 +273,7 @@ def test_grown_spec_cross_checked_by_spot_and_omega(
         """The conjunction of the file's system safety formulas (phi_t^s and the marker)."""
         return spot.formula.And([f.ltl for f in s.guarantee.safety if f.origin == "file"])
 
-    # Spot: the grown phi_t^s is equivalent to the one of the paper's spec (Fig. 5(a))
+    # Spot: the grown phi_t^s is equivalent to the one of the paper's spec (Fig. 3(a))
     assert spot.are_equivalent(phi_ts(spec), phi_ts(paper))
     assert not spot.are_equivalent(phi_ts(inferred), phi_ts(paper))
 

@@ -1,4 +1,4 @@
-"""Task automata: the paper's Fig. 5(a), determinism, Mealy stepping, file formats."""
+"""Task automata: the paper's Fig. 3(a), determinism, Mealy stepping, file formats."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The cut QCQP (paper appendix F): feasibility, global optimality, errors, the Cut type."""
+"""The cut QCQP (paper appendix E.3): feasibility, global optimality, errors, the Cut type."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 A toy project: two sensors ``u``, ``v``; modes ``a`` (neither), ``b`` (u), ``c`` (v); a
 hand-built certified model (stable linear DS, ``P = I``). The closed-loop success case (scoop,
-growing to paper Fig. 5(a)) is ``tests/integration/test_grow_closed_loop.py``.
+growing to paper Fig. 3(a)) is ``tests/integration/test_grow_closed_loop.py``.
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ from tli_verify.logic.infer import (
 from tli_verify.logic.spec import GR1Spec, label_holds, load_spec, parse_spec
 
 PERTURBATIONS = (("b", "a"), ("c", "a"), ("c", "b"))
-"""The recovery edges perturbations discover on scoop (paper Fig. 5(a), grey edges)."""
+"""The recovery edges perturbations discover on scoop (paper Fig. 3(a), grey edges)."""
 
 
 def _omega(spec: GR1Spec) -> bool:

@@ -88,7 +88,7 @@ def test_velocity_applies_the_cuts(tmp_path: Path) -> None:
     got = model.velocity(X, mode="b", next_mode="c")
     np.testing.assert_array_equal(got, expected)
     np.testing.assert_array_equal(model.nominal_velocity(X, mode="b->c"), F)
-    # an outward flow inside the cut is changed by the modulation (paper eq. 5)
+    # an outward flow inside the cut is changed by the modulation (paper eq. 7)
     outward = np.array([[1.5, 1.0]])
     flipped = model_from_dict({**doc(), "modes": {"b->c": {
         **doc()["modes"]["b->c"],

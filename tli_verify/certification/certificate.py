@@ -4,7 +4,7 @@ A certificate (schema ``tli_verify/schemas/certificate.schema.json``) states, fo
 model, that ``V(x) = (x - x*)^T P (x - x*)`` with **the model's own P** -- the P the runtime's
 modulation and corner guard use (paper Thm. 1 needs one P for both) -- proves
 
-* ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 4);
+* ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 5);
 * at the declared control period ``dt``: ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` for every k,
   so each explicit Euler step of the nominal DS decreases ``V`` (and at every shorter period);
 * well-posedness: every number of the model lies in the declared ranges

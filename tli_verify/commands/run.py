@@ -7,7 +7,7 @@ model by the project layout), ``--model`` another model (the spec it names, the 
 the project layout). Works in any dimension: ``--start`` and ``--perturb`` take one number per
 coordinate, random pushes are drawn on the sphere.
 
-``--learn-transitions`` grows the spec online (paper appendix E): the run may then start from
+``--learn-transitions`` grows the spec online (paper appendix F): the run may then start from
 another spec than the model names (``--spec``, e.g. one ``tli spec infer`` wrote), provided it
 has the same sensors and the same ``[modes]`` labels; transitions the spec lacks are added as
 the episode shows them, and ``--grown-spec OUT.toml`` writes the grown spec. The model and its
@@ -86,7 +86,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help=f"step budget (default 3000, at most {MAX_RUN_STEPS})")
     p.add_argument("--learn-transitions", action="store_true",
                    help="add a valid transition the spec lacks (into a known mode) to it "
-                   "online, re-synthesize and carry on (paper appendix E); --spec is then the "
+                   "online, re-synthesize and carry on (paper appendix F); --spec is then the "
                    "spec to grow from")
     p.add_argument("--grown-spec", type=output_path, default=None, metavar="OUT.toml",
                    help="with --learn-transitions: write the (grown) spec here, atomically")

@@ -66,7 +66,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="render the first trial to an MP4 (headless: EGL, else OSMesa)")
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
-                   "pitch) with the cuts learned in them (Fig. 9 style)")
+                   "pitch) with the cuts learned in them (paper Fig. 11 style)")
     f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
@@ -122,9 +122,9 @@ def _run(args: argparse.Namespace) -> int:
             base / "certificates"
         evidence = chosen_path(args.evidence) or cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
     check_plan(inputs=[f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)],
-               outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot"),
+               outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot"),
                         (evidence, "campaign evidence")])
-    check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot")])
+    check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
     from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import run_physics_campaign
     from tli_verify.sim.loop import TrialResult, load_policy

@@ -47,20 +47,20 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     aut.set_defaults(handler=_automaton)
 
     infer = ssub.add_parser(
-        "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix E)",
+        "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix F)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Writes the spec the demonstrations imply (paper appendix E, 'Automatic "
+        description="Writes the spec the demonstrations imply (paper appendix F, 'Automatic "
         "construction of GR(1) LTL formulas'): initial conditions, the goal (the modes the "
         "demonstrations end in), the demonstrated mode changes as phi_t^s, the demonstrated "
         "sensor changes and fairness toward the goal as the environment part, and the "
         "perturbation marker p with the goal GF(goal | p) (details: tli_verify.logic.infer). "
         "The spec is checked; exit 0 if realizable and well-separated, 1 if not (the file is "
         "written either way), 2 on bad input.",
-        epilog="example (scoop, paper Fig. 5(a)):\n"
+        epilog="example (scoop, paper Fig. 3(a)):\n"
         "  tli spec infer demos/scoop_*.csv --modes specs/scoop.toml -o scoop-inferred.toml\n"
         "gives the black edges a->b->c->d. Online, perturbations add b->a, c->a, c->b\n"
         "(tli_verify.logic.infer.add_transition, re-synthesized each time), and the automaton\n"
-        "grows to the one of specs/scoop.toml, Fig. 5(a) (scripts/infer_scoop.py shows it).")
+        "grows to the one of specs/scoop.toml, Fig. 3(a) (scripts/infer_scoop.py shows it).")
     infer.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
     infer.add_argument("--modes", type=Path, required=True, metavar="LABELS",
                        help="TOML file with a [modes] table (mode = \"sensor formula\"), "

@@ -1,4 +1,4 @@
-"""Task automata: Mealy machines extracted from a won GR(1) game (paper Sec. 5.1, Fig. 4(a)).
+"""Task automata: Mealy machines extracted from a won GR(1) game (paper Sec. 5.1, Fig. 3(a)).
 
 The automaton ``Omega_phi`` of paper eq. 6 answers, given its current state and the new sensor
 reading ``alpha``, which mode policy runs next. States carry the mode they run, the sensor
@@ -145,7 +145,7 @@ class PlannedStep:
 DSKeys = Mapping[str, tuple[str, "str | None"]]
 """A model's DS keys as the planner sees them: key -> ``(mode, next_mode)``. A key equal to its
 mode is a plain DS (``next_mode``: the demonstrated next mode, or None); any other key is a
-per-transition DS ``mode -> next_mode`` (paper appendix F)."""
+per-transition DS ``mode -> next_mode`` (paper appendix G)."""
 
 
 @dataclass(frozen=True, slots=True)

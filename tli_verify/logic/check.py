@@ -141,7 +141,7 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
 
 
 def synthesize(spec: GR1Spec) -> TaskAutomaton:
-    """The task automaton of a realizable spec (paper Sec. 3.2, "Task-Level Reactivity in
+    """The task automaton of a realizable spec (paper Sec. 4.2, "Task-Level Reactivity in
     LTL": the GR(1) game's winning strategy as a finite-state machine).
 
     Parameters

@@ -19,12 +19,12 @@ normals; the limits are in :mod:`tli_verify.limits` and :func:`numeric_limits`):
           "cuts": [{"normal": [..], "point": [..]}],
           "fit": {"clustering": "pc-gmm", "lyapunov": "p-qlf", "eps": 0.001, ...}
         },
-        "b->c": {"mode": "b", "next_mode": "c", ...}   # a per-transition DS (appendix F)
+        "b->c": {"mode": "b", "next_mode": "c", ...}   # a per-transition DS (appendix G)
       }
     }
 
 The DS of a key is ``f(x) = sum_k gamma_k(x) A_k (x - x*)`` (paper eq. 4) and the policy of the
-mode is the modulated ``M(x) f(x)`` (paper eq. 5, Sec. 5.2) once the mode has cuts.
+mode is the modulated ``M(x) f(x)`` (paper eq. 7, Sec. 5.2) once the mode has cuts.
 Floats are written with ``repr`` precision, so a saved model reloads bit-for-bit -- which the
 certificate's exact check relies on.
 

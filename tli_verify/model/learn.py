@@ -1,7 +1,7 @@
 """Learning a model from demonstrations (paper Sec. 4.3, eqs. 4-5).
 
 The demonstrations are segmented by the spec's mode labels (:mod:`tli_verify.segmentation`,
-appendix D), and one certified-stable LPV-DS is learned per mode
+appendix C), and one certified-stable LPV-DS is learned per mode
 (:func:`tli_verify.ds.lpvds.learn_lpvds`).
 """
 

@@ -61,7 +61,7 @@ def numeric_limits() -> dict[str, float]:
     """The numeric ranges every loaded model satisfies (for the certificate to record).
 
     Within them the velocity ``f(x)`` (paper eq. 4), its mixing weights and ``M(x) f(x)``
-    (eq. 5) are finite and well defined at every state with ``|x_i| <= max_abs_value``
+    (eq. 7) are finite and well defined at every state with ``|x_i| <= max_abs_value``
     (:mod:`tli_verify.limits`).
 
     Returns
@@ -146,7 +146,7 @@ class ModeModel:
     _modulator: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        """Freeze ``fit`` and build the modulator once for this cut set (paper eq. 5).
+        """Freeze ``fit`` and build the modulator once for this cut set (paper eq. 7).
 
         Raises
         ------
@@ -173,7 +173,7 @@ class ModeModel:
         return self._modulator
 
     def velocity(self, X: npt.ArrayLike, *, dt: float | None = None) -> FloatArray:
-        """``M(x) f(x)`` (paper eq. 5 with the corner guard), or ``f(x)`` without cuts.
+        """``M(x) f(x)`` (paper eq. 7 with the corner guard), or ``f(x)`` without cuts.
 
         The modulator is built once per cut set (in ``__post_init__``), not per call.
 
@@ -287,7 +287,7 @@ class Model:
 
     def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None, *,
                  dt: float | None = None) -> FloatArray:
-        """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 5).
+        """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 7).
 
         Parameters
         ----------

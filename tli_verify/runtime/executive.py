@@ -1,8 +1,8 @@
-"""The LTL-DS executive (paper eq. 6, Sec. 5, Fig. 4(b) and Fig. 7).
+"""The LTL-DS executive (paper eq. 6, Sec. 5, Fig. 3(b) and Fig. 7).
 
 ``x' = sum_i delta_{Omega_phi(alpha), sigma_i} M_i(x) f_i(x)``: the task automaton ``Omega_phi``
 picks the mode from the sensor reading ``alpha``; the mode's certified DS ``f_i``, modulated by
-the cuts learned for the mode's region (``M_i``, eq. 5), moves the state.
+the cuts learned for the mode's region (``M_i``, eq. 7), moves the state.
 
 :class:`LTLDSPolicy` is the controller: ``reset(x0, sensors)`` once, then ``step(x, sensors)``
 every control period returns the velocity to apply. Per step it
@@ -19,14 +19,14 @@ every control period returns the velocity to apply. Per step it
    an invariance failure of the mode left (an exit across a reading the assumptions rule out
    is reported as an assumption violation and cuts nothing). The executive records
    ``(x^0, x^{T_f-1}, x^{T_f})`` -- the mode-entry state, the last in-mode state, the failure
-   state -- and solves the cut QCQP (appendix F), constrained by the mode's earlier cut points
+   state -- and solves the cut QCQP (appendix E.3), constrained by the mode's earlier cut points
    and every entry state recorded in the mode, so earlier failures stay separated. It applies
    the cut at once: a new model (:meth:`tli_verify.model.types.Model.add_cut`), whose DS of that
    mode all share the cut;
 5. runs ``model.velocity(x, mode, next_mode=planned, dt=dt)``: the per-transition DS towards the
    planned next mode where the model has one. The plan is the toolkit's one planner,
    :meth:`TaskAutomaton.planned_keys`, which the deployment gate checks coverage with too;
-6. **growing the spec** (``learn_transitions=True``, paper appendix E): a reading the
+6. **growing the spec** (``learn_transitions=True``, paper appendix F): a reading the
    assumptions rule out that shows another *known* mode (paper Asm. 3) is a transition the
    spec lacks. It is added to ``phi_t^s`` (:func:`tli_verify.logic.infer.regrow`: the observed
    sensor change joins the assumptions, the change is marked as regressing), the spec is

@@ -1,4 +1,4 @@
-"""Growing the spec online (paper appendix E): a transition the spec lacks, learned or refused.
+"""Growing the spec online (paper appendix F): a transition the spec lacks, learned or refused.
 
 A reading the environment assumptions rule out that shows another *known* mode (paper Asm. 3:
 exactly one mode label holds for it) is a transition the spec lacks. :func:`learn_transition`

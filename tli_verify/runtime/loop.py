@@ -40,7 +40,7 @@ __all__ = [
 
 
 class SensorModel(Protocol):
-    """What a world provides to the closed loop (worlds implement it, paper Sec. 4).
+    """What a world provides to the closed loop (worlds implement it, paper Sec. 3).
 
     ``reset(x0)`` starts an episode (a sensor may keep a history, e.g. a lag); ``read(x)``
     is called once per control step, in order, and returns the reading at ``x``.

@@ -1,16 +1,16 @@
-"""Cut learning from invariance failures (paper Sec. 5.2 and appendix F), shared by the
+"""Cut learning from invariance failures (paper Sec. 5.2 and appendix E.3), shared by the
 single-mode study's batch loop and the executive's online cuts.
 
 A cut for a failure ``(x^0, x^{T_f-1}, x^{T_f})`` is the plane through the last in-mode state
 that separates the failure state and keeps ``x*``, the earlier cut points and the given states
 inside (:func:`tli_verify.boundary.cuts.solve_cut`). When no plane keeps every given state
-inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix F as written).
+inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix E.3 as written).
 
-When even appendix F's QCQP has no solution -- the run dipped below the chord from ``x^0`` to
+When even appendix E.3's QCQP has no solution -- the run dipped below the chord from ``x^0`` to
 ``x*`` and left the mode above it, so every plane through ``x^{T_f-1}`` that keeps ``x^0`` and
 ``x*`` inside also keeps ``x^{T_f}`` inside -- the plane is moved along the exit step: it passes
 through ``x^{T_f-1} + s (x^{T_f} - x^{T_f-1})`` for the smallest ``s`` in :data:`SHIFTS` that
-admits a separating plane, with ``x^{T_f-1}`` itself kept inside. This extends appendix F (found
+admits a separating plane, with ``x^{T_f-1}`` itself kept inside. This extends appendix E.3 (found
 by the bisimulation campaigns: without it the failure got no cut and could repeat).
 """
 
@@ -48,7 +48,7 @@ class CutAttempt:
     fallback : bool
         Solved keeping only the failure's own ``x^0`` (and ``x*``, earlier cut points) inside.
     shift : float
-        0 for a plane through ``x^{T_f-1}`` (appendix F); else the fraction of the exit step
+        0 for a plane through ``x^{T_f-1}`` (appendix E.3); else the fraction of the exit step
         the plane was moved by (:data:`SHIFTS`), ``x^{T_f-1}`` kept inside.
     """
 
@@ -65,7 +65,7 @@ def cut_for_failure(
     keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
 ) -> CutAttempt:
-    """Solve the cut QCQP for one failure, falling back to appendix F's constraints.
+    """Solve the cut QCQP for one failure, falling back to appendix E.3's constraints.
 
     Parameters
     ----------
@@ -157,7 +157,7 @@ def learn_cuts(
     lyapunov: FloatArray | None = None,
     record: bool = False,
 ) -> CutLearning:
-    """Add cuts from sampled invariance failures one at a time (paper appendix F).
+    """Add cuts from sampled invariance failures one at a time (paper appendix E.1).
 
     Roll out all starts with the modulated policy, pick one failure at random (those whose
     last in-mode state is inside the cuts first: a cut only changes the flow inside the cuts,

@@ -367,7 +367,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
               demos: list[Any] | None = None, title: str = "") -> None:
-    """A Fig. 9-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
+    """A Fig. 11-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
 
     Streamlines: the certified DS of each mode (``model.modes[mode].velocity``, cuts
     included) integrated at the control period from a grid of starts around its demonstrated

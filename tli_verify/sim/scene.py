@@ -1,4 +1,4 @@
-"""The soup-scooping scene in MuJoCo (paper Sec. 7.2, Fig. 8).
+"""The soup-scooping scene in MuJoCo (paper Sec. 7.2, Fig. 1).
 
 A table, a soup bowl with 30 beads (radius 8 mm, 2 g), a target bowl, and a ladle: a round tray
 whose rim is open over the front 110 degrees (a closed front lip of 3 mm or more scooped nothing).

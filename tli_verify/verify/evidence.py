@@ -246,7 +246,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     violations : mapping str -> int
         Violations found, by kind (``{}`` or all zero when none).
     modulation : bool
-        Whether the policy ran with modulation (paper eq. 5).
+        Whether the policy ran with modulation (paper eq. 7).
     partial : bool, optional
         The campaign was interrupted.
     backend : str, optional

@@ -1,4 +1,4 @@
-"""The soup-scooping world of the paper (Fig. 2, Sec. 7.2, appendix E), in the authors' geometry.
+"""The soup-scooping world of the paper (Fig. 2, Sec. 7.2, appendix F), in the authors' geometry.
 
 Workspace ``[-8, 8]^2``; ``x1`` (horizontal) is the spoon's orientation, ``x2`` (vertical) its
 distance to the soup. True regions (hidden from the learner), a partition of the workspace:
