@@ -532,7 +532,8 @@ def test_demo_without_a_checkout_says_what_it_needs(tmp_path: Path, repo: Path) 
                            str(tmp_path / "out")], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=120, check=False)
     assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.startswith("error: the bundled specs/ directory is not installed")
+    assert proc.stderr.startswith("error: the bundled project is missing")
+    assert "reinstall" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
 
