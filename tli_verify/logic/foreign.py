@@ -55,7 +55,7 @@ FORMATS = {".spectra": "spectra", ".structuredslugs": "structuredslugs",
 # ("not", a) ("and"|"or"|"xor"|"imp"|"iff", a, b) ("next", a) ("cmp", op, a, b)
 # ("add"|"sub", a, b) ("G", a) ("GF", a)
 
-Node = tuple  # type: ignore[type-arg]
+Node = tuple
 
 
 @dataclass(slots=True)
@@ -227,6 +227,8 @@ class _Parser:
             if self.peek() == "[":
                 raise self.fail(f"array {tok}[...] is not supported")
             if self.peek() == "(":
+                if tok in _PAST:
+                    raise self.fail(f"past-time operator {tok} is not supported")
                 raise self.fail(f"{tok}(...): predicates, patterns and functions are not "
                                 "supported")
             return self.postfix(("id", tok, False))
@@ -260,7 +262,7 @@ class _Translator:
             body = body[1] if body[0] == "G" else body
         elif c.slot == "liveness":
             body = body[1] if body[0] == "GF" else body
-        text = self.bool(body, primed=False, c=c, stack=())
+        text = self.btext(body, primed=False, c=c, stack=())
         if c.slot == "safety":
             return f"G({text})"
         if c.slot == "liveness":
@@ -270,28 +272,29 @@ class _Translator:
     def fail(self, c: _Constraint, msg: str) -> SpecError:
         return _fail(self.where, c.line, msg)
 
-    def bool(self, n: Node, *, primed: bool, c: _Constraint, stack: tuple[str, ...]) -> str:
+    def btext(self, n: Node, *, primed: bool, c: _Constraint, stack: tuple[str, ...]) -> str:
         kind = n[0]
         if kind == "const":
             return "true" if n[1] else "false"
         if kind == "not":
-            return f"!({self.bool(n[1], primed=primed, c=c, stack=stack)})"
+            return f"!({self.btext(n[1], primed=primed, c=c, stack=stack)})"
         if kind in ("and", "or"):
-            parts = [self.bool(m, primed=primed, c=c, stack=stack) for m in _flatten(n, kind)]
+            parts = [self.btext(m, primed=primed, c=c, stack=stack) for m in _flatten(n, kind)]
             op = " & " if kind == "and" else " | "
             return "(" + op.join(parts) + ")"
         if kind in ("xor", "imp", "iff"):
             op = {"xor": "^", "imp": "->", "iff": "<->"}[kind]
-            a = self.bool(n[1], primed=primed, c=c, stack=stack)
-            b = self.bool(n[2], primed=primed, c=c, stack=stack)
+            a = self.btext(n[1], primed=primed, c=c, stack=stack)
+            b = self.btext(n[2], primed=primed, c=c, stack=stack)
             return f"(({a}) {op} ({b}))"
         if kind == "next":
             if primed:
                 raise self.fail(c, "nested next (next of a next value) is not GR(1)")
             if c.slot != "safety":
-                raise self.fail(c, f"next inside {'an initial condition' if c.slot == 'init' else 'a liveness goal'} "
-                                "is not expressible in GR(1) (only in safety constraints)")
-            return self.bool(n[1], primed=True, c=c, stack=stack)
+                what = "an initial condition" if c.slot == "init" else "a liveness goal"
+                raise self.fail(c, f"next inside {what} is not expressible in GR(1) (only in "
+                                "safety constraints)")
+            return self.btext(n[1], primed=True, c=c, stack=stack)
         if kind in ("G", "GF"):
             raise self.fail(c, f"temporal operator {kind} nested inside a formula is not GR(1)")
         if kind == "cmp":
@@ -299,7 +302,7 @@ class _Translator:
         if kind == "id":
             name = n[1]
             if name in self.defines:
-                return self.bool(self.define(name, c, stack), primed=primed, c=c,
+                return self.btext(self.define(name, c, stack), primed=primed, c=c,
                                  stack=(*stack, name))
             var = self.vars.get(name)
             if var is None:
@@ -375,7 +378,7 @@ class _Translator:
                     out.setdefault(v, []).append(_and(ca, cb))
             return {v: _or(cs) for v, cs in out.items()}
         # a Boolean expression compared as an integer: true is 1
-        text = self.bool(n, primed=primed, c=c, stack=stack)
+        text = self.btext(n, primed=primed, c=c, stack=stack)
         return {1: text, 0: f"!({text})"}
 
     def compare(self, n: Node, *, primed: bool, c: _Constraint, stack: tuple[str, ...]) -> str:
@@ -445,7 +448,7 @@ def _ap_name(name: str) -> str:
     low = re.sub(r"[^a-z0-9_]", "_", name.lower())
     if not _AP.match(low):
         low = "v_" + low
-    if low in _RESERVED or len(low) == 1 and low in "xgfurwm":
+    if low in _RESERVED or (len(low) == 1 and low in "xgfurwm"):
         low = low + "_"
     return low
 
@@ -470,6 +473,13 @@ def _declare(spec: ImportedSpec, var: _Var, where: str, line: int) -> None:
 # Spectra
 
 
+_PAST = frozenset({"Y", "H", "O", "S", "T", "PREV", "ONCE", "HISTORICALLY", "SINCE"})
+
+_SCAN_REFUSED = frozenset({"pattern", "monitor", "counter", "predicate", "trig", "regexp",
+                           "weight", "forall", "exists", "PREV", "ONCE", "HISTORICALLY",
+                           "SINCE", "import"})
+"""Words that refuse a statement wherever they occur in it."""
+
 _SPECTRA_REFUSED = {
     "pattern": "Spectra patterns are not supported (expand them into GR(1) constraints)",
     "monitor": "Spectra monitors are not supported",
@@ -483,11 +493,6 @@ _SPECTRA_REFUSED = {
     "forall": "Spectra quantifiers (forall) are not supported",
     "exists": "Spectra quantifiers (exists) are not supported",
     "PREV": "past-time operator PREV is not supported",
-    "Y": "past-time operator Y (yesterday) is not supported",
-    "H": "past-time operator H (historically) is not supported",
-    "O": "past-time operator O (once) is not supported",
-    "S": "past-time operator S (since) is not supported",
-    "T": "past-time operator T (triggered) is not supported",
     "ONCE": "past-time operator ONCE is not supported",
     "HISTORICALLY": "past-time operator HISTORICALLY is not supported",
     "SINCE": "past-time operator SINCE is not supported",
@@ -560,6 +565,9 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
     defines: dict[str, tuple[Node, int]] = {}
     in_define = False
     for stmt, line in _statements(_strip_spectra_comments(text, where)):
+        for word in re.findall(r"[A-Za-z_]\w*", stmt):
+            if word in _SCAN_REFUSED:
+                raise _fail(where, line, _SPECTRA_REFUSED[word])
         toks = _tokens(stmt, where, line)
         if not toks:
             continue
@@ -606,6 +614,7 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
 
 def _spectra_var(spec: ImportedSpec, toks: list[str], where: str, line: int) -> None:
     side, rest = toks[0], toks[1:]
+    values: tuple[str, ...]
     if not rest:
         raise _fail(where, line, f"{side}: missing type")
     if rest[0] == "boolean":
@@ -684,7 +693,7 @@ def _slugs_lines(text: str, where: str) -> Iterator[tuple[str, int, str | None]]
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
-        if line.startswith("[") and line.endswith("]") and line.isupper() or line in (
+        if (line.startswith("[") and line.endswith("]") and line.isupper()) or line in (
                 "[INPUT]", "[OUTPUT]"):
             if line in _SLUGS_REFUSED_SECTIONS:
                 raise _fail(where, number, f"section {line} (incomplete information) is not "
@@ -762,7 +771,7 @@ def _prefix(toks: list[str], where: str, number: int) -> Node:
 
     # Explicit stack machine: frames are (op, collected children, needed, memory)
     memories: list[list[Node]] = []
-    stack: list[list] = []  # type: ignore[type-arg]
+    stack: list[list] = []
     result: Node | None = None
     while True:
         if pos >= len(toks):
