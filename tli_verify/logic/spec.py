@@ -578,7 +578,7 @@ def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assum
         # characters the constraint itself adds.
         return SpecFormula(text=text, section=section, index=index, line=None, origin="modes",
                            ltl=parse_formula(text, where=f"[modes] constraint {section}",
-                                             max_chars=None,
+                                             max_nodes=None,
                                              max_depth=MAX_FORMULA_DEPTH + 8))
 
     def extend(side: SpecSide, name: str, inits: list[str], safeties: list[str]) -> SpecSide:
