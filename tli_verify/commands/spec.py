@@ -128,7 +128,8 @@ def _check(args: argparse.Namespace) -> int:
             sys.stdout.write(json.dumps(record, sort_keys=True) + "\n")
             continue
         verdict = "realizable" if result.realizable else "UNREALIZABLE"
-        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms)\n")
+        reading = ", textbook semantics" if result.spec.semantics == "textbook" else ""
+        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms{reading})\n")
         for w in result.warnings:
             sys.stdout.write(f"  warning: {w}\n")
         if result.diagnosis is not None:
