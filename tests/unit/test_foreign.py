@@ -226,3 +226,11 @@ def test_names_are_lowered_and_clashes_refused() -> None:
     assert spec.inputs == ("req",) and spec.outputs == ("grant",)
     with pytest.raises(SpecError, match=r"t\.spectra:3: variable 'A' becomes AP 'a'"):
         imported("module M\nenv boolean a;\nsys boolean A;\n", "spectra")
+
+
+def test_pattern_library_import_is_skipped_but_a_pattern_use_is_refused() -> None:
+    head = 'import "DwyerPatterns.spectra";\n' + SPECTRA_HEAD
+    assert imported(head + "gar GF s;\n", "spectra").guarantee.liveness
+    with pytest.raises(SpecError, match=r"t\.spectra:6: pRespondsToS\(\.\.\.\): predicates, "
+                       "patterns"):
+        imported(head + "gar pRespondsToS(e, s);\n", "spectra")

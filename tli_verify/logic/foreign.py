@@ -27,7 +27,8 @@ Spectra's patterns, monitors, counters, predicates, triggers, weights (energy), 
 expressions, arrays, quantifiers, type declarations, imports and past-time operators
 (``PREV``, ``Y``, ``H``, ``O``, ``S``), defines with parameters; ``next`` of a system variable
 inside an assumption; ``next`` inside an initial condition or a liveness goal; nested ``next``;
-multiplication and division; temporal operators other than the slot's own.
+multiplication and division; temporal operators other than the slot's own. ``import`` lines
+(Spectra's pattern libraries) are skipped: a pattern used is refused where it is used.
 
 The translation keeps each constraint's text in the slot it was written in. Which reading of
 ``G(phi)`` at time 0 decides the game is the spec's ``semantics`` setting
@@ -477,7 +478,7 @@ _PAST = frozenset({"Y", "H", "O", "S", "T", "PREV", "ONCE", "HISTORICALLY", "SIN
 
 _SCAN_REFUSED = frozenset({"pattern", "monitor", "counter", "predicate", "trig", "regexp",
                            "weight", "forall", "exists", "PREV", "ONCE", "HISTORICALLY",
-                           "SINCE", "import"})
+                           "SINCE"})
 """Words that refuse a statement wherever they occur in it."""
 
 _SPECTRA_REFUSED = {
@@ -489,7 +490,6 @@ _SPECTRA_REFUSED = {
     "regexp": "Spectra regular expressions are not supported",
     "weight": "Spectra weights (energy games) are not supported: not GR(1)",
     "type": "Spectra type declarations are not supported (declare the type inline)",
-    "import": "Spectra imports are not supported",
     "forall": "Spectra quantifiers (forall) are not supported",
     "exists": "Spectra quantifiers (exists) are not supported",
     "PREV": "past-time operator PREV is not supported",
@@ -588,6 +588,8 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
             if not toks:
                 continue
             head = toks[0]
+        if head == "import":
+            continue  # a pattern library: a pattern used is refused where it is used
         if head in _SPECTRA_REFUSED:
             raise _fail(where, line, _SPECTRA_REFUSED[head])
         if head in ("env", "sys"):
