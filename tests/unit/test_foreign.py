@@ -175,7 +175,6 @@ SPECTRA_HEAD = "module M\nenv boolean e;\nsys boolean s;\nsys Int(0..3) n;\n"
     ("predicate q(boolean a): a;", "predicates"),
     ("gar trig [true]*[e] |=> [s];", "triggers"),
     ("weight w: s;", "weights"),
-    ("type T = {A, B};", "type declarations"),
     ("gar G (PREV(s) -> s);", "PREV"),
     ("asm G (s -> next(e));", None),  # allowed: next of an input
     ("asm G (e -> next(s));", "next of system variable 's' inside an assumption"),
@@ -234,3 +233,14 @@ def test_pattern_library_import_is_skipped_but_a_pattern_use_is_refused() -> Non
     with pytest.raises(SpecError, match=r"t\.spectra:6: pRespondsToS\(\.\.\.\): predicates, "
                        "patterns"):
         imported(head + "gar pRespondsToS(e, s);\n", "spectra")
+
+
+def test_spectra_type_aliases() -> None:
+    text = ("module M\ntype Cmd = {FWD, STOP, BWD};\ntype Lift = {UP, STOP, DOWN};\n"
+            "env Lift l;\nsys Cmd c;\ngar G (l = STOP -> c = STOP);\ngar GF (c = FWD);\n"
+            "asm GF (l != STOP);\n")
+    spec = imported(text, "spectra")
+    assert spec.inputs == ("l_0", "l_1") and spec.outputs == ("c_0", "c_1")
+    assert agree_with_omega(spec) == {"tli": True, "textbook": True}
+    with pytest.raises(SpecError, match=r"t\.spectra:2: expected type NAME"):
+        imported("module M\ntype = {A};\n", "spectra")

@@ -4,7 +4,8 @@ Three formats are read (``tli spec import``):
 
 * **Spectra** (``.spectra``; Maoz and Ringert, SoSyM 2021), the GR(1) subset: ``env``/``sys``
   variables of type ``boolean``, ``Int(lo..hi)`` or an enumeration ``{A, B, C}``;
-  ``define name := expr;`` macros without parameters; ``asm``/``assumption`` and
+  ``type Name = ...;`` aliases of these types; ``define name := expr;`` macros without
+  parameters; ``asm``/``assumption`` and
   ``gar``/``guarantee`` constraints (optionally labelled ``name:``), each an initial constraint
   (no temporal operator, or ``ini``/``initially``), a safety constraint (``G``/``alw``/
   ``always``, with ``next(...)``) or a justice constraint (``GF``/``alwEv``/
@@ -24,7 +25,7 @@ outputs). Names are lower-cased (our AP names are lower-case identifiers); a cla
 
 Every construct that the GR(1) TOML cannot express is refused by name, with the file and line:
 Spectra's patterns, monitors, counters, predicates, triggers, weights (energy), regular
-expressions, arrays, quantifiers, type declarations, imports and past-time operators
+expressions, arrays, quantifiers and past-time operators
 (``PREV``, ``Y``, ``H``, ``O``, ``S``), defines with parameters; ``next`` of a system variable
 inside an assumption; ``next`` inside an initial condition or a liveness goal; nested ``next``;
 multiplication and division; temporal operators other than the slot's own. ``import`` lines
@@ -489,7 +490,6 @@ _SPECTRA_REFUSED = {
     "trig": "Spectra triggers (regular-expression constraints) are not supported",
     "regexp": "Spectra regular expressions are not supported",
     "weight": "Spectra weights (energy games) are not supported: not GR(1)",
-    "type": "Spectra type declarations are not supported (declare the type inline)",
     "forall": "Spectra quantifiers (forall) are not supported",
     "exists": "Spectra quantifiers (exists) are not supported",
     "PREV": "past-time operator PREV is not supported",
@@ -563,6 +563,7 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
                                                                        dict[str, tuple[Node, int]]]:
     spec = ImportedSpec(name=default_name, source=where, fmt="spectra")
     defines: dict[str, tuple[Node, int]] = {}
+    types: dict[str, list[str]] = {}
     in_define = False
     for stmt, line in _statements(_strip_spectra_comments(text, where)):
         for word in re.findall(r"[A-Za-z_]\w*", stmt):
@@ -590,10 +591,20 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
             head = toks[0]
         if head == "import":
             continue  # a pattern library: a pattern used is refused where it is used
+        if head == "type":
+            if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
+                raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
+            if toks[1] in types:
+                raise _fail(where, line, f"type {toks[1]!r} declared twice")
+            types[toks[1]] = toks[3:]
+            in_define = False
+            continue
         if head in _SPECTRA_REFUSED:
             raise _fail(where, line, _SPECTRA_REFUSED[head])
         if head in ("env", "sys"):
             in_define = False
+            if len(toks) > 1 and toks[1] in types:
+                toks = [toks[0], *types[toks[1]], *toks[2:]]
             _spectra_var(spec, toks, where, line)
             continue
         if head in ("asm", "assumption", "gar", "guarantee"):
