@@ -236,8 +236,9 @@ def test_pattern_library_import_is_skipped_but_a_pattern_use_is_refused() -> Non
 
 
 def test_spectra_type_aliases() -> None:
-    text = ("module M\ntype Cmd = {FWD, STOP, BWD};\ntype Lift = {UP, STOP, DOWN};\n"
-            "env Lift l;\nsys Cmd c;\ngar G (l = STOP -> c = STOP);\ngar GF (c = FWD);\n"
+    text = ('import "lib.spectra"\nmodule M\nenv Lift l;\ntype Cmd = {FWD, STOP, BWD};\n'
+            "type Lift = {UP, STOP, DOWN};\nsys Cmd c;\ngar G (l = STOP -> c = STOP);\n"
+            "gar GF (c = FWD);\n"
             "asm GF (l != STOP);\n")
     spec = imported(text, "spectra")
     assert spec.inputs == ("l_0", "l_1") and spec.outputs == ("c_0", "c_1")

@@ -545,7 +545,8 @@ def _statements(text: str) -> Iterator[tuple[str, int]]:
         if ch == "\n":
             line += 1
             stripped = "".join(buf).strip()
-            if re.match(r"^(module|spec)\s+\w+$", stripped) or stripped in ("define",):
+            if (re.match(r"^(module|spec)\s+\w+$", stripped) or stripped in ("define",)
+                    or re.match(r"^import\s*$", stripped)):  # (its string is blanked)
                 yield stripped, start_line
                 buf = []
                 continue
@@ -565,7 +566,18 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
     defines: dict[str, tuple[Node, int]] = {}
     types: dict[str, list[str]] = {}
     in_define = False
-    for stmt, line in _statements(_strip_spectra_comments(text, where)):
+    statements = list(_statements(_strip_spectra_comments(text, where)))
+    for stmt, line in statements:  # type aliases first: they may follow their first use
+        if not re.match(r"^type\b", stmt):
+            continue
+        toks = _tokens(stmt, where, line)
+        if toks:
+            if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
+                raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
+            if toks[1] in types:
+                raise _fail(where, line, f"type {toks[1]!r} declared twice")
+            types[toks[1]] = toks[3:]
+    for stmt, line in statements:
         for word in re.findall(r"[A-Za-z_]\w*", stmt):
             if word in _SCAN_REFUSED:
                 raise _fail(where, line, _SPECTRA_REFUSED[word])
@@ -592,11 +604,6 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
         if head == "import":
             continue  # a pattern library: a pattern used is refused where it is used
         if head == "type":
-            if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
-                raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
-            if toks[1] in types:
-                raise _fail(where, line, f"type {toks[1]!r} declared twice")
-            types[toks[1]] = toks[3:]
             in_define = False
             continue
         if head in _SPECTRA_REFUSED:
