@@ -1,5 +1,6 @@
-"""``tli spec check``, ``tli spec automaton`` and ``tli spec infer``: GR(1) realizability, task
-automata, and specs inferred from demonstrations."""
+"""``tli spec check``, ``tli spec automaton``, ``tli spec import`` and ``tli spec infer``: GR(1)
+realizability, task automata, specs translated from Spectra and slugs, and specs inferred from
+demonstrations."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import exit_code, output_path
-from tli_verify.errors import TliError
+from tli_verify.errors import OutputError, TliError
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -45,6 +46,20 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                      help="OUT.json or OUT.dot (default: a summary on stdout)")
     aut.add_argument("--json", action="store_true", help="print the automaton JSON on stdout")
     aut.set_defaults(handler=_automaton)
+
+    imp = ssub.add_parser(
+        "import", help="translate a Spectra or slugs spec to a TOML spec",
+        description="Reads FILE.spectra, FILE.structuredslugs or FILE.slugsin and writes our "
+        "TOML spec (integers and enumerations bit-blasted, with their domain constraints). "
+        "Every construct GR(1) TOML cannot express is refused by name and line (exit 2). "
+        "The spec gets semantics = \"textbook\" (the reading of Spectra and slugs) unless "
+        "--semantics tli. Without -o the TOML goes to stdout.")
+    imp.add_argument("file", type=Path, metavar="FILE")
+    imp.add_argument("-o", "--output", type=output_path, default=None, metavar="OUT.toml")
+    imp.add_argument("--semantics", choices=("textbook", "tli"), default="textbook",
+                     help="the reading of safety at time 0 the spec asks for (default: "
+                     "textbook, the source tool's)")
+    imp.set_defaults(handler=_import)
 
     infer = ssub.add_parser(
         "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix F)",
@@ -113,7 +128,8 @@ def _check(args: argparse.Namespace) -> int:
             sys.stdout.write(json.dumps(record, sort_keys=True) + "\n")
             continue
         verdict = "realizable" if result.realizable else "UNREALIZABLE"
-        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms)\n")
+        reading = ", textbook semantics" if result.spec.semantics == "textbook" else ""
+        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms{reading})\n")
         for w in result.warnings:
             sys.stdout.write(f"  warning: {w}\n")
         if result.diagnosis is not None:
@@ -171,6 +187,26 @@ def _automaton(args: argparse.Namespace) -> int:
         sys.stdout.write(f"mode transitions: {pairs}\n")
     else:
         sys.stdout.write(f"wrote {args.output}\n")
+    return 0
+
+
+def _import(args: argparse.Namespace) -> int:
+    from tli_verify.io import atomic_write_text
+    from tli_verify.logic.foreign import import_spec_file
+    from tli_verify.logic.spec import parse_spec
+
+    if args.output is not None and args.output.suffix != ".toml":
+        raise OutputError(f"{args.output}: output must end in .toml")
+    text = import_spec_file(args.file,
+                            semantics=None if args.semantics == "tli" else args.semantics)
+    where = str(args.output) if args.output is not None else f"{args.file} (imported)"
+    spec = parse_spec(text, path=where, default_name=args.file.stem)  # the result must load
+    if args.output is None:
+        sys.stdout.write(text)
+        return 0
+    atomic_write_text(args.output, text)
+    sys.stdout.write(f"wrote {args.output}: {len(spec.inputs)} inputs, {len(spec.outputs)} "
+                     f"outputs, {len(spec.formulas())} formulas\n")
     return 0
 
 

@@ -88,6 +88,7 @@ class SpecCheck:
             "realizable": self.realizable,
             "expected_realizable": self.expected_realizable,
             "expect": self.spec.expect,
+            "semantics": self.spec.semantics,
             "as_expected": self.as_expected,
             "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
             "warnings": list(self.warnings),

@@ -171,7 +171,8 @@ def _initial_culprits(game: Game, x: dict[str, bool]) -> list[SpecFormula]:
     bdd = game.manager
     Y = list(game.outputs)
     parts: list[tuple[SpecFormula, Any, bool]] = (
-        [(f, b, False) for f, b in game.init_s] + [(f, b, True) for f, b in game.safety_s])
+        [(f, b, False) for f, b in game.init_s]
+        + ([] if game.semantics == "textbook" else [(f, b, True) for f, b in game.safety_s]))
     return minimal_init_core(
         bdd, parts, rename={v: v + "'" for v in game.inputs + game.outputs},
         quantified=game.inputs_next + game.outputs_next,

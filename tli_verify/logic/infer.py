@@ -438,6 +438,8 @@ def spec_to_toml(spec: GR1Spec) -> str:
         lines.append(f"description = {_toml_str(spec.description)}")
     if spec.expect != "realizable":
         lines.append(f"expect = {_toml_str(spec.expect)}")
+    if spec.semantics != "tli":
+        lines.append(f"semantics = {_toml_str(spec.semantics)}")
     lines += [f"inputs = {_toml_list(spec.inputs)}", f"outputs = {_toml_list(spec.outputs)}"]
     if spec.modes is not None:
         lines += ["", "[modes]", *(f"{m} = {_toml_str(lab)}" for m, lab in spec.modes.items())]

@@ -205,7 +205,8 @@ def _initial_culprits(game: Game) -> list[SpecFormula]:
     no initial reading satisfies."""
     bdd = game.manager
     parts: list[tuple[SpecFormula, Any, bool]] = (
-        [(f, b, False) for f, b in game.init_e] + [(f, b, True) for f, b in game.safety_e])
+        [(f, b, False) for f, b in game.init_e]
+        + ([] if game.semantics == "textbook" else [(f, b, True) for f, b in game.safety_e]))
     return minimal_init_core(
         bdd, parts, rename={v: v + "'" for v in game.inputs},
         quantified=list(game.outputs) + game.inputs_next,
