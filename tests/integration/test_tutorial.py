@@ -29,6 +29,9 @@ ROOT = Path(__file__).resolve().parents[2]
 TUTORIAL = ROOT / "docs" / "tutorial"
 README = ROOT / "README.md"
 PAGES = sorted(p.name for p in TUTORIAL.glob("*.md"))
+#: Pages whose commands take minutes (the walkthrough runs a 100-example campaign and the gate
+#: on the bundled scoop): ``make test-all`` runs them, ``make test`` the others.
+SLOW_PAGES = {"walkthrough.md"}
 _EXIT = re.compile(r"\s+#\s*exit\s+(\d+)\s*$")
 
 
@@ -91,7 +94,8 @@ def test_every_tutorial_page_has_commands() -> None:
     assert any(cmd.startswith("tli gate") for cmd, _, _ in byo)
 
 
-@pytest.mark.parametrize("page", PAGES)
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if p in SLOW_PAGES
+                                  else p for p in PAGES])
 def test_the_tutorial_runs_as_written(page: str, tmp_path: Path) -> None:
     text = (TUTORIAL / page).read_text(encoding="utf-8")
     if "<!-- tutorial:project bundled-scoop -->" in text:

@@ -299,6 +299,7 @@ def test_replay_notes_changed_files(found: tuple[int, dict, Path],  # type: igno
 # --------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # a 3-D learn and a shrinking campaign: a minute on 2 cores
 def test_verify_on_a_3d_task_reports_3d_pushes(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     """``tli verify`` on a 3-D task written as files (task, spec, ``tli demos``, ``tli learn``,
