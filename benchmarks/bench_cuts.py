@@ -1,4 +1,4 @@
-"""Cut solver cost in higher dimensions (issue 11, part A): the default method next to the
+"""Cut solver cost in higher dimensions (part A): the default method next to the
 baseline enumeration of every subset of planes.
 
 Each problem is a mode shaped like the unit ball: ``x*`` near the centre, the last in-mode
@@ -83,7 +83,7 @@ def main(out_dir: Path) -> str:
                          all(a.optimal for a, _ in auto),
                          statistics.median(t for _, t in local), local_opt))
     lines = [
-        "## Cut solver: hull method next to the enumeration (issue 11)",
+        "## Cut solver: hull method next to the enumeration",
         "",
         f"One cut, median milliseconds over {PROBLEMS} seeded ball-shaped problems (each the "
         f"median of {REPEATS} runs; the enumeration on one problem where it visits more than "

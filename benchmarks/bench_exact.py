@@ -2,11 +2,11 @@
 
 Baseline: the previous implementation -- floats converted to ``fractions.Fraction`` and
 ``A_k^T P + P A_k`` formed and eliminated (LDL^T, Sylvester's criterion) in Fraction arithmetic.
-Ours: :func:`tli_verify.certify.exact.check_lyapunov` (integer matrices, an exact congruence to a
-diagonally dominant matrix, Bareiss as fallback). Both decide the continuous-time conditions of
-the same random stable LPV-DS (K = 12 components); ours additionally decides the sampled-data
-conditions at dt = 1 ms in the "with 1 ms" column. Medians of 3 runs; the baseline is run only
-where it takes under a minute.
+Ours: :func:`tli_verify.certification.exact.check_lyapunov` (integer matrices, an exact
+congruence to a diagonally dominant matrix, Bareiss as fallback). Both decide the
+continuous-time conditions of the same random stable LPV-DS (K = 12 components); ours
+additionally decides the sampled-data conditions at dt = 1 ms in the "with 1 ms" column.
+Medians of 3 runs; the baseline is run only where it takes under a minute.
 
 Run: ``.venv/bin/python -m benchmarks --only exact``.
 """
@@ -78,7 +78,7 @@ def _median_time(fn: object, *args: object) -> tuple[float, object]:
 
 
 def _ours(P: np.ndarray, A: np.ndarray, dt: str | None) -> bool:
-    from tli_verify.certify.exact import check_lyapunov
+    from tli_verify.certification.exact import check_lyapunov
 
     return check_lyapunov(P, A, dt=dt).ok
 
@@ -103,5 +103,5 @@ def main(out_dir: Path) -> str:
             raise RuntimeError(f"n = {n}: the benchmark's system should certify")
     return ("## Exact certificate check: integer congruence vs Fraction elimination\n\n"
             f"Random stable LPV-DS with K = {K} components sharing a Lyapunov matrix; medians of "
-            f"{REPEATS} runs. Issue 10 measured 5-8 minutes for one n = 120 model with the "
+            f"{REPEATS} runs. An earlier measurement: 5-8 minutes for one n = 120 model with the "
             "Fraction baseline.\n\n" + "\n".join(rows) + "\n")

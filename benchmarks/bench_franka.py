@@ -1,4 +1,4 @@
-"""The MuJoCo Franka loop (issue 13): bare ``mj_step`` against the closed loop, controller cost.
+"""The MuJoCo Franka loop: bare ``mj_step`` against the closed loop, controller cost.
 
 Side by side in one run (one core; ``threadpoolctl`` limits BLAS to one thread; CPU time,
 ``time.process_time``, so a shared machine distorts it less), on the arm-only
@@ -13,7 +13,7 @@ scene (:func:`tli_verify.sim.robot.load_panda`: the Menagerie Panda, torque moto
   fraction of the bare rate, and as a real-time factor (simulated / wall time); the largest
   tracking error is reported with it.
 
-Targets (issue 13): closed loop >= 60 % of the bare ``mj_step`` rate, >= 5x real time. The
+Targets: closed loop >= 60 % of the bare ``mj_step`` rate, >= 5x real time. The
 scene with the beads is benchmarked by the scene's own rows when it lands.
 """
 
@@ -141,7 +141,7 @@ def main(out_dir: Path) -> str:
         "|---|---|---|---|",
         f"| Bare `mj_step`, arm alone (nv = {model.nv}) | {bare_med:,.0f} steps/s "
         f"({bare_med * dt:.0f}x real time) | - | torques held |",
-        f"| Impedance controller, one call | {ctl_us:.0f} us | 50-75 us (issue 13: possible) "
+        f"| Impedance controller, one call | {ctl_us:.0f} us | 50-75 us (possible) "
         "| Jacobian, 7x7 arm block of M, two Cholesky solves, saturation |",
     ]
     for s, v in loops.items():

@@ -1,6 +1,6 @@
 """The MuJoCo soup-scooping scene with 30 beads: bare physics vs the LTL-DS closed loop.
 
-Issue 13 targets, measured side by side in one run, one core (``threadpoolctl``), CPU time
+Targets, measured side by side in one run, one core (``threadpoolctl``), CPU time
 (``time.process_time``: the machine may be shared), for the free hand and for the Panda:
 
 - **closed loop**: one nominal LTL-DS trial (:func:`tli_verify.sim.loop.run_trial`: sensors,

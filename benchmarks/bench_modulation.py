@@ -3,7 +3,7 @@
 Side by side in one run (2D, K = 10 components, 10 cuts keeping x* inside):
 
 - batched: :class:`tli_verify.boundary.modulation.ModulatedPolicy` around an LPV-DS on 100,000
-  states (vectorised closed form of eq. 5 and the corner guard, control period 1 ms), against a
+  states (vectorised closed form of eq. 7 and the corner guard, control period 1 ms), against a
   straightforward per-point implementation (per state: evaluate the DS, build ``E``, ``D``,
   invert, multiply, then the guard's QP by enumerating KKT active sets; see
   :func:`tli_verify.boundary.modulation.modulate_reference`) on 2,000 of the same states; the
@@ -183,15 +183,15 @@ def main(out_dir: Path) -> str:
     atomic_write_text(out_dir / "modulation.json", canonical_json(results))
     ok = "yes" if diff <= 1e-9 else "NO"
     return (
-        "## Modulation (paper eq. 5 + corner guard), cuts (appendix F), single-mode protocol\n\n"
+        "## Modulation (paper eq. 7 + corner guard), cuts (appendix E.3), single-mode protocol\n\n"
         f"2D LPV-DS with K = 10 components and 10 cuts, control period dt = {dt:g} s; {N:,} "
-        f"states in a box around x*: {100 * modulated_share:.0f}% modulated by eq. 5, "
+        f"states in a box around x*: {100 * modulated_share:.0f}% modulated by eq. 7, "
         f"{100 * guarded_share:.2f}% changed by the guard; medians of repeats, one core.\n\n"
         "| Measure | Result | Goal | Note |\n|---|---|---|---|\n"
         f"| Modulated DS, batched | {N / t_full:,.0f} evals/s | >= 1,000,000/s | DS alone "
-        f"{N / t_ds:,.0f}/s; modulation alone {N / t_mod:,.0f}/s (eq. 5 without the guard "
+        f"{N / t_ds:,.0f}/s; modulation alone {N / t_mod:,.0f}/s (eq. 7 without the guard "
         f"{N / t_eq5:,.0f}/s) |\n"
-        f"| Per-point baseline (literal eq. 5 + guard by KKT enumeration) | "
+        f"| Per-point baseline (literal eq. 7 + guard by KKT enumeration) | "
         f"{n_ref / t_ref:,.0f} evals/s | - | batched is "
         f"{(N / t_full) / (n_ref / t_ref):,.0f}x faster; max difference {diff:.1e} "
         f"(agree to 1e-9: {ok}) |\n"

@@ -5,12 +5,12 @@ thread):
 
 - one scoop episode of 2,000 control steps (the shipped model and certificate, dt = 1/100,
   three fixed perturbations, run to the budget) with
-  :func:`tli_verify.runtime.executive.run_episode` (target <= 50 ms);
+  :func:`tli_verify.runtime.loop.run_episode` (target <= 50 ms);
 - 200 perturbed episodes batched across starts
-  (:func:`tli_verify.experiments.scoop.run_variant_batch`, i.e.
-  :func:`~tli_verify.runtime.executive.run_episodes`): policy steps per second (target
+  (:func:`tli_verify.runtime.episodes.run_variant_batch`, i.e.
+  :func:`~tli_verify.runtime.loop.run_episodes`): policy steps per second (target
   >= 100,000 on one core), against a per-step Python loop over the same policy, one episode
-  at a time (:func:`~tli_verify.runtime.executive.run_episode`, on 20 of the episodes);
+  at a time (:func:`~tli_verify.runtime.loop.run_episode`, on 20 of the episodes);
 - the scoop experiment (``tli experiment scoop``: 10 experiments x 100 episodes x 4 variants
   and the Fig. 7 search) on 2 worker processes: wall time (target <= 2 min on 2 cores).
 """
@@ -38,9 +38,10 @@ def _median(fn: object, repeats: int) -> float:
 def main(out_dir: Path) -> str:
     import threadpoolctl
 
-    from tli_verify.experiments.scoop import ExperimentConfig, run_all, scoop_setup
+    from tli_verify.experiments.scoop import ExperimentConfig, run_all
+    from tli_verify.experiments.scoop_task import scoop_setup
     from tli_verify.runtime.episodes import random_perturbations, random_start, run_variant_batch
-    from tli_verify.runtime.executive import run_episode
+    from tli_verify.runtime.loop import run_episode
     from tli_verify.runtime.setup import make_policy
     from tli_verify.runtime.worlds import WorldSensors
 

@@ -11,7 +11,7 @@ Side by side in one run (one core; ``threadpoolctl`` limits BLAS to one thread):
   policy, one start at a time (on 20 of the starts);
 - the executive (:class:`tli_verify.runtime.executive.LTLDSPolicy`) in closed loop on a 3-mode
   chain world: one episode (per-step Python loop) and 500 episodes batched across starts
-  (:func:`tli_verify.runtime.executive.run_episodes`).
+  (:func:`tli_verify.runtime.loop.run_episodes`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ import numpy as np
 from tli_verify.boundary.cuts import Cut
 from tli_verify.boundary.modulation import modulate
 from tli_verify.io import atomic_write_text, canonical_json
-from tli_verify.model import Model, model_from_dict
+from tli_verify.model.serialize import model_from_dict
+from tli_verify.model.types import Model
 
 
 def _median_time(fn: Callable[[], object], repeats: int, inner: int = 1) -> float:
@@ -83,10 +84,10 @@ class _Chain:
 def _chain_policy(root: Path) -> Any:
     """The chain world of ``tests/integration/test_executive.py`` (certified at dt = 1/100)."""
     from tests.support.instances import CHAIN_SPEC
-    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import parse_spec
-    from tli_verify.model import load_model, save_model
+    from tli_verify.model.serialize import load_model, save_model
     from tli_verify.runtime.executive import LTLDSPolicy
 
     spec_text = CHAIN_SPEC
@@ -113,7 +114,7 @@ def _scoop_steps(n: int) -> float:
     """Seconds for ``n`` executive steps on the shipped scoop model and certificate."""
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.runtime.executive import LTLDSPolicy
 
     root = Path(__file__).resolve().parents[1]
@@ -132,7 +133,7 @@ def _scoop_steps(n: int) -> float:
 def main(out_dir: Path) -> str:
     from threadpoolctl import threadpool_limits
 
-    from tli_verify.runtime.executive import run_episode, run_episodes
+    from tli_verify.runtime.loop import run_episode, run_episodes
     from tli_verify.runtime.rollout import cap_speed, rollout
 
     results: dict[str, Any] = {}

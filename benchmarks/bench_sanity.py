@@ -1,4 +1,4 @@
-"""Spec sanity checks (issue 5) timed next to the plain realizability check.
+"""Spec sanity checks timed next to the plain realizability check.
 
 For each spec: realizability (game + fixpoint), well-separation, the unrealizable core (for
 unrealizable specs) and the vacuity hints. Medians over repeats (shipped specs) and over

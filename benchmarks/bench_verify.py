@@ -1,4 +1,4 @@
-"""Bisimulation campaigns (``tli verify``, issue 12): throughput and search efficiency.
+"""Bisimulation campaigns (``tli verify``): throughput and search efficiency.
 
 Side by side in one run:
 
@@ -33,7 +33,8 @@ BUDGET = 200
 
 def _campaign(backend: str, workers: int, *, examples: int = RUNS, modulation: bool = True,
               seed: int = 0) -> Any:
-    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    from tli_verify.verify.campaign import run_campaign
+    from tli_verify.verify.config import CampaignConfig
 
     return run_campaign(CampaignConfig(task="scoop", examples=examples, seed=seed,
                                        modulation=modulation, workers=workers,
@@ -51,13 +52,8 @@ def _first(outcomes: Any, kind: str | None) -> int | None:
 def _random_sampling(seed: int) -> tuple[int | None, int | None]:
     """Plain random perturbations of the nominal run, in order, same budget."""
     from tli_verify.runtime.episodes import random_perturbations
-    from tli_verify.verify.campaign import (
-        CampaignConfig,
-        RunOutcome,
-        load,
-        sim_spec,
-        simulate_batch,
-    )
+    from tli_verify.verify.config import CampaignConfig, sim_spec
+    from tli_verify.verify.simulate import RunOutcome, load, simulate_batch
     from tli_verify.verify.strategies import Case, Push
 
     spec = sim_spec(CampaignConfig(task="scoop", modulation=False))
@@ -89,20 +85,15 @@ def main(out_dir: Path) -> str:
     data: dict[str, Any] = {}
     load_before = os.getloadavg()[0]
     # CPU cost per run, in this process (independent of what else the machine runs)
-    from tli_verify.verify.campaign import (
-        CampaignConfig,
-        _strategy,
-        draw_cases,
-        load,
-        resolve_config,
-        sim_spec,
-    )
-    from tli_verify.verify.campaign import simulate_batch as _batch
+    from tli_verify.verify.config import CampaignConfig, resolve_config, sim_spec
+    from tli_verify.verify.draws import config_strategy, draw_cases
+    from tli_verify.verify.simulate import load
+    from tli_verify.verify.simulate import simulate_batch as _batch
 
     _, filled = resolve_config(CampaignConfig(task="scoop"))
     spec = sim_spec(filled)
     ld = load(spec)
-    strategy = _strategy(filled, ld)
+    strategy = config_strategy(filled, ld)
     c0 = time.process_time()
     sample = draw_cases(strategy, 200, 0)
     draw_cpu = (time.process_time() - c0) / len(sample)

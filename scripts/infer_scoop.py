@@ -1,15 +1,15 @@
-"""Paper appendix E, "Automatic construction of GR(1) LTL formulas", on the scoop task.
+"""Paper appendix F, "Automatic construction of GR(1) LTL formulas", on the scoop task.
 
 Infers the demonstration-only spec from ``demos/scoop_*.csv`` with the labels of
 ``specs/scoop.toml`` (:func:`tli_verify.logic.infer.infer_spec`): its automaton has the black
-edges of paper Fig. 5(a) only (``a -> b -> c -> d``). Then adds, one at a time, the transitions
+edges of paper Fig. 3(a) only (``a -> b -> c -> d``). Then adds, one at a time, the transitions
 perturbations discover online (``b -> a``, ``c -> a``, ``c -> b``; the grey edges) with
 :func:`tli_verify.logic.infer.add_transition`, re-synthesizing after each, and compares the
-final automaton with the one of ``specs/scoop.toml`` (Fig. 5(a)).
+final automaton with the one of ``specs/scoop.toml`` (Fig. 3(a)).
 
 Usage: ``.venv/bin/python scripts/infer_scoop.py [-o GROWN.toml]``. Uses only the sensor
 columns of the demonstrations, not their geometry. Exit 0 when the grown automaton is
-Fig. 5(a)'s, 1 otherwise.
+Fig. 3(a)'s, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -47,11 +47,11 @@ def main() -> int:
     for a, b in PERTURBATIONS:
         spec = add_transition(spec, a, b)
         print(f"+ {a}->{b} (perturbation): mode changes {_changes(spec)}")
-    paper = synthesize(load_spec(paper_path)).to_json()
-    ours = synthesize(spec).to_json()
+    paper = synthesize(load_spec(paper_path)).to_dict()
+    ours = synthesize(spec).to_dict()
     same = ({k: v for k, v in ours.items() if k != "name"}
             == {k: v for k, v in paper.items() if k != "name"})
-    print(f"grown automaton == specs/scoop.toml automaton (Fig. 5(a)): {same}")
+    print(f"grown automaton == specs/scoop.toml automaton (Fig. 3(a)): {same}")
     if args.output is not None:
         atomic_write_text(args.output, spec_to_toml(spec))
         print(f"wrote {args.output}")

@@ -4,8 +4,8 @@ Lemma 2 (paper Sec. 5.1) needs the attractor ``x*_i`` of mode ``i`` strictly ins
 region ``delta_j`` of the next mode ``j``: the DS then reaches ``delta_j`` in finite time from
 every start, and the sensors report the transition the automaton waits for. This script learns
 the scoop model from the bundled demonstrations (``demos/scoop_*.csv`` with ``specs/scoop.toml``,
-:func:`tli_verify.model.learn_model`), or loads a model file, draws random starts in each mode's
-*true* region (the paper's scoop world, ``tasks/scoop.toml``), integrates the mode's
+:func:`tli_verify.model.learn.learn_model`), or loads a model file, draws random starts in each
+mode's *true* region (the paper's scoop world, ``tasks/scoop.toml``), integrates the mode's
 nominal DS alone (``f`` of paper eq. 4, no cuts; explicit Euler, vectorised over the starts) and
 prints, per mode: the fraction of starts that enter the next mode's region within the horizon
 and the worst entry time. A second table counts the components that satisfy the sampled-data
@@ -38,7 +38,9 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.model import Model, learn_model, load_model
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import load_model
+from tli_verify.model.types import Model
 from tli_verify.tasks.registry import find_task
 
 FloatArray = npt.NDArray[np.float64]

@@ -100,7 +100,7 @@ def demos(world: str) -> list[str]:
 
 def make(world: str) -> list[Path]:
     """Learn, bind and certify one world's models; return the model files."""
-    from tli_verify.model import load_model, save_model
+    from tli_verify.model.serialize import load_model, save_model
     from tli_verify.rebind import rebind_model
 
     out: list[Path] = []
@@ -167,7 +167,7 @@ def recovery_entries(starts: int = 300, steps: int = 4000) -> None:
     """
     import numpy as np
 
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.registry import find_task
 
     world = find_task("color-tracing")

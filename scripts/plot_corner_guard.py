@@ -3,8 +3,8 @@
 The 3D case hypothesis found (``tests/unit/test_modulation.py::
 test_mixed_corner_eq5_leaves_guard_stays``): ``x* = 0``, ``P = I``, a stable linear DS, the
 regular cut ``x <= 0.5`` and the cut ``y <= 0`` through ``x*``. Both planes are vertical, so the
-picture is the (x, y) projection: paper eq. 5 alone slides into the corner and out of the cuts;
-eq. 5 with the guard stays inside and converges. Right: ``V = |x - x*|^2`` along both.
+picture is the (x, y) projection: paper eq. 7 alone slides into the corner and out of the cuts;
+eq. 7 with the guard stays inside and converges. Right: ``V = |x - x*|^2`` along both.
 
 Usage: ``.venv/bin/python scripts/plot_corner_guard.py [--out docs/img/corner_guard.png]``.
 """
@@ -61,9 +61,9 @@ def main(argv: list[str] | None = None) -> int:
         axis.plot([0.5, 0.5], [-2.2, 1.2], color="c", lw=2)
         axis.plot([-2.2, 1.6], [0.0, 0.0], color="c", lw=2,
                   label="cuts: x <= 0.5, and y <= 0 (holds x*)")
-        axis.plot(eq5[:, 0], eq5[:, 1], color="tab:red", lw=1.5, label="eq. 5 alone: leaves")
+        axis.plot(eq5[:, 0], eq5[:, 1], color="tab:red", lw=1.5, label="eq. 7 alone: leaves")
         axis.plot(guarded[:, 0], guarded[:, 1], color="tab:blue", lw=1.5,
-                  label="eq. 5 + corner guard: stays")
+                  label="eq. 7 + corner guard: stays")
         axis.plot(0.0, 0.0, "o", color="orange", mec="k", ms=9, label="x*")
         axis.set_xlim(*xl)
         axis.set_ylim(*yl)
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     ax.set_title("3D linear DS, (x, y) projection")
     axz.set_title("zoom on the corner")
     ax.legend(loc="lower right", fontsize=7.5)
-    for path, color, name in ((eq5, "tab:red", "eq. 5 alone"),
+    for path, color, name in ((eq5, "tab:red", "eq. 7 alone"),
                               (guarded, "tab:blue", "with guard")):
         t = DT * np.arange(path.shape[0])
         axv.semilogy(t, np.sum(path**2, axis=1), color=color, label=name)

@@ -55,10 +55,10 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from tli_verify import __version__
+from tli_verify.commands import exit_code
 from tli_verify.errors import OutputError, TliError
 
-__all__ = ["build_parser", "check_paths", "main"]
+__all__ = ["build_parser", "check_paths", "exit_code", "main"]
 
 COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.spec",
@@ -80,6 +80,17 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed distribution's version, read only when asked."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        from tli_verify._version import __version__
+
+        sys.stdout.write(f"tli-verify {__version__}\n")  # stdout, as argparse's "version"
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``tli`` parser with every registered subcommand."""
     parser = _Parser(
@@ -87,7 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="tli-verify: LTL task automata, certified LPV-DS motion policies, "
         "cutting-plane modulation and a deployment gate (Temporal Logic Imitation).",
     )
-    parser.add_argument("--version", action="version", version=f"tli-verify {__version__}")
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMAND_MODULES:
@@ -342,7 +354,7 @@ def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
             traceback.print_exc()
         _say(f"error: {exc}")
         _flush_quietly(sys.stdout)
-        return exc.exit_code
+        return exit_code(exc)
     except BrokenPipeError:  # e.g. `tli ... | head`: the reader left; not an error of ours
         _drop_stdout(out)
         return 0 if code is None else code

@@ -1,19 +1,32 @@
 """The one exception hierarchy of tli-verify.
 
-Every error a user can cause is a :class:`TliError`. The CLI turns it into a one-line
-``error: ...`` message on stderr and exit code 2 (bad input) or 1 (a check said no), see
-``docs/design.md`` ("Exit codes"). Nothing else in the package prints errors or warnings.
+Every error a user can cause is a :class:`TliError`, in one of two families:
+
+* **bad input** -- :class:`InputError` and its subclasses, which are also :class:`ValueError`
+  (a missing input file is also :class:`FileNotFoundError`, see :func:`missing`): a file,
+  field or argument that cannot be used;
+* **a check said no** -- :class:`CheckFailed` and its subclasses: the input was well formed,
+  and the answer is negative (unrealizable spec, certificate that does not re-check, gate
+  that blocks).
+
+The library only raises; what a family means to a shell (exit code 2 or 1, ``docs/design.md``
+"Exit codes") is decided by the CLI (:func:`tli_verify.cli.exit_code`). Nothing else in the
+package prints errors or warnings.
 """
 
 from __future__ import annotations
+
+import errno
 
 __all__ = [
     "AssetError",
     "CampaignError",
     "CertificateError",
+    "CheckFailed",
     "DemoError",
     "EvidenceError",
     "GateError",
+    "InputError",
     "ModelError",
     "OutputError",
     "SolverError",
@@ -22,6 +35,8 @@ __all__ = [
     "TliError",
     "UnrealizableError",
     "WorkerLost",
+    "bad_input",
+    "missing",
 ]
 
 
@@ -31,82 +46,143 @@ class TliError(Exception):
     Parameters
     ----------
     message : str
-        One line that names the file, line or field at fault.
-    exit_code : int, optional
-        Exit code the CLI uses: 2 for bad input (default), 1 for "a check said no".
+        One line that names the file, line or field at fault (whitespace runs are folded, so
+        the message stays one line).
     """
 
-    exit_code: int = 2
-
-    def __init__(self, message: str, *, exit_code: int | None = None) -> None:
+    def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))
-        if exit_code is not None:
-            self.exit_code = exit_code
+
+    __str__ = BaseException.__str__  # not OSError's "[Errno 2] ..." for :func:`missing`
 
 
-class SpecError(TliError):
+class InputError(TliError, ValueError):
+    """Bad input: a file, field or argument that cannot be used (also a :class:`ValueError`)."""
+
+
+class CheckFailed(TliError):
+    """A check said no: the input is well formed and the answer is negative."""
+
+
+class SpecError(InputError):
     """A task specification (TOML, LTL formula) is malformed or outside GR(1)."""
 
 
-class TaskError(TliError, ValueError):
+class TaskError(InputError):
     """A task file (state space, regions, sensors, goal, starts) is malformed, or a model, spec
     or evidence does not fit the task it runs on."""
 
 
-class UnrealizableError(TliError):
+class UnrealizableError(CheckFailed):
     """A strategy was requested from a GR(1) game the system cannot win."""
 
-    exit_code = 1
 
-
-class DemoError(TliError):
+class DemoError(InputError):
     """A demonstration file is malformed or inconsistent with the spec."""
 
 
-class ModelError(TliError):
+class ModelError(InputError):
     """A model file (per-mode LPV-DS and cuts) is malformed."""
 
 
-class OutputError(TliError):
+class OutputError(InputError):
     """An output path cannot be written: a directory, under a regular file, not writable, or one
     of the command's own input files (which it would overwrite)."""
 
 
-class SolverError(TliError):
+class SolverError(CheckFailed):
     """A numerical solver failed or returned a status other than optimal."""
 
-    exit_code = 1
 
-
-class CertificateError(TliError):
+class CertificateError(CheckFailed):
     """A certificate is malformed, or does not re-check exactly."""
 
-    exit_code = 1
 
-
-class EvidenceError(TliError):
+class EvidenceError(CheckFailed):
     """Campaign evidence (``certificates/<name>.campaign.json``) is malformed, or does not bind
     the deployed files."""
 
-    exit_code = 1
 
-
-class GateError(TliError):
+class GateError(CheckFailed):
     """The deployment gate blocks: something is uncertified or tampered with."""
 
-    exit_code = 1
 
-
-class AssetError(TliError):
+class AssetError(InputError):
     """A simulator asset (the MuJoCo Panda model files) cannot be fetched, fails its pinned
     sha256, or is missing: run ``python -m tli_verify.sim.assets fetch``."""
 
 
-class WorkerLost(TliError):
+class WorkerLost(CheckFailed):
     """A worker running a batch of a campaign died more often than the retries allow."""
 
-    exit_code = 1
 
-
-class CampaignError(TliError):
+class CampaignError(InputError):
     """A campaign's configuration, case file or backend is unusable (exit 2)."""
+
+
+_VARIANTS: dict[tuple[type, ...], type[TliError]] = {}
+
+
+def _variant(cls: type[TliError], *builtins: type[Exception]) -> type[TliError]:
+    """``cls`` that is also each of ``builtins`` (one class per combination, so ``except``
+    clauses and pickling see a stable type)."""
+    key = (cls, *builtins)
+    found = _VARIANTS.get(key)
+    if found is not None:
+        return found
+    extra = tuple(b for b in builtins if not issubclass(cls, b))
+    made: type[TliError] = cls if not extra else type(cls.__name__, (cls, *extra), {
+        "__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__,
+        "__reduce__": _reduce, "_tli_variant": (cls, builtins)})
+    return _VARIANTS.setdefault(key, made)
+
+
+def _reduce(self: BaseException) -> tuple[object, ...]:
+    cls, builtins = type(self)._tli_variant  # type: ignore[attr-defined]
+    return (_rebuild, (cls, builtins, self.args[0] if self.args else ""))
+
+
+def _rebuild(cls: type[TliError], builtins: tuple[type[Exception], ...],
+             message: str) -> TliError:
+    return _variant(cls, *builtins)(message)
+
+
+def bad_input(cls: type[TliError], message: str) -> TliError:
+    """An error of ``cls`` that is bad input (a :class:`ValueError`), e.g. a malformed
+    certificate: a :class:`CertificateError` that is not the verdict "does not re-check".
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`TliError` subclass.
+    message : str
+
+    Returns
+    -------
+    TliError
+        An instance of ``cls`` and of :class:`ValueError`.
+    """
+    return _variant(cls, ValueError)(message)
+
+
+def missing(cls: type[TliError], message: str, path: object) -> TliError:
+    """An error of ``cls`` for an input file that does not exist (also a
+    :class:`FileNotFoundError` with ``errno`` ENOENT and ``filename`` set).
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`TliError` subclass (``SpecError`` for a spec file, ...).
+    message : str
+    path : path-like
+
+    Returns
+    -------
+    TliError
+        An instance of ``cls``, :class:`ValueError` and :class:`FileNotFoundError`.
+    """
+    exc = _variant(cls, ValueError, FileNotFoundError)(message)
+    exc.errno = errno.ENOENT  # type: ignore[attr-defined]
+    exc.strerror = "No such file or directory"  # type: ignore[attr-defined]
+    exc.filename = str(path)  # type: ignore[attr-defined]
+    return exc

@@ -30,15 +30,17 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import OutputError, TliError
+from tli_verify.errors import OutputError, TliError, missing
 from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
 
 __all__ = [
+    "BUNDLED_FOLDERS",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
     "atomic_write_bytes",
     "atomic_write_text",
     "bundled_dir",
+    "bundled_root",
     "canonical_json",
     "check_nesting",
     "check_output_dir",
@@ -311,6 +313,8 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
         raise error(f"empty path given for the {what} file")
     try:
         st = p.stat()
+    except FileNotFoundError as exc:
+        raise missing(error, f"{p}: cannot read {what} file: {_why(exc)}", p) from None
     except OSError as exc:
         raise error(f"{p}: cannot read {what} file: {_why(exc)}") from None
     if stat.S_ISDIR(st.st_mode):
@@ -344,41 +348,95 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
 # Bundled files
 # --------------------------------------------------------------------------------------------
 
-def bundled_dir(name: str) -> Path:
-    """A directory of the bundled files (``"specs"``, ``"demos"``), wherever ``tli`` runs from.
+BUNDLED_FOLDERS = ("tasks", "specs", "demos", "models", "certificates", "sim")
+"""The top-level folders of the bundled project (``sim`` holds ``franka/`` and
+``PROVENANCE.md``; its ``assets/``, fetched at run time, is never packaged)."""
 
-    The bundled specs and demonstrations live at the top of the source tree, next to the
-    ``tli_verify`` package (an editable install or a checkout). Looked up relative to the
-    package, never to the working directory, so ``tli demo`` behaves the same from anywhere.
 
-    Parameters
-    ----------
-    name : str
-        ``"specs"`` or ``"demos"``.
+def _bundled_root_abs() -> Path:
+    """The bundled project's root, absolute and resolved (see :func:`bundled_root`)."""
+    package = resources.files("tli_verify")
+    if not isinstance(package, os.PathLike):  # e.g. a zipped install: no real files
+        raise TliError(f"tli-verify is installed as {package!r}, not as files on disk: the "
+                       "bundled project needs an unpacked installation (pip install)")
+    here = Path(os.fspath(package)).resolve()
+    packaged = here / "data"
+    if packaged.is_dir():  # an installed wheel: package data
+        return packaged
+    source_tree = here.parent
+    if (source_tree / "pyproject.toml").is_file():  # a checkout or an editable install
+        return source_tree
+    raise TliError(f"the bundled project is missing (looked for {packaged}, and for a source "
+                   f"tree at {source_tree}): the tli-verify installation is incomplete; "
+                   "reinstall it (a wheel ships the bundled project under tli_verify/data/, "
+                   "a checkout has it at its top)")
+
+
+def _shown_path(p: Path) -> Path:
+    """Relative to the working directory when under it, else absolute."""
+    try:
+        return p.relative_to(Path.cwd().resolve())
+    except (ValueError, OSError):
+        return p
+
+
+def bundled_root() -> Path:
+    """The root of the bundled project (the folder holding its ``tasks/``, ``specs/``,
+    ``demos/``, ``models/``, ``certificates/`` and ``sim/``), wherever ``tli`` runs from.
+
+    The one resolver of bundled files (:func:`bundled_dir` is a folder of it). The bundled
+    project is package data: a built wheel ships it under ``tli_verify/data/`` (``setup.py``
+    copies it there), found through :func:`importlib.resources.files`. A checkout or an
+    editable install has no ``data/``: the project is the source tree itself (the folder with
+    ``pyproject.toml`` next to the ``tli_verify`` package, the tree the CI gate checks).
+    Looked up relative to the package, never to the working directory, so ``tli demo``
+    behaves the same from anywhere.
 
     Returns
     -------
     Path
-        The directory, relative to the working directory when it lies under it (so messages
-        read ``specs/scoop.toml`` in a checkout), absolute otherwise.
+        A real path (wheels are installed unpacked), relative to the working directory when it
+        lies under it (so messages read ``specs/scoop.toml`` in a checkout; ``.`` at its top),
+        absolute otherwise.
 
     Raises
     ------
     TliError
-        (exit 2) The directory is not there (a wheel install ships the package only), saying
-        what is needed.
+        (exit 2) Neither place exists (a broken installation), saying where it looked.
     """
-    package = Path(__file__).resolve().parent
-    for root in (package / "data", package.parent):
-        if (root / name).is_dir():
-            found = root / name
-            try:
-                return found.relative_to(Path.cwd().resolve())
-            except ValueError:
-                return found
-    raise TliError(f"the bundled {name}/ directory is not installed next to the tli_verify "
-                   f"package ({package.parent / name}): tli demo needs a source checkout of "
-                   "tli-verify (pip install -e .)")
+    return _shown_path(_bundled_root_abs())
+
+
+def bundled_dir(name: str) -> Path:
+    """A directory of the bundled project (``"specs"``, ``"demos"``, ``"sim"``, ...):
+    ``bundled_root() / name`` (:func:`bundled_root`), checked to exist.
+
+    Parameters
+    ----------
+    name : str
+        A top-level folder of the bundled project (:data:`BUNDLED_FOLDERS`): ``"tasks"``,
+        ``"specs"``, ``"demos"``, ``"models"``, ``"certificates"`` or ``"sim"``.
+
+    Returns
+    -------
+    Path
+        The directory, relative to the working directory when it lies under it, absolute
+        otherwise. ``bundled_dir("models").parent`` is :func:`bundled_root`.
+
+    Raises
+    ------
+    TliError
+        (exit 2) The directory is missing (a broken installation), saying where it looked.
+    """
+    if name not in BUNDLED_FOLDERS:
+        raise ValueError(f"bundled_dir: {name!r} is not a folder of the bundled project "
+                         f"({', '.join(BUNDLED_FOLDERS)})")
+    found = _bundled_root_abs() / name
+    if not found.is_dir():
+        raise TliError(f"the bundled {name}/ directory is missing ({found}): the tli-verify "
+                       "installation is incomplete; reinstall it (a wheel ships the bundled "
+                       "project under tli_verify/data/, a checkout has it at its top)")
+    return _shown_path(found)
 
 
 # --------------------------------------------------------------------------------------------

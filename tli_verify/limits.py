@@ -2,9 +2,9 @@
 
 A hostile or broken input must never crash the tool, exhaust memory, stall it, or get
 certified: it is refused as bad input (exit 2) with one line that names the limit, the file and
-the place (``docs/design.md``, "Errors and limits"; README, "Errors and limits"). These are the
+the place (``docs/reference/limits.md``). These are the
 limits the readers enforce; the certificate records the numeric ones
-(:func:`tli_verify.model.numeric_limits`).
+(:func:`tli_verify.model.types.numeric_limits`).
 
 Size and shape of input files (:mod:`tli_verify.io`)
     ``MAX_INPUT_BYTES``, ``MAX_NESTING``; only regular files are read (no devices, FIFOs or
@@ -15,6 +15,9 @@ Models (:mod:`tli_verify.model`)
     ``MAX_ABS_VALUE`` for every number but the covariances; ``MAX_ABS_COVARIANCE``,
     ``COV_MIN_EIGENVALUE`` and ``COV_MAX_CONDITION`` for the GMM covariances; ``PRIOR_SUM_TOL``
     for the mixing weights.
+GR(1) formulas (:mod:`tli_verify.logic.ltl`)
+    ``MAX_FORMULA_NODES`` and ``MAX_FORMULA_DEPTH``: what a formula costs, not how long its
+    text is (a file is at most ``MAX_INPUT_BYTES``).
 Campaigns and counterexample cases (:mod:`tli_verify.verify`)
     ``MAX_CAMPAIGN_STEPS`` for the perturbation window, a case's steps and the sensor lag;
     ``MAX_PUSHES`` perturbations per case.
@@ -30,6 +33,8 @@ __all__ = [
     "MAX_BATCH_SIZE",
     "MAX_CAMPAIGN_STEPS",
     "MAX_EXAMPLES",
+    "MAX_FORMULA_DEPTH",
+    "MAX_FORMULA_NODES",
     "MAX_INPUT_BYTES",
     "MAX_NESTING",
     "MAX_PUSHES",
@@ -49,6 +54,21 @@ MAX_NESTING = 64
 
 Models and certificates nest 7 levels deep, specs 3; Python's JSON and TOML parsers recurse
 once per level and die near 1000, so anything deeper than 64 is refused before parsing."""
+
+MAX_FORMULA_NODES = 500_000
+"""Most operator nodes of one parsed GR(1) formula (sub-formulas that Spot shares are counted
+at every use, so ``F[1:3]``-style expansions count in full).
+
+Every pass over a formula (classification, BDD construction) is linear in its nodes; at
+500,000 the BDD construction takes a few seconds. The field's largest real specs (a
+Spectra benchmark formula of 251,486 characters) have far fewer nodes than characters."""
+
+MAX_FORMULA_DEPTH = 100
+"""Deepest nesting accepted in a GR(1) formula: of parentheses in the text, of prefix
+operators before Spot parses it (Spot itself crashes on some 10^5-deep ``X X ... a``), and of
+operators in the parsed formula (``a -> a -> ...`` nests without parentheses). Real task and
+benchmark formulas nest a few levels (n-ary ``&``/``|`` are one level); the limit keeps every
+recursive pass over a formula far from Python's recursion limit."""
 
 MAX_STATE_DIM = 32
 """Largest state dimension ``n`` of a demonstration (and so of a learned model).

@@ -39,7 +39,7 @@ def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int) -> None:
 
 def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str | None = None
                     ) -> None:
-    """Draw the mode-level graph of a task automaton (like paper Fig. 5(a)) to a PNG.
+    """Draw the mode-level graph of a task automaton (like paper Fig. 3(a)) to a PNG.
 
     Nodes are modes, in spec order around a circle (a row for up to 4 modes); an arrow
     ``m -> n`` means some automaton transition runs ``n`` right after ``m``; a small loop means

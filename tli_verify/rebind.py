@@ -1,6 +1,6 @@
-"""Bind one set of learned DS to a spec's modes, without relearning (paper appendix F).
+"""Bind one set of learned DS to a spec's modes, without relearning (paper appendix G).
 
-Paper appendix "Generalization" (cooking, Fig. 7): per-transition DS learned once are reused,
+Paper appendix "Generalization" (cooking, Fig. 10): per-transition DS learned once are reused,
 *without relearning*, under several task automata (``specs/cooking-cb/bc/c/cc.toml``). Learned
 without a spec (``tli learn`` without ``--spec``), a model has one DS per demonstrated *sensor*
 transition, its modes named by the full reading (``"!ch & br & !pot"``,
@@ -33,7 +33,8 @@ from types import MappingProxyType
 from typing import Any
 
 from tli_verify.errors import DemoError, ModelError
-from tli_verify.model import Model, ModeModel, relocate_model
+from tli_verify.model.serialize import relocate_model
+from tli_verify.model.types import Model, ModeModel
 
 __all__ = ["reading_of", "rebind_model"]
 
@@ -79,7 +80,7 @@ def rebind_model(learned: Model, spec_path: str | os.PathLike[str],
         The spec to bind to (must have a ``[modes]`` table and be realizable).
     out_path : path-like
         Where the bound model will be written (its spec and demo paths are made relative to
-        it; see :func:`tli_verify.model.save_model`).
+        it; see :func:`tli_verify.model.serialize.save_model`).
 
     Returns
     -------

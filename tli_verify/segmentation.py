@@ -1,4 +1,4 @@
-"""Sensor-based segmentation and attractor identification (paper Sec. 5.1, appendix D).
+"""Sensor-based segmentation and attractor identification (paper Sec. 5.1, appendix C).
 
 Samples are grouped into modes by their sensor reading (paper Sec. 3: a mode is a label of
 sensor states, ``sigma = L(alpha)``):
@@ -12,11 +12,11 @@ sensor states, ``sigma = L(alpha)``):
 
 Consecutive samples with the same modes form a *segment*.
 
-Attractors -- a deliberate deviation from appendix D. Appendix D (Table 3) puts the attractor
+Attractors -- a deliberate deviation from appendix C. Appendix C (Table 1) puts the attractor
 ``x*_i`` of mode ``i`` at the mean of the *last* states of its segments. Those states read mode
 ``i``, so ``x*_i`` lies in ``delta_i``: the DS converges to a state the next sensor never
-reads, and the transition the automaton waits for need not happen (bundled scoop model before
-issue 9: the attractor of ``a`` 0.056 outside the soup disc; only 44 of 300 random mode-``a``
+reads, and the transition the automaton waits for need not happen (an earlier bundled scoop
+model: the attractor of ``a`` 0.056 outside the soup disc; only 44 of 300 random mode-``a``
 starts ever entered the disc, ``scripts/lemma2_check.py``). Lemma 2's proof needs ``x*_i``
 *strictly* inside the next region ``delta_j``: an asymptotically stable DS reaches ``x*`` only
 in the limit, but every open neighbourhood of it in finite time, so an interior attractor makes
@@ -42,11 +42,11 @@ A segment that ends its demonstration keeps its end point (the task's final mode
 a DS whose segments sometimes hand over and sometimes end the demonstration uses only the
 handing-over segments' entry points. With ``shift`` (default), every segment is translated by
 ``x* - (its own entry point)`` before learning, so that each demonstration hands over exactly at
-the common attractor (appendix "Generalization", Fig. 7(b): "segmented into parts by mode
+the common attractor (appendix "Generalization", Fig. 10(b): "segmented into parts by mode
 region, which are then shifted to their average attractor locations"); a segment ending its
-demonstration is translated to end on ``x*``, as in appendix D.
+demonstration is translated to end on ``x*``, as in appendix C.
 
-Per-transition DS (paper appendix "Generalization", Fig. 7(b)): when the segments of a mode are
+Per-transition DS (paper appendix "Generalization", Fig. 10(b)): when the segments of a mode are
 followed by different next modes, a mode-based DS would average conflicting attractors, so one DS
 is learned per transition instead, keyed ``"<mode>-><next>"`` (attractor from the segments of
 ``mode`` followed by ``next``, with the entry-point rule above). The same holds when a mode hands
@@ -157,7 +157,7 @@ class ModeData:
         The next mode for a per-transition DS; the unique observed next mode otherwise (None when
         there is none or several).
     attractor : ndarray, shape (n,)
-        Mean entry point into the next mode (module docstring; appendix D's mean last state
+        Mean entry point into the next mode (module docstring; appendix C's mean last state
         only for a DS whose segments all end their demonstration).
     x : ndarray, shape (N, n)
         Positions, each segment shifted so that its entry point (or end) is the attractor.
@@ -202,7 +202,7 @@ def segment_demos(
     shift: bool = True,
     entry_samples: int = ENTRY_SAMPLES,
 ) -> Segmentation:
-    """Segment demonstrations by sensor readings and compute per-DS data (appendix D, Lemma 2).
+    """Segment demonstrations by sensor readings and compute per-DS data (appendix C, Lemma 2).
 
     Parameters
     ----------

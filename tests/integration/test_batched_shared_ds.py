@@ -1,12 +1,13 @@
 """Batched episodes whose executives learn *different* cuts share each mode's DS evaluation
 (``run_episodes``: the LPV-DS once per distinct DS, then each cut set's modulation) and still
-agree with one-at-a-time episodes (paper eq. 5: ``M(x) f(x)``, ``f`` independent of the cuts)."""
+agree with one-at-a-time episodes (paper eq. 7: ``M(x) f(x)``, ``f`` independent of the cuts)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from tli_verify.experiments.scoop import NOMINAL_START, scoop_setup
+from tli_verify.experiments.fig7 import NOMINAL_START
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import run_variant, run_variant_batch
 
 
@@ -40,7 +41,8 @@ def test_each_episode_gets_its_own_cut_set_on_the_shared_ds() -> None:
     the Fig. 7 cut of mode b (it stays in the soup), the other does not (it leaves). One batched
     DS evaluation, two modulations: each must match its own single run."""
     from tli_verify.runtime.events import InvarianceFailure
-    from tli_verify.runtime.executive import LTLDSPolicy, run_episode, run_episodes
+    from tli_verify.runtime.executive import LTLDSPolicy
+    from tli_verify.runtime.loop import run_episode, run_episodes
     from tli_verify.runtime.worlds import WorldSensors
 
     setup = scoop_setup()

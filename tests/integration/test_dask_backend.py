@@ -1,4 +1,4 @@
-"""The Dask backend (issue 12 E) on a real ``LocalCluster`` of 2 worker processes."""
+"""The Dask backend on a real ``LocalCluster`` of 2 worker processes."""
 
 from __future__ import annotations
 
@@ -159,10 +159,11 @@ def test_a_local_cluster_that_cannot_start_is_a_campaign_error() -> None:
     re-import, so they die at start-up; the driver gets one CampaignError, not Dask's."""
     code = ("from tli_verify.verify.dask_backend import DaskBackend\n"
             "from tli_verify.errors import CampaignError\n"
+            "from tli_verify.commands import exit_code\n"
             "try:\n"
             "    DaskBackend(workers=1)\n"
             "except CampaignError as exc:\n"
-            "    print('CampaignError', exc.exit_code, exc)\n")
+            "    print('CampaignError', exit_code(exc), exc)\n")
     root = str(Path(__file__).resolve().parents[2])
     out = subprocess.run([sys.executable, "-"], input=code, capture_output=True, text=True,
                          check=True, env={**os.environ, "PYTHONPATH": root}, timeout=120)

@@ -19,12 +19,18 @@ import numpy as np
 import pytest
 
 from tests.support.instances import CHAIN_SPEC
-from tli_verify.certify.certificate import check_certificate, issue_certificate, write_certificate
+from tli_verify.certification.certificate import (
+    check_certificate,
+    issue_certificate,
+    write_certificate,
+)
+from tli_verify.commands import exit_code
 from tli_verify.errors import CertificateError
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import parse_spec
-from tli_verify.model import Model, load_model, model_from_dict, save_model
+from tli_verify.model.serialize import load_model, model_from_dict, save_model
+from tli_verify.model.types import Model
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
     CutAdded,
@@ -33,7 +39,8 @@ from tli_verify.runtime.events import (
     Replan,
     event_to_json,
 )
-from tli_verify.runtime.executive import LTLDSPolicy, run_episode
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import run_episode
 from tli_verify.runtime.persist import save_certified
 
 SPEC = CHAIN_SPEC
@@ -216,7 +223,7 @@ def test_uncertified_or_tampered_model_is_refused(tmp_path: Path) -> None:
     assert not check_certificate(cert).ok
     with pytest.raises(CertificateError) as info:
         LTLDSPolicy(aut, load_model(mpath), cert)
-    assert info.value.exit_code == 1
+    assert exit_code(info.value) == 1
 
 
 def test_policy_pickles_mid_episode(looping: tuple[TaskAutomaton, Model, Path]) -> None:
@@ -253,7 +260,7 @@ def test_learned_cuts_saved_as_a_certified_model(looping: tuple[TaskAutomaton, M
 
 def test_batched_episodes_agree_with_single_episodes(
         nominal: tuple[TaskAutomaton, Model, Path]) -> None:
-    from tli_verify.runtime.executive import run_episodes
+    from tli_verify.runtime.loop import run_episodes
 
     aut, model, cert = nominal
     starts = np.array([[-3.0, 4.0], [-2.0, 1.0], [-4.0, -1.0], [1.0, 2.0], [5.0, 1.0]])
@@ -318,7 +325,7 @@ def test_shipped_scoop_pair_runs_and_a_tampered_certificate_is_refused(project: 
 
 def test_batched_perturbed_episodes_agree_with_single_episodes(
         looping: tuple[TaskAutomaton, Model, Path]) -> None:
-    from tli_verify.runtime.executive import run_episodes
+    from tli_verify.runtime.loop import run_episodes
 
     aut, model, cert = looping
     starts = np.array([[-3.0, 2.0], [-3.0, 4.0], [-1.0, 0.0]])

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from tli_verify.cli import main
-from tli_verify.experiments.scoop import scoop_setup
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import random_perturbations, run_variant
 from tli_verify.runtime.setup import VARIANTS, SequencePolicy, make_policy
 from tli_verify.runtime.worlds import WorldSensors

@@ -2,11 +2,12 @@
 until its step budget runs out; LTL-DS reaches d after the one cut its b -> a invariance
 failure produces.
 
-The documented case (README section 6, ``tli experiment scoop``'s ``fig7`` field): the nominal
-start (-5, 4), pushed by (6.09, 6.01) before step 957, while transporting the soup (mode c):
+The documented case (docs/explanation/results.md, "Fig. 7"; ``tli experiment scoop``'s
+``fig7`` field): the nominal start (-5, 4), pushed by (6.09, 6.01) before step 957, while
+transporting the soup (mode c):
 the soup is spilled (c -> a), a's DS brings the spoon back to the soup, and from where it
 enters, b's (scooping) DS rises back out of the soup into white. Before the scooping
-demonstrations (models/scoop.model.json up to issue 11 D) the unmodulated run reached d here.
+demonstrations (an earlier models/scoop.model.json) the unmodulated run reached d here.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 import pytest
 
 from tli_verify.cli import main
-from tli_verify.experiments.scoop import (
+from tli_verify.experiments.fig7 import (
     FIG7_MIN_ROUNDS,
     NOMINAL_START,
     b_to_a_failures,
@@ -26,12 +27,12 @@ from tli_verify.experiments.scoop import (
     fig7_search,
     is_fig7_loop,
     is_fig7_rescue,
-    plot_fig7,
-    scoop_setup,
 )
+from tli_verify.experiments.fig7_plot import plot_fig7
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import mode_string, run_variant
 from tli_verify.runtime.events import CutAdded, InvarianceFailure
-from tli_verify.runtime.executive import EpisodeResult
+from tli_verify.runtime.loop import EpisodeResult
 
 BUDGET = 3000
 PUSH = {957: np.array([6.09, 6.01])}

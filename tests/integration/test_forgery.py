@@ -21,7 +21,7 @@ the exact re-check named as the reason.
    refuses it.
 
 Each forgery is a detector test: with the exact verdict removed from
-``tli_verify.certify.certificate._check_mode`` both are accepted and these tests fail (checked
+``tli_verify.certification.certificate._check_mode`` both are accepted and these tests fail (checked
 by hand when they were written; see the commit message).
 """
 
@@ -37,13 +37,13 @@ import numpy as np
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     certificate_digest,
     check_certificate,
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.exact import positive_definite, to_fractions
+from tli_verify.certification.exact import positive_definite, to_fractions
 from tli_verify.cli import main
 from tli_verify.io import canonical_json, sha256_file
 

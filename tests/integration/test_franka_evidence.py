@@ -1,4 +1,4 @@
-"""The Franka policy behind the gate (issue 13): ``tli sim franka --evidence``, ``tli gate`` and
+"""The Franka policy behind the gate: ``tli sim franka --evidence``, ``tli gate`` and
 ``tli gate --rerun`` on a copy of the current ``sim/franka`` project.
 
 Physical trials cost seconds: these run one trial with a short step budget (the soup is not
@@ -20,6 +20,7 @@ from tests.support.cli import json_records, run
 from tests.unit.test_physics_evidence import attach_physics, physics_block
 from tli_verify.deploy.gate import rerun_physics, run_gate
 from tli_verify.io import bundled_dir, sha256_file
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 from tli_verify.verify.evidence import check_evidence, deployed_task_block
 
 pytestmark = pytest.mark.sim
@@ -74,7 +75,7 @@ def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
     assert code == 1 and err.count("\n") == 1 and f"certificates/{EVIDENCE}" in err
     assert "fewer than the minimum 30 (MIN_PHYSICS_TRIALS)" in err
     # the gate's re-run of the recorded trial reproduces it (same seed, settings, machine)
-    check = check_evidence(certs / EVIDENCE)
+    check = check_evidence(certs / EVIDENCE, physical=(FRANKA_PHYSICS,))
     ok, message = rerun_physics(check, project / "models" / "franka-scoop.model.json", 1)
     assert ok == (not trial["violations"])
     assert f"{int(trial['success'])}/1 delivered soup" in message
@@ -137,7 +138,7 @@ def test_a_full_budget_trial_reproduces_under_rerun(project: Path,
     code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration", "12",
                        "--json", "--evidence")
     trial, _ = json_records(out)
-    ok, message = rerun_physics(check_evidence(certs / EVIDENCE),
+    ok, message = rerun_physics(check_evidence(certs / EVIDENCE, physical=(FRANKA_PHYSICS,)),
                                 project / "models" / "franka-scoop.model.json", 1)
     assert ok == (not trial["violations"]) == (code == 0), message
 

@@ -1,5 +1,5 @@
 """``tli gate --rerun N`` with the real campaign: evidence that checks does not save a model a
-short seeded re-run catches (issue 12 D)."""
+short seeded re-run catches."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.cli import main
 
 

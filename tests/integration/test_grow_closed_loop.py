@@ -1,8 +1,8 @@
-"""Closed-loop spec growth (``--learn-transitions``, paper appendix E) on the scoop world.
+"""Closed-loop spec growth (``--learn-transitions``, paper appendix F) on the scoop world.
 
 From the demonstration-only spec (``tli spec infer demos/scoop_*.csv``: mode changes
 ``a -> b -> c -> d`` only), three perturbed episodes run by the executive with the shipped
-certified model grow the automaton to exactly paper Fig. 5(a), the automaton of
+certified model grow the automaton to exactly paper Fig. 3(a), the automaton of
 ``specs/scoop.toml``. Each missing transition is driven by one explicit push (:data:`PUSHES`)
 computed from the task's true regions (``tasks/scoop.toml``), not found by a lucky
 seed: whichever state of its source region the push meets, it lands where the world reads the
@@ -27,11 +27,12 @@ from hypothesis import strategies as st
 from tests.support.omega_oracle import omega_realizable
 from tli_verify.cli import main
 from tli_verify.demos import load_demos
-from tli_verify.experiments.scoop import scoop_setup
+from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.logic.infer import infer_spec, load_labels
 from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.runtime.coverage import check_coverage
 from tli_verify.runtime.episodes import pusher, run_variant
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
@@ -41,7 +42,8 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
-from tli_verify.runtime.executive import EpisodeResult, LTLDSPolicy, check_coverage
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import EpisodeResult
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 
@@ -198,7 +200,7 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
         tmp_path: Path) -> None:
     demo_only = synthesize(inferred)
     paper = synthesize(load_spec(specs_dir / "scoop.toml"))
-    assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 5(a)
+    assert _edges(demo_only) < _edges(paper)  # starts strictly smaller than Fig. 3(a)
     pol, results = grown
     world = _scoop()
     assert all(r.success for r in results)
@@ -218,7 +220,7 @@ def test_perturbed_episodes_grow_the_demo_spec_to_fig_5a(
     # no reading was left unexplained once the spec had grown
     assert not any(isinstance(e, (AssumptionViolationEvent, TransitionRefused))
                    for r in results for e in r.events)
-    # the grown automaton is Fig. 5(a): same edges, same mode graph
+    # the grown automaton is Fig. 3(a): same edges, same mode graph
     assert _edges(pol.automaton) == _edges(paper)
     assert pol.automaton.mode_transitions() == paper.mode_transitions()
     # the grown spec, written as TOML, is accepted by `tli spec check` and gives that automaton
@@ -271,7 +273,7 @@ def test_grown_spec_cross_checked_by_spot_and_omega(
         """The conjunction of the file's system safety formulas (phi_t^s and the marker)."""
         return spot.formula.And([f.ltl for f in s.guarantee.safety if f.origin == "file"])
 
-    # Spot: the grown phi_t^s is equivalent to the one of the paper's spec (Fig. 5(a))
+    # Spot: the grown phi_t^s is equivalent to the one of the paper's spec (Fig. 3(a))
     assert spot.are_equivalent(phi_ts(spec), phi_ts(paper))
     assert not spot.are_equivalent(phi_ts(inferred), phi_ts(paper))
 
@@ -284,7 +286,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
     spec = tmp_path / "g0.toml"
     spec.write_text(spec_to_toml(inferred))
     per_episode = []
-    for i, push in enumerate(PUSHES, start=1):  # the commands of README section 7
+    for i, push in enumerate(PUSHES, start=1):  # the commands of docs/howto/grow-spec.md
         nxt = tmp_path / f"g{i}.toml"
         code = main(["run", "--task", "scoop", f"--start={START[0]:g},{START[1]:g}",
                      "--perturb", push.flag, "--spec", str(spec), "--learn-transitions",
@@ -297,7 +299,7 @@ def test_cli_grows_across_episodes_and_writes_the_spec(
         per_episode.append((rec["learned_transitions"], [e["step"] for e in learned],
                             rec["mode_sequence"]))
         spec = nxt
-    # the growth the README walkthrough prints (section 7): one edge per episode, at its push
+    # the growth docs/howto/grow-spec.md prints: one edge per episode, at its push
     assert per_episode == [([["b", "a"]], [340], "ababcd"),
                            ([["c", "a"]], [540], "abcabcd"),
                            ([["c", "b"]], [540], "abcbcd")]

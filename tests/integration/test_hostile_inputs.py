@@ -1,4 +1,4 @@
-"""Issue 10: hostile inputs never crash the tool, never lose data and never get certified.
+"""Hostile inputs never crash the tool, never lose data and never get certified.
 
 Every case runs the real ``tli`` command line and requires exit 2 (bad input) with ONE
 ``error:`` line naming the culprit -- never the internal-error exit 70, an abort, a hang, or an
@@ -309,7 +309,7 @@ def test_certify_refuses_or_the_velocity_is_finite(value: float, field: str, i: 
     finite at ordinary states (never a certified model returning NaN/inf)."""
     import numpy as np
 
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     d = tmp_path_factory.mktemp("num")
     doc = json.loads((repo / "models" / "scoop.model.json").read_text())
@@ -460,7 +460,7 @@ def test_learning_at_any_unit_scale_writes_a_loadable_model_or_names_the_demo(
 
     import numpy as np
 
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     rng = np.random.default_rng(seed)
     d = tmp_path_factory.mktemp("scale")
@@ -497,7 +497,7 @@ def test_gate_blocks_a_re_hashed_model_with_hostile_numbers(field: str, value: f
     """Forgery: put a hostile number into the certified model, recompute the model hash and the
     certificate digest. The A_k and P are untouched, so the exact Lyapunov check still passes;
     only the load-time ranges catch it, and the gate must block."""
-    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.certification.certificate import certificate_digest
     from tli_verify.io import canonical_json, sha256_file
 
     model = project / "models" / "scoop.model.json"
@@ -532,7 +532,8 @@ def test_demo_without_a_checkout_says_what_it_needs(tmp_path: Path, repo: Path) 
                            str(tmp_path / "out")], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=120, check=False)
     assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.startswith("error: the bundled specs/ directory is not installed")
+    assert proc.stderr.startswith("error: the bundled project is missing")
+    assert "reinstall" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
 
 

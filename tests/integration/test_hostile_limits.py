@@ -93,6 +93,6 @@ def test_video_and_fig9_on_one_path_name_both_outputs(tmp_path: Path,
     target = tmp_path / "x.png"
     code, _, err = run(capsys, "sim", "franka", "--video", str(target), "--fig9", str(target))
     assert code == 2 and err.count("\n") == 1
-    assert "the Fig. 9 plot and the video would be the same file" in err or \
-        "the video and the Fig. 9 plot would be the same file" in err, err
+    assert "the Fig. 11 plot and the video would be the same file" in err or \
+        "the video and the Fig. 11 plot would be the same file" in err, err
     assert "input" not in err

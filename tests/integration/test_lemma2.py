@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tli_verify.ds.lyapunov import decay_rate, sampled_growth
-from tli_verify.model import Model
+from tli_verify.model.types import Model
 
 N_STARTS = 300
 DT = 0.01
@@ -85,7 +85,7 @@ def test_attractors_have_a_margin_inside_the_next_region(lemma2: ModuleType,
 
 
 def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None:
-    # the learner's default (issue 9, point 5): a certified decay rate and the sampled-data
+    # the learner's default: a certified decay rate and the sampled-data
     # condition (I + dt A_k)^T P (I + dt A_k) < P at dt = 1 ms, with margin
     for key, mm in learned.modes.items():
         assert mm.fit is not None and mm.fit["rate"] > 0.05, key
@@ -94,12 +94,12 @@ def test_learned_components_step_down_at_one_millisecond(learned: Model) -> None
 
 
 def test_committed_model_satisfies_lemma2(lemma2: ModuleType, repo: Path) -> None:
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     committed = load_model(repo / "models" / "scoop.model.json")
     fit = committed.modes["a"].fit or {}
     if "rate" not in fit:
-        pytest.skip("models/scoop.model.json predates issue 9 (appendix-D attractors, no "
+        pytest.skip("models/scoop.model.json predates the appendix-D attractor rule (no "
                     "decay rate); relearn it with `tli learn` to run this check")
     for r in lemma2.check(committed, n_starts=N_STARTS, seed=1, dt=DT, horizon=HORIZON):
         assert r.attractor_inside and r.entered == N_STARTS, r

@@ -136,8 +136,8 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """-o saves the model with the episode's cut and a re-issued certificate; the pair runs
     (the executive accepts it) and the failure the cut was learned from is not repeated."""
-    from tli_verify.certify.certificate import check_certificate
-    from tli_verify.model import load_model
+    from tli_verify.certification.certificate import check_certificate
+    from tli_verify.model.serialize import load_model
 
     saved = tmp_path / "m" / "learned.model.json"
     args = ["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3", "--json"]

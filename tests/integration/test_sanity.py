@@ -1,4 +1,4 @@
-"""Spec sanity (issue 5): well-separation, unrealizable cores, vacuity hints."""
+"""Spec sanity: well-separation, unrealizable cores, vacuity hints."""
 
 from __future__ import annotations
 
@@ -123,7 +123,7 @@ WS_TIME_ZERO = ('inputs = ["r"]\noutputs = ["a"]\n[assume]\nsafety = ["G(!r)"]\n
 
 def test_assumption_safety_applies_at_time_zero(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 10: ``G(!r)`` with no ``init`` forbids starting in ``r``: that is the
+    """``G(!r)`` with no ``init`` forbids starting in ``r``: that is the
     environment's own violation, not one the system forces, so the spec is well-separated."""
     path = tmp_path / "ws.toml"
     path.write_text(WS_TIME_ZERO)

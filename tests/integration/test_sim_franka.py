@@ -1,4 +1,4 @@
-"""``tli sim franka``: the closed loop behind the certificate (issue 13)."""
+"""``tli sim franka``: the closed loop behind the certificate."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """A spilled trial in closed loop, through the command a user runs: LTL-DS replans and
-delivers; the same trial without replanning carries an empty spoon (issue 13, paper Sec. 7.2)."""
+delivers; the same trial without replanning carries an empty spoon (paper Sec. 7.2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The soup-scooping scene: physics-derived sensors r, s, t (issue 13, phase 1: mocap ladle)."""
+"""The soup-scooping scene: physics-derived sensors r, s, t (phase 1: mocap ladle)."""
 
 from __future__ import annotations
 

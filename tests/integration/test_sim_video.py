@@ -1,4 +1,4 @@
-"""``tli sim franka --video``: headless rendering and the MP4 (issue 13).
+"""``tli sim franka --video``: headless rendering and the MP4.
 
 Every rendering runs in a subprocess: MuJoCo fixes its OpenGL backend when it is imported,
 and this test process imported it without one. Skipped when no headless backend (EGL,

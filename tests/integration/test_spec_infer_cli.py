@@ -124,4 +124,4 @@ def test_help_documents_the_scoop_growth(capsys: pytest.CaptureFixture[str]) -> 
         main(["spec", "infer", "--help"])
     assert exc.value.code == 0
     out = capsys.readouterr().out
-    assert "Fig. 5(a)" in out and "b->a, c->a, c->b" in out
+    assert "Fig. 3(a)" in out and "b->a, c->a, c->b" in out

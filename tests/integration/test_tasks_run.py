@@ -1,4 +1,4 @@
-"""``tli run --task T`` on every bundled task's certified model (issue 11 B).
+"""``tli run --task T`` on every bundled task's certified model.
 
 Each task: one seeded perturbed episode reaches its goal with LTL-DS (through the CLI, on
 the shipped spec, model and certificate). Cooking: the DS learned once are shared by the four
@@ -105,8 +105,8 @@ def _ds_arrays(entry: dict) -> str:
 
 def test_cooking_ds_are_shared_bit_for_bit_and_each_model_is_certified_for_its_spec(
         repo: Path) -> None:
-    from tli_verify.certify.certificate import check_certificate
-    from tli_verify.model import load_model
+    from tli_verify.certification.certificate import check_certificate
+    from tli_verify.model.serialize import load_model
 
     by_learned: dict[str, set[str]] = {}
     users: dict[str, set[str]] = {}
@@ -139,7 +139,8 @@ def test_rebinding_refuses_an_undemonstrated_mode_naming_it(repo: Path, tmp_path
 
     from tli_verify.errors import DemoError
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import Model, ModeModel, load_model
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model, ModeModel
     from tli_verify.rebind import rebind_model
 
     # the tile DS only, named by their readings as a spec-free learn names them: what the

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.cli import run
+from tests.support.drawer3d import write_project
 from tli_verify.cli import main
 from tli_verify.errors import WorkerLost
 from tli_verify.verify.backends import ProcessBackend, make_backend
@@ -250,7 +251,7 @@ def broken(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The shipped model with mode b's attractor moved into white (above the soup): b's DS
     leaves yellow, a's DS brings the spoon back, forever (a deliberately broken model; its
     certificate is re-issued, stability does not depend on x*)."""
-    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.io import bundled_dir
 
     d = tmp_path_factory.mktemp("broken")
@@ -294,96 +295,11 @@ def test_replay_notes_changed_files(found: tuple[int, dict, Path],  # type: igno
 
 
 # --------------------------------------------------------------------------------------------
-# a 3-D task of the test's own (the drawer of tests/integration/test_own_task.py, copied)
+# a 3-D task of the test's own (tests/support/drawer3d.py)
 # --------------------------------------------------------------------------------------------
 
-DRAWER_TASK = """
-name = "drawer"
-description = "Open a drawer: reach the handle, pull it out, retract to the home pose."
-dt = 0.01
-background = "free"
-spec = "../specs/drawer.toml"
 
-[state]
-names = ["x (m)", "y (m)", "z (m)"]
-lower = [0.0, 0.0, 0.0]
-upper = [1.0, 1.0, 1.0]
-
-[regions.home]
-ball = { center = [0.8, 0.5, 0.78], radius = 0.17 }
-
-[regions.handle]
-box = { lower = [0.45, 0.45, 0.45], upper = [0.55, 0.55, 0.55] }
-
-[regions.slide]
-box = { lower = [0.55, 0.4, 0.4], upper = [0.9, 0.6, 0.65] }
-
-[latches.pulled]
-set = "slide & prev(handle)"
-reset = "!(slide | home)"
-
-[sensors]
-h = "handle"
-o = "pulled & slide"
-r = "pulled & home"
-
-[goal]
-modes = ["d"]
-
-[starts]
-nominal = [[0.2, 0.5, 0.8]]
-
-[perturbations]
-max_magnitude = 0.6
-window = 600
-max_pushes = 3
-
-[demonstrator]
-count = 3
-duration = 10.0
-dt = 0.05
-sigma = 0.01
-
-[[demonstrator.scripts]]
-label = "open"
-start = [0.2, 0.5, 0.8]
-start_jitter = 0.05
-waypoints = [[0.35, 0.5, 0.55], [0.5, 0.5, 0.5], [0.6, 0.5, 0.5], [0.8, 0.5, 0.5],
-             [0.8, 0.5, 0.8]]
-jitter = [1.0, 0.5, 0.5, 0.5, 0.0]
-"""
-
-DRAWER_SPEC = """
-name = "drawer"
-task = "drawer"
-inputs = ["h", "o", "r"]
-outputs = ["a", "b", "c", "d", "p"]
-
-[modes]
-a = "!h & !o & !r"
-b = "h & !o & !r"
-c = "!h & o & !r"
-d = "!h & !o & r"
-
-[assume]
-init = "!h & !o & !r"
-safety = [
-  "G((!h & !o & !r) -> X((!h & !o & !r) | (h & !o & !r)))",
-  "G((h & !o & !r) -> X((h & !o & !r) | (!h & !o & !r) | (!h & o & !r)))",
-]
-liveness = ["GF(!a | h)", "GF(!b | o)", "GF(!c | r)"]
-
-[guarantee]
-init = "a & !p"
-safety = [
-  "G(a -> X(a | b))",
-  "G(b -> X(a | b | c))",
-  "G(X p <-> ((b & X a) | (c & X a) | (c & X b) | (d & X !d)))",
-]
-liveness = ["GF(d | p)"]
-"""
-
-
+@pytest.mark.slow  # a 3-D learn and a shrinking campaign: a minute on 2 cores
 def test_verify_on_a_3d_task_reports_3d_pushes(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     """``tli verify`` on a 3-D task written as files (task, spec, ``tli demos``, ``tli learn``,
@@ -394,12 +310,8 @@ def test_verify_on_a_3d_task_reports_3d_pushes(tmp_path: Path,
     nothing in 30)."""
     import re
 
-    project = tmp_path / "drawer"
-    for sub in ("tasks", "specs"):
-        (project / sub).mkdir(parents=True)
-    (project / "tasks" / "drawer.toml").write_text(DRAWER_TASK)
+    project = write_project(tmp_path / "drawer")
     spec = project / "specs" / "drawer.toml"
-    spec.write_text(DRAWER_SPEC)
     model = project / "models" / "drawer.model.json"
     code, out, err = _run(["demos", str(project / "tasks" / "drawer.toml")], capsys)
     assert code == 0, err

@@ -4,7 +4,7 @@ Generated: a ball ``delta_r`` (convex, paper Asm. 1) in 2-3 dimensions and 1-4 d
 that run in straight lines at a constant sampling step from outside the ball to a point inside
 it, where they stop. Sensor ``r`` reads "inside the ball". For every such data set the attractor
 of mode ``!r`` (:func:`tli_verify.segmentation.segment_demos`) is strictly inside the ball, for
-any ``entry_samples``. (Appendix D's mean last state, the rule before issue 9, is outside the
+any ``entry_samples``. (Appendix C's mean last state, the earlier rule, is outside the
 ball for every single demonstration: the test fails at once on that rule.)
 """
 

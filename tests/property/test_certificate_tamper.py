@@ -17,7 +17,7 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import check_certificate
+from tli_verify.certification.certificate import check_certificate
 from tli_verify.deploy.gate import run_gate
 from tli_verify.io import canonical_json
 

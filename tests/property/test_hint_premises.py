@@ -1,4 +1,4 @@
-"""Every diagnosis claim and hint holds in the game, checked by the explicit-state game (issue 10).
+"""Every diagnosis claim and hint holds in the game, checked by the explicit-state game.
 
 The BDD diagnosis states facts about the game: the witness is a play, the final sensor change
 is legal and leaves the system no legal move, a lasso is fair and avoids the goal. The hint

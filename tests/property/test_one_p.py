@@ -21,14 +21,14 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     check_certificate,
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.repair import repair_model
+from tli_verify.certification.repair import repair_model
 from tli_verify.errors import CertificateError
-from tli_verify.model import load_model, save_model
+from tli_verify.model.serialize import load_model, save_model
 
 
 def _spd(rng: np.random.Generator, n: int, lo: float) -> np.ndarray:
@@ -99,7 +99,7 @@ def test_certified_v_never_increases_along_model_velocity(seed: int, n: int, K: 
     rng = np.random.default_rng(seed + 1)
     x_star = mm.ds.attractor
     X = x_star + rng.uniform(-3, 3, size=(3000, n))
-    for c in mm.cuts:  # states on the cut planes too, where eq. 5 acts hardest
+    for c in mm.cuts:  # states on the cut planes too, where eq. 7 acts hardest
         Y = X[:200] - np.outer((X[:200] - c.point) @ c.normal, c.normal)
         X = np.vstack([X, Y])
     d = X - x_star

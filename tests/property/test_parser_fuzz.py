@@ -1,4 +1,4 @@
-"""The parser never fails with anything but SpecError (issue 2)."""
+"""The parser never fails with anything but SpecError."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The physical perturbation strategies and draws of the Franka campaign (issue 13).
+"""The physical perturbation strategies and draws of the Franka campaign.
 
 Bounds (property tests over the strategies and over seeded draws), the shrinking the encoding
 promises (fewer, smaller, later), and determinism of :func:`draw` in this process and in a fresh
@@ -21,7 +21,8 @@ from hypothesis.errors import NoSuchExample
 pytest.importorskip("mujoco")
 
 from tli_verify.errors import TliError
-from tli_verify.sim.campaign import (
+from tli_verify.sim.loop import Perturbation, draw_perturbations
+from tli_verify.sim.perturbations import (
     PUSH_DURATION,
     PUSH_FORCE,
     PUSH_WINDOW,
@@ -31,7 +32,6 @@ from tli_verify.sim.campaign import (
     draw,
     trial_perturbations,
 )
-from tli_verify.sim.loop import Perturbation, draw_perturbations
 
 REPO = Path(__file__).resolve().parents[2]
 TOL = 1e-9
@@ -171,12 +171,12 @@ def test_draw_is_the_same_in_a_fresh_process_with_other_modules_imported() -> No
              settings=settings(database=None, max_examples=300, phases=[Phase.generate]))
     code = ("import json, sys\n"
             "import tli_verify.verify.oracle, tli_verify.logic.gr1, tli_verify.sim.controller\n"
-            "from tli_verify.sim.campaign import draw\n"
-            "print(json.dumps([[p.to_json() for p in draw(s)] for s in range(6)]))\n")
+            "from tli_verify.sim.perturbations import draw\n"
+            "print(json.dumps([[p.to_dict() for p in draw(s)] for s in range(6)]))\n")
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True, cwd=REPO, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin"},
                          timeout=120).stdout
-    here = [[p.to_json() for p in draw(s)] for s in range(6)]
+    here = [[p.to_dict() for p in draw(s)] for s in range(6)]
     assert json.loads(out) == json.loads(json.dumps(here))
 
 
@@ -194,7 +194,7 @@ def test_the_public_api_fallback_draws_within_bounds_deterministically() -> None
 def test_isolated_draws_restore_hypothesis_state() -> None:
     from hypothesis.internal.conjecture import providers
 
-    from tli_verify.sim.campaign import isolated_draws
+    from tli_verify.sim.perturbations import isolated_draws
 
     cache, getter = providers.CONSTANTS_CACHE, providers._get_local_constants
     with isolated_draws():

@@ -1,14 +1,15 @@
 """Every extracted strategy is checked against its spec, with an explicit evaluator.
 
-Theorem checked (issue 2): for a realizable GR(1) spec the task automaton is a winning Mealy
+Theorem checked: for a realizable GR(1) spec the task automaton is a winning Mealy
 strategy: (1) for every initial sensor reading allowed by ``theta_e`` (and by the safety
 assumptions at time 0) there is an initial state satisfying ``theta_s``, and every state
 satisfies the ``X``-free safety guarantees (time 0 included); (2) from every state, every
 sensor reading allowed by ``rho_e`` has a transition, and the move satisfies ``rho_s``;
 (3) every cycle of the automaton that visits every environment goal (the ones the
 environment's liveness allows forever) visits every system goal. Readings from which the
-safety assumptions cannot hold forever are not allowed (README, "How it works (logic
-layer)"); they are computed explicitly by :func:`tests.support.explicit_games.safe_readings`.
+safety assumptions cannot hold forever are not allowed (docs/explanation/logic.md, "From
+spec to automaton"); they are computed explicitly by
+:func:`tests.support.explicit_games.safe_readings`.
 """
 
 from __future__ import annotations
@@ -130,7 +131,7 @@ def verify_strategy(spec: GR1Spec, aut: TaskAutomaton) -> list[int]:
                                   "color-tracing-b", "color-tracing-c"])
 def test_shipped_strategies_win(specs_dir: Path, name: str) -> None:
     spec = load_spec(specs_dir / f"{name}.toml")
-    # Issue 10: no dead ends (e.g. inspection reached them only by readings breaking
+    # No dead ends (e.g. inspection reached them only by readings breaking
     # G(rel -> line), which the environment may not pick).
     assert verify_strategy(spec, synthesize(spec)) == []
 
@@ -151,13 +152,13 @@ def test_checker_catches_a_wrong_strategy(specs_dir: Path) -> None:
     """The checker can fail: redirect one scoop transition to a forbidden mode."""
     spec = load_spec(specs_dir / "scoop.toml")
     aut = synthesize(spec)
-    data = aut.to_json()
+    data = aut.to_dict()
     d_state = next(s["id"] for s in data["states"] if s["mode"] == "d")
     a_state = next(t for t in data["transitions"] if aut.states[t["from"]].mode == "a"
                    and t["sensors"] == [])
     a_state["to"] = d_state  # a -> d is not a valid mode transition
     with pytest.raises(AssertionError):
-        verify_strategy(spec, TaskAutomaton.from_json(data))
+        verify_strategy(spec, TaskAutomaton.from_dict(data))
 
 
 @settings(max_examples=25, deadline=None)

@@ -2,11 +2,11 @@
 
 Theorem 1 (paper Sec. 6, proof in appendix A). A nonlinear DS ``f(x) = sum_k gamma_k(x) A_k
 (x - x*)`` with ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for all k, modulated by cutting planes
-as in Sec. 5.2 (eq. 5) with the reference point ``x^r = x*``, never penetrates the cuts and is
+as in Sec. 5.2 (eq. 7) with the reference point ``x^r = x*``, never penetrates the cuts and is
 globally asymptotically stable at ``x*``.
 
-The paper proves it for one cut with ``x*`` strictly inside. Our modulation is eq. 5 plus the
-corner guard of :mod:`tli_verify.boundary.modulation` (the ``P``-metric projection of eq. 5's
+The paper proves it for one cut with ``x*`` strictly inside. Our modulation is eq. 7 plus the
+corner guard of :mod:`tli_verify.boundary.modulation` (the ``P``-metric projection of eq. 7's
 velocity on the admissible set ``C(x)``), for which the theorem holds for *any* cut set that
 keeps ``x*`` inside or on every plane, corners and cuts through ``x*`` included, in continuous
 time and for explicit Euler with the control period passed to the guard. Checked over generated
@@ -22,7 +22,7 @@ independently strictly off ``x*`` or through it:
     ``lambda = 2 min_k lambda_min(Q_k) / lambda_max(P)`` that (b) guarantees, and
     ``V(x(T)) <= 1e-4 V(x(0))``.
 
-Paper eq. 5 alone fails (a) where a cut through ``x*`` meets another cut (hypothesis found the
+Paper eq. 7 alone fails (a) where a cut through ``x*`` meets another cut (hypothesis found the
 case kept in ``tests/unit/test_modulation.py::test_mixed_corner_eq5_leaves_guard_stays``); the
 guard is what these tests exercise there.
 """
@@ -197,7 +197,7 @@ def _euler(sys_: System, X: np.ndarray, dt: float, horizon: float
 
 
 def _mixed_corner() -> System:
-    """The 3D case hypothesis found where eq. 5 alone leaves (a cut through x* next to a
+    """The 3D case hypothesis found where eq. 7 alone leaves (a cut through x* next to a
     regular cut; ``tests/unit/test_modulation.py``), as an explicit example."""
     A = np.array([[-0.3, 0.0, -1.0], [0.0, -0.3, -1.0], [1.0, 1.0, -0.3]])
     ds = LPVDS(attractor=np.zeros(3), priors=np.array([1.0]), means=np.zeros((1, 3)),

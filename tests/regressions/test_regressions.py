@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from tli_verify.io import sha256_file
-from tli_verify.verify.campaign import read_case, replay_case
+from tli_verify.verify.cases import read_case, replay_case
 
 HERE = Path(__file__).resolve().parent
 CASES = sorted(HERE.glob("*.json"))

@@ -1,6 +1,6 @@
 """Binding-only campaign evidence for tests of the gate's *other* checks.
 
-The gate requires campaign evidence for every deployed model (issue 12 D). Tests that exercise
+The gate requires campaign evidence for every deployed model. Tests that exercise
 the certificate, spec, modes or dimension checks attach evidence with :func:`attach_evidence`:
 it binds the project's current files exactly as ``tli verify --evidence`` does, with the minimum
 number of examples and no violation. It says nothing about the policy; the campaign itself is
@@ -39,7 +39,7 @@ def attach_evidence(project: Path, name: str = "scoop", **overrides: Any) -> Pat
         The evidence file.
     """
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
     from tli_verify.tasks.registry import find_task
 

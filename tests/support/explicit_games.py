@@ -6,8 +6,8 @@ evaluated by :mod:`tests.support.ltl_eval` (no BDDs involved).
 Safety at every position, the first included: ``G(phi)`` holds at every position ``i >= 0``.
 A sensor reading from which no sequence (with any outputs) keeps the safety assumptions is
 never a legal reading, initial or next; a state from which no sequence keeps the safety
-guarantees is never a legal system state, initial or next (the README's reading, computed here
-by explicit greatest fixpoints).
+guarantees is never a legal system state, initial or next (the reading of
+docs/explanation/logic.md, computed here by explicit greatest fixpoints).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ consequence (where the player's actions can continue forever: ``nu C. exists nex
 C'``; for the assumptions with the outputs quantified as well) is added to the player's
 initial condition and, primed, to its action. For an ``X``-free ``phi`` this is the textbook
 ``init & phi``, ``action & phi'``. The initial conditions given to omega are thus stated the
-way our solver states them (README, "How it works (logic layer)").
+way our solver states them (docs/explanation/logic.md, "From spec to automaton").
 Settings: ``plus_one=False, moore=False, qinit='\\A \\E'`` (Mealy, standard GR(1)).
 """
 
@@ -65,8 +65,12 @@ def _unf(f: Any) -> Any:
     return f if f.kind() in (spot.op_tt, spot.op_ff) else f[0]
 
 
-def omega_automaton(spec: GR1Spec) -> Any:
-    """The omega ``temporal.Automaton`` of ``spec`` (textbook translation)."""
+def omega_automaton(spec: GR1Spec, *, semantics: str | None = None) -> Any:
+    """The omega ``temporal.Automaton`` of ``spec`` (textbook translation).
+
+    ``semantics`` (default: the spec's): ``"tli"`` adds each side's safety consequence at
+    time 0 (:func:`_time_zero`); ``"textbook"`` (Spectra, slugs) gives omega the initial
+    conditions and actions exactly as written."""
     from omega.symbolic import temporal as trl
 
     aut = trl.Automaton()
@@ -83,7 +87,8 @@ def omega_automaton(spec: GR1Spec) -> Any:
         conj([_expr(g) for f in spec.assume.safety for g in _strip_g(f.ltl)]))
     aut.action["sys"] = aut.add_expr(
         conj([_expr(g) for f in spec.guarantee.safety for g in _strip_g(f.ltl)]))
-    _time_zero(aut, spec)
+    if (spec.semantics if semantics is None else semantics) == "tli":
+        _time_zero(aut, spec)
     env_live = [_expr(_unf(g)) for f in spec.assume.liveness for g in _strip_g(f.ltl)]
     sys_live = [_expr(_unf(g)) for f in spec.guarantee.liveness for g in _strip_g(f.ltl)]
     aut.win["<>[]"] = aut.bdds_from(*[f"~ ({p})" for p in env_live] or ["FALSE"])
@@ -116,10 +121,11 @@ def _time_zero(aut: Any, spec: GR1Spec) -> None:
     aut.action["sys"] = aut.action["sys"] & aut.replace_with_primed(xs + ys, safe_s)
 
 
-def omega_realizable(spec: GR1Spec) -> bool:
-    """Realizability of ``spec`` decided by omega's GR(1) solver."""
+def omega_realizable(spec: GR1Spec, *, semantics: str | None = None) -> bool:
+    """Realizability of ``spec`` decided by omega's GR(1) solver (in ``semantics``, default
+    the spec's own)."""
     from omega.games import gr1
 
-    aut = omega_automaton(spec)
+    aut = omega_automaton(spec, semantics=semantics)
     z, _, _ = gr1.solve_streett_game(aut)
     return bool(gr1.is_realizable(z, aut))

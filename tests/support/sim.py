@@ -1,4 +1,4 @@
-"""Shared helpers for the MuJoCo tests (issue 13): the Panda, skipped cleanly without assets."""
+"""Shared helpers for the MuJoCo tests: the Panda, skipped cleanly without assets."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Task automata: the paper's Fig. 5(a), determinism, Mealy stepping, file formats."""
+"""Task automata: the paper's Fig. 3(a), determinism, Mealy stepping, file formats."""
 
 from __future__ import annotations
 
@@ -57,14 +57,14 @@ def test_same_spec_same_automaton_byte_for_byte(specs_dir: Path) -> None:
     for name in ("scoop", "cooking-cb", "color-tracing-c"):
         a = synthesize(load_spec(specs_dir / f"{name}.toml"))
         b = synthesize(load_spec(specs_dir / f"{name}.toml"))
-        assert json.dumps(a.to_json(), sort_keys=True) == json.dumps(b.to_json(), sort_keys=True)
+        assert json.dumps(a.to_dict(), sort_keys=True) == json.dumps(b.to_dict(), sort_keys=True)
         assert a.to_dot() == b.to_dot()
 
 
 def test_json_round_trip(scoop: TaskAutomaton) -> None:
-    data = json.loads(json.dumps(scoop.to_json()))
-    again = TaskAutomaton.from_json(data)
-    assert again.to_json() == scoop.to_json()
+    data = json.loads(json.dumps(scoop.to_dict()))
+    again = TaskAutomaton.from_dict(data)
+    assert again.to_dict() == scoop.to_dict()
     assert set(data) >= {"states", "initial", "transitions", "mode_transitions"}
 
 
@@ -117,7 +117,7 @@ def test_other_task_automata(specs_dir: Path, name: str, expected: list[list[str
         assert all(b == "y" for a, b in changes if a == "d1")
 
 
-# --- issue 10, class 6: many free inputs -----------------------------------------------------
+# --- hostile specs: many free inputs --------------------------------------------------------------
 
 def _free_spec(n: int, *, name: str = "free") -> str:
     inputs = ", ".join(f'"x{i}"' for i in range(n))
@@ -139,8 +139,8 @@ def test_free_inputs_give_one_cube_per_edge(n: int) -> None:
         state, mode = aut.next_mode(state, [f"x{i}" for i in range(k, n, 5)])
         modes.append(mode)
     assert modes == ["b", "a", "b", "a"]
-    again = TaskAutomaton.from_json(json.loads(json.dumps(aut.to_json())))
-    assert again.to_json() == aut.to_json()
+    again = TaskAutomaton.from_dict(json.loads(json.dumps(aut.to_dict())))
+    assert again.to_dict() == aut.to_dict()
 
 
 def test_cubes_agree_with_every_valuation() -> None:
@@ -188,15 +188,15 @@ def test_too_many_states_are_refused_with_the_limit() -> None:
 
 
 def test_old_json_without_cubes_reads_full_readings(scoop: TaskAutomaton) -> None:
-    data = scoop.to_json()
+    data = scoop.to_dict()
     for t in data["transitions"]:
         del t["off"]
     del data["free_inputs"]
-    again = TaskAutomaton.from_json(data)
-    assert again.to_json() == scoop.to_json()
+    again = TaskAutomaton.from_dict(data)
+    assert again.to_dict() == scoop.to_dict()
 
 
-# --- issue 10, class 7: output injection -----------------------------------------------------
+# --- hostile specs: output injection --------------------------------------------------------------
 
 NAMES = st.text(st.characters(blacklist_categories=("Cc", "Cs")), min_size=1, max_size=40)
 
@@ -226,7 +226,7 @@ def test_hostile_spec_names_stay_inside_the_dot_string(name: str) -> None:
         label = dot_unescape(nodes[f"s{s.id}"].get_attributes()["label"])
         assert label == f"{s.mode}\n#{s.id} [{','.join(s.inputs) or '-'}]"
     assert len(graph.get_edges()) == len({(t.source, t.target) for t in aut.transitions}) + 1
-    assert json.loads(json.dumps(aut.to_json()))["name"] == name
+    assert json.loads(json.dumps(aut.to_dict()))["name"] == name
 
 
 @settings(max_examples=100, deadline=None)

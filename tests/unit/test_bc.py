@@ -1,4 +1,4 @@
-"""The behaviour-cloning baseline (paper appendix F): architecture, bound, determinism."""
+"""The behaviour-cloning baseline (paper appendix E.2): architecture, bound, determinism."""
 
 from __future__ import annotations
 

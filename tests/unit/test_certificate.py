@@ -13,17 +13,18 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     certificate_digest,
     check_certificate,
     issue_certificate,
     write_certificate,
 )
-from tli_verify.certify.repair import repair_model
+from tli_verify.certification.repair import repair_model
+from tli_verify.commands import exit_code
 from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import CertificateError
 from tli_verify.io import canonical_json, sha256_file
-from tli_verify.model import load_model, save_model
+from tli_verify.model.serialize import load_model, save_model
 
 
 def small_model(A1: list[list[float]], P: list[list[float]] | None = None,
@@ -75,12 +76,12 @@ def test_not_certifiable_names_mode_and_component(tmp_path: Path) -> None:
                        r"certify: component 1: A_k\^T P \+ P A_k is not negative definite .*"
                        r"--repair") as info:
         issue_certificate(path, cert_path=tmp_path / "c.json")
-    assert info.value.exit_code == 1
+    assert exit_code(info.value) == 1
     assert not (tmp_path / "c.json").exists()
     with pytest.raises(CertificateError, match=r"mode 'reach': no common quadratic Lyapunov "
                        r"function .*infeasible") as info:
         repair_model(path, tmp_path / "r.json", dt=Fraction(1, 1000))
-    assert info.value.exit_code == 1
+    assert exit_code(info.value) == 1
 
 
 @pytest.mark.parametrize("fit", [None, {"solver": "CLARABEL", "status": "optimal_inaccurate"}])
@@ -222,7 +223,7 @@ def test_malformed_certificates(tmp_path: Path) -> None:
     assert "'kind' is a required property" in check_certificate(bad).problems[0]
     with pytest.raises(CertificateError, match="no such certificate file") as info:
         check_certificate(tmp_path / "missing.json")
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
 
 
 def _rollout(ds: LPVDS, starts: np.ndarray, horizon: float) -> tuple[np.ndarray, np.ndarray]:

@@ -48,4 +48,4 @@ def test_ci_run_selects_the_ci_profile_whatever_the_environment(tmp_path: Path,
     env.pop("CI", None)
     subprocess.run(["bash", str(repo / ".ci" / "run")], env=env, check=True,
                    capture_output=True, text=True)
-    assert record.read_text().splitlines() == ["ci test", "ci gate"]
+    assert record.read_text().splitlines() == ["ci test", "ci docs", "ci gate"]

@@ -1,4 +1,4 @@
-"""A failure appendix F's QCQP cannot cut: the plane moves along the exit step.
+"""A failure appendix E.3's QCQP cannot cut: the plane moves along the exit step.
 
 Found by a bisimulation campaign on the scoop world (LTL-DS, step 276 of
 ``tests/regressions/scoop_ltlds_cut_failed.json``): mode b's run dipped below the chord from its

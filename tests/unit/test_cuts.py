@@ -1,4 +1,4 @@
-"""The cut QCQP (paper appendix F): feasibility, global optimality, errors, the Cut type."""
+"""The cut QCQP (paper appendix E.3): feasibility, global optimality, errors, the Cut type."""
 
 from __future__ import annotations
 
@@ -415,7 +415,7 @@ def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Methods (issue 11, "cut cost in higher dimensions"): the hull method is exact, the local one
+# Methods: the hull method is exact, the local one
 # is a verified separating cut, the enumeration is the baseline they are compared with.
 # --------------------------------------------------------------------------------------------
 

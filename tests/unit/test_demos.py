@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tli_verify.commands import exit_code
 from tli_verify.demos import demo_to_csv, load_demo, load_demos
 from tli_verify.errors import DemoError
 from tli_verify.tasks.registry import find_task
@@ -130,7 +131,7 @@ BAD = [
 def test_bad_input_messages(tmp_path: Path, text: str, message: str) -> None:
     with pytest.raises(DemoError, match=message) as info:
         load_demo(write(tmp_path, text))
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
     assert "\n" not in str(info.value)
 
 
@@ -164,7 +165,7 @@ def test_missing_file_and_no_files(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Issue 10: limits and clearer messages
+# Limits and clearer messages
 # --------------------------------------------------------------------------------------------
 
 from hypothesis import given, settings  # noqa: E402

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from tli_verify.tasks.registry import find_task
-from tli_verify.verify.campaign import LEVELS, draw_cases
-from tli_verify.verify.strategies import cases
+from tli_verify.verify.draws import draw_cases
+from tli_verify.verify.strategies import LEVELS, cases
 
 
 def test_draws_ignore_constants_of_modules_imported_in_between(

@@ -1,4 +1,4 @@
-"""Campaign evidence (issue 12 D): forgeries only the evidence check catches.
+"""Campaign evidence: forgeries only the evidence check catches.
 
 Every forgery below leaves the spec, the model and the certificate valid, so the gate's other
 checks pass; only the ``campaign`` line may block, and must, naming the file and what differs.
@@ -16,8 +16,9 @@ from typing import Any
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.cli import main
+from tli_verify.commands import exit_code
 from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import EvidenceError, OutputError
 from tli_verify.io import canonical_json, sha256_file
@@ -146,9 +147,10 @@ def test_stale_evidence_after_the_model_was_re_certified_blocks(project: Path) -
     (lambda d: d["campaign"].update(modulation=False), "ran without modulation"),
     (lambda d: d["campaign"].update(partial=True), "interrupted (partial)"),
     (lambda d: d.update(world="nowhere"), "world 'nowhere' is not the name of the task"),
-    (lambda d: d["tool"].update(version="0.0.0"), "written by tli-verify 0.0.0"),
+    (lambda d: d.update(campaign_semantics=d["campaign_semantics"] + 1),
+     "this tool's are"),
 ], ids=["violation", "inconsistent-total", "counterexample", "too-few-examples",
-        "too-few-runs", "no-modulation", "partial", "unknown-world", "old-tool"])
+        "too-few-runs", "no-modulation", "partial", "unknown-world", "other-semantics"])
 def test_a_campaign_that_is_no_evidence_blocks(project: Path, edit: Callable[[Any], None],
                                                said: str) -> None:
     forge(project, edit)
@@ -263,10 +265,10 @@ def test_write_evidence_refuses_bad_output_and_missing_files(project: Path) -> N
         write_evidence(project / "models" / "scoop.model.json", **fields)
     with pytest.raises(EvidenceError, match="model file not found") as info:
         write_evidence(project / "x.campaign.json", **{**fields, "model": project / "nope"})
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
     with pytest.raises(EvidenceError, match=r"campaign\.seed") as info:
         write_evidence(project / "x.campaign.json", **{**fields, "seed": 2**32})
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
     assert not (project / "x.campaign.json").exists()
 
 
@@ -298,14 +300,16 @@ def test_gate_rerun_argument_is_checked(project: Path,
 
 
 def test_schema_version_1_evidence_without_a_task_is_refused(project: Path) -> None:
-    """Evidence of the former schema (no ``task`` block) binds no task: malformed, blocks."""
+    """Evidence of a former schema (1: no ``task`` block) binds no task: it blocks, saying to
+    re-run the campaign."""
     def downgrade(doc: dict[str, Any]) -> None:
         doc["schema_version"] = 1
         del doc["task"]
+        del doc["campaign_semantics"]
 
     forge(project, downgrade)
     message = only_campaign_blocks(project)
-    assert "malformed campaign evidence" in message
+    assert "evidence schema 1" in message and "re-run the campaign" in message
 
 
 # --------------------------------------------------------------------------------------------

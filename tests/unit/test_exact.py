@@ -11,8 +11,8 @@ import sympy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import tli_verify.certify.exact as exact_module
-from tli_verify.certify.exact import (
+import tli_verify.certification.exact as exact_module
+from tli_verify.certification.exact import (
     MAX_EXACT_DIM,
     Dyadic,
     certified_decay_rate,

@@ -140,9 +140,9 @@ class _PlainSensors:
 
 
 def test_batched_fast_path_matches_general_path() -> None:
-    from tli_verify.experiments.scoop import scoop_setup
+    from tli_verify.experiments.scoop_task import scoop_setup
     from tli_verify.runtime.episodes import random_start
-    from tli_verify.runtime.executive import run_episodes
+    from tli_verify.runtime.loop import run_episodes
     from tli_verify.runtime.setup import make_policy
 
     setup = scoop_setup()
@@ -172,8 +172,9 @@ def test_batched_fast_path_matches_general_path() -> None:
 
 def test_batched_loop_calls_an_overridden_decide() -> None:
     """A subclass's decide() (e.g. the no-replan ablation) is not bypassed by the fast path."""
-    from tli_verify.experiments.scoop import scoop_setup
-    from tli_verify.runtime.executive import LTLDSPolicy, run_episodes
+    from tli_verify.experiments.scoop_task import scoop_setup
+    from tli_verify.runtime.executive import LTLDSPolicy
+    from tli_verify.runtime.loop import run_episodes
     from tli_verify.runtime.setup import make_policy
 
     class Counting(LTLDSPolicy):

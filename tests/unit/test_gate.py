@@ -10,11 +10,12 @@ from typing import Any
 import pytest
 
 from tests.support.evidence import attach_evidence
-from tli_verify.certify.certificate import (
+from tli_verify.certification.certificate import (
     check_certificate,
     issue_certificate,
     write_certificate,
 )
+from tli_verify.commands import exit_code
 from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import GateError
 
@@ -161,7 +162,7 @@ def test_nothing_to_gate_fails_closed_and_non_directory_is_usage_error(tmp_path:
     assert [b.kind for b in run_gate(tmp_path, rerun=0).blockers] == ["project"]
     with pytest.raises(GateError, match="not a directory") as info:
         run_gate(tmp_path / "nope", rerun=0)
-    assert info.value.exit_code == 2
+    assert exit_code(info.value) == 2
 
 
 def test_repository_gate_passes(repo: Path) -> None:
@@ -189,7 +190,7 @@ def test_certificate_states_the_declared_numeric_ranges(project: Path) -> None:
     doc = json.loads(cert.read_text())
     assert doc["well_posed"]["velocity_finite"] is True
     doc["well_posed"]["limits"]["max_abs_value"] = 1e300  # claim a laxer range, digest redone
-    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.certification.certificate import certificate_digest
     from tli_verify.io import canonical_json
 
     doc["digest"] = certificate_digest(doc)
@@ -220,7 +221,7 @@ def test_spec_path_through_a_symlink_and_dotdot_binds_the_file_the_os_opens(
     and digest redone) must not pass."""
     import os
 
-    from tli_verify.certify.certificate import certificate_digest
+    from tli_verify.certification.certificate import certificate_digest
     from tli_verify.io import canonical_json, sha256_file
 
     outside = tmp_path_factory.mktemp("outside")

@@ -18,6 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.support.evidence import attach_evidence
+from tli_verify.commands import exit_code
 from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import TliError
 from tli_verify.io import parse_json, read_json
@@ -120,7 +121,7 @@ def test_forged_settings_are_refused_naming_the_field(key: str, value: Any) -> N
     """Recorded settings are validated like the CLI's options before any re-run (the gate
     builds its re-run config through the same checks): a forged one is one error naming it,
     never a TypeError or a campaign of 10^12 runs per batch."""
-    from tli_verify.verify.campaign import CampaignConfig
+    from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import settings_for_config
 
     recorded = {"window": 700, "max_pushes": 3, "batch_size": 100, key: value}
@@ -128,7 +129,7 @@ def test_forged_settings_are_refused_naming_the_field(key: str, value: Any) -> N
     try:
         CampaignConfig(task="scoop", examples=3, **kwargs)
     except TliError as exc:
-        assert str(exc).startswith(key) and exc.exit_code == 2, str(exc)
+        assert str(exc).startswith(key) and exit_code(exc) == 2, str(exc)
     else:  # accepted only if the forged value is a valid one
         assert (key, value) == ("random_starts", True), (key, value)
 

@@ -18,7 +18,7 @@ import pytest
 from tli_verify.errors import TaskError, TliError
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
-from tli_verify.model import load_model
+from tli_verify.model.serialize import load_model
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.setup import check_goal
 from tli_verify.tasks.project import resolve

@@ -2,7 +2,7 @@
 
 A toy project: two sensors ``u``, ``v``; modes ``a`` (neither), ``b`` (u), ``c`` (v); a
 hand-built certified model (stable linear DS, ``P = I``). The closed-loop success case (scoop,
-growing to paper Fig. 5(a)) is ``tests/integration/test_grow_closed_loop.py``.
+growing to paper Fig. 3(a)) is ``tests/integration/test_grow_closed_loop.py``.
 """
 
 from __future__ import annotations
@@ -15,11 +15,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.errors import TliError
 from tli_verify.logic.check import check_spec, synthesize
 from tli_verify.logic.spec import parse_spec
-from tli_verify.model import Model, load_model, model_from_dict, save_model
+from tli_verify.model.serialize import load_model, model_from_dict, save_model
+from tli_verify.model.types import Model
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
     TransitionLearned,

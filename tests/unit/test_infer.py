@@ -30,7 +30,7 @@ from tli_verify.logic.infer import (
 from tli_verify.logic.spec import GR1Spec, label_holds, load_spec, parse_spec
 
 PERTURBATIONS = (("b", "a"), ("c", "a"), ("c", "b"))
-"""The recovery edges perturbations discover on scoop (paper Fig. 5(a), grey edges)."""
+"""The recovery edges perturbations discover on scoop (paper Fig. 3(a), grey edges)."""
 
 
 def _omega(spec: GR1Spec) -> bool:
@@ -85,7 +85,7 @@ def test_scoop_inferred_spec_round_trips_through_load_spec(inferred: GR1Spec,
     out.write_text(spec_to_toml(inferred))
     again = load_spec(out)
     assert [f.text for f in again.formulas()] == [f.text for f in inferred.formulas()]
-    assert synthesize(again).to_json() == synthesize(inferred).to_json()
+    assert synthesize(again).to_dict() == synthesize(inferred).to_dict()
 
 
 def test_scoop_demo_only_automaton_has_the_demonstrated_chain(inferred: GR1Spec) -> None:
@@ -112,7 +112,7 @@ def test_perturbations_grow_the_automaton_to_fig_5a(inferred: GR1Spec, specs_dir
     ours = synthesize(grown)
     assert ours.mode_transitions() == paper.mode_transitions()
     # Not only the mode graph: the whole automaton is the sound scoop spec's.
-    mine, theirs = ours.to_json(), paper.to_json()
+    mine, theirs = ours.to_dict(), paper.to_dict()
     mine.pop("name")
     theirs.pop("name")
     assert mine == theirs
@@ -127,7 +127,7 @@ def test_grown_spec_round_trips(inferred: GR1Spec, tmp_path: Path) -> None:
     out.write_text(spec_to_toml(grown))
     again = load_spec(out)
     assert [f.text for f in again.formulas()] == [f.text for f in grown.formulas()]
-    assert synthesize(again).to_json() == synthesize(grown).to_json()
+    assert synthesize(again).to_dict() == synthesize(grown).to_dict()
 
 
 def test_transition_into_unknown_mode_is_refused(inferred: GR1Spec) -> None:
@@ -138,12 +138,12 @@ def test_transition_into_unknown_mode_is_refused(inferred: GR1Spec) -> None:
 
 
 def test_unrealizable_growth_is_refused_and_the_old_spec_kept(inferred: GR1Spec) -> None:
-    before = synthesize(inferred).to_json()
+    before = synthesize(inferred).to_dict()
     # b -> a as a nominal (unmarked) change: the world may loop a, b, a, b forever while
     # meeting every fairness assumption, and GF d is lost.
     with pytest.raises(UnrealizableError, match=r"b -> a makes the spec unrealizable.*kept"):
         add_transition(inferred, "b", "a", perturbation=False)
-    assert synthesize(inferred).to_json() == before
+    assert synthesize(inferred).to_dict() == before
     # The same edge marked as a perturbation is accepted (the GF(d | p) encoding).
     assert check_spec(add_transition(inferred, "b", "a")).realizable
 
@@ -296,7 +296,7 @@ def test_any_perturbation_growth_stays_sound_and_adds_exactly_its_edges(
     edges = {(a, b) for a, b in synthesize(spec).mode_transitions() if a != b}
     assert edges == {("a", "b"), ("b", "c"), ("c", "d")} | set(pairs)
     again = parse_spec(spec_to_toml(spec))
-    assert synthesize(again).to_json() == synthesize(spec).to_json()
+    assert synthesize(again).to_dict() == synthesize(spec).to_dict()
 
 
 def test_a_mode_seen_for_one_sample_is_an_observation() -> None:

@@ -32,7 +32,7 @@ def test_atomic_write_replaces(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Issue 10: output checks, bounded reads, nesting
+# Output checks, bounded reads, nesting
 # --------------------------------------------------------------------------------------------
 
 from hypothesis import given, settings  # noqa: E402

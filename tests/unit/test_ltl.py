@@ -1,4 +1,4 @@
-"""GR(1) slot classification of Spot formulas (issue 2: every formula checked in its slot)."""
+"""GR(1) slot classification of Spot formulas (every formula checked in its slot)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from tli_verify.certify.exact import check_lyapunov
+from tli_verify.certification.exact import check_lyapunov
+from tli_verify.commands import exit_code
 from tli_verify.ds.lyapunov import (
     data_rate,
     decay_rate,
@@ -75,7 +76,7 @@ def test_infeasible_sdp_is_a_solver_error_not_a_model() -> None:
     with pytest.raises(SolverError, match=r"P-search: solver CLARABEL returned status "
                                           r"'infeasible', not 'optimal'") as info:
         find_p(A)
-    assert info.value.exit_code == 1
+    assert exit_code(info.value) == 1
 
 
 def test_shape_mismatch() -> None:

@@ -1,4 +1,4 @@
-"""Modulation (paper eq. 5): vectorised closed form vs. literal E D E^-1, invariants, errors."""
+"""Modulation (paper eq. 7): vectorised closed form vs. literal E D E^-1, invariants, errors."""
 
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ def _inside_near_faces(x_star: np.ndarray, cuts: list[Cut], rng: np.random.Gener
             rows = rng.choice(len(cuts), size=k, replace=False)
             A = W[rows]
             # onto those planes, then inwards by distinct tiny amounts: no exact ties of the
-            # closest cut, where eq. 5 may legitimately pick either cut
+            # closest cut, where eq. 7 may legitimately pick either cut
             x = x - np.linalg.pinv(A) @ (A @ x - b[rows] + rng.uniform(1e-9, 1e-7, k))
         if np.all(W @ x <= b + 1e-12):
             out.append(x)
@@ -88,7 +88,7 @@ def test_guard_matches_kkt_enumeration(n: int, certified: bool, dt: float | None
 
 
 def test_guard_is_the_projection_cvxpy() -> None:
-    """Where the guard acts, its answer is the P-metric projection of eq. 5 on C(x): an
+    """Where the guard acts, its answer is the P-metric projection of eq. 7 on C(x): an
     independent solver (cvxpy with Clarabel) finds the same point."""
     import cvxpy as cp
 
@@ -193,7 +193,7 @@ def test_degenerate_cut_is_lyapunov_neutral() -> None:
     D = X - x_star
     dv_nom = np.einsum("ni,ij,nj->n", D, P, F)
     np.testing.assert_allclose(np.einsum("ni,ij,nj->n", D, P, mod.eq5(X, F)), dv_nom,
-                               atol=1e-9)  # eq. 5's correction for a cut through x*
+                               atol=1e-9)  # eq. 7's correction for a cut through x*
     dv_guarded = np.einsum("ni,ij,nj->n", D, P, mod(X, F))
     assert np.all(dv_guarded <= dv_nom + 1e-9)  # the guard can only slow V down further
     on_plane = X.copy()
@@ -242,10 +242,10 @@ def test_modulated_wrapper_uses_policy_lyapunov() -> None:
 
 
 def test_mixed_corner_eq5_leaves_guard_stays() -> None:
-    """A cut through x* next to a regular cut: eq. 5 alone leaves, the guarded field does not.
+    """A cut through x* next to a regular cut: eq. 7 alone leaves, the guarded field does not.
 
     Minimal case found by hypothesis (tests/property/test_theorem1.py): P = I, x* = 0, cuts
-    x <= 0.5 and y <= 0 (the latter holds x*). On each face eq. 5's velocity is tangent, but the
+    x <= 0.5 and y <= 0 (the latter holds x*). On each face eq. 7's velocity is tangent, but the
     field switches between the radial and the V-neutral correction across Gamma_x = Gamma_y and
     slides along that surface into the corner and out of the cuts. The corner guard keeps every
     Euler step inside (Thm. 1 for any cut set, docs/boundary.md) and the state still converges.
@@ -263,7 +263,7 @@ def test_mixed_corner_eq5_leaves_guard_stays() -> None:
         worst = max(worst, float(mod.gamma(X)[0]))
         if worst > 1.0 + 1e-3:
             break
-    assert worst > 1.0 + 1e-3  # paper eq. 5 alone leaves the cuts here
+    assert worst > 1.0 + 1e-3  # paper eq. 7 alone leaves the cuts here
     for step in (2e-4, 1e-2):
         X, worst = X0.copy(), 0.0
         for _ in range(round(8.0 / step)):
@@ -311,7 +311,7 @@ def test_policy_through_x_star_with_a_cut_through_x_star() -> None:
 
 
 def test_sampled_data_caps_eq5_near_tiny_offsets() -> None:
-    """A cut a hair off x* makes eq. 5's correction |f| |x - x*| / h; with dt it is capped, so
+    """A cut a hair off x* makes eq. 7's correction |f| |x - x*| / h; with dt it is capped, so
     one step cannot fling the state far past x*."""
     A = np.array([[-1.0, -1.0], [1.0, -1.0]])
     for h in (1e-6, 1e-3):

@@ -13,8 +13,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tli_verify.verify.campaign import CampaignConfig, load, sim_spec
+from tli_verify.verify.config import CampaignConfig, sim_spec
 from tli_verify.verify.oracle import CutRecord, Oracle, Trace, ViolationKind
+from tli_verify.verify.simulate import load
 
 WHITE = (-5.0, 4.5)
 WHITE_LOW = (-3.0, -3.0)
@@ -169,12 +170,14 @@ def test_certified_deadline_holds_on_simulated_runs(oracle: Oracle) -> None:
     # the certificate predicts the rollout: on real closed-loop runs (LTL-DS, the shipped
     # model) the goal is reached before the oracle's certified deadline, from every
     # disturbed state drawn here
-    from tli_verify.verify.campaign import _strategy, draw_cases, resolve_config, simulate
+    from tli_verify.verify.config import resolve_config
+    from tli_verify.verify.draws import config_strategy, draw_cases
+    from tli_verify.verify.simulate import simulate
 
     # the strategy draws from a config with the task's defaults filled in
     _, cfg = resolve_config(CampaignConfig(task="scoop", modulation=True))
     spec = sim_spec(cfg)
-    cases = draw_cases(_strategy(cfg, load(spec)), 12, "deadline-check")
+    cases = draw_cases(config_strategy(cfg, load(spec)), 12, "deadline-check")
     for trace, _ in simulate(spec, cases):
         v = oracle.check(trace)
         assert v.reached and v.conclusive

@@ -1,4 +1,4 @@
-"""The torque-actuated Menagerie Panda (issue 13): forward kinematics against Franka's published
+"""The torque-actuated Menagerie Panda: forward kinematics against Franka's published
 modified DH parameters, motors and torque limits, gravity/Coriolis compensation."""
 
 from __future__ import annotations

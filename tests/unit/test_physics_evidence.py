@@ -1,4 +1,4 @@
-"""Campaign evidence of the Franka policy's physical campaign (issue 13, world franka-physics).
+"""Campaign evidence of the Franka policy's physical campaign (world franka-physics).
 
 The evidence here binds a copy of the current ``sim/franka`` spec, model and certificate exactly
 as ``tli sim franka --evidence`` does, but its trial outcomes are stated, not simulated (the
@@ -20,8 +20,8 @@ import pytest
 from tests.support.cli import run
 from tli_verify.deploy.gate import run_gate
 from tli_verify.io import bundled_dir, canonical_json
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS, MIN_PHYSICS_TRIALS
 from tli_verify.verify.evidence import (
-    MIN_PHYSICS_TRIALS,
     check_evidence,
     deployed_task_block,
     evidence_digest,
@@ -110,7 +110,7 @@ def test_valid_physical_evidence_passes_the_gate(franka: Path,
     assert f"{MIN_PHYSICS_TRIALS} perturbed trials from seed 0" in line.message
     code, out, err = run(capsys, "gate", str(franka))
     assert code == 0 and out.rstrip().endswith("model(s), 1 spec(s))") and err == ""
-    check = check_evidence(franka / EVIDENCE)
+    check = check_evidence(franka / EVIDENCE, physical=(FRANKA_PHYSICS,))
     assert check.ok and dict(check.physics) == {"robot": "hand", "variant": "LTL-DS",
                                                 "duration": 20.0, "pushes": 1, "tilts": 1}
 

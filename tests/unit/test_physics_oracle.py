@@ -1,4 +1,4 @@
-"""The physics oracle of the Franka trials (issue 13): forged trials that only one check catches.
+"""The physics oracle of the Franka trials: forged trials that only one check catches.
 
 A nominal trial's shape (measured: ``tli sim franka --no-perturb``, seed 0: the soup bowl
 reached at step 77, soup on the spoon at step 97, above the target at step 286) is the valid
@@ -18,8 +18,8 @@ pytest.importorskip("mujoco")
 from tli_verify.io import bundled_dir
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
-from tli_verify.sim.campaign import check_trial
 from tli_verify.sim.loop import Perturbation, TrialResult
+from tli_verify.sim.trial_oracle import check_trial
 
 SPEC = bundled_dir("sim") / "franka" / "specs" / "franka-scoop.toml"
 

@@ -10,13 +10,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tli_verify.certify.certificate import issue_certificate, write_certificate
+from tli_verify.certification.certificate import issue_certificate, write_certificate
 from tli_verify.deploy.gate import run_gate
 from tli_verify.errors import ModelError
 from tli_verify.logic.automaton import PlannedStep, TaskAutomaton
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
-from tli_verify.model import load_model
+from tli_verify.model.serialize import load_model
 from tli_verify.runtime.executive import LTLDSPolicy
 
 _SCOOP: list[TaskAutomaton] = []

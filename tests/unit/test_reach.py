@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from tli_verify.certify.exact import certified_decay_rate
-from tli_verify.certify.reach import max_v_on_box, reach_deadline
+from tli_verify.certification.exact import certified_decay_rate
+from tli_verify.certification.reach import max_v_on_box, reach_deadline
 from tli_verify.ds.lpvds import LPVDS
 
 

@@ -11,7 +11,8 @@ import pytest
 
 from tli_verify.errors import ModelError
 from tli_verify.logic.spec import load_spec
-from tli_verify.model import Model, ModeModel, load_model, model_from_dict, model_to_dict
+from tli_verify.model.serialize import load_model, model_from_dict, model_to_dict
+from tli_verify.model.types import Model, ModeModel
 from tli_verify.rebind import reading_of, rebind_model
 
 

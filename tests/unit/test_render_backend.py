@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from tli_verify.commands import exit_code
 from tli_verify.errors import TliError
 from tli_verify.sim import render
 from tli_verify.sim.render import Probe
@@ -49,7 +50,7 @@ def test_none_working_is_one_line_naming_each_backend_and_what_to_install() -> N
     with pytest.raises(TliError) as info:
         render.choose_backend({}, probe)
     msg = str(info.value)
-    assert info.value.exit_code == 2 and "\n" not in msg
+    assert exit_code(info.value) == 2 and "\n" not in msg
     assert msg.startswith("--video: no headless OpenGL context")
     assert "MUJOCO_GL=egl: EGLError: no display" in msg
     assert "MUJOCO_GL=osmesa: libOSMesa not found" in msg

@@ -15,9 +15,10 @@ from hypothesis import strategies as st
 
 from tli_verify.boundary.cuts import Cut, inside_cuts
 from tli_verify.boundary.modulation import modulate
-from tli_verify.certify.certificate import check_certificate
+from tli_verify.certification.certificate import check_certificate
 from tli_verify.errors import CertificateError, ModelError
-from tli_verify.model import Model, load_model, model_from_dict
+from tli_verify.model.serialize import load_model, model_from_dict
+from tli_verify.model.types import Model
 from tli_verify.runtime.online import cut_for_failure, learn_cuts
 from tli_verify.runtime.persist import save_certified
 from tli_verify.runtime.rollout import EulerProtocol, cap_speed, failures, rollout

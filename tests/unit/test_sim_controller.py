@@ -1,4 +1,4 @@
-"""The Cartesian impedance controller of the Panda (issue 13): step response, null-space
+"""The Cartesian impedance controller of the Panda: step response, null-space
 posture, saturation, DS-target tracking, the 4-D DS state map, the sampled-data check."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The single-mode study's tasks (tli_verify.tasks.generate): random convex modes and
-synthetic demonstrations (paper appendix F), a mode being a polytope region of a task."""
+synthetic demonstrations (paper appendix E), a mode being a polytope region of a task."""
 
 from __future__ import annotations
 

@@ -17,9 +17,9 @@ from PIL import Image, ImageSequence
 from tli_verify.boundary.cuts import Cut
 from tli_verify.ds.lpvds import LPVDS
 from tli_verify.errors import ModelError, TliError
-from tli_verify.model import Model, ModeModel
+from tli_verify.model.types import Model, ModeModel
 from tli_verify.runtime.events import CutAdded, InvarianceFailure, Perturbation
-from tli_verify.runtime.executive import EpisodeResult
+from tli_verify.runtime.loop import EpisodeResult
 from tli_verify.viz import regions as vr
 from tli_verify.viz.episodes import (
     animate_episode,

@@ -1,4 +1,4 @@
 """Mode boundaries learned online: cutting planes (cuts.py) and DS modulation (modulation.py).
 
-Paper Sec. 5.2, Thm. 1 and appendix F.
+Paper Sec. 5.2, Thm. 1 and appendix E.3.
 """

@@ -1,11 +1,11 @@
-"""Cutting planes that inner-approximate a mode boundary (paper Sec. 5.2, appendix F).
+"""Cutting planes that inner-approximate a mode boundary (paper Sec. 5.2, appendix E.3).
 
 A cut is a hyperplane through a last in-mode state with a unit normal pointing out of the mode.
 It is learned from one *invariance failure* (paper Sec. 5.2): the triple of the mode-entry state
 ``x^0``, the last in-mode state ``x^{T_f-1}`` and the first state outside the mode ``x^{T_f}``.
 
-The cut problem (paper appendix F, "QCQP Optimization Details")
----------------------------------------------------------------
+The cut problem (paper appendix E.3, "QCQP Optimization Details")
+------------------------------------------------------------------
 Write ``l = x^{T_f-1}``, ``d = x* - l``, ``s = x^{T_f} - l`` and ``c_j = q_j - l`` for the points
 ``q_j`` that must stay on the inner side (the entry state ``x^0`` and the points of the earlier
 cuts of the mode). The normal ``w`` of the plane through ``l`` solves::
@@ -63,7 +63,7 @@ Methods for branch 2 (``method=`` of :func:`solve_cut_detailed`):
     Every subset of planes: at most ``sum_{i < n} C(m, i)`` small linear algebra problems,
     batched, keeping the feasible candidates and taking the best. A global optimum, but
     exponential in ``n``: 0.14 s at ``n = 4`` with 40 inner points, 12-19 s at ``n = 6``
-    (``benchmarks/bench_cuts.py``; issue 11 measured 26 s on another machine).
+    (``benchmarks/bench_cuts.py`` measured 26 s on another machine).
 ``"hull"``
     Only the faces of the polyhedral cone ``P0 = {C w <= 0}``: with ``g`` interior to ``P0``
     (minus the minimum-norm point of the convex hull of the rows, one NNLS), the points
@@ -99,7 +99,7 @@ exists (the failure direction lies in the cone spanned by the inner points: no p
 References
 ----------
 .. [1] Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing
-   Motion Policies from Demonstrations", CoRL 2022, Sec. 5.2 and appendix F.
+   Motion Policies from Demonstrations", CoRL 2022, Sec. 5.2 and appendix E.3.
 """
 
 from __future__ import annotations
@@ -345,7 +345,7 @@ def solve_cut_detailed(
     margin: float = 1e-3,
     method: CutMethod = "auto",
 ) -> CutSolution:
-    """Solve the cut QCQP of paper appendix F (see the module docstring).
+    """Solve the cut QCQP of paper appendix E.3 (see the module docstring).
 
     Parameters
     ----------
@@ -356,7 +356,7 @@ def solve_cut_detailed(
     previous : sequence of Cut or array_like, optional
         Earlier cuts of this mode (their points must stay inside), or the points themselves.
     keep_inside : array_like, shape (k, n), optional
-        More states that must stay on the inner side (an extension of appendix F: e.g. every
+        More states that must stay on the inner side (an extension of appendix E.3: e.g. every
         observed mode-entry state, not only this failure's ``x^0``). Each adds one row to ``C``.
     margin : float, optional
         ``mu`` in ``w . (x^{T_f} - x^{T_f-1}) >= mu ||x^{T_f} - x^{T_f-1}||``; in ``(0, 1)``.
@@ -382,7 +382,7 @@ def solve_cut_detailed(
 
     References
     ----------
-    Paper appendix F (the QCQP) and Sec. 5.2 (separation of the failure state).
+    Paper appendix E.3 (the QCQP) and Sec. 5.2 (separation of the failure state).
     """
     if not 0.0 < margin < 1.0:
         raise ModelError(f"margin must be in (0, 1), got {margin}")

@@ -1,10 +1,10 @@
-"""DS modulation by cutting planes (paper Sec. 5.2, eq. 5, Thm. 1 and its proof in appendix A).
+"""DS modulation by cutting planes (paper Sec. 5.2, eq. 7, Thm. 1 and its proof in appendix A).
 
 Notation: attractor ``x*``, cuts ``i = 1..m`` with unit outward normal ``w_i`` through ``p_i``,
 offset ``h_i = w_i . (p_i - x*)`` (``h_i > 0``: ``x*`` strictly inside; ``h_i = 0``: the plane
 holds ``x*``, a *degenerate* cut; ``h_i < 0`` is rejected), nominal velocity ``f = f(x)``.
 
-Regular cuts (``h_i > 0``), exactly paper eq. 5 with reference point ``x^r = x*``::
+Regular cuts (``h_i > 0``), exactly paper eq. 7 with reference point ``x^r = x*``::
 
     Gamma_i(x) = w_i . (x - x*) / h_i          (0 at x*, 1 on the plane, > 1 beyond it)
     Gamma(x)   = max(0, max_i Gamma_i(x))      (the max with 0 keeps lambda_r <= 1, see below)
@@ -25,8 +25,8 @@ and ``dV/dt`` changes by ``-2 (w_a . f / h_a) V(x) <= 0`` (Thm. 1's proof). Outs
 reach (``Gamma_i <= 0`` for all i, i.e. ``x`` behind ``x*``) ``M = I``: this is why ``Gamma`` is
 clipped at 0 -- a negative ``Gamma`` would give ``lambda_r > 1`` and amplify an outward flow.
 
-Degenerate cuts (``h_i = 0``, the plane holds ``x*``). The cut QCQP (appendix F) minimises the
-plane's distance to ``x*``, so its optimum is often exactly such a plane. Eq. 5 cannot handle
+Degenerate cuts (``h_i = 0``, the plane holds ``x*``). The cut QCQP (appendix E.3) minimises the
+plane's distance to ``x*``, so its optimum is often exactly such a plane. Eq. 7 cannot handle
 it: ``r`` lies in the plane there, so ``E`` is singular and radial scaling cannot remove a
 normal velocity. We keep the structure ``M = E D E^-1`` with ``D = diag(1 - Gamma_i, 1, .., 1)``
 and the tangent basis of the cut, and replace the reference direction ``r`` by the direction
@@ -45,11 +45,11 @@ A cut counts as degenerate when ``|h_i| <= 1e-9 max(1, ||p_i - x*||)``.
 
 At ``x = x*`` the reference direction is undefined and ``M = I`` (for a DS, ``f(x*) = 0``).
 
-Corner guard (our extension; it makes Thm. 1 hold for *every* cut set). Eq. 5 handles one cut
+Corner guard (our extension; it makes Thm. 1 hold for *every* cut set). Eq. 7 handles one cut
 at a time: the closest. Where two planes meet it can push the state out through the other one
 -- for regular cuts only by an ``O(dt)`` Euler overshoot, but where a cut through ``x*`` meets
 another cut the exact flow slides into the corner and out (hypothesis found such a case, kept
-in ``tests/unit/test_modulation.py``). So :meth:`Modulator.__call__` keeps eq. 5's velocity
+in ``tests/unit/test_modulation.py``). So :meth:`Modulator.__call__` keeps eq. 7's velocity
 ``g = M f`` only if it lies in the admissible set, and otherwise replaces it by its projection in
 the ``P`` metric (the least change of ``g``)::
 
@@ -61,9 +61,9 @@ the ``P`` metric (the least change of ``g``)::
 with ``b_i(x) = w_i . (p_i - x)`` the distance to plane ``i``. Cut ``i`` *applies* where the
 state is on its inner side or within a rounding band beyond it, ``b_i >= -1e-9 (1 + ||x - x*||
 + h_i)``; in the band its bound is 0. The barrier rate is ``rho_i = max(min(max(kappa, r_i),
-100 kappa), t)``: ``kappa`` a floor (``barrier_rate``, 10/s by default), ``r_i`` the rate eq. 5
+100 kappa), t)``: ``kappa`` a floor (``barrier_rate``, 10/s by default), ``r_i`` the rate eq. 7
 itself uses for that cut (``(w_i . f)^+ / h_i``, or ``sigma (w_i . f)^+ / (q V)`` for a cut
-through ``x*``, so eq. 5 satisfies the row of its closest cut; capped to keep rates bounded) and
+through ``x*``, so eq. 7 satisfies the row of its closest cut; capped to keep rates bounded) and
 ``t = (-grad V . f)^+ / V`` (0 at ``x*``). Then:
 
 - ``C(x)`` is never empty: ``v = -t (x - x*)`` satisfies every row (for ``w_i . (x - x*) >= 0``
@@ -84,21 +84,21 @@ through ``x*``, so eq. 5 satisfies the row of its closest cut; capped to keep ra
 - Sampled data: with the control period ``dt`` (``__call__(..., dt=)``) every rate is ``1/dt``
   -- the rows say "no step past a plane": ``b_i(x + dt v) = b_i(x) - dt w_i . v >= 0`` up to
   rounding, and a state in the band cannot move further out -- and the last row is relaxed to
-  ``grad V . v <= max(grad V . f, -V/dt)`` (the witness then has ``t = min(t, 1/dt)``). Eq. 5's
+  ``grad V . v <= max(grad V . f, -V/dt)`` (the witness then has ``t = min(t, 1/dt)``). Eq. 7's
   radial coefficient ``w_a . f / h_a`` is also capped at ``1/dt``: near a cut with a tiny
   offset ``h_a`` it is huge, and one step of it would carry the state far past ``x*``. So no
   explicit Euler step crosses a cut. This is what a control loop (and the single-mode study)
   uses; ``V`` itself may still grow over one step if ``dt`` is too long for ``f``, as for any
   Euler discretisation.
 
-Where eq. 5's answer is admissible the guard changes nothing: with ``dt``, wherever the next
+Where eq. 7's answer is admissible the guard changes nothing: with ``dt``, wherever the next
 step stays inside every cut that applies; in continuous time, wherever the outward speed towards
 each plane but the closest is below ``kappa`` times the distance to it (a braking distance, not
 only at corners). A vectorised screen finds the states that may need the projection.
 
 References
 ----------
-.. [1] Wang et al., "Temporal Logic Imitation", CoRL 2022: Sec. 5.2, eq. 5, Thm. 1, appendix A.
+.. [1] Wang et al., "Temporal Logic Imitation", CoRL 2022: Sec. 5.2, eq. 7, Thm. 1, appendix A.
 .. [2] Khansari-Zadeh, Billard, "A dynamical system approach to realtime obstacle avoidance",
    Autonomous Robots 2012; Huber, Billard, Slotine, "Avoidance of convex and concave obstacles
    with convergence ensured through contraction", RA-L 2019.
@@ -146,12 +146,12 @@ BOUNDARY_TOL = 1e-9
 """States with ``Gamma <= 1 + BOUNDARY_TOL`` count as inside (rounding on the plane)."""
 
 RATE_CAP = 100.0
-"""Continuous time: the barrier rates eq. 5 asks for are capped at ``RATE_CAP * kappa`` (a bounded
+"""Continuous time: the barrier rates eq. 7 asks for are capped at ``RATE_CAP * kappa`` (a bounded
 rate is what the invariance argument needs; it matters only for cuts through ``x*`` next to
 ``x*`` with a policy that does not vanish there, e.g. BC)."""
 
 GUARD_TOL = 1e-12
-"""Relative slack before the corner guard treats an eq. 5 velocity as inadmissible."""
+"""Relative slack before the corner guard treats an eq. 7 velocity as inadmissible."""
 
 
 @runtime_checkable
@@ -216,7 +216,7 @@ class Modulator:
         barrier_rate : float, optional
             The least barrier rate ``kappa`` of the continuous-time corner guard, in 1/s (see
             the module docstring; with a control period ``dt`` the rate is ``1/dt``). Larger
-            values leave more of eq. 5 untouched and let the flow approach a face faster; any
+            values leave more of eq. 7 untouched and let the flow approach a face faster; any
             positive value keeps Thm. 1.
 
         Raises
@@ -322,7 +322,7 @@ class Modulator:
         return np.maximum(np.max(G, axis=1), 0.0)
 
     def eq5(self, X: npt.ArrayLike, F: npt.ArrayLike) -> FloatArray:
-        """Paper eq. 5 alone, ``M(x) f(x)`` by the closest cut, vectorised over N.
+        """Paper eq. 7 alone, ``M(x) f(x)`` by the closest cut, vectorised over N.
 
         This is the modulation the paper defines (and :func:`modulate_reference` builds
         literally); :meth:`__call__` adds the corner guard on top of it.
@@ -349,11 +349,11 @@ class Modulator:
 
     def _eq5(self, Xa: FloatArray, Fa: FloatArray, dt: float | None = None
              ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
-        """Eq. 5 on checked arrays: ``(M f, X - x*, S = (X - x*) W^T)`` (None, None: no cuts).
+        """Eq. 7 on checked arrays: ``(M f, X - x*, S = (X - x*) W^T)`` (None, None: no cuts).
 
         With a control period ``dt`` the radial coefficient ``w_a . f / h_a`` is capped at
         ``1 / dt``: one step of the correction never carries the state past ``x*`` (it would
-        near a cut with a tiny offset ``h_a``, where eq. 5's correction is ``|f| |x - x*| / h_a``).
+        near a cut with a tiny offset ``h_a``, where eq. 7's correction is ``|f| |x - x*| / h_a``).
         """
         m = self.W.shape[0]
         if m == 0 or Xa.shape[0] == 0:
@@ -383,7 +383,7 @@ class Modulator:
 
     def __call__(self, X: npt.ArrayLike, F: npt.ArrayLike, *,
                  dt: float | None = None) -> FloatArray:
-        """Modulated velocities: eq. 5 (:meth:`eq5`) with the corner guard, vectorised over N.
+        """Modulated velocities: eq. 7 (:meth:`eq5`) with the corner guard, vectorised over N.
 
         Parameters
         ----------
@@ -397,7 +397,7 @@ class Modulator:
         Returns
         -------
         ndarray, shape (N, n)
-            A velocity in the admissible set ``C(x)`` (module docstring): eq. 5's where that
+            A velocity in the admissible set ``C(x)`` (module docstring): eq. 7's where that
             is admissible (inside the cuts), ``f(x)`` where no cut applies.
         """
         check_control_period(dt)
@@ -407,7 +407,7 @@ class Modulator:
             return out
         # Screen (cheap, conservative): a row can only be violated where w_i . v exceeds
         # kappa b_i (continuous time, rho_i >= kappa) or b_i / dt (sampled data). The Lyapunov
-        # row needs no screen: eq. 5 never raises dV/dt (Thm. 1 (b)).
+        # row needs no screen: eq. 7 never raises dV/dt (Thm. 1 (b)).
         B = self.h - S
         rate = self.barrier_rate if dt is None else 1.0 / dt
         near = out @ self.W.T > rate * np.maximum(B, 0.0)
@@ -524,7 +524,7 @@ class Modulator:
 
     def _guard(self, X: FloatArray, F: FloatArray, out: FloatArray,
                dt: float | None) -> FloatArray:
-        """Replace each inadmissible eq. 5 velocity by its ``P``-metric projection on C(x).
+        """Replace each inadmissible eq. 7 velocity by its ``P``-metric projection on C(x).
 
         First a vectorised primal active-set pass: with the rows ``S`` active, the projection
         has the closed form of :meth:`_kkt`; starting from the most broken row, the row the
@@ -674,7 +674,7 @@ def modulate(
     lyapunov: npt.ArrayLike | None = None,
     dt: float | None = None,
 ) -> FloatArray:
-    """Modulate nominal velocities by the cuts (paper eq. 5 and the corner guard), vectorised.
+    """Modulate nominal velocities by the cuts (paper eq. 7 and the corner guard), vectorised.
 
     Parameters
     ----------
@@ -685,7 +685,7 @@ def modulate(
     cuts : sequence of Cut
         The mode's cuts; each must keep ``x*`` inside or on its plane.
     attractor : array_like, shape (n,)
-        ``x*``, the reference point ``x^r`` of eq. 5.
+        ``x*``, the reference point ``x^r`` of eq. 7.
     lyapunov : array_like, shape (n, n), optional
         The DS's ``P``: degenerate cuts (through ``x*``) use it, and the guard then keeps
         ``dV/dt`` at most that of ``f``. Identity (and no ``V`` constraint) if omitted.
@@ -704,7 +704,7 @@ def modulate(
 
     References
     ----------
-    Paper Sec. 5.2, eq. 5; Thm. 1 (appendix A).
+    Paper Sec. 5.2, eq. 7; Thm. 1 (appendix A).
     """
     return Modulator.build(cuts, attractor, lyapunov=lyapunov)(X, F, dt=dt)
 
@@ -722,7 +722,7 @@ def modulation_matrix(
     *,
     lyapunov: npt.ArrayLike | None = None,
 ) -> tuple[FloatArray, FloatArray, float, int]:
-    """Literal eq. 5 at one state: ``E``, ``M = E D E^-1``, ``Gamma`` and the closest cut.
+    """Literal eq. 7 at one state: ``E``, ``M = E D E^-1``, ``Gamma`` and the closest cut.
 
     Parameters
     ----------
@@ -776,7 +776,7 @@ def modulate_reference(
 ) -> FloatArray:
     """Straightforward per-point modulation, for checking :func:`modulate`.
 
-    Eq. 5 literally (build ``E`` and ``D``, invert, multiply) and, unless ``guard=False``, the
+    Eq. 7 literally (build ``E`` and ``D``, invert, multiply) and, unless ``guard=False``, the
     corner guard written out constraint by constraint and solved by enumerating the KKT active
     sets (an independent route to the projection :class:`Modulator` computes by NNLS). Same
     contract as :func:`modulate`; a Python loop over points. The oracle of the tests and the
@@ -802,7 +802,7 @@ def modulate_reference(
 
 def _eq5_reference(x: FloatArray, f: FloatArray, cuts: Sequence[Cut], x_star: FloatArray,
                    lyapunov: npt.ArrayLike | None, dt: float | None) -> FloatArray:
-    """Eq. 5 at one state, literally (``f`` itself at ``x*``, outside, or for inward flow)."""
+    """Eq. 7 at one state, literally (``f`` itself at ``x*``, outside, or for inward flow)."""
     if np.array_equal(x, x_star):
         return f.copy()
     E, M, g, a = modulation_matrix(x, cuts, x_star, lyapunov=lyapunov)
@@ -816,7 +816,7 @@ def _eq5_reference(x: FloatArray, f: FloatArray, cuts: Sequence[Cut], x_star: Fl
         if (dt is not None and radial > 1.0 / dt
                 and h > DEGENERATE_TOL * max(1.0, float(np.linalg.norm(cuts[a].point
                                                                       - x_star)))):
-            out = f - d / dt  # the sampled-data cap of eq. 5's correction
+            out = f - d / dt  # the sampled-data cap of eq. 7's correction
     return out
 
 

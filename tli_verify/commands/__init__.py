@@ -14,6 +14,8 @@ import argparse
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from tli_verify.errors import CheckFailed, TliError
+
 
 def output_path(text: str) -> Path:
     """``argparse`` type of ``-o``/``--out``: a non-empty path (``Path("")`` would be ``.``)."""
@@ -138,3 +140,22 @@ def check_plan(*, inputs: Iterable[Path | str | None],
                 raise OutputError(f"{p}: the {what} and the {other_what} would be the same "
                                   "file; choose other output paths")
         written.append((p, what))
+
+
+def exit_code(exc: TliError) -> int:
+    """The exit code of an error (``docs/design.md``, "Exit codes").
+
+    2 for bad input (a :class:`ValueError` or :class:`OSError`, or any error that is not a
+    verdict), 1 when a check said no (:class:`~tli_verify.errors.CheckFailed`).
+
+    Parameters
+    ----------
+    exc : TliError
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(exc, ValueError | OSError) or not isinstance(exc, CheckFailed):
+        return 2
+    return 1

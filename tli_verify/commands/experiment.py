@@ -3,7 +3,7 @@
 ``tli experiment scoop`` runs the multi-modal soup-scooping experiment (paper Sec. 7.2 and
 appendix "Multi-modal Experiments", Fig. 7): see :mod:`tli_verify.experiments.scoop`.
 
-``tli experiment single-mode`` runs the single-mode study of paper Sec. 7.1 (Fig. 6-8): random
+``tli experiment single-mode`` runs the single-mode study of paper Sec. 7.1 (Figs. 5-6): random
 convex modes, BC / BC+mod / DS / DS+mod from noisy start states, cuts learned from invariance
 failures. See :mod:`tli_verify.experiments.single_mode` and ``docs/boundary.md``.
 """
@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="cap on cuts per policy and noise")
     s.add_argument("--cut-constraints", choices=("entries", "paper"), default="entries",
                    help="states a new cut keeps inside: every observed entry state (default) "
-                   "or only the failure's own x^0 (appendix F as written)")
+                   "or only the failure's own x^0 (appendix E.3 as written)")
     s.add_argument("--ds-eps", type=positive_float, default=1e-3,
                    help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default 1e-3)")
     s.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -219,7 +219,10 @@ def _scoop(args: argparse.Namespace) -> int:
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
     """Run the scoop experiment, write its report and figures; return the JSON summary."""
-    from tli_verify.experiments.scoop import fig7_record, plot_fig7, scoop_setup, write_report
+    from tli_verify.experiments.fig7 import fig7_record
+    from tli_verify.experiments.fig7_plot import plot_fig7
+    from tli_verify.experiments.scoop_report import write_report
+    from tli_verify.experiments.scoop_task import scoop_setup
 
     summary = run_scoop(cfg, workers=workers, fig7_tries=fig7_tries)
     fig7 = summary.pop("fig7")

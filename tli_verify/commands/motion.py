@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import output_path, positive_float
-from tli_verify.errors import CertificateError, GateError, ModelError, TliError
+from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
 
 __all__ = ["demo_stage", "register"]
 
@@ -34,7 +34,7 @@ def _control_period(text: str) -> float:
 
 def _rational(text: str) -> Fraction:
     """A positive exact rational (``0.001``, ``1/200``) for ``--dt``."""
-    from tli_verify.certify.exact import parse_rational
+    from tli_verify.certification.exact import parse_rational
 
     try:
         value = parse_rational(text, what="--dt")
@@ -95,10 +95,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
     p.add_argument("--eps", type=_positive_float, default=1e-3,
                    help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
-    p.add_argument("--rate", type=_nonnegative_float, default=None,
-                   help="certified decay rate of V per DS, A_k^T P + P A_k <= -rate P (1/s; "
-                   "default: 0.25 x the data's mean |xdot| / mean |x - x*|; 0: margin --eps "
-                   "only, the learner before issue 9)")
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument("--rate", type=_nonnegative_float, default=None,
+                      help="force this certified decay rate of V on every DS, A_k^T P + "
+                      "P A_k <= -rate P (1/s; 0: margin --eps only, the learner before issue "
+                      "9; default: chosen per DS under --rate-budget)")
+    rate.add_argument("--rate-budget", type=_nonnegative_float, default=None, metavar="B",
+                      help="per DS, fit at rate 0, then certify the largest rate on a "
+                      "half-octave grid up to the data's mean |xdot| / mean |x - x*| whose "
+                      "training velocity RMSE is within (1 + B) x the rate-0 fit's (default "
+                      "0.03; recorded in the model's fit)")
     p.add_argument("--control-dt", type=_control_period, default=None, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
                    "(default: the control period of the spec's task, else 0.001 s)")
@@ -183,16 +189,20 @@ def _task_dt(spec: Path | None) -> Fraction | None:
 
 def _learn(args: argparse.Namespace) -> int:
     from tli_verify.commands import check_plan
-    from tli_verify.model import learn_model, save_model
+    from tli_verify.defaults import DEFAULT_DT_FLOAT
+    from tli_verify.ds.lyapunov import RATE_BUDGET
+    from tli_verify.model.learn import learn_model
+    from tli_verify.model.serialize import save_model
 
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
     control_dt = args.control_dt
     if control_dt is None:
         task_dt = _task_dt(args.spec)
-        control_dt = 1e-3 if task_dt is None else float(task_dt)
+        control_dt = DEFAULT_DT_FLOAT if task_dt is None else float(task_dt)
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
                         eps=args.eps, rate=args.rate, control_dt=control_dt,
+                        rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
     try:
@@ -205,13 +215,23 @@ def _learn(args: argparse.Namespace) -> int:
         fit = mm.fit or {}
         record = {"model": str(args.output), "key": key, "mode": mm.mode,
                   "next_mode": mm.next_mode, "components": mm.ds.n_components,
-                  "samples": fit.get("n_samples"), "attractor": mm.ds.attractor.tolist()}
+                  "samples": fit.get("n_samples"), "attractor": mm.ds.attractor.tolist(),
+                  "rate": fit.get("rate")}
+        for name in ("rate_budget", "rate_within_budget"):
+            if name in fit:
+                record[name] = fit[name]
         if args.json:
             _emit(record)
         else:
+            chosen = (f" (RMSE {fit['rate_rmse'] / fit['rate_reference_rmse'] - 1:+.1%} vs "
+                      "rate 0)" if fit.get("rate_reference_rmse") else "")
+            if fit.get("rate_within_budget") is False:
+                chosen += (f" -- over the budget {fit['rate_budget']:g}: even the smallest "
+                           "candidate rate costs more, kept")
             sys.stdout.write(f"{key}: K={mm.ds.n_components} components from "
                              f"{fit.get('n_samples')} samples, attractor "
-                             f"{[round(v, 4) for v in mm.ds.attractor.tolist()]}\n")
+                             f"{[round(v, 4) for v in mm.ds.attractor.tolist()]}, decay rate "
+                             f"{fit.get('rate', 0.0):.3g}/s{chosen}\n")
     if not args.json:
         sys.stdout.write(f"wrote {args.output} ({len(model.modes)} DS); certify it with: "
                          f"tli certify {args.output}\n")
@@ -229,13 +249,10 @@ def default_certificate_path(model: Path) -> Path:
 
 
 def _certify(args: argparse.Namespace) -> int:
-    from tli_verify.certify.certificate import (
-        DEFAULT_DT,
-        issue_certificate,
-        write_certificate,
-    )
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
+    from tli_verify.defaults import DEFAULT_DT
     from tli_verify.io import check_output_file
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
@@ -248,8 +265,8 @@ def _certify(args: argparse.Namespace) -> int:
         inputs.append(args.repair)
     check_output_file(out, inputs=inputs, what="certificate")
     if args.repair is not None:
-        from tli_verify.certify.repair import repair_model
-        from tli_verify.model import save_model
+        from tli_verify.certification.repair import repair_model
+        from tli_verify.model.serialize import save_model
 
         result = repair_model(args.model, args.repair, dt=dt)
         save_model(result.model, args.repair)
@@ -283,12 +300,12 @@ def _certify(args: argparse.Namespace) -> int:
 
 
 def _check_cert(args: argparse.Namespace) -> int:
-    from tli_verify.certify.certificate import check_certificate
+    from tli_verify.certification.certificate import check_certificate
 
     for path, what, error in ((args.certificate, "certificate", CertificateError),
                               (args.model, "model", ModelError)):
         if path is not None and path.is_dir():  # not "no such file": say what it is
-            raise error(f"{path}: is a directory, expected a {what} file", exit_code=2)
+            raise bad_input(error, f"{path}: is a directory, expected a {what} file")
     check = check_certificate(args.certificate, model_path=args.model)
     if args.json:
         for item in check.passed:
@@ -315,7 +332,7 @@ def _gate(args: argparse.Namespace) -> int:
     report = run_gate(args.directory, rerun=args.rerun)
     for item in report.items:
         if args.json:
-            _emit(item.to_json())
+            _emit(item.to_dict())
         else:
             sys.stdout.write(f"{'ok   ' if item.ok else 'BLOCK'} {item.kind:<11} {item.path}: "
                              f"{item.check}: {item.message}\n")
@@ -338,13 +355,14 @@ def demo_stage(out: Path) -> list[str]:
     Writes ``out/motion/scoop.model.json``, ``out/motion/scoop.cert.json`` and a plot
     ``out/motion/scoop_modes.png``; returns one summary line per result.
     """
-    from tli_verify.certify.certificate import (
+    from tli_verify.certification.certificate import (
         check_certificate,
         issue_certificate,
         write_certificate,
     )
     from tli_verify.io import bundled_dir
-    from tli_verify.model import learn_model, save_model
+    from tli_verify.model.learn import learn_model
+    from tli_verify.model.serialize import save_model
 
     demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
     spec = bundled_dir("specs") / "scoop.toml"

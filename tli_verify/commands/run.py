@@ -7,7 +7,7 @@ model by the project layout), ``--model`` another model (the spec it names, the 
 the project layout). Works in any dimension: ``--start`` and ``--perturb`` take one number per
 coordinate, random pushes are drawn on the sphere.
 
-``--learn-transitions`` grows the spec online (paper appendix E): the run may then start from
+``--learn-transitions`` grows the spec online (paper appendix F): the run may then start from
 another spec than the model names (``--spec``, e.g. one ``tli spec infer`` wrote), provided it
 has the same sensors and the same ``[modes]`` labels; transitions the spec lacks are added as
 the episode shows them, and ``--grown-spec OUT.toml`` writes the grown spec. The model and its
@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.defaults import Stream, rng
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 
 __all__ = ["add_task_arguments", "demo_stage", "parse_floats", "parse_perturb", "register",
@@ -85,7 +86,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help=f"step budget (default 3000, at most {MAX_RUN_STEPS})")
     p.add_argument("--learn-transitions", action="store_true",
                    help="add a valid transition the spec lacks (into a known mode) to it "
-                   "online, re-synthesize and carry on (paper appendix E); --spec is then the "
+                   "online, re-synthesize and carry on (paper appendix F); --spec is then the "
                    "spec to grow from")
     p.add_argument("--grown-spec", type=output_path, default=None, metavar="OUT.toml",
                    help="with --learn-transitions: write the (grown) spec here, atomically")
@@ -143,7 +144,7 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
     from tli_verify.runtime.episodes import random_perturbations
 
     out: dict[int, Any] = {}
-    rng = np.random.default_rng([seed, 11])
+    draws = rng(seed, Stream.PUSHES)
     for item in items:
         if item.startswith("random:"):
             n_text = item[len("random:"):]
@@ -151,7 +152,7 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
                 raise TliError(f"--perturb {item!r}: random:N needs a count N in "
                                f"[0, {MAX_PUSHES}] (MAX_PUSHES)")
             last = 700 if steps is None else min(700, steps)
-            for t, d in random_perturbations(rng, int(n_text), task, last=last).items():
+            for t, d in random_perturbations(draws, int(n_text), task, last=last).items():
                 if t in out:
                     raise TliError(f"--perturb {item!r}: step {t} is perturbed twice")
                 out[t] = d
@@ -218,7 +219,7 @@ def _run(args: argparse.Namespace) -> int:
             raise TliError(f"--start {args.start!r}: outside the workspace {box} of task "
                            f"{task.name!r}")
     else:
-        x0 = random_start(task, setup.automaton, np.random.default_rng([args.seed, 3]))
+        x0 = random_start(task, setup.automaton, rng(args.seed, Stream.START))
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
     # refuses a model its certificate does not cover
@@ -329,7 +330,7 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
     if tuple(start.inputs) != tuple(named.inputs) or start.modes != named.modes:
         raise TliError(f"--spec {spec}: its sensors or [modes] labels differ from those of "
                        f"{named_path}, the spec the model names (its DS were learned on those "
-                       "labels)", exit_code=2)
+                       "labels)")
     return start
 
 
@@ -362,16 +363,15 @@ def demo_stage(out: Path) -> list[str]:
     modulation (``out/run/``), and the quick scoop experiment (``out/scoop/``)."""
     import os
 
-    import numpy as np
-
     from tli_verify.commands.experiment import scoop_study
     from tli_verify.deploy.gate import run_gate
-    from tli_verify.experiments.scoop import ExperimentConfig, scoop_setup
-    from tli_verify.io import atomic_write_text, bundled_dir, canonical_json
+    from tli_verify.experiments.scoop import ExperimentConfig
+    from tli_verify.experiments.scoop_task import scoop_setup
+    from tli_verify.io import atomic_write_text, bundled_root, canonical_json
     from tli_verify.runtime.episodes import episode_json, mode_string, random_start, run_variant
     from tli_verify.viz.episodes import plot_episodes
 
-    root = bundled_dir("models").parent
+    root = bundled_root()
     report = run_gate(root)
     lines = [f"[run] gate on the shipped tasks/specs/models/certificates: "
              f"{'pass' if report.ok else 'BLOCKED'} ({len(report.items)} checks)"]
@@ -381,7 +381,7 @@ def demo_stage(out: Path) -> list[str]:
     setup = scoop_setup()
     seed = 19  # the unmodulated run loops (Fig. 7); LTL-DS cuts once
     perturbations = parse_perturb(["random:3"], seed=seed, task=setup.task)
-    x0 = random_start(setup.task, setup.automaton, np.random.default_rng([seed, 3]))
+    x0 = random_start(setup.task, setup.automaton, rng(seed, Stream.START))
     target = out / "run"
     results = {}
     for variant in ("LTL-DS", "no-modulation"):

@@ -5,7 +5,7 @@ Before anything moves, the bundled Franka scoop model must be covered by its cer
 or tampered certificate, or a model it does not cover, is refused with exit 1 naming the
 certificate.
 
-Every trial is judged by the physics oracle (:func:`tli_verify.sim.campaign.check_trial`): soup
+Every trial is judged by the physics oracle (:func:`tli_verify.sim.trial_oracle.check_trial`): soup
 delivered, the goal mode reached, the mode trace a run of the task automaton. ``--evidence
 [PATH]`` writes the run as campaign evidence for ``tli gate`` (default
 ``<project>/certificates/franka-scoop.campaign.json``; :mod:`tli_verify.verify.evidence`).
@@ -66,7 +66,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="render the first trial to an MP4 (headless: EGL, else OSMesa)")
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
-                   "pitch) with the cuts learned in them (Fig. 9 style)")
+                   "pitch) with the cuts learned in them (paper Fig. 11 style)")
     f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
@@ -116,23 +116,21 @@ def _run(args: argparse.Namespace) -> int:
         inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
     evidence = None
     if args.evidence is not None:  # before any work: never over an input or another output
-        from tli_verify.sim.campaign import MODEL_NAME
+        from tli_verify.sim.franka_files import MODEL_NAME
 
         cert_dir = args.certificates if args.certificates is not None else \
             base / "certificates"
         evidence = chosen_path(args.evidence) or cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
     check_plan(inputs=[f for f in inputs if not f.name.endswith(EVIDENCE_SUFFIX)],
-               outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot"),
+               outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot"),
                         (evidence, "campaign evidence")])
-    check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 9 plot")])
+    check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
     from tli_verify.io import canonical_json
-    from tli_verify.sim.campaign import (
-        PhysicsConfig,
-        TrialVerdict,
-        run_physics_campaign,
-        write_physics_evidence,
-    )
+    from tli_verify.sim.campaign import run_physics_campaign
     from tli_verify.sim.loop import TrialResult, load_policy
+    from tli_verify.sim.physics_config import PhysicsConfig
+    from tli_verify.sim.physics_evidence import write_physics_evidence
+    from tli_verify.sim.trial_oracle import TrialVerdict
 
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
@@ -151,7 +149,7 @@ def _run(args: argparse.Namespace) -> int:
 
     def report(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         if args.json:
-            sys.stdout.write(canonical_json(dict(res.to_json(),
+            sys.stdout.write(canonical_json(dict(res.to_dict(),
                                                  violations=list(verdict.violations))))
         else:
             judged = "oracle ok" if verdict.ok else \

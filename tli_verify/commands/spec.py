@@ -1,5 +1,6 @@
-"""``tli spec check``, ``tli spec automaton`` and ``tli spec infer``: GR(1) realizability, task
-automata, and specs inferred from demonstrations."""
+"""``tli spec check``, ``tli spec automaton``, ``tli spec import`` and ``tli spec infer``: GR(1)
+realizability, task automata, specs translated from Spectra and slugs, and specs inferred from
+demonstrations."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path
-from tli_verify.errors import TliError
+from tli_verify.commands import exit_code, output_path
+from tli_verify.errors import OutputError, TliError
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -46,21 +47,35 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     aut.add_argument("--json", action="store_true", help="print the automaton JSON on stdout")
     aut.set_defaults(handler=_automaton)
 
+    imp = ssub.add_parser(
+        "import", help="translate a Spectra or slugs spec to a TOML spec",
+        description="Reads FILE.spectra, FILE.structuredslugs or FILE.slugsin and writes our "
+        "TOML spec (integers and enumerations bit-blasted, with their domain constraints). "
+        "Every construct GR(1) TOML cannot express is refused by name and line (exit 2). "
+        "The spec gets semantics = \"textbook\" (the reading of Spectra and slugs) unless "
+        "--semantics tli. Without -o the TOML goes to stdout.")
+    imp.add_argument("file", type=Path, metavar="FILE")
+    imp.add_argument("-o", "--output", type=output_path, default=None, metavar="OUT.toml")
+    imp.add_argument("--semantics", choices=("textbook", "tli"), default="textbook",
+                     help="the reading of safety at time 0 the spec asks for (default: "
+                     "textbook, the source tool's)")
+    imp.set_defaults(handler=_import)
+
     infer = ssub.add_parser(
-        "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix E)",
+        "infer", help="infer the partial GR(1) spec that demonstrations imply (appendix F)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Writes the spec the demonstrations imply (paper appendix E, 'Automatic "
+        description="Writes the spec the demonstrations imply (paper appendix F, 'Automatic "
         "construction of GR(1) LTL formulas'): initial conditions, the goal (the modes the "
         "demonstrations end in), the demonstrated mode changes as phi_t^s, the demonstrated "
         "sensor changes and fairness toward the goal as the environment part, and the "
         "perturbation marker p with the goal GF(goal | p) (details: tli_verify.logic.infer). "
         "The spec is checked; exit 0 if realizable and well-separated, 1 if not (the file is "
         "written either way), 2 on bad input.",
-        epilog="example (scoop, paper Fig. 5(a)):\n"
+        epilog="example (scoop, paper Fig. 3(a)):\n"
         "  tli spec infer demos/scoop_*.csv --modes specs/scoop.toml -o scoop-inferred.toml\n"
         "gives the black edges a->b->c->d. Online, perturbations add b->a, c->a, c->b\n"
         "(tli_verify.logic.infer.add_transition, re-synthesized each time), and the automaton\n"
-        "grows to the one of specs/scoop.toml, Fig. 5(a) (scripts/infer_scoop.py shows it).")
+        "grows to the one of specs/scoop.toml, Fig. 3(a) (scripts/infer_scoop.py shows it).")
     infer.add_argument("demos", nargs="+", type=Path, metavar="DEMO.csv")
     infer.add_argument("--modes", type=Path, required=True, metavar="LABELS",
                        help="TOML file with a [modes] table (mode = \"sensor formula\"), "
@@ -102,18 +117,19 @@ def _check(args: argparse.Namespace) -> int:
             result = check_spec_file(path, core=args.core, hints=args.hints)
         except TliError as exc:
             sys.stderr.write(f"error: {exc}\n")
-            worst = max(worst, exc.exit_code)
+            worst = max(worst, exit_code(exc))
             continue
         if not result.realizable or (args.strict and not result.well_separated):
             worst = max(worst, 1)
         if args.json:
-            record = result.to_json()
+            record = result.to_dict()
             if args.explain:
                 record["explain"] = [line.strip() for line in _explain(result)]
             sys.stdout.write(json.dumps(record, sort_keys=True) + "\n")
             continue
         verdict = "realizable" if result.realizable else "UNREALIZABLE"
-        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms)\n")
+        reading = ", textbook semantics" if result.spec.semantics == "textbook" else ""
+        sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms{reading})\n")
         for w in result.warnings:
             sys.stdout.write(f"  warning: {w}\n")
         if result.diagnosis is not None:
@@ -142,7 +158,7 @@ def write_automaton(automaton: Any, out: Path) -> None:
     if out.suffix == ".dot":
         atomic_write_text(out, automaton.to_dot())
     elif out.suffix == ".json":
-        atomic_write_text(out, canonical_json(automaton.to_json()))
+        atomic_write_text(out, canonical_json(automaton.to_dict()))
     else:
         raise TliError(f"{out}: output must end in .json or .dot")
 
@@ -156,7 +172,7 @@ def _automaton(args: argparse.Namespace) -> int:
     if args.output is not None:
         write_automaton(automaton, args.output)
     if args.json:
-        sys.stdout.write(canonical_json(automaton.to_json()))
+        sys.stdout.write(canonical_json(automaton.to_dict()))
     elif args.output is None:
         sys.stdout.write(f"{args.file}: {len(automaton.states)} states, "
                          f"{len(automaton.transitions)} transitions\n")
@@ -171,6 +187,26 @@ def _automaton(args: argparse.Namespace) -> int:
         sys.stdout.write(f"mode transitions: {pairs}\n")
     else:
         sys.stdout.write(f"wrote {args.output}\n")
+    return 0
+
+
+def _import(args: argparse.Namespace) -> int:
+    from tli_verify.io import atomic_write_text
+    from tli_verify.logic.foreign import import_spec_file
+    from tli_verify.logic.spec import parse_spec
+
+    if args.output is not None and args.output.suffix != ".toml":
+        raise OutputError(f"{args.output}: output must end in .toml")
+    text = import_spec_file(args.file,
+                            semantics=None if args.semantics == "tli" else args.semantics)
+    where = str(args.output) if args.output is not None else f"{args.file} (imported)"
+    spec = parse_spec(text, path=where, default_name=args.file.stem)  # the result must load
+    if args.output is None:
+        sys.stdout.write(text)
+        return 0
+    atomic_write_text(args.output, text)
+    sys.stdout.write(f"wrote {args.output}: {len(spec.inputs)} inputs, {len(spec.outputs)} "
+                     f"outputs, {len(spec.formulas())} formulas\n")
     return 0
 
 
@@ -204,7 +240,7 @@ def _infer(args: argparse.Namespace) -> int:
 
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
-    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs (issue 10.9)
+    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs
     from tli_verify.logic.check import check_spec_file, synthesize
 
     specs = sorted(bundled_dir("specs").glob("*.toml"))

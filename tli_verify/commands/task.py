@@ -266,7 +266,8 @@ def _evidence(args: argparse.Namespace) -> int:
 
 
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    from tli_verify.verify.campaign import run_campaign
+    from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import write_campaign_evidence
 
     config = CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
@@ -285,15 +286,13 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.errors import TliError
 
     try:
-        from tli_verify.sim.campaign import (
-            PhysicsConfig,
-            run_physics_campaign,
-            write_physics_evidence,
-        )
+        from tli_verify.sim.campaign import run_physics_campaign
+        from tli_verify.sim.physics_config import PhysicsConfig
+        from tli_verify.sim.physics_evidence import write_physics_evidence
     except ImportError as exc:  # pragma: no cover - the sim extra is missing
         raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
                        f"install 'tli-verify[sim]'): {exc}") from None
-    from tli_verify.verify.evidence import MIN_PHYSICS_TRIALS
+    from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:

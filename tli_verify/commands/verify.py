@@ -67,6 +67,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "certificates/<name>.campaign.json of the model's project)")
     p.add_argument("--out", type=output_path, default=Path("out/verify"),
                    help="report directory (default out/verify)")
+    p.add_argument("--junit", type=output_path, default=None, metavar="FILE",
+                   help="also write the campaign as JUnit XML (one testcase per run: a "
+                   "violation is a failure naming the tli replay command of the "
+                   "counterexample, an undecided run is skipped), for CI test reports")
     p.set_defaults(handler=_verify)
 
     r = sub.add_parser(
@@ -84,7 +88,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 def _verify(args: argparse.Namespace) -> int:
     from tli_verify.errors import TliError
     from tli_verify.io import atomic_write_text, canonical_json
-    from tli_verify.verify.campaign import CampaignConfig, run_campaign
+    from tli_verify.verify.campaign import run_campaign
+    from tli_verify.verify.config import CampaignConfig
 
     if args.scheduler is not None and args.backend != "dask":
         raise TliError("--scheduler needs --backend dask")
@@ -98,7 +103,7 @@ def _verify(args: argparse.Namespace) -> int:
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
     from tli_verify.commands import check_plan
-    from tli_verify.verify.campaign import resolve_config
+    from tli_verify.verify.config import resolve_config
     from tli_verify.verify.evidence import evidence_path_for
 
     resolved, _ = resolve_config(cfg)  # before any work: the files, the task, their fit
@@ -112,7 +117,8 @@ def _verify(args: argparse.Namespace) -> int:
                         (out / "campaign.png", "campaign picture"),
                         (out / "counterexample.json", "counterexample case"),
                         (out / "counterexample.png", "counterexample picture"),
-                        (evidence, "campaign evidence")])
+                        (evidence, "campaign evidence"),
+                        (args.junit, "JUnit report")])
     progress = not args.json and sys.stderr.isatty()
 
     def note(text: str) -> None:
@@ -124,7 +130,7 @@ def _verify(args: argparse.Namespace) -> int:
     # to OUT/partial/, and it writes no evidence
     report_dir = out / "partial" if result.partial else out
     report_dir.mkdir(parents=True, exist_ok=True)
-    record = result.to_json()
+    record = result.to_dict()
     files = write_report(result, report_dir)
     record["report"] = [str(f) for f in files]
     if args.evidence is not None and not result.partial:
@@ -132,6 +138,13 @@ def _verify(args: argparse.Namespace) -> int:
 
         target, _ = write_campaign_evidence(result.config, result, evidence)
         record["evidence"] = str(target)
+    if args.junit is not None and not result.partial:
+        from tli_verify.testing.junit import write_junit
+
+        ce_path = report_dir / "counterexample.json"
+        record["junit"] = str(write_junit(
+            result, args.junit,
+            counterexample=ce_path if result.counterexample is not None else None))
     atomic_write_text(report_dir / "campaign.json", canonical_json(record))
     if args.json:
         sys.stdout.write(canonical_json(record))
@@ -139,9 +152,13 @@ def _verify(args: argparse.Namespace) -> int:
         sys.stdout.write(_summary(result, [report_dir / "campaign.json", *files]))
         if "evidence" in record:
             sys.stdout.write(f"wrote evidence {record['evidence']}\n")
+        if "junit" in record:
+            sys.stdout.write(f"wrote JUnit report {record['junit']}\n")
     if result.partial:
         kept = (f"; no evidence written ({evidence} is unchanged)"
                 if args.evidence is not None else "")
+        if args.junit is not None:
+            kept += f"; no JUnit report written ({args.junit} is unchanged)"
         sys.stderr.write(f"error: interrupted after {result.runs} of {cfg.examples} runs; "
                          f"partial report written to {report_dir / 'campaign.md'}{kept}\n")
         return 130
@@ -291,7 +308,8 @@ def write_report(result: Any, out: Path) -> list[Path]:
 def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
     from dataclasses import replace
 
-    from tli_verify.verify.campaign import load, read_case, simulate
+    from tli_verify.verify.cases import read_case
+    from tli_verify.verify.simulate import load, simulate
     from tli_verify.viz.episodes import plot_episodes
 
     _, spec, case = read_case(case_path)
@@ -311,7 +329,7 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
 
 def _replay(args: argparse.Namespace) -> int:
     from tli_verify.io import canonical_json
-    from tli_verify.verify.campaign import replay_case
+    from tli_verify.verify.cases import replay_case
 
     mod = None if args.modulation == "case" else args.modulation == "on"
     # a bad case file is one error line (exit 2) before anything runs (read_case: the schema,

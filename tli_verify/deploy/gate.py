@@ -6,7 +6,7 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
 1. every spec under ``DIR/specs/`` re-checks with :func:`tli_verify.logic.check.check_spec_file`
    and gets the verdict it declares (``expect``; realizable specs must also be well-separated);
 2. every certificate under ``DIR/certificates/`` re-checks exactly
-   (:func:`tli_verify.certify.certificate.check_certificate`): digest, model and spec hashes,
+   (:func:`tli_verify.certification.certificate.check_certificate`): digest, model and spec hashes,
    the spec it names is the model's, ``P`` is the model's (the runtime's) ``P``, the cuts, the
    continuous-time, sampled-data and decay-rate conditions;
 3. every model under ``DIR/models/`` -- a *deployed* model -- is bound to its spec and covered:
@@ -25,7 +25,7 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
      campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
      nothing. Evidence that binds no deployed model blocks too. A physical campaign's
-     evidence (world ``franka-physics``, the Franka project ``sim/franka``; issue 13) needs
+     evidence (world ``franka-physics``, the Franka project ``sim/franka``) needs
      ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
      re-runs ``N`` physical trials with the recorded robot, variant, duration and seed
      (:func:`tli_verify.sim.campaign.run_physics_campaign`) and every one must pass the
@@ -42,8 +42,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tli_verify.certify.certificate import CertCheck, check_certificate
-from tli_verify.errors import GateError, TliError
+from tli_verify.certification.certificate import CertCheck, check_certificate
+from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
            "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed",
@@ -106,7 +107,7 @@ class GateItem:
     message: str
     check: str = "re-check"
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """One ``--json`` record."""
         return {"kind": self.kind, "path": self.path, "check": self.check, "ok": self.ok,
                 "message": self.message}
@@ -220,7 +221,7 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
                   certified: dict[Path, list[tuple[Path, CertCheck]]],
                   specs: _Specs) -> list[GateItem]:
     """The per-model binding checks (certificate, spec, modes, dimension)."""
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     name = shown(model_path)
     try:
@@ -414,7 +415,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     """
     base = Path(root)
     if not base.is_dir():
-        raise GateError(f"{base}: not a directory", exit_code=2)
+        raise bad_input(GateError, f"{base}: not a directory")
 
     def shown(p: Path) -> str:
         for a, b in ((p.absolute(), base.absolute()), (p.resolve(), base.resolve())):
@@ -470,7 +471,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
 
 
 # --------------------------------------------------------------------------------------------
-# Campaign evidence (issue 12 D)
+# Campaign evidence
 # --------------------------------------------------------------------------------------------
 
 def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str],
@@ -494,7 +495,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   f"tli verify --model {name} --evidence)", "campaign"))
             continue
         valid = [c for c, _ in certified.get(model.resolve(), [])]
-        check = check_evidence(evidence, model_path=model, valid_certificates=valid)
+        check = check_evidence(evidence, model_path=model, valid_certificates=valid,
+                               physical=(FRANKA_PHYSICS,))
         if not check.ok:
             items.append(GateItem("model", name, False, f"{shown(evidence)}: "
                                   f"{'; '.join(check.problems)}", "campaign"))
@@ -550,7 +552,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     if check.physics:
         return rerun_physics(check, model, examples)
     try:
-        from tli_verify.verify.campaign import CampaignConfig, run_campaign
+        from tli_verify.verify.campaign import run_campaign
+        from tli_verify.verify.config import CampaignConfig
     except ImportError as exc:
         return False, f"cannot re-run the campaign: {exc}"
     from tli_verify.verify.evidence import settings_for_config
@@ -593,7 +596,7 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials
     with the evidence's seed, robot, variant, duration, pushes and tilts, on the deployed files
     (the project is the model's ``models/`` parent), each judged by the physics oracle
-    (:func:`tli_verify.sim.campaign.check_trial`).
+    (:func:`tli_verify.sim.trial_oracle.check_trial`).
 
     Parameters
     ----------
@@ -608,7 +611,9 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     (bool, str)
     """
     try:
-        from tli_verify.sim.campaign import PhysicsConfig, run_physics_campaign, settings_from
+        from tli_verify.sim.campaign import run_physics_campaign
+        from tli_verify.sim.physics_config import PhysicsConfig
+        from tli_verify.sim.physics_evidence import settings_from
     except ImportError as exc:
         return False, f"cannot re-run the physical trials (pip install 'tli-verify[sim]'): {exc}"
     root = model.parent.parent

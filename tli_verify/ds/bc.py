@@ -1,4 +1,4 @@
-"""Behaviour-cloning baseline: a state-based MLP policy (paper appendix F, "BC Policy").
+"""Behaviour-cloning baseline: a state-based MLP policy (paper appendix E.2, "BC Policy").
 
 The paper's network: two hidden layers of 100 ReLU units, a tanh output rescaled to
 ``[-50, 50]``, Adam with learning rate 1e-3 for at most 5000 epochs, state/velocity pairs
@@ -102,7 +102,7 @@ def train_bc(
     tol: float = 1e-8,
     patience: int = 50,
 ) -> BCPolicy:
-    """Train the BC baseline (paper appendix F).
+    """Train the BC baseline (paper appendix E.2).
 
     Parameters
     ----------

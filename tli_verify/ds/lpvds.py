@@ -13,7 +13,7 @@ Learning (:func:`learn_lpvds`) follows ds-opt (Figueroa & Billard, CoRL 2018):
    for the baseline;
 3. ``A_k``: Lyapunov-constrained least squares (:func:`~tli_verify.ds.lyapunov.fit_a`).
 
-Default constraint of step 3 (issue 9): a *certified decay rate* and a *sampled-data* margin.
+Default constraint of step 3: a *certified decay rate* and a *sampled-data* margin.
 With only the margin ``A_k^T P + P A_k <= -eps I`` (eps = 1e-3, ds-opt's choice), learned models
 sit on the stability boundary: ``V`` decays at ~5e-4 /s away from the data, and the per-step
 decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. The default
@@ -23,6 +23,14 @@ decrease of a 1 kHz controller failed for 8 of the 21 bundled scoop components. 
 least like ``exp(-rate t)``, and the per-step decrease at ``dt = 1 ms``,
 ``(I + dt A_k)^T P (I + dt A_k) < P`` with margin at least ``dt rate / 2`` (hence at every
 shorter period too). ``rate=0`` gives back the old program exactly.
+
+Rate choice per DS (``rate_budget``, the default of :func:`tli_verify.model.learn.learn_model` and
+``tli learn``): a fixed factor spends accuracy unevenly (on LASA, 0.25x costs +9% RMSE on one
+shape and +1% on another), so :func:`~tli_verify.ds.lyapunov.choose_rate` fits at rate 0 first
+and then certifies the largest rate of a half-octave grid (up to the data's own rate) whose fit's
+training velocity RMSE stays within ``1 + rate_budget`` of the rate-0 fit's (default
+:data:`~tli_verify.ds.lyapunov.RATE_BUDGET` = 3%). Without ``rate_budget`` (and without ``rate``)
+:func:`learn_lpvds` keeps the fixed factor :data:`~tli_verify.ds.lyapunov.RATE_FACTOR`.
 """
 
 from __future__ import annotations
@@ -36,8 +44,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.gmm import GMM
-from tli_verify.ds.lyapunov import DEFAULT_CONTROL_DT
 from tli_verify.errors import ModelError
 
 __all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
@@ -218,6 +226,17 @@ class FitInfo:
         Total learning time.
     n_samples : int
         Number of training samples.
+    rate_budget : float or None
+        Accuracy budget of the rate choice (None: the rate was given or the fixed factor).
+    reference_rmse : float or None
+        With a budget: training velocity RMSE of the rate-0 fit.
+    rate_rmse : float or None
+        With a budget: training velocity RMSE of the fit at ``rate``.
+    data_rate : float or None
+        With a budget: :func:`~tli_verify.ds.lyapunov.data_rate` of the data (the grid's top).
+    rate_within_budget : bool or None
+        With a budget: False when even the grid's smallest rate costs more than the budget
+        (that rate is kept; see :class:`~tli_verify.ds.lyapunov.RateChoice`).
     """
 
     clustering: str
@@ -231,6 +250,11 @@ class FitInfo:
     status: str
     seconds: float
     n_samples: int
+    rate_budget: float | None = None
+    reference_rmse: float | None = None
+    rate_rmse: float | None = None
+    data_rate: float | None = None
+    rate_within_budget: bool | None = None
 
 
 def learn_lpvds(
@@ -241,7 +265,8 @@ def learn_lpvds(
     seed: int = 0,
     eps: float = 1e-3,
     rate: float | None = None,
-    control_dt: float | None = DEFAULT_CONTROL_DT,
+    rate_budget: float | None = None,
+    control_dt: float | None = DEFAULT_DT_FLOAT,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
     max_components: int = 12,
@@ -261,10 +286,17 @@ def learn_lpvds(
     eps : float, optional
         Margin of ``A_k^T P + P A_k <= -eps I``.
     rate : float, optional
-        Decay rate of ``V`` to impose, ``A_k^T P + P A_k <= -(eps I + rate P)`` (1/time).
-        Default (None): ``RATE_FACTOR * data_rate(X, dX, attractor)``
+        Decay rate of ``V`` to impose, ``A_k^T P + P A_k <= -(eps I + rate P)`` (1/time);
+        given, it is forced (``rate_budget`` is ignored). Default (None): chosen under
+        ``rate_budget``, or without one ``RATE_FACTOR * data_rate(X, dX, attractor)``
         (:mod:`tli_verify.ds.lyapunov`). ``0``: the plain ``eps`` margin, without the
-        sampled-data constraint (the learner before issue 9).
+        sampled-data constraint (the earlier margin-only learner).
+    rate_budget : float, optional
+        With ``rate`` None: choose the rate by :func:`~tli_verify.ds.lyapunov.choose_rate`,
+        the largest grid rate whose fit's training velocity RMSE is within
+        ``1 + rate_budget`` of the rate-0 fit's (e.g. ``RATE_BUDGET = 0.03``; needs
+        ``eps > 0``). The choice is recorded in :class:`FitInfo`. None (default here): the
+        fixed factor.
     control_dt : float, optional
         With ``rate > 0``: impose the sampled-data form at this control period
         (:func:`~tli_verify.ds.lyapunov.fit_a`), which also certifies every shorter period.
@@ -293,17 +325,26 @@ def learn_lpvds(
     start = time.perf_counter()
     # small matrices: multi-threaded BLAS only adds contention (20x slower on a busy machine)
     with threadpool_limits(limits=1, user_api="blas"):
-        ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, rate=rate, control_dt=control_dt,
+        ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, rate=rate,
+                         rate_budget=rate_budget, control_dt=control_dt,
                          clustering=clustering, lyapunov=lyapunov,
                          max_components=max_components)
     return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
 
 
 def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
-           eps: float, rate: float | None, control_dt: float | None, clustering: str,
-           lyapunov: str, max_components: int) -> tuple[LPVDS, FitInfo]:
+           eps: float, rate: float | None, rate_budget: float | None,
+           control_dt: float | None, clustering: str, lyapunov: str,
+           max_components: int) -> tuple[LPVDS, FitInfo]:
     from tli_verify.ds.gmm import fit_em_bic, fit_pcgmm
-    from tli_verify.ds.lyapunov import RATE_FACTOR, SOLVER, data_rate, estimate_p, fit_a
+    from tli_verify.ds.lyapunov import (
+        RATE_FACTOR,
+        SOLVER,
+        choose_rate,
+        data_rate,
+        estimate_p,
+        fit_a,
+    )
 
     start = time.perf_counter()
     Xa = np.asarray(X, dtype=np.float64)
@@ -312,6 +353,11 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
     if Xa.ndim != 2 or dXa.shape != Xa.shape or xs.shape != (Xa.shape[1],):
         raise ModelError(f"learning data shapes do not match: X {Xa.shape}, dX {dXa.shape}, "
                          f"attractor {xs.shape}")
+    chooser = rate_budget if rate is None else None  # a given rate is forced
+    if chooser is not None and not (np.isfinite(chooser) and chooser >= 0.0):
+        raise ModelError(f"rate budget must be finite and >= 0, got {chooser}")
+    if chooser is not None and not eps > 0.0:
+        raise ModelError(f"the rate choice needs eps > 0 (its rate-0 reference fit), got {eps}")
     if clustering == "pc-gmm":
         mix = fit_pcgmm(Xa, dXa, seed=seed, max_components=max_components)
     elif clustering == "em-bic":
@@ -324,14 +370,29 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
         P = np.eye(Xa.shape[1])
     else:
         raise ModelError(f"unknown Lyapunov option {lyapunov!r}")
-    lam = RATE_FACTOR * data_rate(Xa, dXa, xs) if rate is None else float(rate)
-    if not (np.isfinite(lam) and lam >= 0.0):
-        raise ModelError(f"decay rate must be finite and >= 0, got {lam}")
-    dt = control_dt if lam > 0.0 else None
-    A, info = fit_a(Xa, dXa, mix.posterior(Xa), xs, P, eps=eps, rate=lam, dt=dt)
+    gamma = mix.posterior(Xa)
+    budget: float | None = None  # the rate choice's record (FitInfo), with a budget only
+    reference: float | None = None
+    error: float | None = None
+    own: float | None = None
+    within: bool | None = None
+    if chooser is not None:
+        choice = choose_rate(Xa, dXa, gamma, xs, P, eps=eps, dt=control_dt, budget=chooser)
+        lam, A, info = choice.rate, choice.A, choice.info
+        dt = control_dt if lam > 0.0 else None  # rate 0 only when the data do not move
+        budget, reference, error = choice.budget, choice.reference_rmse, choice.rmse
+        own, within = choice.data_rate, choice.within_budget
+    else:
+        lam = RATE_FACTOR * data_rate(Xa, dXa, xs) if rate is None else float(rate)
+        if not (np.isfinite(lam) and lam >= 0.0):
+            raise ModelError(f"decay rate must be finite and >= 0, got {lam}")
+        dt = control_dt if lam > 0.0 else None
+        A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=lam, dt=dt)
     ds = LPVDS(attractor=xs, priors=mix.priors, means=mix.means, covs=mix.covs, A=A, P=P)
     fit = FitInfo(clustering=clustering, lyapunov=lyapunov, n_components=mix.n_components,
                   eps=float(eps), rate=lam, control_dt=None if dt is None else float(dt),
                   seed=int(seed), solver=SOLVER, status=info.status,
-                  seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]))
+                  seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]),
+                  rate_budget=budget, reference_rmse=reference, rate_rmse=error, data_rate=own,
+                  rate_within_budget=within)
     return ds, fit

@@ -18,6 +18,9 @@ the Clarabel interior-point solver:
 2. :func:`fit_a` fits the ``A_k`` to the velocities by least squares with ``P`` fixed, under the
    LMIs ``A_k^T P + P A_k <= -eps I`` -- an SDP with K small semidefinite cones.
 
+:func:`choose_rate` picks the decay rate the A-fit imposes: the largest on a grid up to the data's
+own rate whose fit stays within an accuracy budget (:data:`RATE_BUDGET`) of the rate-0 fit.
+
 :func:`find_p` solves the remaining direction (``A_k`` fixed, search ``P``); ``tli certify`` uses
 it when a model's own ``P`` does not certify.
 
@@ -44,16 +47,22 @@ import numpy.typing as npt
 from tli_verify.errors import SolverError
 
 __all__ = [
-    "DEFAULT_CONTROL_DT",
+    "RATE_BUDGET",
     "RATE_FACTOR",
+    "RATE_GRID",
+    "RATE_PAD",
     "SOLVER",
+    "RateChoice",
     "SolveInfo",
+    "choose_rate",
     "data_rate",
     "decay_rate",
     "estimate_p",
     "find_p",
     "fit_a",
+    "rate_candidates",
     "sampled_growth",
+    "velocity_rmse",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -63,7 +72,9 @@ SOLVER = "CLARABEL"
 
 
 RATE_FACTOR = 0.25
-"""Default decay rate of ``V`` imposed by the learner, as a fraction of :func:`data_rate`.
+"""Fixed-factor decay rate of ``V``, as a fraction of :func:`data_rate`: the default of
+:func:`tli_verify.ds.lpvds.learn_lpvds` without a ``rate_budget``, and the learner's default
+before the per-DS choice (:func:`choose_rate`, the default of ``tli learn``).
 
 Chosen on the LASA benchmark (``benchmarks/bench_lasa.py``, method PC-GMM + P-QLF, medians over
 26 shapes against the old margin-only learner): factor 0.1 costs nothing measurable (RMSE and
@@ -71,8 +82,31 @@ DTWD within 1%) for a 100x larger certified rate; 0.25 costs +5% RMSE and +14% D
 0.5 costs +17% RMSE and +49% DTWD. A quarter of the data's own rate keeps the certified decay
 useful as a reachability deadline (``V`` halves within ``ln 2 / rate``) at a bounded cost."""
 
-DEFAULT_CONTROL_DT = 1e-3
-"""Default control period (s) of the sampled-data constraint of the learner (a Franka's 1 kHz)."""
+RATE_BUDGET = 0.03
+"""Default accuracy budget of the per-DS rate choice (:func:`choose_rate`, ``tli learn``).
+
+The learner certifies the largest rate of :data:`RATE_GRID` whose fit's training velocity RMSE
+stays within ``1 + RATE_BUDGET`` of the rate-0 fit's (the plain ``eps`` margin, ``--rate 0``).
+The fixed factor :data:`RATE_FACTOR` cost up to ~9% RMSE on some LASA shapes and almost nothing
+on others; a budget spends the same accuracy everywhere (``benchmarks/bench_lasa.py``)."""
+
+RATE_GRID = tuple(2.0 ** (-j / 2) for j in range(13))
+"""Candidate rates of :func:`choose_rate`, as fractions of :func:`data_rate`: half-octave steps
+from 1 (the data's own rate) down to 1/64. Each candidate is rounded *down* to 3 significant
+digits (the rate the model records) and imposed with the relative pad :data:`RATE_PAD`, so the
+4-digit rate the certificate states (:func:`tli_verify.certification.exact.certified_decay_rate`) is
+never below the recorded one."""
+
+RATE_PAD = 1e-4
+"""Relative pad of the rate :func:`choose_rate` imposes over the rate it records.
+
+The certificate states ``floor_4 digits(lambda* (1 - 1e-5))`` of the fit's best rate
+``lambda* >= imposed rate``. A 3-digit recorded rate ``r`` is on that 4-digit grid, so the
+stated rate is at least ``r`` iff ``lambda* (1 - 1e-5) >= r``: imposing ``r (1 + RATE_PAD)``
+guarantees it whatever ``eps`` (the ``eps I`` margin alone covers it only for
+``r <= 1e5 eps / lambda_max(P)``, e.g. not for ``--eps 1e-6``), with room for the solver's
+``~1e-9`` constraint tolerance."""
+
 
 
 def data_rate(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike) -> float:
@@ -103,7 +137,8 @@ def decay_rate(P: npt.ArrayLike, A: npt.ArrayLike) -> float:
 
     ``lambda = min_k min eig(-(A_k^T P + P A_k), P)``, a generalized symmetric eigenvalue
     problem; ``dV/dt <= -lambda V`` along every mixture of the ``A_k``. Floating point: a
-    figure for reports and benchmarks, not a certificate (see :mod:`tli_verify.certify.exact`).
+    figure for reports and benchmarks, not a certificate (see
+    :mod:`tli_verify.certification.exact`).
 
     Parameters
     ----------
@@ -303,7 +338,7 @@ def fit_a(
         with            M = eps I + rate P
 
     ``rate = 0, dt = None`` is the plain margin ``A_k^T P + P A_k <= -eps I`` (the learner's
-    behaviour before issue 9). With ``rate > 0`` every component contracts ``V`` at rate
+    earlier margin-only behaviour). With ``rate > 0`` every component contracts ``V`` at rate
     ``rate``: ``dV/dt <= -rate V`` for every mixture (paper eq. 4), so ``V`` decays at least like
     ``exp(-rate t)``. The sampled-data form, divided by ``dt``, is
     ``A_k^T P + P A_k + M + dt A_k^T P A_k <= 0``, imposed as the Schur complement LMI ::
@@ -380,7 +415,11 @@ def fit_a(
         raise SolverError(f"A-fit: control period dt must be positive, got {dt}")
     Ps = 0.5 * (Pa + Pa.T)
     margin = eps * np.eye(n) + rate * Ps
-    scale = max(float(np.linalg.norm(rhs)), 1e-12)  # unit-scale objective (mm or m alike)
+    # unit-scale objective (mm or m alike); the floor, far below the velocities any fit must
+    # produce (|A_k| >= (eps + rate) / 2 lambda_max(P)), only matters for data that do not
+    # move, whose objective was otherwise scaled by up to 1e24 (Clarabel: 'infeasible')
+    floor = 1e-3 * (eps + rate) * float(np.sqrt(np.trace(H) / H.shape[0]))
+    scale = max(float(np.linalg.norm(rhs)), floor, 1e-12)
     objective = cp.Minimize(cp.sum_squares((L.T @ theta - rhs) / scale))
     continuous = []
     for a in A:
@@ -480,3 +519,214 @@ def find_p(A: npt.ArrayLike, *, eps: float = 1e-6,
     info = _solve(cp.Problem(cp.Minimize(kappa), constraints), "P-search")
     value = np.asarray(P.value, dtype=np.float64)
     return 0.5 * (value + value.T), info
+
+
+def velocity_rmse(X: npt.ArrayLike, dX: npt.ArrayLike, gamma: npt.ArrayLike,
+                  attractor: npt.ArrayLike, A: npt.ArrayLike) -> float:
+    """Velocity RMSE ``sqrt(mean_i |xdot_i - sum_k gamma_k(x_i) A_k (x_i - x*)|^2)`` (float).
+
+    Parameters
+    ----------
+    X, dX : array_like, shape (N, n)
+    gamma : array_like, shape (N, K)
+    attractor : array_like, shape (n,)
+    A : array_like, shape (K, n, n)
+
+    Returns
+    -------
+    float
+        In the units of ``dX``; 0 for no samples.
+    """
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    if not Xa.size:
+        return 0.0
+    F = np.einsum("ik,kab,ib->ia", np.asarray(gamma, dtype=np.float64),
+                  np.asarray(A, dtype=np.float64), Xa - xs)
+    return float(np.sqrt(np.mean(np.sum((F - dXa) ** 2, axis=1))))
+
+
+@dataclass(frozen=True, slots=True)
+class RateChoice:
+    """The decay rate :func:`choose_rate` picked, and the fit at that rate.
+
+    Attributes
+    ----------
+    rate : float
+        Chosen rate (1/time), 3 significant digits (the fit imposed it padded by
+        :data:`RATE_PAD`, so a certificate of the fit states at least this); 0 when the data do
+        not move.
+    A : ndarray, shape (K, n, n)
+        The A-fit at ``rate`` (with the sampled-data constraint when ``dt`` was given).
+    info : SolveInfo
+        Its solve.
+    rmse : float
+        Training velocity RMSE of that fit.
+    reference_rmse : float
+        Training velocity RMSE of the rate-0 fit (plain ``eps`` margin, continuous time).
+    budget : float
+        The accuracy budget: ``rmse <= (1 + budget) reference_rmse`` (when ``within_budget``).
+    data_rate : float
+        :func:`data_rate` of the data (the grid's top).
+    within_budget : bool
+        False only when even the grid's smallest rate costs more than the budget (or its solve
+        failed for every candidate but the smallest); the smallest rate is chosen then (the
+        learner keeps a positive certified rate).
+    tried : tuple of (rate, rmse)
+        Every candidate solved, in the order solved (``rmse`` inf for a solver failure).
+    """
+
+    rate: float
+    A: FloatArray
+    info: SolveInfo
+    rmse: float
+    reference_rmse: float
+    budget: float
+    data_rate: float
+    within_budget: bool
+    tried: tuple[tuple[float, float], ...]
+
+
+def _round_down(x: float, digits: int) -> float:
+    """``x > 0`` rounded down to ``digits`` significant decimal digits (exactly, then to the
+    nearest float: its exact decimal is what a certificate compares with)."""
+    import math
+    from fractions import Fraction
+
+    exact = Fraction(x)
+    exp10 = math.floor(math.log10(x)) - digits + 1
+    if Fraction(10) ** (exp10 + digits) <= exact:  # log10 rounded up across a power of 10
+        exp10 += 1
+    elif Fraction(10) ** (exp10 + digits - 1) > exact:  # ... or down
+        exp10 -= 1
+    unit = Fraction(10) ** exp10
+    return float(math.floor(exact / unit) * unit)
+
+
+def rate_candidates(rate: float, grid: tuple[float, ...] = RATE_GRID) -> tuple[float, ...]:
+    """The candidate rates of :func:`choose_rate` for data of rate ``rate``, largest first.
+
+    ``grid_j * rate`` rounded down to 3 significant digits, duplicates removed; empty when
+    ``rate`` is 0 (data that do not move).
+
+    Parameters
+    ----------
+    rate : float
+        :func:`data_rate` of the data.
+    grid : tuple of float, optional
+        Fractions of ``rate`` (default :data:`RATE_GRID`).
+
+    Returns
+    -------
+    tuple of float
+    """
+    import math
+
+    return tuple(sorted({_round_down(f * rate, 3) for f in grid
+                         if f * rate > 0.0 and math.isfinite(f * rate)}, reverse=True))
+
+
+def choose_rate(
+    X: npt.ArrayLike,
+    dX: npt.ArrayLike,
+    gamma: npt.ArrayLike,
+    attractor: npt.ArrayLike,
+    P: npt.ArrayLike,
+    *,
+    eps: float = 1e-3,
+    dt: float | None = None,
+    budget: float = RATE_BUDGET,
+    grid: tuple[float, ...] = RATE_GRID,
+) -> RateChoice:
+    """The largest decay rate on a grid whose A-fit stays within an accuracy budget.
+
+    1. Reference: :func:`fit_a` at ``rate = 0`` (the plain ``eps`` margin, continuous time: the
+       program of ``--rate 0``), with training velocity RMSE ``e_0`` (:func:`velocity_rmse`).
+    2. Candidates (:func:`rate_candidates`): ``r_j = grid_j * data_rate(X, dX, attractor)``,
+       rounded down to 3 significant digits, largest first. A candidate is *within budget*
+       when the A-fit imposing ``r_j (1 + RATE_PAD)`` (with the sampled-data constraint at
+       ``dt``: exactly the fit the learner keeps) has RMSE
+       ``e_j <= (1 + budget) e_0 + 1e-6 rms|xdot|`` (the absolute term only keeps an exact fit,
+       ``e_0 ~ 0``, or ``budget = 0`` from rejecting a rate the fit does not feel on solver
+       noise).
+    3. Bisection over the candidate index. Whatever the data, the result is a rate within
+       budget whose next larger candidate was solved and is not (or the largest candidate):
+       the bisection keeps "``r_lo`` outside, ``r_hi`` within" and stops when they are
+       neighbours. It is the *largest* rate within budget when ``e_j`` grows with the rate,
+       which holds up to solver accuracy for the continuous-time fits (their feasible sets
+       shrink as the rate grows; the ``1e-6`` ridge term is what is minimised besides the
+       RMSE) and may fail by a hair where :func:`fit_a` switches between the continuous
+       optimum and the sampled-data re-solve (a different program). ``ceil(log2(m + 1))``
+       candidate solves for ``m`` candidates (4 for the default grid) besides the reference: 5
+       A-fits instead of 1.
+
+    A candidate whose solve fails (:class:`~tli_verify.errors.SolverError`) counts as outside
+    the budget. When no candidate is within budget the smallest is chosen (``within_budget``
+    False). Deterministic: no randomness, a fixed number of solves for given data.
+
+    Parameters
+    ----------
+    X, dX, gamma, attractor, P, eps, dt
+        As for :func:`fit_a`.
+    budget : float, optional
+        Relative RMSE increase allowed over the rate-0 fit (default :data:`RATE_BUDGET`).
+    grid : tuple of float, optional
+        Candidate rates as fractions of :func:`data_rate` (default :data:`RATE_GRID`; any
+        order, sorted here).
+
+    Returns
+    -------
+    RateChoice
+
+    Raises
+    ------
+    SolverError
+        The reference fit fails, ``eps`` is not positive, the budget is not finite and >= 0,
+        or every candidate is outside the budget and the smallest one's fit fails.
+    """
+    import math
+
+    if not (isinstance(budget, (int, float)) and math.isfinite(budget) and budget >= 0.0):
+        raise SolverError(f"rate budget must be a finite number >= 0, got {budget!r}")
+    if not eps > 0.0:
+        raise SolverError(f"the rate choice needs a positive margin eps for its rate-0 reference "
+                          f"fit, got eps={eps}")
+    Xa, dXa, xs = _as_data(X, dX, attractor)
+    r_data = data_rate(Xa, dXa, xs)
+    A_ref, info_ref = fit_a(Xa, dXa, gamma, xs, P, eps=eps)
+    e_ref = velocity_rmse(Xa, dXa, gamma, xs, A_ref)
+    rms = float(np.sqrt(np.mean(np.sum(dXa**2, axis=1)))) if dXa.size else 0.0
+    limit = (1.0 + budget) * e_ref + 1e-6 * rms
+    rates = rate_candidates(r_data, grid)
+    if not rates:  # the data do not move: nothing to choose, the margin-only fit
+        return RateChoice(0.0, A_ref, info_ref, e_ref, e_ref, float(budget), r_data, True, ())
+    fits: dict[int, tuple[FloatArray, SolveInfo, float]] = {}
+    errors: dict[int, SolverError] = {}
+    tried: list[tuple[float, float]] = []
+
+    def within(j: int) -> bool:
+        try:
+            A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=rates[j] * (1.0 + RATE_PAD),
+                            dt=dt)
+        except SolverError as exc:
+            errors[j] = exc
+            tried.append((rates[j], math.inf))
+            return False
+        e = velocity_rmse(Xa, dXa, gamma, xs, A)
+        fits[j] = (A, info, e)
+        tried.append((rates[j], e))
+        return e <= limit
+
+    lo, hi = -1, len(rates)  # invariant: rates[lo] outside (or none), rates[hi] within (or none)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if within(mid):
+            hi = mid
+        else:
+            lo = mid
+    ok = hi < len(rates)
+    j = hi if ok else len(rates) - 1  # none within: lo ended on the smallest, solved
+    if j not in fits:
+        raise SolverError(f"rate choice: no candidate rate is within the budget {budget:g} and "
+                          f"the smallest, {rates[j]:g}/s, does not solve: {errors[j]}")
+    A, info, e = fits[j]
+    return RateChoice(rates[j], A, info, e, e_ref, float(budget), r_data, ok, tuple(tried))

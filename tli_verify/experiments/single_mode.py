@@ -1,4 +1,4 @@
-"""The paper's single-mode study (Sec. 7.1, Fig. 6-8, appendix F), reproduced.
+"""The paper's single-mode study (Sec. 7.1, Figs. 5-6, appendix E), reproduced.
 
 Protocol (one *trial* = one random convex mode):
 
@@ -15,9 +15,9 @@ Protocol (one *trial* = one random convex mode):
 5. BC+mod and DS+mod: while some rollout leaves the mode, pick one such *invariance failure*
    at random (seeded), solve its cut (:func:`tli_verify.boundary.cuts.solve_cut`, keeping earlier
    cut points inside), add it, re-roll all starts with the modulated policy
-   (:func:`tli_verify.boundary.modulation.modulated`: eq. 5 with the corner guard, told the
+   (:func:`tli_verify.boundary.modulation.modulated`: eq. 7 with the corner guard, told the
    Euler step ``dt`` so that no step crosses a cut); stop when no rollout leaves the mode or
-   after ``max_cuts`` cuts. The success rate after each cut gives the curve of paper Fig. 8
+   after ``max_cuts`` cuts. The success rate after each cut gives the curve of paper Fig. 6
    (right); the rate with the final cuts is the table entry.
 
 Success is measured on the same starts the cuts were learned from, as in the paper. We also
@@ -80,7 +80,7 @@ PAPER_TABLE: dict[str, dict[str, float]] = {
     "DS": {"0": 100.0, "5": 97.0, "30": 86.9},
     "DS+mod": {"0": 100.0, "5": 100.0, "30": 100.0},
 }
-"""Paper Fig. 8 (left), success rates in percent."""
+"""Paper Fig. 6 (left), success rates in percent."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,7 +107,7 @@ class SingleModeConfig:
         Separation margin of the cut QCQP (see :mod:`tli_verify.boundary.cuts`).
     cut_constraints : {"entries", "paper"}
         Which states a new cut keeps inside besides ``x*`` and the earlier cut points:
-        ``"paper"`` -- the failure's own entry state ``x^0`` (appendix F as written);
+        ``"paper"`` -- the failure's own entry state ``x^0`` (appendix E.3 as written);
         ``"entries"`` -- every observed mode-entry state (all start states of the batch), which
         keeps every start inside the cuts (see ``docs/boundary.md`` for why this matters).
     ds_eps : float
@@ -231,7 +231,7 @@ def learn_cuts(
     lyapunov: FloatArray | None = None,
     record: bool = False,
 ) -> CutLearning:
-    """Add cuts from sampled invariance failures one at a time (paper appendix F).
+    """Add cuts from sampled invariance failures one at a time (paper appendix E.1).
 
     The study's parameters around :func:`tli_verify.runtime.online.learn_cuts` (the engine
     the executive shares).
@@ -322,7 +322,7 @@ def run_trial(
     trial : int
         Trial index; with ``config.seed`` it fixes every random draw.
     record : bool, optional
-        Also return the data of the rollout figure (paper Fig. 6).
+        Also return the data of the rollout figure (paper Fig. 5).
 
     Returns
     -------
@@ -565,7 +565,7 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
     cfg = summary["config"]
     noises = [str(p) for p in cfg["noise_percent"]]
     lines = [
-        "# Single-mode study (paper Sec. 7.1, Fig. 8)",
+        "# Single-mode study (paper Sec. 7.1, Fig. 6)",
         "",
         f"{summary['trials_run']} random convex modes, {cfg['starts']} starts per noise level, "
         f"seed {cfg['seed']}; Euler dt {cfg['dt']}, {cfg['steps']} steps, speed cap "
@@ -593,7 +593,7 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
         cells = [f"{summary['cuts'][p][k]['mean']:.2f} / {summary['cuts'][p][k]['max']:.0f}; "
                  f"{_pct(summary['cuts'][p][k]['converged'])}%" for k in noises]
         lines.append(f"| {p} | " + " | ".join(cells) + " |")
-    lines += ["", "Success (mean %) after k cuts (paper Fig. 8 right; a trial that stopped "
+    lines += ["", "Success (mean %) after k cuts (paper Fig. 6 right; a trial that stopped "
               "early keeps its last value):", ""]
     for p in ("DS+mod", "BC+mod"):
         for k in noises:
@@ -685,7 +685,7 @@ def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
             ax.set_title(f"{title}: {_pct(float(res.success.mean()))}%", fontsize=9)
         for c in range(ncols):
             axes[r, c].plot(*goal, "o", color="tab:orange", mec="k", ms=8, zorder=6)
-    fig.suptitle("Single-mode rollouts (cf. paper Fig. 6): blue = success, red = failure; "
+    fig.suptitle("Single-mode rollouts (cf. paper Fig. 5): blue = success, red = failure; "
                  "cyan = cuts, yellow = last in-mode state, red x = failure state", fontsize=9)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
@@ -719,7 +719,7 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("success rate (%)")
     axes[0].legend(loc="lower right", fontsize=8)
-    fig.suptitle("Success vs. number of cuts (cf. paper Fig. 8 right): mean, shaded IQR",
+    fig.suptitle("Success vs. number of cuts (cf. paper Fig. 6 right): mean, shaded IQR",
                  fontsize=10)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)

@@ -1,4 +1,4 @@
-"""Task automata: Mealy machines extracted from a won GR(1) game (paper Sec. 5.1, Fig. 4(a)).
+"""Task automata: Mealy machines extracted from a won GR(1) game (paper Sec. 5.1, Fig. 3(a)).
 
 The automaton ``Omega_phi`` of paper eq. 6 answers, given its current state and the new sensor
 reading ``alpha``, which mode policy runs next. States carry the mode they run, the sensor
@@ -12,7 +12,7 @@ move (no vacuous dead ends where it can avoid them), then the lowest ring, then 
 lexicographically least outputs, so the same spec gives the same automaton,
 byte for byte.
 
-Transitions are built symbolically (issue 10, class 6): the strategy's choice is computed as a
+Transitions are built symbolically: the strategy's choice is computed as a
 BDD over the next readings, and each edge carries a *cube* of readings (inputs required true,
 inputs required false, the rest free), not one edge per valuation. A state records only the
 inputs the strategy ever reads (:attr:`TaskAutomaton.free_inputs` lists the others), so a spec
@@ -28,7 +28,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from tli_verify.errors import SpecError, TliError
+from tli_verify.errors import CheckFailed, SpecError
 from tli_verify.logic.escape import dot_string
 from tli_verify.logic.gr1 import Solution, _goals_or_true, cube
 
@@ -50,10 +50,8 @@ MAX_AUTOMATON_EDGES = 50_000
 """Most edges (reading cubes) an extracted task automaton may have."""
 
 
-class AssumptionViolation(TliError):
+class AssumptionViolation(CheckFailed):
     """A sensor reading the environment assumptions rule out (no transition for it)."""
-
-    exit_code = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,7 +145,7 @@ class PlannedStep:
 DSKeys = Mapping[str, tuple[str, "str | None"]]
 """A model's DS keys as the planner sees them: key -> ``(mode, next_mode)``. A key equal to its
 mode is a plain DS (``next_mode``: the demonstrated next mode, or None); any other key is a
-per-transition DS ``mode -> next_mode`` (paper appendix F)."""
+per-transition DS ``mode -> next_mode`` (paper appendix G)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -369,8 +367,8 @@ class TaskAutomaton:
                  for t in self.transitions}
         return [list(p) for p in sorted(pairs)]
 
-    def to_json(self) -> dict[str, Any]:
-        """JSON-ready dict (see README, "Task automaton")."""
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (``docs/reference/file-formats.md``)."""
         return {
             "name": self.name,
             "inputs": list(self.inputs),
@@ -392,8 +390,8 @@ class TaskAutomaton:
         }
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> TaskAutomaton:
-        """Inverse of :meth:`to_json`.
+    def from_dict(cls, data: Mapping[str, Any]) -> TaskAutomaton:
+        """Inverse of :meth:`to_dict`.
 
         Files written before transition cubes (no ``"off"``) list full readings: every
         input not in ``"sensors"`` is false.

@@ -80,7 +80,7 @@ class SpecCheck:
         """The verdict the spec file declares (``expect = ...``; realizable by default)."""
         return self.spec.expect_realizable
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The ``tli spec check --json`` record."""
         return {
             "file": self.spec.path,
@@ -88,14 +88,15 @@ class SpecCheck:
             "realizable": self.realizable,
             "expected_realizable": self.expected_realizable,
             "expect": self.spec.expect,
+            "semantics": self.spec.semantics,
             "as_expected": self.as_expected,
-            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_json(),
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
             "warnings": list(self.warnings),
             "seconds": round(self.seconds, 6),
             "well_separated": self.well_separated,
-            "well_separation": self.well_separation.to_json(),
-            "core": None if self.core is None else self.core.to_json(),
-            "hints": [h.to_json() for h in self.hints],
+            "well_separation": self.well_separation.to_dict(),
+            "core": None if self.core is None else self.core.to_dict(),
+            "hints": [h.to_dict() for h in self.hints],
         }
 
 
@@ -141,7 +142,18 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
 
 
 def synthesize(spec: GR1Spec) -> TaskAutomaton:
-    """The task automaton of a realizable spec.
+    """The task automaton of a realizable spec (paper Sec. 4.2, "Task-Level Reactivity in
+    LTL": the GR(1) game's winning strategy as a finite-state machine).
+
+    Parameters
+    ----------
+    spec : GR1Spec
+        A spec from :func:`~tli_verify.logic.spec.load_spec` or
+        :func:`~tli_verify.logic.spec.parse_spec`.
+
+    Returns
+    -------
+    TaskAutomaton
 
     Raises
     ------

@@ -1,6 +1,6 @@
 """Why a GR(1) spec is unrealizable: the failing part, a counter-strategy witness, a hint.
 
-An unrealizable verdict is never a bare "no" (issue 2). The diagnosis names
+An unrealizable verdict is never a bare "no". The diagnosis names
 
 * which part fails: the initial condition, the safety part (the environment can force a state
   where every system move breaks a safety guarantee), or a liveness goal;
@@ -46,7 +46,7 @@ class Step:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
 
-    def to_json(self) -> dict[str, list[str]]:
+    def to_dict(self) -> dict[str, list[str]]:
         return {"inputs": list(self.inputs), "outputs": list(self.outputs)}
 
     def __str__(self) -> str:
@@ -83,12 +83,12 @@ class Diagnosis:
     final_inputs: tuple[str, ...] | None = None
     hint: str | None = None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "summary": self.summary,
             "formulas": list(self.formulas),
-            "witness": [s.to_json() for s in self.witness],
+            "witness": [s.to_dict() for s in self.witness],
             "loop_start": self.loop_start,
             "final_inputs": None if self.final_inputs is None else list(self.final_inputs),
             "hint": self.hint,
@@ -171,7 +171,8 @@ def _initial_culprits(game: Game, x: dict[str, bool]) -> list[SpecFormula]:
     bdd = game.manager
     Y = list(game.outputs)
     parts: list[tuple[SpecFormula, Any, bool]] = (
-        [(f, b, False) for f, b in game.init_s] + [(f, b, True) for f, b in game.safety_s])
+        [(f, b, False) for f, b in game.init_s]
+        + ([] if game.semantics == "textbook" else [(f, b, True) for f, b in game.safety_s]))
     return minimal_init_core(
         bdd, parts, rename={v: v + "'" for v in game.inputs + game.outputs},
         quantified=game.inputs_next + game.outputs_next,

@@ -1,4 +1,4 @@
-"""Escaping names and labels for the text formats the tool writes (issue 10, class 7).
+"""Escaping names and labels for the text formats the tool writes.
 
 Spec names, mode names and labels come from user files. Written raw into Graphviz DOT or
 Markdown, a quote, a bracket or a newline changes the document's structure (e.g. the name

@@ -16,7 +16,7 @@ predecessor is ``cpre(Z) = forall X'. (rho_e -> exists Y'. (rho_s & Z'))`` and t
 
 The spec is realizable iff ``forall X. theta_e -> exists Y. theta_s & Z``.
 
-Safety at every position, the first included (README, "How it works (logic layer)").
+Safety at every position, the first included (``docs/explanation/logic.md``).
 ``G(phi)`` means: ``phi`` holds at every position ``i >= 0``, where ``phi`` may mention the
 current and the next values. Each side's safety formulas go into its transition relation as
 written (``X v`` read as ``v'``), and in addition their *current-state consequence* applies
@@ -90,6 +90,7 @@ class Game:
     init_s: tuple[tuple[SpecFormula, Any], ...] = field(default=())
     safe_e: Any = None
     safe_s: Any = None
+    semantics: str = "tli"
 
     @property
     def inputs_next(self) -> list[str]:
@@ -132,7 +133,7 @@ class Game:
         return u
 
 
-def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
+def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = None) -> Game:
     """Compile ``spec`` to a :class:`Game`.
 
     Parameters
@@ -141,8 +142,17 @@ def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
     manager : dd.cudd.BDD, optional
         Reuse this CUDD manager (so that BDDs of several games over the same variables can be
         compared); a fresh one by default.
+    semantics : {"tli", "textbook"}, optional
+        The reading of safety at time 0 (default: the spec's ``semantics``). ``"tli"``: the
+        module docstring. ``"textbook"`` (Spectra, slugs): the initial conditions are the
+        ``init`` formulas alone and the transition relations the safety bodies alone, with
+        no current-state consequence (``safe_e`` and ``safe_s`` are ``true``).
     """
     import dd.cudd
+
+    reading = spec.semantics if semantics is None else semantics
+    if reading not in ("tli", "textbook"):
+        raise ValueError(f"semantics must be 'tli' or 'textbook', got {reading!r}")
 
     bdd = dd.cudd.BDD() if manager is None else manager
     order = []
@@ -176,8 +186,12 @@ def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
     rho_e = _conj_bdd(bdd, [b for _, b in safety_e])
     rho_s = _conj_bdd(bdd, [b for _, b in safety_s])
     rename = {v: _prime(v) for v in inputs + outputs}
-    safe_e = safety_closure(bdd, rho_e, {v: _prime(v) for v in inputs}, outputs + inputs_next)
-    safe_s = safety_closure(bdd, rho_s, rename, inputs_next + outputs_next)
+    if reading == "textbook":
+        safe_e = safe_s = bdd.true
+    else:
+        safe_e = safety_closure(bdd, rho_e, {v: _prime(v) for v in inputs},
+                                outputs + inputs_next)
+        safe_s = safety_closure(bdd, rho_s, rename, inputs_next + outputs_next)
     return Game(
         spec=spec,
         manager=bdd,
@@ -195,6 +209,7 @@ def build_game(spec: GR1Spec, *, manager: Any = None) -> Game:
         init_s=tuple(init_s),
         safe_e=safe_e,
         safe_s=safe_s,
+        semantics=reading,
     )
 
 
@@ -285,6 +300,8 @@ def closed_relation(game: Game, parts: Sequence[Any], *, system: bool) -> Any:
     ``rho_s`` from all of them)."""
     bdd = game.manager
     trans = _conj_bdd(bdd, parts)
+    if game.semantics == "textbook":
+        return trans
     if system:
         rename = {v: _prime(v) for v in game.inputs + game.outputs}
         safe = safety_closure(bdd, trans, rename, game.inputs_next + game.outputs_next)

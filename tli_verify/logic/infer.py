@@ -1,4 +1,4 @@
-"""Spec inference from demonstrations and online re-synthesis (paper appendix E, "Automatic
+"""Spec inference from demonstrations and online re-synthesis (paper appendix F, "Automatic
 construction of GR(1) LTL formulas").
 
 Given the mode labels (a ``[modes]`` table: mode -> sensor formula, paper Sec. 3) and
@@ -37,12 +37,12 @@ no sensor and no mode) is the sound scoop spec's perturbation marker, kept on pu
 ``G(X p <-> ((m1 & X n1) | ...))`` lists the *regressing* mode changes, and the goal is
 ``GF(goals | p)``. A regressing change is one that does not bring the task closer to a goal:
 every transition added online by :func:`add_transition` (by default; these are the changes a
-perturbation caused, paper Sec. 7.2) and every demonstrated change into a mode no closer to a
+perturbation caused, paper appendix F) and every demonstrated change into a mode no closer to a
 goal. Paper Asm. 2 (finitely many perturbations) makes ``FG !p -> GF goals`` hold, which is not
 GR(1); ``GF(goals | p)`` is its GR(1) form. Without the marker the first recovery edge
 (``b -> a``) would make the grown spec unrealizable: the world could then loop ``a, b, a, b``
 forever, meeting every fairness assumption, and ``GF d`` would be lost. With it, the scoop
-demonstrations grow to exactly the automaton of ``specs/scoop.toml`` (paper Fig. 5(a)).
+demonstrations grow to exactly the automaton of ``specs/scoop.toml`` (paper Fig. 3(a)).
 
 Limits. Modes that share a label get the union of their group's successors (cooking's
 ``w1``/``w2``: which of them came first is not in the sensors), so the spec is weaker than a
@@ -438,6 +438,8 @@ def spec_to_toml(spec: GR1Spec) -> str:
         lines.append(f"description = {_toml_str(spec.description)}")
     if spec.expect != "realizable":
         lines.append(f"expect = {_toml_str(spec.expect)}")
+    if spec.semantics != "tli":
+        lines.append(f"semantics = {_toml_str(spec.semantics)}")
     lines += [f"inputs = {_toml_list(spec.inputs)}", f"outputs = {_toml_list(spec.outputs)}"]
     if spec.modes is not None:
         lines += ["", "[modes]", *(f"{m} = {_toml_str(lab)}" for m, lab in spec.modes.items())]

@@ -22,10 +22,10 @@ from enum import Enum
 from typing import Any
 
 from tli_verify.errors import SpecError
+from tli_verify.limits import MAX_FORMULA_DEPTH, MAX_FORMULA_NODES
 
 __all__ = [
     "AP_PATTERN",
-    "MAX_FORMULA_CHARS",
     "MAX_FORMULA_DEPTH",
     "MAX_FORMULA_NODES",
     "RESERVED",
@@ -42,17 +42,6 @@ operators: ``G``, ``F``, ``X``, ``U``, ``W``, ``R``, ``M``)."""
 
 RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
-MAX_FORMULA_CHARS = 20_000
-"""Longest formula text accepted (characters)."""
-
-MAX_FORMULA_DEPTH = 100
-"""Deepest nesting accepted: of parentheses in the text, and of operators in the parsed
-formula (``a -> a -> ...`` nests without parentheses). Real task formulas nest a few levels;
-the limit keeps every recursive pass over a formula far from Python's recursion limit."""
-
-MAX_FORMULA_NODES = 50_000
-"""Most operator nodes a parsed formula may expand to (Spot expands ``F[1:3]``, ``X[2]``,
-...: a short text can stand for an exponentially large formula)."""
 
 
 _FORMULA_CHARS = frozenset(
@@ -77,7 +66,7 @@ def _spot() -> Any:
     return spot
 
 
-def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_CHARS,
+def parse_formula(text: str, *, where: str, max_nodes: int | None = MAX_FORMULA_NODES,
                   max_depth: int = MAX_FORMULA_DEPTH) -> Any:
     """Parse ``text`` with Spot.
 
@@ -87,11 +76,14 @@ def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_
         Formula in Spot's LTL syntax.
     where : str
         Location used in error messages (e.g. ``"specs/scoop.toml:23 guarantee.safety[0]"``).
-    max_chars : int or None
-        Longest text accepted (None: no limit, for formulas the tool builds from checked
-        parts).
+    max_nodes : int or None
+        Most operator nodes of the parsed formula (None: no limit, for formulas the tool
+        builds from checked parts). The text's length is bounded only by the file's byte
+        cap (:data:`tli_verify.limits.MAX_INPUT_BYTES`): what costs is the formula's size
+        and depth, not its spelling.
     max_depth : int
-        Deepest nesting accepted (parentheses in the text, operators in the formula).
+        Deepest nesting accepted (parentheses in the text, runs of prefix operators before
+        Spot parses it, operators in the parsed formula).
 
     Returns
     -------
@@ -107,8 +99,6 @@ def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_
         raise SpecError(f"{where}: expected a formula string, got {type(text).__name__}")
     if not text.strip():
         raise SpecError(f"{where}: empty formula")
-    if max_chars is not None and len(text) > max_chars:
-        raise SpecError(f"{where}: formula longer than {max_chars} characters")
     if "\x00" in text:
         raise SpecError(f"{where}: formula contains a NUL character")
     bad = next((ch for ch in text if ch not in _FORMULA_CHARS), None)
@@ -118,6 +108,9 @@ def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_
                         "and parentheses)")
     if _paren_depth(text) > max_depth:
         raise SpecError(f"{where}: formula nests parentheses deeper than the limit of "
+                        f"{max_depth} levels")
+    if _prefix_run(text) > max_depth:  # Spot's own recursion dies on ~10^5 nested X
+        raise SpecError(f"{where}: formula nests operators deeper than the limit of "
                         f"{max_depth} levels")
     spot = _spot()
     try:
@@ -133,9 +126,9 @@ def parse_formula(text: str, *, where: str, max_chars: int | None = MAX_FORMULA_
     if depth > max_depth:
         raise SpecError(f"{where}: formula nests operators deeper than the limit of "
                         f"{max_depth} levels")
-    if max_chars is not None and size > MAX_FORMULA_NODES:
-        raise SpecError(f"{where}: formula expands to {size} operators (e.g. by F[n:m] or "
-                        f"X[n]), more than the limit of {MAX_FORMULA_NODES}")
+    if max_nodes is not None and size > max_nodes:
+        raise SpecError(f"{where}: formula has {size} operator nodes (counting shared "
+                        f"sub-formulas at each use), more than the limit of {max_nodes}")
     return f
 
 
@@ -149,6 +142,20 @@ def _paren_depth(text: str) -> int:
         elif ch == ")":
             depth = max(depth - 1, 0)
     return deepest
+
+
+def _prefix_run(text: str) -> int:
+    """Longest run of prefix operators (``! ~ X G F``) and ``(`` with nothing else between
+    them: a lower bound on the parsed formula's depth, computed before Spot parses it.
+    Atomic propositions are lower-case, so capitals are operators."""
+    run = longest = 0
+    for ch in text:
+        if ch in "!~XGF(":
+            run += 1
+            longest = max(longest, run)
+        elif not ch.isspace():
+            run = 0
+    return longest
 
 
 def formula_depth(f: Any, *, limit: int = MAX_FORMULA_DEPTH) -> int:

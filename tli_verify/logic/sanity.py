@@ -85,12 +85,12 @@ class WellSeparation:
     witness: tuple[Step, ...] = ()
     loop_start: int | None = None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "well_separated": self.well_separated,
             "kind": self.kind,
             "formulas": list(self.formulas),
-            "witness": [s.to_json() for s in self.witness],
+            "witness": [s.to_dict() for s in self.witness],
             "loop_start": self.loop_start,
         }
 
@@ -117,7 +117,7 @@ class Core:
     formulas: tuple[SpecFormula, ...]
     path: str | None
 
-    def to_json(self) -> list[dict[str, Any]]:
+    def to_dict(self) -> list[dict[str, Any]]:
         return [{"label": f.label, "line": f.line, "text": f.text, "origin": f.origin}
                 for f in self.formulas]
 
@@ -133,7 +133,7 @@ class Hint:
     reason: str
     path: str | None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {"label": self.formula.label, "line": self.formula.line,
                 "text": self.formula.text, "reason": self.reason}
 
@@ -205,7 +205,8 @@ def _initial_culprits(game: Game) -> list[SpecFormula]:
     no initial reading satisfies."""
     bdd = game.manager
     parts: list[tuple[SpecFormula, Any, bool]] = (
-        [(f, b, False) for f, b in game.init_e] + [(f, b, True) for f, b in game.safety_e])
+        [(f, b, False) for f, b in game.init_e]
+        + ([] if game.semantics == "textbook" else [(f, b, True) for f, b in game.safety_e]))
     return minimal_init_core(
         bdd, parts, rename={v: v + "'" for v in game.inputs},
         quantified=list(game.outputs) + game.inputs_next,

@@ -33,6 +33,11 @@ task), and overrides the task's goal.
 ``expect = "not-well-separated"`` one that is realizable only vacuously; the default is
 ``"realizable"`` (and well-separated). The deployment gate checks that every spec's verdict
 matches its expectation.
+
+``semantics = "textbook"`` decides the game in the reading of Spectra and slugs, where a
+safety formula constrains only the transitions (``docs/explanation/logic.md``, "Two readings
+of safety at time 0"); the default ``"tli"`` also applies each side's safety formulas to the
+initial state (their current-state consequence). ``tli spec import`` writes ``"textbook"``.
 """
 
 from __future__ import annotations
@@ -66,10 +71,13 @@ __all__ = [
 
 _TOP_KEYS = frozenset(
     {"name", "description", "inputs", "outputs", "modes", "assume", "guarantee", "expect",
-     "task", "goal"}
+     "task", "goal", "semantics"}
 )
 _SIDE_KEYS = frozenset({"init", "safety", "liveness"})
 EXPECTATIONS = ("realizable", "unrealizable", "not-well-separated")
+SEMANTICS = ("tli", "textbook")
+"""Readings of ``G(phi)`` at time 0 (``docs/explanation/logic.md``, "Two readings of safety
+at time 0"): ``"tli"`` (the default) or ``"textbook"`` (Spectra's and slugs')."""
 MAX_TOML_DEPTH = 16
 """Deepest nesting of TOML arrays and tables accepted in a spec (a spec needs 3)."""
 
@@ -158,6 +166,9 @@ class GR1Spec:
         Modes that complete an episode (``[goal] modes``; None: not given).
     goal_sensors : tuple of str
         Sensors that must also read true there (``[goal] sensors``).
+    semantics : str
+        ``"tli"`` (default) or ``"textbook"``: the reading of safety at time 0
+        (:data:`SEMANTICS`).
     """
 
     name: str
@@ -172,6 +183,7 @@ class GR1Spec:
     task: str | None = None
     goal_modes: tuple[str, ...] | None = None
     goal_sensors: tuple[str, ...] = ()
+    semantics: str = "tli"
 
     @property
     def expect_realizable(self) -> bool:
@@ -196,6 +208,15 @@ class GR1Spec:
 
 def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     """Load and validate a spec file.
+
+    Parameters
+    ----------
+    path : path-like
+        A TOML spec file (format: the module docstring).
+
+    Returns
+    -------
+    GR1Spec
 
     Raises
     ------
@@ -239,6 +260,10 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     expect = data.get("expect", "realizable")
     if expect not in EXPECTATIONS:
         raise SpecError(f"{where}: 'expect' must be one of {', '.join(EXPECTATIONS)}")
+    semantics = data.get("semantics", "tli")
+    if semantics not in SEMANTICS:
+        raise SpecError(f"{where}:{lines.key('semantics') or 1}: 'semantics' must be one of "
+                        f"{', '.join(repr(s) for s in SEMANTICS)}")
     inputs = _ap_list(data, "inputs", where, lines)
     outputs = _ap_list(data, "outputs", where, lines)
     both = sorted(set(inputs) & set(outputs))
@@ -271,6 +296,7 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         task=task,
         goal_modes=goal_modes,
         goal_sensors=goal_sensors,
+        semantics=semantics,
     )
 
 
@@ -552,7 +578,7 @@ def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assum
         # characters the constraint itself adds.
         return SpecFormula(text=text, section=section, index=index, line=None, origin="modes",
                            ltl=parse_formula(text, where=f"[modes] constraint {section}",
-                                             max_chars=None,
+                                             max_nodes=None,
                                              max_depth=MAX_FORMULA_DEPTH + 8))
 
     def extend(side: SpecSide, name: str, inits: list[str], safeties: list[str]) -> SpecSide:

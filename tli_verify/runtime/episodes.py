@@ -8,7 +8,7 @@
   workspace"); :func:`pusher` applies a table, keeping states in the workspace box;
 * :func:`run_variant` / :func:`run_variant_batch` -- one or many episodes of a policy variant
   (:data:`tli_verify.runtime.setup.VARIANTS`), batched with
-  :func:`~tli_verify.runtime.executive.run_episodes`;
+  :func:`~tli_verify.runtime.loop.run_episodes`;
 * :func:`mode_runs`, :func:`mode_string`, :func:`episode_json` -- what an episode did.
 
 The policy only sees what the task's sensors read (:class:`~tli_verify.runtime.worlds.WorldSensors`)
@@ -25,13 +25,8 @@ import numpy.typing as npt
 
 from tli_verify.errors import TaskError, TliError
 from tli_verify.runtime.events import mode_sequence
-from tli_verify.runtime.executive import (
-    EpisodeResult,
-    LTLDSPolicy,
-    batch_results,
-    run_episode,
-    run_episodes,
-)
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import EpisodeResult, batch_results, run_episode, run_episodes
 from tli_verify.runtime.setup import Setup, make_policy
 from tli_verify.runtime.worlds import WorldSensors
 from tli_verify.tasks.task import Task

@@ -66,7 +66,7 @@ class ModeChange:
 @dataclass(frozen=True, slots=True)
 class Replan:
     """The reading showed a mode other than the planned one; the automaton replans from it
-    (receding horizon, paper Sec. 1 and Fig. 4(b)).
+    (receding horizon, paper Sec. 1 and Fig. 3(b)).
 
     Attributes
     ----------
@@ -205,7 +205,7 @@ class Perturbation:
 class TransitionLearned:
     """``--learn-transitions``: a mode change the spec lacked was added to ``phi_t^s``, the
     spec re-synthesized (realizable, well-separated, every state covered by the model's DS)
-    and the run carried on in the new automaton (paper appendix E, "a new automaton will be
+    and the run carried on in the new automaton (paper appendix F, "a new automaton will be
     re-synthesized"; :func:`tli_verify.logic.infer.regrow`).
 
     Attributes

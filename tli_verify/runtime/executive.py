@@ -1,8 +1,8 @@
-"""The LTL-DS executive (paper eq. 6, Sec. 5, Fig. 4(b) and Fig. 7).
+"""The LTL-DS executive (paper eq. 6, Sec. 5, Fig. 3(b) and Fig. 7).
 
 ``x' = sum_i delta_{Omega_phi(alpha), sigma_i} M_i(x) f_i(x)``: the task automaton ``Omega_phi``
 picks the mode from the sensor reading ``alpha``; the mode's certified DS ``f_i``, modulated by
-the cuts learned for the mode's region (``M_i``, eq. 5), moves the state.
+the cuts learned for the mode's region (``M_i``, eq. 7), moves the state.
 
 :class:`LTLDSPolicy` is the controller: ``reset(x0, sensors)`` once, then ``step(x, sensors)``
 every control period returns the velocity to apply. Per step it
@@ -19,14 +19,14 @@ every control period returns the velocity to apply. Per step it
    an invariance failure of the mode left (an exit across a reading the assumptions rule out
    is reported as an assumption violation and cuts nothing). The executive records
    ``(x^0, x^{T_f-1}, x^{T_f})`` -- the mode-entry state, the last in-mode state, the failure
-   state -- and solves the cut QCQP (appendix F), constrained by the mode's earlier cut points
+   state -- and solves the cut QCQP (appendix E.3), constrained by the mode's earlier cut points
    and every entry state recorded in the mode, so earlier failures stay separated. It applies
-   the cut at once: a new model (:meth:`tli_verify.model.Model.add_cut`), whose DS of that
+   the cut at once: a new model (:meth:`tli_verify.model.types.Model.add_cut`), whose DS of that
    mode all share the cut;
 5. runs ``model.velocity(x, mode, next_mode=planned, dt=dt)``: the per-transition DS towards the
    planned next mode where the model has one. The plan is the toolkit's one planner,
    :meth:`TaskAutomaton.planned_keys`, which the deployment gate checks coverage with too;
-6. **growing the spec** (``learn_transitions=True``, paper appendix E): a reading the
+6. **growing the spec** (``learn_transitions=True``, paper appendix F): a reading the
    assumptions rule out that shows another *known* mode (paper Asm. 3) is a transition the
    spec lacks. It is added to ``phi_t^s`` (:func:`tli_verify.logic.infer.regrow`: the observed
    sensor change joins the assumptions, the change is marked as regressing), the spec is
@@ -36,27 +36,23 @@ every control period returns the velocity to apply. Per step it
    with a :class:`~.events.TransitionLearned` event; otherwise the old spec is kept, a
    :class:`~.events.TransitionRefused` event says why and the reading is handled as an
    assumption violation. The certified model and its certificate are untouched: they still
-   bind the spec the model names; the grown spec (:attr:`LTLDSPolicy.spec_toml`) is a new file.
+   bind the spec the model names; the grown spec (:attr:`LTLDSPolicy.spec_toml`) is a new file
+   (:mod:`tli_verify.runtime.growth`).
 
-It refuses (:class:`~tli_verify.errors.CertificateError`, exit 1) a model its certificate does
-not cover, exactly as the gate does: the certificate re-checks
-(:func:`tli_verify.certify.certificate.check_certificate`), names this model file, and the DS in
-memory are the certified file's (cuts learned online are covered: modulation keeps the
-certified ``V`` decreasing, Thm. 1); and a control period longer than the certified one.
+It refuses (:class:`~tli_verify.errors.CertificateError`) a model its certificate does not
+cover, exactly as the gate does (:func:`tli_verify.runtime.coverage.check_coverage`: cuts
+learned online are covered, modulation keeps the certified ``V`` decreasing, Thm. 1), and a
+control period longer than the certified one.
 
-:func:`run_episode` is the closed loop around it: a sensor model, Euler steps with a speed cap,
-scheduled perturbations.
+The closed loop around it is :mod:`tli_verify.runtime.loop`.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
-from fractions import Fraction
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, cast
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -64,7 +60,8 @@ import numpy.typing as npt
 from tli_verify.boundary.cuts import InvarianceFailure as _Failure
 from tli_verify.errors import CertificateError, ModelError, TliError
 from tli_verify.logic.automaton import AssumptionViolation, PlannedStep, TaskAutomaton
-from tli_verify.model import Model
+from tli_verify.model.types import Model
+from tli_verify.runtime.coverage import check_coverage, plan_states
 from tli_verify.runtime.events import (
     AssumptionViolationEvent,
     CutAdded,
@@ -77,20 +74,14 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
-from tli_verify.runtime.online import cut_for_failure
+from tli_verify.runtime.online import online_cut
 
 if TYPE_CHECKING:
     from tli_verify.logic.spec import GR1Spec
 
 __all__ = [
     "MAX_ENTRY_STATES",
-    "EpisodeResult",
     "LTLDSPolicy",
-    "SensorModel",
-    "batch_results",
-    "check_coverage",
-    "run_episode",
-    "run_episodes",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -100,94 +91,6 @@ MAX_ENTRY_STATES = 64
 """Most mode-entry states the executive keeps per mode (kept inside every later cut of the
 mode). Beyond it, one of the two closest recorded states (the older) is dropped, so the record
 stays bounded over long runs and keeps its spread (see :meth:`LTLDSPolicy._record_entry`)."""
-
-
-def plan_states(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None,
-                where: str) -> dict[int, PlannedStep]:
-    """The planner's choice in every state (:meth:`TaskAutomaton.planned_keys`), checked.
-
-    Raises
-    ------
-    ModelError
-        A mode the automaton runs has no DS, or a state has no DS the planner can run (the
-        deployment gate's ``modes`` check, with the same planner).
-    """
-    run_modes = sorted({s.mode for s in automaton.states})
-    missing = [m for m in run_modes if not model.keys_of(m)]
-    if missing:
-        raise ModelError(f"{where}: no DS for mode {missing[0]!r} the automaton "
-                         f"{automaton.name!r} runs")
-    steps = automaton.planned_keys({k: (mm.mode, mm.next_mode) for k, mm in model.modes.items()},
-                                   goal_modes)
-    for st in steps:
-        if st.key is None:
-            towards = ", ".join(st.moves) or "none: it only stays in the mode"
-            raise ModelError(f"{where}: no DS to run in automaton state {st.state} (mode "
-                             f"{st.mode!r}): no plain DS {st.mode!r} and no per-transition DS "
-                             f"towards the modes it can move to ({towards})")
-    return {st.state: st for st in steps}
-
-
-def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
-    try:
-        return Path(a).resolve() == Path(b).resolve() or os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
-def _same_ds(a: Any, b: Any) -> bool:
-    return all(np.array_equal(getattr(a, f), getattr(b, f))
-               for f in ("attractor", "priors", "means", "covs", "A", "P"))
-
-
-def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fraction:
-    """Check that ``certificate`` covers ``model``, as the gate does; return its ``dt``.
-
-    Parameters
-    ----------
-    model : Model
-        Loaded from a file (``model.path``); cuts added in memory since are allowed.
-    certificate : path-like
-
-    Returns
-    -------
-    Fraction
-        The certified control period.
-
-    Raises
-    ------
-    CertificateError
-        (exit 1) The certificate does not re-check, names another model file, or the DS in
-        memory differ from the certified file's (a cut of the file missing, other numbers);
-        (exit 2) the certificate file cannot be read.
-    """
-    from tli_verify.certify.certificate import check_certificate
-    from tli_verify.model import load_model
-
-    check = check_certificate(certificate)
-    if not check.ok:
-        raise CertificateError(f"{certificate}: refused: the certificate does not re-check: "
-                               f"{check.problems[0]}")
-    if model.path is None or check.model_path is None or \
-            not _same_file(model.path, check.model_path):
-        raise CertificateError(f"{certificate}: refused: it covers {check.model_path}, not the "
-                               f"model {model.path or '(not loaded from a file)'}")
-    certified = load_model(model.path)
-    if set(certified.modes) != set(model.modes):
-        raise CertificateError(f"{certificate}: refused: the model in memory has DS "
-                               f"{sorted(model.modes)}, the certified file "
-                               f"{sorted(certified.modes)}")
-    for key, mm in model.modes.items():
-        ref = certified.modes[key]
-        if not _same_ds(mm.ds, ref.ds):
-            raise CertificateError(f"{certificate}: refused: DS {key!r} in memory differs from "
-                                   f"the certified file {model.path}")
-        have = {(tuple(c.normal.tolist()), tuple(c.point.tolist())) for c in mm.cuts}
-        if any((tuple(c.normal.tolist()), tuple(c.point.tolist())) not in have
-               for c in ref.cuts):
-            raise CertificateError(f"{certificate}: refused: DS {key!r} in memory lacks a cut "
-                                   f"of the certified file {model.path}")
-    return Fraction(check.dt) if check.dt is not None else Fraction(1, 1000)
 
 
 class _EntryRecord(list[FloatArray]):
@@ -316,7 +219,7 @@ class LTLDSPolicy:
         unknown = sorted(set(goal_inputs) - set(automaton.inputs))
         if unknown:
             raise TliError(f"goal_inputs: {unknown[0]!r} is not a sensor of the automaton "
-                           f"({', '.join(automaton.inputs)})", exit_code=2)
+                           f"({', '.join(automaton.inputs)})")
         self.goal_inputs = frozenset(goal_inputs)
         self._plan_cache: dict[int, PlannedStep] = plan_states(
             automaton, model, self.goal_modes, str(model.path))
@@ -328,14 +231,14 @@ class LTLDSPolicy:
             if tuple(spec.inputs) != tuple(automaton.inputs) or \
                     tuple(spec.mode_names) != tuple(automaton.modes):
                 raise TliError(f"{spec.path or spec.name}: not the spec of the automaton "
-                               f"{automaton.name!r} (inputs or modes differ)", exit_code=2)
+                               f"{automaton.name!r} (inputs or modes differ)")
             self._spec_text = spec_to_toml(spec)
         elif self.learn_transitions:
             raise TliError("learn_transitions needs the spec the automaton was synthesized "
-                           "from (spec=...)", exit_code=2)
+                           "from (spec=...)")
         if self.learn_transitions and spec is not None and spec.modes is None:
             raise TliError(f"{spec.path or spec.name}: learn_transitions needs a [modes] table "
-                           "(which mode a reading shows)", exit_code=2)
+                           "(which mode a reading shows)")
         self._learned: tuple[tuple[str, str], ...] = ()
         self._refused: frozenset[tuple[str, frozenset[str]]] = frozenset()
         self.automaton = automaton
@@ -631,11 +534,11 @@ class LTLDSPolicy:
 
     # ---------------------------------------------------------------- growing the spec
     def _grow(self, t: int, reading: frozenset[str], perturbed: bool) -> int | None:
-        """Learn the transition a reading the assumptions rule out shows (module docstring,
-        item 6); the state of the grown automaton to carry on from, or None (refused, or not
-        a transition into another known mode: the caller resynchronizes)."""
-        from tli_verify.logic.infer import regrow, spec_to_toml
-        from tli_verify.logic.spec import label_holds
+        """Learn the transition a reading the assumptions rule out shows
+        (:func:`~tli_verify.runtime.growth.learn_transition`); the state of the grown automaton
+        to carry on from, or None (refused, or nothing to learn: the caller resynchronizes)."""
+        from tli_verify.logic.infer import spec_to_toml
+        from tli_verify.runtime.growth import Refusal, learn_transition
 
         spec = self.spec
         if spec is None or self._state is None:  # pragma: no cover - checked in __init__
@@ -643,49 +546,28 @@ class LTLDSPolicy:
         from_mode = self._mode
         if (from_mode, reading) in self._refused:
             return None
-        shown = tuple(sorted(reading))
-        values = {i: i in reading for i in spec.inputs}
-        holds = [m for m in spec.mode_names if label_holds(spec, m, values)]
-        if len(holds) != 1:
-            why = ("no mode label holds for it: only transitions into known modes are valid "
-                   "(paper Asm. 3)" if not holds else
-                   f"the labels of several modes hold for it ({', '.join(holds)})")
-            self._refuse(t, from_mode, None, reading, why)
-            return None
-        to_mode = holds[0]
-        if to_mode == from_mode:  # a sensor change inside the mode's label: nothing to learn
+        out = learn_transition(spec, self.automaton, self._state, from_mode, reading,
+                               self.model, self.goal_modes)
+        if isinstance(out, Refusal):
             self._refused = self._refused | {(from_mode, reading)}
+            if out.reason is not None:
+                self.events.append(TransitionRefused(t, from_mode, out.to_mode,
+                                                     tuple(sorted(reading)), out.reason))
             return None
-        try:
-            grown = regrow(spec, from_mode, to_mode, self.automaton.states[self._state],
-                           reading)
-            if grown.spec is spec:  # already allowed: nothing to learn at this state
-                self._refused = self._refused | {(from_mode, reading)}
-                return None
-            plans = plan_states(grown.automaton, self.model, self.goal_modes,
-                                f"{self.model.path}")
-        except TliError as exc:
-            self._refuse(t, from_mode, to_mode, reading, str(exc))
-            return None
-        self.automaton = grown.automaton
-        self._plan_cache = plans
-        self._spec_text = spec_to_toml(grown.spec)
-        self._learned = (*self._learned, (from_mode, to_mode))
+        self.automaton = out.automaton
+        self._plan_cache = out.plans
+        self._spec_text = spec_to_toml(out.spec)
+        self._learned = (*self._learned, (from_mode, out.to_mode))
         self._refused = frozenset()  # the spec changed: earlier refusals may not hold now
-        mode_edges = sum(1 for a, b in grown.automaton.mode_transitions() if a != b)
+        mode_edges = sum(1 for a, b in out.automaton.mode_transitions() if a != b)
         self.events.append(TransitionLearned(
-            t, from_mode, to_mode, shown, grown.state, len(grown.automaton.states),
-            len(grown.automaton.transitions), mode_edges, perturbed))
-        return grown.state
-
-    def _refuse(self, t: int, from_mode: str, to_mode: str | None, reading: frozenset[str],
-                reason: str) -> None:
-        self._refused = self._refused | {(from_mode, reading)}
-        self.events.append(TransitionRefused(t, from_mode, to_mode, tuple(sorted(reading)),
-                                             reason))
+            t, from_mode, out.to_mode, tuple(sorted(reading)), out.state,
+            len(out.automaton.states), len(out.automaton.transitions), mode_edges, perturbed))
+        return out.state
 
     # ---------------------------------------------------------------- online cuts
     def _failure(self, t: int, mode: str, to_mode: str, x_out: FloatArray) -> None:
+        """Report an invariance failure and learn its cut (:func:`~.online.online_cut`)."""
         if self._entry is None or self._last is None:  # pragma: no cover - set by reset
             return
         key = self._key
@@ -693,299 +575,19 @@ class LTLDSPolicy:
                                              self._last.copy(), x_out.copy()))
         if not self.learn_cuts:
             return
-        mm = self.model.modes[key]
-        x_star = mm.ds.attractor
-        keys = self.model.keys_of(mode)
-        # keep inside: every entry state seen in the mode (earlier failures' x^0 among them),
-        # the other DS' attractors of the mode, and a small box around x* (x* strictly inside)
-        delta = 1e-3 * max(1e-6, float(np.linalg.norm(self._last - x_star)))
-        box = x_star + delta * np.vstack([np.eye(x_star.size), -np.eye(x_star.size)])
-        others = [self.model.modes[k].ds.attractor for k in keys if k != key]
-        keep = np.vstack([*self._entries.get(mode, []), *others, box])
         try:
             failure = _Failure(entry=self._entry, last_inside=self._last, outside=x_out)
         except ModelError as exc:
             self.events.append(CutFailed(t, mode, str(exc)))
             return
-        previous = self.model.region_cuts(mode)
-        attempt = cut_for_failure(failure, x_star, previous=previous, keep_inside=keep,
-                                  margin=self.cut_margin)
-        if attempt.cut is None:
-            self.events.append(CutFailed(t, mode, "no plane through the last in-mode state "
-                                         "separates the failure state"))
+        out = online_cut(self.model, key, mode, failure, self._entries.get(mode, []),
+                         margin=self.cut_margin)
+        if out.model is None or out.attempt is None or out.attempt.cut is None:
+            self.events.append(CutFailed(t, mode, str(out.error)))
             return
-        try:
-            self._model = self.model.add_cut(key, attempt.cut)
-        except ModelError as exc:
-            self.events.append(CutFailed(t, mode, str(exc)))
-            return
-        self.events.append(CutAdded(t, mode, keys, attempt.cut,
-                                    len(self.model.region_cuts(mode)), attempt.fallback,
-                                    attempt.shift))
+        self._model = out.model
+        self.events.append(CutAdded(t, mode, self.model.keys_of(mode), out.attempt.cut,
+                                    len(self.model.region_cuts(mode)), out.attempt.fallback,
+                                    out.attempt.shift))
 
 
-class SensorModel(Protocol):
-    """What a world provides to the closed loop (worlds implement it, paper Sec. 4).
-
-    ``reset(x0)`` starts an episode (a sensor may keep a history, e.g. a lag); ``read(x)``
-    is called once per control step, in order, and returns the reading at ``x``.
-    """
-
-    def reset(self, x0: FloatArray) -> None:  # pragma: no cover - protocol
-        """Start an episode at ``x0``."""
-        ...
-
-    def read(self, x: FloatArray) -> Mapping[str, bool]:  # pragma: no cover - protocol
-        """The sensor reading at ``x`` (input name -> value)."""
-        ...
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class EpisodeResult:
-    """One closed-loop episode.
-
-    Attributes
-    ----------
-    success : bool
-        A goal mode was reached within the step budget.
-    steps : int
-        Control steps taken.
-    states : ndarray, shape (steps + 1, n)
-    modes : tuple of str
-        The mode run at each step (``len = steps + 1``; index 0 after ``reset``).
-    automaton_states : tuple of int
-    events : tuple of Event
-    cuts_added : int
-    model : Model
-        The model at the end (with the cuts learned online).
-    """
-
-    success: bool
-    steps: int
-    states: FloatArray
-    modes: tuple[str, ...]
-    automaton_states: tuple[int, ...]
-    events: tuple[Event, ...]
-    cuts_added: int
-    model: Model
-
-
-Perturb = Callable[[int, FloatArray], "FloatArray | None"]
-
-
-def run_episode(
-    policy: LTLDSPolicy,
-    sensors: SensorModel,
-    x0: npt.ArrayLike,
-    *,
-    steps: int = 2000,
-    speed_cap: float = np.inf,
-    perturb: Perturb | Mapping[int, npt.ArrayLike] | None = None,
-    stop_at_goal: bool = True,
-) -> EpisodeResult:
-    """Run the executive in closed loop: ``x_{t+1} = x_t + dt cap(step(x_t, read(x_t)))``.
-
-    Parameters
-    ----------
-    policy : LTLDSPolicy
-        Its learned cuts carry over between episodes (``policy.model``).
-    sensors : SensorModel
-    x0 : array_like, shape (n,)
-    steps : int, optional
-        Step budget.
-    speed_cap : float, optional
-        Velocities faster than this are rescaled (direction kept).
-    perturb : callable or mapping, optional
-        ``perturb(t, x) -> new state or None`` before step ``t`` (1-based), or ``{t: new
-        state}``; the executive is told (``perturbed=True``).
-    stop_at_goal : bool, optional
-        End when the executive is in a goal mode.
-
-    Returns
-    -------
-    EpisodeResult
-    """
-    x = np.array(x0, dtype=np.float64).reshape(-1)
-    sensors.reset(x.copy())
-    policy.reset(x, sensors.read(x))
-    dt = policy.dt
-    states = [x.copy()]
-    modes = [policy.mode]
-    astates = [policy.state if policy.state is not None else -1]
-    table = dict(perturb) if isinstance(perturb, Mapping) else None
-    capped = bool(np.isfinite(speed_cap))  # speed > inf never holds
-    t = 0
-    for t in range(1, steps + 1):
-        if stop_at_goal and policy.done and not policy.holding:
-            t -= 1
-            break
-        pushed: Any = None
-        if table is not None:
-            pushed = table.get(t)
-        elif callable(perturb):
-            pushed = perturb(t, x.copy())
-        if pushed is not None:
-            x = np.array(pushed, dtype=np.float64).reshape(-1)
-        v = policy.step(x, sensors.read(x), perturbed=pushed is not None)
-        if capped:
-            speed = math.sqrt(float(v @ v))  # what np.linalg.norm computes for a vector
-            if speed > speed_cap:
-                v = v * (speed_cap / speed)
-        x = x + dt * v  # a new array each step: the history needs no copy
-        states.append(x)
-        modes.append(policy.mode)
-        astates.append(policy.state if policy.state is not None else -1)
-    added = sum(1 for e in policy.events if isinstance(e, CutAdded))
-    return EpisodeResult(success=policy.done and not policy.holding, steps=t,
-                         states=np.array(states), modes=tuple(modes),
-                         automaton_states=tuple(astates), events=tuple(policy.events),
-                         cuts_added=added, model=policy.model)
-
-
-def run_episodes(
-    policies: Sequence[LTLDSPolicy],
-    sensors: Sequence[SensorModel],
-    starts: npt.ArrayLike,
-    *,
-    steps: int = 2000,
-    speed_cap: float = np.inf,
-    perturb: Callable[[int, int, FloatArray], FloatArray | None] | None = None,
-) -> list[EpisodeResult]:
-    """Many closed-loop episodes at once: the velocities are evaluated batched.
-
-    Each episode has its own executive (automaton state, events, learned cuts) and sensor
-    model; per step the automaton and monitor advance episode by episode (cheap), and the DS
-    run by episodes that share a model and a key are evaluated in one vectorised call (the
-    expensive part). Same results as :func:`run_episode` per start, up to float rounding of
-    the batched evaluation.
-
-    Parameters
-    ----------
-    policies : sequence of LTLDSPolicy
-        One per start (e.g. ``[copy.copy(p) ...]`` or policies built from one model: episodes
-        that share a model object share a batch).
-    sensors : sequence of SensorModel
-        One per start.
-    starts : array_like, shape (N, n)
-    steps : int, optional
-    speed_cap : float, optional
-    perturb : callable, optional
-        ``perturb(i, t, x) -> new state or None`` for episode ``i`` before its step ``t``
-        (1-based); the executive is told (``perturbed=True``), as in :func:`run_episode`.
-
-    Returns
-    -------
-    list of EpisodeResult
-    """
-    X = np.array(starts, dtype=np.float64)
-    N = X.shape[0]
-    if not (len(policies) == len(sensors) == N):
-        raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
-                       f"{len(sensors)}, {N}")
-    from tli_verify.runtime.worlds import WorldSensors
-
-    for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
-        sen.reset(X[i].copy())
-        pol.reset(X[i], sen.read(X[i]))
-    dts = np.array([pol.dt for pol in policies])[:, None]
-    hist_x = [X.copy()]
-    hist_mode = [[pol.mode for pol in policies]]
-    hist_state = [[-1 if pol.state is None else pol.state for pol in policies]]
-    live = list(range(N))  # the active episodes
-    taken = [0] * N
-    # Fast path per episode (same results): a state checked for the whole batch at once and a
-    # reading as the set of true sensors (a WorldSensors whose names the automaton reads) for
-    # an executive whose decide() is LTLDSPolicy's own (a subclass may override it, e.g. the
-    # no-replan ablation); anything else goes through decide(), which checks and raises as
-    # run_episode does.
-    lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
-            and type(pol).decide is LTLDSPolicy.decide
-            and X.ndim == 2 and X.shape[1] == pol.model.dim
-            for pol, sen in zip(policies, sensors, strict=True)]
-    for _ in range(steps):
-        groups: dict[tuple[int, str], list[int]] = {}
-        Xc = X.copy()  # this step's states: rows are recorded by the executives, never updated
-        ok = cast("list[bool]", np.isfinite(Xc).all(axis=1).tolist())
-        pts: list[list[float]] = Xc.tolist()
-        still = []
-        for i in live:
-            pol = policies[i]
-            if pol.done and not pol.holding:
-                continue
-            still.append(i)
-            xi = Xc[i]
-            pushed = perturb(i, taken[i] + 1, xi.copy()) if perturb is not None else None
-            if pushed is not None:
-                X[i] = np.asarray(pushed, dtype=np.float64).reshape(-1)
-                xi[:] = X[i]
-                if lean[i]:
-                    pts[i] = xi.tolist()
-                    ok[i] = bool(np.isfinite(xi).all())
-            if lean[i] and ok[i]:
-                reading = sensors[i].read_set(xi, pts[i])  # type: ignore[attr-defined]
-                key = pol._decide(xi, reading, pushed is not None)
-            else:
-                key = pol.decide(X[i], sensors[i].read(X[i]), perturbed=pushed is not None)
-            taken[i] += 1
-            if key:
-                groups.setdefault((id(pol._model), key), []).append(i)
-        live = still
-        if not live:
-            break
-        V = np.zeros_like(X)
-        # the DS once per distinct LPV-DS (episodes whose models differ only in the cuts they
-        # learned share it), then each group's own modulation
-        by_ds: dict[int, tuple[Any, list[int]]] = {}
-        mms = []
-        for (_, key), rows in groups.items():
-            mm = policies[rows[0]].model.modes[key]
-            mms.append((mm, rows))
-            by_ds.setdefault(id(mm.ds), (mm.ds, []))[1].extend(rows)
-        F = np.zeros_like(X)
-        for ds, rows in by_ds.values():
-            F[rows] = ds.velocity(X[rows])
-        for mm, rows in mms:
-            V[rows] = mm.modulate(X[rows], F[rows], dt=policies[rows[0]].dt)
-        if np.isfinite(speed_cap):
-            from tli_verify.runtime.rollout import cap_speed
-
-            cap_speed(V, speed_cap)
-        X += dts * V  # held and finished episodes have V = 0
-        hist_x.append(X.copy())
-        hist_mode.append([pol.mode for pol in policies])
-        hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
-    return batch_results(policies, hist_x, hist_mode, hist_state,
-                         np.array(taken, dtype=np.int64))
-    return batch_results(policies, hist_x, hist_mode, hist_state, taken)
-
-
-def batch_results(policies: Sequence[LTLDSPolicy], hist_x: Sequence[FloatArray],
-                  hist_mode: Sequence[Sequence[str]], hist_state: Sequence[Sequence[int]],
-                  taken: npt.NDArray[np.int64]) -> list[EpisodeResult]:
-    """The per-episode results of a batched closed loop.
-
-    Parameters
-    ----------
-    policies : sequence of LTLDSPolicy, length B
-    hist_x : sequence of ndarray, each shape (B, n)
-        States of the whole batch at every step (the first is the starts).
-    hist_mode, hist_state : sequence of sequence, each of length B
-        Modes and automaton states (-1 for none) of the batch at every step.
-    taken : ndarray of int, shape (B,)
-        Steps each episode actually took.
-
-    Returns
-    -------
-    list of EpisodeResult
-    """
-    path = np.array(hist_x)
-    out = []
-    for i, pol in enumerate(policies):
-        T = int(taken[i]) + 1
-        out.append(EpisodeResult(
-            success=pol.done and not pol.holding, steps=T - 1, states=path[:T, i].copy(),
-            modes=tuple(m[i] for m in hist_mode[:T]),
-            automaton_states=tuple(s[i] for s in hist_state[:T]),
-            events=tuple(pol.events),
-            cuts_added=sum(1 for e in pol.events if isinstance(e, CutAdded)), model=pol.model))
-    return out

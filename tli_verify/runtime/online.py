@@ -1,16 +1,16 @@
-"""Cut learning from invariance failures (paper Sec. 5.2 and appendix F), shared by the
+"""Cut learning from invariance failures (paper Sec. 5.2 and appendix E.3), shared by the
 single-mode study's batch loop and the executive's online cuts.
 
 A cut for a failure ``(x^0, x^{T_f-1}, x^{T_f})`` is the plane through the last in-mode state
 that separates the failure state and keeps ``x*``, the earlier cut points and the given states
 inside (:func:`tli_verify.boundary.cuts.solve_cut`). When no plane keeps every given state
-inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix F as written).
+inside, :func:`cut_for_failure` falls back to the failure's own ``x^0`` (appendix E.3 as written).
 
-When even appendix F's QCQP has no solution -- the run dipped below the chord from ``x^0`` to
+When even appendix E.3's QCQP has no solution -- the run dipped below the chord from ``x^0`` to
 ``x*`` and left the mode above it, so every plane through ``x^{T_f-1}`` that keeps ``x^0`` and
 ``x*`` inside also keeps ``x^{T_f}`` inside -- the plane is moved along the exit step: it passes
 through ``x^{T_f-1} + s (x^{T_f} - x^{T_f-1})`` for the smallest ``s`` in :data:`SHIFTS` that
-admits a separating plane, with ``x^{T_f-1}`` itself kept inside. This extends appendix F (found
+admits a separating plane, with ``x^{T_f-1}`` itself kept inside. This extends appendix E.3 (found
 by the bisimulation campaigns: without it the failure got no cut and could repeat).
 """
 
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -26,7 +27,8 @@ from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_
 from tli_verify.errors import SolverError, TliError
 from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
 
-__all__ = ["SHIFTS", "CutAttempt", "CutLearning", "cut_for_failure", "learn_cuts"]
+__all__ = ["SHIFTS", "CutAttempt", "CutLearning", "OnlineCut", "cut_for_failure", "learn_cuts",
+           "online_cut"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -46,7 +48,7 @@ class CutAttempt:
     fallback : bool
         Solved keeping only the failure's own ``x^0`` (and ``x*``, earlier cut points) inside.
     shift : float
-        0 for a plane through ``x^{T_f-1}`` (appendix F); else the fraction of the exit step
+        0 for a plane through ``x^{T_f-1}`` (appendix E.3); else the fraction of the exit step
         the plane was moved by (:data:`SHIFTS`), ``x^{T_f-1}`` kept inside.
     """
 
@@ -63,7 +65,7 @@ def cut_for_failure(
     keep_inside: npt.ArrayLike | None = None,
     margin: float = 1e-3,
 ) -> CutAttempt:
-    """Solve the cut QCQP for one failure, falling back to appendix F's constraints.
+    """Solve the cut QCQP for one failure, falling back to appendix E.3's constraints.
 
     Parameters
     ----------
@@ -155,7 +157,7 @@ def learn_cuts(
     lyapunov: FloatArray | None = None,
     record: bool = False,
 ) -> CutLearning:
-    """Add cuts from sampled invariance failures one at a time (paper appendix F).
+    """Add cuts from sampled invariance failures one at a time (paper appendix E.1).
 
     Roll out all starts with the modulated policy, pick one failure at random (those whose
     last in-mode state is inside the cuts first: a cut only changes the flow inside the cuts,
@@ -226,3 +228,70 @@ def learn_cuts(
             return CutLearning(cuts=cuts, curve=curve, failures=used, final=res,
                                unsolved=unsolved, fallback=fallback, converged=False)
         cuts.append(new)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class OnlineCut:
+    """The cut the executive learned for one invariance failure, or why none.
+
+    Attributes
+    ----------
+    model : Model or None
+        The model with the cut (:meth:`~tli_verify.model.types.Model.add_cut`: every DS of the mode
+        shares it); None when no cut was added.
+    attempt : CutAttempt or None
+        The QCQP's answer (None when the failure itself was degenerate).
+    error : str or None
+        Why no cut was added (None when one was).
+    """
+
+    model: Any
+    attempt: CutAttempt | None
+    error: str | None
+
+
+def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
+               entries: Sequence[npt.ArrayLike], *, margin: float) -> OnlineCut:
+    """Cut a mode's region after an invariance failure seen online (paper Sec. 5.2).
+
+    Kept inside: every entry state recorded in the mode (earlier failures' ``x^0`` among
+    them), the other DS' attractors of the mode, and a small box around ``x*`` (so ``x*`` is
+    strictly inside); constrained by the mode's earlier cuts (:func:`cut_for_failure`).
+
+    Parameters
+    ----------
+    model : Model
+        The model being run.
+    key : str
+        The model key of the DS that failed.
+    mode : str
+        Its mode (the region cut).
+    failure : InvarianceFailure
+        ``(x^0, x^{T_f-1}, x^{T_f})``.
+    entries : sequence of array_like, each shape (n,)
+        The mode-entry states recorded in the mode.
+    margin : float
+        Separation margin of the cut QCQP.
+
+    Returns
+    -------
+    OnlineCut
+    """
+    from tli_verify.errors import ModelError
+
+    mm = model.modes[key]
+    x_star = mm.ds.attractor
+    last = np.asarray(failure.last_inside, dtype=np.float64)
+    delta = 1e-3 * max(1e-6, float(np.linalg.norm(last - x_star)))
+    box = x_star + delta * np.vstack([np.eye(x_star.size), -np.eye(x_star.size)])
+    others = [model.modes[k].ds.attractor for k in model.keys_of(mode) if k != key]
+    keep = np.vstack([*entries, *others, box])
+    attempt = cut_for_failure(failure, x_star, previous=model.region_cuts(mode),
+                              keep_inside=keep, margin=margin)
+    if attempt.cut is None:
+        return OnlineCut(None, attempt, "no plane through the last in-mode state separates "
+                         "the failure state")
+    try:
+        return OnlineCut(model.add_cut(key, attempt.cut), attempt, None)
+    except ModelError as exc:
+        return OnlineCut(None, attempt, str(exc))

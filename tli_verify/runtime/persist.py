@@ -11,7 +11,7 @@ import os
 from fractions import Fraction
 from pathlib import Path
 
-from tli_verify.model import Model
+from tli_verify.model.types import Model
 
 __all__ = ["save_certified"]
 
@@ -46,9 +46,9 @@ def save_certified(model: Model, model_path: str | os.PathLike[str],
     ModelError
         The model does not validate (nothing is written).
     """
-    from tli_verify.certify.certificate import issue_certificate, write_certificate
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.io import atomic_write_bytes
-    from tli_verify.model import relocate_model, save_model
+    from tli_verify.model.serialize import relocate_model, save_model
 
     out = Path(model_path)
     cert = Path(cert_path)

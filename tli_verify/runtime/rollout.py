@@ -1,6 +1,6 @@
 """The rollout engine: explicit-Euler episodes of a state-based policy, batched over starts.
 
-One engine runs the single-mode study (paper Sec. 7.1, appendix F), the batched episodes of the
+One engine runs the single-mode study (paper Sec. 7.1, appendix E), the batched episodes of the
 campaigns and the benchmarks: ``x_{t+1} = x_t + dt * cap(v(x_t))`` with the velocity capped at a
 speed limit (keeping its direction), stopped per start when the goal is reached or the state
 leaves the region (an *invariance failure*, paper Sec. 5.2). Every step evaluates the policy

@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from tli_verify.errors import TaskError, TliError
 from tli_verify.logic.automaton import TaskAutomaton
-from tli_verify.model import Model
+from tli_verify.model.types import Model
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.tasks.task import Goal, Task
 
@@ -117,7 +117,7 @@ def load_setup(resolved: Any) -> Setup:
     """
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     automaton = synthesize(load_spec(resolved.spec))
     check_goal(automaton, resolved.goal, where=str(resolved.spec))

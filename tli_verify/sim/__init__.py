@@ -1,4 +1,4 @@
-"""The MuJoCo Franka loop (issue 13): Panda model files, torque-actuated robot, controller.
+"""The MuJoCo Franka loop: Panda model files, torque-actuated robot, controller.
 
 Submodules (import them directly; ``mujoco`` is imported only by :mod:`~tli_verify.sim.robot`
 and :mod:`~tli_verify.sim.controller`, so this package imports without the ``sim`` extra):

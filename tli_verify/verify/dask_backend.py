@@ -1,13 +1,13 @@
 """Campaign batches on Dask distributed (``tli verify --backend dask [--scheduler ADDR]``).
 
-The executor layer of :mod:`tli_verify.verify.backends` (issue 12 E): runs are independent, so a
+The executor layer of :mod:`tli_verify.verify.backends`: runs are independent, so a
 campaign draws its perturbation sequences in the driver (hypothesis generates in one process),
 groups them into batches of 100-1,000 runs and maps a simulation function over the batches.
 :class:`DaskBackend` does that map on a Dask cluster: one task per batch, results yielded as
 they complete.
 
 Dask costs about 1-6 ms per task and a ``LocalCluster`` takes about 5 s to start (measured on
-2 cores, see the README, "Campaign evidence and scale-out"), so a task must carry a batch, never
+2 cores, see ``docs/howto/dask.md``), so a task must carry a batch, never
 one run.
 
 Dask is optional (the ``[cluster]`` extra: ``pip install 'tli-verify[cluster]'``) and imported

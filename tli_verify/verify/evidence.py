@@ -1,10 +1,10 @@
-"""Campaign evidence: ``certificates/<name>.campaign.json``, required by ``tli gate`` (issue 12 D).
+"""Campaign evidence: ``certificates/<name>.campaign.json``, required by ``tli gate``.
 
 A deployed model needs, besides its Lyapunov certificate, evidence that a bisimulation campaign
 (``tli verify``: generated perturbation sequences against invariance and reachability, paper
 Sec. 4.4, Thm. 2, Asm. 2) ran on *its exact files* and found nothing. The evidence file (schema
 ``tli_verify/schemas/campaign.schema.json``) binds, by SHA-256 of their exact bytes (the
-certificate's convention, :mod:`tli_verify.certify.certificate`):
+certificate's convention, :mod:`tli_verify.certification.certificate`):
 
 * the spec, the model and the certificate (paths relative to the evidence file's directory);
 * the task the campaign ran on (``task``): a task file by its SHA-256, an entry point by its
@@ -15,7 +15,10 @@ certificate's convention, :mod:`tli_verify.certify.certificate`):
   modulation was on (it must be: that is the deployed policy) and whether the campaign was
   interrupted (``partial``: then it is not evidence);
 * the violations found, by kind (``total`` must be 0 to deploy) and the counterexample (null);
-* the tool version; and ``digest``, the SHA-256 of the canonical JSON of everything else.
+* what the campaign means, :data:`CAMPAIGN_SEMANTICS` (``campaign_semantics``: the gate requires
+  this tool's), and the tool version (``tool``: information only, never compared, so a release
+  that changes nothing a campaign means keeps the evidence valid); and ``digest``, the SHA-256
+  of the canonical JSON of everything else.
 
 Nothing in it is trusted: :func:`check_evidence` re-reads it (bounded, regular files only, never
 a symlink), recomputes the digest and the three hashes, requires the spec to be the one the
@@ -27,14 +30,17 @@ campaign with the evidence's seed (:mod:`tli_verify.deploy.gate`).
 Write evidence with :func:`write_evidence` (``tli verify ... --evidence``, or
 ``tli evidence DIR`` for every model of a project).
 
-Physical campaigns (issue 13)
+Physical campaigns
 -----------------------------
 The Franka policy (``sim/franka``) runs in MuJoCo, not in a 2-D world: its evidence has the world
-``"franka-physics"`` (:data:`PHYSICS_WORLDS`) and a ``physics`` block (robot, variant, duration,
+``"franka-physics"`` (a :class:`PhysicalWorld`, whose checks live in
+:mod:`tli_verify.sim.physics_checks`) and a ``physics`` block (robot, variant, duration,
 pushes and tilts per trial, trials, successes, the MuJoCo version, per-trial outcomes), written
 by ``tli sim franka --evidence`` or ``tli evidence sim/franka``
-(:func:`tli_verify.sim.campaign.write_physics_evidence`). Each example is one perturbed physical
-trial (seconds each), so the minimum is :data:`MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
+(:func:`tli_verify.sim.physics_evidence.write_physics_evidence`).
+Each example is one perturbed physical
+trial (seconds each), so the minimum is
+:data:`~tli_verify.sim.physics_checks.MIN_PHYSICS_TRIALS` (the paper's 30 trials), and
 the gate also requires every trial to have delivered soup, the deployed variant (``LTL-DS``) and
 both perturbation levels (pushes and tilts). ``tli gate --rerun N`` re-runs ``N`` physical
 trials with the recorded settings.
@@ -44,24 +50,24 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import EvidenceError, TliError
+from tli_verify.errors import EvidenceError, TliError, missing
 from tli_verify.io import atomic_write_text, canonical_json, check_output_file, sha256_file
 
 __all__ = [
+    "CAMPAIGN_SEMANTICS",
     "EVIDENCE_KIND",
     "EVIDENCE_SCHEMA_VERSION",
     "EVIDENCE_SUFFIX",
     "MIN_EVIDENCE_EXAMPLES",
     "MIN_MAX_PUSHES",
-    "MIN_PHYSICS_TRIALS",
     "MIN_WINDOW",
-    "PHYSICS_WORLDS",
     "EvidenceCheck",
+    "PhysicalWorld",
     "build_evidence",
     "check_evidence",
     "evidence_digest",
@@ -72,7 +78,32 @@ __all__ = [
     "write_evidence",
 ]
 
-EVIDENCE_SCHEMA_VERSION = 2
+EVIDENCE_SCHEMA_VERSION = 3
+"""Version of the evidence file format (``campaign.schema.json``). 3: ``campaign_semantics``
+recorded and required (2 compared the tool version instead; 1 bound no task)."""
+CAMPAIGN_SEMANTICS = 1
+"""What a campaign's verdict means; evidence recorded under another value does not count.
+
+Evidence records it (``campaign_semantics``) and ``tli gate`` requires this tool's value, so
+evidence stays valid across releases of tli-verify that change nothing a campaign means
+(the tool version is recorded as information only), and is refused, asking for a new
+campaign, after one that does.
+
+Bump rule: increment it (and re-run ``tli evidence .`` and ``tli evidence sim/franka``) in the
+change that alters what a campaign of given files, seed and settings establishes:
+
+* the oracle: what counts as a violation (invariance, reachability, looping), its kinds, its
+  tolerances or the simulation it judges (the executive, the sensor debouncing, the cuts, the
+  modulation, the integration of a kinematic world; the physical trial's success criterion);
+* the strategies' encoding: how a seed and the settings become perturbation sequences
+  (:mod:`tli_verify.verify.strategies`, :mod:`tli_verify.sim.perturbations`), so that the same
+  recorded seed would draw other cases, or the settings mean other bounds;
+* the deadline computation: the number of steps (or seconds) a run gets to reach the goal
+  before it counts as a failure.
+
+Do not bump it for refactors, speed-ups, messages, new commands or a release by itself; a
+change of the evidence *file format* bumps :data:`EVIDENCE_SCHEMA_VERSION` instead.
+History: 1 (tli-verify 0.1.0) is the first recorded value."""
 EVIDENCE_KIND = "tli-verify/campaign-evidence"
 EVIDENCE_SUFFIX = ".campaign.json"
 MIN_EVIDENCE_EXAMPLES = 500
@@ -80,29 +111,41 @@ MIN_EVIDENCE_EXAMPLES = 500
 
 With ``N`` examples and no violation, the failure probability per perturbed run is below
 ``3 / N`` at 95% confidence (the rule of three): 500 examples bound it by 0.6%. A scoop
-campaign of 1,000 runs takes about 20 s on 2 cores (issue 12, "Performance"), so the bundled
+campaign of 1,000 runs takes about 20 s on 2 cores, so the bundled
 evidence (1,000 examples, ``tli evidence``) costs seconds per model."""
 
 
-MIN_PHYSICS_TRIALS = 30
-"""Fewest perturbed physical trials a ``franka-physics`` campaign needs to count as evidence:
-the paper's experiment (Sec. 7.2: 30 perturbed trials, 30 successes). With 30 successes the
-failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
-than the 2-D campaigns' bound, and the gate's line says so."""
-PHYSICS_WORLDS: dict[str, int] = {"franka-physics": MIN_PHYSICS_TRIALS}
 MIN_WINDOW = 100
 """Shortest perturbation window a kinematic campaign must have drawn from (control steps; 1 s
 at 10 ms): pushes confined to the first steps test almost nothing of the mode boundaries."""
 MIN_MAX_PUSHES = 2
 """Fewest perturbations per case a kinematic campaign must have allowed: with one push at most,
 no case tests a recovery that is itself perturbed (paper Asm. 2: finitely many, not one)."""
-"""Worlds of physical campaigns (:mod:`tli_verify.sim.campaign`) -> their minimum trials."""
 
 
-class _BadInput(EvidenceError):
-    """Evidence that cannot be built from what was given (exit 2)."""
+@dataclass(frozen=True, slots=True)
+class PhysicalWorld:
+    """A kind of physical campaign the evidence check accepts; its checks live with its
+    simulator (the MuJoCo Franka's: :data:`tli_verify.sim.physics_checks.FRANKA_PHYSICS`).
 
-    exit_code = 2
+    Attributes
+    ----------
+    name : str
+        The evidence's ``world`` (e.g. ``"franka-physics"``).
+    min_trials : int
+        Fewest decided trials that count as evidence.
+    check : callable
+        ``check(doc, shown, passed) -> problems`` on the evidence document (its ``physics``
+        block present), appending what passed to ``passed``.
+    """
+
+    name: str
+    min_trials: int
+    check: Callable[[Mapping[str, Any], str, list[str]], list[str]]
+
+
+class _BadInput(EvidenceError, ValueError):
+    """Evidence that cannot be built from what was given (bad input, not a verdict)."""
 
 
 def evidence_digest(doc: Mapping[str, Any]) -> str:
@@ -143,7 +186,7 @@ def _relpath(target: Path, base_dir: Path) -> str:
 
 def _file_entry(path: Path, base: Path, what: str) -> dict[str, str]:
     if not path.is_file():
-        raise EvidenceError(f"{path}: {what} file not found", exit_code=2)
+        raise missing(EvidenceError, f"{path}: {what} file not found", path)
     return {"path": _relpath(path, base), "sha256": sha256_file(path)}
 
 
@@ -163,8 +206,8 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
     elif src.kind == "entry-point" and src.source_sha256 is not None:
         out = {"name": task.name, "kind": "entry-point", "sha256": src.source_sha256}
     else:
-        raise EvidenceError(f"task {task.name!r} was built in memory: evidence needs a task "
-                            "file or an entry-point task", exit_code=2)
+        raise _BadInput(f"task {task.name!r} was built in memory: evidence needs a task "
+                        "file or an entry-point task")
     if src.entry_point is not None and src.source_sha256 is not None:
         out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
                               "version": src.version, "source_sha256": src.source_sha256}
@@ -189,7 +232,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     evidence_path : path-like
         Where it will be written (its paths are relative to that directory).
     world : str
-        The task's name, or a physical campaign's kind (:data:`PHYSICS_WORLDS`).
+        The task's name, or a physical campaign's kind (a :class:`PhysicalWorld`'s name).
     task : mapping
         The task the campaign ran on (:func:`task_block`).
     spec, model, certificate : path-like
@@ -203,7 +246,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     violations : mapping str -> int
         Violations found, by kind (``{}`` or all zero when none).
     modulation : bool
-        Whether the policy ran with modulation (paper eq. 5).
+        Whether the policy ran with modulation (paper eq. 7).
     partial : bool, optional
         The campaign was interrupted.
     backend : str, optional
@@ -221,7 +264,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         ``spec``/``model``/``certificate`` -> the SHA-256 the campaign ran the file at: a file
         that changed since is refused.
     physics : mapping, optional
-        A physical campaign's block (world in :data:`PHYSICS_WORLDS`): ``robot``, ``variant``,
+        A physical campaign's block (world a :class:`PhysicalWorld`): ``robot``, ``variant``,
         ``duration``, ``pushes``, ``tilts``, ``trials``, ``successes``, ... (schema
         ``physics``).
 
@@ -236,8 +279,8 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
         range (the schema names it).
     """
-    from tli_verify import __version__
-    from tli_verify.model import validate_schema
+    from tli_verify._version import __version__
+    from tli_verify.io import validate_schema
 
     base = Path(evidence_path).parent
     by_kind = {str(k): int(v) for k, v in violations.items()}
@@ -245,6 +288,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         "schema_version": EVIDENCE_SCHEMA_VERSION,
         "kind": EVIDENCE_KIND,
         "tool": {"name": "tli-verify", "version": __version__},
+        "campaign_semantics": CAMPAIGN_SEMANTICS,
         "world": str(world),
         "task": dict(task),
         "spec": _file_entry(Path(spec), base, "spec"),
@@ -267,10 +311,9 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         doc["physics"] = dict(physics)
     for key, sha in (expected or {}).items():
         if doc[key]["sha256"] != sha:
-            raise EvidenceError(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
-                                f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
-                                f"{doc[key]['sha256'][:12]}... now): re-run the campaign",
-                                exit_code=2)
+            raise _BadInput(f"{evidence_path}: the {key} file {doc[key]['path']} changed "
+                            f"since the campaign ran it (SHA-256 {sha[:12]}... then, "
+                            f"{doc[key]['sha256'][:12]}... now): re-run the campaign")
     doc["digest"] = evidence_digest(doc)
     validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
     return doc
@@ -311,7 +354,7 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
 
     Parameters
     ----------
-    config : tli_verify.verify.campaign.CampaignConfig
+    config : tli_verify.verify.config.CampaignConfig
         Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
     result : tli_verify.verify.campaign.CampaignResult
         Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
@@ -340,8 +383,8 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     task = _campaign_task(result)
     counterexample = getattr(result, "counterexample", None)
     if counterexample is not None and not isinstance(counterexample, Mapping):
-        to_json = getattr(counterexample, "to_json", None)
-        counterexample = to_json() if callable(to_json) else {"repr": repr(counterexample)}
+        to_dict = getattr(counterexample, "to_dict", None)
+        counterexample = to_dict() if callable(to_dict) else {"repr": repr(counterexample)}
     backend = getattr(config, "backend", None)
     inconclusive = getattr(result, "inconclusive", None)
     doc = write_evidence(
@@ -403,15 +446,15 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
         if isinstance(entry, Mapping) and entry.get("path"):
             p = Path(str(entry["path"]))
             if not p.is_absolute():
-                from tli_verify.io import bundled_dir
+                from tli_verify.io import bundled_root
 
-                p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+                p = Path(os.path.realpath(bundled_root())) / p
             out[name] = (p, str(entry.get("sha256") or "") or None)
         elif getattr(config, name, None):
             out[name] = (Path(getattr(config, name)), None)
         else:
-            raise EvidenceError(f"campaign evidence needs the campaign's {name} file; neither "
-                                "the result nor the config names it", exit_code=2)
+            raise _BadInput(f"campaign evidence needs the campaign's {name} file; neither "
+                            "the result nor the config names it")
     return out
 
 
@@ -422,22 +465,22 @@ def _campaign_task(result: Any) -> Any:
 
     entry = (getattr(result, "files", None) or {}).get("task")
     if not isinstance(entry, Mapping):
-        raise EvidenceError("campaign evidence needs the campaign's task; the result names "
-                            "none", exit_code=2)
+        raise _BadInput("campaign evidence needs the campaign's task; the result names "
+                        "none")
     if entry.get("path"):
         p = Path(str(entry["path"]))
         if not p.is_absolute():
-            from tli_verify.io import bundled_dir
+            from tli_verify.io import bundled_root
 
-            p = Path(os.path.realpath(bundled_dir("models").parent)) / p
+            p = Path(os.path.realpath(bundled_root())) / p
         task = find_task(p)
         sha = task.source.sha256
     else:
         task = find_task(str(entry["entry_point"]))
         sha = task.source.source_sha256
     if sha != entry.get("sha256"):
-        raise EvidenceError(f"{task.where}: the task changed since the campaign ran it "
-                            "(SHA-256 differs): re-run the campaign", exit_code=2)
+        raise _BadInput(f"{task.where}: the task changed since the campaign ran it "
+                        "(SHA-256 differs): re-run the campaign")
     return task
 
 
@@ -516,7 +559,8 @@ def _short(sha: str) -> str:
 def check_evidence(path: str | os.PathLike[str], *,
                    model_path: str | os.PathLike[str] | None = None,
                    valid_certificates: Collection[str | os.PathLike[str]] | None = None,
-                   min_examples: int | None = None) -> EvidenceCheck:
+                   min_examples: int | None = None,
+                   physical: Sequence[PhysicalWorld] = ()) -> EvidenceCheck:
     """Re-check campaign evidence against the files it binds.
 
     Parameters
@@ -531,14 +575,17 @@ def check_evidence(path: str | os.PathLike[str], *,
         hash it records are compared (``tli check-cert`` re-checks the certificate itself).
     min_examples : int, optional
         Fewest examples accepted (default :data:`MIN_EVIDENCE_EXAMPLES`; for a physical
-        campaign the world's minimum in :data:`PHYSICS_WORLDS`).
+        campaign its world's ``min_trials``).
+    physical : sequence of PhysicalWorld, optional
+        The physical campaigns accepted, with their checks (``tli gate``: the MuJoCo Franka's).
+        Evidence of a physical world not given here is refused.
 
     Returns
     -------
     EvidenceCheck
         Every problem found (not just the first); never raises for a bad file.
     """
-    from tli_verify.model import read_json, validate_schema
+    from tli_verify.io import read_json, validate_schema
 
     epath = Path(path)
     shown = str(epath)
@@ -549,6 +596,14 @@ def check_evidence(path: str | os.PathLike[str], *,
         return EvidenceCheck(shown, (f"{shown}: no such campaign evidence file",))
     try:
         doc = read_json(epath, what="campaign evidence", error=EvidenceError)
+        old = doc.get("schema_version") if isinstance(doc, Mapping) else None
+        if (type(old) is int and 1 <= old < EVIDENCE_SCHEMA_VERSION
+                and doc.get("kind") == EVIDENCE_KIND):  # an earlier format, not a forgery
+            return EvidenceCheck(shown, (
+                f"{shown}: evidence schema {old}, written by an earlier tli-verify that "
+                f"recorded no campaign semantics (this tool's are {CAMPAIGN_SEMANTICS}, "
+                f"schema {EVIDENCE_SCHEMA_VERSION}): re-run the campaign (tli evidence DIR, "
+                "or tli verify ... --evidence)",))
         validate_schema(doc, "campaign.schema.json", where=shown, error=EvidenceError)
     except EvidenceError as exc:
         return EvidenceCheck(shown, (f"malformed campaign evidence: {exc}",))
@@ -561,7 +616,8 @@ def check_evidence(path: str | os.PathLike[str], *,
                         "after the campaign wrote it")
     else:
         passed.append("digest matches the content")
-    problems += _check_tool_and_world(doc, shown, passed)
+    worlds = {w.name: w for w in physical}
+    problems += _check_tool_and_world(doc, shown, passed, worlds)
     base = epath.parent
     named = {k: Path(os.path.realpath(base / doc[k]["path"]))
              for k in ("model", "spec", "certificate")}
@@ -572,15 +628,16 @@ def check_evidence(path: str | os.PathLike[str], *,
     seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
     problems += _check_files(doc, shown, mpath, named, seen, passed)
     if mpath.is_file():
-        problems += _check_task(doc, shown, mpath, base, passed)
+        problems += _check_task(doc, shown, mpath, base, passed, worlds)
     if valid_certificates is not None and named["certificate"].is_file() and not any(
             _same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
                         f"certificate of {mpath}")
     if min_examples is None:
-        min_examples = PHYSICS_WORLDS.get(doc["world"], MIN_EVIDENCE_EXAMPLES)
-    problems += _check_campaign(doc, shown, min_examples, passed)
-    problems += _check_physics(doc, shown, passed)
+        world = worlds.get(doc["world"])
+        min_examples = MIN_EVIDENCE_EXAMPLES if world is None else world.min_trials
+    problems += _check_campaign(doc, shown, min_examples, passed, worlds)
+    problems += _check_physics(doc, shown, passed, worlds)
     camp = doc["campaign"]
     keep = ("robot", "variant", "duration", "pushes", "tilts")
     return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
@@ -594,15 +651,22 @@ def check_evidence(path: str | os.PathLike[str], *,
                          digest=str(doc["digest"]))
 
 
-def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
-    from tli_verify import __version__
-
+def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str],
+                          worlds: Mapping[str, PhysicalWorld]) -> list[str]:
+    """The campaign semantics are this tool's (:data:`CAMPAIGN_SEMANTICS`; the tool version
+    is not compared) and the world agrees with the task and the physics block."""
     out: list[str] = []
+    semantics = doc["campaign_semantics"]
     version = doc["tool"]["version"]
-    if version != __version__:
-        out.append(f"{shown}: written by tli-verify {version}, this is {__version__}: the "
-                   "oracle may differ; re-run the campaign with this version")
-    physical = doc["world"] in PHYSICS_WORLDS
+    if semantics != CAMPAIGN_SEMANTICS:
+        out.append(f"{shown}: campaign semantics {semantics} (written by tli-verify {version}), "
+                   f"this tool's are {CAMPAIGN_SEMANTICS}: the oracle, the perturbation "
+                   "strategies or the deadlines changed what a campaign means; re-run the "
+                   "campaign with this version")
+    else:
+        passed.append(f"campaign semantics {semantics} are this tool's (written by tli-verify "
+                      f"{version})")
+    physical = doc["world"] in worlds
     if physical != (doc.get("physics") is not None):
         out.append(f"{shown}: world {doc['world']!r} and the physics block disagree (a "
                    "physical campaign has world franka-physics and a physics block; a "
@@ -623,7 +687,7 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
         The spec names no task, or the task does not load or fit.
     """
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
 
     spec = load_model(model_path).spec_path
@@ -639,7 +703,7 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
 def _physics_task(model_path: Path) -> bool:
     """Whether the deployed spec's task computes its sensors in a simulator."""
     from tli_verify.logic.spec import load_spec
-    from tli_verify.model import load_model
+    from tli_verify.model.serialize import load_model
     from tli_verify.tasks.project import spec_task
 
     spec = load_model(model_path).spec_path
@@ -648,14 +712,14 @@ def _physics_task(model_path: Path) -> bool:
 
 
 def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
-                passed: list[str]) -> list[str]:
+                passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     """The evidence's task is the deployed spec's task, byte for byte (or source for source)."""
     try:
         want = deployed_task_block(mpath, base)
     except TliError as exc:
         return [f"{shown}: the deployed task cannot be resolved: {exc}"]
     got = doc["task"]
-    physical = doc["world"] in PHYSICS_WORLDS
+    physical = doc["world"] in worlds
     if physical != _physics_task(mpath):
         return [f"{shown}: a {'physical' if physical else 'kinematic'} campaign, but the "
                 f"deployed task {want['name']!r} is "
@@ -668,18 +732,34 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 f"{_short(str(got.get('sha256')))}), but the deployed spec's task is "
                 f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): another "
                 "task, or the task changed after the campaign"]
-    if "entry_point" in want and got.get("entry_point") != want["entry_point"]:
+    if "entry_point" in want and not _same_entry_point(got.get("entry_point"),
+                                                       want["entry_point"]):
         return [f"{shown}: the task's entry point {want['entry_point']['name']!r} differs "
                 "from the one the campaign ran (distribution, version or source)"]
     passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
     return []
 
 
+def _same_entry_point(got: Any, want: Mapping[str, Any]) -> bool:
+    """The entry point the campaign ran is the deployed one: same name, distribution, source
+    and version. The version of tli-verify's own entry points is not compared (it is the tool
+    version: :data:`CAMPAIGN_SEMANTICS` binds what tli-verify's code means); a third-party
+    distribution's version is (its module's dependencies may have changed)."""
+    from tli_verify._version import DISTRIBUTION
+
+    if not isinstance(got, Mapping):
+        return False
+    ignore = {"version"} if want.get("distribution") == DISTRIBUTION else set()
+    keys = (set(got) | set(want)) - ignore
+    return all(got.get(k) == want.get(k) for k in keys)
+
+
 def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],
                  seen: Mapping[str, Path], passed: list[str]) -> list[str]:
     """The three hashes; the spec is the model's; the certificate covers the model. ``named``:
     the files resolved as the OS opens them; ``seen``: as the evidence names them (messages)."""
-    from tli_verify.model import load_model, read_json
+    from tli_verify.io import read_json
+    from tli_verify.model.serialize import load_model
 
     out: list[str] = []
     if not mpath.is_file():
@@ -734,7 +814,7 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
 
 
 def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
-                    passed: list[str]) -> list[str]:
+                    passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     out: list[str] = []
     camp, viol = doc["campaign"], doc["violations"]
     by_kind = {k: int(v) for k, v in viol["by_kind"].items()}
@@ -745,7 +825,7 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     found = max(total, sum(by_kind.values()))
     if found:
         kinds = ", ".join(f"{k}: {v}" for k, v in sorted(by_kind.items()) if v) or "-"
-        if doc["world"] in PHYSICS_WORLDS:
+        if doc["world"] in worlds:
             out.append(f"{shown}: physical trials failed the oracle (trials per kind: {kinds}): "
                        "not evidence for deployment (the counterexample says how to reproduce "
                        "the first)")
@@ -760,14 +840,14 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
         out.append(f"{shown}: the campaign ran without modulation, the deployed policy runs "
                    "with it: not evidence for it")
     examples, runs = int(camp["examples"]), int(camp["runs"])
-    physical = doc["world"] in PHYSICS_WORLDS
+    physical = doc["world"] in worlds
     inconclusive = camp.get("inconclusive")
     if not physical and inconclusive is None:
         out.append(f"{shown}: campaign.inconclusive is missing: the gate counts only runs "
                    "whose reachability was decided")
     decided = examples - (int(inconclusive) if inconclusive is not None else 0)
     if decided < min_examples:
-        const = "MIN_PHYSICS_TRIALS" if physical else "MIN_EVIDENCE_EXAMPLES"
+        const = "MIN_PHYSICS_TRIALS" if physical else "MIN_EVIDENCE_EXAMPLES"  # their names
         what = (f"{examples} example(s)" if decided == examples else
                 f"{decided} decided example(s) ({examples} drawn, {inconclusive} with "
                 "reachability undecided)")
@@ -791,11 +871,13 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
 
 
 
-def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
-    """A physical campaign's block: present exactly for a physical world, consistent with the
-    campaign, every trial delivered, the deployed variant, both perturbation levels."""
+def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str],
+                   worlds: Mapping[str, PhysicalWorld]) -> list[str]:
+    """A physics block is present exactly for a physical world; the world's own checks
+    (:attr:`PhysicalWorld.check`) judge it."""
     phys = doc.get("physics")
-    if doc["world"] not in PHYSICS_WORLDS:
+    world = worlds.get(doc["world"])
+    if world is None:
         if phys is not None:
             return [f"{shown}: a physics block for world {doc['world']!r}, which is not a "
                     "physical campaign"]
@@ -803,34 +885,4 @@ def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str]) -> lis
     if phys is None:
         return [f"{shown}: world {doc['world']!r} is a physical campaign but the evidence has "
                 "no physics block"]
-    out: list[str] = []
-    camp = doc["campaign"]
-    trials, successes = int(phys["trials"]), int(phys["successes"])
-    if not trials == int(camp["examples"]) == int(camp["runs"]):
-        out.append(f"{shown}: physics.trials {trials} differs from campaign.examples "
-                   f"{camp['examples']} / runs {camp['runs']} (one run per trial)")
-    if successes != trials and not int(doc["violations"]["total"]):
-        out.append(f"{shown}: {trials - successes} of {trials} physical trial(s) delivered no "
-                   "soup: not evidence for deployment")
-    outcomes = phys.get("outcomes")
-    if outcomes is not None:
-        seeds = [int(o["seed"]) for o in outcomes]
-        first = int(camp["seed"])
-        if len(outcomes) != trials or seeds != list(range(first, first + len(outcomes))):
-            out.append(f"{shown}: physics.outcomes lists {len(outcomes)} trial(s) with seeds "
-                       f"other than {first}..{first + trials - 1}")
-        elif sum(bool(o["success"]) for o in outcomes) != successes or any(
-                o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
-            out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
-                       "violations")
-    if phys["variant"] != "LTL-DS":
-        out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
-                   "policy is LTL-DS (modulation and replanning on): not evidence for it")
-    if int(phys["pushes"]) < 1 or int(phys["tilts"]) < 1:
-        out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
-                   "the evidence must perturb at both levels (motion pushes and task tilts)")
-    if not out:
-        passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
-                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
-                      f"{phys['duration']:g} s budget), all delivered soup")
-    return out
+    return world.check(doc, shown, passed)

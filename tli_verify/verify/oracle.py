@@ -246,8 +246,14 @@ class Verdict:
 
     @property
     def ok(self) -> bool:
-        """No violation."""
+        """No violation (an undecided run is ok too: see :attr:`satisfied`)."""
         return not self.violations
+
+    @property
+    def satisfied(self) -> bool:
+        """The run satisfies the spec: decided, a goal mode reached, no violation (what a
+        property test asserts, :func:`tli_verify.testing.assert_satisfies`)."""
+        return self.conclusive and self.reached and not self.violations
 
     @property
     def kinds(self) -> frozenset[ViolationKind]:
@@ -359,7 +365,7 @@ class Oracle:
         if isinstance(certificate, Mapping):
             doc: Mapping[str, Any] = certificate
         else:
-            from tli_verify.model import read_json
+            from tli_verify.io import read_json
 
             doc = read_json(certificate, what="certificate", error=CertificateError)
         run_modes = sorted({s.mode for s in automaton.states})
@@ -427,7 +433,7 @@ class Oracle:
             0 in a goal mode (of a goal without sensors; a goal with sensors, e.g. a cyclic
             task's release, counts its own DS too: the sensors read true where it converges).
         """
-        from tli_verify.certify.reach import max_v_on_box
+        from tli_verify.certification.reach import max_v_on_box
 
         seq = self.path.get(mode, (mode,))
         total = 0.0

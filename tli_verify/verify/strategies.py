@@ -88,7 +88,7 @@ class Push:
     ----------
     step : int
         Applied before control step ``step`` (1-based), as
-        :func:`tli_verify.runtime.executive.run_episode` applies perturbations.
+        :func:`tli_verify.runtime.loop.run_episode` applies perturbations.
     displacement : tuple of float, length n
         ``magnitude * unit direction``.
     level : str
@@ -258,7 +258,7 @@ def starts(world: Any, *, regions: Sequence[str] | None = None
     world : World
     regions : sequence of str, optional
         Default: every region. A campaign passes the regions whose first reading the spec's
-        initial assumption allows (:func:`tli_verify.verify.campaign.start_regions`; scoop:
+        initial assumption allows (:func:`tli_verify.verify.simulate.start_regions`; scoop:
         all but yellow).
 
     Returns

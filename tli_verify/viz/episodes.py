@@ -41,7 +41,7 @@ from tli_verify.viz.regions import (
 )
 
 if TYPE_CHECKING:
-    from tli_verify.runtime.executive import EpisodeResult
+    from tli_verify.runtime.loop import EpisodeResult
 
 __all__ = [
     "ZOOM_STEPS",

@@ -1,4 +1,4 @@
-"""The cooking world of the paper's generalization experiment (Sec. 7.3, appendix "Generalization").
+"""The cooking world of the paper's generalization experiment (Sec. 7.2, appendix "Generalization").
 
 Adding chicken and broccoli to a pot (paper Fig. "Reuse learned DS"): white (empty spoon),
 yellow (chicken), green (broccoli) and dark (the pot). The paper gives no coordinates; ours

@@ -1,4 +1,4 @@
-"""The soup-scooping world of the paper (Fig. 2, Sec. 7.2, appendix E), in the authors' geometry.
+"""The soup-scooping world of the paper (Fig. 2, Sec. 7.2, appendix F), in the authors' geometry.
 
 Workspace ``[-8, 8]^2``; ``x1`` (horizontal) is the spoon's orientation, ``x2`` (vertical) its
 distance to the soup. True regions (hidden from the learner), a partition of the workspace:
@@ -141,7 +141,7 @@ class ScoopWorld(WorldBase):
         from it rises near the top of yellow, so from states just under the surface left of
         pink it leaves the soup back into white (an invariance failure, ``b -> a``), and the
         reaching DS (``a``) brings the spoon straight back (:mod:`tli_verify.experiments.scoop`,
-        :func:`~tli_verify.experiments.scoop.fig7_search`).
+        :func:`~tli_verify.experiments.fig7.fig7_search`).
         """
         rng = np.random.default_rng(seed)
         out = []

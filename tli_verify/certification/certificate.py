@@ -4,15 +4,15 @@ A certificate (schema ``tli_verify/schemas/certificate.schema.json``) states, fo
 model, that ``V(x) = (x - x*)^T P (x - x*)`` with **the model's own P** -- the P the runtime's
 modulation and corner guard use (paper Thm. 1 needs one P for both) -- proves
 
-* ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 4);
+* ``P = P^T > 0`` and ``A_k^T P + P A_k < 0`` for every component k (paper eq. 5);
 * at the declared control period ``dt``: ``(I + dt A_k)^T P (I + dt A_k) - P < 0`` for every k,
   so each explicit Euler step of the nominal DS decreases ``V`` (and at every shorter period);
 * well-posedness: every number of the model lies in the declared ranges
-  (:func:`tli_verify.model.numeric_limits`) and every covariance is safely invertible, so the
+  (:func:`tli_verify.model.types.numeric_limits`) and every covariance is safely invertible, so the
   velocity is finite and well defined everywhere the certificate claims stability;
 * a decay rate ``lambda > 0``: ``A_k^T P + P A_k + lambda P < 0`` for every k, so
   ``V(x(t)) <= V(x(0)) exp(-lambda t)`` (the reachability deadline of
-  :mod:`tli_verify.certify.reach`).
+  :mod:`tli_verify.certification.reach`).
 
 It records the schema version, the model file (path relative to the certificate, SHA-256) and
 the spec the model names, and per DS: ``P``, the smallest eigenvalue of ``P``, the largest
@@ -21,9 +21,9 @@ exact verdicts. ``digest`` is the SHA-256 of the canonical JSON of everything el
 
 Nothing in it is trusted. :func:`check_certificate` recomputes the hashes, requires the spec the
 certificate names to be the file the model names, requires ``P`` to be the model's bit for bit,
-recomputes the eigenvalues and re-runs every exact check (:mod:`tli_verify.certify.exact`).
+recomputes the eigenvalues and re-runs every exact check (:mod:`tli_verify.certification.exact`).
 A model whose own ``P`` does not certify is refused (exit 1); ``tli certify --repair``
-(:mod:`tli_verify.certify.repair`) writes a new model with a certifying ``P``.
+(:mod:`tli_verify.certification.repair`) writes a new model with a certifying ``P``.
 """
 
 from __future__ import annotations
@@ -39,19 +39,19 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.certify.exact import (
+from tli_verify.certification.exact import (
     LyapunovCheck,
     certified_decay_rate,
     check_lyapunov,
     parse_rational,
 )
-from tli_verify.errors import CertificateError, ModelError
+from tli_verify.defaults import DEFAULT_DT
+from tli_verify.errors import CertificateError, ModelError, bad_input, missing
 from tli_verify.io import atomic_write_text, canonical_json, sha256_file
 
 __all__ = [
     "CERT_KIND",
     "CERT_SCHEMA_VERSION",
-    "DEFAULT_DT",
     "EXACT_METHOD",
     "CertCheck",
     "certificate_digest",
@@ -64,9 +64,6 @@ FloatArray = npt.NDArray[np.float64]
 
 CERT_SCHEMA_VERSION = 2
 CERT_KIND = "tli-verify/lyapunov-certificate"
-DEFAULT_DT = Fraction(1, 1000)
-"""Default control period: 1 ms, a Franka's. A certificate at ``dt`` covers every shorter
-period; loops that run slower (the 2-D worlds at 5-10 ms) declare theirs with ``--dt``."""
 EXACT_METHOD = ("floats converted to exact dyadic rationals (integers times a power of two); "
                 "P > 0, -(A_k^T P + P A_k) > 0, P - (I + dt A_k)^T P (I + dt A_k) > 0 and "
                 "-(A_k^T P + P A_k) - lambda P > 0 decided on integers: an exact congruence to a "
@@ -186,15 +183,16 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     CertificateError
         A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
-    from tli_verify import __version__
-    from tli_verify.model import load_model, numeric_limits
+    from tli_verify._version import __version__
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import numeric_limits
 
     try:
         dt_q = parse_rational(dt, what="dt")
     except ValueError as exc:
-        raise CertificateError(str(exc), exit_code=2) from None
+        raise bad_input(CertificateError, str(exc)) from None
     if dt_q <= 0:
-        raise CertificateError(f"dt: control period {dt} must be positive", exit_code=2)
+        raise bad_input(CertificateError, f"dt: control period {dt} must be positive")
     mpath = Path(model_path)
     model = load_model(mpath)
     base = Path(cert_path).parent
@@ -283,17 +281,18 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     CertificateError
         Only when the certificate file cannot be read at all (exit 2).
     """
-    from tli_verify.model import load_model, read_json, validate_schema
+    from tli_verify.io import read_json, validate_schema
+    from tli_verify.model.serialize import load_model
 
     cpath = Path(cert_path)
     if cpath.is_dir():
-        raise CertificateError(f"{cpath}: is a directory, expected a certificate file",
-                               exit_code=2)
+        raise bad_input(CertificateError,
+                        f"{cpath}: is a directory, expected a certificate file")
     if cpath.exists() and not cpath.is_file():
-        raise CertificateError(f"{cpath}: not a regular file (a device, FIFO or socket); "
-                               "refused, never read", exit_code=2)
+        raise bad_input(CertificateError, f"{cpath}: not a regular file (a device, FIFO or "
+                        "socket); refused, never read")
     if not cpath.is_file():
-        raise CertificateError(f"{cpath}: no such certificate file", exit_code=2)
+        raise missing(CertificateError, f"{cpath}: no such certificate file", cpath)
     problems: list[str] = []
     passed: list[str] = []
     try:
@@ -323,7 +322,7 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     except ModelError as exc:
         problems.append(f"model does not load: {exc}")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
-    from tli_verify.model import numeric_limits
+    from tli_verify.model.types import numeric_limits
 
     if doc["well_posed"]["limits"] != numeric_limits():
         problems.append(f"{cpath}: well_posed.limits differ from this tool's declared ranges "

@@ -1,32 +1,8 @@
-"""The model file: one LPV-DS (and its cuts) per mode or mode transition.
+"""The model's values: one LPV-DS (and its cuts) per mode or mode transition.
 
-Format (JSON, validated against the published schema ``tli_verify/schemas/model.schema.json``
-and then semantically: dimensions, symmetry, every number within ``|v| <= 1e6``, covariances
-positive definite with bounded eigenvalues and condition number, priors summing to 1, unit cut
-normals; the limits are in :mod:`tli_verify.limits` and :func:`numeric_limits`)::
-
-    {
-      "schema_version": 1,
-      "state_names": ["x0", "x1"],
-      "spec": "../specs/scoop.toml",          # relative to the model file, or null
-      "source": {"tool": "tli-verify 0.1.0", "demos": [{"path": "...", "sha256": "..."}]},
-      "modes": {
-        "a": {
-          "mode": "a", "next_mode": "b",      # optional for plain keys
-          "attractor": [x*_0, x*_1],
-          "P": [[..], [..]],                  # V(x) = (x - x*)^T P (x - x*)
-          "components": [{"prior": pi_k, "mean": [..], "cov": [[..]], "A": [[..]]}, ...],
-          "cuts": [{"normal": [..], "point": [..]}],
-          "fit": {"clustering": "pc-gmm", "lyapunov": "p-qlf", "eps": 0.001, ...}
-        },
-        "b->c": {"mode": "b", "next_mode": "c", ...}   # a per-transition DS (appendix F)
-      }
-    }
-
-The DS of a key is ``f(x) = sum_k gamma_k(x) A_k (x - x*)`` (paper eq. 4) and the policy of the
-mode is the modulated ``M(x) f(x)`` (paper eq. 5, Sec. 5.2) once the mode has cuts.
-Floats are written with ``repr`` precision, so a saved model reloads bit-for-bit -- which the
-certificate's exact check relies on.
+:class:`ModeModel` (the policy of one mode or transition) and :class:`Model` (all of them,
+with the spec they were learned for) are validated on construction against the limits of
+:mod:`tli_verify.limits` (:func:`numeric_limits`: the numbers a certificate records).
 """
 
 from __future__ import annotations
@@ -44,14 +20,10 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut
-from tli_verify.ds.lpvds import LPVDS, Clustering, LyapunovKind
-from tli_verify.errors import ModelError, TliError
+from tli_verify.ds.lpvds import LPVDS
+from tli_verify.errors import ModelError
 from tli_verify.io import (
-    atomic_write_text,
-    canonical_json,
     field_path,
-    read_json,
-    validate_schema,
 )
 from tli_verify.limits import (
     COV_MAX_CONDITION,
@@ -63,24 +35,25 @@ from tli_verify.limits import (
 
 __all__ = [
     "SCHEMA_VERSION",
+    "TRANSITION",
     "ModeModel",
     "Model",
-    "field_path",
-    "learn_model",
-    "load_model",
-    "model_from_dict",
-    "model_to_dict",
+    "check_covariance",
+    "check_range",
+    "check_symmetric",
     "numeric_limits",
-    "read_json",
-    "relocate_model",
-    "save_model",
-    "validate_schema",
 ]
+
 
 FloatArray = npt.NDArray[np.float64]
 
+
 SCHEMA_VERSION = 1
+
+
 TRANSITION = "->"
+
+
 _PLAIN_KEY = re.compile(r"^[A-Za-z0-9_]+$")
 
 
@@ -88,7 +61,7 @@ def numeric_limits() -> dict[str, float]:
     """The numeric ranges every loaded model satisfies (for the certificate to record).
 
     Within them the velocity ``f(x)`` (paper eq. 4), its mixing weights and ``M(x) f(x)``
-    (eq. 5) are finite and well defined at every state with ``|x_i| <= max_abs_value``
+    (eq. 7) are finite and well defined at every state with ``|x_i| <= max_abs_value``
     (:mod:`tli_verify.limits`).
 
     Returns
@@ -104,7 +77,7 @@ def numeric_limits() -> dict[str, float]:
             "prior_sum_tolerance": PRIOR_SUM_TOL}
 
 
-def _check_range(value: Any, parts: list[str | int], where: str) -> None:
+def check_range(value: Any, parts: list[str | int], where: str) -> None:
     """Every number under ``value`` is within ``MAX_ABS_VALUE`` (``MAX_ABS_COVARIANCE`` under a
     ``cov`` field); errors name the entry."""
     stack: list[tuple[Any, list[str | int]]] = [(value, parts)]
@@ -127,9 +100,9 @@ def _check_range(value: Any, parts: list[str | int], where: str) -> None:
             stack.extend((item, [*loc, k]) for k, item in v.items())
 
 
-def _check_covariance(cov: FloatArray, where: str) -> None:
+def check_covariance(cov: FloatArray, where: str) -> None:
     """Symmetric positive definite, safely invertible: eigenvalues and condition bounded."""
-    _symmetric(cov, where)
+    check_symmetric(cov, where)
     eig = np.linalg.eigvalsh(cov)
     lo, hi = float(eig[0]), float(eig[-1])
     if not lo > 0:
@@ -143,10 +116,6 @@ def _check_covariance(cov: FloatArray, where: str) -> None:
         raise ModelError(f"{where}: condition number {hi / lo:.3g} exceeds "
                          f"{COV_MAX_CONDITION:g} (COV_MAX_CONDITION): not safely invertible")
 
-
-# --------------------------------------------------------------------------------------------
-# Model
-# --------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ModeModel:
@@ -177,7 +146,7 @@ class ModeModel:
     _modulator: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        """Freeze ``fit`` and build the modulator once for this cut set (paper eq. 5).
+        """Freeze ``fit`` and build the modulator once for this cut set (paper eq. 7).
 
         Raises
         ------
@@ -204,7 +173,7 @@ class ModeModel:
         return self._modulator
 
     def velocity(self, X: npt.ArrayLike, *, dt: float | None = None) -> FloatArray:
-        """``M(x) f(x)`` (paper eq. 5 with the corner guard), or ``f(x)`` without cuts.
+        """``M(x) f(x)`` (paper eq. 7 with the corner guard), or ``f(x)`` without cuts.
 
         The modulator is built once per cut set (in ``__post_init__``), not per call.
 
@@ -318,7 +287,7 @@ class Model:
 
     def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None, *,
                  dt: float | None = None) -> FloatArray:
-        """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 5).
+        """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 7).
 
         Parameters
         ----------
@@ -428,275 +397,8 @@ class Model:
                      spec=self.spec, path=self.path, source=self.source)
 
 
-def _matrix(value: Any, shape: tuple[int, ...], where: str) -> FloatArray:
-    arr = np.array(value, dtype=object)
-    if arr.shape != shape:
-        want = "x".join(str(s) for s in shape)
-        raise ModelError(f"{where}: expected shape {want}, got "
-                         f"{'x'.join(str(s) for s in arr.shape) or 'a scalar'}")
-    return np.array(value, dtype=np.float64)
-
-
-def _symmetric(M: FloatArray, where: str) -> None:
+def check_symmetric(M: FloatArray, where: str) -> None:
     bad = np.argwhere(M != M.T)
     if bad.size:
         i, j = (int(v) for v in bad[0])
         raise ModelError(f"{where}: not symmetric (entry [{i}][{j}] != [{j}][{i}])")
-
-
-def model_from_dict(data: Any, *, where: str = "model", path: str | None = None) -> Model:
-    """Validate a parsed model document (schema, then semantics) and build the model.
-
-    Raises
-    ------
-    ModelError
-        ``"<where>: <field path>: <problem>"``: a schema violation, a number outside
-        :func:`numeric_limits` (``modes.a.components[0].cov[1][1]: 1e+308 is outside ...``),
-        a covariance that is not safely invertible, priors that do not sum to 1.
-    """
-    validate_schema(data, "model.schema.json", where=where, error=ModelError)
-    for key, entry in data["modes"].items():
-        _check_range({k: v for k, v in entry.items() if k != "fit"}, ["modes", key], where)
-    names = tuple(data["state_names"])
-    n = len(names)
-    modes: dict[str, ModeModel] = {}
-    for key, entry in data["modes"].items():
-        loc = field_path(["modes", key])
-        if TRANSITION in key:
-            head, _, tail = key.partition(TRANSITION)
-            if entry.get("mode") != head or entry.get("next_mode") != tail:
-                raise ModelError(f"{where}: {loc}: a per-transition key '<mode>{TRANSITION}<next>' "
-                                 f"needs \"mode\": {head!r} and \"next_mode\": {tail!r}")
-        mode = entry.get("mode", key)
-        if TRANSITION not in key and mode != key:
-            raise ModelError(f"{where}: {loc}.mode: {mode!r} differs from the key {key!r}")
-        attractor = _matrix(entry["attractor"], (n,), f"{where}: {loc}.attractor")
-        P = _matrix(entry["P"], (n, n), f"{where}: {loc}.P")
-        _symmetric(P, f"{where}: {loc}.P")
-        comps = entry["components"]
-        means, covs, As, priors = [], [], [], []
-        for k, comp in enumerate(comps):
-            cloc = f"{where}: {loc}.components[{k}]"
-            priors.append(float(comp["prior"]))
-            means.append(_matrix(comp["mean"], (n,), f"{cloc}.mean"))
-            cov = _matrix(comp["cov"], (n, n), f"{cloc}.cov")
-            _check_covariance(cov, f"{cloc}.cov")
-            covs.append(cov)
-            As.append(_matrix(comp["A"], (n, n), f"{cloc}.A"))
-        total = float(np.sum(priors))
-        if not abs(total - 1.0) <= PRIOR_SUM_TOL:
-            raise ModelError(f"{where}: {loc}.components: priors sum to {total!r}, not 1 "
-                             f"(tolerance {PRIOR_SUM_TOL:g}, PRIOR_SUM_TOL)")
-        cuts = []
-        for c, raw in enumerate(entry["cuts"]):
-            cut = Cut.from_dict(raw, where=f"{where}: {loc}.cuts[{c}]")
-            if cut.dim != n:
-                raise ModelError(f"{where}: {loc}.cuts[{c}]: dimension {cut.dim}, the model "
-                                 f"has {n} states")
-            cuts.append(cut)
-        try:
-            ds = LPVDS(attractor=attractor, priors=np.array(priors), means=np.array(means),
-                       covs=np.array(covs), A=np.array(As), P=P)
-        except ModelError as exc:
-            raise ModelError(f"{where}: {loc}: {exc}") from None
-        if cuts:
-            from tli_verify.boundary.modulation import Modulator
-
-            try:
-                Modulator.build(cuts, attractor, lyapunov=P)
-            except ModelError as exc:
-                raise ModelError(f"{where}: {loc}.cuts: {exc}") from None
-        fit = entry.get("fit")
-        modes[key] = ModeModel(key=key, mode=mode, next_mode=entry.get("next_mode"), ds=ds,
-                               cuts=tuple(cuts),
-                               fit=MappingProxyType(dict(fit)) if fit is not None else None)
-    source = data.get("source")
-    return Model(state_names=names, modes=MappingProxyType(modes), spec=data.get("spec"),
-                 path=path, source=MappingProxyType(dict(source)) if source else None)
-
-
-def load_model(path: str | os.PathLike[str]) -> Model:
-    """Load and validate a model file (public API: ``tli_verify.load_model``).
-
-    Parameters
-    ----------
-    path : path-like
-
-    Returns
-    -------
-    Model
-        Frozen; ``model.velocity(X, mode="a")`` maps ``(N, n)`` states to ``(N, n)`` velocities.
-
-    Raises
-    ------
-    ModelError
-        Naming the file and the JSON field, e.g.
-        ``models/x.json: modes.a.components[2].cov: not symmetric positive definite``.
-    """
-    data = read_json(path, what="model", error=ModelError)
-    return model_from_dict(data, where=str(path), path=str(path))
-
-
-def _mode_to_dict(m: ModeModel) -> dict[str, Any]:
-    ds = m.ds
-    entry: dict[str, Any] = {
-        "mode": m.mode,
-        "next_mode": m.next_mode,
-        "attractor": ds.attractor.tolist(),
-        "P": ds.P.tolist(),
-        "components": [
-            {"prior": float(ds.priors[k]), "mean": ds.means[k].tolist(),
-             "cov": ds.covs[k].tolist(), "A": ds.A[k].tolist()}
-            for k in range(ds.n_components)
-        ],
-        "cuts": [c.to_dict() for c in m.cuts],
-    }
-    if m.fit is not None:
-        entry["fit"] = dict(m.fit)
-    return entry
-
-
-def model_to_dict(model: Model) -> dict[str, Any]:
-    """The JSON document of a model (inverse of :func:`model_from_dict`)."""
-    doc: dict[str, Any] = {
-        "schema_version": SCHEMA_VERSION,
-        "state_names": list(model.state_names),
-        "spec": model.spec,
-        "modes": {k: _mode_to_dict(m) for k, m in model.modes.items()},
-    }
-    if model.source is not None:
-        doc["source"] = json.loads(json.dumps(dict(model.source)))
-    return doc
-
-
-def save_model(model: Model, path: str | os.PathLike[str]) -> None:
-    """Write a model file atomically (canonical JSON, exact float round-trip)."""
-    doc = model_to_dict(model)
-    model_from_dict(doc, where=str(path))  # never write a file we would refuse to load
-    atomic_write_text(path, canonical_json(doc))
-
-
-def _relpath(target: str | os.PathLike[str], base_dir: Path) -> str:
-    """``target`` relative to ``base_dir`` (POSIX separators), for portable files."""
-    return Path(os.path.relpath(Path(target).resolve(), base_dir.resolve())).as_posix()
-
-
-def relocate_model(model: Model, out_path: str | os.PathLike[str], *,
-                   modes: Mapping[str, ModeModel] | None = None) -> Model:
-    """The model as it will be written at ``out_path``: relative paths rewritten.
-
-    Parameters
-    ----------
-    model : Model
-    out_path : path-like
-        The new file.
-    modes : mapping of str to ModeModel, optional
-        Replacement DS (default: the model's).
-
-    Returns
-    -------
-    Model
-    """
-    base = Path(model.path).parent if model.path else Path(".")
-    out_dir = Path(out_path).parent
-    spec = _relpath(base / model.spec, out_dir) if model.spec is not None else None
-    source = None
-    if model.source is not None:
-        src = json.loads(json.dumps(dict(model.source)))
-        for demo in src.get("demos") or []:
-            if isinstance(demo, dict) and isinstance(demo.get("path"), str):
-                demo["path"] = _relpath(base / demo["path"], out_dir)
-        source = MappingProxyType(src)
-    return Model(state_names=model.state_names,
-                 modes=modes if modes is not None else model.modes,
-                 spec=spec, path=str(out_path), source=source)
-
-
-def learn_model(
-    demo_paths: Sequence[str | os.PathLike[str]],
-    *,
-    out_path: str | os.PathLike[str],
-    spec_path: str | os.PathLike[str] | None = None,
-    seed: int = 0,
-    eps: float = 1e-3,
-    rate: float | None = None,
-    control_dt: float | None = 1e-3,
-    clustering: Clustering = "pc-gmm",
-    lyapunov: LyapunovKind = "p-qlf",
-) -> Model:
-    """Demonstrations -> segments -> one certified-to-be LPV-DS per mode (paper Sec. 5.1).
-
-    Parameters
-    ----------
-    demo_paths : sequence of path-like
-        Demonstration CSV files (:mod:`tli_verify.demos`).
-    out_path : path-like
-        Where the model will be written (relative paths in the file are relative to it).
-    spec_path : path-like, optional
-        Spec whose ``[modes]`` labels define the modes; without it, each distinct sensor
-        reading is a mode (:mod:`tli_verify.segmentation`).
-    seed : int, optional
-        Seed of the clustering (same seed, same model).
-    eps : float, optional
-        LMI margin ``A_k^T P + P A_k <= -eps I``.
-    rate : float, optional
-        Certified decay rate of ``V`` imposed on every DS (1/time). Default (None): a quarter
-        of the data's own rate (``RATE_FACTOR``), per DS; ``0`` with ``eps=1e-3``: the learner
-        before issue 9 (margin only). See :func:`tli_verify.ds.lpvds.learn_lpvds`.
-    control_dt : float, optional
-        Control period at which the learned DS must also decrease ``V`` per explicit step
-        (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.
-    clustering, lyapunov : str, optional
-        See :func:`tli_verify.ds.lpvds.learn_lpvds`.
-
-    Returns
-    -------
-    Model
-        Not yet written; see :func:`save_model`.
-
-    Raises
-    ------
-    DemoError, SpecError, SolverError
-        Bad demonstrations, a spec without modes, a solver status other than optimal.
-    """
-    from tli_verify import __version__
-    from tli_verify.demos import load_demos
-    from tli_verify.ds.lpvds import learn_lpvds
-    from tli_verify.io import sha256_file
-    from tli_verify.segmentation import segment_demos, spec_labeler
-
-    out_dir = Path(out_path).parent
-    if spec_path is not None:
-        from tli_verify.logic.spec import load_spec
-
-        spec = load_spec(spec_path)
-        labeler, modes, labels = spec_labeler(spec)
-        demos = load_demos(demo_paths, sensor_names=spec.inputs)
-        seg = segment_demos(demos, labeler=labeler, modes=modes, labels=labels)
-    else:
-        demos = load_demos(demo_paths)
-        seg = segment_demos(demos)
-    names = tuple(f"x{i}" for i in range(demos[0].dim))
-    learned: dict[str, ModeModel] = {}
-    for key, data in seg.data.items():
-        try:
-            ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
-                                   rate=rate, control_dt=control_dt, clustering=clustering,
-                                   lyapunov=lyapunov)
-        except TliError as exc:  # e.g. an infeasible SDP: say which mode's data it was
-            raise type(exc)(f"mode {key!r} ({len(data.x)} samples): {exc}",
-                            exit_code=exc.exit_code) from None
-        fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
-               "n_components": info.n_components, "eps": info.eps, "rate": info.rate,
-               "seed": info.seed, "solver": info.solver, "status": info.status,
-               "n_samples": info.n_samples}
-        if info.control_dt is not None:
-            fit["control_dt"] = info.control_dt
-        learned[key] = ModeModel(key=key, mode=data.mode, next_mode=data.next_mode, ds=ds,
-                                 fit=MappingProxyType(fit))
-    source = {"tool": f"tli-verify {__version__}",
-              "demos": [{"path": _relpath(p, out_dir), "sha256": sha256_file(p)}
-                        for p in demo_paths]}
-    return Model(state_names=names, modes=MappingProxyType(learned),
-                 spec=_relpath(spec_path, out_dir) if spec_path is not None else None,
-                 path=str(out_path), source=MappingProxyType(source))

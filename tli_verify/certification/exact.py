@@ -1,11 +1,11 @@
-"""Exact re-check of the Lyapunov conditions in rational arithmetic (paper eq. 4, Thm. 1).
+"""Exact re-check of the Lyapunov conditions in rational arithmetic (paper eq. 5, Thm. 1).
 
 A binary64 float *is* a rational number -- an integer times a power of two -- so the numbers of
 a model or certificate convert without rounding. A matrix of floats is held as one integer
 matrix and one binary exponent (:class:`Dyadic`), and every condition is decided on integers:
 
 * ``P = P^T > 0``;
-* continuous time: ``-(A_k^T P + P A_k) > 0`` for every component k (paper eq. 4);
+* continuous time: ``-(A_k^T P + P A_k) > 0`` for every component k (paper eq. 5);
 * sampled data at a control period ``dt`` (a rational, e.g. ``1/1000``):
   ``P - (I + dt A_k)^T P (I + dt A_k) > 0`` for every k. The P-norm is convex, so these vertex
   conditions cover every mixture ``sum_k gamma_k A_k`` of the LPV-DS: one explicit Euler step of
@@ -34,7 +34,7 @@ References
 ----------
 .. [1] E. H. Bareiss, "Sylvester's identity and multistep integer-preserving Gaussian
    elimination", Math. Comp. 22 (1968).
-.. [2] Wang et al., "Temporal Logic Imitation", CoRL 2022, eq. 4 and Thm. 1.
+.. [2] Wang et al., "Temporal Logic Imitation", CoRL 2022, eq. 5 and Thm. 1.
 """
 
 from __future__ import annotations
@@ -354,7 +354,7 @@ def positive_definite_dyadic(M: Dyadic, approx: npt.ArrayLike | None = None) -> 
         return PDResult(False, "not a non-empty square matrix")
     if n > MAX_EXACT_DIM:
         return PDResult(False, f"dimension {n} exceeds the exact check's limit "
-                        f"{MAX_EXACT_DIM} (tli_verify.certify.exact.MAX_EXACT_DIM)")
+                        f"{MAX_EXACT_DIM} (tli_verify.certification.exact.MAX_EXACT_DIM)")
     bad = [(i, j) for i in range(n) for j in range(i + 1, n) if m[i, j] != m[j, i]]
     if bad:
         i, j = bad[0]
@@ -545,7 +545,7 @@ class _System:
 def check_lyapunov(P: npt.ArrayLike, A: npt.ArrayLike, *,
                    dt: Fraction | str | None = None,
                    rate: Fraction | str | None = None) -> LyapunovCheck:
-    """Exactly decide the Lyapunov conditions of one LPV-DS (paper eq. 4, Thm. 1).
+    """Exactly decide the Lyapunov conditions of one LPV-DS (paper eq. 5, Thm. 1).
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 Paper Thm. 1 (the modulated DS keeps ``V`` decreasing and never leaves its mode) holds for the
 ``P`` the modulation's corner guard uses, which is the model's ``P``. A certificate must
-therefore prove that very ``P``: :func:`tli_verify.certify.certificate.issue_certificate`
+therefore prove that very ``P``: :func:`tli_verify.certification.certificate.issue_certificate`
 refuses a model whose ``P`` fails. Searching another ``P`` is an explicit step that writes a
 *new* model, so the runtime and the certificate cannot disagree: this module.
 """
@@ -16,11 +16,11 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
-from tli_verify.certify.exact import check_lyapunov
+from tli_verify.certification.exact import check_lyapunov
 from tli_verify.errors import CertificateError, SolverError
 
 if TYPE_CHECKING:
-    from tli_verify.model import Model
+    from tli_verify.model.types import Model
 
 __all__ = ["RepairResult", "repair_model"]
 
@@ -69,7 +69,8 @@ def repair_model(model_path: str | os.PathLike[str], out_path: str | os.PathLike
     """
     from tli_verify.ds.lpvds import LPVDS
     from tli_verify.ds.lyapunov import find_p
-    from tli_verify.model import ModeModel, load_model, relocate_model
+    from tli_verify.model.serialize import load_model, relocate_model
+    from tli_verify.model.types import ModeModel
 
     model = load_model(model_path)
     modes = dict(model.modes)

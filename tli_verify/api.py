@@ -1,0 +1,400 @@
+"""The public Python API: the pipeline with objects as well as paths.
+
+The command line works on files; these functions take the same files *or* the objects the
+library returns, so a pipeline runs from Python without writing anything until the user asks::
+
+    import tli_verify as tli
+
+    spec = tli.load_spec("specs/drawer.toml")
+    demos = tli.find_task("tasks/drawer.toml").demonstrate(seed=0)      # in memory
+    model = tli.learn(demos, spec=spec)                                  # a Model
+    cert = tli.certify(model)                                            # a Certificate
+    assert cert.ok
+    policy = tli.make_policy(spec, model, cert)                          # certified executive
+    episode = tli.run(policy, task="tasks/drawer.toml", start=[-0.6, 0, 0])
+
+A certificate binds the exact bytes of a model *file* (paper eq. 5 is re-checked exactly on
+what is deployed): :func:`certify` of a model that was never saved writes it, with its spec
+path, into a private temporary folder the :class:`Certificate` keeps alive; :meth:`Certificate.
+save` writes the pair where you want it (re-issued for the saved model's bytes).
+
+References
+----------
+Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
+Policies from Demonstrations", CoRL 2022: eq. 3 (the GR(1) spec), eq. 5 (the Lyapunov
+conditions a certificate proves), eq. 6 (the executive), Sec. 4.4 (campaigns).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import numpy.typing as npt
+
+from tli_verify.errors import CertificateError, ModelError, SpecError, TaskError, bad_input
+
+__all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
+
+PathLike = str | os.PathLike[str]
+
+
+def _spec_path(spec: Any) -> Path | None:
+    if spec is None:
+        return None
+    if isinstance(spec, str | os.PathLike):
+        return Path(spec)
+    path = getattr(spec, "path", None)
+    if path is None:
+        raise bad_input(SpecError, "spec: a GR1Spec loaded from a file is needed (the model "
+                        "and its certificate bind the spec file); use load_spec(path)")
+    return Path(path)
+
+
+def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
+          out: PathLike | None = None, **options: Any) -> Any:
+    """Learn a certified-stable LPV-DS per mode from demonstrations (``tli learn``).
+
+    Parameters
+    ----------
+    demos : sequence of path-like or Demonstration
+        CSV files, or :class:`~tli_verify.demos.Demonstration` objects (e.g. a task's
+        :meth:`~tli_verify.tasks.task.Task.demonstrate`).
+    spec : path-like or GR1Spec, optional
+        The spec whose ``[modes]`` labels segment the demonstrations (paper Sec. 3).
+    seed : int, optional
+    out : path-like, optional
+        Also save the model there (atomically).
+    **options
+        More keyword arguments of :func:`tli_verify.model.learn.learn_model` (``eps``, ``rate``,
+        ``control_dt``, ``clustering``, ``lyapunov``).
+
+    Returns
+    -------
+    Model
+    """
+    from tli_verify.demos import Demonstration, demo_to_csv
+    from tli_verify.io import atomic_write_text
+    from tli_verify.model.learn import learn_model
+
+    spec_path = _spec_path(spec)
+    with tempfile.TemporaryDirectory(prefix="tli-learn-") as tmp:
+        paths: list[Path] = []
+        for i, d in enumerate(demos):
+            if isinstance(d, Demonstration):
+                p = Path(tmp) / f"demo_{i + 1}.csv"
+                atomic_write_text(p, demo_to_csv(d))
+                paths.append(p)
+            else:
+                paths.append(Path(d))
+        target = Path(out) if out is not None else Path(tmp) / "model.json"
+        if options.get("control_dt") is None:  # the period the task runs at
+            options.pop("control_dt", None)
+            task_dt = _task_dt(spec_path) if spec_path is not None else None
+            if task_dt is not None:
+                options["control_dt"] = task_dt
+        model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, **options)
+        if out is not None:
+            save_model(model, out)
+            from tli_verify.model.serialize import load_model
+
+            return load_model(out)
+        return _in_memory(model, paths, Path(tmp), spec_path)
+
+
+def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | None) -> Any:
+    """A learned model that has no file: its spec path absolute, and the demonstrations that
+    were objects recorded as ``in-memory:demo_<i>`` (their SHA-256 kept), so nothing points
+    into the deleted temporary folder."""
+    import dataclasses
+    import json
+    from types import MappingProxyType
+
+    from tli_verify.model.serialize import IN_MEMORY
+
+    source = json.loads(json.dumps(dict(model.source or {})))
+    for i, (demo, p) in enumerate(zip(source.get("demos") or [], paths, strict=True)):
+        demo["path"] = (f"{IN_MEMORY}demo_{i + 1}" if p.parent == tmp
+                        else str(p.resolve()))
+    return dataclasses.replace(
+        model, path=None, source=MappingProxyType(source),
+        spec=None if spec_path is None else str(spec_path.resolve()))
+
+
+def save_model(model: Any, path: PathLike) -> Any:
+    """Write a model where you want it (relative paths inside rewritten for its folder);
+    return the model as loaded from there (its ``path`` set).
+
+    Parameters
+    ----------
+    model : Model
+    path : path-like
+
+    Returns
+    -------
+    Model
+    """
+    from tli_verify.model.serialize import load_model, relocate_model
+    from tli_verify.model.serialize import save_model as _save
+
+    _save(relocate_model(model, path), path)
+    return load_model(path)
+
+
+def _task_dt(spec_path: Path) -> float | None:
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.tasks.project import spec_task
+
+    task = spec_task(load_spec(spec_path), spec_path)
+    return None if task is None else task.dt
+
+
+@dataclass(frozen=True, eq=False)
+class Certificate:
+    """A certificate of a model file: the document, the files it binds, and its exact check.
+
+    Attributes
+    ----------
+    doc : dict
+        The certificate document (JSON: schema ``tli_verify/schemas/certificate.schema.json``).
+    path : Path
+        The certificate file (a temporary one for an unsaved model, see the module docstring).
+    model_path : Path
+        The model file it covers.
+    """
+
+    doc: dict[str, Any]
+    path: Path
+    model_path: Path
+    _tmp: Any = field(default=None, repr=False)
+
+    @property
+    def dt(self) -> Fraction:
+        """The control period it proves (exact)."""
+        return Fraction(str(self.doc["control_period"]["dt"]))
+
+    @property
+    def ok(self) -> bool:
+        """Whether it re-checks exactly now (:func:`tli_verify.certification.certificate.
+        check_certificate`: digest, hashes, P, the Lyapunov and sampled-data conditions)."""
+        return bool(self.check().ok)
+
+    def check(self) -> Any:
+        """The exact re-check (a :class:`~tli_verify.certification.certificate.CertCheck`)."""
+        from tli_verify.certification.certificate import check_certificate
+
+        return check_certificate(self.path)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The certificate document."""
+        return dict(self.doc)
+
+    def save(self, path: PathLike, *, model: PathLike | None = None) -> Certificate:
+        """Write the certificate (and, with ``model``, the model it covers) to files.
+
+        Parameters
+        ----------
+        path : path-like
+            The certificate file.
+        model : path-like, optional
+            Where to write the model first (an unsaved model must be saved somewhere: the
+            certificate binds its file's bytes); default: the model file it covers now.
+
+        Returns
+        -------
+        Certificate
+            Re-issued for the files written.
+        """
+        from tli_verify.model.serialize import load_model
+
+        mpath = Path(self.model_path)
+        if model is not None:
+            mpath = Path(model)
+            save_model(load_model(self.model_path), mpath)
+        return certify(mpath, dt=self.dt, out=path)
+
+
+def certify(model: Any, *, dt: Fraction | str | None = None,
+            out: PathLike | None = None) -> Certificate:
+    """Prove a model's Lyapunov conditions exactly and issue its certificate (``tli certify``).
+
+    Parameters
+    ----------
+    model : Model or path-like
+        A model object (saved or not) or a model file.
+    dt : Fraction or str, optional
+        The control period the sampled-data conditions hold at (default: the control period
+        of the task the model's spec names, else 1/1000 s).
+    out : path-like, optional
+        Write the certificate there (default: kept with the model: a temporary file for an
+        unsaved model).
+
+    Returns
+    -------
+    Certificate
+
+    Raises
+    ------
+    CertificateError
+        A DS does not certify with the model's own P (naming the mode and the condition).
+    """
+    from tli_verify.certification.certificate import issue_certificate, write_certificate
+    from tli_verify.defaults import DEFAULT_DT
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model
+
+    tmp: Path | None = None
+    if isinstance(model, Model):
+        if model.path is not None and Path(model.path).is_file() and \
+                load_model(model.path).modes.keys() == model.modes.keys() and \
+                _same_bytes(model, Path(model.path)):
+            mpath = Path(model.path)
+        else:
+            tmp = Path(tempfile.mkdtemp(prefix="tli-certify-"))
+            mpath = tmp / "model.json"
+            save_model(model, mpath)
+    else:
+        mpath = Path(model)
+    if dt is None:
+        spec = load_model(mpath).spec_path
+        task_dt = _task_dt(spec) if spec is not None else None
+        dt = Fraction(repr(task_dt)) if task_dt is not None else DEFAULT_DT
+    if out is not None:
+        cpath = Path(out)
+    elif tmp is not None:
+        cpath = tmp / "model.cert.json"
+    else:
+        from tli_verify.tasks.project import model_files
+
+        cpath = model_files(mpath).certificate
+    doc = issue_certificate(mpath, cert_path=cpath, dt=dt)
+    write_certificate(doc, cpath)
+    cert = Certificate(doc=doc, path=cpath, model_path=mpath, _tmp=tmp)
+    if tmp is not None:  # the private folder lives as long as the certificate object
+        import shutil
+        import weakref
+
+        weakref.finalize(cert, shutil.rmtree, tmp, True)
+    return cert
+
+
+def _same_bytes(model: Any, path: Path) -> bool:
+    """Whether the model object is the file's content (cuts learned in memory make it not)."""
+    from tli_verify.io import canonical_json
+    from tli_verify.model.serialize import model_to_dict, relocate_model
+
+    return canonical_json(model_to_dict(relocate_model(model, path))) == \
+        path.read_text(encoding="utf-8")
+
+
+def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
+                variant: str = "LTL-DS") -> Any:
+    """The certified LTL-DS executive (paper eq. 6) of a spec, model and certificate.
+
+    Parameters
+    ----------
+    spec : path-like, GR1Spec or TaskAutomaton
+        The spec (its automaton is synthesized) or the automaton itself.
+    model : Model or path-like
+    certificate : Certificate or path-like
+        It must cover the model exactly (the executive refuses one that does not).
+    task : Task, path-like or str, optional
+        Its goal and control period (default: the task the spec names).
+    variant : str, optional
+        ``"LTL-DS"``, ``"no-modulation"`` or ``"no-replan"`` (the paper's ablations).
+
+    Returns
+    -------
+    LTLDSPolicy
+
+    Raises
+    ------
+    CertificateError
+        The certificate does not cover the model (also a ValueError when the model was never
+        saved).
+    """
+    from tli_verify.logic.automaton import TaskAutomaton
+    from tli_verify.model.serialize import load_model
+    from tli_verify.model.types import Model
+    from tli_verify.runtime.setup import Setup, check_goal
+    from tli_verify.runtime.setup import make_policy as _make
+    from tli_verify.tasks.project import resolve
+
+    cpath = certificate.path if isinstance(certificate, Certificate) else Path(certificate)
+    if isinstance(model, Model):
+        if model.path is None and isinstance(certificate, Certificate):
+            model = load_model(certificate.model_path)
+        elif model.path is None:
+            raise bad_input(CertificateError, "the model was never saved: certify(model) "
+                            "first (a certificate binds a model file)")
+    else:
+        model = load_model(model)
+    spec_file = model.spec_path
+    if spec_file is None:
+        raise bad_input(ModelError, "the model names no spec: learn it with spec=...")
+    resolved = resolve(task=task, spec=spec_file, model=model.path, certificate=cpath)
+    if isinstance(spec, TaskAutomaton):
+        automaton = spec
+    else:
+        from tli_verify.logic.check import synthesize
+        from tli_verify.logic.spec import GR1Spec, load_spec
+
+        automaton = synthesize(spec if isinstance(spec, GR1Spec) else load_spec(spec_file))
+    check_goal(automaton, resolved.goal, where=str(spec_file))
+    setup = Setup(task=resolved.task, automaton=automaton, model=model,
+                  certificate=str(cpath), goal=resolved.goal, spec=str(spec_file))
+    return _make(setup, variant)
+
+
+def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
+        perturbations: Any = None, steps: int = 3000, seed: int = 0) -> Any:
+    """One closed-loop episode of a policy on its task (``tli run``).
+
+    Parameters
+    ----------
+    policy : LTLDSPolicy
+        From :func:`make_policy`.
+    task : Task, path-like or str, optional
+        Default: the task of the policy's spec.
+    start : array_like, shape (n,), optional
+        Default: a seeded random state whose reading is an initial one of the spec.
+    perturbations : mapping of int to array_like, optional
+        ``{step: displacement}`` (each shape (n,)).
+    steps : int, optional
+    seed : int, optional
+
+    Returns
+    -------
+    EpisodeResult
+    """
+    import numpy as np
+
+    from tli_verify.defaults import Stream, rng
+    from tli_verify.runtime.episodes import pusher, random_start
+    from tli_verify.runtime.loop import run_episode
+    from tli_verify.runtime.worlds import WorldSensors
+    from tli_verify.tasks.project import spec_task
+    from tli_verify.tasks.registry import find_task
+    from tli_verify.tasks.task import Task
+
+    if isinstance(task, Task):
+        world = task
+    elif task is not None:
+        world = find_task(task)
+    else:
+        from tli_verify.logic.spec import load_spec
+
+        spec = policy.model.spec_path
+        found = spec_task(load_spec(spec), spec) if spec is not None else None
+        if found is None:
+            raise bad_input(TaskError, "run: the policy's spec names no task: pass task=...")
+        world = found
+    x0 = (np.asarray(start, dtype=np.float64) if start is not None
+          else random_start(world, policy.automaton, rng(seed, Stream.START)))
+    return run_episode(policy.fork(), WorldSensors(world), x0, steps=steps,
+                       perturb=pusher(world, dict(perturbations or {})))

@@ -1,0 +1,84 @@
+"""The MuJoCo Franka's physical campaign evidence, as the evidence check judges it.
+
+:data:`FRANKA_PHYSICS` is the :class:`~tli_verify.verify.evidence.PhysicalWorld` that ``tli
+gate`` passes to :func:`~tli_verify.verify.evidence.check_evidence`: world
+``"franka-physics"``, at least :data:`MIN_PHYSICS_TRIALS` trials, and
+:func:`check_physics_block` on the evidence's ``physics`` block. Importing this module loads no
+simulator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from tli_verify.verify.evidence import PhysicalWorld
+
+__all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "WORLD", "check_physics_block"]
+
+WORLD = "franka-physics"
+"""The ``world`` of the Franka's physical campaign evidence."""
+
+MIN_PHYSICS_TRIALS = 30
+"""Fewest perturbed physical trials a ``franka-physics`` campaign needs to count as evidence:
+the paper's robot experiment (30 perturbed trials, 30 successes). With 30 successes the
+failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
+than the kinematic campaigns' bound, and the gate's line says so."""
+
+
+def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
+    """A physical campaign's block: consistent with the campaign, every trial delivered, the
+    deployed variant, both perturbation levels.
+
+    Parameters
+    ----------
+    doc : mapping
+        The evidence document (schema-valid, with a ``physics`` block).
+    shown : str
+        The evidence file as named in messages.
+    passed : list of str
+        What passed is appended here.
+
+    Returns
+    -------
+    list of str
+        The problems found.
+    """
+    phys = doc["physics"]
+    out: list[str] = []
+    camp = doc["campaign"]
+    trials, successes = int(phys["trials"]), int(phys["successes"])
+    if not trials == int(camp["examples"]) == int(camp["runs"]):
+        out.append(f"{shown}: physics.trials {trials} differs from campaign.examples "
+                   f"{camp['examples']} / runs {camp['runs']} (one run per trial)")
+    if successes != trials and not int(doc["violations"]["total"]):
+        out.append(f"{shown}: {trials - successes} of {trials} physical trial(s) delivered no "
+                   "soup: not evidence for deployment")
+    outcomes = phys.get("outcomes")
+    if outcomes is not None:
+        seeds = [int(o["seed"]) for o in outcomes]
+        first = int(camp["seed"])
+        if len(outcomes) != trials or seeds != list(range(first, first + len(outcomes))):
+            out.append(f"{shown}: physics.outcomes lists {len(outcomes)} trial(s) with seeds "
+                       f"other than {first}..{first + trials - 1}")
+        elif sum(bool(o["success"]) for o in outcomes) != successes or any(
+                o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
+            out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
+                       "violations")
+    if phys["variant"] != "LTL-DS":
+        out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
+                   "policy is LTL-DS (modulation and replanning on): not evidence for it")
+    if int(phys["pushes"]) < 1 or int(phys["tilts"]) < 1:
+        out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
+                   "the evidence must perturb at both levels (motion pushes and task tilts)")
+    if not out:
+        passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
+                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
+                      f"{phys['duration']:g} s budget), all delivered soup")
+    return out
+
+
+FRANKA_PHYSICS = PhysicalWorld(name=WORLD, min_trials=MIN_PHYSICS_TRIALS,
+                               check=check_physics_block)
+"""The MuJoCo Franka's physical campaigns, for
+:func:`~tli_verify.verify.evidence.check_evidence`."""

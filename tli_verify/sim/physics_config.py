@@ -1,0 +1,102 @@
+"""The settings of a physical campaign of the Franka policy (:class:`PhysicsConfig`).
+
+A campaign is seeded perturbed trials: the robot (:data:`ROBOTS`), the policy variant, the step
+budget, the pushes and tilts per trial, and the project whose model and certificate the policy
+runs behind. The settings are validated when the configuration is made, and
+:meth:`PhysicsConfig.settings` gives the ones a re-run needs besides seed and trials.
+
+References
+----------
+Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
+Policies from Demonstrations", CoRL 2022, Sec. 7.2 (30 perturbed trials on the Panda).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tli_verify.errors import TliError
+from tli_verify.sim import TRIAL_DURATION
+from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.loop import VARIANTS
+
+__all__ = [
+    "ROBOTS",
+    "PhysicsConfig",
+]
+
+
+ROBOTS = ("hand", "panda")
+
+
+@dataclass(frozen=True, slots=True)
+class PhysicsConfig:
+    """A physical campaign: seeded perturbed trials of the Franka policy.
+
+    Attributes
+    ----------
+    root : str
+        The project (``specs/``, ``models/franka-scoop.model.json``,
+        ``certificates/franka-scoop.cert.json``).
+    seed : int
+        Seed of the first trial; trial ``k`` has seed ``seed + k`` (bead placement and
+        :func:`~tli_verify.sim.perturbations.draw`).
+    trials : int
+    robot : str
+        ``"hand"`` or ``"panda"`` (:func:`tli_verify.sim.loop.run_trial`).
+    variant : str
+        ``"LTL-DS"`` (the deployed policy) or an ablation.
+    duration : float
+        Step budget per trial, simulated seconds.
+    pushes, tilts : int
+        Perturbations per trial (:func:`~tli_verify.sim.perturbations.draw`).
+    certificates : str or None
+        The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
+        gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
+    """
+
+    root: str
+    seed: int = 0
+    trials: int = 30
+    robot: str = "hand"
+    variant: str = "LTL-DS"
+    duration: float = TRIAL_DURATION
+    pushes: int = 1
+    tilts: int = 1
+    certificates: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.robot not in ROBOTS:
+            raise TliError(f"robot {self.robot!r}: one of {', '.join(ROBOTS)}")
+        if self.variant not in VARIANTS:
+            raise TliError(f"variant {self.variant!r}: one of {', '.join(VARIANTS)}")
+        if self.seed < 0 or self.trials < 1:
+            raise TliError(f"seed {self.seed} and trials {self.trials}: need seed >= 0 and "
+                           "trials >= 1 (evidence: every seed below 2^32)")
+        if not (0.5 <= self.duration <= 600):
+            raise TliError(f"duration must be between 0.5 and 600 s, got {self.duration}")
+        if self.pushes < 0 or self.tilts < 0:
+            raise TliError("pushes and tilts must be >= 0")
+
+    @property
+    def cert_dir(self) -> Path:
+        """``certificates``, default ``<root>/certificates``."""
+        return Path(self.certificates) if self.certificates is not None else \
+            Path(self.root) / "certificates"
+
+    @property
+    def certificate(self) -> Path:
+        """``<cert_dir>/franka-scoop.cert.json``."""
+        return self.cert_dir / f"{MODEL_NAME}.cert.json"
+
+    @property
+    def model(self) -> Path:
+        """``<root>/models/franka-scoop.model.json``."""
+        return Path(self.root) / "models" / f"{MODEL_NAME}.model.json"
+
+    def settings(self) -> dict[str, Any]:
+        """The evidence's ``physics`` settings (what a re-run needs besides seed and trials)."""
+        return {"robot": self.robot, "variant": self.variant, "duration": float(self.duration),
+                "pushes": int(self.pushes), "tilts": int(self.tilts)}

@@ -1,0 +1,115 @@
+"""The campaign evidence of a physical campaign (``certificates/franka-scoop.campaign.json``).
+
+:func:`write_physics_evidence` writes the evidence ``tli gate`` requires of a Franka project
+(:mod:`tli_verify.verify.evidence`, world :data:`WORLD`): the campaign's settings and outcomes,
+the hashes of the files it ran on and, if a trial failed, how to reproduce it.
+:func:`settings_from` reads a re-run's settings back from the evidence's ``physics`` block.
+
+References
+----------
+Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
+Policies from Demonstrations", CoRL 2022, Sec. 7.2 (30 perturbed trials on the Panda, all
+successful) and Sec. 4.4 (perturbation campaigns).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from tli_verify.sim.campaign import PhysicsResult
+from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.physics_checks import WORLD
+
+__all__ = [
+    "settings_from",
+    "write_physics_evidence",
+]
+
+
+"""The evidence's world name for the physical campaign (:mod:`tli_verify.verify.evidence`)."""
+
+
+def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
+    """The first failing trial (how to reproduce it), or None."""
+    for res, verdict in zip(result.results, result.verdicts, strict=True):
+        if not verdict.ok:
+            c = result.config
+            return {"seed": res.seed, "violations": list(verdict.violations),
+                    "messages": list(verdict.messages), "delivered": res.delivered,
+                    "mode_sequence": res.mode_sequence(),
+                    "perturbations": [p.to_dict() for p in res.perturbations],
+                    "reproduce": f"tli sim franka --certificates {c.cert_dir} "
+                                 f"--seed {res.seed} --trials 1 --robot {c.robot} "
+                                 f"--duration {c.duration:g}"}
+    return None
+
+
+def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] | None = None,
+                           *, inputs: Sequence[str | os.PathLike[str]] = ()
+                           ) -> tuple[Path, dict[str, Any]]:
+    """Write the campaign evidence of a physical campaign (atomically, canonical JSON).
+
+    Parameters
+    ----------
+    result : PhysicsResult
+    path : path-like, optional
+        Default ``<cert_dir>/franka-scoop.campaign.json`` (``<root>/certificates``).
+    inputs : sequence of path-like, optional
+        Other files the evidence must not overwrite (the demonstrations, a plot, ...).
+
+    Returns
+    -------
+    (Path, dict)
+        The file and the document. Evidence of failing trials is written too, as an honest
+        record: the gate refuses it.
+
+    Raises
+    ------
+    EvidenceError
+        (exit 2) A file changed since the campaign started, or is missing.
+    OutputError
+        (exit 2) The path cannot be written or is one of the inputs.
+    """
+    import mujoco
+
+    from tli_verify.io import check_output_file
+    from tli_verify.verify.evidence import (
+        EVIDENCE_SUFFIX,
+        deployed_task_block,
+        write_evidence,
+    )
+
+    c = result.config
+    target = Path(path) if path is not None else \
+        c.cert_dir / f"{MODEL_NAME}{EVIDENCE_SUFFIX}"
+    check_output_file(target, inputs=list(inputs), what="campaign evidence")
+    files = {name: Path(p) for name, p, _ in result.files}
+    physics: dict[str, Any] = dict(c.settings())
+    physics.update({
+        "trials": len(result.results), "successes": result.successes,
+        "delivered": sum(r.delivered for r in result.results),
+        "cuts_added": result.cuts_added, "mujoco": str(mujoco.__version__),
+        "wall_time": round(result.wall_time, 2),
+        "outcomes": [{"seed": r.seed, "success": bool(r.success), "delivered": r.delivered,
+                      "violations": list(v.violations)}
+                     for r, v in zip(result.results, result.verdicts, strict=True)],
+    })
+    doc = write_evidence(
+        target, world=WORLD, task=deployed_task_block(files["model"], target.parent),
+        spec=files["spec"], model=files["model"],
+        certificate=files["certificate"], seed=c.seed, examples=len(result.results),
+        runs=len(result.results), violations=result.violations,
+        modulation=c.variant != "no-modulation", partial=False, backend="serial", workers=1,
+        counterexample=_counterexample(result), physics=physics,
+        expected={name: sha for name, _, sha in result.files if sha})
+    return target, doc
+
+
+def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
+    """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an
+    evidence's ``physics`` block."""
+    keys = ("robot", "variant", "duration", "pushes", "tilts")
+    return {k: physics[k] for k in keys if k in physics}

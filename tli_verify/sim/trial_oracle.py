@@ -1,0 +1,162 @@
+"""The physics oracle: does one perturbed Franka trial satisfy its task?
+
+:func:`check_trial` passes a trial when soup was delivered (at least one bead ends in the target
+bowl), the goal mode was reached, and its mode trace is a run of the task automaton: it starts in
+an initial mode and every mode change is one the automaton can take
+(:meth:`~tli_verify.logic.automaton.TaskAutomaton.mode_transitions`), reported by the executive,
+or a replan after a perturbation or a sensor change the assumptions rule out. What it found is a
+:class:`TrialVerdict` (violation kinds :data:`VIOLATION_KINDS`).
+
+References
+----------
+Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
+Policies from Demonstrations", CoRL 2022, Sec. 7.2 (30 perturbed trials on the Panda, all
+successful).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from tli_verify.sim.loop import TrialResult
+
+__all__ = [
+    "VIOLATION_KINDS",
+    "TrialVerdict",
+    "check_trial",
+]
+
+
+VIOLATION_KINDS = ("delivery", "reachability", "automaton")
+"""What the physics oracle checks (:func:`check_trial`)."""
+
+
+_EVENT = re.compile(r"^(\w+) at step (\d+)$")
+
+
+@dataclass(frozen=True, slots=True)
+class TrialVerdict:
+    """What the physics oracle found in one trial (:func:`check_trial`).
+
+    Attributes
+    ----------
+    seed : int
+    violations : tuple of str
+        Kinds found (a subset of :data:`VIOLATION_KINDS`, in that order); empty: passed.
+    messages : tuple of str
+        One line per problem.
+    replans : int
+        Mode changes outside the automaton's mode graph that the executive answered with a
+        replan after a perturbation or a sensor change (allowed).
+    """
+
+    seed: int
+    violations: tuple[str, ...] = ()
+    messages: tuple[str, ...] = ()
+    replans: int = 0
+
+    @property
+    def ok(self) -> bool:
+        """True iff no violation."""
+        return not self.violations
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON record."""
+        return {"seed": self.seed, "ok": self.ok, "violations": list(self.violations),
+                "messages": list(self.messages), "replans": self.replans}
+
+
+def _events_by_step(events: Sequence[str]) -> dict[int, set[str]]:
+    out: dict[int, set[str]] = {}
+    for line in events:
+        m = _EVENT.match(line)
+        if m is not None:
+            out.setdefault(int(m.group(2)), set()).add(m.group(1))
+    return out
+
+
+def check_trial(result: TrialResult, automaton: Any,
+                goal_modes: Sequence[str] | None = None) -> TrialVerdict:
+    """The physics oracle on one trial.
+
+    Index ``k`` of ``result.modes`` is the mode after control step ``k`` (0: the reset
+    reading), the step the executive's events name.
+
+    Checks (violation kinds):
+
+    * ``"delivery"`` -- at least one bead ended in the target bowl (``success``, consistent
+      with ``delivered``);
+    * ``"reachability"`` -- the trace ends in a goal mode (default: the automaton's sink modes,
+      :meth:`~tli_verify.logic.automaton.TaskAutomaton.sink_modes`);
+    * ``"automaton"`` -- the trace is a run of the task automaton: every mode is one of its
+      modes, the first is the mode of an initial state (or the executive reported the initial
+      reading as an assumption violation), and every mode change ``m -> m'`` at step ``k`` was
+      reported by the executive (``ModeChange at step k``) and is either a mode transition the
+      automaton can take
+      (:meth:`~tli_verify.logic.automaton.TaskAutomaton.mode_transitions`) or a replan
+      (``Replan at step k``) after a perturbation or a sensor change the assumptions rule out
+      (``Perturbation`` or ``AssumptionViolationEvent`` at step ``k``).
+
+    Parameters
+    ----------
+    result : TrialResult
+    automaton : TaskAutomaton
+        The spec's (the one the executive ran).
+    goal_modes : sequence of str, optional
+
+    Returns
+    -------
+    TrialVerdict
+    """
+    found: dict[str, list[str]] = {}
+
+    def fail(kind: str, message: str) -> None:
+        found.setdefault(kind, []).append(message)
+
+    if not result.success or result.delivered < 1:
+        fail("delivery", f"{result.delivered} bead(s) in the target bowl: no soup delivered"
+             if result.delivered < 1 else
+             f"{result.delivered} bead(s) delivered but the trial says it failed")
+    modes = list(result.modes)
+    goals = tuple(goal_modes) if goal_modes is not None else tuple(automaton.sink_modes())
+    if not modes:
+        fail("automaton", "empty mode trace")
+        fail("reachability", "empty mode trace: no goal mode reached")
+    elif modes[-1] not in goals:
+        fail("reachability", f"ends in mode {modes[-1]!r}, not a goal mode "
+             f"({', '.join(goals) or '-'}): the task was not completed")
+    events = _events_by_step(result.events)
+    known = set(automaton.modes)
+    unknown = sorted({m for m in modes if m not in known})
+    replans = 0
+    if unknown:
+        fail("automaton", f"mode {unknown[0]!r} is not a mode of the automaton "
+             f"({', '.join(automaton.modes)})")
+    elif modes:
+        initial = {automaton.states[i].mode for i in automaton.initial}
+        if modes[0] not in initial and "AssumptionViolationEvent" not in events.get(0, set()):
+            fail("automaton", f"starts in mode {modes[0]!r}, not an initial mode "
+                 f"({', '.join(sorted(initial))})")
+        graph = {(a, b) for a, b in automaton.mode_transitions()}
+        for k in range(1, len(modes)):
+            a, b = modes[k - 1], modes[k]
+            if a == b:
+                continue
+            at = events.get(k, set())
+            if "ModeChange" not in at:
+                fail("automaton", f"step {k}: mode {a} -> {b} that the executive did not "
+                     "report (no ModeChange at that step)")
+            elif (a, b) in graph:
+                continue
+            elif "Replan" in at and at & {"Perturbation", "AssumptionViolationEvent"}:
+                replans += 1
+            else:
+                fail("automaton", f"step {k}: mode {a} -> {b} is no transition of the "
+                     "automaton and no replan after a perturbation or sensor change")
+    kinds = tuple(k for k in VIOLATION_KINDS if k in found)
+    return TrialVerdict(seed=result.seed, violations=kinds,
+                        messages=tuple(m for k in kinds for m in found[k][:3]),
+                        replans=replans)
