@@ -52,6 +52,7 @@ def _same(got: dict, want: dict) -> None:
         assert fig[key] == want["fig7"][key], key
 
 
+@pytest.mark.slow  # the quick scoop experiment end to end, about 20 s
 def test_quick_scoop_table_is_the_former_worlds(capsys: pytest.CaptureFixture[str],
                                                 tmp_path: Path) -> None:
     _same(_table(capsys, tmp_path, "--quick"), REFERENCE["quick"])
