@@ -29,9 +29,9 @@ ROOT = Path(__file__).resolve().parents[2]
 TUTORIAL = ROOT / "docs" / "tutorial"
 README = ROOT / "README.md"
 PAGES = sorted(p.name for p in TUTORIAL.glob("*.md"))
-#: Pages whose commands take minutes (the walkthrough runs a 100-example campaign and the gate
-#: on the bundled scoop): ``make test-all`` runs them, ``make test`` the others.
-SLOW_PAGES = {"walkthrough.md"}
+#: Pages whose commands take a minute or more (each runs a campaign and the gate): ``make
+#: test-all`` runs them; ``make test`` runs the tutorial's Python example and the README check.
+SLOW_PAGES = {"walkthrough.md", "byo-task.md"}
 _EXIT = re.compile(r"\s+#\s*exit\s+(\d+)\s*$")
 
 
