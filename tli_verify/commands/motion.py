@@ -98,8 +98,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     rate = p.add_mutually_exclusive_group()
     rate.add_argument("--rate", type=_nonnegative_float, default=None,
                       help="force this certified decay rate of V on every DS, A_k^T P + "
-                      "P A_k <= -rate P (1/s; 0: margin --eps only, the learner before issue "
-                      "9; default: chosen per DS under --rate-budget)")
+                      "P A_k <= -rate P (1/s; 0: margin --eps only, the earlier margin-only "
+                      "learner; default: chosen per DS under --rate-budget)")
     rate.add_argument("--rate-budget", type=_nonnegative_float, default=None, metavar="B",
                       help="per DS, fit at rate 0, then certify the largest rate on a "
                       "half-octave grid up to the data's mean |xdot| / mean |x - x*| whose "
