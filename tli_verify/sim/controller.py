@@ -80,6 +80,7 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack
 
 from tli_verify.errors import ModelError, SolverError
+from tli_verify.sim.franka_limits import CartesianImpedance, LimitGuard
 from tli_verify.sim.robot import HOME_QPOS, TORQUE_LIMITS, Panda
 
 __all__ = [
@@ -332,6 +333,16 @@ class ImpedanceController:
         Null-space posture ``q_n`` (rad; default :data:`~tli_verify.sim.robot.HOME_QPOS`).
     r0 : ndarray, shape (3, 3), optional
         Nominal orientation of the DS state map (default :data:`R0_DOWN`).
+    impedance : CartesianImpedance, optional
+        The Franka's Cartesian impedance law ``F = K e - D (J qdot - v_d)`` in N/m and Nm/rad
+        (:class:`~tli_verify.sim.franka_limits.CartesianImpedance`) instead of the
+        per-unit-mass ``gains`` (which then set only the posture loop).
+    guard : LimitGuard, optional
+        Enforces the robot's torque, torque-rate and velocity limits on every command, with the
+        reflex stop (:class:`~tli_verify.sim.franka_limits.LimitGuard`); default: the torques
+        are only clipped at :data:`~tli_verify.sim.robot.TORQUE_LIMITS`.
+    ext_time_constant : float, optional
+        Low-pass time constant (s) of the external wrench estimate (:attr:`external_wrench`).
 
     Attributes
     ----------
@@ -352,14 +363,17 @@ class ImpedanceController:
     ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_act", "_contig", "_dn", "_dof", "_idx_m", "_jac", "_jac6", "_jacp", "_jacr",
-                 "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list", "_last_tau", "_limits",
-                 "_n_sat", "_q_idx", "_qerr", "_quat", "_rhs", "_views", "calls", "gains", "map",
+    __slots__ = ("_act", "_contig", "_dn", "_dof", "_ext", "_ext_tau", "_idx_m", "_jac", "_jac6",
+                 "_jacp", "_jacr", "_k6", "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list",
+                 "_last_tau", "_limits", "_n_sat", "_prev", "_q_idx", "_qerr", "_quat", "_rhs",
+                 "_views", "calls", "ext_time_constant", "gains", "guard", "impedance", "map",
                  "max_pos_error", "max_rot_error", "model", "panda", "pos_error", "posture",
                  "rot_error", "saturated_calls", "site")
 
     def __init__(self, panda: Panda, site: int | None = None, gains: Gains | None = None,
-                 posture: FloatArray | None = None, r0: FloatArray | None = None) -> None:
+                 posture: FloatArray | None = None, r0: FloatArray | None = None, *,
+                 impedance: CartesianImpedance | None = None, guard: LimitGuard | None = None,
+                 ext_time_constant: float = 0.02) -> None:
         self.panda = panda
         self.model = panda.model
         self.site = panda.tcp_site if site is None else int(site)
@@ -375,7 +389,8 @@ class ImpedanceController:
         self._idx_m = arm_mass_index(self.model, self._dof)
         self._qerr = np.zeros(4)
         self._quat = np.zeros(4)
-        self._rhs = np.zeros((6, 2))
+        self._rhs = np.zeros((6, 3 + 6))  # impedance, posture, external wrench, I (Lambda)
+        self._rhs[:, 3:] = np.eye(6)
         self._last_tau = np.zeros(7)
         g = self.gains
         self._kp6 = np.array([g.kp_pos] * 3 + [g.kp_rot] * 3)
@@ -391,6 +406,14 @@ class ImpedanceController:
         self._act: Any = (slice(a0, a0 + 7) if np.array_equal(panda.act_ids, np.arange(a0, a0 + 7))
                           else panda.act_ids)
         self._n_sat = 0
+        self.impedance = impedance
+        self._k6 = impedance.stiffness().tolist() if impedance is not None else None
+        self.guard = guard
+        self.ext_time_constant = float(ext_time_constant)
+        self._ext = np.zeros(6)
+        self._ext_tau = np.zeros(7)
+        self._prev: tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray] | None \
+            = None
         self.reset_stats()
 
     # ----------------------------------------------------------------------------------------
@@ -415,6 +438,34 @@ class ImpedanceController:
     def last_saturated(self) -> int:
         """Joints saturated at the last call."""
         return self._n_sat
+
+    @property
+    def external_wrench(self) -> FloatArray:
+        """The estimated external wrench at the site ``(F, tau)`` (N, N m; world), shape (6,).
+
+        What the robot could compute (the Panda reports ``O_F_ext_hat_K`` from its joint torque
+        sensors and its model): the joint torques the rigid-body model does not explain,
+        ``tau_ext = M (qdot_k+1 - qdot_k) / dt + C qdot + g - tau - tau_passive`` (the
+        commanded torques, the model's friction and damping), low-pass filtered with time
+        constant :attr:`ext_time_constant`, mapped to the site with the dynamically consistent
+        inverse ``Jbar^T = Lambda J M^-1``. Contacts (beads, bowls) count as external, as on
+        the robot. No simulator state beyond the arm's joints and its model is read.
+        """
+        return self._ext
+
+    def _estimate_external(self, data: Any, mass: FloatArray, qd: FloatArray,
+                           bias: FloatArray) -> None:
+        """Update the filtered joint-space external torque from the last call's step."""
+        prev = self._prev
+        if prev is None:
+            return
+        t0, m0, qd0, b0, tau0, p0 = prev
+        dt = float(data.time) - t0
+        if dt <= 0.0:
+            return
+        raw = m0 @ ((qd - qd0) / dt) + b0 - tau0 - p0
+        alpha = dt / (self.ext_time_constant + dt)
+        self._ext_tau += alpha * (raw - self._ext_tau)
 
     def ds_state(self, data: Any) -> FloatArray:
         """The DS state ``(x, y, z, pitch)`` of the controlled site, shape (4,)."""
@@ -476,29 +527,46 @@ class ImpedanceController:
         k = angle / vnorm if vnorm > 1e-12 else 0.0
         # rhs[:, 0] = Kp e - Kd (J qdot - v_d), per component in floats (the same products and
         # differences numpy's elementwise operations round)
-        vel = (jac @ qd).tolist()
+        twist = jac @ qd                                 # measured site twist (6,)
+        vel = twist.tolist()
         if twist_d is not None:
             vel = [vi - ti for vi, ti in zip(vel, np.asarray(twist_d, dtype=np.float64).tolist(),
                                              strict=True)]
         kp, kd = self._kp6_list, self._kd6_list
         err = (ex, ey, ez, a * k, b * k, c * k)
+        bias = v.bias if v.bias is not None else data.qfrc_bias[self._dof]
+        self._estimate_external(data, mass, qd, bias)
         rhs = self._rhs
         rhs[:, 0] = [kp[i] * err[i] - kd[i] * vel[i] for i in range(6)]
         # Posture torque (mass-weighted), projected with I - J^T Jbar^T, Jbar = M^-1 J^T Lambda:
-        # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term.
+        # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term,
+        # and Lambda X^T tau_ext = Jbar^T tau_ext, the external wrench at the site; in the
+        # Franka impedance law also Lambda itself (its diagonal sets the damping).
         q = v.qpos if v.qpos is not None else data.qpos[self._q_idx]
         tau0 = mass @ (self._kn * (self.posture - q) - self._dn * qd)
         rhs[:, 1] = x.T @ tau0
+        rhs[:, 2] = x.T @ self._ext_tau
         _, y, info = _dposv(lam_inv, rhs)
         if info != 0:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
-        bias = v.bias if v.bias is not None else data.qfrc_bias[self._dof]
-        tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias
+        self._ext = y[:, 2].copy()
+        if self._k6 is not None:
+            assert self.impedance is not None
+            lam_diag = np.abs(np.diag(y[:, 3:]))
+            damp = 2.0 * self.impedance.damping_ratio * np.sqrt(np.asarray(self._k6) * lam_diag)
+            force = np.asarray(self._k6) * np.asarray(err) - damp * np.asarray(vel)
+            tau = jac.T @ (force - y[:, 1]) + tau0 + bias
+        else:
+            tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias
         lim = self._limits
         n_sat = sum(1 for t, m in zip(tau.tolist(), lim, strict=True) if abs(t) > m)
-        if n_sat:
+        if self.guard is not None:
+            tau = self.guard.apply(tau, qd, np.diag(mass), twist)
+        elif n_sat:
             tau = np.clip(tau, -TORQUE_LIMITS, TORQUE_LIMITS)
         clipped = tau
+        self._prev = (float(data.time), mass.copy(), np.array(qd), np.array(bias), clipped.copy(),
+                      np.array(data.qfrc_passive[self._dof]))
         if v.ctrl is not None:
             v.ctrl[:] = clipped
         else:

@@ -32,6 +32,7 @@ from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
 from tli_verify.sim.controller import Gains
+from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
 from tli_verify.sim.scene import (
     N_BEADS,
     SOUP_CENTER,
@@ -52,6 +53,7 @@ __all__ = [
     "MocapRig",
     "ScoopStep",
     "from_ds",
+    "from_ds_velocity",
     "record_demo",
     "scoop_waypoints",
     "to_ds",
@@ -228,6 +230,9 @@ class MocapRig:
         inertia = float(self.model.body_inertia[self._carrier].max()) + 0.12 * 0.05 ** 2
         self.d = 2.0 * math.sqrt(self.k * mass)
         self.dr = 2.0 * math.sqrt(self.kr * inertia)
+        self._mass, self._inertia = mass, inertia
+        self._ext = np.zeros(6)
+        self._ctrl = np.zeros(6)
         self._target_q = np.zeros(4)
         self._err_q = np.zeros(4)
         self._rotvec = np.zeros(3)
@@ -253,8 +258,10 @@ class MocapRig:
         """Body id of the free body carrying the ladle (where wrenches go)."""
         return self._carrier
 
-    def command(self, pose: npt.ArrayLike) -> None:
-        """Move the mocap target to ``(x, y, z, pitch)``; the ladle follows through the weld."""
+    def command(self, pose: npt.ArrayLike, velocity: npt.ArrayLike | None = None) -> None:
+        """Move the target to ``(x, y, z, pitch)``; the impedance law pulls the ladle there.
+        ``velocity`` is accepted for the rigs' common interface and not used (the free tool's
+        law has no feed-forward: the demonstrations were recorded without it)."""
         p = np.asarray(pose, dtype=np.float64)
         self.data.mocap_pos[0] = p[:3]
         self.data.mocap_quat[0] = ladle_quat(float(p[3]))
@@ -294,8 +301,28 @@ class MocapRig:
         kr, dr = self.kr, self.dr
         self._ang[:] = [kr * r - dr * o for r, o in zip(self._rotvec.tolist(), omega,
                                                          strict=True)]
+        ctrl = self._wrench.copy()
+        v0 = np.concatenate((self._vel, omega))
         self._wrench += self.push
         mujoco.mj_step(self.model, self.data)
+        # the external wrench the rig's own model does not explain (its mass and a scalar
+        # inertia; gravity is compensated), low-pass 20 ms, as the arm's estimate
+        v1 = np.concatenate((self._vel, self._xmat @ self._omega_body))
+        dt = float(self.model.opt.timestep)
+        inertia = np.array([self._mass] * 3 + [self._inertia] * 3)
+        raw = inertia * (v1 - v0) / dt - ctrl
+        self._ext += dt / (0.02 + dt) * (raw - self._ext)
+
+    def external_wrench(self) -> FloatArray:
+        """The estimated external wrench on the tool (N, N m; world), shape (6,): its
+        acceleration times its mass (and a scalar inertia) minus the impedance wrench applied,
+        low-pass filtered (20 ms)."""
+        return self._ext
+
+    @property
+    def stopped(self) -> str | None:
+        """The free tool has no reflex: always None."""
+        return None
 
     def step(self, n: int = 1) -> None:
         """``n`` physics steps."""
@@ -349,6 +376,12 @@ def from_ds(z: npt.ArrayLike) -> FloatArray:
     p = np.array(z, dtype=np.float64)
     p[..., :3] /= POSITION_SCALE
     return p
+
+
+def from_ds_velocity(v: npt.ArrayLike) -> FloatArray:
+    """DS velocity (dm/s, rad/s) -> tray velocity (m/s, rad/s): the same scaling as
+    :func:`from_ds` (no offset)."""
+    return from_ds(v)
 
 
 def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
@@ -467,24 +500,35 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     return out
 
 
-PANDA_GAINS = Gains(kp_pos=900.0, kd_pos=60.0, kp_rot=900.0, kd_rot=60.0)
-"""The Panda rig's impedance gains (per unit task-space mass: about 30 rad/s, critically
-damped), stiffer than the controller's defaults (400, 40): with those the arm pressed the tray
-into the pile more softly than the demonstrations' free hand (2000 N/m) and, after a spill,
-stopped short of a receded pile (3 of 30 perturbed trials). Sampled-data spectral radius at the
-2 ms control period 0.95 (:func:`~tli_verify.sim.controller.sampled_data_spectral_radius`)."""
+PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=150.0,
+                                     damping_ratio=1.0)
+"""The Panda rig's Cartesian impedance: 2,000 N/m and 150 Nm/rad (within the robot's range of
+about 10-3,000 N/m and 1-300 Nm/rad), critically damped on the arm's task-space inertia -- the
+free tool's stiffness (:class:`MocapRig`), with which the demonstrations were recorded."""
+
+PANDA_POSTURE_GAINS = Gains(kn=25.0, dn=10.0)
+"""Null-space posture gains of the Panda rig (per unit joint mass); its task-space gains are
+:data:`PANDA_IMPEDANCE`."""
+
+PANDA_TIMESTEPS = (0.002, 0.001)
+"""Physics (and torque-loop) periods the Panda rig offers: 500 Hz (default) and 1 kHz, the
+robot's own torque-loop rate."""
 
 
 class PandaRig:
-    """Phase 2: the ladle on the Panda hand, tracked by the operational-space controller.
+    """Phase 2: the ladle on the Panda hand, tracked by the Cartesian impedance controller.
 
     The same interface as :class:`MocapRig` (``command``, ``physics_step``, ``step``, ``pose``,
-    ``read``, ``push``, ``carrier``), so :func:`tli_verify.sim.loop.run_trial` runs either.
-    The ladle is fixed under the hand with its grip at Franka's ``tcp`` frame (tool z down,
-    the tray 15 cm below and 12 cm towards -y); the controller
-    (:class:`tli_verify.sim.controller.ImpedanceController`) controls the tray site
-    ``ladle_tray`` directly, with the nominal orientation of the ladle frame at pitch 0, so
-    its DS state is this module's ``(x, y, z, pitch)`` of the tray. Before the trial the arm
+    ``read``, ``push``, ``carrier``, ``external_wrench``), so
+    :func:`tli_verify.sim.loop.run_trial` runs either. The ladle is fixed under the hand with
+    its grip at Franka's ``tcp`` frame (tool z down, the tray 15 cm below and 12 cm towards -y);
+    the controller (:class:`tli_verify.sim.controller.ImpedanceController` with
+    :data:`PANDA_IMPEDANCE` and a :class:`~tli_verify.sim.franka_limits.LimitGuard`) controls
+    the tray site ``ladle_tray`` directly, with the nominal orientation of the ladle frame at
+    pitch 0, so its DS state is this module's ``(x, y, z, pitch)`` of the tray. Torques are
+    computed at every physics step (the torque loop); the target moves linearly within each
+    control period from the last commanded pose to the new one, with the DS velocity as
+    feed-forward (a passive-DS controller tracks the DS's velocity). Before the trial the arm
     moves from the home posture to the demonstrations' start while the beads settle.
 
     Parameters
@@ -494,15 +538,27 @@ class PandaRig:
     assets : Path, optional
         Menagerie assets (default ``$TLI_SIM_ASSETS`` or ``sim/assets``; see
         :mod:`tli_verify.sim.assets`).
+    timestep : float, optional
+        Physics and torque-loop period, one of :data:`PANDA_TIMESTEPS` (s).
+    impedance : CartesianImpedance, optional
+        Default :data:`PANDA_IMPEDANCE`.
+    limits : FrankaLimits, optional
+        Default the Panda's (:class:`~tli_verify.sim.franka_limits.FrankaLimits`).
     """
 
-    def __init__(self, seed: int = 0, *, assets: Path | None = None) -> None:
+    def __init__(self, seed: int = 0, *, assets: Path | None = None, timestep: float = 0.002,
+                 impedance: CartesianImpedance | None = None,
+                 limits: FrankaLimits | None = None) -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
         from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
 
+        if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
+            raise TliError(f"timestep {timestep:g} s: one of "
+                           f"{', '.join(f'{t:g}' for t in PANDA_TIMESTEPS)}")
         spec = panda_spec(assets)
         set_contact_options(spec)
+        spec.option.timestep = float(timestep)
         add_scene(spec)
         back = 0.035 + 0.004 + 0.16 * 0.5
         up = 0.015 + 0.16 * math.sin(math.pi / 3)
@@ -523,44 +579,70 @@ class PandaRig:
         self.sensors = ScoopSensors(self.model, self.ids)
         r0 = np.empty(9)
         mujoco.mju_quat2Mat(r0, ladle_quat(0.0))
+        self.impedance = PANDA_IMPEDANCE if impedance is None else impedance
+        self.limits = FrankaLimits() if limits is None else limits
+        self.guard = LimitGuard(self.limits, float(timestep))
         self.controller = ImpedanceController(self.panda, site=self.ids.tray_site,
-                                              r0=r0.reshape(3, 3), gains=PANDA_GAINS)
+                                              r0=r0.reshape(3, 3), gains=PANDA_POSTURE_GAINS,
+                                              impedance=self.impedance, guard=self.guard)
         self.push = np.zeros(6)
         self._carrier = int(self.panda.hand_body)
         self.data.qpos[self.panda.qpos_adr] = HOME_QPOS
         mujoco.mj_forward(self.model, self.data)
-        self._pos = np.zeros(3)
-        self._quat = np.zeros(4)
+        self._from = self.pose()
+        self._goal = self._from.copy()
+        self._twist: FloatArray | None = None
         start = scoop_waypoints()[0, 1:]
         here = self.pose()
         for k in range(1, 51):  # 1 s to the start, then hold while the beads settle
             self.command(here + (start - here) * k / 50)
-            self.step(10)
+            self.step(round(CONTROL_DT / timestep))
         reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
+        self.guard.reset_ratios()
 
     @property
     def carrier(self) -> int:
         """Body id of the hand (where wrenches go)."""
         return self._carrier
 
-    def command(self, pose: npt.ArrayLike) -> None:
-        """Set the controller's target to the tray pose ``(x, y, z, pitch)``."""
-        pos, quat = self.controller.target_pose_from_ds_state(np.asarray(pose, dtype=float))
-        self._pos, self._quat = np.asarray(pos, dtype=float), np.asarray(quat, dtype=float)
+    def command(self, pose: npt.ArrayLike, velocity: npt.ArrayLike | None = None) -> None:
+        """The tray pose ``(x, y, z, pitch)`` to reach by the end of the next :meth:`step`
+        call (the target ramps there from the last one), and the DS velocity
+        ``(dx, dy, dz, dpitch)`` (m/s, rad/s; optional) as feed-forward."""
+        self._from = self._goal
+        self._goal = np.asarray(pose, dtype=np.float64).copy()
+        self._twist = None if velocity is None else self.controller.map.twist_from_ds_velocity(
+            np.asarray(velocity, dtype=np.float64))
 
     def physics_step(self) -> None:
-        """One physics step: the controller's torques plus :attr:`push` on the hand."""
-        self.data.xfrc_applied[self._carrier] = self.push
-        self.controller.step(self.data, self._pos, self._quat, substeps=1, control_every=1)
+        """One physics step at the commanded pose: torques plus :attr:`push` on the hand."""
+        self._from = self._goal
+        self.step(1)
 
     def step(self, n: int = 1) -> None:
-        """``n`` physics steps (torques computed every step)."""
-        self.data.xfrc_applied[self._carrier] = self.push
-        self.controller.step(self.data, self._pos, self._quat, substeps=n, control_every=1)
+        """``n`` physics steps, torques computed every step; the target ramps from the last
+        commanded pose to the new one over them."""
+        ctl, data = self.controller, self.data
+        for k in range(1, n + 1):
+            z = self._from + (self._goal - self._from) * (k / n)
+            pos, quat = ctl.target_pose_from_ds_state(z)
+            data.xfrc_applied[self._carrier] = self.push
+            ctl.step(data, pos, quat, self._twist, substeps=1, control_every=1)
+        self._from = self._goal
 
     def pose(self) -> FloatArray:
         """The tray's ``(x, y, z, pitch)``, shape (4,)."""
         return tray_pose(self.data, self.ids.tray_site)
+
+    def external_wrench(self) -> FloatArray:
+        """The controller's external wrench estimate at the tray (N, N m; world), shape (6,)
+        (:attr:`~tli_verify.sim.controller.ImpedanceController.external_wrench`)."""
+        return self.controller.external_wrench
+
+    @property
+    def stopped(self) -> str | None:
+        """The reflex that stopped the robot, if one did."""
+        return self.guard.stopped
 
     def read(self) -> Reading:
         """The sensors now."""

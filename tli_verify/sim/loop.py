@@ -45,11 +45,18 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TliError
+from tli_verify.errors import InputError, TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim import TRIAL_DURATION
-from tli_verify.sim.demos import CONTROL_DT, MocapRig, PandaRig, from_ds, to_ds
+from tli_verify.sim.demos import (
+    CONTROL_DT,
+    MocapRig,
+    PandaRig,
+    from_ds,
+    from_ds_velocity,
+    to_ds,
+)
 from tli_verify.sim.perturbations import Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
@@ -59,9 +66,11 @@ __all__ = [
     "VARIANTS",
     "Perturbation",
     "Recorder",
+    "ContactDetector",
     "TrialResult",
     "draw_perturbations",
     "load_policy",
+    "make_rig",
     "plot_flow",
     "run_trial",
     "run_trials",
@@ -69,12 +78,18 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
-ROBOTS = ("hand", "panda")
+ROBOTS = ("panda", "free-tool")
+"""The rigs: the Panda (default) and the free tool (the ladle on a free body, no arm)."""
 NOTIFY_AFTER = 1.5
-"""Seconds after a wrench ends during which the executive is still told "perturbed"."""
-RESYNC = np.array([0.3, 0.3, 0.3, 0.3])
-"""Per-axis distance (dm, dm, dm, rad) between the target and the measured DS state beyond
-which the target restarts at the measured state."""
+"""Seconds after the estimated external wrench falls below the thresholds during which the
+executive is still told "perturbed" (:class:`ContactDetector`)."""
+DETECT_FORCE = 25.0
+"""External force (N) beyond which the robot counts itself perturbed."""
+DETECT_TORQUE = 2.5
+"""External torque (N m) beyond which the robot counts itself perturbed."""
+LEASH = np.array([0.3, 0.3, 0.3, 0.3])
+"""Per-axis distance (dm, dm, dm, rad) the target may lead the measured DS state: held back,
+the arm pulls with at most stiffness x leash (60 N, 45 N m at 2,000 N/m, 150 Nm/rad)."""
 SPEED_CAP = np.array([2.0, 2.0, 2.0, 2.0])
 """Per-axis speed limit of the DS velocity (dm/s, rad/s), direction kept."""
 MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
@@ -157,6 +172,17 @@ class TrialResult:
         The executive's events, one line each.
     retries : int
         Stalled modes retried from their entry (:mod:`tli_verify.sim.retry`).
+    robot : str
+        The rig (:data:`ROBOTS`).
+    retry : bool
+        Whether the stall retry was on.
+    stopped : str or None
+        The reflex stop that ended the trial (a failed trial), if one did.
+    limit_ratios : dict of str to float
+        Largest ratio to each of the Franka's limits
+        (:meth:`~tli_verify.sim.franka_limits.LimitGuard.ratios`; empty for the free tool).
+    perturbed_steps : int
+        Control periods in which the robot counted itself perturbed (:class:`ContactDetector`).
     """
 
     seed: int
@@ -171,6 +197,11 @@ class TrialResult:
     applied: tuple[float, ...]
     events: tuple[str, ...] = field(default=())
     retries: int = 0
+    robot: str = "panda"
+    retry: bool = True
+    stopped: str | None = None
+    limit_ratios: dict[str, float] = field(default_factory=dict)
+    perturbed_steps: int = 0
 
     def mode_sequence(self) -> str:
         """The mode trace as runs: ``"a b c b c d"``."""
@@ -187,7 +218,9 @@ class TrialResult:
             "perturbations": [dict(p.to_dict(), applied_at=None if math.isnan(a) else
                                    round(a, 3))
                               for p, a in zip(self.perturbations, self.applied, strict=True)],
-            "events": list(self.events), "retries": self.retries,
+            "events": list(self.events), "retries": self.retries, "robot": self.robot,
+            "retry": self.retry, "stopped": self.stopped,
+            "limit_ratios": dict(self.limit_ratios), "perturbed_steps": self.perturbed_steps,
         }
 
 
@@ -245,7 +278,8 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
-              robot: str = "hand") -> TrialResult:
+              robot: str = "panda", retry: bool = True,
+              detector: ContactDetector | None = None) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -265,9 +299,15 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     frame : callable, optional
         Called with the rig every control step (video frames).
     robot : str, optional
-        ``"hand"`` (:class:`~tli_verify.sim.demos.MocapRig`, the impedance-driven free hand) or
-        ``"panda"`` (:class:`~tli_verify.sim.demos.PandaRig`, the arm under the
-        operational-space controller).
+        ``"panda"`` (default: :class:`~tli_verify.sim.demos.PandaRig`, the arm under the
+        Cartesian impedance controller within the Franka's limits) or ``"free-tool"``
+        (:class:`~tli_verify.sim.demos.MocapRig`, the ladle on a free body under an impedance
+        law: the rig the demonstrations were recorded with).
+    retry : bool, optional
+        The stall retry (:class:`~tli_verify.sim.retry.StallRetry`, part of the documented
+        policy); ``False``: ``--no-retry``.
+    detector : ContactDetector, optional
+        How ``perturbed`` is estimated (default :class:`ContactDetector` ``()``).
 
     Returns
     -------
@@ -275,16 +315,16 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     """
     t0 = time.perf_counter()
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    if robot not in ROBOTS:
-        raise TliError(f"--robot {robot!r}: one of {', '.join(ROBOTS)}")
-    rig: Any = MocapRig(seed) if robot == "hand" else PandaRig(seed)
+    rig: Any = make_rig(robot, seed)
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     sensors = Debounce()
     reading = sensors.update(rig.read())
     ref = to_ds(rig.pose())
     lo, hi = workspace()
     policy.reset(ref, reading.to_dict())
-    retry = StallRetry(policy.model, CONTROL_DT)
+    stall = StallRetry(policy.model, CONTROL_DT) if retry else None
+    detect = ContactDetector() if detector is None else detector
+    detect.reset()
     modes = [policy.mode]
     applied = [math.nan] * len(perts)
     soup_at: float | None = None
@@ -292,11 +332,13 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     goal_for = 0
     done_steps = round(2.5 / CONTROL_DT)  # pour for 2.5 s in the goal mode, until empty
     t = 0.0
+    perturbed_steps = 0
+    stopped: str | None = None
     for _ in range(n):
         if reading.s and not reading.r and soup_at is None:
             soup_at = t  # the soup is carried out of the bowl: tilts count from here
+        # the environment (the oracle's side): the person's wrench on the hand
         rig.push[:] = 0.0
-        perturbed = False
         for i, p in enumerate(perts):
             start = p.start if p.kind == "push" else (
                 p.start + soup_at if soup_at is not None else math.inf)
@@ -304,47 +346,122 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
                 rig.push += np.array(p.wrench)
                 if math.isnan(applied[i]):
                     applied[i] = t
-            if start <= t < start + p.duration + NOTIFY_AFTER:
-                perturbed = True
+        # the robot's side: what it measures
         z = to_ds(rig.pose())
-        if perturbed or float(np.max(np.abs(z - ref) / RESYNC)) > 1.0:
-            ref = z  # the hand was pushed (or held back): the DS restarts where it is
-        v = policy.step(ref, reading.to_dict(), perturbed=perturbed or retry.active)
-        retreat = retry.update(policy.mode, policy.done, ref, z)
-        if retreat is not None:
-            v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
+        perturbed = detect.update(rig.external_wrench(), CONTROL_DT)
+        perturbed_steps += perturbed
+        # the target stays on a leash of the measured state: held back (a push, the pile),
+        # the arm pulls with a bounded force, in every axis, towards where the DS leads
+        ref = np.clip(ref, z - LEASH, z + LEASH)
+        v = policy.step(ref, reading.to_dict(), perturbed=perturbed)
+        if stall is not None:
+            retreat = stall.update(policy.mode, policy.done, ref, z)
+            if retreat is not None:
+                v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
         speed = float(np.max(np.abs(v) / SPEED_CAP))
         if speed > 1.0:
             v = v / speed
         ref = np.clip(ref + CONTROL_DT * v, lo, hi)
-        rig.command(from_ds(ref))
+        rig.command(from_ds(ref), from_ds_velocity(v))
         rig.step(substeps)
         t += CONTROL_DT
         if frame is not None:
             frame(rig)
         reading = sensors.update(rig.read())
         modes.append(policy.mode)
+        if rig.stopped is not None:  # the robot's reflex: the trial fails here
+            stopped = f"reflex stop at {t:.2f} s: {rig.stopped}"
+            break
         goal_for = goal_for + 1 if policy.done else 0
         if goal_for >= done_steps and not reading.s:  # poured: nothing left on the spoon
             break
     rig.push[:] = 0.0
-    for _ in range(round(settle / CONTROL_DT)):
-        rig.step(substeps)
-        t += CONTROL_DT
-        if frame is not None:
-            frame(rig)
+    if stopped is None:
+        for _ in range(round(settle / CONTROL_DT)):
+            rig.step(substeps)
+            t += CONTROL_DT
+            if frame is not None:
+                frame(rig)
     delivered = int(rig.sensors.in_target(rig.data).sum())
     events = tuple(f"{type(e).__name__} at step {getattr(e, 'step', '?')}"
                    for e in policy.events)
+    ratios = rig.guard.ratios() if hasattr(rig, "guard") else {}
     return TrialResult(
-        seed=seed, variant=variant, success=delivered >= 1, delivered=delivered,
-        modes=tuple(modes), cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
+        seed=seed, variant=variant, success=delivered >= 1 and stopped is None,
+        delivered=delivered, modes=tuple(modes),
+        cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
         sim_time=t, wall_time=time.perf_counter() - t0, perturbations=tuple(perts),
-        applied=tuple(applied), events=events, retries=retry.retries)
+        applied=tuple(applied), events=events,
+        retries=stall.retries if stall is not None else 0, robot=robot, retry=retry,
+        stopped=stopped, limit_ratios={k: round(v, 4) for k, v in ratios.items()},
+        perturbed_steps=perturbed_steps)
+
+
+def make_rig(robot: str, seed: int) -> Any:
+    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``.
+
+    Raises
+    ------
+    InputError
+        An unknown robot (``"hand"``, the free tool's old name, says so).
+    """
+    if robot == "hand":
+        raise InputError("robot 'hand' is now called 'free-tool' (the ladle on a free body, no "
+                         "arm); the default is the Panda ('panda')")
+    if robot not in ROBOTS:
+        raise InputError(f"robot {robot!r}: one of {', '.join(ROBOTS)}")
+    return PandaRig(seed) if robot == "panda" else MocapRig(seed)
+
+
+class ContactDetector:
+    """``perturbed`` as the robot can know it: the estimated external wrench beyond a threshold.
+
+    The rig's estimate (:meth:`~tli_verify.sim.demos.PandaRig.external_wrench`: joint torques
+    and the arm's model, as the Panda's ``O_F_ext_hat_K``) is compared with
+    ``force`` (N) and ``torque`` (N m); the executive is told ``perturbed`` from the first
+    period beyond either until ``hold`` seconds after the last (spilled beads take that long to
+    leave the tray). Scooping presses the tray into the beads with less than the thresholds, so
+    a nominal trial is never "perturbed" (tested).
+
+    Parameters
+    ----------
+    force : float, optional
+    torque : float, optional
+    hold : float, optional
+    """
+
+    __slots__ = ("_since", "force", "hold", "torque")
+
+    def __init__(self, force: float = DETECT_FORCE, torque: float = DETECT_TORQUE,
+                 hold: float = NOTIFY_AFTER) -> None:
+        if not (force > 0 and torque > 0 and hold >= 0):
+            raise InputError(f"contact detector: need force > 0, torque > 0, hold >= 0; got "
+                             f"{force}, {torque}, {hold}")
+        self.force, self.torque, self.hold = float(force), float(torque), float(hold)
+        self._since = math.inf
+
+    def reset(self) -> None:
+        """Forget the last contact (a new trial)."""
+        self._since = math.inf
+
+    def update(self, wrench: FloatArray, dt: float) -> bool:
+        """Advance one period with the estimated wrench ``(F, tau)`` (shape (6,)); perturbed?"""
+        w = np.asarray(wrench, dtype=np.float64)
+        if float(np.linalg.norm(w[:3])) > self.force or \
+                float(np.linalg.norm(w[3:])) > self.torque:
+            self._since = 0.0
+        else:
+            self._since += dt
+        return self._since <= self.hold
+
+    def to_dict(self) -> dict[str, float]:
+        """The evidence's record."""
+        return {"force": self.force, "torque": self.torque, "hold": self.hold}
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
-               duration: float = TRIAL_DURATION, robot: str = "hand") -> list[dict[str, Any]]:
+               duration: float = TRIAL_DURATION, robot: str = "panda",
+               retry: bool = True) -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
@@ -354,6 +471,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     perturb : bool, optional
     duration : float, optional
     robot : str, optional
+    retry : bool, optional
 
     Returns
     -------
@@ -362,7 +480,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     """
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
-                      duration=duration, robot=robot).to_dict() for s in seeds]
+                      duration=duration, robot=robot, retry=retry).to_dict() for s in seeds]
 
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,

@@ -1,0 +1,237 @@
+"""The Franka Panda's limits, enforced in the torque loop, with a reflex stop and per-trial ratios.
+
+Franka Emika's "Robot and interface specifications" (Panda) give, per joint,
+
+* torque ``|tau_i| <= 87, 87, 87, 87, 12, 12, 12`` N m (:data:`~tli_verify.sim.robot.TORQUE_LIMITS`),
+* torque rate ``|d tau_i / dt| <= 1000`` N m/s,
+* velocity ``|qdot_i| <= 2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61`` rad/s,
+
+and for the end effector a translational speed of 1.7 m/s and a rotational one of 2.5 rad/s. The
+robot's Cartesian impedance interface accepts stiffnesses of about 10-3,000 N/m and 1-300 Nm/rad
+(:class:`CartesianImpedance`).
+
+:class:`LimitGuard` sits between the controller and the motors, as the robot's own limiter does:
+
+1. **brake near the velocity limit**: a joint faster than ``brake_from`` of its limit gets a
+   damping torque ``-B M_ii (qdot_i - brake_from * limit_i sign qdot_i)`` (``B`` =
+   :attr:`FrankaLimits.brake_gain`);
+2. **torque clip** at the torque limits;
+3. **torque-rate clip**: each torque moves at most ``1000 N m/s * dt`` from the last one sent;
+4. **reflex**: a joint velocity (or the end effector's speed) beyond its limit stops the robot,
+   as the Panda's reflex does ("joint_velocity_violation", "cartesian_velocity_violation"). The
+   loop then ends the trial as failed (the physics oracle's ``limits`` kind): a trial that stops
+   is never hidden.
+
+Every call records the largest ratio of each *commanded* quantity (before clipping) to its limit
+(:meth:`LimitGuard.ratios`): a torque ratio above 1 means the controller asked for more than the
+motor gives and was clipped; a velocity ratio is the measured velocity's.
+
+References
+----------
+Franka Emika, "Robot and interface specifications", Panda (joint and Cartesian limits);
+libfranka ``franka::limitRate`` (torque-rate limiting). Wang et al., "Temporal Logic
+Imitation", CoRL 2022, Sec. 7.2 (the Panda experiment).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import InputError
+from tli_verify.sim.robot import TORQUE_LIMITS
+
+__all__ = [
+    "JOINT_VELOCITY_LIMITS",
+    "TORQUE_RATE_LIMIT",
+    "CartesianImpedance",
+    "FrankaLimits",
+    "LimitGuard",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Joint velocity limits (rad/s), Panda specifications, shape (7,).
+JOINT_VELOCITY_LIMITS: FloatArray = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+#: Joint torque-rate limit (N m/s), every joint.
+TORQUE_RATE_LIMIT = 1000.0
+#: End-effector speed limits: translation (m/s), rotation (rad/s).
+CARTESIAN_SPEED_LIMITS = (1.7, 2.5)
+#: The Cartesian impedance range the robot's interface accepts: (N/m), (Nm/rad).
+STIFFNESS_RANGE = ((10.0, 3000.0), (1.0, 300.0))
+
+
+@dataclass(frozen=True, slots=True)
+class CartesianImpedance:
+    """Cartesian stiffness and damping of the pose controller, in the robot's units.
+
+    The task-space force is ``F = K e - D (J qdot - v_d)`` with ``K = diag(k_pos I3, k_rot
+    I3)`` and ``D_jj = 2 zeta sqrt(K_jj Lambda_jj)`` (``Lambda``: the task-space inertia at the
+    current posture), i.e. each axis is a spring-damper of damping ratio ``zeta`` on the arm's
+    own inertia along it.
+
+    Attributes
+    ----------
+    stiffness_pos : float
+        N/m, within 10-3,000 (the robot's range).
+    stiffness_rot : float
+        Nm/rad, within 1-300.
+    damping_ratio : float
+        ``zeta``, within (0, 2].
+    """
+
+    stiffness_pos: float = 2000.0
+    stiffness_rot: float = 150.0
+    damping_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        (plo, phi), (rlo, rhi) = STIFFNESS_RANGE
+        if not plo <= self.stiffness_pos <= phi:
+            raise InputError(f"impedance: field 'stiffness_pos' {self.stiffness_pos:g} N/m is "
+                            f"outside the Franka's range {plo:g}-{phi:g} N/m")
+        if not rlo <= self.stiffness_rot <= rhi:
+            raise InputError(f"impedance: field 'stiffness_rot' {self.stiffness_rot:g} Nm/rad is "
+                            f"outside the Franka's range {rlo:g}-{rhi:g} Nm/rad")
+        if not 0.0 < self.damping_ratio <= 2.0:
+            raise InputError(f"impedance: field 'damping_ratio' {self.damping_ratio:g}: need "
+                            "0 < zeta <= 2")
+
+    def stiffness(self) -> FloatArray:
+        """``diag(K)``, shape (6,)."""
+        return np.array([self.stiffness_pos] * 3 + [self.stiffness_rot] * 3)
+
+    def to_dict(self) -> dict[str, float]:
+        """The evidence's record."""
+        return {"stiffness_pos": self.stiffness_pos, "stiffness_rot": self.stiffness_rot,
+                "damping_ratio": self.damping_ratio}
+
+
+@dataclass(frozen=True, slots=True)
+class FrankaLimits:
+    """The limits :class:`LimitGuard` enforces (module doc).
+
+    Attributes
+    ----------
+    torque : ndarray, shape (7,)
+        N m.
+    torque_rate : float
+        N m/s.
+    joint_velocity : ndarray, shape (7,)
+        rad/s.
+    cartesian_speed : (float, float)
+        End-effector translation (m/s) and rotation (rad/s) speed limits.
+    brake_from : float
+        Fraction of a joint's velocity limit beyond which it is braked.
+    brake_gain : float
+        ``B`` (1/s) of the brake.
+    reflex : bool
+        Stop at a violated velocity limit (the robot's reflex); False only records.
+    """
+
+    torque: FloatArray = field(default_factory=lambda: TORQUE_LIMITS.copy())
+    torque_rate: float = TORQUE_RATE_LIMIT
+    joint_velocity: FloatArray = field(default_factory=lambda: JOINT_VELOCITY_LIMITS.copy())
+    cartesian_speed: tuple[float, float] = CARTESIAN_SPEED_LIMITS
+    brake_from: float = 0.85
+    brake_gain: float = 50.0
+    reflex: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """The evidence's record."""
+        return {"torque": [float(v) for v in self.torque], "torque_rate": self.torque_rate,
+                "joint_velocity": [float(v) for v in self.joint_velocity],
+                "cartesian_speed": list(self.cartesian_speed), "brake_from": self.brake_from,
+                "brake_gain": self.brake_gain, "reflex": self.reflex}
+
+
+RATIO_KEYS = ("torque", "torque_rate", "joint_velocity", "cartesian_speed", "rotation_speed")
+"""The per-trial limit ratios (:meth:`LimitGuard.ratios`)."""
+
+
+class LimitGuard:
+    """Enforce :class:`FrankaLimits` on each torque command (module doc).
+
+    Parameters
+    ----------
+    limits : FrankaLimits
+    dt : float
+        Seconds between two commands (the torque loop's period).
+
+    Attributes
+    ----------
+    stopped : str or None
+        The reflex that stopped the robot (e.g. ``"joint 4 velocity 2.31 rad/s > 2.175"``).
+    """
+
+    __slots__ = ("_last", "_max", "dt", "limits", "stopped")
+
+    def __init__(self, limits: FrankaLimits, dt: float) -> None:
+        self.limits = limits
+        self.dt = float(dt)
+        self._last: FloatArray | None = None
+        self._max = dict.fromkeys(RATIO_KEYS, 0.0)
+        self.stopped: str | None = None
+
+    def reset_ratios(self) -> None:
+        """Zero the recorded ratios and forget a reflex (a new trial)."""
+        self._max = dict.fromkeys(RATIO_KEYS, 0.0)
+        self.stopped = None
+
+    def ratios(self) -> dict[str, float]:
+        """The largest ratio to each limit since :meth:`reset_ratios` (keys :data:`RATIO_KEYS`)."""
+        return dict(self._max)
+
+    def apply(self, tau: FloatArray, qdot: FloatArray, mass_diag: FloatArray,
+              twist: FloatArray | None = None) -> FloatArray:
+        """The torques to send for the commanded ``tau``.
+
+        Parameters
+        ----------
+        tau : ndarray, shape (7,)
+            Commanded torques (N m), before any limit.
+        qdot : ndarray, shape (7,)
+            Measured joint velocities (rad/s).
+        mass_diag : ndarray, shape (7,)
+            Diagonal of the joint-space mass matrix (kg m^2), for the brake.
+        twist : ndarray, shape (6,), optional
+            Measured end-effector twist (m/s, rad/s) for the Cartesian speed check.
+
+        Returns
+        -------
+        ndarray, shape (7,)
+            Within the torque and torque-rate limits; zero torque change (hold) after a reflex.
+        """
+        lim = self.limits
+        vel_ratio = np.abs(qdot) / lim.joint_velocity
+        m = self._max
+        m["joint_velocity"] = max(m["joint_velocity"], float(vel_ratio.max()))
+        if twist is not None:
+            lin = float(np.linalg.norm(twist[:3])) / lim.cartesian_speed[0]
+            rot = float(np.linalg.norm(twist[3:])) / lim.cartesian_speed[1]
+            m["cartesian_speed"] = max(m["cartesian_speed"], lin)
+            m["rotation_speed"] = max(m["rotation_speed"], rot)
+            if lim.reflex and self.stopped is None and max(lin, rot) > 1.0:
+                self.stopped = (f"end-effector speed {lin * lim.cartesian_speed[0]:.2f} m/s, "
+                                f"{rot * lim.cartesian_speed[1]:.2f} rad/s beyond "
+                                f"{lim.cartesian_speed[0]:g} m/s / {lim.cartesian_speed[1]:g} "
+                                "rad/s")
+        if lim.reflex and self.stopped is None and vel_ratio.max() > 1.0:
+            j = int(np.argmax(vel_ratio))
+            self.stopped = (f"joint {j + 1} velocity {abs(float(qdot[j])):.3f} rad/s beyond "
+                            f"its limit {float(lim.joint_velocity[j]):g} rad/s")
+        fast = vel_ratio > lim.brake_from
+        if fast.any():
+            excess = qdot - np.sign(qdot) * lim.brake_from * lim.joint_velocity
+            tau = tau - np.where(fast, lim.brake_gain * mass_diag * excess, 0.0)
+        m["torque"] = max(m["torque"], float((np.abs(tau) / lim.torque).max()))
+        out = np.clip(tau, -lim.torque, lim.torque)
+        if self._last is not None:
+            step = lim.torque_rate * self.dt
+            change = out - self._last
+            m["torque_rate"] = max(m["torque_rate"], float(np.abs(change).max()) / step)
+            out = self._last + np.clip(change, -step, step)
+        self._last = out.copy()
+        return out
