@@ -99,6 +99,8 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+_Prev = tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+"""The last call's time, arm mass block, joint velocities, bias, torques and passive forces."""
 
 _dposv = lapack.dposv  # Cholesky solve of a symmetric positive-definite system
 #: Added to the diagonal of Lambda^-1 (1/kg, kg^-1 m^-2): damped least squares near singularities.
@@ -412,8 +414,7 @@ class ImpedanceController:
         self.ext_time_constant = float(ext_time_constant)
         self._ext = np.zeros(6)
         self._ext_tau = np.zeros(7)
-        self._prev: tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray] | None \
-            = None
+        self._prev: _Prev | None = None
         self.reset_stats()
 
     # ----------------------------------------------------------------------------------------

@@ -2,7 +2,8 @@
 
 Franka Emika's "Robot and interface specifications" (Panda) give, per joint,
 
-* torque ``|tau_i| <= 87, 87, 87, 87, 12, 12, 12`` N m (:data:`~tli_verify.sim.robot.TORQUE_LIMITS`),
+* torque ``|tau_i| <= 87, 87, 87, 87, 12, 12, 12`` N m
+  (:data:`~tli_verify.sim.robot.TORQUE_LIMITS`),
 * torque rate ``|d tau_i / dt| <= 1000`` N m/s,
 * velocity ``|qdot_i| <= 2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61`` rad/s,
 

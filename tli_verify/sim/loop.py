@@ -64,9 +64,9 @@ from tli_verify.sim.sensors import Debounce
 
 __all__ = [
     "VARIANTS",
+    "ContactDetector",
     "Perturbation",
     "Recorder",
-    "ContactDetector",
     "TrialResult",
     "draw_perturbations",
     "load_policy",
