@@ -501,7 +501,16 @@ def _later(window: tuple[float, float]) -> st.SearchStrategy[float]:
     """A time in ``window`` (s, millisecond grid), encoded as its distance before the window's
     end: it shrinks to the end (later)."""
     lo, hi = _ms(window)
-    return st.integers(0, hi - lo).map(lambda early: (hi - early) / _MS)
+    return st.floats(0.0, float(hi - lo)).map(lambda early: (hi - round(early)) / _MS)
+
+
+def _smaller(bounds: tuple[float, float]) -> st.SearchStrategy[float]:
+    """A value in ``bounds``, encoded as its distance above the lower bound in thousandths (mm
+    or mrad): it shrinks to the lower bound (smaller), and to whole thousandths on the way (a
+    float in ``[lo, hi]`` itself would shrink to the "simplest" number there, e.g. 0.25 in
+    ``[0.1, 0.3]``)."""
+    lo, hi = bounds
+    return st.floats(0.0, (hi - lo) * _MS).map(lambda x: min(hi, lo + x / _MS))
 
 
 def _directions(z_max: float) -> st.SearchStrategy[tuple[float, float, float]]:
@@ -557,7 +566,7 @@ def pushes(*, distance: tuple[float, float] = PUSH_DISTANCE,
     @st.composite
     def build(draw_: st.DrawFn) -> Perturbation:
         start = draw_(_later(window))
-        size = draw_(st.floats(*distance))
+        size = draw_(_smaller(distance))
         length = draw_(st.integers(_min_push_ms(size, peak_speed, lo_ms), hi_ms)) / _MS
         unit = draw_(_directions(z_max))
         return Perturbation("push", start, length,
@@ -599,7 +608,7 @@ def tilts(*, angle: tuple[float, float] = TILT_ANGLE,
         start, length, a, u = parts
         return Perturbation("tilt", start, length / _MS, rotation=(a * u[0], a * u[1], a * u[2]))
 
-    return st.tuples(_later(delay), st.integers(lo_ms, hi_ms), st.floats(*angle),
+    return st.tuples(_later(delay), st.integers(lo_ms, hi_ms), _smaller(angle),
                      _directions(z_max)).map(build)
 
 
