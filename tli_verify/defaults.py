@@ -38,6 +38,8 @@ class Stream(IntEnum):
     """The MuJoCo scene's bead layout."""
     SIM_DEMOS = 17
     """The Franka demonstrations' waypoint jitter."""
+    PERTURBATIONS = 19
+    """The Franka trials' perturbations (:func:`tli_verify.sim.perturbations.draw`)."""
 
 
 def rng(seed: int, stream: Stream) -> Any:

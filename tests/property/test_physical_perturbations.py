@@ -1,40 +1,37 @@
-"""The physical perturbation strategies and draws of the Franka campaign.
+"""The physical perturbation strategies and seeded draws of the Franka campaign.
 
-Bounds (property tests over the strategies and over seeded draws), the shrinking the encoding
-promises (fewer, smaller, later), and determinism of :func:`draw` in this process and in a fresh
-one with other modules imported.
+Bounds (property tests over the strategies and over seeded draws) and the shrinking the
+encoding promises (fewer, smaller, later, shorter). Uniformity and determinism of ``draw`` and
+the person's hand: ``tests/unit/test_sim_perturbations.py``.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
-from hypothesis.errors import NoSuchExample
 
 pytest.importorskip("mujoco")
 
 from tli_verify.errors import TliError
 from tli_verify.sim.loop import Perturbation, draw_perturbations
 from tli_verify.sim.perturbations import (
+    MAX_ELEVATION,
+    PUSH_DISTANCE,
     PUSH_DURATION,
-    PUSH_FORCE,
+    PUSH_PEAK_SPEED,
     PUSH_WINDOW,
+    TILT_ANGLE,
     TILT_DELAY,
     TILT_DURATION,
-    TILT_TORQUE,
-    draw,
+    min_push_duration,
     trial_perturbations,
 )
 
-REPO = Path(__file__).resolve().parents[2]
 TOL = 1e-9
+Z_MAX = math.sin(math.radians(MAX_ELEVATION))
 
 
 def within(value: float, bounds: tuple[float, float]) -> bool:
@@ -42,17 +39,18 @@ def within(value: float, bounds: tuple[float, float]) -> bool:
 
 
 def assert_bounded(p: Perturbation) -> None:
-    assert len(p.wrench) == 6 and all(math.isfinite(w) for w in p.wrench)
+    assert len(p.motion) == 3 and all(math.isfinite(c) for c in p.motion)
+    assert abs(p.motion[2]) <= Z_MAX * p.magnitude + TOL  # within 30 degrees of horizontal
     if p.kind == "push":
-        force = math.sqrt(sum(w * w for w in p.wrench[:3]))
-        assert within(force, PUSH_FORCE), force
-        assert p.wrench[3:] == (0.0, 0.0, 0.0)  # a force only
-        assert within(p.duration, PUSH_DURATION)
+        assert p.rotation == (0.0, 0.0, 0.0)  # a translation only
+        assert within(p.magnitude, PUSH_DISTANCE), p
+        assert within(p.duration, (min_push_duration(p.magnitude), PUSH_DURATION[1]))
+        assert p.peak_speed <= PUSH_PEAK_SPEED + TOL
         assert within(p.start, PUSH_WINDOW)
     else:
         assert p.kind == "tilt"
-        assert p.wrench[:3] == (0.0, 0.0, 0.0) and p.wrench[4:] == (0.0, 0.0)  # about x only
-        assert within(-p.wrench[3], TILT_TORQUE), p.wrench  # -15..-25 Nm
+        assert p.displacement == (0.0, 0.0, 0.0)  # a rotation only
+        assert within(p.magnitude, TILT_ANGLE), p
         assert within(p.duration, TILT_DURATION)
         assert within(p.start, TILT_DELAY)
     assert round(p.start * 1000) == pytest.approx(p.start * 1000, abs=1e-6)  # on the ms grid
@@ -112,13 +110,13 @@ def _minimal(condition: object) -> tuple[Perturbation, ...]:
 
 
 def test_shrinks_to_one_smallest_latest_push() -> None:
-    """A failure that needs any push shrinks to one push, of the smallest force and duration,
-    at the end of the window (later), and no tilt (fewer)."""
+    """A failure that needs any push shrinks to one push, of the smallest distance and
+    duration, at the end of the window (later), along +x, and no tilt (fewer)."""
     ps = _minimal(lambda ps: any(p.kind == "push" for p in ps))
     assert len(ps) == 1
     (p,) = ps
     assert p.kind == "push"
-    assert math.sqrt(sum(w * w for w in p.wrench[:3])) == pytest.approx(PUSH_FORCE[0])
+    assert p.displacement == pytest.approx((PUSH_DISTANCE[0], 0.0, 0.0))
     assert p.duration == pytest.approx(PUSH_DURATION[0])
     assert p.start == pytest.approx(PUSH_WINDOW[1])
 
@@ -128,76 +126,25 @@ def test_shrinks_to_one_smallest_latest_tilt() -> None:
     assert len(ps) == 1
     (p,) = ps
     assert p.kind == "tilt"
-    assert -p.wrench[3] == pytest.approx(TILT_TORQUE[0])
+    assert p.rotation == pytest.approx((TILT_ANGLE[0], 0.0, 0.0))
     assert p.duration == pytest.approx(TILT_DURATION[0])
     assert p.start == pytest.approx(TILT_DELAY[1])
 
 
 def test_shrinking_keeps_what_the_failure_needs() -> None:
-    """A failure needing a strong, early push keeps exactly that much of it -- the force shrinks
-    to the threshold, the start to the latest time that still fails -- and whatever else is
-    left is the simplest perturbation (smallest, latest; hypothesis may stop before deleting
-    it)."""
-    ps = _minimal(lambda ps: any(p.kind == "push" and p.start <= 2.0
-                                 and math.sqrt(sum(w * w for w in p.wrench[:3])) >= 30.0
+    """A failure needing a long, early push keeps exactly that much of it -- the distance
+    shrinks to the threshold, the start to the latest time that still fails, the duration to
+    the shortest that distance allows -- and whatever else is left is the simplest
+    perturbation (smallest, latest, shortest; hypothesis may stop before deleting it)."""
+    ps = _minimal(lambda ps: any(p.kind == "push" and p.start <= 2.0 and p.magnitude >= 0.2
                                  for p in ps))
-    needed = [p for p in ps if p.start == pytest.approx(2.0)]
-    assert len(needed) == 1 and needed[0].kind == "push"
-    assert math.sqrt(sum(w * w for w in needed[0].wrench[:3])) == pytest.approx(30.0, abs=1e-6)
-    assert needed[0].duration == pytest.approx(PUSH_DURATION[0])
+    needed = [p for p in ps if p.kind == "push" and p.start == pytest.approx(2.0)]
+    assert len(needed) == 1
+    assert needed[0].magnitude == pytest.approx(0.2, abs=1e-6)
+    assert needed[0].duration == pytest.approx(min_push_duration(needed[0].magnitude))
     for p in ps:
         if p is not needed[0]:
             assert p.duration == pytest.approx(PUSH_DURATION[0] if p.kind == "push"
                                                else TILT_DURATION[0])
             assert p.start == pytest.approx(PUSH_WINDOW[1] if p.kind == "push"
                                             else TILT_DELAY[1])
-
-
-def test_draw_is_deterministic_and_seeds_differ() -> None:
-    assert draw(7) == draw(7)
-    assert draw(7, pushes=2, tilts=2) == draw(7, pushes=2, tilts=2)
-    firsts = {draw(s)[0] for s in range(10)}
-    assert len(firsts) == 10  # ten seeds, ten different pushes
-    assert draw(3, pushes=0, tilts=0) == []
-
-
-def test_draw_is_the_same_in_a_fresh_process_with_other_modules_imported() -> None:
-    """Another interpreter, which imports modules full of constants before drawing (hypothesis
-    would otherwise mix such "local constants" into its draws), draws the same perturbations as
-    this process, where unguarded hypothesis draws of the same strategy ran first (they fill
-    hypothesis's per-bounds constants cache)."""
-    with pytest.raises(NoSuchExample):  # unguarded: local constants cached per bounds
-        find(trial_perturbations(max_pushes=3, max_tilts=3), lambda ps: False,
-             settings=settings(database=None, max_examples=300, phases=[Phase.generate]))
-    code = ("import json, sys\n"
-            "import tli_verify.verify.oracle, tli_verify.logic.gr1, tli_verify.sim.controller\n"
-            "from tli_verify.sim.perturbations import draw\n"
-            "print(json.dumps([[p.to_dict() for p in draw(s)] for s in range(6)]))\n")
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
-                         text=True, cwd=REPO, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin"},
-                         timeout=120).stdout
-    here = [[p.to_dict() for p in draw(s)] for s in range(6)]
-    assert json.loads(out) == json.loads(json.dumps(here))
-
-
-def test_the_public_api_fallback_draws_within_bounds_deterministically() -> None:
-    from tli_verify.sim.perturbations import _draw_by_find
-
-    strategy = trial_perturbations(min_pushes=1, min_tilts=1)
-    first = _draw_by_find(strategy, 5)
-    assert first == _draw_by_find(strategy, 5)
-    assert [p.kind for p in first] == ["push", "tilt"]
-    for p in first:
-        assert_bounded(p)
-
-
-def test_isolated_draws_restore_hypothesis_state() -> None:
-    from hypothesis.internal.conjecture import providers
-
-    from tli_verify.sim.perturbations import isolated_draws
-
-    cache, getter = providers.CONSTANTS_CACHE, providers._get_local_constants
-    with isolated_draws():
-        assert providers.CONSTANTS_CACHE is not cache
-        assert providers._get_local_constants is not getter
-    assert providers.CONSTANTS_CACHE is cache and providers._get_local_constants is getter

@@ -42,7 +42,7 @@ NOMINAL_MODES = trace(("a", 77), ("b", 20), ("c", 189), ("d", 125))
 NOMINAL = TrialResult(
     seed=0, variant="LTL-DS", success=True, delivered=3, modes=NOMINAL_MODES, cuts_added=0,
     sim_time=9.2, wall_time=2.6,
-    perturbations=(Perturbation("push", 2.0, 0.2, (20.0, 0.0, 0.0, 0.0, 0.0, 0.0)),),
+    perturbations=(Perturbation("push", 2.0, 1.0, displacement=(0.2, 0.0, 0.0)),),
     applied=(2.0,), events=changes(NOMINAL_MODES))
 
 

@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p = sub.add_parser(
         "sim", help="closed-loop LTL-DS trials in the MuJoCo soup-scooping scene",
         description="Physical soup scooping with beads: sensors from the physics, the "
-        "certified LTL-DS executive, wrench perturbations (pushes and spilling tilts).")
+        "certified LTL-DS executive, perturbations by a person's hand (pushes and spilling "
+        "tilts).")
     simsub = p.add_subparsers(dest="scene", metavar="SCENE")
     simsub.required = True
     f = simsub.add_parser(
@@ -52,7 +53,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--no-modulation", action="store_true", help="learn no cuts (ablation)")
     f.add_argument("--no-replan", action="store_true",
                    help="run the demonstrated mode sequence open loop (ablation)")
-    f.add_argument("--no-perturb", action="store_true", help="nominal trials, no wrenches")
+    f.add_argument("--no-perturb", action="store_true", help="nominal trials, no perturbations")
     f.add_argument("--robot", choices=("hand", "panda"), default="hand",
                    help="hand: the ladle on a free body under a Cartesian impedance law (the "
                    "demonstrations' rig); panda: on the Panda hand under the operational-space "

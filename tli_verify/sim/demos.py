@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -324,9 +325,12 @@ class MocapRig:
         """The free tool has no reflex: always None."""
         return None
 
-    def step(self, n: int = 1) -> None:
-        """``n`` physics steps."""
-        for _ in range(n):
+    def step(self, n: int = 1, before: Callable[[int], None] | None = None) -> None:
+        """``n`` physics steps; ``before(k)`` (optional) is called before step ``k`` (e.g. to
+        set :attr:`push`)."""
+        for k in range(n):
+            if before is not None:
+                before(k)
             self.physics_step()
 
     def follow(self, waypoints: FloatArray, *, every: int = 10, until: float | None = None
@@ -619,11 +623,14 @@ class PandaRig:
         self._from = self._goal
         self.step(1)
 
-    def step(self, n: int = 1) -> None:
+    def step(self, n: int = 1, before: Callable[[int], None] | None = None) -> None:
         """``n`` physics steps, torques computed every step; the target ramps from the last
-        commanded pose to the new one over them."""
+        commanded pose to the new one over them. ``before(k)`` (optional) is called before step
+        ``k`` (0-based; e.g. to set :attr:`push`)."""
         ctl, data = self.controller, self.data
         for k in range(1, n + 1):
+            if before is not None:
+                before(k - 1)
             z = self._from + (self._goal - self._from) * (k / n)
             pos, quat = ctl.target_pose_from_ds_state(z)
             data.xfrc_applied[self._carrier] = self.push

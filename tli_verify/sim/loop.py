@@ -19,13 +19,16 @@ Per control period (``CONTROL_DT`` = 20 ms, the certified period):
    (:class:`~tli_verify.sim.demos.MocapRig`) or the Panda's operational-space controller
    (:class:`~tli_verify.sim.demos.PandaRig`) -- for 10 ``mj_step`` of 2 ms.
 
-Perturbations (:func:`draw_perturbations`: drawn by the hypothesis strategies of
-:mod:`tli_verify.sim.perturbations`, seeded per trial): wrenches in ``xfrc_applied`` on the carrying
-body -- a *motion-level push* at a time in the trial, and a *task-level tilt* about the world x
-axis (it spills) a delay after the soup is carried out of the soup bowl. The executive is told
-(``perturbed=True``) from the wrench's start until ``NOTIFY_AFTER`` after its end (spilled
-beads take that long to leave the tray), so the mode changes they cause are replanned, not
-taken as invariance failures.
+Perturbations (:func:`draw_perturbations`: drawn uniformly by
+:func:`tli_verify.sim.perturbations.draw`, seeded per trial): a person's hand
+(:class:`~tli_verify.sim.perturbations.PersonHand`) grabs the carrying body and drags it along a
+minimum-jerk path -- a *motion-level push* (a displacement) at a time in the trial, and a
+*task-level tilt* (a rotation about a near-horizontal axis; it spills) a delay after the soup is
+carried out of the soup bowl. While a hand acts its wrench is recomputed every physics step from
+the carrier's state and applied in ``xfrc_applied`` through the rig's ``push``
+(:func:`_step_with_hands`). The executive is told (``perturbed=True``) from the hand's grab until
+``NOTIFY_AFTER`` after it lets go (spilled beads take that long to leave the tray), so the mode
+changes they cause are replanned, not taken as invariance failures.
 
 A trial succeeds when at least one bead ends in the target bowl. It ends when the goal mode
 has poured for 2.5 s and the spoon is empty, or at its step budget
@@ -57,7 +60,7 @@ from tli_verify.sim.demos import (
     from_ds_velocity,
     to_ds,
 )
-from tli_verify.sim.perturbations import Perturbation, draw
+from tli_verify.sim.perturbations import PersonHand, Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
 from tli_verify.sim.sensors import Debounce
@@ -128,10 +131,10 @@ def workspace() -> tuple[FloatArray, FloatArray]:
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
     """Seeded perturbations of one trial, drawn by the campaign strategies.
 
-    :func:`tli_verify.sim.perturbations.draw`: hypothesis over
-    :func:`~tli_verify.sim.perturbations.trial_perturbations` (pushes of 10-35 N for 0.1-0.3 s in
-    any direction at 0.5-6 s; tilts of -15..-25 Nm about x for 0.2-0.4 s, 0-1.5 s after the
-    soup is carried out of the bowl), deterministic in ``seed`` in any process.
+    :func:`tli_verify.sim.perturbations.draw`, uniform in the bounds (pushes of 0.10-0.30 m in
+    a direction within 30 degrees of the horizontal over 0.5-3 s, starting at 0.5-6 s; tilts of
+    0.6-1.2 rad about an axis within 30 degrees of the horizontal over 0.5-1.5 s, 0-1.5 s after
+    the soup is carried out of the bowl), deterministic in ``seed`` in any process.
 
     Parameters
     ----------
@@ -327,6 +330,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     detect.reset()
     modes = [policy.mode]
     applied = [math.nan] * len(perts)
+    hands: list[PersonHand | None] = [None] * len(perts)
     soup_at: float | None = None
     n = round(duration / CONTROL_DT)
     goal_for = 0
@@ -338,14 +342,11 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         if reading.s and not reading.r and soup_at is None:
             soup_at = t  # the soup is carried out of the bowl: tilts count from here
         # the environment (the oracle's side): the person's wrench on the hand
-        rig.push[:] = 0.0
         for i, p in enumerate(perts):
             start = p.start if p.kind == "push" else (
                 p.start + soup_at if soup_at is not None else math.inf)
-            if start <= t < start + p.duration:
-                rig.push += np.array(p.wrench)
-                if math.isnan(applied[i]):
-                    applied[i] = t
+            if hands[i] is None and start < t + CONTROL_DT and t < start + p.duration:
+                hands[i] = PersonHand(p, start=start)  # it grabs in this control period
         # the robot's side: what it measures
         z = to_ds(rig.pose())
         perturbed = detect.update(rig.external_wrench(), CONTROL_DT)
@@ -363,7 +364,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             v = v / speed
         ref = np.clip(ref + CONTROL_DT * v, lo, hi)
         rig.command(from_ds(ref), from_ds_velocity(v))
-        rig.step(substeps)
+        _step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
         if frame is not None:
             frame(rig)
@@ -457,6 +458,48 @@ class ContactDetector:
     def to_dict(self) -> dict[str, float]:
         """The evidence's record."""
         return {"force": self.force, "torque": self.torque, "hold": self.hold}
+
+
+# --- the perturbing hands, every physics step (kept apart from the control loop) ----------
+
+def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand | None],
+                     applied: list[float]) -> None:
+    """``substeps`` physics steps from time ``t``, the active hands' wrench recomputed at each.
+
+    A hand reads the carrier's centre of mass (``xipos``, where ``xfrc_applied`` acts), its
+    orientation (``ximat``) and its velocity there (``mj_objectVelocity``, world frame) -- the
+    state of the last ``mj_forward``, i.e. one physics step (2 ms) old after an ``mj_step`` --
+    and the sum of the active hands' wrenches goes in ``rig.push``. ``applied[i]`` gets the time
+    hand ``i`` first acted. Without an active hand this is ``rig.step(substeps)``.
+    """
+    live = [(i, h) for i, h in enumerate(hands)
+            if h is not None and h.start < t + substeps * float(rig.model.opt.timestep)
+            and h.end > t]
+    if not live:
+        rig.push[:] = 0.0
+        rig.step(substeps)
+        return
+    import mujoco
+
+    dt = float(rig.model.opt.timestep)
+    body = rig.carrier
+    vel6 = np.zeros(6)
+
+    def before(j: int) -> None:
+        tj = t + j * dt
+        total = np.zeros(6)
+        for i, hand in live:
+            if hand.active(tj):
+                mujoco.mj_objectVelocity(rig.model, rig.data, mujoco.mjtObj.mjOBJ_BODY, body,
+                                         vel6, 0)
+                total += hand.wrench(tj, rig.data.xipos[body], rig.data.ximat[body],
+                                     vel6[3:], vel6[:3])
+                if math.isnan(applied[i]):
+                    applied[i] = tj
+        rig.push[:] = total
+
+    rig.step(substeps, before=before)
+    rig.push[:] = 0.0
 
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
