@@ -38,6 +38,9 @@ class Stream(IntEnum):
     """The MuJoCo scene's bead layout."""
     SIM_DEMOS = 17
     """The Franka demonstrations' waypoint jitter."""
+    SENSORS = 19
+    """The simulated Franka sensors' noise, bias and calibration offsets
+    (:mod:`tli_verify.sim.franka_sensors`)."""
 
 
 def rng(seed: int, stream: Stream) -> Any:
