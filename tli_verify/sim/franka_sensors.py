@@ -21,7 +21,10 @@ What a real Franka has
 The measurements (one per control period, :data:`CONTROL_PERIOD`)
     *Wrench*: ``F`` (N, world frame) = the force sensor's reading rotated by the site's
     orientation, plus a constant bias per axis (``force_bias``, drawn once per seed) and
-    Gaussian noise (``force_noise`` per axis and reading).
+    Gaussian noise: ``force_noise`` (default 0.05 N) per axis and raw sample at
+    ``force_rate`` (1 kHz), a reading averaging the samples of one control period, so
+    ``0.05 / sqrt(20)`` = 0.011 N per reading. (The physics is sampled once per period, at
+    the reading; only the noise is averaged.)
 
     *Ladle's inertial force*: ``m a'``, with ``m`` the ladle's mass (known: the tool's load
     entered in Franka Desk) and ``a' = a - g`` the acceleration of its centre of mass minus
@@ -45,17 +48,24 @@ Latency
     old (the first measurement fills the FIFO).
 
 The sensors
-    * ``s`` -- *soup on the spoon*: the load, low-passed (first order, time constant
-      ``load_tau``), with hysteresis: on at ``s_on`` N, off below ``s_off`` N. The defaults
-      (about 3 and 1.5 bead weights: a bead weighs ``BEAD_MASS g`` = 0.0196 N) keep the noise
-      (0.05 N per reading, about 0.015 N after the filter) from switching it.
+    * ``s`` -- *soup on the spoon*: the load, clipped below at ``-s_on`` (the bowl's floor
+      pushing the tray up reads as newtons of negative load: never soup), low-passed (first
+      order, time constant ``load_tau`` = 0.1 s), with hysteresis: on at ``s_on``, off below
+      ``s_off``. A bead weighs :data:`BEAD_WEIGHT` = 0.0196 N, the empty ladle 1.236 N; the
+      noise after the filter is 0.0035 N (0.011 N per reading times ``sqrt(a / (2 - a))``,
+      ``a = period / (load_tau + period)``), so the defaults, 0.75 and 0.3 bead weights, put
+      ``s_on`` 4 noise stds above an empty ladle and one bead 4 stds above ``s_off``: ``s`` is
+      "at least one bead", as the ideal sensor's, and does not chatter. With the inertial
+      force compensated, the noise-free load of 3 carried beads stayed within 0.056-0.062 N
+      through a trial's carry and pour.
     * ``r`` -- *in the soup bowl's region*: the estimated tray position inside the soup
       bowl's volume extended :data:`~tli_verify.sim.sensors.R_ABOVE` over its rim, as the
       ideal sensor, with hysteresis ``region_hysteresis`` (on ``h/2`` inside the boundary,
       off ``h/2`` outside). Not contact-gated: the demonstrations' mode a ends where the tray
       enters this region, before the ladle touches anything (the learned mode-a DS's
-      attractor lies there), so an ``r`` that waited for a contact force would never come on
-      at mode a's attractor and the executive would not start the scoop. The wrench's
+      attractor lies there; in a nominal trial the tray entered the region 1.2 s before the
+      F/T saw its first contact, 0.25 N), so an ``r`` that waited for a contact force would
+      not come on at mode a's attractor and the executive would not start the scoop. The wrench's
       contact magnitude ``|F - m a'|`` is reported (:attr:`FrankaSensors.last`) but not used.
     * ``t`` -- *at the target*: the estimated tray position above the target bowl (within its
       radius, up to :data:`~tli_verify.sim.sensors.T_ABOVE` over its rim), with the same
@@ -126,11 +136,14 @@ class SensorSettings:
     Attributes
     ----------
     force_noise : float
-        Std (N) of the force reading's Gaussian noise, per axis and reading.
+        Std (N) of the force sensor's Gaussian noise, per axis and raw sample.
+    force_rate : float
+        The force sensor's sample rate (Hz). One reading averages the samples of one
+        control period: its noise std is ``force_noise / sqrt(force_rate * period)``.
     force_bias : float
         Std (N) of the force sensor's constant offset per axis (drawn once per seed).
     tare_samples : int
-        Readings the tare averages (its residual: ``force_noise / sqrt(tare_samples)``).
+        Raw samples the tare averages (its residual: ``force_noise / sqrt(tare_samples)``).
     accel_noise : float
         Std (m/s^2) of the kinematic acceleration estimate's noise, per axis and reading.
     load_tau : float
@@ -153,12 +166,13 @@ class SensorSettings:
     """
 
     force_noise: float = 0.05
+    force_rate: float = 1000.0
     force_bias: float = 0.5
-    tare_samples: int = 50
-    accel_noise: float = 0.05
+    tare_samples: int = 500
+    accel_noise: float = 0.02
     load_tau: float = 0.1
-    s_on: float = 3 * BEAD_WEIGHT
-    s_off: float = 1.5 * BEAD_WEIGHT
+    s_on: float = 0.75 * BEAD_WEIGHT
+    s_off: float = 0.3 * BEAD_WEIGHT
     pose_noise: float = 0.0005
     calibration: float = 0.001
     region_hysteresis: float = 0.004
@@ -183,8 +197,8 @@ class SensorSettings:
                 raise InputError(f"{where}: a number, got {value!r}")
             if not math.isfinite(float(value)):
                 raise InputError(f"{where}: must be finite, got {value!r}")
-            if f.name == "period" and value <= 0:
-                raise InputError(f"{where}: must be > 0 s, got {value}")
+            if f.name in ("period", "force_rate") and value <= 0:
+                raise InputError(f"{where}: must be > 0, got {value}")
             if f.name not in ("s_off",) and value < 0:
                 raise InputError(f"{where}: must be >= 0, got {value}")
         if self.s_off > self.s_on:
@@ -367,12 +381,13 @@ class FrankaSensors:
             ``filtered`` is NaN here (:meth:`read` fills it).
         """
         cfg = self.settings
+        per_reading = cfg.force_noise / math.sqrt(max(1.0, cfg.force_rate * cfg.period))
         force, torque = self.wrench(data)
         inertial = self.inertial_force(data)
         if self._tare is None:  # the first reading: empty and at rest; the tare averages
             self._tare = force - inertial + self._bias + \
                 self._noise(cfg.force_noise / math.sqrt(cfg.tare_samples))
-        force = force + self._bias + self._noise(cfg.force_noise)
+        force = force + self._bias + self._noise(per_reading)
         acc = inertial + self.ladle_mass * self._noise(cfg.accel_noise)
         tray = data.site_xpos[self.ids.tray_site] + self._offset + self._noise(cfg.pose_noise)
         residual = force - acc - self._tare
@@ -394,13 +409,17 @@ class FrankaSensors:
             r, s, t from the measurements (module doc); ``on_ladle``, ``in_target`` and
             ``tray`` are the ground truth (records only).
         """
+        cfg = self.settings
         m = self.measure(data)
         _push(self._fifo_load, m.load)
         _push(self._fifo_r, m.tray)
         _push(self._fifo_t, m.tray)
-        load = self._fifo_load[0]  # the oldest: latency_s periods ago
-        self._filtered = load if self._filtered is None else \
-            self._filtered + self._alpha * (load - self._filtered)
+        # the oldest: latency_s periods ago; clipped below at -s_on (the bowl's floor pushing
+        # the tray up reads as a negative load of newtons, never soup: unclipped, the filter
+        # took half a second to recover from a push into the pile)
+        load = max(self._fifo_load[0], -cfg.s_on)
+        prev = 0.0 if self._filtered is None else self._filtered  # tared: starts at 0
+        self._filtered = prev + self._alpha * (load - prev)
         s = self._s.update(self._filtered)
         r = self._r.update(-_signed_distance(SOUP_BOWL, self._fifo_r[0], R_ABOVE))
         t = self._t.update(-_signed_distance(TARGET_BOWL, self._fifo_t[0], T_ABOVE))
