@@ -58,6 +58,14 @@ The sensors
       "at least one bead", as the ideal sensor's, and does not chatter. With the inertial
       force compensated, the noise-free load of 3 carried beads stayed within 0.056-0.062 N
       through a trial's carry and pour.
+
+      *The F/T cannot weigh the soup while the tray is pressed on the bowl's floor or into
+      the pile* (a trial's push read -18 to -54 N of load with beads already on the tray).
+      While the contact force (:attr:`Measurement.contact`: horizontal, or pushing the tray
+      up) exceeds ``contact_hold`` (0.25 N, 13 bead weights, far above the noise), the load is
+      taken as unobservable and the filter and ``s`` hold their values: ``s`` comes on only
+      once the tray leaves the floor (in trials 0.4-1 s after the ideal sensor's), and a
+      carried spoon that touches the floor again does not read as spilled.
     * ``r`` -- *in the soup bowl's region*: the estimated tray position inside the soup
       bowl's volume extended :data:`~tli_verify.sim.sensors.R_ABOVE` over its rim, as the
       ideal sensor, with hysteresis ``region_hysteresis`` (on ``h/2`` inside the boundary,
@@ -65,8 +73,8 @@ The sensors
       enters this region, before the ladle touches anything (the learned mode-a DS's
       attractor lies there; in a nominal trial the tray entered the region 1.2 s before the
       F/T saw its first contact, 0.25 N), so an ``r`` that waited for a contact force would
-      not come on at mode a's attractor and the executive would not start the scoop. The wrench's
-      contact magnitude ``|F - m a'|`` is reported (:attr:`FrankaSensors.last`) but not used.
+      not come on at mode a's attractor and the executive would not start the scoop. The
+      contact force is reported (:attr:`FrankaSensors.last`) and only gates ``s``.
     * ``t`` -- *at the target*: the estimated tray position above the target bowl (within its
       radius, up to :data:`~tli_verify.sim.sensors.T_ABOVE` over its rim), with the same
       hysteresis; pose only, no knowledge of beads (the ideal ``t`` also needs soup to
@@ -150,6 +158,9 @@ class SensorSettings:
         Time constant (s) of the load's first-order low-pass; 0: none.
     s_on, s_off : float
         Load (N) at which ``s`` turns on, and below which it turns off (``s_off <= s_on``).
+    contact_hold : float
+        Contact force (N, :attr:`Measurement.contact`) beyond which the load is hidden (the
+        tray pressed on the bowl's floor or into the pile): the filter and ``s`` hold.
     pose_noise : float
         Std (m) of the kinematic tray position's noise, per axis and reading.
     calibration : float
@@ -173,6 +184,7 @@ class SensorSettings:
     load_tau: float = 0.1
     s_on: float = 0.75 * BEAD_WEIGHT
     s_off: float = 0.3 * BEAD_WEIGHT
+    contact_hold: float = 0.25
     pose_noise: float = 0.0005
     calibration: float = 0.001
     region_hysteresis: float = 0.004
@@ -223,7 +235,9 @@ class Measurement:
     filtered : float
         The low-passed, delayed load ``s`` thresholds (N).
     contact : float
-        ``|F - m a' - tare|`` (N): the contact force's magnitude (not used by r, s, t).
+        Contact force (N) other than a load: ``max(|R_xy|, -R_z)`` of the residual
+        ``R = F - m a' - tare``, horizontal or pushing the ladle up (``s`` holds beyond
+        ``contact_hold``).
     tray : ndarray, shape (3,)
         The estimated tray position (m), before latency.
     """
@@ -327,7 +341,7 @@ class FrankaSensors:
         self._tare: FloatArray | None = None
         self._filtered: float | None = None
         self._alpha = 1.0 if cfg.load_tau == 0 else cfg.period / (cfg.load_tau + cfg.period)
-        self._fifo_load: deque[float] = deque(maxlen=cfg.latency_s + 1)
+        self._fifo_load: deque[tuple[float, float]] = deque(maxlen=cfg.latency_s + 1)
         self._fifo_r: deque[FloatArray] = deque(maxlen=cfg.latency_r + 1)
         self._fifo_t: deque[FloatArray] = deque(maxlen=cfg.latency_t + 1)
         self._s = _Hysteresis(cfg.s_on, cfg.s_off)
@@ -392,7 +406,9 @@ class FrankaSensors:
         tray = data.site_xpos[self.ids.tray_site] + self._offset + self._noise(cfg.pose_noise)
         residual = force - acc - self._tare
         return Measurement(force=force, torque=torque, inertial=acc, load=float(residual[2]),
-                           filtered=math.nan, contact=float(np.linalg.norm(residual)),
+                           filtered=math.nan,
+                           contact=max(float(np.hypot(residual[0], residual[1])),
+                                       -float(residual[2])),
                            tray=np.asarray(tray, dtype=np.float64))
 
     def read(self, data: mujoco.MjData) -> Reading:
@@ -411,16 +427,21 @@ class FrankaSensors:
         """
         cfg = self.settings
         m = self.measure(data)
-        _push(self._fifo_load, m.load)
+        _push(self._fifo_load, (m.load, m.contact))
         _push(self._fifo_r, m.tray)
         _push(self._fifo_t, m.tray)
         # the oldest: latency_s periods ago; clipped below at -s_on (the bowl's floor pushing
         # the tray up reads as a negative load of newtons, never soup: unclipped, the filter
         # took half a second to recover from a push into the pile)
-        load = max(self._fifo_load[0], -cfg.s_on)
+        load, contact = self._fifo_load[0]
+        load = max(load, -cfg.s_on)
         prev = 0.0 if self._filtered is None else self._filtered  # tared: starts at 0
-        self._filtered = prev + self._alpha * (load - prev)
-        s = self._s.update(self._filtered)
+        if contact <= cfg.contact_hold:  # else: the load is hidden; filter and s hold
+            self._filtered = prev + self._alpha * (load - prev)
+            s = self._s.update(self._filtered)
+        else:
+            self._filtered = prev
+            s = bool(self._s.state)
         r = self._r.update(-_signed_distance(SOUP_BOWL, self._fifo_r[0], R_ABOVE))
         t = self._t.update(-_signed_distance(TARGET_BOWL, self._fifo_t[0], T_ABOVE))
         self.last = replace(m, filtered=self._filtered)
