@@ -111,6 +111,22 @@ def test_ft_grows_by_each_bead_on_the_tray(n: int) -> None:
     assert sensors.read(rig.data).s
 
 
+def test_the_ladles_own_inertial_force_is_compensated(model: mujoco.MjModel) -> None:
+    data = mujoco.MjData(model)
+    _place(model, data, BETWEEN, pitch=0.3)
+    sensors = FrankaSensors(model, settings=QUIET)
+    sensors.read(data)  # tared at rest
+    carrier = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ladle_carrier"))
+    for wrench in ([0.0, 8.0, 25.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 3.0, 0.0, 1.0]):
+        data.xfrc_applied[carrier] = wrench  # the hand accelerates, and turns
+        mujoco.mj_forward(model, data)
+        force = sensors.wrench(data)[0]
+        reading = sensors.read(data)
+        assert sensors.last is not None
+        assert np.linalg.norm(force - [0.0, 0.0, sensors.ladle_mass * G]) > 0.1  # it moves
+        assert abs(sensors.last.load) < 1e-6 and not reading.s  # but nothing is on it
+
+
 def test_noise_statistics_match_the_settings(model: mujoco.MjModel) -> None:
     data = mujoco.MjData(model)
     _place(model, data, BETWEEN)
@@ -206,6 +222,34 @@ def test_hysteresis_keeps_s_from_chattering_on_a_noisy_constant_load(
     flips = [int(np.sum(np.diff(np.array(t, dtype=int)) != 0)) for t in (with_band, without)]
     assert with_band[-1] and flips[0] == 1  # on once, and stays on
     assert flips[1] > 10  # the same noise without a band chatters (the test can fail)
+
+
+def test_s_holds_while_a_contact_hides_the_load(model: mujoco.MjModel) -> None:
+    data = mujoco.MjData(model)
+    _place(model, data, BETWEEN)
+    cfg = replace(QUIET, load_tau=0.0, latency_s=0)
+    sensors = FrankaSensors(model, settings=cfg)
+    ladle = scene_ids(model).ladle_body
+    sensors.read(data)
+    _press(model, data, 3 * BEAD_WEIGHT)
+    assert sensors.read(data).s
+    for push in ([0.0, 0.0, 5.0], [2.0, 0.0, 0.0]):  # the floor pushing up; the pile, sideways
+        data.xfrc_applied[ladle, :3] = push
+        mujoco.mj_forward(model, data)
+        assert sensors.read(data).s  # held: the load is hidden
+        assert sensors.last is not None and sensors.last.contact > cfg.contact_hold
+    _press(model, data, 0.0)
+    assert not sensors.read(data).s  # free again: empty
+    data.xfrc_applied[ladle, :3] = [0.0, 0.0, 5.0]
+    mujoco.mj_forward(model, data)
+    assert not sensors.read(data).s  # held off
+    unheld = FrankaSensors(model, settings=replace(cfg, contact_hold=100.0))
+    unheld.read(data)
+    _press(model, data, 3 * BEAD_WEIGHT)
+    unheld.read(data)
+    data.xfrc_applied[ladle, :3] = [0.0, 0.0, 5.0]
+    mujoco.mj_forward(model, data)
+    assert not unheld.read(data).s  # without the hold the push reads as no soup
 
 
 def test_t_is_pose_only_over_the_target_with_an_empty_ladle(model: mujoco.MjModel) -> None:
