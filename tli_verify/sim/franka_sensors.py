@@ -62,8 +62,9 @@ The sensors
       *The F/T cannot weigh the soup while the tray is pressed on the bowl's floor or into
       the pile* (a trial's push read -18 to -54 N of load with beads already on the tray).
       While the contact force (:attr:`Measurement.contact`: horizontal, or pushing the tray
-      up) exceeds ``contact_hold`` (0.25 N, 13 bead weights, far above the noise), the load is
-      taken as unobservable and the filter and ``s`` hold their values: ``s`` comes on only
+      up) exceeds ``contact_hold`` (0.05 N: 4 noise stds of a reading; 0.25 N let the release
+      of a floor contact drag the filter below ``s_off`` for 3 periods with 2 beads on), the
+      load is taken as unobservable and the filter and ``s`` hold their values: ``s`` comes on only
       once the tray leaves the floor (in trials 0.4-1 s after the ideal sensor's), and a
       carried spoon that touches the floor again does not read as spilled.
     * ``r`` -- *in the soup bowl's region*: the estimated tray position inside the soup
@@ -184,7 +185,7 @@ class SensorSettings:
     load_tau: float = 0.1
     s_on: float = 0.75 * BEAD_WEIGHT
     s_off: float = 0.3 * BEAD_WEIGHT
-    contact_hold: float = 0.25
+    contact_hold: float = 0.05
     pose_noise: float = 0.0005
     calibration: float = 0.001
     region_hysteresis: float = 0.004
