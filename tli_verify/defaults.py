@@ -40,6 +40,9 @@ class Stream(IntEnum):
     """The Franka demonstrations' waypoint jitter."""
     PERTURBATIONS = 19
     """The Franka trials' perturbations (:func:`tli_verify.sim.perturbations.draw`)."""
+    SENSORS = 20
+    """The simulated Franka sensors' noise, bias and calibration offsets
+    (:mod:`tli_verify.sim.franka_sensors`)."""
 
 
 def rng(seed: int, stream: Stream) -> Any:

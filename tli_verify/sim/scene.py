@@ -36,6 +36,9 @@ from tli_verify.errors import TliError
 __all__ = [
     "BEAD_MASS",
     "BEAD_RADIUS",
+    "FT_FORCE",
+    "FT_SITE",
+    "FT_TORQUE",
     "N_BEADS",
     "SOUP_CENTER",
     "TARGET_CENTER",
@@ -43,6 +46,7 @@ __all__ = [
     "SceneIds",
     "add_ladle",
     "add_scene",
+    "add_wrist_ft",
     "build_mocap_scene",
     "ladle_quat",
     "reset_beads",
@@ -76,6 +80,12 @@ HANDLE_LENGTH = 0.16
 LADLE_MASS = 0.12
 CARRIER_MASS = 1.0
 CARRIER_INERTIA = 0.01
+FT_SITE = "ladle_ft"
+"""The wrist force/torque sensor's site, at the ladle's mount (:func:`add_wrist_ft`)."""
+FT_FORCE = "ladle_force"
+"""Name of the MuJoCo force sensor on :data:`FT_SITE` (3 numbers, N, site frame)."""
+FT_TORQUE = "ladle_torque"
+"""Name of the MuJoCo torque sensor on :data:`FT_SITE` (3 numbers, Nm, site frame)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -247,7 +257,11 @@ def add_ladle(body: mujoco.MjsBody, *, pos: tuple[float, float, float] = (0.0, 0
         The ladle body (``ladle``), rigidly fixed to ``body``; its site ``ladle_tray`` is the
         tray frame.
     """
-    ladle = body.add_body(name="ladle", pos=list(pos), quat=list(quat))
+    # The ladle is built in a spec of its own and attached under ``body``: MuJoCo sensors
+    # live in a spec, and a body does not reach the spec it belongs to (PandaRig passes only
+    # the hand); attaching brings the wrist F/T sensors along (:func:`add_wrist_ft`).
+    part = mujoco.MjSpec()
+    ladle = part.worldbody.add_body(name="ladle", pos=list(pos), quat=list(quat))
     rgba = [0.6, 0.6, 0.65, 1]
     _contact(ladle.add_geom(name="ladle_floor", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
                             size=[TRAY_RADIUS, TRAY_HALF_THICKNESS, 0],
@@ -285,10 +299,53 @@ def add_ladle(body: mujoco.MjsBody, *, pos: tuple[float, float, float] = (0.0, 0
                 pos=[r * math.cos(a), r * math.sin(a), FRONT_LIP / 2],
                 quat=[math.cos(a / 2), 0, 0, math.sin(a / 2)], rgba=rgba, mass=1e-3))
     ladle.add_site(name="ladle_tray", pos=[0, 0, 0], size=[0.004, 0, 0], rgba=[1, 0, 0, 1])
-    ladle.add_site(name="ladle_grip", pos=[-back - HANDLE_LENGTH * c, 0,
-                                           RIM_HEIGHT + HANDLE_LENGTH * sn],
-                   size=[0.004, 0, 0], rgba=[0, 0, 1, 1])
-    return ladle
+    grip = (-back - HANDLE_LENGTH * c, 0.0, RIM_HEIGHT + HANDLE_LENGTH * sn)
+    ladle.add_site(name="ladle_grip", pos=list(grip), size=[0.004, 0, 0], rgba=[0, 0, 1, 1])
+    add_wrist_ft(part, ladle, pos=grip)
+    # attached with the prefix "ladle" (MuJoCo warns at compile time on an empty one), so
+    # each name loses it here and gets it back: the compiled names stay "ladle_floor", ...
+    stem = "ladle"
+    for element in (*part.geoms, *part.sites):
+        element.name = element.name.removeprefix(stem)
+    for sensor in part.sensors:
+        sensor.name = sensor.name.removeprefix(stem)
+        sensor.objname = sensor.objname.removeprefix(stem)
+    ladle.name = ""  # an unnamed body is not prefixed: named once attached
+    attached: mujoco.MjsBody = body.add_frame().attach_body(ladle, stem, "")
+    attached.name = stem
+    return attached
+
+
+def add_wrist_ft(spec: mujoco.MjSpec, ladle: mujoco.MjsBody, *,
+                 pos: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+    """A wrist force/torque sensor at the ladle's mount: site ``ladle_ft`` and two sensors.
+
+    The site sits at ``pos`` in the ladle frame (where the handle meets the hand: the grip,
+    at Franka's ``tcp`` on the Panda), its axes those of the ladle frame. MuJoCo's ``force``
+    (:data:`FT_FORCE`) and ``torque`` (:data:`FT_TORQUE`) sensors on it read the interaction
+    wrench between the ladle's subtree and its parent body (the Panda hand, or the mocap rig's
+    carrier), in the site frame, the torque about the site's origin: the wrench the parent
+    exerts on the ladle (the ladle exerts its opposite on the parent, as a wrist F/T between
+    flange and tool measures it). At rest that is ``R^T (0, 0, m g)`` for a ladle of mass
+    ``m`` (``R`` the site's orientation), plus whatever rests on or pushes the ladle (beads on
+    the tray, the bowl's floor, the pile). Noise-free and without latency:
+    :mod:`tli_verify.sim.franka_sensors` models the real sensor. Sensors do not change the
+    dynamics (they only make ``mj_step`` compute ``mj_rnePostConstraint``).
+
+    Parameters
+    ----------
+    spec : mujoco.MjSpec
+        The spec holding ``ladle``.
+    ladle : mujoco.MjsBody
+        The ladle body (:func:`add_ladle`).
+    pos : tuple of float, shape (3,), optional
+        Position of the mount in the ladle frame (m).
+    """
+    ladle.add_site(name=FT_SITE, pos=list(pos), size=[0.006, 0, 0], rgba=[1, 1, 0, 1])
+    spec.add_sensor(name=FT_FORCE, type=mujoco.mjtSensor.mjSENS_FORCE,
+                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
+    spec.add_sensor(name=FT_TORQUE, type=mujoco.mjtSensor.mjSENS_TORQUE,
+                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
 
 
 def ladle_quat(pitch: float) -> FloatArray:
