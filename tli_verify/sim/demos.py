@@ -22,6 +22,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -180,6 +181,15 @@ class ScoopStep:
     command: FloatArray
 
 
+def _sensors(kind: str, model: mujoco.MjModel, ids: Any, seed: int) -> Any:
+    """The rig's r, s, t sensors (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
+    if kind == "ideal":
+        return ScoopSensors(model, ids)
+    from tli_verify.sim.franka_sensors import make_sensors
+
+    return make_sensors(kind, model, ids, seed=seed)
+
+
 def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
 
@@ -210,18 +220,21 @@ class MocapRig:
         Initial ``(x, y, z, pitch)`` of the tray (default: the scene's start, pitch 0).
     in_bowl : int, optional
         Beads in the soup bowl (:func:`~tli_verify.sim.scene.reset_beads`).
+    sensors : str, optional
+        ``"ideal"`` or ``"franka"`` (:func:`~tli_verify.sim.franka_sensors.make_sensors`,
+        seeded with ``seed``).
     """
 
     def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
                  rot_stiffness: float = 150.0, start: npt.ArrayLike | None = None,
-                 in_bowl: int = N_BEADS) -> None:
+                 in_bowl: int = N_BEADS, sensors: str = "ideal") -> None:
         self.k = float(stiffness)
         self.kr = float(rot_stiffness)
         self.push = np.zeros(6)
         self.model = build_mocap_scene()
         self.data = mujoco.MjData(self.model)
         self.ids = scene_ids(self.model)
-        self.sensors = ScoopSensors(self.model, self.ids)
+        self.sensors = _sensors(sensors, self.model, self.ids, seed)
         self._carrier = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY,
                                               "ladle_carrier"))
         jnt = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "ladle_free"))
@@ -548,11 +561,14 @@ class PandaRig:
         Default :data:`PANDA_IMPEDANCE`.
     limits : FrankaLimits, optional
         Default the Panda's (:class:`~tli_verify.sim.franka_limits.FrankaLimits`).
+    sensors : str, optional
+        ``"ideal"`` or ``"franka"`` (:func:`~tli_verify.sim.franka_sensors.make_sensors`,
+        seeded with ``seed``).
     """
 
     def __init__(self, seed: int = 0, *, assets: Path | None = None, timestep: float = 0.002,
                  impedance: CartesianImpedance | None = None,
-                 limits: FrankaLimits | None = None) -> None:
+                 limits: FrankaLimits | None = None, sensors: str = "ideal") -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
         from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
@@ -580,7 +596,7 @@ class PandaRig:
         self.data = mujoco.MjData(self.model)
         self.panda = Panda.from_model(self.model)
         self.ids = scene_ids(self.model)
-        self.sensors = ScoopSensors(self.model, self.ids)
+        self.sensors = _sensors(sensors, self.model, self.ids, seed)
         r0 = np.empty(9)
         mujoco.mju_quat2Mat(r0, ladle_quat(0.0))
         self.impedance = PANDA_IMPEDANCE if impedance is None else impedance

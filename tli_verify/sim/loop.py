@@ -83,6 +83,8 @@ FloatArray = npt.NDArray[np.float64]
 VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
 ROBOTS = ("panda", "free-tool")
 """The rigs: the Panda (default) and the free tool (the ladle on a free body, no arm)."""
+SENSOR_KINDS = ("ideal", "franka")
+"""The sensor models (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
 NOTIFY_AFTER = 1.5
 """Seconds after the estimated external wrench falls below the thresholds during which the
 executive is still told "perturbed" (:class:`ContactDetector`)."""
@@ -282,7 +284,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
               robot: str = "panda", retry: bool = True,
-              detector: ContactDetector | None = None) -> TrialResult:
+              detector: ContactDetector | None = None, sensors: str = "ideal") -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -311,6 +313,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         policy); ``False``: ``--no-retry``.
     detector : ContactDetector, optional
         How ``perturbed`` is estimated (default :class:`ContactDetector` ``()``).
+    sensors : str, optional
+        ``"ideal"`` (noise-free, privileged) or ``"franka"`` (the wrist F/T load and the noisy
+        kinematic pose: :mod:`tli_verify.sim.franka_sensors`).
 
     Returns
     -------
@@ -318,10 +323,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     """
     t0 = time.perf_counter()
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    rig: Any = make_rig(robot, seed)
+    rig: Any = make_rig(robot, seed, sensors=sensors)
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
-    sensors = Debounce()
-    reading = sensors.update(rig.read())
+    debounce = Debounce()
+    reading = debounce.update(rig.read())
     ref = to_ds(rig.pose())
     lo, hi = workspace()
     policy.reset(ref, reading.to_dict())
@@ -368,7 +373,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         t += CONTROL_DT
         if frame is not None:
             frame(rig)
-        reading = sensors.update(rig.read())
+        reading = debounce.update(rig.read())
         modes.append(policy.mode)
         if rig.stopped is not None:  # the robot's reflex: the trial fails here
             stopped = f"reflex stop at {t:.2f} s: {rig.stopped}"
@@ -398,8 +403,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         perturbed_steps=perturbed_steps)
 
 
-def make_rig(robot: str, seed: int) -> Any:
-    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``.
+def make_rig(robot: str, seed: int, *, sensors: str = "ideal") -> Any:
+    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed`` and ``sensors``.
 
     Raises
     ------
@@ -411,7 +416,10 @@ def make_rig(robot: str, seed: int) -> Any:
                          "arm); the default is the Panda ('panda')")
     if robot not in ROBOTS:
         raise InputError(f"robot {robot!r}: one of {', '.join(ROBOTS)}")
-    return PandaRig(seed) if robot == "panda" else MocapRig(seed)
+    if sensors not in SENSOR_KINDS:
+        raise InputError(f"sensors {sensors!r}: one of {', '.join(SENSOR_KINDS)}")
+    return PandaRig(seed, sensors=sensors) if robot == "panda" else \
+        MocapRig(seed, sensors=sensors)
 
 
 class ContactDetector:
@@ -504,7 +512,7 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
                duration: float = TRIAL_DURATION, robot: str = "panda",
-               retry: bool = True) -> list[dict[str, Any]]:
+               retry: bool = True, sensors: str = "ideal") -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
@@ -515,6 +523,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     duration : float, optional
     robot : str, optional
     retry : bool, optional
+    sensors : str, optional
 
     Returns
     -------
@@ -523,7 +532,8 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     """
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
-                      duration=duration, robot=robot, retry=retry).to_dict() for s in seeds]
+                      duration=duration, robot=robot, retry=retry, sensors=sensors).to_dict()
+            for s in seeds]
 
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
