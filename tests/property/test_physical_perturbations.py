@@ -26,6 +26,7 @@ from tli_verify.sim.perturbations import (
     TILT_ANGLE,
     TILT_DELAY,
     TILT_DURATION,
+    TILT_PEAK_SPEED,
     min_push_duration,
     trial_perturbations,
 )
@@ -127,7 +128,9 @@ def test_shrinks_to_one_smallest_latest_tilt() -> None:
     (p,) = ps
     assert p.kind == "tilt"
     assert p.rotation == pytest.approx((TILT_ANGLE[0], 0.0, 0.0))
-    assert p.duration == pytest.approx(TILT_DURATION[0])
+    # the shortest a turn of that angle may last (the person's peak turning speed)
+    assert p.duration == pytest.approx(max(TILT_DURATION[0],
+                                           1.875 * TILT_ANGLE[0] / TILT_PEAK_SPEED), abs=1e-3)
     assert p.start == pytest.approx(TILT_DELAY[1])
 
 
@@ -144,7 +147,8 @@ def test_shrinking_keeps_what_the_failure_needs() -> None:
     assert needed[0].duration == pytest.approx(min_push_duration(needed[0].magnitude))
     for p in ps:
         if p is not needed[0]:
-            assert p.duration == pytest.approx(PUSH_DURATION[0] if p.kind == "push"
-                                               else TILT_DURATION[0])
+            assert p.duration == pytest.approx(
+                PUSH_DURATION[0] if p.kind == "push"
+                else max(TILT_DURATION[0], 1.875 * p.magnitude / TILT_PEAK_SPEED), abs=1e-3)
             assert p.start == pytest.approx(PUSH_WINDOW[1] if p.kind == "push"
                                             else TILT_DELAY[1])

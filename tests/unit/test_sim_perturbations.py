@@ -31,6 +31,7 @@ from tli_verify.sim.perturbations import (
     TILT_ANGLE,
     TILT_DELAY,
     TILT_DURATION,
+    TILT_PEAK_SPEED,
     PersonHand,
     Perturbation,
     draw,
@@ -77,6 +78,13 @@ def _push_fraction(p: Perturbation) -> float:
     return (p.duration - lo) / (PUSH_DURATION[1] - lo)
 
 
+def _tilt_fraction(p: Perturbation) -> float:
+    """A tilt's duration's position in its range given the angle, in [0, 1]."""
+    lo = max(TILT_DURATION[0], math.ceil(1.875 * p.magnitude / TILT_PEAK_SPEED * 1000 - 1e-9)
+             / 1000)
+    return (p.duration - lo) / (TILT_DURATION[1] - lo)
+
+
 # (name, value of a perturbation, kind, bounds)
 QUANTITIES = [
     ("push start", lambda p: p.start, "push", PUSH_WINDOW),
@@ -85,7 +93,7 @@ QUANTITIES = [
     ("push direction z", lambda p: float(_unit(p)[2]), "push", (-Z_MAX, Z_MAX)),
     ("push azimuth", _azimuth, "push", (0.0, 2 * math.pi)),
     ("tilt delay", lambda p: p.start, "tilt", TILT_DELAY),
-    ("tilt duration", lambda p: p.duration, "tilt", TILT_DURATION),
+    ("tilt duration given the angle", _tilt_fraction, "tilt", (0.0, 1.0)),
     ("tilt angle", lambda p: p.magnitude, "tilt", TILT_ANGLE),
     ("tilt axis z", lambda p: float(_unit(p)[2]), "tilt", (-Z_MAX, Z_MAX)),
     ("tilt azimuth", _azimuth, "tilt", (0.0, 2 * math.pi)),
@@ -135,6 +143,7 @@ def test_draws_respect_the_bounds(sample: list[list[Perturbation]]) -> None:
         assert push.peak_speed <= PUSH_PEAK_SPEED + 1e-9
         assert TILT_DELAY[0] <= tilt.start <= TILT_DELAY[1]
         assert TILT_DURATION[0] <= tilt.duration <= TILT_DURATION[1]
+        assert tilt.peak_speed <= TILT_PEAK_SPEED + 1e-9
         assert TILT_ANGLE[0] - TOL <= tilt.magnitude <= TILT_ANGLE[1] + TOL
 
 

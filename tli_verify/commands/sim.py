@@ -54,11 +54,18 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--no-replan", action="store_true",
                    help="run the demonstrated mode sequence open loop (ablation)")
     f.add_argument("--no-perturb", action="store_true", help="nominal trials, no perturbations")
-    f.add_argument("--robot", choices=("hand", "panda"), default="hand",
-                   help="hand: the ladle on a free body under a Cartesian impedance law (the "
-                   "demonstrations' rig); panda: on the Panda hand under the operational-space "
-                   "controller (needs the Menagerie assets: python -m tli_verify.sim.assets "
-                   "fetch). Default hand")
+    f.add_argument("--robot", type=robot_name, default="panda",
+                   help="panda (default): the ladle on the Panda hand under the Cartesian "
+                   "impedance controller within the Franka's limits (needs the Menagerie "
+                   "assets: python -m tli_verify.sim.assets fetch); free-tool: the ladle on a "
+                   "free body under an impedance law, no arm (the demonstrations' rig)")
+    f.add_argument("--no-retry", action="store_true",
+                   help="switch the stall retry off (the policy's documented recovery: a mode "
+                   "that rests 1.5 s outside the goal is run again from its entry)")
+    f.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
+                   help="ideal (default): noise-free sensors from the physics; franka: s "
+                   "from a wrist F/T load, r and t from the noisy kinematic pose, with "
+                   "latency (tli_verify.sim.franka_sensors)")
     f.add_argument("--duration", type=float, default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g)")
     f.add_argument("--json", action="store_true", help="one JSON object per trial, then a "
@@ -74,6 +81,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "<project>/certificates/franka-scoop.campaign.json); the gate needs "
                    "at least 30 perturbed LTL-DS trials, all passing")
     p.set_defaults(handler=_run)
+
+
+def robot_name(text: str) -> str:
+    """``--robot``: ``panda`` or ``free-tool``; the old name ``hand`` is refused with a hint."""
+    if text == "hand":
+        raise argparse.ArgumentTypeError("'hand' is now called 'free-tool' (the ladle on a "
+                                         "free body, no arm); the default is 'panda'")
+    if text not in ("panda", "free-tool"):
+        raise argparse.ArgumentTypeError(f"{text!r}: one of panda, free-tool")
+    return text
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -143,6 +160,7 @@ def _run(args: argparse.Namespace) -> int:
         recorder = Recorder()
     config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,
                            robot=args.robot, variant=variant, duration=args.duration,
+                           retry=not args.no_retry, sensors=args.sensors,
                            pushes=0 if args.no_perturb else 1,
                            tilts=0 if args.no_perturb else 1,
                            certificates=None if args.certificates is None
@@ -158,7 +176,8 @@ def _run(args: argparse.Namespace) -> int:
             sys.stdout.write(
                 f"trial {k + 1}/{args.trials} (seed {res.seed}, {variant}): "
                 f"{'success' if res.success else 'FAILED'}, {res.delivered} bead(s) delivered; "
-                f"modes {res.mode_sequence()}; {res.cuts_added} cut(s); {judged}; "
+                f"modes {res.mode_sequence()}; {res.cuts_added} cut(s); {res.retries} "
+                f"retr{'y' if res.retries == 1 else 'ies'}; {judged}; "
                 f"{res.sim_time:.1f} s simulated in {res.wall_time:.1f} s\n")
         sys.stdout.flush()
 

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.commands.sim import robot_name
 
 __all__ = ["register"]
 
@@ -96,8 +97,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     help="only these models (models/NAME.model.json)")
     ev.add_argument("--trials", type=int_range(1, 100_000), default=None,
                     help="physical campaigns: trials (default: the gate's minimum, 30)")
-    ev.add_argument("--robot", choices=("hand", "panda"), default="hand",
-                    help="physical campaigns: the robot")
+    ev.add_argument("--robot", type=robot_name, default="panda",
+                    help="physical campaigns: the robot (panda, default; or free-tool)")
+    ev.add_argument("--no-retry", action="store_true",
+                    help="physical campaigns: the stall retry off")
+    ev.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
+                    help="physical campaigns: the sensor model")
     ev.add_argument("--duration", type=float, default=40.0,
                     help="physical campaigns: budget per trial (simulated seconds)")
     ev.set_defaults(handler=_evidence)
@@ -299,7 +304,8 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
         raise TliError("--seed + --trials: every trial's seed must be below 2^32")
     root = Path(resolved.model).parent.parent
     config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
-                           duration=args.duration)
+                           duration=args.duration, retry=not args.no_retry,
+                           sensors=args.sensors)
 
     def progress(k: int, res: Any, verdict: Any) -> None:
         judged = "ok" if verdict.ok else ", ".join(verdict.violations)

@@ -117,7 +117,8 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
         seed = config.seed + k
         res = run_trial(policy, seed, variant=config.variant,
                         perturbations=draw(seed, pushes=config.pushes, tilts=config.tilts),
-                        duration=config.duration, robot=config.robot,
+                        duration=config.duration, robot=config.robot, retry=config.retry,
+                        sensors=config.sensors,
                         frame=frame if k == 0 else None)
         verdict = check_trial(res, policy.automaton)
         results.append(res)

@@ -75,6 +75,7 @@ __all__ = [
     "TILT_ANGLE",
     "TILT_DELAY",
     "TILT_DURATION",
+    "TILT_PEAK_SPEED",
     "PersonHand",
     "Perturbation",
     "draw",
@@ -114,8 +115,12 @@ MAX_ELEVATION = 30.0
 (uniformly on that zone of the sphere: ``z`` uniform in ``[-sin, sin]``, azimuth uniform)."""
 TILT_DELAY = (0.0, 1.5)
 """A tilt starts this long after the soup is carried out of the soup bowl, s."""
-TILT_DURATION = (0.5, 1.5)
+TILT_DURATION = (0.5, 3.0)
 """Duration of a tilt, s."""
+TILT_PEAK_SPEED = 1.0
+"""The fastest a person's hand turns the ladle in a tilt, rad/s: a tilt lasts at least
+``1.875 angle / TILT_PEAK_SPEED`` (a faster turn drives the Panda's wrist past its 2.61 rad/s
+joint-velocity limit: its reflex stops the robot, as it would on the real one)."""
 TILT_ANGLE = (0.6, 1.2)
 """Angle a tilt turns the ladle by, rad (35-70 degrees: enough to spill a level spoon)."""
 
@@ -606,6 +611,7 @@ def tilts(*, angle: tuple[float, float] = TILT_ANGLE,
 
     def build(parts: tuple[float, int, float, tuple[float, float, float]]) -> Perturbation:
         start, length, a, u = parts
+        length = max(length, _min_push_ms(a, TILT_PEAK_SPEED, lo_ms))
         return Perturbation("tilt", start, length / _MS, rotation=(a * u[0], a * u[1], a * u[2]))
 
     return st.tuples(_later(delay), st.integers(lo_ms, hi_ms), _smaller(angle),
@@ -689,8 +695,8 @@ def _sample_tilt(g: Any) -> Perturbation:
     lo_ms, hi_ms = _ms(TILT_DURATION)
     d_lo, d_hi = _ms(TILT_DELAY)
     start = int(g.integers(d_lo, d_hi + 1)) / _MS
-    length = int(g.integers(lo_ms, hi_ms + 1)) / _MS
     a = float(g.uniform(*TILT_ANGLE))
+    length = int(g.integers(_min_push_ms(a, TILT_PEAK_SPEED, lo_ms), hi_ms + 1)) / _MS
     u = _uniform_direction(g, math.sin(math.radians(MAX_ELEVATION)))
     return Perturbation("tilt", start, length, rotation=(a * u[0], a * u[1], a * u[2]))
 

@@ -28,7 +28,8 @@ __all__ = [
 ]
 
 
-ROBOTS = ("hand", "panda")
+ROBOTS = ("panda", "free-tool")
+SENSOR_KINDS = ("ideal", "franka")
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,13 +46,17 @@ class PhysicsConfig:
         :func:`~tli_verify.sim.perturbations.draw`).
     trials : int
     robot : str
-        ``"hand"`` or ``"panda"`` (:func:`tli_verify.sim.loop.run_trial`).
+        ``"panda"`` or ``"free-tool"`` (:func:`tli_verify.sim.loop.run_trial`).
     variant : str
         ``"LTL-DS"`` (the deployed policy) or an ablation.
     duration : float
         Step budget per trial, simulated seconds.
     pushes, tilts : int
         Perturbations per trial (:func:`~tli_verify.sim.perturbations.draw`).
+    retry : bool
+        The stall retry on (:mod:`tli_verify.sim.retry`).
+    sensors : str
+        ``"ideal"`` or ``"franka"`` (:mod:`tli_verify.sim.franka_sensors`).
     certificates : str or None
         The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
         gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
@@ -60,16 +65,21 @@ class PhysicsConfig:
     root: str
     seed: int = 0
     trials: int = 30
-    robot: str = "hand"
+    robot: str = "panda"
     variant: str = "LTL-DS"
     duration: float = TRIAL_DURATION
     pushes: int = 1
     tilts: int = 1
     certificates: str | None = None
+    retry: bool = True
+    sensors: str = "ideal"
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOTS:
-            raise TliError(f"robot {self.robot!r}: one of {', '.join(ROBOTS)}")
+            raise TliError(f"robot {self.robot!r}: one of {', '.join(ROBOTS)}"
+                           + (" ('hand' is now 'free-tool')" if self.robot == "hand" else ""))
+        if self.sensors not in SENSOR_KINDS:
+            raise TliError(f"sensors {self.sensors!r}: one of {', '.join(SENSOR_KINDS)}")
         if self.variant not in VARIANTS:
             raise TliError(f"variant {self.variant!r}: one of {', '.join(VARIANTS)}")
         if self.seed < 0 or self.trials < 1:
@@ -99,4 +109,5 @@ class PhysicsConfig:
     def settings(self) -> dict[str, Any]:
         """The evidence's ``physics`` settings (what a re-run needs besides seed and trials)."""
         return {"robot": self.robot, "variant": self.variant, "duration": float(self.duration),
-                "pushes": int(self.pushes), "tilts": int(self.tilts)}
+                "pushes": int(self.pushes), "tilts": int(self.tilts), "retry": self.retry,
+                "sensors": self.sensors}

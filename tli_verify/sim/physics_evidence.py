@@ -43,7 +43,8 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
                     "perturbations": [p.to_dict() for p in res.perturbations],
                     "reproduce": f"tli sim franka --certificates {c.cert_dir} "
                                  f"--seed {res.seed} --trials 1 --robot {c.robot} "
-                                 f"--duration {c.duration:g}"}
+                                 f"--duration {c.duration:g} --sensors {c.sensors}"
+                                 + ("" if c.retry else " --no-retry")}
     return None
 
 
@@ -93,8 +94,12 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         "delivered": sum(r.delivered for r in result.results),
         "cuts_added": result.cuts_added, "mujoco": str(mujoco.__version__),
         "wall_time": round(result.wall_time, 2),
+        "controller": controller_record(c.robot),
+        "retries": sum(r.retries for r in result.results),
         "outcomes": [{"seed": r.seed, "success": bool(r.success), "delivered": r.delivered,
-                      "violations": list(v.violations)}
+                      "violations": list(v.violations), "retries": r.retries,
+                      "stopped": r.stopped, "perturbed_steps": r.perturbed_steps,
+                      "limit_ratios": dict(r.limit_ratios)}
                      for r, v in zip(result.results, result.verdicts, strict=True)],
     })
     doc = write_evidence(
@@ -108,8 +113,24 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
     return target, doc
 
 
+def controller_record(robot: str) -> dict[str, Any]:
+    """The controller settings a physical campaign ran with (the evidence's
+    ``physics.controller``): for the Panda the impedance, the limits, the torque-loop period and
+    the perturbation detector; for the free tool its impedance law."""
+    from tli_verify.sim.demos import PANDA_IMPEDANCE
+    from tli_verify.sim.franka_limits import FrankaLimits
+    from tli_verify.sim.loop import LEASH, ContactDetector
+
+    common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}
+    if robot == "panda":
+        return dict(common, kind="cartesian-impedance", impedance=PANDA_IMPEDANCE.to_dict(),
+                    limits=FrankaLimits().to_dict(), torque_period=0.002,
+                    feed_forward=True)
+    return dict(common, kind="free-body-impedance", stiffness_pos=2000.0, stiffness_rot=150.0)
+
+
 def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an
     evidence's ``physics`` block."""
-    keys = ("robot", "variant", "duration", "pushes", "tilts")
+    keys = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors")
     return {k: physics[k] for k in keys if k in physics}

@@ -30,7 +30,7 @@ __all__ = [
 ]
 
 
-VIOLATION_KINDS = ("delivery", "reachability", "automaton")
+VIOLATION_KINDS = ("delivery", "reachability", "automaton", "limits")
 """What the physics oracle checks (:func:`check_trial`)."""
 
 
@@ -87,6 +87,8 @@ def check_trial(result: TrialResult, automaton: Any,
 
     Checks (violation kinds):
 
+    * ``"limits"`` -- the robot's reflex did not stop it (a joint or end-effector velocity
+      beyond the Franka's limit ends the trial, failed);
     * ``"delivery"`` -- at least one bead ended in the target bowl (``success``, consistent
       with ``delivered``);
     * ``"reachability"`` -- the trace ends in a goal mode (default: the automaton's sink modes,
@@ -116,9 +118,12 @@ def check_trial(result: TrialResult, automaton: Any,
     def fail(kind: str, message: str) -> None:
         found.setdefault(kind, []).append(message)
 
+    if result.stopped is not None:
+        fail("limits", f"the robot stopped: {result.stopped} (a limit of the Franka would have "
+             "been exceeded)")
     if not result.success or result.delivered < 1:
         fail("delivery", f"{result.delivered} bead(s) in the target bowl: no soup delivered"
-             if result.delivered < 1 else
+             if result.delivered < 1 or result.stopped is not None else
              f"{result.delivered} bead(s) delivered but the trial says it failed")
     modes = list(result.modes)
     goals = tuple(goal_modes) if goal_modes is not None else tuple(automaton.sink_modes())
