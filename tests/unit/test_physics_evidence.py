@@ -37,8 +37,8 @@ MODEL = "models/franka-scoop.model.json"
 def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: int = 0,
                   **overrides: Any) -> dict[str, Any]:
     block: dict[str, Any] = {
-        "robot": "hand", "variant": "LTL-DS", "duration": 20.0, "pushes": 1, "tilts": 1,
-        "trials": trials, "successes": trials - failed, "delivered": 4 * (trials - failed),
+        "robot": "panda", "variant": "LTL-DS", "duration": 20.0, "pushes": 1, "tilts": 1,
+        "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed, "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
         "outcomes": [{"seed": seed + k, "success": k >= failed,
                       "delivered": 4 if k >= failed else 0,
@@ -111,8 +111,24 @@ def test_valid_physical_evidence_passes_the_gate(franka: Path,
     code, out, err = run(capsys, "gate", str(franka))
     assert code == 0 and out.rstrip().endswith("model(s), 1 spec(s))") and err == ""
     check = check_evidence(franka / EVIDENCE, physical=(FRANKA_PHYSICS,))
-    assert check.ok and dict(check.physics) == {"robot": "hand", "variant": "LTL-DS",
-                                                "duration": 20.0, "pushes": 1, "tilts": 1}
+    assert check.ok and dict(check.physics) == {"robot": "panda", "variant": "LTL-DS",
+                                                "duration": 20.0, "pushes": 1, "tilts": 1,
+                                                "retry": True, "sensors": "ideal"}
+
+
+def test_evidence_made_on_the_free_tool_is_refused(franka: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """30 passing trials, every file bound, digest right -- but made on the free tool, not the
+    arm: only the robot check catches it."""
+    attach_physics(franka, physics=physics_block(robot="free-tool"))
+    report = run_gate(franka, rerun=0)
+    assert not report.ok
+    (blocker,) = [b for b in report.blockers if b.check == "campaign"]
+    assert "'free-tool' rig, not the Panda" in blocker.message
+    code, _, err = run(capsys, "gate", str(franka))
+    assert code == 1 and err.count("\n") == 1
+    attach_physics(franka, physics=physics_block(robot="panda"))
+    assert run_gate(franka, rerun=0).ok
 
 
 def test_a_tampered_model_blocks_naming_it(franka: Path,

@@ -106,6 +106,11 @@ _dposv = lapack.dposv  # Cholesky solve of a symmetric positive-definite system
 #: Added to the diagonal of Lambda^-1 (1/kg, kg^-1 m^-2): damped least squares near singularities.
 _LAMBDA_DAMPING = 1e-6
 
+#: Largest task force (N) and torque (N m) the impedance law asks at the controlled site
+#: (:class:`~tli_verify.sim.franka_limits.CartesianImpedance` mode).
+TASK_FORCE_LIMIT = 35.0
+TASK_TORQUE_LIMIT = 6.0
+
 #: Nominal orientation at pitch 0: tool z down, tool x along world +y, tool y along world +x.
 R0_DOWN: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 #: The pitch axis, in the world frame: world x.
@@ -556,6 +561,12 @@ class ImpedanceController:
             lam_diag = np.abs(np.diag(y[:, 3:]))
             damp = 2.0 * self.impedance.damping_ratio * np.sqrt(np.asarray(self._k6) * lam_diag)
             force = np.asarray(self._k6) * np.asarray(err) - damp * np.asarray(vel)
+            # the task wrench within what the arm can give at the tray (the wrist's 12 N m)
+            fn, tn = float(np.linalg.norm(force[:3])), float(np.linalg.norm(force[3:]))
+            if fn > TASK_FORCE_LIMIT:
+                force[:3] *= TASK_FORCE_LIMIT / fn
+            if tn > TASK_TORQUE_LIMIT:
+                force[3:] *= TASK_TORQUE_LIMIT / tn
             tau = jac.T @ (force - y[:, 1]) + tau0 + bias
         else:
             tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias

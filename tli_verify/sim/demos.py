@@ -517,11 +517,14 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     return out
 
 
-PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=150.0,
+PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=50.0,
                                      damping_ratio=1.0)
-"""The Panda rig's Cartesian impedance: 2,000 N/m and 150 Nm/rad (within the robot's range of
-about 10-3,000 N/m and 1-300 Nm/rad), critically damped on the arm's task-space inertia -- the
-free tool's stiffness (:class:`MocapRig`), with which the demonstrations were recorded."""
+"""The Panda rig's Cartesian impedance: 2,000 N/m and 50 Nm/rad (within the robot's range of
+about 10-3,000 N/m and 1-300 Nm/rad), critically damped on the arm's task-space inertia. The
+translational stiffness is the free tool's (:class:`MocapRig`, with which the demonstrations
+were recorded); the rotational one is a third of its 150 Nm/rad, so that the loop's leash
+(0.15 rad) asks at most 7.5 N m of the wrist joints' 12 N m (at 150 Nm/rad the wrist saturated,
+lost its damping and its joint velocities tripped the reflex under a push)."""
 
 PANDA_POSTURE_GAINS = Gains(kn=25.0, dn=10.0)
 """Null-space posture gains of the Panda rig (per unit joint mass); its task-space gains are
@@ -606,7 +609,9 @@ class PandaRig:
                                               r0=r0.reshape(3, 3), gains=PANDA_POSTURE_GAINS,
                                               impedance=self.impedance, guard=self.guard)
         self.push = np.zeros(6)
-        self._carrier = int(self.panda.hand_body)
+        # a person grabs the ladle, not the hand: their wrench acts at the ladle's centre of
+        # mass (on the hand it levers about the tray, which the wrist's 12 N m cannot hold)
+        self._carrier = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "ladle"))
         self.data.qpos[self.panda.qpos_adr] = HOME_QPOS
         mujoco.mj_forward(self.model, self.data)
         self._from = self.pose()
@@ -622,7 +627,7 @@ class PandaRig:
 
     @property
     def carrier(self) -> int:
-        """Body id of the hand (where wrenches go)."""
+        """Body id of the ladle (where a person's wrenches go)."""
         return self._carrier
 
     def command(self, pose: npt.ArrayLike, velocity: npt.ArrayLike | None = None) -> None:

@@ -137,7 +137,7 @@ class FrankaLimits:
     joint_velocity: FloatArray = field(default_factory=lambda: JOINT_VELOCITY_LIMITS.copy())
     cartesian_speed: tuple[float, float] = CARTESIAN_SPEED_LIMITS
     brake_from: float = 0.85
-    brake_gain: float = 50.0
+    brake_gain: float = 200.0
     reflex: bool = True
 
     def to_dict(self) -> dict[str, Any]:

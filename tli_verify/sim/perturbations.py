@@ -104,7 +104,7 @@ PUSH_DISTANCE = (0.10, 0.30)
 """How far a push moves the ladle, m (``|displacement|``)."""
 PUSH_DURATION = (0.5, 3.0)
 """Duration of a push, s (from the grab to letting go)."""
-PUSH_PEAK_SPEED = 0.6
+PUSH_PEAK_SPEED = 0.3
 """The fastest a person's hand moves in a push, m/s: a push lasts at least
 :func:`min_push_duration` of its distance."""
 MIN_JERK_PEAK = 1.875
@@ -117,7 +117,7 @@ TILT_DELAY = (0.0, 1.5)
 """A tilt starts this long after the soup is carried out of the soup bowl, s."""
 TILT_DURATION = (0.5, 3.0)
 """Duration of a tilt, s."""
-TILT_PEAK_SPEED = 1.0
+TILT_PEAK_SPEED = 0.8
 """The fastest a person's hand turns the ladle in a tilt, rad/s: a tilt lasts at least
 ``1.875 angle / TILT_PEAK_SPEED`` (a faster turn drives the Panda's wrist past its 2.61 rad/s
 joint-velocity limit: its reflex stops the robot, as it would on the real one)."""
@@ -131,14 +131,17 @@ holding a posture is of the order of 10^2-10^3 N/m; a grab-and-drag is at the st
 HAND_DAMPING = 2.0 * math.sqrt(HAND_STIFFNESS * 1.0)
 """The hand's translational damping, N s/m: critical for a 1 kg body (the free hand's carrier
 with the ladle is 1.13 kg), about 77 N s/m."""
-HAND_MAX_FORCE = 120.0
+HAND_MAX_FORCE = 80.0
 """Largest force the hand applies, N (a person's deliberate push is 50-120 N)."""
 HAND_ROT_STIFFNESS = 40.0
 """The hand's rotational stiffness, Nm/rad (a wrist twisting a handle)."""
 HAND_ROT_DAMPING = 2.0
 """The hand's rotational damping, Nm s/rad (over-damped for the carrier's ~0.013 kg m^2, stable
 at MuJoCo's 2 ms step: ``c dt / I`` about 0.3)."""
-HAND_MAX_TORQUE = 12.0
+HAND_RELEASE = 0.25
+"""Seconds over which the hand lets go at the end of a perturbation (its wrench fades linearly
+to zero: a person opens the hand, the arm is not released from a stretched spring at once)."""
+HAND_MAX_TORQUE = 8.0
 """Largest torque the hand applies, Nm (a person's wrist, roughly 10-15 Nm at most)."""
 
 
@@ -482,6 +485,8 @@ class PersonHand:
         torque = _clip_norm(self.k_r * _log(r_target @ r.T)
                             - self.c_r * np.asarray(omega, dtype=np.float64).reshape(3),
                             self.tau_max)
+        fade = min(1.0, max(0.0, (self.end - t) / HAND_RELEASE))
+        force, torque = fade * force, fade * torque  # the person lets go over HAND_RELEASE
         self.max_force = max(self.max_force, float(np.linalg.norm(force)))
         self.max_torque = max(self.max_torque, float(np.linalg.norm(torque)))
         return np.concatenate([force, torque])

@@ -14,7 +14,11 @@ from typing import Any
 
 from tli_verify.verify.evidence import PhysicalWorld
 
-__all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "WORLD", "check_physics_block"]
+__all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_ROBOT", "WORLD",
+           "check_physics_block"]
+
+REQUIRED_ROBOT = "panda"
+"""The rig the Franka project's physical evidence must be made on: the arm, not the free tool."""
 
 WORLD = "franka-physics"
 """The ``world`` of the Franka's physical campaign evidence."""
@@ -27,8 +31,8 @@ than the kinematic campaigns' bound, and the gate's line says so."""
 
 
 def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
-    """A physical campaign's block: consistent with the campaign, every trial delivered, the
-    deployed variant, both perturbation levels.
+    """A physical campaign's block: consistent with the campaign, every trial delivered, made
+    on the Panda (:data:`REQUIRED_ROBOT`), the deployed variant, both perturbation levels.
 
     Parameters
     ----------
@@ -65,6 +69,10 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
                 o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
             out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
                        "violations")
+    if phys["robot"] != REQUIRED_ROBOT:
+        out.append(f"{shown}: the trials ran on the {phys['robot']!r} rig, not the Panda: "
+                   "evidence for the Franka project must be made on the arm (tli sim franka "
+                   "--robot panda --trials 30 --evidence)")
     if phys["variant"] != "LTL-DS":
         out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
                    "policy is LTL-DS (modulation and replanning on): not evidence for it")
@@ -73,7 +81,8 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
                    "the evidence must perturb at both levels (motion pushes and task tilts)")
     if not out:
         passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
-                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
+                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, retry "
+                      f"{'on' if phys.get('retry', True) else 'off'}, "
                       f"{phys['duration']:g} s budget), all delivered soup")
     return out
 
