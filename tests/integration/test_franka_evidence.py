@@ -53,12 +53,20 @@ def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
     assert doc["world"] == "franka-physics" and doc["campaign"]["seed"] == 3
     assert doc["campaign"]["examples"] == doc["campaign"]["runs"] == 1
     phys = doc["physics"]
-    assert (phys["robot"], phys["variant"], phys["duration"]) == ("hand", "LTL-DS", 2.0)
+    assert (phys["robot"], phys["variant"], phys["duration"]) == ("panda", "LTL-DS", 2.0)
+    assert (phys["retry"], phys["sensors"]) == (True, "ideal")
+    assert phys["controller"]["kind"] == "cartesian-impedance"
+    assert phys["controller"]["impedance"]["stiffness_pos"] == 2000.0
     assert (phys["pushes"], phys["tilts"], phys["trials"]) == (1, 1, 1)
     assert phys["successes"] == int(trial["success"])
-    assert phys["outcomes"] == [{"seed": 3, "success": trial["success"],
-                                 "delivered": trial["delivered"],
-                                 "violations": trial["violations"]}]
+    (outcome,) = phys["outcomes"]
+    assert {k: outcome[k] for k in ("seed", "success", "delivered", "violations", "retries",
+                                    "stopped", "limit_ratios")} == {
+        "seed": 3, "success": trial["success"], "delivered": trial["delivered"],
+        "violations": trial["violations"], "retries": trial["retries"],
+        "stopped": trial["stopped"], "limit_ratios": trial["limit_ratios"]}
+    assert set(outcome["limit_ratios"]) == {"torque", "torque_rate", "joint_velocity",
+                                            "cartesian_speed", "rotation_speed"}
     assert doc["violations"]["total"] == len(trial["violations"])
     for key, path in (("model", project / "models" / "franka-scoop.model.json"),
                       ("certificate", certs / "franka-scoop.cert.json"),
@@ -124,7 +132,7 @@ def test_gate_rerun_catches_evidence_whose_trials_do_not_hold(
     line = next(x for x in out.splitlines() if ": rerun: " in x)
     assert line.startswith("BLOCK")
     assert "re-ran 1 physical trial(s) from seed " in line  # the gate's own seed
-    assert "(robot hand, LTL-DS, 2 s)" in line and "from seed 0 " not in line
+    assert "(robot panda, LTL-DS, 2 s)" in line and "from seed 0 " not in line
     assert "0/1 delivered soup" in line and "delivery 1" in line
     assert "reproduce: tli sim franka --certificates" in line
 

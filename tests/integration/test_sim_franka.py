@@ -97,6 +97,7 @@ def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     ["sim"],
     ["sim", "cartpole"],
     ["sim", "franka", "--robot", "ur5"],
+    ["sim", "franka", "--robot", "hand"],
 ])
 def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, *argv)

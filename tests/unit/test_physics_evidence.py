@@ -37,7 +37,7 @@ MODEL = "models/franka-scoop.model.json"
 def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: int = 0,
                   **overrides: Any) -> dict[str, Any]:
     block: dict[str, Any] = {
-        "robot": "panda", "variant": "LTL-DS", "duration": 20.0, "pushes": 1, "tilts": 1,
+        "robot": "panda", "variant": "LTL-DS", "duration": 40.0, "pushes": 1, "tilts": 1,
         "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed, "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
         "outcomes": [{"seed": seed + k, "success": k >= failed,
@@ -109,10 +109,10 @@ def test_valid_physical_evidence_passes_the_gate(franka: Path,
     assert "physical campaign 'franka-physics'" in line.message
     assert f"{MIN_PHYSICS_TRIALS} perturbed trials from seed 0" in line.message
     code, out, err = run(capsys, "gate", str(franka))
-    assert code == 0 and out.rstrip().endswith("model(s), 1 spec(s))") and err == ""
+    assert code == 0 and out.rstrip().endswith("model(s), 1 spec(s))") and err == "", (out, err)
     check = check_evidence(franka / EVIDENCE, physical=(FRANKA_PHYSICS,))
     assert check.ok and dict(check.physics) == {"robot": "panda", "variant": "LTL-DS",
-                                                "duration": 20.0, "pushes": 1, "tilts": 1,
+                                                "duration": 40.0, "pushes": 1, "tilts": 1,
                                                 "retry": True, "sensors": "ideal"}
 
 

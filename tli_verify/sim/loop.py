@@ -2,36 +2,36 @@
 
 Per control period (``CONTROL_DT`` = 20 ms, the certified period):
 
-1. sensors from the physics (:class:`~tli_verify.sim.sensors.ScoopSensors`), debounced as the
-   executive sees them (:class:`~tli_verify.sim.sensors.Debounce`), and the DS state ``z`` from
-   the tray pose (:func:`~tli_verify.sim.demos.to_ds`);
-2. ``v = LTLDSPolicy.step(z, reading)``: the automaton picks the mode, the mode's certified,
-   modulated DS gives the velocity (cuts are learned online on invariance failures); when the
-   mode has stalled (:class:`~tli_verify.sim.retry.StallRetry`: the ladle stayed put 1.5 s
-   outside the goal mode) the certified DS leading into it takes over until its attractor, and
-   the mode runs again from there;
+1. sensors (:class:`~tli_verify.sim.sensors.ScoopSensors`, or the Franka-like ones of
+   :mod:`tli_verify.sim.franka_sensors`), debounced as the executive sees them
+   (:class:`~tli_verify.sim.sensors.Debounce`), the DS state ``z`` from the tray pose
+   (:func:`~tli_verify.sim.demos.to_ds`), and ``perturbed`` from the robot's own estimate of
+   the external wrench (:class:`ContactDetector`: 25 N or 2.5 N m, held 1.5 s) -- never from
+   the simulator's list of perturbations;
+2. ``v = LTLDSPolicy.step(z*, reading, perturbed)``: the automaton picks the mode, the mode's
+   certified, modulated DS gives the velocity (cuts are learned online on invariance
+   failures); with the stall retry on (``retry``, :class:`~tli_verify.sim.retry.StallRetry`:
+   the ladle stayed put 1.5 s outside the goal mode) the certified DS leading into the mode
+   takes over until its attractor, counted in the result, the executive still judged;
 3. the velocity (capped per axis at ``SPEED_CAP``) is integrated to a target pose,
-   ``z* <- z* + dt v``, with the DS evaluated at the target ``z*`` (the sampled-data system the
-   certificate covers), kept inside the workspace (:func:`workspace`: the demonstrations'
-   box widened by ``MARGIN``); ``z*`` restarts at the measured state after a perturbation or
-   when the hand is held back more than ``RESYNC`` from it;
-4. the rig's controller tracks it -- the free hand's Cartesian impedance law
-   (:class:`~tli_verify.sim.demos.MocapRig`) or the Panda's operational-space controller
-   (:class:`~tli_verify.sim.demos.PandaRig`) -- for 10 ``mj_step`` of 2 ms.
+   ``z* <- z* + dt v``, kept on a leash of the measured state (``LEASH``: held back by a push
+   or the pile, the arm pulls with a bounded force in every axis -- the wedge deadlock of a
+   target that restarted at the measured state is gone) and inside the workspace
+   (:func:`workspace`);
+4. the rig tracks it for 10 physics steps of 2 ms: the Panda's Cartesian impedance controller
+   (:class:`~tli_verify.sim.demos.PandaRig`, the default: 2,000 N/m, 50 Nm/rad, the target
+   ramped within the period with the DS velocity as feed-forward, the Franka's torque,
+   torque-rate and joint-velocity limits enforced, :mod:`tli_verify.sim.franka_limits`) or the
+   free tool's impedance law (:class:`~tli_verify.sim.demos.MocapRig`). A reflex stop ends the
+   trial as failed.
 
-Perturbations (:func:`draw_perturbations`: drawn uniformly by
-:func:`tli_verify.sim.perturbations.draw`, seeded per trial): a person's hand
-(:class:`~tli_verify.sim.perturbations.PersonHand`) grabs the carrying body and drags it along a
-minimum-jerk path -- a *motion-level push* (a displacement) at a time in the trial, and a
-*task-level tilt* (a rotation about a near-horizontal axis; it spills) a delay after the soup is
-carried out of the soup bowl. While a hand acts its wrench is recomputed every physics step from
-the carrier's state and applied in ``xfrc_applied`` through the rig's ``push``
-(:func:`_step_with_hands`). The executive is told (``perturbed=True``) from the hand's grab until
-``NOTIFY_AFTER`` after it lets go (spilled beads take that long to leave the tray), so the mode
-changes they cause are replanned, not taken as invariance failures.
+Perturbations (the environment's side; :mod:`tli_verify.sim.perturbations`, drawn uniformly
+from the trial's seed): a person's hand grabs the ladle and drags it 10-30 cm (a push) or turns
+it 0.6-1.2 rad (a tilt, a delay after the soup is carried out of the soup bowl), its wrench
+recomputed every physics step.
 
-A trial succeeds when at least one bead ends in the target bowl. It ends when the goal mode
-has poured for 2.5 s and the spoon is empty, or at its step budget
+A trial succeeds when at least one bead ends in the target bowl and the robot did not stop. It
+ends when the goal mode has poured for 2.5 s and the spoon is empty, or at its step budget
 (:data:`~tli_verify.sim.TRIAL_DURATION`).
 """
 

@@ -641,7 +641,7 @@ def check_evidence(path: str | os.PathLike[str], *,
     problems += _check_campaign(doc, shown, min_examples, passed, worlds)
     problems += _check_physics(doc, shown, passed, worlds)
     camp = doc["campaign"]
-    keep = ("robot", "variant", "duration", "pushes", "tilts")
+    keep = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors")
     return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
                          seed=int(camp["seed"]), examples=int(camp["examples"]),
                          runs=int(camp["runs"]), model_path=str(mpath),
