@@ -38,7 +38,8 @@ def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: in
                   **overrides: Any) -> dict[str, Any]:
     block: dict[str, Any] = {
         "robot": "panda", "variant": "LTL-DS", "duration": 40.0, "pushes": 1, "tilts": 1,
-        "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed, "delivered": 4 * (trials - failed),
+        "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed,
+        "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
         "outcomes": [{"seed": seed + k, "success": k >= failed,
                       "delivered": 4 if k >= failed else 0,
