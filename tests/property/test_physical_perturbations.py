@@ -118,7 +118,7 @@ def test_shrinks_to_one_smallest_latest_push() -> None:
     (p,) = ps
     assert p.kind == "push"
     assert p.displacement == pytest.approx((PUSH_DISTANCE[0], 0.0, 0.0))
-    assert p.duration == pytest.approx(PUSH_DURATION[0])
+    assert p.duration == pytest.approx(min_push_duration(PUSH_DISTANCE[0]))
     assert p.start == pytest.approx(PUSH_WINDOW[1])
 
 
@@ -148,7 +148,7 @@ def test_shrinking_keeps_what_the_failure_needs() -> None:
     for p in ps:
         if p is not needed[0]:
             assert p.duration == pytest.approx(
-                PUSH_DURATION[0] if p.kind == "push"
+                min_push_duration(p.magnitude) if p.kind == "push"
                 else max(TILT_DURATION[0], 1.875 * p.magnitude / TILT_PEAK_SPEED), abs=1e-3)
             assert p.start == pytest.approx(PUSH_WINDOW[1] if p.kind == "push"
                                             else TILT_DELAY[1])

@@ -148,12 +148,16 @@ def test_draws_respect_the_bounds(sample: list[list[Perturbation]]) -> None:
 
 
 def test_min_push_duration_keeps_the_peak_speed() -> None:
-    assert min_push_duration(0.10) == PUSH_DURATION[0]  # 0.3125 s would do: the floor wins
-    # 0.9375 s, rounded up to the millisecond
-    assert min_push_duration(0.30) == pytest.approx(0.938)
+    # a distance short enough for the floor to win
+    short = 0.9 * PUSH_DURATION[0] * PUSH_PEAK_SPEED / MIN_JERK_PEAK
+    assert min_push_duration(short) == PUSH_DURATION[0]
+    # otherwise 1.875 d / peak, rounded up to the millisecond
+    expect = math.ceil(MIN_JERK_PEAK * 0.30 / PUSH_PEAK_SPEED * 1000 - 1e-9) / 1000
+    assert min_push_duration(0.30) == pytest.approx(max(PUSH_DURATION[0], expect))
     d = 0.2345
     t = min_push_duration(d)
-    assert MIN_JERK_PEAK * d / t <= PUSH_PEAK_SPEED and t - 0.001 < MIN_JERK_PEAK * d / 0.6
+    assert MIN_JERK_PEAK * d / t <= PUSH_PEAK_SPEED + 1e-12
+    assert t - 0.001 < max(PUSH_DURATION[0], MIN_JERK_PEAK * d / PUSH_PEAK_SPEED)
 
 
 def test_draw_is_deterministic_and_seeds_differ() -> None:
