@@ -60,6 +60,7 @@ from tli_verify.sim.demos import (
     from_ds_velocity,
     to_ds,
 )
+from tli_verify.sim.franka_sensors import SENSOR_KINDS
 from tli_verify.sim.perturbations import PersonHand, Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
@@ -83,8 +84,6 @@ FloatArray = npt.NDArray[np.float64]
 VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
 ROBOTS = ("panda", "free-tool")
 """The rigs: the Panda (default) and the free tool (the ladle on a free body, no arm)."""
-SENSOR_KINDS = ("ideal", "franka")
-"""The sensor models (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
 NOTIFY_AFTER = 1.5
 """Seconds after the estimated external wrench falls below the thresholds during which the
 executive is still told "perturbed" (:class:`ContactDetector`)."""

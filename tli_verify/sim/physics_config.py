@@ -20,7 +20,7 @@ from typing import Any
 from tli_verify.errors import TliError
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.franka_files import MODEL_NAME
-from tli_verify.sim.loop import VARIANTS
+from tli_verify.sim.loop import ROBOTS, SENSOR_KINDS, VARIANTS
 
 __all__ = [
     "ROBOTS",
@@ -28,8 +28,6 @@ __all__ = [
 ]
 
 
-ROBOTS = ("panda", "free-tool")
-SENSOR_KINDS = ("ideal", "franka")
 
 
 @dataclass(frozen=True, slots=True)
