@@ -371,9 +371,10 @@ class ImpedanceController:
     """
 
     __slots__ = ("_act", "_contig", "_dn", "_dof", "_ext", "_ext_tau", "_idx_m", "_jac", "_jac6",
-                 "_jacp", "_jacr", "_k6", "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list",
+                 "_jacp", "_jacr", "_k6", "_k6a", "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list",
                  "_last_tau", "_limits", "_n_sat", "_prev", "_q_idx", "_qerr", "_quat", "_rhs",
-                 "_views", "calls", "ext_time_constant", "gains", "guard", "impedance", "map",
+                 "_two_zeta", "_views", "calls", "ext_time_constant", "gains", "guard",
+                 "impedance", "map",
                  "max_pos_error", "max_rot_error", "model", "panda", "pos_error", "posture",
                  "rot_error", "saturated_calls", "site")
 
@@ -415,6 +416,9 @@ class ImpedanceController:
         self._n_sat = 0
         self.impedance = impedance
         self._k6 = impedance.stiffness().tolist() if impedance is not None else None
+        self._k6a = np.asarray(impedance.stiffness(), dtype=np.float64) \
+            if impedance is not None else np.zeros(6)
+        self._two_zeta = 2.0 * impedance.damping_ratio if impedance is not None else 0.0
         self.guard = guard
         self.ext_time_constant = float(ext_time_constant)
         self._ext = np.zeros(6)
@@ -543,7 +547,8 @@ class ImpedanceController:
         bias = v.bias if v.bias is not None else data.qfrc_bias[self._dof]
         self._estimate_external(data, mass, qd, bias)
         rhs = self._rhs
-        rhs[:, 0] = [kp[i] * err[i] - kd[i] * vel[i] for i in range(6)]
+        if self._k6 is None:
+            rhs[:, 0] = [kp[i] * err[i] - kd[i] * vel[i] for i in range(6)]
         # Posture torque (mass-weighted), projected with I - J^T Jbar^T, Jbar = M^-1 J^T Lambda:
         # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term,
         # and Lambda X^T tau_ext = Jbar^T tau_ext, the external wrench at the site; in the
@@ -558,11 +563,14 @@ class ImpedanceController:
         self._ext = y[:, 2].copy()
         if self._k6 is not None:
             assert self.impedance is not None
-            lam_diag = np.abs(np.diag(y[:, 3:]))
-            damp = 2.0 * self.impedance.damping_ratio * np.sqrt(np.asarray(self._k6) * lam_diag)
-            force = np.asarray(self._k6) * np.asarray(err) - damp * np.asarray(vel)
-            # the task wrench within what the arm can give at the tray (the wrist's 12 N m)
-            fn, tn = float(np.linalg.norm(force[:3])), float(np.linalg.norm(force[3:]))
+            k6 = self._k6a
+            lam_diag = np.abs(y[:, 3:].diagonal())
+            damp = self._two_zeta * np.sqrt(k6 * lam_diag)
+            force = k6 * np.array(err) - damp * np.array(vel)
+            # the task wrench within what the arm can give at the tray (the wrist's 12 N m);
+            # sqrt(f.f) is what np.linalg.norm computes for a real vector
+            f3, t3 = force[:3], force[3:]
+            fn, tn = math.sqrt(float(f3 @ f3)), math.sqrt(float(t3 @ t3))
             if fn > TASK_FORCE_LIMIT:
                 force[:3] *= TASK_FORCE_LIMIT / fn
             if tn > TASK_TORQUE_LIMIT:
@@ -570,15 +578,16 @@ class ImpedanceController:
             tau = jac.T @ (force - y[:, 1]) + tau0 + bias
         else:
             tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias
-        lim = self._limits
-        n_sat = sum(1 for t, m in zip(tau.tolist(), lim, strict=True) if abs(t) > m)
+        n_sat = int(np.count_nonzero(np.abs(tau) > TORQUE_LIMITS))
         if self.guard is not None:
-            tau = self.guard.apply(tau, qd, np.diag(mass), twist)
+            tau = self.guard.apply(tau, qd, mass.diagonal(), twist)  # a new array
         elif n_sat:
             tau = np.clip(tau, -TORQUE_LIMITS, TORQUE_LIMITS)
         clipped = tau
-        self._prev = (float(data.time), mass.copy(), np.array(qd), np.array(bias), clipped.copy(),
-                      np.array(data.qfrc_passive[self._dof]))
+        # ``mass`` (a fancy-indexed block) and ``clipped`` are new arrays; qd and bias are views
+        self._prev = (float(data.time), mass, qd.copy(), bias.copy(),
+                      clipped if self.guard is not None else clipped.copy(),
+                      data.qfrc_passive[self._dof])
         if v.ctrl is not None:
             v.ctrl[:] = clipped
         else:

@@ -36,6 +36,7 @@ Imitation", CoRL 2022, Sec. 7.2 (the Panda experiment).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -167,14 +168,16 @@ class LimitGuard:
         The reflex that stopped the robot (e.g. ``"joint 4 velocity 2.31 rad/s > 2.175"``).
     """
 
-    __slots__ = ("_last", "_max", "dt", "limits", "stopped")
+    __slots__ = ("_last", "_max", "_tmax", "_vmax", "dt", "limits", "stopped")
 
     def __init__(self, limits: FrankaLimits, dt: float) -> None:
         self.limits = limits
         self.dt = float(dt)
-        self._last: FloatArray | None = None
+        self._last: list[float] | None = None
         self._max = dict.fromkeys(RATIO_KEYS, 0.0)
         self.stopped: str | None = None
+        self._tmax: list[float] = np.asarray(limits.torque, dtype=np.float64).tolist()
+        self._vmax: list[float] = np.asarray(limits.joint_velocity, dtype=np.float64).tolist()
 
     def reset_ratios(self) -> None:
         """Zero the recorded ratios and forget a reflex (a new trial)."""
@@ -205,34 +208,52 @@ class LimitGuard:
         ndarray, shape (7,)
             Within the torque and torque-rate limits; zero torque change (hold) after a reflex.
         """
+        # Plain floats on the 7 joints: numpy's per-call overhead dominates on 7-vectors (the
+        # torque loop runs this every physics step).
         lim = self.limits
-        vel_ratio = np.abs(qdot) / lim.joint_velocity
+        qd = qdot.tolist()
+        vmax = self._vmax
+        vel_ratio = [abs(v) / w for v, w in zip(qd, vmax, strict=True)]
+        peak = max(vel_ratio)
         m = self._max
-        m["joint_velocity"] = max(m["joint_velocity"], float(vel_ratio.max()))
+        if peak > m["joint_velocity"]:
+            m["joint_velocity"] = peak
         if twist is not None:
-            lin = float(np.linalg.norm(twist[:3])) / lim.cartesian_speed[0]
-            rot = float(np.linalg.norm(twist[3:])) / lim.cartesian_speed[1]
-            m["cartesian_speed"] = max(m["cartesian_speed"], lin)
-            m["rotation_speed"] = max(m["rotation_speed"], rot)
+            tw = twist.tolist()
+            lin = math.sqrt(tw[0] ** 2 + tw[1] ** 2 + tw[2] ** 2) / lim.cartesian_speed[0]
+            rot = math.sqrt(tw[3] ** 2 + tw[4] ** 2 + tw[5] ** 2) / lim.cartesian_speed[1]
+            if lin > m["cartesian_speed"]:
+                m["cartesian_speed"] = lin
+            if rot > m["rotation_speed"]:
+                m["rotation_speed"] = rot
             if lim.reflex and self.stopped is None and max(lin, rot) > 1.0:
                 self.stopped = (f"end-effector speed {lin * lim.cartesian_speed[0]:.2f} m/s, "
                                 f"{rot * lim.cartesian_speed[1]:.2f} rad/s beyond "
                                 f"{lim.cartesian_speed[0]:g} m/s / {lim.cartesian_speed[1]:g} "
                                 "rad/s")
-        if lim.reflex and self.stopped is None and vel_ratio.max() > 1.0:
-            j = int(np.argmax(vel_ratio))
-            self.stopped = (f"joint {j + 1} velocity {abs(float(qdot[j])):.3f} rad/s beyond "
-                            f"its limit {float(lim.joint_velocity[j]):g} rad/s")
-        fast = vel_ratio > lim.brake_from
-        if fast.any():
-            excess = qdot - np.sign(qdot) * lim.brake_from * lim.joint_velocity
-            tau = tau - np.where(fast, lim.brake_gain * mass_diag * excess, 0.0)
-        m["torque"] = max(m["torque"], float((np.abs(tau) / lim.torque).max()))
-        out = np.clip(tau, -lim.torque, lim.torque)
-        if self._last is not None:
+        if lim.reflex and self.stopped is None and peak > 1.0:
+            j = vel_ratio.index(peak)
+            self.stopped = (f"joint {j + 1} velocity {abs(qd[j]):.3f} rad/s beyond "
+                            f"its limit {vmax[j]:g} rad/s")
+        t = tau.tolist()
+        if peak > lim.brake_from:
+            md = mass_diag.tolist()
+            for j in range(7):
+                if vel_ratio[j] > lim.brake_from:
+                    excess = qd[j] - math.copysign(lim.brake_from * vmax[j], qd[j])
+                    t[j] -= lim.brake_gain * md[j] * excess
+        tmax = self._tmax
+        worst = max(abs(a) / b for a, b in zip(t, tmax, strict=True))
+        if worst > m["torque"]:
+            m["torque"] = worst
+        out = [min(max(a, -b), b) for a, b in zip(t, tmax, strict=True)]
+        last = self._last
+        if last is not None:
             step = lim.torque_rate * self.dt
-            change = out - self._last
-            m["torque_rate"] = max(m["torque_rate"], float(np.abs(change).max()) / step)
-            out = self._last + np.clip(change, -step, step)
-        self._last = out.copy()
-        return out
+            change = [a - b for a, b in zip(out, last, strict=True)]
+            rate = max(abs(c) for c in change) / step
+            if rate > m["torque_rate"]:
+                m["torque_rate"] = rate
+            out = [b + min(max(c, -step), step) for b, c in zip(last, change, strict=True)]
+        self._last = out
+        return np.array(out)
