@@ -138,3 +138,21 @@ def test_deleting_a_push_keeps_the_others_in_place() -> None:
     seq = find(push_sequences(TASK, max_pushes=4, window=300), both, settings=_SHRINK)
     assert [p.step for p in seq] == [99, 300]
     assert all(p.magnitude == 0.0 and p.level == "free" for p in seq)
+
+
+@pytest.mark.parametrize(("x", "d"), [
+    # found by hypothesis (randomized run): the segment leaves the non-convex white region,
+    # re-enters it, and the bisection's half-way point landed in another region
+    ((6.38277672, -6.68813149), (-12.68167984, 4.49101731)),
+    ((6.08676385, 0.70525252), (-8.29578748, -10.05082835)),
+    ((7.07002553, 0.15364898), (-14.46701903, -6.17403078)),
+])
+def test_motion_level_push_across_a_non_convex_region_stays_in_it(
+        x: tuple[float, float], d: tuple[float, float]) -> None:
+    start = np.array(x)
+    here = TASK.region_one(list(start))
+    y = apply_push(TASK, start, Push(step=1, displacement=d, level="motion"))
+    free = np.clip(start + np.array(d), TASK.lo, TASK.hi)
+    assert TASK.region_one(list(free)) != here  # the free push would leave the region
+    assert TASK.region_one(list(y)) == here
+    assert np.linalg.norm(y - start) <= np.linalg.norm(d) + 1e-9

@@ -337,20 +337,52 @@ def region_anchor(world: Any, region: str) -> FloatArray:
 _ANCHORS: dict[tuple[str, str, str], FloatArray] = {}
 
 
+_SEGMENT_SAMPLES = 256
+"""Points along a push's segment where :func:`_bisect_inside` looks for its first exit from a
+non-convex region."""
+
+
 def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> FloatArray:
-    """``b`` if it lies in ``region``; else ``a + s/2 (b - a)`` with ``s`` the largest fraction
-    in [0, 1] (bisection) keeping the segment's point in ``region`` (``a`` lies in it): half
-    way to the region's boundary, so a push never lands on a mode boundary."""
-    if int(world.region_index(b[None])[0]) == region:
+    """``b`` if it lies in ``region``; else ``a + s/2 (b - a)`` with ``s`` a fraction in
+    [0, 1] (bisection) keeping the segment's point in ``region`` (``a`` lies in it): half
+    way to the region's boundary, so a push never lands on a mode boundary.
+
+    The bisection assumes one crossing of the boundary along the segment. In a non-convex
+    region (the scoop world's white region wraps around the others) the segment can leave and
+    re-enter it, and the half-way point of the bisection's fraction can lie outside; then the
+    first exit is found on :data:`_SEGMENT_SAMPLES` points of the segment and refined by
+    bisection, and the result is halved towards ``a`` until it lies in ``region``.
+    """
+    inside = world.region_index
+    if int(inside(b[None])[0]) == region:
         return b
     lo_s, hi_s = 0.0, 1.0
     for _ in range(40):
         mid = 0.5 * (lo_s + hi_s)
-        if int(world.region_index((a + mid * (b - a))[None])[0]) == region:
+        if int(inside((a + mid * (b - a))[None])[0]) == region:
             lo_s = mid
         else:
             hi_s = mid
-    return np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
+    y = np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
+    if int(inside(y[None])[0]) == region:
+        return y
+    # more than one crossing: the first exit along the segment
+    fr = np.linspace(0.0, 1.0, _SEGMENT_SAMPLES + 1)
+    out = np.flatnonzero(inside(a[None, :] + fr[:, None] * (b - a)[None, :]) != region)
+    k = int(out[0]) if out.size else _SEGMENT_SAMPLES
+    lo_s, hi_s = float(fr[max(k - 1, 0)]), float(fr[k])
+    for _ in range(40):
+        mid = 0.5 * (lo_s + hi_s)
+        if int(inside((a + mid * (b - a))[None])[0]) == region:
+            lo_s = mid
+        else:
+            hi_s = mid
+    for _ in range(64):
+        y = np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
+        if int(inside(y[None])[0]) == region:
+            return y
+        lo_s *= 0.5
+    return np.asarray(a, dtype=np.float64).copy()
 
 
 def apply_push(world: Any, x: npt.ArrayLike, push: Push) -> FloatArray:
