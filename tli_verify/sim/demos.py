@@ -36,11 +36,13 @@ from tli_verify.io import atomic_write_text
 from tli_verify.sim.controller import Gains
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
 from tli_verify.sim.scene import (
+    DEFAULT_PHYSICS,
     N_BEADS,
     SOUP_CENTER,
     TARGET_CENTER,
     TRAY_HALF_THICKNESS,
     TRAY_RADIUS,
+    PhysicsOptions,
     build_mocap_scene,
     ladle_quat,
     reset_beads,
@@ -223,15 +225,19 @@ class MocapRig:
     sensors : str, optional
         ``"ideal"`` or ``"franka"`` (:func:`~tli_verify.sim.franka_sensors.make_sensors`,
         seeded with ``seed``).
+    physics : PhysicsOptions, optional
+        Solver settings (default: the measured ones,
+        :class:`~tli_verify.sim.scene.PhysicsOptions`).
     """
 
     def __init__(self, seed: int = 0, *, stiffness: float = 2000.0,
                  rot_stiffness: float = 150.0, start: npt.ArrayLike | None = None,
-                 in_bowl: int = N_BEADS, sensors: str = "ideal") -> None:
+                 in_bowl: int = N_BEADS, sensors: str = "ideal",
+                 physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
         self.k = float(stiffness)
         self.kr = float(rot_stiffness)
         self.push = np.zeros(6)
-        self.model = build_mocap_scene()
+        self.model = build_mocap_scene(physics)
         self.data = mujoco.MjData(self.model)
         self.ids = scene_ids(self.model)
         self.sensors = _sensors(sensors, self.model, self.ids, seed)
@@ -567,11 +573,15 @@ class PandaRig:
     sensors : str, optional
         ``"ideal"`` or ``"franka"`` (:func:`~tli_verify.sim.franka_sensors.make_sensors`,
         seeded with ``seed``).
+    physics : PhysicsOptions, optional
+        Solver settings (default: the measured ones,
+        :class:`~tli_verify.sim.scene.PhysicsOptions`).
     """
 
     def __init__(self, seed: int = 0, *, assets: Path | None = None, timestep: float = 0.002,
                  impedance: CartesianImpedance | None = None,
-                 limits: FrankaLimits | None = None, sensors: str = "ideal") -> None:
+                 limits: FrankaLimits | None = None, sensors: str = "ideal",
+                 physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
         from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
@@ -580,7 +590,7 @@ class PandaRig:
             raise TliError(f"timestep {timestep:g} s: one of "
                            f"{', '.join(f'{t:g}' for t in PANDA_TIMESTEPS)}")
         spec = panda_spec(assets)
-        set_contact_options(spec)
+        set_contact_options(spec, physics)
         spec.option.timestep = float(timestep)
         add_scene(spec)
         back = 0.035 + 0.004 + 0.16 * 0.5

@@ -64,6 +64,7 @@ from tli_verify.sim.franka_sensors import SENSOR_KINDS
 from tli_verify.sim.perturbations import PersonHand, Perturbation, draw
 from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
+from tli_verify.sim.scene import DEFAULT_PHYSICS, PhysicsOptions
 from tli_verify.sim.sensors import Debounce
 
 __all__ = [
@@ -286,7 +287,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
               robot: str = "panda", retry: bool = True,
-              detector: ContactDetector | None = None, sensors: str = "ideal") -> TrialResult:
+              detector: ContactDetector | None = None, sensors: str = "ideal",
+              physics: PhysicsOptions | None = None) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -318,6 +320,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     sensors : str, optional
         ``"ideal"`` (noise-free, privileged) or ``"franka"`` (the wrist F/T load and the noisy
         kinematic pose: :mod:`tli_verify.sim.franka_sensors`).
+    physics : PhysicsOptions, optional
+        The scene's solver settings (default: the measured ones,
+        :class:`~tli_verify.sim.scene.PhysicsOptions`).
 
     Returns
     -------
@@ -325,7 +330,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     """
     t0 = time.perf_counter()
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    rig: Any = make_rig(robot, seed, sensors=sensors)
+    rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics)
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     debounce = Debounce()
     reading = debounce.update(rig.read())
@@ -412,8 +417,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         perturbed_steps=perturbed_steps)
 
 
-def make_rig(robot: str, seed: int, *, sensors: str = "ideal") -> Any:
-    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed`` and ``sensors``.
+def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
+             physics: PhysicsOptions | None = None) -> Any:
+    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors`` and the
+    solver settings ``physics`` (default: the measured ones).
 
     Raises
     ------
@@ -427,8 +434,9 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal") -> Any:
         raise InputError(f"robot {robot!r}: one of {', '.join(ROBOTS)}")
     if sensors not in SENSOR_KINDS:
         raise InputError(f"sensors {sensors!r}: one of {', '.join(SENSOR_KINDS)}")
-    return PandaRig(seed, sensors=sensors) if robot == "panda" else \
-        MocapRig(seed, sensors=sensors)
+    options = DEFAULT_PHYSICS if physics is None else physics
+    return PandaRig(seed, sensors=sensors, physics=options) if robot == "panda" else \
+        MocapRig(seed, sensors=sensors, physics=options)
 
 
 class ContactDetector:
@@ -521,7 +529,8 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
                duration: float = TRIAL_DURATION, robot: str = "panda",
-               retry: bool = True, sensors: str = "ideal") -> list[dict[str, Any]]:
+               retry: bool = True, sensors: str = "ideal",
+               physics: PhysicsOptions | None = None) -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
@@ -533,6 +542,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     robot : str, optional
     retry : bool, optional
     sensors : str, optional
+    physics : PhysicsOptions, optional
 
     Returns
     -------
@@ -541,7 +551,8 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     """
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
-                      duration=duration, robot=robot, retry=retry, sensors=sensors).to_dict()
+                      duration=duration, robot=robot, retry=retry, sensors=sensors,
+                      physics=physics).to_dict()
             for s in seeds]
 
 

@@ -36,13 +36,16 @@ from tli_verify.errors import TliError
 __all__ = [
     "BEAD_MASS",
     "BEAD_RADIUS",
+    "DEFAULT_PHYSICS",
     "FT_FORCE",
     "FT_SITE",
     "FT_TORQUE",
     "N_BEADS",
+    "SOLVERS",
     "SOUP_CENTER",
     "TARGET_CENTER",
     "Bowl",
+    "PhysicsOptions",
     "SceneIds",
     "add_ladle",
     "add_scene",
@@ -140,13 +143,73 @@ the bowl's wall."""
 TARGET_BOWL = Bowl("target", TARGET_CENTER, radius=0.08, floor=0.008, height=0.04)
 
 
-def set_contact_options(spec: mujoco.MjSpec) -> None:
-    """The measured contact settings (module doc) on ``spec``'s options."""
+SOLVERS = ("newton", "cg")
+"""The constraint solvers :class:`PhysicsOptions` may pick (MuJoCo's Newton and CG)."""
+
+
+@dataclass(frozen=True, slots=True)
+class PhysicsOptions:
+    """The solver settings of the scene that trade speed against fidelity.
+
+    The default is the measured setting every trial, demonstration and piece of evidence uses
+    (module doc). The others exist to be measured (``benchmarks/bench_franka_scene.py``: speed,
+    and whether the 30 evidence trials keep their outcomes) before one becomes a default.
+
+    Attributes
+    ----------
+    sleep : bool
+        MuJoCo's island sleeping (``mjENBL_SLEEP``): bodies at rest (the beads in the soup
+        bowl) leave the constraint solver until something touches them.
+    sleep_tolerance : float
+        Velocity below which a body may sleep (MuJoCo ``sleep_tolerance``).
+    solver : str
+        ``"newton"`` (default) or ``"cg"``.
+    impratio : float
+        Frictional-to-normal impedance ratio of the elliptic cones (10: beads grip the tray).
+    """
+
+    sleep: bool = False
+    sleep_tolerance: float = 0.01
+    solver: str = "newton"
+    impratio: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise TliError(f"physics: solver {self.solver!r}: one of {', '.join(SOLVERS)}")
+        if not (self.sleep_tolerance > 0 and self.impratio >= 1):
+            raise TliError(f"physics: need sleep_tolerance > 0 and impratio >= 1, got "
+                           f"{self.sleep_tolerance}, {self.impratio}")
+
+    @property
+    def label(self) -> str:
+        """A short name (``default``, ``sleep + cg``, ``impratio 1``, ...)."""
+        parts = (["sleep"] if self.sleep else []) + (
+            [self.solver] if self.solver != "newton" else []) + (
+            [f"impratio {self.impratio:g}"] if self.impratio != 10.0 else [])
+        return " + ".join(parts) or "default"
+
+    def to_dict(self) -> dict[str, object]:
+        """The evidence's record."""
+        return {"sleep": self.sleep, "sleep_tolerance": self.sleep_tolerance,
+                "solver": self.solver, "impratio": self.impratio}
+
+
+DEFAULT_PHYSICS = PhysicsOptions()
+"""The scene's measured settings."""
+
+
+def set_contact_options(spec: mujoco.MjSpec, physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
+    """The measured contact settings (module doc) on ``spec``'s options, with ``physics``."""
     spec.option.timestep = 0.002
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.impratio = 10.0
+    spec.option.impratio = float(physics.impratio)
     spec.option.tolerance = 1e-6  # solver: 9 % faster steps than 1e-8, scooping unchanged
+    if physics.solver == "cg":
+        spec.option.solver = mujoco.mjtSolver.mjSOL_CG
+    if physics.sleep:
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+        spec.option.sleep_tolerance = float(physics.sleep_tolerance)
 
 
 def _contact(geom: mujoco.MjsGeom) -> mujoco.MjsGeom:
@@ -370,7 +433,7 @@ def ladle_quat(pitch: float) -> FloatArray:
     return out
 
 
-def build_mocap_scene() -> mujoco.MjModel:
+def build_mocap_scene(physics: PhysicsOptions = DEFAULT_PHYSICS) -> mujoco.MjModel:
     """The phase-1 scene: the ladle on a free "hand" body, and a mocap marker of its target.
 
     The free body ``ladle_carrier`` (1 kg, like the Panda hand; gravity compensated) carries
@@ -379,13 +442,18 @@ def build_mocap_scene() -> mujoco.MjModel:
     ``xfrc_applied``), so perturbation wrenches push and tilt it as they would a hand under
     impedance control. The marker does not collide.
 
+    Parameters
+    ----------
+    physics : PhysicsOptions, optional
+        Solver settings (default: the measured ones).
+
     Returns
     -------
     mujoco.MjModel
     """
     spec = mujoco.MjSpec()
     spec.modelname = "soup_scooping_mocap"
-    set_contact_options(spec)
+    set_contact_options(spec, physics)
     add_scene(spec)
     start = SOUP_CENTER + np.array([0.0, 0.25, 0.2])
     q = ladle_quat(0.0)
