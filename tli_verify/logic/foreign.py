@@ -204,7 +204,8 @@ class _Parser:
         return node
 
     def expr(self, min_prec: int) -> Node:
-        if self.dialect == "spectra" and self.peek() in ("forall", "exists"):
+        if (self.dialect == "spectra" and self.peek() in ("forall", "exists")
+                and self.peek(2) == "in"):
             return self.quantifier()
         left = self.unary()
         while True:
@@ -400,6 +401,9 @@ class _Translator:
             raise self.fail(c, f"temporal operator {kind} nested inside a formula is not GR(1)")
         if kind == "cmp":
             return self.compare(n, primed=primed, c=c, stack=stack)
+        if kind == "select":  # ("select", ((condition, value), ...)): an array read
+            return _or([_and(self.btext(k, primed=primed, c=c, stack=stack),
+                             self.btext(v, primed=primed, c=c, stack=stack)) for k, v in n[1]])
         if kind == "id":
             name = n[1]
             if name in self.defines:
@@ -469,6 +473,13 @@ class _Translator:
                         raise self.fail(c, f"enumeration value {name!r} is ambiguous here")
                     return {next(iter(self.literals[name])): "true"}
                 raise self.fail(c, f"unknown identifier {name!r}")
+        if kind == "select":
+            sel: dict[int, list[str]] = {}
+            for k, v in n[1]:
+                cond = self.btext(k, primed=primed, c=c, stack=stack)
+                for val, cv in self.ints(v, primed=primed, c=c, stack=stack, enum=enum).items():
+                    sel.setdefault(val, []).append(_and(cond, cv))
+            return {val: _or(cs) for val, cs in sel.items()}
         if kind in _ARITH_OPS:
             a = self.ints(n[1], primed=primed, c=c, stack=stack, enum=enum)
             b = self.ints(n[2], primed=primed, c=c, stack=stack, enum=enum)
@@ -502,8 +513,8 @@ class _Translator:
         return _or(terms)
 
     def enum_of(self, n: Node, stack: tuple[str, ...]) -> _Var | None:
-        while n[0] == "next":
-            n = n[1]
+        while n[0] in ("next", "select"):
+            n = n[1] if n[0] == "next" else n[1][0][1]
         if n[0] == "id":
             if n[1] in self.defines and n[1] not in stack:
                 return self.enum_of(self.defines[n[1]][0], (*stack, n[1]))
@@ -726,6 +737,7 @@ class _SpectraModule:
     arrays: dict[str, tuple[int, ...]] = field(default_factory=dict)
     constraints: list[_Constraint] = field(default_factory=list)
     imported: set[Path] = field(default_factory=set)
+    missing: list[str] = field(default_factory=list)  # imports not found
 
 
 def _spectra_parser(toks: list[str], where: str, line: int) -> _Parser:
@@ -751,8 +763,8 @@ def _read_spectra(mod: _SpectraModule, text: str, where: str, base: Path | None,
         toks = _tokens(stmt, where, line)
         if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
             raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
-        if toks[1] in mod.types and not library:
-            raise _fail(where, line, f"type {toks[1]!r} declared twice")
+        if toks[1] in mod.types and not library and mod.types[toks[1]][0] != toks[3:]:
+            raise _fail(where, line, f"type {toks[1]!r} declared twice, differently")
         mod.types.setdefault(toks[1], (toks[3:], line, where))
     in_define = False
     for stmt, line in statements:
@@ -823,7 +835,10 @@ def _spectra_import(mod: _SpectraModule, name: str, where: str, line: int,
     if base is None:
         return  # no folder to look in: a pattern or predicate used is refused where used
     path = (base / name).resolve()
-    if path in mod.imported or not path.is_file():
+    if not path.is_file():
+        mod.missing.append(name)
+        return
+    if path in mod.imported:
         return
     mod.imported.add(path)
     text = read_text(path, what="Spectra import", error=SpecError)
@@ -1142,16 +1157,11 @@ class _Expander:
     def constraint(self, c: _Constraint, env: Mapping[str, Node] | None = None) -> None:
         body = c.body
         if body[0] == "call" and body[1] in self.mod.patterns:
-            if c.slot != "init":
-                raise self.fail(c, f"pattern {body[1]!r} used under a temporal operator")
+            # Spectra ignores a temporal keyword before a pattern (Spectra2GameInputTranslator:
+            # a constraint that references a pattern is a pattern constraint)
             self.pattern(c, body)
             return
         body = self.ex(body, dict(env or {}), c, ())
-        if c.slot == "liveness" and _has(body, "next"):
-            j = self.fresh("PRIMED_JUSTICE", ("bool",), c)  # true next iff the goal held
-            self.emit("guarantee", "init", ("not", ("id", j, False)), c)
-            self.emit("guarantee", "safety", ("iff", ("next", ("id", j, False)), body), c)
-            body = ("id", j, False)
         if c.slot == "stateinv":
             if _has(body, "next") or (c.side == "assume" and self.reads_sys(body)):
                 self.emit(c.side, "safety", body, c)
@@ -1162,10 +1172,8 @@ class _Expander:
         self.emit(c.side, c.slot, body, c)
 
     def reads_sys(self, n: Node) -> bool:
-        if n[0] == "id":
-            var = self.vars.get(n[1])
-            return var is not None and var.side == "sys"
-        return any(isinstance(m, tuple) and self.reads_sys(m) for m in n[1:])
+        return any(m[0] == "id" and m[1] in self.vars and self.vars[m[1]].side == "sys"
+                   for m in _nodes(n))
 
     def pattern(self, c: _Constraint, call: Node) -> None:
         pat = self.mod.patterns[call[1]]
@@ -1207,6 +1215,8 @@ class _Expander:
             return ("not", node) if n[3] else node
         if kind == "quant":
             return self.quantifier(n, env, c, stack)
+        if kind == "select":
+            return n
         if kind == "cmp":
             return ("cmp", n[1], self.ex(n[2], env, c, stack), self.ex(n[3], env, c, stack))
         return (kind, *(self.ex(m, env, c, stack) for m in n[1:]))
@@ -1214,7 +1224,13 @@ class _Expander:
     def ident(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
               ) -> Node:
         name = n[1]
+        if "." in name and name.split(".", 1)[0] in env:
+            head, tail = name.split(".", 1)
+            if env[head][0] == "arrayref":
+                name = f"{env[head][1]}.{tail}"
         if name in env:
+            if env[name][0] == "arrayref":
+                raise self.fail(c, f"array {env[name][1]!r} used without an index")
             return env[name]
         if name in self.mod.defines:
             if name in stack:
@@ -1256,13 +1272,26 @@ class _Expander:
     def index(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
               ) -> Node:
         name = n[1]
-        idx = []
-        for i in n[2]:
-            value = _const(self.ex(i, env, c, stack), self.mod)
-            if value is None:
-                raise self.fail(c, f"array {name}[...] indexed by a non-constant expression "
-                                "is not supported")
-            idx.append(value)
+        if name in env and env[name][0] == "arrayref":
+            name = env[name][1]
+        idx: list[int] = []
+        for pos, i in enumerate(n[2]):
+            e = self.ex(i, env, c, stack)
+            value = _const(e, self.mod)
+            if value is not None:
+                idx.append(value)
+                continue
+            # an index that depends on variables: a case split over the index's values
+            # (Spectra's VarIndexesTranslator splits over the index variable's values)
+            dims = self.mod.arrays.get(name)
+            if dims is None or pos >= len(dims):
+                raise self.fail(c, f"{name}[...]: a define array indexed by a non-constant "
+                                "expression is not supported")
+            cases = []
+            for k in range(dims[pos]):
+                sub = ("index", name, (*(("num", j) for j in idx), ("num", k), *n[2][pos + 1:]))
+                cases.append((("cmp", "=", e, ("num", k)), self.index(sub, env, c, stack)))
+            return ("select", tuple(cases))
         if name in self.mod.arrays:
             dims = self.mod.arrays[name]
             if len(idx) != len(dims) or any(not 0 <= i < d for i, d in zip(idx, dims,
@@ -1289,15 +1318,28 @@ class _Expander:
                             "whole assumption or guarantee)")
         pred = self.mod.predicates.get(name)
         if pred is None:
+            note = (f"; import {self.mod.missing[0]!r} not found" if self.mod.missing
+                    else "")
             raise self.fail(c, f"{name}(...): unknown predicate or pattern (not defined in "
-                            "the file or its imports)")
+                            f"the file or its imports{note})")
         if name in stack:
             raise self.fail(c, f"predicate {name!r} calls itself")
         if len(args) != len(pred.params):
             raise self.fail(c, f"predicate {name!r} takes {len(pred.params)} arguments, "
                             f"{len(args)} given")
-        inner = {p: self.ex(a, env, c, stack) for p, a in zip(pred.params, args, strict=True)}
+        inner = {p: self.arg(a, env, c, stack) for p, a in zip(pred.params, args, strict=True)}
         return self.ex(pred.body, inner, c, (*stack, name))
+
+    def arg(self, a: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+            ) -> Node:
+        """A predicate's argument: a whole array is passed by reference."""
+        if a[0] == "id" and a[1] in env and env[a[1]][0] == "arrayref":
+            return env[a[1]]
+        if a[0] == "id" and (a[1] in self.mod.arrays or (
+                a[1] in self.mod.defines and isinstance(self.mod.defines[a[1]][0], tuple)
+                and self.mod.defines[a[1]][0][0] == "array")):  # type: ignore[index]
+            return ("arrayref", a[1])
+        return self.ex(a, env, c, stack)
 
     def quantifier(self, n: Node, env: dict[str, Node], c: _Constraint,
                    stack: tuple[str, ...]) -> Node:
@@ -1345,10 +1387,22 @@ class _Expander:
         return aux
 
 
+def _nodes(n: object) -> Iterator[Node]:
+    """Every node of a tree (also inside the pairs of a ``select`` and argument tuples)."""
+    todo = [n]
+    while todo:
+        m = todo.pop()
+        if not isinstance(m, tuple):
+            continue
+        if m and isinstance(m[0], str):
+            yield m
+            todo.extend(m[1:])
+        else:
+            todo.extend(m)
+
+
 def _has(n: Node, kind: str) -> bool:
-    if n[0] == kind:
-        return True
-    return any(isinstance(m, tuple) and _has(m, kind) for m in n[1:])
+    return any(m[0] == kind for m in _nodes(n))
 
 
 # --------------------------------------------------------------------------------------------
@@ -1556,6 +1610,7 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
         spec = _parse_slugsin(text, where, default_name)
     else:
         raise SpecError(f"{where}: unknown format {fmt!r}")
+    _primed_justice(spec)
     if not spec.outputs():
         if fmt == "spectra" and not spec.variables and (mod.patterns or mod.predicates):
             raise SpecError(f"{where}: a library of patterns and predicates only (no "
@@ -1573,6 +1628,26 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
             sections.setdefault((owner, "init"), []).append((None, now))
             sections.setdefault((owner, "safety"), []).append((None, f"G({nxt})"))
     return _toml(spec, sections, semantics)
+
+
+def _primed_justice(spec: ImportedSpec) -> None:
+    """A liveness goal that reads next values, ``GF phi(v, v')`` (a goal over steps, as
+    Spectra and slugs allow), becomes ``GF j`` with a fresh system variable ``j``: false at
+    time 0, then ``j' <-> phi`` (spectra-synt ``PrimesInJusticeTranslator``)."""
+    for k, c in enumerate(list(spec.constraints)):
+        if c.slot != "liveness" or not _has(c.body, "next"):
+            continue
+        taken = {b for v in spec.variables for b in v.bits()}
+        n = 0
+        while f"primed_justice_{n}" in taken:
+            n += 1
+        j = _Var(name=f"PRIMED_JUSTICE_{n}", ap=f"primed_justice_{n}", side="sys")
+        spec.variables.append(j)
+        ref: Node = ("id", j.name, False)
+        spec.constraints[k] = _Constraint(c.side, "liveness", ref, c.line, c.where)
+        spec.constraints += [
+            _Constraint("guarantee", "init", ("not", ref), c.line, c.where),
+            _Constraint("guarantee", "safety", ("iff", ("next", ref), c.body), c.line, c.where)]
 
 
 def _toml_str(s: str) -> str:
