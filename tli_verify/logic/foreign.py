@@ -43,6 +43,7 @@ import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
@@ -567,10 +568,14 @@ _AP = re.compile(r"^[a-z_][a-z0-9_]*$")
 _RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
 
-def _ap_name(name: str) -> str:
+def _ap_stem(name: str) -> str:
+    """The lower-cased stem of a variable's bits or array elements (``name_k``)."""
     low = re.sub(r"[^a-z0-9_]", "_", name.lower())
-    if not _AP.match(low):
-        low = "v_" + low
+    return low if _AP.match(low) else "v_" + low
+
+
+def _ap_name(name: str) -> str:
+    low = _ap_stem(name)
     if low in _RESERVED or (len(low) == 1 and low in "xgfurwm"):
         low = low + "_"
     return low
@@ -730,7 +735,7 @@ class _Predicate:
 class _SpectraModule:
     spec: ImportedSpec
     where: str
-    defines: dict[str, tuple[object, int, str]] = field(default_factory=dict)
+    defines: dict[str, tuple[Any, int, str]] = field(default_factory=dict)
     types: dict[str, tuple[list[str], int, str]] = field(default_factory=dict)
     predicates: dict[str, _Predicate] = field(default_factory=dict)
     patterns: dict[str, _Pattern] = field(default_factory=dict)
@@ -859,10 +864,10 @@ def _spectra_define(mod: _SpectraModule, toks: list[str], where: str, line: int)
     mod.defines[name] = (value, line, where)
 
 
-def _define_array(toks: list[str], where: str, line: int) -> tuple[object, ...]:
+def _define_array(toks: list[str], where: str, line: int) -> tuple[Any, ...]:
     pos = 0
 
-    def items() -> tuple[object, ...]:
+    def items() -> tuple[Any, ...]:
         nonlocal pos
         if toks[pos] != "{":
             raise _fail(where, line, "expected '{' in a define array")
@@ -896,7 +901,9 @@ def _define_array(toks: list[str], where: str, line: int) -> tuple[object, ...]:
 
 def _param_names(toks: list[str], where: str, line: int) -> tuple[str, ...]:
     """The names of a parameter list's entries (``[type] name``, comma-separated)."""
-    names, depth, cur = [], 0, []
+    names: list[str] = []
+    depth = 0
+    cur: list[str] = []
     for tok in [*toks, ","]:
         if tok == "," and depth == 0:
             if not cur or not re.match(r"^[A-Za-z_]\w*$", cur[-1]):
@@ -1003,13 +1010,13 @@ def _const_toks(toks: list[str], mod: _SpectraModule, where: str, line: int,
 
 
 def _spectra_type(toks: list[str], mod: _SpectraModule, where: str, line: int,
-                  seen: tuple[str, ...] = ()) -> tuple[tuple[object, ...], tuple[int, ...],
+                  seen: tuple[str, ...] = ()) -> tuple[tuple[Any, ...], tuple[int, ...],
                                                        list[str]]:
     """``(base, dims, rest)``: base ``("bool",)``, ``("int", lo, hi)`` or
     ``("enum", values)``; array dimensions; the tokens after the type."""
     if not toks:
         raise _fail(where, line, "missing type")
-    base: tuple[object, ...]
+    base: tuple[Any, ...]
     dims: tuple[int, ...] = ()
     if toks[0] == "boolean":
         base, rest = ("bool",), toks[1:]
@@ -1058,20 +1065,21 @@ def _spectra_type(toks: list[str], mod: _SpectraModule, where: str, line: int,
     return base, dims, rest
 
 
-def _declare_typed(mod: _SpectraModule, base: tuple[object, ...], dims: tuple[int, ...],
+def _declare_typed(mod: _SpectraModule, base: tuple[Any, ...], dims: tuple[int, ...],
                    name: str, side: str, where: str, line: int) -> None:
     if dims:
         mod.arrays[name] = dims
     for idx in itertools.product(*(range(d) for d in dims)):
         src = name + "".join(f"[{i}]" for i in idx)
-        ap = _ap_name(name) + "".join(f"_{i}" for i in idx)
+        ap = _ap_stem(name) + "".join(f"_{i}" for i in idx)
         if base[0] == "bool":
+            ap = _ap_name(ap)
             var = _Var(name=src, ap=ap, side=side)
         elif base[0] == "int":
-            var = _Var(name=src, ap=ap, side=side, lo=int(base[1]),  # type: ignore[call-overload]
-                       hi=int(base[2]), boolean=False)  # type: ignore[call-overload]
+            var = _Var(name=src, ap=ap, side=side, lo=int(base[1]),
+                       hi=int(base[2]), boolean=False)
         else:
-            values = tuple(base[1])  # type: ignore[arg-type]
+            values = tuple(base[1])
             var = _Var(name=src, ap=ap, side=side, lo=0, hi=len(values) - 1, boolean=False,
                        values=values)
         _declare(mod.spec, var, where, line)
@@ -1139,7 +1147,7 @@ class _Expander:
     def fail(self, c: _Constraint, msg: str) -> SpecError:
         return _fail(c.where or self.mod.where, c.line, msg)
 
-    def fresh(self, stem: str, base: tuple[object, ...], c: _Constraint) -> str:
+    def fresh(self, stem: str, base: tuple[Any, ...], c: _Constraint) -> str:
         taken = {b for v in self.mod.spec.variables for b in v.bits()}
         while True:
             name = f"{stem}_{self.fresh_count}"
@@ -1266,7 +1274,7 @@ class _Expander:
             if isinstance(v, tuple) and v and v[0] == "array":
                 todo = list(v[1]) + todo
             else:
-                flat.append(self.ex(v, {}, c, (*stack, arr)))  # type: ignore[arg-type]
+                flat.append(self.ex(v, {}, c, (*stack, arr)))
         return flat
 
     def index(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
@@ -1299,15 +1307,15 @@ class _Expander:
                 raise self.fail(c, f"index {name}{idx} outside the array's {list(dims)}")
             return ("id", name + "".join(f"[{i}]" for i in idx), False)
         if name in self.mod.defines:
-            value: object = self.mod.defines[name][0]
+            dvalue: Any = self.mod.defines[name][0]
             for i in idx:
-                if not (isinstance(value, tuple) and value[0] == "array"
-                        and 0 <= i < len(value[1])):
+                if not (isinstance(dvalue, tuple) and dvalue[0] == "array"
+                        and 0 <= i < len(dvalue[1])):
                     raise self.fail(c, f"index {name}{idx} outside the define array")
-                value = value[1][i]
-            if isinstance(value, tuple) and value[0] == "array":
+                dvalue = dvalue[1][i]
+            if isinstance(dvalue, tuple) and dvalue[0] == "array":
                 raise self.fail(c, f"define array {name} indexed by too few indices")
-            return self.ex(value, {}, c, (*stack, name))  # type: ignore[arg-type]
+            return self.ex(dvalue, {}, c, (*stack, name))
         raise self.fail(c, f"{name}[...]: {name!r} is not an array")
 
     def call(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
@@ -1337,7 +1345,7 @@ class _Expander:
             return env[a[1]]
         if a[0] == "id" and (a[1] in self.mod.arrays or (
                 a[1] in self.mod.defines and isinstance(self.mod.defines[a[1]][0], tuple)
-                and self.mod.defines[a[1]][0][0] == "array")):  # type: ignore[index]
+                and self.mod.defines[a[1]][0][0] == "array")):
             return ("arrayref", a[1])
         return self.ex(a, env, c, stack)
 
@@ -1352,9 +1360,9 @@ class _Expander:
         if base[0] == "bool":
             values = [("const", False), ("const", True)]
         elif base[0] == "int":
-            values = [("num", k) for k in range(int(base[1]), int(base[2]) + 1)]  # type: ignore[call-overload]
+            values = [("num", k) for k in range(int(base[1]), int(base[2]) + 1)]
         else:
-            values = [("id", v, False) for v in base[1]]  # type: ignore[union-attr]
+            values = [("id", v, False) for v in base[1]]
         parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
         node = parts[0]
         for p in parts[1:]:
