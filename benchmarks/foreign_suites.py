@@ -29,7 +29,7 @@ from tli_verify.logic.foreign import FORMATS, import_spec_file
 
 
 def _reason(msg: str) -> str:
-    text = re.sub(r"^\S+:\d+: ", "", msg)
+    text = re.sub(r"^\S+?:(\d+:)? ", "", msg)
     text = re.sub(r"'[^']*'", "'_'", text)
     return " ".join(text.split()[:7])
 

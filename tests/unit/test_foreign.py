@@ -170,7 +170,7 @@ SPECTRA_HEAD = "module M\nenv boolean e;\nsys boolean s;\nsys Int(0..3) n;\n"
 
 
 @pytest.mark.parametrize(("line", "reason"), [
-    ("counter c(0..3) { inc: s; }", "counters"),
+    ("counter c(0..3) { inc: s; overflow: wrap; }", "counter 'c': unsupported entry"),
     ("gar trig [true]*[e] |=> [s];", "triggers"),
     ("weight w: s;", "weights"),
     ("asm G (s -> next(e));", None),  # allowed: next of an input

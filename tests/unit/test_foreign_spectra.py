@@ -208,3 +208,15 @@ def test_multiplication_division_and_remainder_are_bit_blasted() -> None:
         nxt = {**enc("x", x1, 2), **enc("y", y1, 4)}
         want = y1 == x1 * 3 % (4 + x0 // 2)
         assert all(holds(body(g), now, nxt) for g in conjuncts(f)) == want, (x0, x1, y1)
+
+
+def test_a_counter_is_a_system_integer_with_its_update_rules() -> None:
+    text = ("module M\nenv boolean e;\nsys boolean s;\n"
+            "counter c(0..2) {\n  c = 0;\n  inc: e;\n  reset: s & !e;\n  overflow: keep;\n}\n"
+            "gar G (c = 2 -> next(s));\nasm GF e;\nasm GF !e;\ngar GF (c = 0);\n")
+    spec = imported(text, "spectra")
+    assert spec.outputs == ("s", "c_0", "c_1")
+    assert len(spec.guarantee.safety) == 5  # inc, reset, no change, the use, c's domain
+    assert agree_with_omega(spec) == {"tli": True, "textbook": True}
+    stuck = imported(text.replace("  overflow: keep;\n", ""), "spectra")  # overflow: false
+    assert agree_with_omega(stuck) == {"tli": False, "textbook": False}  # e three times

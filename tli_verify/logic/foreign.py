@@ -601,11 +601,10 @@ def _declare(spec: ImportedSpec, var: _Var, where: str, line: int) -> None:
 # Spectra
 
 
-_SCAN_REFUSED = frozenset({"counter", "trig", "regexp", "weight", "regtest", "GE", "GEF"})
+_SCAN_REFUSED = frozenset({"trig", "regexp", "weight", "regtest", "GE", "GEF"})
 """Words that refuse a statement wherever they occur in it."""
 
 _SPECTRA_REFUSED = {
-    "counter": "Spectra counters are not supported",
     "trig": "Spectra triggers (regular-expression constraints) are not supported",
     "regexp": "Spectra regular expressions are not supported",
     "regtest": "Spectra regular-expression tests (regtest) are not supported",
@@ -779,14 +778,18 @@ def _read_spectra(mod: _SpectraModule, text: str, where: str, base: Path | None,
             continue
         head_word = re.match(r"^\s*(\w+)", stmt)
         head_word_s = head_word.group(1) if head_word else ""
-        if head_word_s in ("pattern", "predicate", "monitor"):
+        if head_word_s in ("pattern", "predicate", "monitor", "counter"):
             in_define = False
             if head_word_s == "pattern":
                 _spectra_pattern(mod, stmt, where, line)
             elif head_word_s == "predicate":
                 _spectra_predicate(mod, stmt, where, line)
-            elif not library:
+            elif library:
+                pass
+            elif head_word_s == "monitor":
                 _spectra_monitor(mod, stmt, where, line)
+            else:
+                _spectra_counter(mod, stmt, where, line)
             continue
         for word in re.findall(r"[A-Za-z_]\w*", stmt):
             if word in _SCAN_REFUSED:
@@ -981,6 +984,58 @@ def _spectra_monitor(mod: _SpectraModule, stmt: str, where: str, line: int) -> N
         if slot == "liveness":
             raise _fail(where, n, "a liveness goal inside a monitor")
         mod.constraints.append(_Constraint("guarantee", slot, body, n))
+
+
+def _spectra_counter(mod: _SpectraModule, stmt: str, where: str, line: int) -> None:
+    """A counter ``counter c(lo..hi) { ini; inc: p; dec: q; reset: r; overflow: m; ... }``:
+    an auxiliary (system) integer with guarantees ``p -> (c' = c + 1 | overflow)``,
+    ``q -> (c' = c - 1 | underflow)``, ``r -> c' = lo`` and ``!p & !q & !r -> c' = c``;
+    overflow ``false`` (the default), ``keep`` (stay at the bound) or ``modulo`` (wrap)
+    (spectra-synt ``CounterTranslator``)."""
+    (head,), inner = _block_body(stmt, line)
+    toks = _tokens(head, where, line)
+    if len(toks) < 3 or toks[2] != "(" or toks[-1] != ")":
+        raise _fail(where, line, "expected counter NAME(lo..hi) { ... }")
+    name = toks[1]
+    base, _, _ = _spectra_type(["Int", *toks[2:]], mod, where, line)
+    _declare_typed(mod, base, (), name, "sys", where, line)
+    lo, hi = ("num", base[1]), ("num", base[2])
+    c, c1 = ("id", name, False), ("next", ("id", name, False))
+    preds: dict[str, tuple[Node, int]] = {}
+    modes = {"overflow": "false", "underflow": "false"}
+    for s, n in inner:
+        t = _tokens(s, where, n)
+        if len(t) >= 2 and t[1] == ":" and t[0] in ("inc", "dec", "reset"):
+            preds[t[0]] = (_spectra_parser(t[2:], where, n).parse(), n)
+        elif len(t) == 3 and t[1] == ":" and t[0] in modes and t[2] in ("false", "keep",
+                                                                          "modulo"):
+            modes[t[0]] = t[2]
+        elif len(t) >= 2 and t[1] == ":":
+            raise _fail(where, n, f"counter {name!r}: unsupported entry {' '.join(t)!r} (inc:, "
+                        "dec:, reset:, overflow:/underflow: false|keep|modulo)")
+        else:
+            mod.constraints.append(_Constraint("guarantee", "init",
+                                               _spectra_parser(t, where, n).parse(), n))
+
+    def eq(a: Node, b: Node) -> Node:
+        return ("cmp", "=", a, b)
+
+    for op, bound, wrap, mode in (("inc", hi, lo, modes["overflow"]),
+                                  ("dec", lo, hi, modes["underflow"])):
+        if op in preds:
+            pred, n = preds[op]
+            step = eq(c1, ("add" if op == "inc" else "sub", c, ("num", 1)))
+            edge = {"false": ("const", False), "keep": ("and", eq(c, bound), eq(c1, bound)),
+                    "modulo": ("and", eq(c, bound), eq(c1, wrap))}[mode]
+            mod.constraints.append(_Constraint("guarantee", "safety",
+                                               ("imp", pred, ("or", step, edge)), n))
+    if "reset" in preds:
+        pred, n = preds["reset"]
+        mod.constraints.append(_Constraint("guarantee", "safety", ("imp", pred, eq(c1, lo)), n))
+    idle: Node = ("const", True)
+    for pred, _ in preds.values():
+        idle = ("and", idle, ("not", pred))
+    mod.constraints.append(_Constraint("guarantee", "safety", ("imp", idle, eq(c1, c)), line))
 
 
 def _const(n: Node, mod: _SpectraModule, stack: tuple[str, ...] = ()) -> int | None:
