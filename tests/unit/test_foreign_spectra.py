@@ -220,3 +220,15 @@ def test_a_counter_is_a_system_integer_with_its_update_rules() -> None:
     assert agree_with_omega(spec) == {"tli": True, "textbook": True}
     stuck = imported(text.replace("  overflow: keep;\n", ""), "spectra")  # overflow: false
     assert agree_with_omega(stuck) == {"tli": False, "textbook": False}  # e three times
+
+
+def test_spec_check_reads_foreign_files_directly(tmp_path: Path) -> None:
+    from tli_verify.logic.check import check_spec_file
+
+    path = tmp_path / "m.spectra"
+    path.write_text("module M\nenv boolean e;\nsys boolean s;\ngar G (s <-> PREV(e));\n",
+                    encoding="utf-8")
+    assert check_spec_file(path).realizable
+    path.write_text("module M\nenv boolean e;\nsys boolean s;\ngar G (x);\n", encoding="utf-8")
+    with pytest.raises(SpecError, match=r"m\.spectra:4: unknown identifier 'x'"):
+        check_spec_file(path)
