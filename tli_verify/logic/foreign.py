@@ -2,14 +2,14 @@
 
 Three formats are read (``tli spec import``):
 
-* **Spectra** (``.spectra``; Maoz and Ringert, SoSyM 2021), the GR(1) subset: ``env``/``sys``
-  variables of type ``boolean``, ``Int(lo..hi)`` or an enumeration ``{A, B, C}``;
-  ``type Name = ...;`` aliases of these types; ``define name := expr;`` macros without
-  parameters; ``asm``/``assumption`` and
-  ``gar``/``guarantee`` constraints (optionally labelled ``name:``), each an initial constraint
-  (no temporal operator, or ``ini``/``initially``), a safety constraint (``G``/``alw``/
-  ``always``, with ``next(...)``) or a justice constraint (``GF``/``alwEv``/
-  ``alwaysEventually``);
+* **Spectra** (``.spectra``; Maoz and Ringert, SoSyM 2021): ``env``/``sys``/``aux``
+  variables of type ``boolean``, ``Int(lo..hi)``, an enumeration ``{A, B, C}`` or a ``type``
+  alias, also as arrays (``boolean[N] x``); ``define`` macros and arrays of expressions;
+  ``asm``/``gar`` constraints (optionally labelled) in the slots ``ini``, ``G``/``trans``,
+  ``alw`` (a state invariant) and ``GF``/``alwEv``; and Spectra's derived constructs, expanded
+  as spectra-synt's translators expand them (:class:`_Expander`): predicates, patterns (also
+  from ``import``-ed files), monitors, counters, past operators, quantifiers, ``in``, array
+  functions (``docs/explanation/logic.md``, "Specs from Spectra and slugs");
 * **structured slugs** (``.structuredslugs``): sections ``[INPUT]``, ``[OUTPUT]``,
   ``[ENV|SYS_INIT|TRANS|LIVENESS]``, Boolean variables and integers ``a:lo...hi``, infix
   formulas with ``'`` for the next value, ``+``/``-`` and comparisons between integers;
@@ -24,12 +24,10 @@ variable: an initial condition and ``G(X dom)`` (an assumption for inputs, a gua
 outputs). Names are lower-cased (our AP names are lower-case identifiers); a clash is refused.
 
 Every construct that the GR(1) TOML cannot express is refused by name, with the file and line:
-Spectra's patterns, monitors, counters, predicates, triggers, weights (energy), regular
-expressions, arrays, quantifiers and past-time operators
-(``PREV``, ``Y``, ``H``, ``O``, ``S``), defines with parameters; ``next`` of a system variable
-inside an assumption; ``next`` inside an initial condition or a liveness goal; nested ``next``;
-multiplication and division; temporal operators other than the slot's own. ``import`` lines
-(Spectra's pattern libraries) are skipped: a pattern used is refused where it is used.
+Spectra's triggers, regular expressions, weights (energy), existential guarantees,
+constraints with parameters, defines with parameters; ``next`` of a system variable inside an
+assumption; ``next`` inside an initial condition; nested ``next``; temporal operators other
+than the slot's own. A liveness goal that reads next values gets a fresh system variable.
 
 The translation keeps each constraint's text in the slot it was written in. Which reading of
 ``G(phi)`` at time 0 decides the game is the spec's ``semantics`` setting
