@@ -29,7 +29,7 @@ from tli_verify.logic.foreign import FORMATS, import_spec_file
 
 
 def _reason(msg: str) -> str:
-    text = re.sub(r"^\S+:\d+: ", "", msg)
+    text = re.sub(r"^\S+?:(\d+:)? ", "", msg)
     text = re.sub(r"'[^']*'", "'_'", text)
     return " ".join(text.split()[:7])
 
@@ -63,6 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("dirs", nargs="+", type=Path)
     ap.add_argument("--timeout", type=float, default=30.0)
     ap.add_argument("--limit", type=int, default=0, help="decide at most this many specs")
+    ap.add_argument("--each", action="store_true",
+                    help="one line per decided spec (verdicts so far survive an interruption)")
     args = ap.parse_args(argv)
     files: list[Path] = []
     for d in args.dirs:
@@ -92,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     timeouts = 0
     load_errors: collections.Counter[str] = collections.Counter()
     ctx = mp.get_context("fork")
-    for p, text in todo:
+    for k, (p, text) in enumerate(todo, start=1):
         q: mp.Queue = ctx.Queue()  # type: ignore[type-arg]
         proc = ctx.Process(target=_decide, args=(text, q))
         proc.start()
@@ -111,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
             continue
         else:
             res = last[1]
+        if args.each:
+            got = ", ".join(f"{s} {'R' if o else 'U'}/{'R' if t else 'U'}"
+                            for s, (o, t, _, _) in res.items())
+            print(f"  [{k}/{len(todo)}] {p}: {got or 'time-out'} (ours/omega)", flush=True)
         for sem, (ours, theirs, _, _) in res.items():
             agree[sem][1] += 1
             agree[sem][0] += ours == theirs

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from tli_verify.errors import UnrealizableError
@@ -23,7 +24,7 @@ from tli_verify.logic.sanity import (
     vacuity_hints,
     well_separation,
 )
-from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.logic.spec import GR1Spec, load_spec, parse_spec
 
 __all__ = ["SpecCheck", "check_spec", "check_spec_file", "synthesize"]
 
@@ -137,7 +138,17 @@ def check_spec(spec: GR1Spec, *, core: bool = False, hints: bool = False) -> Spe
 
 def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: bool = False
                     ) -> SpecCheck:
-    """Load and check a spec file (raises :class:`~tli_verify.errors.SpecError` on bad input)."""
+    """Load and check a spec file (raises :class:`~tli_verify.errors.SpecError` on bad input).
+
+    A ``.spectra``, ``.structuredslugs`` or ``.slugsin`` file is read through
+    :func:`~tli_verify.logic.foreign.import_spec_file` (in the tool's own, textbook reading
+    of safety at time 0), as ``tli spec import`` would translate it."""
+    from tli_verify.logic.foreign import FORMATS, import_spec_file
+
+    if Path(path).suffix in FORMATS:
+        spec = parse_spec(import_spec_file(Path(path)), path=f"{path} (imported)",
+                          default_name=Path(path).stem)
+        return check_spec(spec, core=core, hints=hints)
     return check_spec(load_spec(path), core=core, hints=hints)
 
 

@@ -2,14 +2,14 @@
 
 Three formats are read (``tli spec import``):
 
-* **Spectra** (``.spectra``; Maoz and Ringert, SoSyM 2021), the GR(1) subset: ``env``/``sys``
-  variables of type ``boolean``, ``Int(lo..hi)`` or an enumeration ``{A, B, C}``;
-  ``type Name = ...;`` aliases of these types; ``define name := expr;`` macros without
-  parameters; ``asm``/``assumption`` and
-  ``gar``/``guarantee`` constraints (optionally labelled ``name:``), each an initial constraint
-  (no temporal operator, or ``ini``/``initially``), a safety constraint (``G``/``alw``/
-  ``always``, with ``next(...)``) or a justice constraint (``GF``/``alwEv``/
-  ``alwaysEventually``);
+* **Spectra** (``.spectra``; Maoz and Ringert, SoSyM 2021): ``env``/``sys``/``aux``
+  variables of type ``boolean``, ``Int(lo..hi)``, an enumeration ``{A, B, C}`` or a ``type``
+  alias, also as arrays (``boolean[N] x``); ``define`` macros and arrays of expressions;
+  ``asm``/``gar`` constraints (optionally labelled) in the slots ``ini``, ``G``/``trans``,
+  ``alw`` (a state invariant) and ``GF``/``alwEv``; and Spectra's derived constructs, expanded
+  as spectra-synt's translators expand them (:class:`_Expander`): predicates, patterns (also
+  from ``import``-ed files), monitors, counters, past operators, quantifiers, ``in``, array
+  functions (``docs/explanation/logic.md``, "Specs from Spectra and slugs");
 * **structured slugs** (``.structuredslugs``): sections ``[INPUT]``, ``[OUTPUT]``,
   ``[ENV|SYS_INIT|TRANS|LIVENESS]``, Boolean variables and integers ``a:lo...hi``, infix
   formulas with ``'`` for the next value, ``+``/``-`` and comparisons between integers;
@@ -24,12 +24,10 @@ variable: an initial condition and ``G(X dom)`` (an assumption for inputs, a gua
 outputs). Names are lower-cased (our AP names are lower-case identifiers); a clash is refused.
 
 Every construct that the GR(1) TOML cannot express is refused by name, with the file and line:
-Spectra's patterns, monitors, counters, predicates, triggers, weights (energy), regular
-expressions, arrays, quantifiers and past-time operators
-(``PREV``, ``Y``, ``H``, ``O``, ``S``), defines with parameters; ``next`` of a system variable
-inside an assumption; ``next`` inside an initial condition or a liveness goal; nested ``next``;
-multiplication and division; temporal operators other than the slot's own. ``import`` lines
-(Spectra's pattern libraries) are skipped: a pattern used is refused where it is used.
+Spectra's triggers, regular expressions, weights (energy), existential guarantees,
+constraints with parameters, defines with parameters; ``next`` of a system variable inside an
+assumption; ``next`` inside an initial condition; nested ``next``; temporal operators other
+than the slot's own. A liveness goal that reads next values gets a fresh system variable.
 
 The translation keeps each constraint's text in the slot it was written in. Which reading of
 ``G(phi)`` at time 0 decides the game is the spec's ``semantics`` setting
@@ -38,10 +36,12 @@ The translation keeps each constraint's text in the slot it was written in. Whic
 
 from __future__ import annotations
 
+import itertools
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
@@ -81,9 +81,10 @@ class _Var:
 @dataclass(slots=True)
 class _Constraint:
     side: str  # "assume" or "guarantee"
-    slot: str  # "init", "safety", "liveness"
+    slot: str  # "init", "safety", "liveness" (Spectra before expansion: also "stateinv")
     body: Node
     line: int
+    where: str = ""  # the file, when not the spec's own (a Spectra import)
 
 
 @dataclass(slots=True)
@@ -110,9 +111,9 @@ def _fail(where: str, line: int, msg: str) -> SpecError:
 # --------------------------------------------------------------------------------------------
 # Tokenizer and Pratt parser shared by Spectra and structured slugs
 
-_TOKEN = re.compile(r"\s*(?:(?P<num>\d+)|(?P<id>[A-Za-z_][A-Za-z0-9_@.]*)"
+_TOKEN = re.compile(r"\s*(?:(?P<num>\d+)|(?P<id>[A-Za-z_][A-Za-z0-9_@]*(?:\.[A-Za-z_]\w*)*)"
                     r"|(?P<op><-->|-->|<->|->|\.\.\.|\.\.|&&|\|\||/\\|\\/|!=|<=|>=|:=|\[\]|<>"
-                    r"|[!~&|^=<>+\-*/%()'{},;:\[\]?$#@]))")
+                    r"|[!~&|^=<>+\-*/%()'{},;:\[\]?$#@.]))")
 
 
 def _tokens(text: str, where: str, line: int) -> list[str]:
@@ -131,7 +132,9 @@ def _tokens(text: str, where: str, line: int) -> list[str]:
     return out
 
 
-_BINARY = {  # token -> (precedence, node kind); higher binds tighter
+_ARITH = {"+": "add", "-": "sub", "*": "mul", "/": "div", "%": "mod", "mod": "mod"}
+
+_BINARY = {  # slugs: token -> (precedence, node kind); higher binds tighter
     "<->": (1, "iff"), "<-->": (1, "iff"), "iff": (1, "iff"),
     "->": (2, "imp"), "-->": (2, "imp"), "implies": (2, "imp"),
     "^": (3, "xor"), "xor": (3, "xor"),
@@ -139,25 +142,49 @@ _BINARY = {  # token -> (precedence, node kind); higher binds tighter
     "&": (5, "and"), "&&": (5, "and"), "/\\": (5, "and"), "and": (5, "and"),
     "=": (7, "cmp"), "!=": (7, "cmp"), "<": (7, "cmp"), "<=": (7, "cmp"), ">": (7, "cmp"),
     ">=": (7, "cmp"),
-    "+": (8, "add"), "-": (8, "sub"),
-    "*": (9, "unsupported"), "/": (9, "unsupported"), "%": (9, "unsupported"),
-    "mod": (9, "unsupported"),
+    "+": (8, "arith"), "-": (8, "arith"),
+    "*": (9, "arith"), "/": (9, "arith"), "%": (9, "arith"), "mod": (9, "arith"),
 }
+"""structured slugs (grammar.wi of slugs' StructuredSlugsParser): ``<->`` binds loosest,
+then ``->`` (left-associative), xor, or, and."""
+
+_SPECTRA_BINARY = {  # Spectra.xtext: implication loosest (right-associative), then iff
+    "->": (1, "imp"), "implies": (1, "imp"),
+    "<->": (2, "iff"), "iff": (2, "iff"),
+    "|": (4, "or"), "or": (4, "or"), "xor": (4, "xor"),
+    "&": (5, "and"), "and": (5, "and"),
+    "=": (7, "cmp"), "!=": (7, "cmp"), "<": (7, "cmp"), "<=": (7, "cmp"), ">": (7, "cmp"),
+    ">=": (7, "cmp"),
+    "mod": (8, "arith"), "%": (8, "arith"),
+    "+": (9, "arith"), "-": (9, "arith"),
+    "*": (10, "arith"), "/": (10, "arith"),
+    "S": (11, "since"), "SINCE": (11, "since"), "T": (11, "triggered"),
+    "TRIGGERED": (11, "triggered"),
+}
+
+_PAST_UNARY = {"Y": "PREV", "PREV": "PREV", "H": "HISTORICALLY", "HISTORICALLY": "HISTORICALLY",
+               "O": "ONCE", "ONCE": "ONCE"}
 
 
 class _Parser:
-    """Infix formulas: Spectra and structured slugs (``dialect``)."""
+    """Infix formulas: Spectra and structured slugs (``dialect``).
+
+    Spectra's extra nodes (resolved by :class:`_Expander`): ``("call", name, args)``,
+    ``("index", name, indices)``, ``("past", op, args)``, ``("in", a, values, negated)``,
+    ``("quant", op, name, type tokens, body)``."""
 
     def __init__(self, toks: list[str], *, where: str, line: int, dialect: str,
                  refuse: Mapping[str, str]) -> None:
         self.toks, self.i = toks, 0
         self.where, self.line, self.dialect, self.refuse = where, line, dialect, refuse
+        self.table = _SPECTRA_BINARY if dialect == "spectra" else _BINARY
 
     def fail(self, msg: str) -> SpecError:
         return _fail(self.where, self.line, msg)
 
-    def peek(self) -> str | None:
-        return self.toks[self.i] if self.i < len(self.toks) else None
+    def peek(self, ahead: int = 0) -> str | None:
+        k = self.i + ahead
+        return self.toks[k] if k < len(self.toks) else None
 
     def take(self, expected: str | None = None) -> str:
         tok = self.peek()
@@ -176,32 +203,98 @@ class _Parser:
         return node
 
     def expr(self, min_prec: int) -> Node:
+        if (self.dialect == "spectra" and self.peek() in ("forall", "exists")
+                and self.peek(2) == "in"):
+            return self.quantifier()
         left = self.unary()
         while True:
             tok = self.peek()
-            if tok is None or tok not in _BINARY:
+            if min_prec == 0 and self.dialect == "spectra" and (
+                    tok == "in" or (tok == "not" and self.peek(1) == "in")):
+                left = self.in_set(left)
+                continue
+            if tok is None or tok not in self.table:
                 return left
-            prec, kind = _BINARY[tok]
+            prec, kind = self.table[tok]
             if prec < min_prec:
                 return left
             self.take()
-            if kind == "unsupported":
-                raise self.fail(f"arithmetic operator {tok!r} is not supported (only + and -)")
-            # implication is right-associative, the rest left-associative
-            right = self.expr(prec if kind == "imp" else prec + 1)
-            left = ("cmp", tok, left, right) if kind == "cmp" else (kind, left, right)
+            right_assoc = kind == "imp" and self.dialect == "spectra"
+            right = self.expr(prec if right_assoc else prec + 1)
+            if kind == "cmp":
+                left = ("cmp", tok, left, right)
+            elif kind == "arith":
+                left = (_ARITH[tok], left, right)
+            elif kind in ("since", "triggered"):
+                left = ("past", kind.upper(), (left, right))
+            else:
+                left = (kind, left, right)
+
+    def in_set(self, left: Node) -> Node:
+        negated = self.take() == "not"
+        if negated:
+            self.take("in")
+        self.take("{")
+        values: list[Node] = []
+        while True:
+            tok = self.take()
+            if tok in ("TRUE", "true", "FALSE", "false"):
+                values.append(("const", tok.lower() == "true"))
+            elif tok.isdigit():
+                if self.peek() == "-" and (self.peek(1) or "").isdigit():
+                    self.take()
+                    hi = int(self.take())
+                    values += [("num", k) for k in range(int(tok), hi + 1)]
+                else:
+                    values.append(("num", int(tok)))
+            else:
+                values.append(("id", tok, False))
+            if self.take() == "}":
+                return ("in", left, tuple(values), negated)
+            if self.toks[self.i - 1] != ",":
+                raise self.fail("expected ',' or '}' in the set of an 'in'")
+
+    def quantifier(self) -> Node:
+        op, name = self.take(), self.take()
+        self.take("in")
+        typ: list[str] = []
+        depth = 0
+        while True:
+            tok = self.take()
+            if tok == "." and depth == 0:
+                break
+            depth += tok in ("(", "{", "[")
+            depth -= tok in (")", "}", "]")
+            typ.append(tok)
+        return ("quant", op, name, tuple(typ), self.expr(0))
+
+    def args(self) -> tuple[Node, ...]:
+        self.take("(")
+        out: list[Node] = []
+        if self.peek() == ")":
+            self.take()
+            return ()
+        while True:
+            out.append(self.expr(0))
+            if self.take() == ")":
+                return tuple(out)
+            if self.toks[self.i - 1] != ",":
+                raise self.fail("expected ',' or ')' in an argument list")
 
     def unary(self) -> Node:
         tok = self.take()
         if tok in self.refuse:
             raise self.fail(self.refuse[tok])
+        spectra = self.dialect == "spectra"
         if tok in ("!", "~", "not"):
             return ("not", self.unary())
         if tok == "-":
             inner = self.unary()
-            if inner[0] != "num":
-                raise self.fail("unary minus applies to numbers only")
-            return ("num", -inner[1])
+            if inner[0] == "num":
+                return ("num", -inner[1])
+            return ("sub", ("num", 0), inner)
+        if spectra and tok in _PAST_UNARY:
+            return ("past", _PAST_UNARY[tok], (self.unary(),))
         if tok in ("G", "[]", "alw", "always"):
             if self.peek() in ("F", "<>"):
                 self.take()
@@ -225,14 +318,20 @@ class _Parser:
             return ("const", True)
         if tok in ("FALSE", "false"):
             return ("const", False)
-        if re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", tok):
+        if re.match(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_]\w*)?$", tok):
+            if self.peek() == "(" and spectra:
+                return self.postfix(("call", tok, self.args()))
+            if self.peek() == "[" and spectra:
+                idx: list[Node] = []
+                while self.peek() == "[":
+                    self.take("[")
+                    idx.append(self.expr(0))
+                    self.take("]")
+                return self.postfix(("index", tok, tuple(idx)))
             if self.peek() == "[":
                 raise self.fail(f"array {tok}[...] is not supported")
             if self.peek() == "(":
-                if tok in _PAST:
-                    raise self.fail(f"past-time operator {tok} is not supported")
-                raise self.fail(f"{tok}(...): predicates, patterns and functions are not "
-                                "supported")
+                raise self.fail(f"{tok}(...): functions are not supported")
             return self.postfix(("id", tok, False))
         raise self.fail(f"unexpected {tok!r}")
 
@@ -272,7 +371,7 @@ class _Translator:
         return text
 
     def fail(self, c: _Constraint, msg: str) -> SpecError:
-        return _fail(self.where, c.line, msg)
+        return _fail(c.where or self.where, c.line, msg)
 
     def btext(self, n: Node, *, primed: bool, c: _Constraint, stack: tuple[str, ...]) -> str:
         kind = n[0]
@@ -301,6 +400,9 @@ class _Translator:
             raise self.fail(c, f"temporal operator {kind} nested inside a formula is not GR(1)")
         if kind == "cmp":
             return self.compare(n, primed=primed, c=c, stack=stack)
+        if kind == "select":  # ("select", ((condition, value), ...)): an array read
+            return _or([_and(self.btext(k, primed=primed, c=c, stack=stack),
+                             self.btext(v, primed=primed, c=c, stack=stack)) for k, v in n[1]])
         if kind == "id":
             name = n[1]
             if name in self.defines:
@@ -312,7 +414,7 @@ class _Translator:
             if not var.boolean:
                 raise self.fail(c, f"{name!r} is not Boolean; compare it (e.g. {name} = ...)")
             return self.ap(var, primed, c)
-        if kind in ("num", "add", "sub"):
+        if kind == "num" or kind in _ARITH_OPS:
             raise self.fail(c, "an integer expression where a Boolean one is expected")
         raise self.fail(c, f"unsupported construct {kind!r}")
 
@@ -370,14 +472,24 @@ class _Translator:
                         raise self.fail(c, f"enumeration value {name!r} is ambiguous here")
                     return {next(iter(self.literals[name])): "true"}
                 raise self.fail(c, f"unknown identifier {name!r}")
-        if kind in ("add", "sub"):
+        if kind == "select":
+            sel: dict[int, list[str]] = {}
+            for k, v in n[1]:
+                cond = self.btext(k, primed=primed, c=c, stack=stack)
+                for val, cv in self.ints(v, primed=primed, c=c, stack=stack, enum=enum).items():
+                    sel.setdefault(val, []).append(_and(cond, cv))
+            return {val: _or(cs) for val, cs in sel.items()}
+        if kind in _ARITH_OPS:
             a = self.ints(n[1], primed=primed, c=c, stack=stack, enum=enum)
             b = self.ints(n[2], primed=primed, c=c, stack=stack, enum=enum)
+            if kind in ("div", "mod") and 0 in b:
+                raise self.fail(c, "division or remainder by an expression that can be 0")
+            if len(a) * len(b) > 1 << 16:
+                raise self.fail(c, "integer expression with more than 2^16 value pairs")
             out: dict[int, list[str]] = {}
             for va, ca in a.items():
                 for vb, cb in b.items():
-                    v = va + vb if kind == "add" else va - vb
-                    out.setdefault(v, []).append(_and(ca, cb))
+                    out.setdefault(_ARITH_OPS[kind](va, vb), []).append(_and(ca, cb))
             return {v: _or(cs) for v, cs in out.items()}
         # a Boolean expression compared as an integer: true is 1
         text = self.btext(n, primed=primed, c=c, stack=stack)
@@ -400,8 +512,8 @@ class _Translator:
         return _or(terms)
 
     def enum_of(self, n: Node, stack: tuple[str, ...]) -> _Var | None:
-        while n[0] == "next":
-            n = n[1]
+        while n[0] in ("next", "select"):
+            n = n[1] if n[0] == "next" else n[1][0][1]
         if n[0] == "id":
             if n[1] in self.defines and n[1] not in stack:
                 return self.enum_of(self.defines[n[1]][0], (*stack, n[1]))
@@ -409,6 +521,14 @@ class _Translator:
             if var is not None and var.values:
                 return var
         return None
+
+
+_ARITH_OPS: dict[str, Callable[[int, int], int]] = {
+    "add": lambda x, y: x + y, "sub": lambda x, y: x - y, "mul": lambda x, y: x * y,
+    # Java's (Spectra's) integer division and remainder truncate toward zero
+    "div": lambda x, y: abs(x) // abs(y) * (1 if (x >= 0) == (y >= 0) else -1),
+    "mod": lambda x, y: x - y * (abs(x) // abs(y) * (1 if (x >= 0) == (y >= 0) else -1)),
+}
 
 
 def _flatten(n: Node, kind: str) -> Iterator[Node]:
@@ -446,10 +566,14 @@ _AP = re.compile(r"^[a-z_][a-z0-9_]*$")
 _RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
 
-def _ap_name(name: str) -> str:
+def _ap_stem(name: str) -> str:
+    """The lower-cased stem of a variable's bits or array elements (``name_k``)."""
     low = re.sub(r"[^a-z0-9_]", "_", name.lower())
-    if not _AP.match(low):
-        low = "v_" + low
+    return low if _AP.match(low) else "v_" + low
+
+
+def _ap_name(name: str) -> str:
+    low = _ap_stem(name)
     if low in _RESERVED or (len(low) == 1 and low in "xgfurwm"):
         low = low + "_"
     return low
@@ -475,37 +599,35 @@ def _declare(spec: ImportedSpec, var: _Var, where: str, line: int) -> None:
 # Spectra
 
 
-_PAST = frozenset({"Y", "H", "O", "S", "T", "PREV", "ONCE", "HISTORICALLY", "SINCE"})
-
-_SCAN_REFUSED = frozenset({"pattern", "monitor", "counter", "predicate", "trig", "regexp",
-                           "weight", "forall", "exists", "PREV", "ONCE", "HISTORICALLY",
-                           "SINCE"})
+_SCAN_REFUSED = frozenset({"trig", "regexp", "weight", "regtest", "GE", "GEF"})
 """Words that refuse a statement wherever they occur in it."""
 
 _SPECTRA_REFUSED = {
-    "pattern": "Spectra patterns are not supported (expand them into GR(1) constraints)",
-    "monitor": "Spectra monitors are not supported",
-    "counter": "Spectra counters are not supported",
-    "predicate": "Spectra predicates are not supported",
     "trig": "Spectra triggers (regular-expression constraints) are not supported",
     "regexp": "Spectra regular expressions are not supported",
+    "regtest": "Spectra regular-expression tests (regtest) are not supported",
     "weight": "Spectra weights (energy games) are not supported: not GR(1)",
-    "forall": "Spectra quantifiers (forall) are not supported",
-    "exists": "Spectra quantifiers (exists) are not supported",
-    "PREV": "past-time operator PREV is not supported",
-    "ONCE": "past-time operator ONCE is not supported",
-    "HISTORICALLY": "past-time operator HISTORICALLY is not supported",
-    "SINCE": "past-time operator SINCE is not supported",
+    "GE": "Spectra existential guarantees (GE) are not supported: not GR(1)",
+    "GEF": "Spectra existential guarantees (GEF) are not supported: not GR(1)",
     "keep": "Spectra 'keep' is not supported",
-    "aux": "Spectra auxiliary variables (aux) are not supported",
-    "var": "Spectra 'var' declarations (of monitors, patterns) are not supported",
-    "sum": "Spectra 'sum' is not supported",
-    "prod": "Spectra 'prod' is not supported",
 }
+
+_OWNERS = {"env": "env", "input": "env", "in": "env", "envvar": "env",
+           "sys": "sys", "output": "sys", "out": "sys", "sysvar": "sys",
+           "aux": "sys", "auxvar": "sys"}
+"""Spectra variable owners. Auxiliary variables belong to the system: Spectra's game puts
+the ``aux`` player's variables and constraints into the system module (spectra-synt,
+``BDDGenerator.generateGameModel``)."""
+
+_SLOT_WORDS = {"ini": "init", "initially": "init", "G": "safety", "trans": "safety",
+               "alw": "stateinv", "always": "stateinv", "GF": "liveness", "alwEv": "liveness",
+               "alwaysEventually": "liveness"}
+_ARRAY_FUNCS = ("all", "any", "sum", "prod")
 
 
 def _strip_spectra_comments(text: str, where: str) -> str:
-    """Drop ``//``, ``--`` line comments and ``/* */`` block comments, keeping line breaks."""
+    """Drop ``//``, ``--`` line comments and ``/* */`` block comments, keeping line breaks
+    (and strings: only ``import`` takes one)."""
     out, i, n = [], 0, len(text)
     while i < n:
         if text.startswith("/*", i):
@@ -520,9 +642,9 @@ def _strip_spectra_comments(text: str, where: str) -> str:
             i = n if j < 0 else j
         elif text[i] == '"':
             j = text.find('"', i + 1)
-            if j < 0:
+            if j < 0 or "\n" in text[i:j]:
                 raise _fail(where, text.count("\n", 0, i) + 1, "unterminated string")
-            out.append(" " * (j + 1 - i))
+            out.append(text[i:j + 1])
             i = j + 1
         else:
             out.append(text[i])
@@ -530,11 +652,19 @@ def _strip_spectra_comments(text: str, where: str) -> str:
     return "".join(out)
 
 
+def _is_block_head(text: str) -> bool:
+    text = text.strip()
+    return bool(re.match(r"^(pattern|monitor|counter)\b", text)
+                or re.match(r"^predicate\s+\w+\s*(\(.*\))?\s*$", text, re.S))
+
+
 def _statements(text: str) -> Iterator[tuple[str, int]]:
-    """``;``-terminated statements (and the ``module``/``spec`` header line) with their line."""
+    """``;``-terminated statements, ``{...}`` blocks (patterns, monitors, counters,
+    predicates) and the ``module``/``define``/``import`` header lines, with their line."""
     buf: list[str] = []
-    start_line = 1
-    line = 1
+    start_line = line = 1
+    depth = 0
+    block = False
     for ch in text:
         if not buf and ch.isspace():
             if ch == "\n":
@@ -545,12 +675,24 @@ def _statements(text: str) -> Iterator[tuple[str, int]]:
         if ch == "\n":
             line += 1
             stripped = "".join(buf).strip()
-            if (re.match(r"^(module|spec)\s+\w+$", stripped) or stripped in ("define",)
-                    or re.match(r"^import\s*$", stripped)):  # (its string is blanked)
+            if depth == 0 and (re.match(r"^(module|spec)\s+\w+$", stripped)
+                               or stripped == "define"
+                               or re.match(r'^import\s*"[^"]*"$', stripped)):
                 yield stripped, start_line
                 buf = []
                 continue
-        if ch == ";":
+        if ch == "{":
+            if depth == 0:
+                block = _is_block_head("".join(buf))
+            depth += 1
+        elif ch == "}" and depth > 0:
+            depth -= 1
+            if depth == 0 and block:
+                buf.append(ch)
+                yield "".join(buf).strip(), start_line
+                buf, block = [], False
+                continue
+        if ch == ";" and depth == 0:
             yield "".join(buf).strip(), start_line
             buf = []
             continue
@@ -560,24 +702,93 @@ def _statements(text: str) -> Iterator[tuple[str, int]]:
         yield rest, start_line
 
 
-def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSpec,
-                                                                       dict[str, tuple[Node, int]]]:
-    spec = ImportedSpec(name=default_name, source=where, fmt="spectra")
-    defines: dict[str, tuple[Node, int]] = {}
-    types: dict[str, list[str]] = {}
-    in_define = False
+def _block_body(stmt: str, line: int) -> tuple[list[str], Iterator[tuple[str, int]]]:
+    """The header tokens' text and the inner statements (with their lines) of a block."""
+    k = stmt.index("{")
+    base = line + stmt.count("\n", 0, k)
+    inner = stmt[k + 1:stmt.rindex("}")]
+    return [stmt[:k]], ((s, base + n - 1) for s, n in _statements(inner) if s)
+
+
+@dataclass(slots=True)
+class _Pattern:
+    name: str
+    params: tuple[str, ...]
+    variables: list[tuple[list[str], str]]  # (type tokens, name)
+    constraints: list[tuple[str, Node, int]]  # (slot, body, line)
+    where: str
+
+
+@dataclass(slots=True)
+class _Predicate:
+    name: str
+    params: tuple[str, ...]
+    body: Node
+    line: int
+    where: str
+
+
+@dataclass(slots=True)
+class _SpectraModule:
+    spec: ImportedSpec
+    where: str
+    defines: dict[str, tuple[Any, int, str]] = field(default_factory=dict)
+    types: dict[str, tuple[list[str], int, str]] = field(default_factory=dict)
+    predicates: dict[str, _Predicate] = field(default_factory=dict)
+    patterns: dict[str, _Pattern] = field(default_factory=dict)
+    arrays: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    constraints: list[_Constraint] = field(default_factory=list)
+    imported: set[Path] = field(default_factory=set)
+    missing: list[str] = field(default_factory=list)  # imports not found
+
+
+def _spectra_parser(toks: list[str], where: str, line: int) -> _Parser:
+    return _Parser(toks, where=where, line=line, dialect="spectra", refuse=_SPECTRA_REFUSED)
+
+
+def _parse_spectra(text: str, where: str, default_name: str,
+                   base: Path | None = None) -> _SpectraModule:
+    mod = _SpectraModule(spec=ImportedSpec(name=default_name, source=where, fmt="spectra"),
+                         where=where)
+    _read_spectra(mod, text, where, base, library=False)
+    return mod
+
+
+def _read_spectra(mod: _SpectraModule, text: str, where: str, base: Path | None, *,
+                  library: bool) -> None:
+    """Read one Spectra file into ``mod``; a ``library`` (an import) gives its definitions
+    only (types, defines, predicates, patterns), as Spectra's cross-references do."""
     statements = list(_statements(_strip_spectra_comments(text, where)))
     for stmt, line in statements:  # type aliases first: they may follow their first use
         if not re.match(r"^type\b", stmt):
             continue
         toks = _tokens(stmt, where, line)
-        if toks:
-            if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
-                raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
-            if toks[1] in types:
-                raise _fail(where, line, f"type {toks[1]!r} declared twice")
-            types[toks[1]] = toks[3:]
+        if len(toks) < 4 or toks[2] != "=" or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
+            raise _fail(where, line, "expected type NAME = boolean | Int(lo..hi) | {A, ...}")
+        if toks[1] in mod.types and not library and mod.types[toks[1]][0] != toks[3:]:
+            raise _fail(where, line, f"type {toks[1]!r} declared twice, differently")
+        mod.types.setdefault(toks[1], (toks[3:], line, where))
+    in_define = False
     for stmt, line in statements:
+        m = re.match(r'^import\s*"([^"]*)"$', stmt)
+        if m:
+            _spectra_import(mod, m.group(1), where, line, base)
+            continue
+        head_word = re.match(r"^\s*(\w+)", stmt)
+        head_word_s = head_word.group(1) if head_word else ""
+        if head_word_s in ("pattern", "predicate", "monitor", "counter"):
+            in_define = False
+            if head_word_s == "pattern":
+                _spectra_pattern(mod, stmt, where, line)
+            elif head_word_s == "predicate":
+                _spectra_predicate(mod, stmt, where, line)
+            elif library:
+                pass
+            elif head_word_s == "monitor":
+                _spectra_monitor(mod, stmt, where, line)
+            else:
+                _spectra_counter(mod, stmt, where, line)
+            continue
         for word in re.findall(r"[A-Za-z_]\w*", stmt):
             if word in _SCAN_REFUSED:
                 raise _fail(where, line, _SPECTRA_REFUSED[word])
@@ -588,7 +799,8 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
         if head in ("module", "spec"):
             if len(toks) < 2:
                 raise _fail(where, line, f"{head} needs a name")
-            spec.name = toks[1]
+            if not library:
+                mod.spec.name = toks[1]
             in_define = False
             if len(toks) > 2:
                 toks = toks[2:]
@@ -601,96 +813,657 @@ def _parse_spectra(text: str, where: str, default_name: str) -> tuple[ImportedSp
             if not toks:
                 continue
             head = toks[0]
-        if head == "import":
-            continue  # a pattern library: a pattern used is refused where it is used
         if head == "type":
             in_define = False
             continue
         if head in _SPECTRA_REFUSED:
             raise _fail(where, line, _SPECTRA_REFUSED[head])
-        if head in ("env", "sys"):
+        if head in _OWNERS:
             in_define = False
-            if len(toks) > 1 and toks[1] in types:
-                toks = [toks[0], *types[toks[1]], *toks[2:]]
-            _spectra_var(spec, toks, where, line)
+            if not library:
+                _spectra_var(mod, toks, where, line)
             continue
         if head in ("asm", "assumption", "gar", "guarantee"):
             in_define = False
-            spec.constraints.append(_spectra_constraint(toks, where, line))
+            if not library:
+                mod.constraints.append(_spectra_constraint(toks, where, line))
             continue
-        if in_define and len(toks) >= 2 and toks[1] == ":=":
-            name = toks[0]
-            if name in defines:
-                raise _fail(where, line, f"define {name!r} twice")
-            defines[name] = (_Parser(toks[2:], where=where, line=line, dialect="spectra",
-                                     refuse=_SPECTRA_REFUSED).parse(), line)
+        if in_define and len(toks) >= 2 and toks[1] in (":=", "["):
+            _spectra_define(mod, toks, where, line)
             continue
-        if in_define and len(toks) >= 2 and toks[1] in ("(", "["):
-            raise _fail(where, line, f"define {toks[0]!r} with parameters or an array is not "
-                        "supported")
+        if in_define and len(toks) >= 2 and toks[1] == "(":
+            raise _fail(where, line, f"define {toks[0]!r} with parameters is not supported")
         raise _fail(where, line, f"unsupported Spectra statement starting with {head!r}")
-    return spec, defines
 
 
-def _spectra_var(spec: ImportedSpec, toks: list[str], where: str, line: int) -> None:
-    side, rest = toks[0], toks[1:]
-    values: tuple[str, ...]
-    if not rest:
-        raise _fail(where, line, f"{side}: missing type")
-    if rest[0] == "boolean":
-        typ, rest = ("bool",), rest[1:]
-        lo, hi, values = 0, 1, ()
-    elif rest[0] == "Int":
-        m = re.fullmatch(r"\(\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*\)", "".join(rest[1:6]))
-        if m is None:
-            raise _fail(where, line, f"{side}: expected Int(lo..hi)")
-        lo, hi, values, typ, rest = int(m.group(1)), int(m.group(2)), (), ("int",), rest[6:]
-    elif rest[0] == "{":
-        close = rest.index("}") if "}" in rest else -1
-        if close < 0:
-            raise _fail(where, line, f"{side}: unterminated enumeration")
-        values = tuple(t for t in rest[1:close] if t != ",")
-        if not values or len(set(values)) != len(values):
-            raise _fail(where, line, f"{side}: enumeration needs distinct values")
-        lo, hi, typ, rest = 0, len(values) - 1, ("enum",), rest[close + 1:]
+def _spectra_import(mod: _SpectraModule, name: str, where: str, line: int,
+                    base: Path | None) -> None:
+    if base is None:
+        return  # no folder to look in: a pattern or predicate used is refused where used
+    path = (base / name).resolve()
+    if not path.is_file():
+        mod.missing.append(name)
+        return
+    if path in mod.imported:
+        return
+    mod.imported.add(path)
+    text = read_text(path, what="Spectra import", error=SpecError)
+    _read_spectra(mod, text, str(path), path.parent, library=True)
+
+
+def _spectra_define(mod: _SpectraModule, toks: list[str], where: str, line: int) -> None:
+    name = toks[0]
+    if name in mod.defines:
+        raise _fail(where, line, f"define {name!r} twice")
+    k = toks.index(":=") if ":=" in toks else -1
+    if k < 0:
+        raise _fail(where, line, f"define {name!r}: expected ':='")
+    if toks[1] == "[":  # an array of expressions: name[n]... := {e, ...}
+        value: object = _define_array(toks[k + 1:], where, line)
     else:
-        raise _fail(where, line, f"{side}: type {rest[0]!r} is not supported (boolean, "
-                    "Int(lo..hi) or {A, B, ...})")
-    if rest and rest[0] == "[":
-        raise _fail(where, line, "arrays of variables are not supported")
+        value = _spectra_parser(toks[2:], where, line).parse()
+    mod.defines[name] = (value, line, where)
+
+
+def _define_array(toks: list[str], where: str, line: int) -> tuple[Any, ...]:
+    pos = 0
+
+    def items() -> tuple[Any, ...]:
+        nonlocal pos
+        if toks[pos] != "{":
+            raise _fail(where, line, "expected '{' in a define array")
+        pos += 1
+        out: list[object] = []
+        while True:
+            if toks[pos] == "{":
+                out.append(("array", items()))
+            else:
+                start, depth = pos, 0
+                while depth > 0 or toks[pos] not in (",", "}"):
+                    depth += toks[pos] in ("(", "{", "[")
+                    depth -= toks[pos] in (")", "}", "]")
+                    pos += 1
+                out.append(_spectra_parser(toks[start:pos], where, line).parse())
+            tok = toks[pos]
+            pos += 1
+            if tok == "}":
+                return tuple(out)
+            if tok != ",":
+                raise _fail(where, line, "expected ',' or '}' in a define array")
+
+    try:
+        value = ("array", items())
+    except IndexError:
+        raise _fail(where, line, "unterminated define array") from None
+    if pos != len(toks):
+        raise _fail(where, line, "unexpected tokens after a define array")
+    return value
+
+
+def _param_names(toks: list[str], where: str, line: int) -> tuple[str, ...]:
+    """The names of a parameter list's entries (``[type] name``, comma-separated)."""
+    names: list[str] = []
+    depth = 0
+    cur: list[str] = []
+    for tok in [*toks, ","]:
+        if tok == "," and depth == 0:
+            if not cur or not re.match(r"^[A-Za-z_]\w*$", cur[-1]):
+                raise _fail(where, line, "expected a parameter name")
+            names.append(cur[-1])
+            cur = []
+            continue
+        depth += tok in ("(", "{", "[")
+        depth -= tok in (")", "}", "]")
+        cur.append(tok)
+    return tuple(names)
+
+
+def _header_params(toks: list[str], where: str, line: int) -> tuple[tuple[str, ...], int]:
+    """Parameters of ``name(...)`` starting at ``toks[2]``, and the index after them."""
+    if len(toks) < 3 or toks[2] != "(":
+        return (), 2
+    depth, k = 0, 2
+    while k < len(toks):
+        depth += toks[k] == "("
+        depth -= toks[k] == ")"
+        if depth == 0:
+            break
+        k += 1
+    inner = toks[3:k]
+    return (_param_names(inner, where, line) if inner else ()), k + 1
+
+
+def _spectra_predicate(mod: _SpectraModule, stmt: str, where: str, line: int) -> None:
+    toks = _tokens(stmt, where, line)
+    if len(toks) < 3 or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
+        raise _fail(where, line, "expected predicate NAME(params): body;")
+    params, k = _header_params(toks, where, line)
+    rest = toks[k:]
+    if rest and rest[0] == ":":
+        body_toks = rest[1:]
+    elif rest and rest[0] == "{" and rest[-1] == "}":
+        body_toks = rest[1:-1]
+    else:
+        raise _fail(where, line, f"predicate {toks[1]!r}: expected ':' or '{{' after the "
+                    "parameters")
+    body = _spectra_parser(body_toks, where, line).parse()
+    mod.predicates.setdefault(toks[1], _Predicate(toks[1], params, body, line, where))
+
+
+def _spectra_pattern(mod: _SpectraModule, stmt: str, where: str, line: int) -> None:
+    (head,), inner = _block_body(stmt, line)
+    toks = _tokens(head, where, line)
+    if len(toks) < 2 or not re.match(r"^[A-Za-z_]\w*$", toks[1]):
+        raise _fail(where, line, "expected pattern NAME(params) { ... }")
+    params, _ = _header_params(toks, where, line)
+    pat = _Pattern(toks[1], params, [], [], where)
+    for s, n in inner:
+        t = _tokens(s, where, n)
+        if t[0] == "var":
+            if len(t) < 3:
+                raise _fail(where, n, "expected var TYPE NAME")
+            pat.variables.append((t[1:-1], t[-1]))
+            continue
+        slot, body = _slot_and_body(t, where, n, default="init")
+        pat.constraints.append((slot, body, n))
+    mod.patterns.setdefault(pat.name, pat)
+
+
+def _spectra_monitor(mod: _SpectraModule, stmt: str, where: str, line: int) -> None:
+    """A monitor: an auxiliary (system) variable whose ini/safety constraints are added as
+    guarantees (spectra-synt ``MonitorTranslator``)."""
+    (head,), inner = _block_body(stmt, line)
+    toks = _tokens(head, where, line)
+    if len(toks) < 3:
+        raise _fail(where, line, "expected monitor TYPE NAME { ... }")
+    _spectra_var(mod, ["aux", *toks[1:]], where, line)
+    for s, n in inner:
+        slot, body = _slot_and_body(_tokens(s, where, n), where, n, default="init")
+        if slot == "liveness":
+            raise _fail(where, n, "a liveness goal inside a monitor")
+        mod.constraints.append(_Constraint("guarantee", slot, body, n))
+
+
+def _spectra_counter(mod: _SpectraModule, stmt: str, where: str, line: int) -> None:
+    """A counter ``counter c(lo..hi) { ini; inc: p; dec: q; reset: r; overflow: m; ... }``:
+    an auxiliary (system) integer with guarantees ``p -> (c' = c + 1 | overflow)``,
+    ``q -> (c' = c - 1 | underflow)``, ``r -> c' = lo`` and ``!p & !q & !r -> c' = c``;
+    overflow ``false`` (the default), ``keep`` (stay at the bound) or ``modulo`` (wrap)
+    (spectra-synt ``CounterTranslator``)."""
+    (head,), inner = _block_body(stmt, line)
+    toks = _tokens(head, where, line)
+    if len(toks) < 3 or toks[2] != "(" or toks[-1] != ")":
+        raise _fail(where, line, "expected counter NAME(lo..hi) { ... }")
+    name = toks[1]
+    base, _, _ = _spectra_type(["Int", *toks[2:]], mod, where, line)
+    _declare_typed(mod, base, (), name, "sys", where, line)
+    lo, hi = ("num", base[1]), ("num", base[2])
+    c, c1 = ("id", name, False), ("next", ("id", name, False))
+    preds: dict[str, tuple[Node, int]] = {}
+    modes = {"overflow": "false", "underflow": "false"}
+    for s, n in inner:
+        t = _tokens(s, where, n)
+        if len(t) >= 2 and t[1] == ":" and t[0] in ("inc", "dec", "reset"):
+            preds[t[0]] = (_spectra_parser(t[2:], where, n).parse(), n)
+        elif len(t) == 3 and t[1] == ":" and t[0] in modes and t[2] in ("false", "keep",
+                                                                          "modulo"):
+            modes[t[0]] = t[2]
+        elif len(t) >= 2 and t[1] == ":":
+            raise _fail(where, n, f"counter {name!r}: unsupported entry {' '.join(t)!r} (inc:, "
+                        "dec:, reset:, overflow:/underflow: false|keep|modulo)")
+        else:
+            mod.constraints.append(_Constraint("guarantee", "init",
+                                               _spectra_parser(t, where, n).parse(), n))
+
+    def eq(a: Node, b: Node) -> Node:
+        return ("cmp", "=", a, b)
+
+    for op, bound, wrap, mode in (("inc", hi, lo, modes["overflow"]),
+                                  ("dec", lo, hi, modes["underflow"])):
+        if op in preds:
+            pred, n = preds[op]
+            step = eq(c1, ("add" if op == "inc" else "sub", c, ("num", 1)))
+            edge = {"false": ("const", False), "keep": ("and", eq(c, bound), eq(c1, bound)),
+                    "modulo": ("and", eq(c, bound), eq(c1, wrap))}[mode]
+            mod.constraints.append(_Constraint("guarantee", "safety",
+                                               ("imp", pred, ("or", step, edge)), n))
+    if "reset" in preds:
+        pred, n = preds["reset"]
+        mod.constraints.append(_Constraint("guarantee", "safety", ("imp", pred, eq(c1, lo)), n))
+    idle: Node = ("const", True)
+    for pred, _ in preds.values():
+        idle = ("and", idle, ("not", pred))
+    mod.constraints.append(_Constraint("guarantee", "safety", ("imp", idle, eq(c1, c)), line))
+
+
+def _const(n: Node, mod: _SpectraModule, stack: tuple[str, ...] = ()) -> int | None:
+    """The value of a constant integer expression (numbers, defines, arithmetic)."""
+    kind = n[0]
+    if kind == "num":
+        return int(n[1])
+    if kind == "id" and n[1] in mod.defines and n[1] not in stack:
+        value = mod.defines[n[1]][0]
+        if isinstance(value, tuple) and value and value[0] != "array":
+            return _const(value, mod, (*stack, n[1]))
+        return None
+    if kind in _ARITH_OPS:
+        a, b = _const(n[1], mod, stack), _const(n[2], mod, stack)
+        if a is None or b is None or (kind in ("div", "mod") and b == 0):
+            return None
+        return _ARITH_OPS[kind](a, b)
+    return None
+
+
+def _const_toks(toks: list[str], mod: _SpectraModule, where: str, line: int,
+                what: str) -> int:
+    value = _const(_spectra_parser(toks, where, line).parse(), mod) if toks else None
+    if value is None:
+        raise _fail(where, line, f"{what} {' '.join(toks)!r} is not a constant integer")
+    return value
+
+
+def _spectra_type(toks: list[str], mod: _SpectraModule, where: str, line: int,
+                  seen: tuple[str, ...] = ()) -> tuple[tuple[Any, ...], tuple[int, ...],
+                                                       list[str]]:
+    """``(base, dims, rest)``: base ``("bool",)``, ``("int", lo, hi)`` or
+    ``("enum", values)``; array dimensions; the tokens after the type."""
+    if not toks:
+        raise _fail(where, line, "missing type")
+    base: tuple[Any, ...]
+    dims: tuple[int, ...] = ()
+    if toks[0] == "boolean":
+        base, rest = ("bool",), toks[1:]
+    elif toks[0] == "Int":
+        if len(toks) < 2 or toks[1] != "(":
+            raise _fail(where, line, "expected Int(lo..hi)")
+        depth, k = 0, 1
+        while k < len(toks):
+            depth += toks[k] == "("
+            depth -= toks[k] == ")"
+            if depth == 0:
+                break
+            k += 1
+        inner = toks[2:k]
+        if ".." not in inner:
+            raise _fail(where, line, "expected Int(lo..hi)")
+        d = inner.index("..")
+        lo = _const_toks(inner[:d], mod, where, line, "Int bound")
+        hi = _const_toks(inner[d + 1:], mod, where, line, "Int bound")
+        base, rest = ("int", lo, hi), toks[k + 1:]
+    elif toks[0] == "{":
+        close = toks.index("}") if "}" in toks else -1
+        if close < 0:
+            raise _fail(where, line, "unterminated enumeration")
+        values = tuple(t for t in toks[1:close] if t != ",")
+        if not values or len(set(values)) != len(values):
+            raise _fail(where, line, "enumeration needs distinct values")
+        base, rest = ("enum", values), toks[close + 1:]
+    elif toks[0] in mod.types and toks[0] not in seen:
+        alias, aline, awhere = mod.types[toks[0]]
+        base, dims, extra = _spectra_type(alias, mod, awhere, aline, (*seen, toks[0]))
+        if extra:
+            raise _fail(awhere, aline, f"type {toks[0]!r}: unexpected {extra[0]!r}")
+        rest = toks[1:]
+    else:
+        raise _fail(where, line, f"type {toks[0]!r} is not supported (boolean, "
+                    "Int(lo..hi), {A, B, ...} or a type name)")
+    while rest and rest[0] == "[":
+        close = rest.index("]") if "]" in rest else -1
+        if close < 0:
+            raise _fail(where, line, "unterminated array dimension")
+        size = _const_toks(rest[1:close], mod, where, line, "array size")
+        if size < 1 or size > 1 << 12:
+            raise _fail(where, line, f"array size {size} outside 1..4096")
+        dims, rest = (*dims, size), rest[close + 1:]
+    return base, dims, rest
+
+
+def _declare_typed(mod: _SpectraModule, base: tuple[Any, ...], dims: tuple[int, ...],
+                   name: str, side: str, where: str, line: int) -> None:
+    if dims:
+        mod.arrays[name] = dims
+    for idx in itertools.product(*(range(d) for d in dims)):
+        src = name + "".join(f"[{i}]" for i in idx)
+        ap = _ap_stem(name) + "".join(f"_{i}" for i in idx)
+        if base[0] == "bool":
+            ap = _ap_name(ap)
+            var = _Var(name=src, ap=ap, side=side)
+        elif base[0] == "int":
+            var = _Var(name=src, ap=ap, side=side, lo=int(base[1]),
+                       hi=int(base[2]), boolean=False)
+        else:
+            values = tuple(base[1])
+            var = _Var(name=src, ap=ap, side=side, lo=0, hi=len(values) - 1, boolean=False,
+                       values=values)
+        _declare(mod.spec, var, where, line)
+
+
+def _spectra_var(mod: _SpectraModule, toks: list[str], where: str, line: int) -> None:
+    owner = toks[0]
+    base, dims, rest = _spectra_type(toks[1:], mod, where, line)
     if len(rest) != 1 or not re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", rest[0]):
-        raise _fail(where, line, f"{side}: expected one variable name after the type")
-    name = rest[0]
-    var = _Var(name=name, ap=_ap_name(name), side=side, lo=lo, hi=hi,
-               boolean=typ == ("bool",), values=values)
-    _declare(spec, var, where, line)
+        raise _fail(where, line, f"{owner}: expected one variable name after the type")
+    _declare_typed(mod, base, dims, rest[0], _OWNERS[owner], where, line)
+
+
+def _slot_and_body(rest: list[str], where: str, line: int, *, default: str | None
+                   ) -> tuple[str, Node]:
+    slot = None
+    if rest and rest[0] in _SLOT_WORDS:
+        slot, rest = _SLOT_WORDS[rest[0]], rest[1:]
+    if not rest:
+        raise _fail(where, line, "empty constraint")
+    body = _spectra_parser(rest, where, line).parse()
+    if slot is None:
+        slot = {"G": "safety", "GF": "liveness"}.get(body[0], default)
+        if slot != default:
+            body = body[1]
+    if slot is None:
+        slot = "init"
+    return slot, body
 
 
 def _spectra_constraint(toks: list[str], where: str, line: int) -> _Constraint:
     side = "assume" if toks[0] in ("asm", "assumption") else "guarantee"
     rest = toks[1:]
+    if len(rest) >= 2 and rest[1] == "{" and re.match(r"^[A-Za-z_]\w*$", rest[0]):
+        raise _fail(where, line, "Spectra constraints with parameters are not supported")
     if len(rest) >= 2 and rest[1] == ":" and re.match(r"^[A-Za-z_]\w*$", rest[0]):
         rest = rest[2:]  # a label
-    if not rest:
-        raise _fail(where, line, "empty constraint")
-    if rest[0] in ("trig",):
-        raise _fail(where, line, _SPECTRA_REFUSED["trig"])
-    slot = None
-    if rest[0] in ("ini", "initially"):
-        slot, rest = "init", rest[1:]
-    elif rest[0] in ("trans",):
-        slot, rest = "safety", rest[1:]
-    elif rest[0] in ("justice",):
-        slot, rest = "liveness", rest[1:]
-    body = _Parser(rest, where=where, line=line, dialect="spectra",
-                   refuse=_SPECTRA_REFUSED).parse()
-    if slot is None:
-        slot = {"G": "safety", "GF": "liveness"}.get(body[0], "init")
-    elif slot == "safety" and body[0] != "G":
-        body = ("G", body)
-    elif slot == "liveness" and body[0] != "GF":
-        body = ("GF", body)
+    slot, body = _slot_and_body(rest, where, line, default="init")
     return _Constraint(side=side, slot=slot, body=body, line=line)
+
+
+# --------------------------------------------------------------------------------------------
+# Spectra's derived constructs, expanded into plain GR(1) over fresh auxiliary variables
+
+
+class _Expander:
+    """Resolves defines, predicates, arrays, quantifiers and ``in``; instantiates patterns
+    and past-time operators with fresh auxiliary (system) variables and their constraints,
+    as spectra-synt's translators do (``PredicateInstanceTranslator``,
+    ``PatternConstraintTranslator``, ``PastLTLTranslator``, ``StateInvTranslator``,
+    ``PrimesInJusticeTranslator``)."""
+
+    def __init__(self, mod: _SpectraModule) -> None:
+        self.mod = mod
+        self.vars = {v.name: v for v in mod.spec.variables}
+        self.past: dict[Node, str] = {}
+        self.out: list[_Constraint] = []
+        self.fresh_count = 0
+
+    def run(self) -> list[_Constraint]:
+        for c in self.mod.constraints:
+            self.constraint(c)
+        return self.out
+
+    def fail(self, c: _Constraint, msg: str) -> SpecError:
+        return _fail(c.where or self.mod.where, c.line, msg)
+
+    def fresh(self, stem: str, base: tuple[Any, ...], c: _Constraint) -> str:
+        taken = {b for v in self.mod.spec.variables for b in v.bits()}
+        while True:
+            name = f"{stem}_{self.fresh_count}"
+            self.fresh_count += 1
+            var_ap = _ap_name(name)
+            if var_ap not in taken and not any(b.startswith(var_ap + "_") for b in taken):
+                break
+        _declare_typed(self.mod, base, (), name, "sys", c.where or self.mod.where, c.line)
+        self.vars[name] = self.mod.spec.variables[-1]
+        return name
+
+    def emit(self, side: str, slot: str, body: Node, c: _Constraint) -> None:
+        self.out.append(_Constraint(side, slot, body, c.line, c.where))
+
+    def constraint(self, c: _Constraint, env: Mapping[str, Node] | None = None) -> None:
+        body = c.body
+        if body[0] == "call" and body[1] in self.mod.patterns:
+            # Spectra ignores a temporal keyword before a pattern (Spectra2GameInputTranslator:
+            # a constraint that references a pattern is a pattern constraint)
+            self.pattern(c, body)
+            return
+        body = self.ex(body, dict(env or {}), c, ())
+        if c.slot == "stateinv":
+            if _has(body, "next") or (c.side == "assume" and self.reads_sys(body)):
+                self.emit(c.side, "safety", body, c)
+            else:
+                self.emit(c.side, "init", body, c)
+                self.emit(c.side, "safety", ("next", body), c)
+            return
+        self.emit(c.side, c.slot, body, c)
+
+    def reads_sys(self, n: Node) -> bool:
+        return any(m[0] == "id" and m[1] in self.vars and self.vars[m[1]].side == "sys"
+                   for m in _nodes(n))
+
+    def pattern(self, c: _Constraint, call: Node) -> None:
+        pat = self.mod.patterns[call[1]]
+        args = call[2]
+        if len(args) != len(pat.params):
+            raise self.fail(c, f"pattern {pat.name!r} takes {len(pat.params)} arguments, "
+                            f"{len(args)} given")
+        env: dict[str, Node] = {p: self.ex(a, {}, c, ()) for p, a in zip(pat.params, args,
+                                                                          strict=True)}
+        for type_toks, vname in pat.variables:
+            base, dims, rest = _spectra_type(type_toks, self.mod, pat.where, c.line)
+            if dims or rest:
+                raise self.fail(c, f"pattern {pat.name!r}: variable {vname!r} must be a "
+                                "scalar")
+            env[vname] = ("id", self.fresh(f"{pat.name}_{vname}", base, c), False)
+        for slot, body, _ in pat.constraints:
+            side = c.side if slot == "liveness" else "guarantee"
+            self.constraint(_Constraint(side, slot, body, c.line, c.where), env)
+
+    def ex(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+           ) -> Node:
+        kind = n[0]
+        if kind in ("const", "num"):
+            return n
+        if kind == "id":
+            return self.ident(n, env, c, stack)
+        if kind == "index":
+            return self.index(n, env, c, stack)
+        if kind == "call":
+            return self.call(n, env, c, stack)
+        if kind == "past":
+            return self.past_op(n[1], tuple(self.ex(a, env, c, stack) for a in n[2]), c)
+        if kind == "in":
+            lhs = self.ex(n[1], env, c, stack)
+            terms = [("cmp", "=", lhs, self.ex(v, env, c, stack)) for v in n[2]]
+            node: Node = terms[0]
+            for t in terms[1:]:
+                node = ("or", node, t)
+            return ("not", node) if n[3] else node
+        if kind == "quant":
+            return self.quantifier(n, env, c, stack)
+        if kind == "select":
+            return n
+        if kind == "cmp":
+            return ("cmp", n[1], self.ex(n[2], env, c, stack), self.ex(n[3], env, c, stack))
+        return (kind, *(self.ex(m, env, c, stack) for m in n[1:]))
+
+    def ident(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+              ) -> Node:
+        name = n[1]
+        if "." in name and name.split(".", 1)[0] in env:
+            head, tail = name.split(".", 1)
+            if env[head][0] == "arrayref":
+                name = f"{env[head][1]}.{tail}"
+        if name in env:
+            if env[name][0] == "arrayref":
+                raise self.fail(c, f"array {env[name][1]!r} used without an index")
+            return env[name]
+        if name in self.mod.defines:
+            if name in stack:
+                raise self.fail(c, f"define {name!r} refers to itself")
+            value = self.mod.defines[name][0]
+            if not isinstance(value, tuple) or value[0] == "array":
+                raise self.fail(c, f"define array {name!r} used without an index")
+            return self.ex(value, {}, c, (*stack, name))
+        if "." in name:
+            arr, func = name.rsplit(".", 1)
+            if func in _ARRAY_FUNCS and (arr in self.mod.arrays or arr in self.mod.defines):
+                elems = self.elements(arr, env, c, stack)
+                op = {"all": "and", "any": "or", "sum": "add", "prod": "mul"}[func]
+                node = elems[0]
+                for e in elems[1:]:
+                    node = (op, node, e)
+                return node
+            raise self.fail(c, f"{name!r}: unknown identifier or array function (only "
+                            ".all, .any, .sum, .prod)")
+        if name in self.mod.arrays:
+            raise self.fail(c, f"array {name!r} used without an index")
+        return n
+
+    def elements(self, arr: str, env: dict[str, Node], c: _Constraint,
+                 stack: tuple[str, ...]) -> list[Node]:
+        if arr in self.mod.arrays:
+            return [("id", arr + "".join(f"[{i}]" for i in idx), False) for idx in
+                    itertools.product(*(range(d) for d in self.mod.arrays[arr]))]
+        flat: list[Node] = []
+        todo = [self.mod.defines[arr][0]]
+        while todo:
+            v = todo.pop(0)
+            if isinstance(v, tuple) and v and v[0] == "array":
+                todo = list(v[1]) + todo
+            else:
+                flat.append(self.ex(v, {}, c, (*stack, arr)))
+        return flat
+
+    def index(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+              ) -> Node:
+        name = n[1]
+        if name in env and env[name][0] == "arrayref":
+            name = env[name][1]
+        idx: list[int] = []
+        for pos, i in enumerate(n[2]):
+            e = self.ex(i, env, c, stack)
+            value = _const(e, self.mod)
+            if value is not None:
+                idx.append(value)
+                continue
+            # an index that depends on variables: a case split over the index's values
+            # (Spectra's VarIndexesTranslator splits over the index variable's values)
+            dims = self.mod.arrays.get(name)
+            if dims is None or pos >= len(dims):
+                raise self.fail(c, f"{name}[...]: a define array indexed by a non-constant "
+                                "expression is not supported")
+            cases = []
+            for k in range(dims[pos]):
+                sub = ("index", name, (*(("num", j) for j in idx), ("num", k), *n[2][pos + 1:]))
+                cases.append((("cmp", "=", e, ("num", k)), self.index(sub, env, c, stack)))
+            return ("select", tuple(cases))
+        if name in self.mod.arrays:
+            dims = self.mod.arrays[name]
+            if len(idx) != len(dims) or any(not 0 <= i < d for i, d in zip(idx, dims,
+                                                                             strict=True)):
+                raise self.fail(c, f"index {name}{idx} outside the array's {list(dims)}")
+            return ("id", name + "".join(f"[{i}]" for i in idx), False)
+        if name in self.mod.defines:
+            dvalue: Any = self.mod.defines[name][0]
+            for i in idx:
+                if not (isinstance(dvalue, tuple) and dvalue[0] == "array"
+                        and 0 <= i < len(dvalue[1])):
+                    raise self.fail(c, f"index {name}{idx} outside the define array")
+                dvalue = dvalue[1][i]
+            if isinstance(dvalue, tuple) and dvalue[0] == "array":
+                raise self.fail(c, f"define array {name} indexed by too few indices")
+            return self.ex(dvalue, {}, c, (*stack, name))
+        raise self.fail(c, f"{name}[...]: {name!r} is not an array")
+
+    def call(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+             ) -> Node:
+        name, args = n[1], n[2]
+        if name in self.mod.patterns:
+            raise self.fail(c, f"pattern {name!r} used inside a formula (a pattern is a "
+                            "whole assumption or guarantee)")
+        pred = self.mod.predicates.get(name)
+        if pred is None:
+            note = (f"; import {self.mod.missing[0]!r} not found" if self.mod.missing
+                    else "")
+            raise self.fail(c, f"{name}(...): unknown predicate or pattern (not defined in "
+                            f"the file or its imports{note})")
+        if name in stack:
+            raise self.fail(c, f"predicate {name!r} calls itself")
+        if len(args) != len(pred.params):
+            raise self.fail(c, f"predicate {name!r} takes {len(pred.params)} arguments, "
+                            f"{len(args)} given")
+        inner = {p: self.arg(a, env, c, stack) for p, a in zip(pred.params, args, strict=True)}
+        return self.ex(pred.body, inner, c, (*stack, name))
+
+    def arg(self, a: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+            ) -> Node:
+        """A predicate's argument: a whole array is passed by reference."""
+        if a[0] == "id" and a[1] in env and env[a[1]][0] == "arrayref":
+            return env[a[1]]
+        if a[0] == "id" and (a[1] in self.mod.arrays or (
+                a[1] in self.mod.defines and isinstance(self.mod.defines[a[1]][0], tuple)
+                and self.mod.defines[a[1]][0][0] == "array")):
+            return ("arrayref", a[1])
+        return self.ex(a, env, c, stack)
+
+    def quantifier(self, n: Node, env: dict[str, Node], c: _Constraint,
+                   stack: tuple[str, ...]) -> Node:
+        _, op, name, typ, body = n
+        base, dims, rest = _spectra_type(list(typ), self.mod, c.where or self.mod.where,
+                                         c.line)
+        if dims or rest:
+            raise self.fail(c, f"quantifier over {' '.join(typ)!r}: expected a scalar type")
+        values: list[Node]
+        if base[0] == "bool":
+            values = [("const", False), ("const", True)]
+        elif base[0] == "int":
+            values = [("num", k) for k in range(int(base[1]), int(base[2]) + 1)]
+        else:
+            values = [("id", v, False) for v in base[1]]
+        parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
+        node = parts[0]
+        for p in parts[1:]:
+            node = ("and" if op == "forall" else "or", node, p)
+        return node
+
+    def past_op(self, op: str, args: tuple[Node, ...], c: _Constraint) -> Node:
+        key = (op, *args)
+        if key in self.past:
+            return ("id", self.past[key], False)
+        m = self.fresh(f"{op}_aux", ("bool",), c)
+        self.past[key] = m
+        aux, nxt = ("id", m, False), ("next", ("id", m, False))
+        if op == "PREV":  # false at time 0, then the argument's previous value
+            self.emit("guarantee", "init", ("not", aux), c)
+            self.emit("guarantee", "safety", ("iff", nxt, args[0]), c)
+        elif op == "ONCE":
+            self.emit("guarantee", "init", ("iff", aux, args[0]), c)
+            self.emit("guarantee", "safety", ("iff", nxt, ("or", aux, ("next", args[0]))), c)
+        elif op == "HISTORICALLY":
+            self.emit("guarantee", "init", ("iff", aux, args[0]), c)
+            self.emit("guarantee", "safety", ("iff", nxt, ("and", aux, ("next", args[0]))),
+                      c)
+        else:  # SINCE (a S b), TRIGGERED (a T b)
+            a, b = args
+            first = b if op == "SINCE" else ("or", a, b)
+            self.emit("guarantee", "init", ("iff", aux, first), c)
+            self.emit("guarantee", "safety", ("iff", nxt, ("or", ("next", b),
+                                                           ("and", aux, ("next", a)))), c)
+        return aux
+
+
+def _nodes(n: object) -> Iterator[Node]:
+    """Every node of a tree (also inside the pairs of a ``select`` and argument tuples)."""
+    todo = [n]
+    while todo:
+        m = todo.pop()
+        if not isinstance(m, tuple):
+            continue
+        if m and isinstance(m[0], str):
+            yield m
+            todo.extend(m[1:])
+        else:
+            todo.extend(m)
+
+
+def _has(n: Node, kind: str) -> bool:
+    return any(m[0] == kind for m in _nodes(n))
 
 
 # --------------------------------------------------------------------------------------------
@@ -882,24 +1655,29 @@ def import_spec_file(path: str | Path, *, semantics: str | None = "textbook") ->
                         f"{', '.join(FORMATS)})")
     text = read_text(p, what="spec", error=SpecError)
     return import_spec_text(text, fmt=fmt, where=str(path), default_name=p.stem,
-                            semantics=semantics)
+                            semantics=semantics, base=p.parent)
 
 
 def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name: str = "spec",
-                     semantics: str | None = "textbook") -> str:
+                     semantics: str | None = "textbook", base: Path | None = None) -> str:
     """Translate the text of a foreign spec (``fmt``: a value of :data:`FORMATS`) to TOML."""
-    defines: dict[str, tuple[Node, int]] = {}
     if fmt == "spectra":
-        spec, defines = _parse_spectra(text, where, default_name)
+        mod = _parse_spectra(text, where, default_name, base)
+        spec = mod.spec
+        spec.constraints = _Expander(mod).run()
     elif fmt == "structuredslugs":
         spec = _parse_structuredslugs(text, where, default_name)
     elif fmt == "slugsin":
         spec = _parse_slugsin(text, where, default_name)
     else:
         raise SpecError(f"{where}: unknown format {fmt!r}")
+    _primed_justice(spec)
     if not spec.outputs():
+        if fmt == "spectra" and not spec.variables and (mod.patterns or mod.predicates):
+            raise SpecError(f"{where}: a library of patterns and predicates only (no "
+                            "variables): import the specs that use it")
         raise SpecError(f"{where}: no system variable (our specs need at least one output)")
-    tr = _Translator(spec, where, defines)
+    tr = _Translator(spec, where)
     sections: dict[tuple[str, str], list[tuple[int | None, str]]] = {}
     for c in spec.constraints:
         sections.setdefault((c.side, c.slot), []).append((c.line, tr.formula(c)))
@@ -911,6 +1689,26 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
             sections.setdefault((owner, "init"), []).append((None, now))
             sections.setdefault((owner, "safety"), []).append((None, f"G({nxt})"))
     return _toml(spec, sections, semantics)
+
+
+def _primed_justice(spec: ImportedSpec) -> None:
+    """A liveness goal that reads next values, ``GF phi(v, v')`` (a goal over steps, as
+    Spectra and slugs allow), becomes ``GF j`` with a fresh system variable ``j``: false at
+    time 0, then ``j' <-> phi`` (spectra-synt ``PrimesInJusticeTranslator``)."""
+    for k, c in enumerate(list(spec.constraints)):
+        if c.slot != "liveness" or not _has(c.body, "next"):
+            continue
+        taken = {b for v in spec.variables for b in v.bits()}
+        n = 0
+        while f"primed_justice_{n}" in taken:
+            n += 1
+        j = _Var(name=f"PRIMED_JUSTICE_{n}", ap=f"primed_justice_{n}", side="sys")
+        spec.variables.append(j)
+        ref: Node = ("id", j.name, False)
+        spec.constraints[k] = _Constraint(c.side, "liveness", ref, c.line, c.where)
+        spec.constraints += [
+            _Constraint("guarantee", "init", ("not", ref), c.line, c.where),
+            _Constraint("guarantee", "safety", ("iff", ("next", ref), c.body), c.line, c.where)]
 
 
 def _toml_str(s: str) -> str:
