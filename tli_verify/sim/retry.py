@@ -16,11 +16,11 @@ span of ``rest_span`` over the last ``stall_after`` seconds (at the attractor, o
 against the beads or the floor where the DS still pulls) -- the loop runs the certified DS of
 the mode that leads into it (for ``b``: ``a``, whose attractor is where ``b`` is entered) back
 to that attractor, then hands control back to the executive, which runs ``b`` again from there:
-the approach the demonstrations show. The executive is *not* told ``perturbed`` during a retreat: a mode
-change the retreat causes is judged like any other (by the executive, and by the oracle, which
-skips no check). Every retry is counted in the trial's result and in the evidence, and
-``--no-retry`` switches it off. Not in the paper's algorithm: a loop-level recovery for
-an environment assumption the physics breaks, reported as such.
+the approach the demonstrations show. The executive is *not* told ``perturbed`` during a
+retreat: a mode change the retreat causes is judged like any other (by the executive, and by
+the oracle, which skips no check). Every retry is counted in the trial's result and in the
+evidence, and ``--no-retry`` switches it off. Not in the paper's algorithm: a loop-level
+recovery for an environment assumption the physics breaks, reported as such.
 """
 
 from __future__ import annotations
