@@ -9,9 +9,10 @@ franka --trials N --seed S`` runs them, each with the perturbations
 oracle (:func:`tli_verify.sim.trial_oracle.check_trial`); the :class:`PhysicsResult` becomes
 campaign evidence through :func:`tli_verify.sim.physics_evidence.write_physics_evidence`.
 
-The trials run on the backends of the 2-D campaigns (:func:`tli_verify.verify.backends.make_backend`:
-``serial``, ``process`` or ``dask``). Work travels in batches: :func:`chunk_seeds` splits the
-seeds into ``config.workers`` contiguous chunks, and each chunk is run by one worker with its own
+The trials run on the backends of the 2-D campaigns
+(:func:`tli_verify.verify.backends.make_backend`: ``serial``, ``process`` or ``dask``). Work
+travels in batches: :func:`~tli_verify.sim.chunks.chunk_seeds` splits the seeds into
+``config.workers`` contiguous chunks, and each chunk is run by one worker with its own
 executive, whose learned cuts carry over from trial to trial within the chunk, as on one robot.
 The partition depends only on ``(seed, trials, workers)``, never on the scheduling, so the same
 settings give the same trials and verdicts, in seed order, on every backend. ``workers=1`` (the
@@ -34,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.errors import CampaignError
+from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import hash_files
 from tli_verify.sim.loop import TrialResult
 from tli_verify.sim.perturbations import draw
@@ -42,7 +44,7 @@ from tli_verify.sim.trial_oracle import VIOLATION_KINDS, TrialVerdict, check_tri
 
 __all__ = [
     "PhysicsResult",
-    "chunk_seeds",
+    "chunk_seeds",  # from tli_verify.sim.chunks
     "run_physics_campaign",
 ]
 
@@ -94,54 +96,6 @@ class PhysicsResult:
     def ok(self) -> bool:
         """True iff every trial passed the oracle."""
         return all(v.ok for v in self.verdicts)
-
-
-def chunk_seeds(seed: int, trials: int, workers: int) -> tuple[tuple[int, int], ...]:
-    """The contiguous chunks of a physical campaign's seeds, one executive each.
-
-    The seeds ``seed, ..., seed + trials - 1`` in ``min(workers, trials)`` runs of consecutive
-    seeds whose sizes differ by at most one, the larger ones first (as ``numpy.array_split``).
-    A pure function of its arguments: the partition, hence which cuts a trial inherits, never
-    depends on the scheduling.
-
-    Parameters
-    ----------
-    seed : int
-        The first trial's seed, >= 0.
-    trials : int
-        >= 1.
-    workers : int
-        >= 1.
-
-    Returns
-    -------
-    tuple of (int, int)
-        ``(first seed, trials)`` per chunk, in seed order; the trials add up to ``trials``.
-
-    Raises
-    ------
-    CampaignError
-        (exit 2) A negative seed, or fewer than one trial or worker.
-
-    Examples
-    --------
-    >>> chunk_seeds(0, 30, 4)
-    ((0, 8), (8, 8), (16, 7), (23, 7))
-    >>> chunk_seeds(5, 2, 4)
-    ((5, 1), (6, 1))
-    """
-    for name, value, lo in (("seed", seed, 0), ("trials", trials, 1), ("workers", workers, 1)):
-        if not isinstance(value, int) or isinstance(value, bool) or value < lo:
-            raise CampaignError(f"{name}: expected an integer >= {lo}, got {value!r}")
-    count = min(workers, trials)
-    size, extra = divmod(trials, count)
-    chunks = []
-    first = seed
-    for i in range(count):
-        n = size + (1 if i < extra else 0)
-        chunks.append((first, n))
-        first += n
-    return tuple(chunks)
 
 
 @dataclass(frozen=True, slots=True)
