@@ -7,6 +7,7 @@ and the evidence check recomputes it.
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
+from tests.support.cli import run
 from tli_verify.errors import CampaignError
 from tli_verify.io import bundled_dir
 from tli_verify.sim import campaign as campaign_module
@@ -131,3 +133,30 @@ def test_the_evidence_records_the_partition_and_the_check_recomputes_it(tmp_path
     assert (doc["physics"]["workers"], doc["physics"]["chunks"]) == (1, [[10, 7]])
     passed = []
     assert check_physics_block(doc, "e.json", passed) == [] and "chunks" not in passed[0]
+
+
+@pytest.mark.usefixtures("stated")
+def test_ctrl_c_in_a_later_chunk_writes_no_evidence(monkeypatch: pytest.MonkeyPatch,
+                                                    tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C in the second chunk: exit 130, and no evidence file, not even a partial one (an
+    existing one is kept as it was)."""
+    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                      ("models", "franka-scoop.model.json"),
+                      ("certificates", "franka-scoop.cert.json")):
+        (tmp_path / sub).mkdir()
+        shutil.copy(Path(FRANKA) / sub / name, tmp_path / sub / name)
+
+    def interrupted(policy: Executive, seed: int, **kw: Any) -> TrialResult:
+        if seed == 2:
+            raise KeyboardInterrupt
+        return fake_trial(policy, seed, **kw)
+
+    monkeypatch.setattr(loop, "run_trial", interrupted)
+    code, out, err = run(capsys, "sim", "franka", "--certificates",
+                         str(tmp_path / "certificates"), "--trials", "4", "--workers", "2",
+                         "--evidence")
+    assert code == 130 and err == "error: interrupted\n", err
+    assert out.count("trial ") == 2  # the first chunk's trials were reported
+    assert sorted(p.name for p in (tmp_path / "certificates").iterdir()) == \
+        ["franka-scoop.cert.json"]
