@@ -71,7 +71,7 @@ class PhysicsResult:
         a chunk).
     chunks : tuple of (int, int)
         The partition the trials ran in, ``(first seed, trials)`` per chunk, one executive each
-        (:func:`chunk_seeds`; empty: one chunk of every trial).
+        (:func:`chunk_seeds`; empty: the one ``chunk_seeds`` gives the config).
     """
 
     config: PhysicsConfig

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.sim.campaign import PhysicsResult
+from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.physics_checks import WORLD
 
@@ -99,7 +100,7 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         # the partition: one executive per chunk, cuts carried over within it
         "workers": int(c.workers),
         "chunks": [[int(first), int(n)] for first, n in
-                   (result.chunks or ((c.seed, len(result.results)),))],
+                   (result.chunks or chunk_seeds(c.seed, len(result.results), c.workers))],
         "outcomes": [{"seed": r.seed, "success": bool(r.success), "delivered": r.delivered,
                       "violations": list(v.violations), "retries": r.retries,
                       "stopped": r.stopped, "perturbed_steps": r.perturbed_steps,
