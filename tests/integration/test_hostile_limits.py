@@ -37,6 +37,7 @@ OPTIONS = [  # (argv before the value, option, valid range; float: a real number
     (["experiment", "single-mode", "--quick", "--ds-eps"], "--ds-eps", "float"),
     (["evidence", ".", "--examples"], "--examples", (1, 10_000_000)),
     (["sim", "franka", "--seed"], "--seed", (0, SEED)),
+    (["sim", "franka", "--workers"], "--workers", (1, 256)),
 ]
 
 

@@ -68,6 +68,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "latency (tli_verify.sim.franka_sensors)")
     f.add_argument("--duration", type=float, default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g)")
+    f.add_argument("--workers", type=int_range(1, 256), default=1,
+                   help="split the seeds into N contiguous chunks, one executive each (its "
+                   "cuts carry over between the trials of its chunk only); default 1: one "
+                   "executive for every trial. The same seed, trials and workers give the "
+                   "same trials on every backend")
+    f.add_argument("--backend", choices=("serial", "process", "dask"), default="serial",
+                   help="where the chunks run: serial (default, this process), process "
+                   "(local worker processes) or dask ('tli-verify[cluster]')")
+    f.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="Dask scheduler address (--backend dask; default: a LocalCluster)")
     f.add_argument("--json", action="store_true", help="one JSON object per trial, then a "
                    "summary object")
     f.add_argument("--video", type=output_path, default=None, metavar="OUT.mp4",
@@ -109,6 +119,14 @@ def _run(args: argparse.Namespace) -> int:
     if args.evidence is not None and (args.no_perturb or args.no_modulation or args.no_replan):
         raise TliError("--evidence: evidence is for the deployed policy under perturbations; "
                        "not with --no-perturb, --no-modulation or --no-replan")
+    if args.scheduler is not None and args.backend != "dask":
+        raise TliError("--scheduler needs --backend dask")
+    if args.backend != "serial" and (args.video is not None or args.fig9 is not None):
+        raise TliError(f"--backend {args.backend}: --video and --fig9 need the trials in this "
+                       "process (--backend serial)")
+    if args.fig9 is not None and args.workers > 1:
+        raise TliError(f"--fig9 plots the cuts one executive learned: not with --workers "
+                       f"{args.workers} (one executive per chunk)")
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
@@ -152,7 +170,10 @@ def _run(args: argparse.Namespace) -> int:
 
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
-    policy = load_policy(variant, certificates=args.certificates)  # exit 1 if not covered
+    # exit 1 if the certificate does not cover the model (on the other backends the campaign
+    # checks it before any worker starts, and each chunk loads its own executive)
+    policy = load_policy(variant, certificates=args.certificates) \
+        if args.backend == "serial" else None
     recorder = None
     if args.video is not None:
         from tli_verify.sim.render import Recorder
@@ -164,7 +185,8 @@ def _run(args: argparse.Namespace) -> int:
                            pushes=0 if args.no_perturb else 1,
                            tilts=0 if args.no_perturb else 1,
                            certificates=None if args.certificates is None
-                           else str(args.certificates))
+                           else str(args.certificates),
+                           workers=args.workers, backend=args.backend)
 
     def report(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         if args.json:
@@ -181,8 +203,12 @@ def _run(args: argparse.Namespace) -> int:
                 f"{res.sim_time:.1f} s simulated in {res.wall_time:.1f} s\n")
         sys.stdout.flush()
 
+    def event(text: str) -> None:
+        sys.stderr.write(f"note: {text}\n")
+
     campaign = run_physics_campaign(config, policy=policy, on_trial=report,
-                                    frame=recorder.frame if recorder is not None else None)
+                                    frame=recorder.frame if recorder is not None else None,
+                                    on_event=event, scheduler=args.scheduler)
     results = campaign.results
     ok = campaign.successes
     passed = sum(v.ok for v in campaign.verdicts)
@@ -190,14 +216,16 @@ def _run(args: argparse.Namespace) -> int:
         "summary": True, "variant": variant, "trials": len(results), "successes": ok,
         "passed": passed, "violations": campaign.violations,
         "cuts_added": sum(r.cuts_added for r in results),
-        "wall_time": round(sum(r.wall_time for r in results), 2)}
+        "wall_time": round(sum(r.wall_time for r in results), 2),
+        "workers": args.workers, "backend": args.backend,
+        "chunks": [list(c) for c in campaign.chunks]}
     if evidence is not None:
         target, _ = write_physics_evidence(campaign, evidence)
         summary["evidence"] = str(target)
     if recorder is not None:
         recorder.save(args.video)
         summary["video"] = str(args.video)
-    if args.fig9 is not None:
+    if args.fig9 is not None and policy is not None:  # serial and one executive (above)
         from tli_verify.sim.loop import bundled_demos, plot_flow
 
         demos = bundled_demos()

@@ -91,8 +91,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--examples", type=int_range(1, 10_000_000), default=DEFAULT_EXAMPLES,
                     help=f"examples per model (default {DEFAULT_EXAMPLES})")
     ev.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
-    ev.add_argument("--workers", type=int_range(1, 256), default=None)
-    ev.add_argument("--backend", choices=("process", "serial", "dask"), default="process")
+    ev.add_argument("--workers", type=int_range(1, 256), default=None,
+                    help="bisimulation campaigns: worker processes (default: the CPU count); "
+                    "physical campaigns: contiguous chunks of seeds, one executive each "
+                    "(default 1: one executive for every trial)")
+    ev.add_argument("--backend", choices=("process", "serial", "dask"), default=None,
+                    help="where the batches run (default: process for bisimulation campaigns, "
+                    "serial for physical ones)")
     ev.add_argument("--only", nargs="+", default=None, metavar="NAME",
                     help="only these models (models/NAME.model.json)")
     ev.add_argument("--trials", type=int_range(1, 100_000), default=None,
@@ -278,7 +283,7 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     config = CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
                             certificate=str(resolved.certificate), examples=args.examples,
                             seed=args.seed, modulation=True, workers=args.workers,
-                            backend=args.backend)
+                            backend=args.backend or "process")
     result = run_campaign(config, progress=sys.stderr.isatty())
     path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
     total = doc["violations"]["total"]
@@ -305,16 +310,22 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     root = Path(resolved.model).parent.parent
     config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
                            duration=args.duration, retry=not args.no_retry,
-                           sensors=args.sensors)
+                           sensors=args.sensors,
+                           workers=1 if args.workers is None else args.workers,
+                           backend=args.backend or "serial")
 
     def progress(k: int, res: Any, verdict: Any) -> None:
         judged = "ok" if verdict.ok else ", ".join(verdict.violations)
         sys.stderr.write(f"  trial {k + 1}/{trials} (seed {res.seed}): {judged}; "
                          f"{res.delivered} bead(s); modes {res.mode_sequence()}\n")
 
-    result = run_physics_campaign(config, on_trial=progress)
+    def event(text: str) -> None:
+        sys.stderr.write(f"note: {text}\n")
+
+    result = run_physics_campaign(config, on_trial=progress, on_event=event)
     path, _ = write_physics_evidence(result, resolved.evidence)
     return result.ok, (f"{path}: physical campaign of task {resolved.task.name!r}, seed "
                        f"{args.seed}, {trials} trial(s) (robot {args.robot}, "
-                       f"{args.duration:g} s), {result.successes} delivered, "
+                       f"{args.duration:g} s, {len(result.chunks)} chunk(s) on "
+                       f"{config.backend}), {result.successes} delivered, "
                        f"{sum(not v.ok for v in result.verdicts)} failed the oracle")

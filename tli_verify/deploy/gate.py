@@ -506,7 +506,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
             items.append(GateItem(
                 "model", name, True, f"{shown(evidence)}: physical campaign {check.world!r} "
                 f"(robot {phys['robot']}, {phys['variant']}, {phys['duration']:g} s budget): "
-                f"{check.examples} perturbed trials from seed {check.seed} ({phys['pushes']} "
+                f"{check.examples} perturbed trials from seed {check.seed}"
+                f"{_partition(phys)} ({phys['pushes']} "
                 f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
                 "violations; binds its task, spec, model and certificate (SHA-256)", "campaign"))
         else:
@@ -527,6 +528,12 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "model (the gate looks for models/<name>.model.json next to "
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
+
+
+def _partition(phys: dict[str, Any]) -> str:
+    """How a physical campaign's trials were split, for the gate's line ("" for one chunk)."""
+    chunks = phys.get("chunks") or ()
+    return "" if len(chunks) <= 1 else f" in {len(chunks)} chunks of seeds (one executive each)"
 
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
@@ -598,6 +605,12 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     (the project is the model's ``models/`` parent), each judged by the physics oracle
     (:func:`tli_verify.sim.trial_oracle.check_trial`).
 
+    The re-run compares nothing trial by trial with the evidence: it runs ``N`` new trials on
+    seeds the gate derives (:func:`rerun_seed`), in this process with one fresh executive
+    (``workers=1``, serial), and every one must pass. However the evidence's trials were
+    partitioned (``physics.workers``, ``physics.chunks``: each chunk began with a fresh
+    executive too), its first re-run trial starts as every chunk did, with no cuts learned.
+
     Parameters
     ----------
     check : tli_verify.verify.evidence.EvidenceCheck
@@ -619,7 +632,8 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     root = model.parent.parent
     try:
         config = PhysicsConfig(root=str(root), seed=rerun_seed(check, model, trials),
-                               trials=int(trials), **settings_from(dict(check.physics)))
+                               trials=int(trials), workers=1, backend="serial",
+                               **settings_from(dict(check.physics)))
         result = run_physics_campaign(config)
     except TliError as exc:
         return False, f"the re-run physical trials failed: {exc}"

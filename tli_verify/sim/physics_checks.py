@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.verify.evidence import PhysicalWorld
 
 __all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_ROBOT", "WORLD",
@@ -69,6 +70,7 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
                 o["violations"] for o in outcomes) != bool(doc["violations"]["total"]):
             out.append(f"{shown}: physics.outcomes disagree with physics.successes or the "
                        "violations")
+    out += _check_partition(doc, shown)
     if phys["robot"] != REQUIRED_ROBOT:
         out.append(f"{shown}: the trials ran on the {phys['robot']!r} rig, not the Panda: "
                    "evidence for the Franka project must be made on the arm (tli sim franka "
@@ -80,7 +82,10 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
         out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
                    "the evidence must perturb at both levels (motion pushes and task tilts)")
     if not out:
-        passed.append(f"{trials} perturbed physical trial(s) ({phys['pushes']} push(es), "
+        chunks = phys.get("chunks")
+        split = "" if chunks is None or len(chunks) == 1 else \
+            f" in {len(chunks)} chunks of seeds, one executive each"
+        passed.append(f"{trials} perturbed physical trial(s){split} ({phys['pushes']} push(es), "
                       f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, retry "
                       f"{'on' if phys.get('retry', True) else 'off'}, "
                       f"{phys['duration']:g} s budget), all delivered soup")
@@ -91,3 +96,24 @@ FRANKA_PHYSICS = PhysicalWorld(name=WORLD, min_trials=MIN_PHYSICS_TRIALS,
                                check=check_physics_block)
 """The MuJoCo Franka's physical campaigns, for
 :func:`~tli_verify.verify.evidence.check_evidence`."""
+
+
+def _check_partition(doc: Mapping[str, Any], shown: str) -> list[str]:
+    """``physics.workers`` and ``physics.chunks``, when recorded: the contiguous partition
+    :func:`~tli_verify.sim.chunks.chunk_seeds` gives the campaign's seed, trials and workers,
+    and the same workers as the campaign block."""
+    phys, camp = doc["physics"], doc["campaign"]
+    workers = int(phys.get("workers", 1))
+    if "workers" in phys and camp.get("workers") is not None and \
+            int(camp["workers"]) != workers:
+        return [f"{shown}: physics.workers {workers} differs from campaign.workers "
+                f"{camp['workers']}"]
+    chunks = phys.get("chunks")
+    if chunks is None:
+        return []
+    expected = chunk_seeds(int(camp["seed"]), int(phys["trials"]), workers)
+    if [tuple(int(v) for v in c) for c in chunks] != list(expected):
+        want = ", ".join(f"[{a}, {n}]" for a, n in expected)
+        return [f"{shown}: physics.chunks is not the contiguous partition of the seeds into "
+                f"{workers} chunk(s) (expected {want})"]
+    return []

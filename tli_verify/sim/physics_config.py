@@ -17,15 +17,23 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import TliError
+from tli_verify.errors import CampaignError, TliError
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.loop import ROBOTS, SENSOR_KINDS, VARIANTS
 
 __all__ = [
+    "BACKENDS",
+    "MAX_WORKERS",
     "ROBOTS",
     "PhysicsConfig",
 ]
+
+BACKENDS = ("serial", "process", "dask")
+"""Where a physical campaign's chunks run (:func:`tli_verify.verify.backends.make_backend`)."""
+
+MAX_WORKERS = 256
+"""Most chunks (workers) of a physical campaign, as for the 2-D campaigns."""
 
 
 
@@ -58,6 +66,15 @@ class PhysicsConfig:
     certificates : str or None
         The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
         gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
+    workers : int
+        The trials run in ``workers`` contiguous chunks of seeds, one executive each, whose
+        cuts carry over between the trials of its chunk
+        (:func:`tli_verify.sim.campaign.chunk_seeds`). Default 1: one executive for every
+        trial. It changes which cuts a trial inherits, so it is a setting of the campaign,
+        recorded in its evidence, not a property of the machine.
+    backend : str
+        ``"serial"`` (default: in this process, chunk after chunk), ``"process"`` (local
+        worker processes) or ``"dask"``: where the chunks run. The results do not depend on it.
     """
 
     root: str
@@ -71,6 +88,8 @@ class PhysicsConfig:
     certificates: str | None = None
     retry: bool = True
     sensors: str = "ideal"
+    workers: int = 1
+    backend: str = "serial"
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOTS:
@@ -87,6 +106,12 @@ class PhysicsConfig:
             raise TliError(f"duration must be between 0.5 and 600 s, got {self.duration}")
         if self.pushes < 0 or self.tilts < 0:
             raise TliError("pushes and tilts must be >= 0")
+        if not isinstance(self.workers, int) or isinstance(self.workers, bool) or \
+                not 1 <= self.workers <= MAX_WORKERS:
+            raise CampaignError(f"workers: expected an integer in [1, {MAX_WORKERS}], got "
+                                f"{self.workers!r}")
+        if self.backend not in BACKENDS:
+            raise CampaignError(f"backend: one of {', '.join(BACKENDS)}, got {self.backend!r}")
 
     @property
     def cert_dir(self) -> Path:

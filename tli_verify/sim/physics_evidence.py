@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.sim.campaign import PhysicsResult
+from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.physics_checks import WORLD
 
@@ -96,6 +97,10 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         "wall_time": round(result.wall_time, 2),
         "controller": controller_record(c.robot),
         "retries": sum(r.retries for r in result.results),
+        # the partition: one executive per chunk, cuts carried over within it
+        "workers": int(c.workers),
+        "chunks": [[int(first), int(n)] for first, n in
+                   (result.chunks or chunk_seeds(c.seed, len(result.results), c.workers))],
         "outcomes": [{"seed": r.seed, "success": bool(r.success), "delivered": r.delivered,
                       "violations": list(v.violations), "retries": r.retries,
                       "stopped": r.stopped, "perturbed_steps": r.perturbed_steps,
@@ -107,7 +112,8 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         spec=files["spec"], model=files["model"],
         certificate=files["certificate"], seed=c.seed, examples=len(result.results),
         runs=len(result.results), violations=result.violations,
-        modulation=c.variant != "no-modulation", partial=False, backend="serial", workers=1,
+        modulation=c.variant != "no-modulation", partial=False,
+        backend=c.backend, workers=c.workers,
         counterexample=_counterexample(result), physics=physics,
         expected={name: sha for name, _, sha in result.files if sha})
     return target, doc
