@@ -574,7 +574,7 @@ class PandaRig:
                  limits: FrankaLimits | None = None, sensors: str = "ideal") -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
-        from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
+        from tli_verify.sim.scene import add_ladle, add_scene, add_stand, set_contact_options
 
         if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
             raise TliError(f"timestep {timestep:g} s: one of "
@@ -591,6 +591,7 @@ class PandaRig:
             if spec.body(other) is not None:
                 ex = spec.add_exclude()
                 ex.bodyname1, ex.bodyname2 = "ladle", other
+        add_stand(spec)  # drawn only: the physics is that of the scene without it
         spec.worldbody.add_light(pos=[0.5, 0.0, 1.5], dir=[0, 0, -1])
         try:
             self.model = spec.compile()
