@@ -669,6 +669,14 @@ class PandaRig:
         return self.controller.external_wrench
 
     @property
+    def person_wrench(self) -> FloatArray:
+        """The wrench a person's hand applied in the last physics step (N, N m; world, at the
+        ladle's centre of mass), shape (6,): what :attr:`push` held then (the loop resets
+        :attr:`push` after each control period); zero without a perturbation. Drawn by
+        :class:`tli_verify.sim.render.Recorder`; the robot does not read it."""
+        return np.array(self.data.xfrc_applied[self._carrier], dtype=np.float64)
+
+    @property
     def stopped(self) -> str | None:
         """The reflex that stopped the robot, if one did."""
         return self.guard.stopped
