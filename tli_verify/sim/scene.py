@@ -278,7 +278,7 @@ def add_stand(spec: mujoco.MjSpec) -> None:
     spec.add_texture(name="stand_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.32, 0.34, 0.36],
                      rgb2=[0.26, 0.28, 0.3], width=256, height=256)
-    floor = spec.add_material(name="stand_floor", texrepeat=[6, 6], reflectance=0.1)
+    floor = spec.add_material(name="stand_floor", texrepeat=[6, 6])
     floor.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "stand_floor"
     drawn("floor", mujoco.mjtGeom.mjGEOM_PLANE, [3.0, 3.0, 0.05],
           [0.3, 0.0, -TABLE_HEIGHT], material="stand_floor")
