@@ -9,7 +9,8 @@ picked and laid out 1 x 4, each titled with its simulated time and what happens:
 - nominal (default): the middle of the first run of each mode a, b, c, d (paper Sec. 7.2:
   reach, scoop, transport, pour), evenly spaced ones if fewer modes ran;
 - ``--perturb`` (the seeded push and tilt of ``tli sim franka``): the frame of the largest
-  force of each perturbation, the executive's first replan (0.3 s after it), and the pour
+  force of each perturbation (before the first replan, if that falls within it), the
+  executive's first replan (0.6 s after it), and the pour
   after the last perturbation (the middle of the first run of mode d that starts once the
   hands let go; the last frame, beads settled, if none).
 
@@ -40,7 +41,7 @@ import numpy.typing as npt
 ROOT = Path(__file__).resolve().parents[1]
 MODE_NAMES = {"a": "reach", "b": "scoop", "c": "transport", "d": "pour"}
 ROBOT_NAMES = {"panda": "Panda", "free-tool": "free tool"}
-REPLAN_LAG = 0.3
+REPLAN_LAG = 0.6
 """Seconds after a replan at which its frame is shown (the arm has begun to turn back)."""
 
 
@@ -116,7 +117,8 @@ def pick(modes: list[str], n: int = 4) -> list[int]:
     return sorted(chosen)
 
 
-def pick_perturbed(shown: list[Shown], replans: list[int], n: int = 4
+def pick_perturbed(shown: list[Shown], replans: list[int],
+                   hands: list[tuple[str, float]] | None = None, n: int = 4
                    ) -> list[tuple[int, str]]:
     """Frames of a perturbed trial (module doc), with a caption each, in time order.
 
@@ -126,8 +128,11 @@ def pick_perturbed(shown: list[Shown], replans: list[int], n: int = 4
         The rendered frames.
     replans : list of int
         Control steps at which the executive replanned (its ``Replan`` events).
+    hands : list of (str, float), optional
+        Each perturbation's kind (``"push"``, ``"tilt"``) and when it was applied (s): a
+        run of frames with a hand on the ladle is named after the one applied in it.
     n : int, optional
-        At most this many frames: the perturbations first, then the replan, then the pour.
+        At most this many frames: the hands first, then the replan, then the pour.
 
     Returns
     -------
@@ -136,20 +141,28 @@ def pick_perturbed(shown: list[Shown], replans: list[int], n: int = 4
     """
     out: list[tuple[int, str, int]] = []  # (index, caption, priority)
     pushed = [s.force > 0.0 or s.torque > 0.0 for s in shown]
+    first_replan = replans[0] if replans else None
     last_touch = -1
     for on, a, b in _runs(pushed):
         if not on:
             continue
-        k = max(range(a, b), key=lambda i: shown[i].force)
+        run = range(a, b)
+        if first_replan is not None and shown[a].step < first_replan <= shown[b - 1].step:
+            run = range(a, max(a + 1, next(i for i in run if shown[i].step >= first_replan)))
+        k = max(run, key=lambda i: shown[i].force)
         s = shown[k]
-        out.append((k, f"hand: {s.force:.0f} N, {s.torque:.0f} N m (mode {s.mode})", 0))
+        kinds = [kind for kind, at in hands or []
+                 if shown[a].time - 0.1 <= at <= shown[b - 1].time]
+        what = " + ".join(kinds) or "hand"
+        torque = f", {s.torque:.0f} N m" if s.torque >= 0.5 else ""
+        out.append((k, f"{what}: {s.force:.0f} N{torque} (mode {s.mode})", 0))
         last_touch = b - 1
-    if replans:
-        at = replans[0] + round(REPLAN_LAG / 0.02)
+    if first_replan is not None:
+        at = first_replan + round(REPLAN_LAG / 0.02)
         k = min(range(len(shown)), key=lambda i: abs(shown[i].step - at))
         before = shown[min(range(len(shown)),
-                           key=lambda i: abs(shown[i].step - replans[0] + 1))].mode
-        out.append((k, f"replan: mode {before} -> {shown[k].mode}", 1))
+                           key=lambda i: abs(shown[i].step - first_replan + 1))].mode
+        out.append((k, f"replanned: mode {before} -> {shown[k].mode}", 1))
     pour = None
     for mode, a, b in _runs([s.mode for s in shown]):
         if mode == "d" and a > last_touch:
@@ -237,7 +250,9 @@ def _run(args: argparse.Namespace) -> int:
     shown = shown[:n]
     if args.perturb:
         replans = [int(e.rsplit(" ", 1)[1]) for e in res.events if e.startswith("Replan at")]
-        chosen = pick_perturbed(shown, replans)
+        hands = [(p.kind, a) for p, a in zip(res.perturbations, res.applied, strict=True)
+                 if not math.isnan(a)]
+        chosen = pick_perturbed(shown, replans, hands)
     else:
         chosen = [(i, f"mode {shown[i].mode} ({MODE_NAMES.get(shown[i].mode, '?')})")
                   for i in pick([s.mode for s in shown])]

@@ -90,8 +90,10 @@ standing on the table (:func:`tli_verify.sim.scene.add_stand`), both bowls and t
 soup bowl on the left, the target bowl on the right."""
 TOOL_VIEW = View((0.5, 0.0, 0.06), 0.9, 180.0, -30.0)
 """The free tool's camera: a close-up of the ladle over the tray and the bowls (no arm)."""
-FORCE_SCALE = 0.005
+FORCE_SCALE = 0.006
 """Length (m) per newton of the arrow drawn for a person's force on the ladle."""
+FORCE_WIDTH = 0.012
+"""Width (m) of that arrow."""
 FORCE_RGBA = (0.9, 0.1, 0.1, 1.0)
 BASE_BODY = "link0"
 """The Panda's base body: a model with it is rendered from :data:`PANDA_VIEW`."""
@@ -354,8 +356,8 @@ class Recorder:
 
     def _draw_person(self, rig: Any) -> None:
         """An arrow for the force of a person's hand on the ladle (the rig's ``person_wrench``,
-        if it has one: the Panda's), from the ladle's centre of mass towards where it pushes,
-        :data:`FORCE_SCALE` metres per newton; nothing without a perturbation."""
+        if it has one: the Panda's), ending at the ladle's centre of mass where the hand
+        pushes, :data:`FORCE_SCALE` metres per newton; nothing without a perturbation."""
         import mujoco
         import numpy as np
 
@@ -366,12 +368,12 @@ class Recorder:
         force = np.asarray(wrench, dtype=np.float64)[:3]
         if float(np.linalg.norm(force)) < 0.5:  # N: below, no arrow (a hand just letting go)
             return
-        start = np.array(rig.data.xipos[rig.carrier], dtype=np.float64)
+        end = np.array(rig.data.xipos[rig.carrier], dtype=np.float64)
         geom = scene.geoms[scene.ngeom]
         mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3),
                             np.eye(3).ravel(), np.array(FORCE_RGBA, dtype=np.float32))
-        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, 0.008, start,
-                             start + FORCE_SCALE * force)
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, FORCE_WIDTH,
+                             end - FORCE_SCALE * force, end)
         scene.ngeom += 1
 
     def close(self) -> None:
