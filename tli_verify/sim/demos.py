@@ -584,7 +584,7 @@ class PandaRig:
                  physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
-        from tli_verify.sim.scene import add_ladle, add_scene, set_contact_options
+        from tli_verify.sim.scene import add_ladle, add_scene, add_stand, set_contact_options
 
         if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
             raise TliError(f"timestep {timestep:g} s: one of "
@@ -601,6 +601,7 @@ class PandaRig:
             if spec.body(other) is not None:
                 ex = spec.add_exclude()
                 ex.bodyname1, ex.bodyname2 = "ladle", other
+        add_stand(spec)  # drawn only: the physics is that of the scene without it
         spec.worldbody.add_light(pos=[0.5, 0.0, 1.5], dir=[0, 0, -1])
         try:
             self.model = spec.compile()
@@ -676,6 +677,14 @@ class PandaRig:
         """The controller's external wrench estimate at the tray (N, N m; world), shape (6,)
         (:attr:`~tli_verify.sim.controller.ImpedanceController.external_wrench`)."""
         return self.controller.external_wrench
+
+    @property
+    def person_wrench(self) -> FloatArray:
+        """The wrench a person's hand applied in the last physics step (N, N m; world, at the
+        ladle's centre of mass), shape (6,): what :attr:`push` held then (the loop resets
+        :attr:`push` after each control period); zero without a perturbation. Drawn by
+        :class:`tli_verify.sim.render.Recorder`; the robot does not read it."""
+        return np.array(self.data.xfrc_applied[self._carrier], dtype=np.float64)
 
     @property
     def stopped(self) -> str | None:

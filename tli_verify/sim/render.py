@@ -11,12 +11,14 @@ short subprocess (:func:`probe_backend`: import MuJoCo with that ``MUJOCO_GL``, 
 3. none opens a context: :class:`~tli_verify.errors.TliError` (exit 2) naming what was tried
    and the system packages to install (``libegl1`` + ``libegl-mesa0``, or ``libosmesa6``).
 
-:class:`Recorder` then renders the trial's control steps from a fixed camera and streams
-them to an H.264 MP4 (imageio-ffmpeg) in a private temporary directory; :meth:`Recorder.save`
-moves it to the output atomically, so a failed rendering leaves no partial file. An exception
-while a frame is recorded (Ctrl-C, or SIGTERM, which ``tli`` turns into Ctrl-C) closes the
-recorder and removes the temporary directory at once; one between frames leaves it to
-:meth:`Recorder.close` (also a context manager's exit, and run at the interpreter's exit).
+:class:`Recorder` then renders the trial's control steps from a fixed camera
+(:data:`PANDA_VIEW`: the whole arm, its base on the table and both bowls; :data:`TOOL_VIEW`: a
+close-up of the bowls for the free tool) and streams them to an H.264 MP4 (imageio-ffmpeg) in
+a private temporary directory; :meth:`Recorder.save` moves it to the output atomically, so a
+failed rendering leaves no partial file. An exception while a frame is recorded (Ctrl-C, or
+SIGTERM, which ``tli`` turns into Ctrl-C) closes the recorder and removes the temporary
+directory at once; one between frames leaves it to :meth:`Recorder.close` (also a context
+manager's exit, and run at the interpreter's exit).
 """
 
 from __future__ import annotations
@@ -37,12 +39,16 @@ from tli_verify.errors import TliError
 __all__ = [
     "BACKENDS",
     "INSTALL_HINT",
+    "PANDA_VIEW",
+    "TOOL_VIEW",
     "Probe",
     "Recorder",
+    "View",
     "backend_in_effect",
     "choose_backend",
     "probe_backend",
     "select_backend",
+    "view_for",
 ]
 
 BACKENDS = ("egl", "osmesa")
@@ -55,6 +61,52 @@ PROBE_TIMEOUT = 60.0
 """Seconds a probe subprocess may take (importing MuJoCo and opening a context: ~1 s)."""
 CONTROL_DT = 0.02
 """The control period (s) at which :meth:`Recorder.frame` is called (``sim.demos``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class View:
+    """A fixed free camera (MuJoCo's ``mjvCamera``): it looks at ``lookat`` from
+    ``distance`` metres away, ``azimuth`` degrees about world z (180: from +x, towards -x) and
+    ``elevation`` degrees (negative: from above).
+
+    Attributes
+    ----------
+    lookat : tuple of float, shape (3,)
+    distance : float
+    azimuth : float
+    elevation : float
+    """
+
+    lookat: tuple[float, float, float]
+    distance: float
+    azimuth: float
+    elevation: float
+
+
+PANDA_VIEW = View((0.35, 0.0, 0.28), 1.5, 165.0, -24.0)
+"""The Panda rig's camera: from beyond the table's far edge (+x), 15 degrees towards the soup
+bowl (-y), facing the robot: the whole arm (also stretched out over the target bowl), its base
+standing on the table (:func:`tli_verify.sim.scene.add_stand`), both bowls and the ladle; the
+soup bowl on the left, the target bowl on the right."""
+TOOL_VIEW = View((0.5, 0.0, 0.06), 0.9, 180.0, -30.0)
+"""The free tool's camera: a close-up of the ladle over the tray and the bowls (no arm)."""
+FORCE_SCALE = 0.006
+"""Length (m) per newton of the arrow drawn for a person's force on the ladle."""
+FORCE_WIDTH = 0.012
+"""Width (m) of that arrow."""
+FORCE_RGBA = (0.9, 0.1, 0.1, 1.0)
+BASE_BODY = "link0"
+"""The Panda's base body: a model with it is rendered from :data:`PANDA_VIEW`."""
+
+
+def view_for(model: Any) -> View:
+    """The camera for a compiled model: :data:`PANDA_VIEW` when it has the Panda's base
+    (:data:`BASE_BODY`), else :data:`TOOL_VIEW`."""
+    import mujoco
+
+    has_arm = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BASE_BODY) >= 0
+    return PANDA_VIEW if has_arm else TOOL_VIEW
+
 
 _PROBE = """\
 import mujoco
@@ -205,9 +257,9 @@ class Recorder:
     """Headless frames of a trial, streamed to a short MP4 (``--video``).
 
     Call :func:`select_backend` before MuJoCo is imported. Frames are rendered from a fixed
-    camera looking at the tray and the bowls and encoded as they come (H.264, imageio-ffmpeg,
-    ``1 / (CONTROL_DT * every)`` frames per second) into a private temporary file;
-    :meth:`save` moves it to the output atomically.
+    camera (``view``, default :func:`view_for` the rig's model) and encoded as they come
+    (H.264, imageio-ffmpeg, ``1 / (CONTROL_DT * every)`` frames per second) into a private
+    temporary file; :meth:`save` moves it to the output atomically.
 
     Parameters
     ----------
@@ -219,6 +271,8 @@ class Recorder:
     shadow_size : int, optional
         Side of the shadow map in pixels (default 1024, at most the model's): the scene's
         4096 made a software-rendered (llvmpipe) frame take ~0.13 s instead of ~0.07 s.
+    view : View, optional
+        The camera (default: :func:`view_for` the model of the first rig rendered).
 
     Attributes
     ----------
@@ -227,7 +281,7 @@ class Recorder:
     """
 
     def __init__(self, every: int = 2, size: tuple[int, int] = (360, 480),
-                 shadow_size: int = 1024) -> None:
+                 shadow_size: int = 1024, view: View | None = None) -> None:
         if int(every) < 1:
             raise TliError(f"--video: every must be >= 1, got {every}")
         h, w = (int(v) for v in size)
@@ -236,6 +290,7 @@ class Recorder:
         self.every = int(every)
         self.shadow_size = max(64, int(shadow_size))
         self.size = (h, w)
+        self.view = view
         self.count = 0
         self._calls = 0
         self._renderer: Any = None
@@ -266,9 +321,12 @@ class Recorder:
             quality.shadowsize = saved
         self._renderer = renderer
         atexit.register(self.close)  # before MuJoCo's own exit handlers tear the context down
+        if self.view is None:
+            self.view = view_for(model)
         cam = mujoco.MjvCamera()
-        cam.lookat[:] = (0.5, 0.0, 0.06)
-        cam.distance, cam.azimuth, cam.elevation = 0.9, 180.0, -30.0
+        cam.lookat[:] = self.view.lookat
+        cam.distance, cam.azimuth = self.view.distance, self.view.azimuth
+        cam.elevation = self.view.elevation
         self._camera = cam
         self._tmp = tempfile.TemporaryDirectory(prefix="tli-video-")
         self._writer = imageio.get_writer(
@@ -289,11 +347,34 @@ class Recorder:
             if self._renderer is None:
                 self._open(rig.model)
             self._renderer.update_scene(rig.data, self._camera)
+            self._draw_person(rig)
             self._writer.append_data(self._renderer.render())
         except BaseException:
             self.close()
             raise
         self.count += 1
+
+    def _draw_person(self, rig: Any) -> None:
+        """An arrow for the force of a person's hand on the ladle (the rig's ``person_wrench``,
+        if it has one: the Panda's), ending at the ladle's centre of mass where the hand
+        pushes, :data:`FORCE_SCALE` metres per newton; nothing without a perturbation."""
+        import mujoco
+        import numpy as np
+
+        wrench = getattr(rig, "person_wrench", None)
+        scene = self._renderer.scene
+        if wrench is None or scene.ngeom >= scene.maxgeom:
+            return
+        force = np.asarray(wrench, dtype=np.float64)[:3]
+        if float(np.linalg.norm(force)) < 0.5:  # N: below, no arrow (a hand just letting go)
+            return
+        end = np.array(rig.data.xipos[rig.carrier], dtype=np.float64)
+        geom = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3),
+                            np.eye(3).ravel(), np.array(FORCE_RGBA, dtype=np.float32))
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, FORCE_WIDTH,
+                             end - FORCE_SCALE * force, end)
+        scene.ngeom += 1
 
     def close(self) -> None:
         """Release the OpenGL context and the encoder, and delete the temporary file

@@ -49,6 +49,7 @@ __all__ = [
     "SceneIds",
     "add_ladle",
     "add_scene",
+    "add_stand",
     "add_wrist_ft",
     "build_mocap_scene",
     "ladle_quat",
@@ -63,6 +64,15 @@ N_BEADS = 30
 BEAD_RADIUS = 0.008
 BEAD_MASS = 0.002
 SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+TABLE_SIZE = (0.3, 0.5, 0.025)
+"""Half-sizes (m) of the table's top, the one that collides (the bowls and beads rest on it)."""
+TABLE_POS = (0.55, 0.0, -0.025)
+"""Centre of the table's top: it spans x 0.25-0.85 m, y -0.5-0.5 m, its top face at z = 0."""
+TABLE_RGBA = (0.55, 0.4, 0.3, 1.0)
+TABLE_HEIGHT = 0.75
+"""Height (m) of the table top over the floor (drawn only: :func:`add_stand`)."""
+VISUAL_GROUP = 2
+"""Geom group of the drawn-only parts (the Menagerie Panda's visual meshes are in it too)."""
 FRICTION = (1.0, 0.005, 0.0001)
 
 SOUP_CENTER = np.array([0.5, -0.2, 0.0])
@@ -280,8 +290,7 @@ def add_scene(spec: mujoco.MjSpec) -> None:
     """
     world = spec.worldbody
     _contact(world.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_BOX,
-                            size=[0.3, 0.5, 0.025], pos=[0.55, 0.0, -0.025],
-                            rgba=[0.55, 0.4, 0.3, 1]))
+                            size=list(TABLE_SIZE), pos=list(TABLE_POS), rgba=list(TABLE_RGBA)))
     _bowl(world, SOUP_BOWL, (0.85, 0.85, 0.9, 1), flat=SOUP_FLAT, slope=SOUP_SLOPE,
           pit=(float(SOUP_PIT[0]), float(SOUP_PIT[1])))
     _bowl(world, TARGET_BOWL, (0.3, 0.6, 0.3, 1))
@@ -291,6 +300,51 @@ def add_scene(spec: mujoco.MjSpec) -> None:
         _contact(body.add_geom(name=f"bead{i}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                                size=[BEAD_RADIUS, 0, 0], mass=BEAD_MASS,
                                rgba=[0.95, 0.6, 0.1, 1]))
+
+
+def add_stand(spec: mujoco.MjSpec) -> None:
+    """Draw what the Panda stands on: the table's top extended under the base, its legs, the
+    floor, and a sky (the pictures and videos of :mod:`tli_verify.sim.render`).
+
+    Nothing added here takes part in the physics: each geom has ``contype = conaffinity = 0``
+    (no contact can involve it) and sits in the world body (no mass or inertia), in the visual
+    group :data:`VISUAL_GROUP`; the lights and textures only change pictures. The table that
+    collides stays :func:`add_scene`'s (x from 0.25 m): the extension covers x from -0.25 m to
+    0.25 m, under the arm's base at the origin, whose bottom face (``link0``) rests on the top at
+    ``z = 0``. A trial with the stand is bit-identical to one without it
+    (``tests/integration/test_sim_render.py``).
+    """
+    world = spec.worldbody
+
+    def drawn(name: str, kind: mujoco.mjtGeom, size: list[float], pos: list[float],
+              **kw: object) -> mujoco.MjsGeom:
+        geom: mujoco.MjsGeom = world.add_geom(name=name, type=kind, size=size, pos=pos, **kw)
+        geom.contype = geom.conaffinity = 0
+        geom.group = VISUAL_GROUP
+        return geom
+
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    sx, sy, sz = TABLE_SIZE
+    x0, x1 = -0.25, TABLE_POS[0] - sx  # the extension, up to where the colliding top begins
+    drawn("table_stand", box, [(x1 - x0) / 2, sy, sz], [(x0 + x1) / 2, 0.0, TABLE_POS[2]],
+          rgba=list(TABLE_RGBA))
+    leg = 0.03
+    legs_h = (TABLE_HEIGHT - 2 * sz) / 2
+    far = TABLE_POS[0] + sx
+    for k, (x, y) in enumerate([(x0, -sy), (x0, sy), (far, -sy), (far, sy)]):
+        drawn(f"table_leg{k}", box, [leg, leg, legs_h],
+              [x - math.copysign(leg, x - 0.3), y - math.copysign(leg, y), -2 * sz - legs_h],
+              rgba=[0.4, 0.28, 0.2, 1])
+    spec.add_texture(name="stand_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.55, 0.7, 0.85],
+                     rgb2=[0.05, 0.07, 0.1], width=256, height=256)
+    spec.add_texture(name="stand_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.32, 0.34, 0.36],
+                     rgb2=[0.26, 0.28, 0.3], width=256, height=256)
+    floor = spec.add_material(name="stand_floor", texrepeat=[6, 6])
+    floor.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "stand_floor"
+    drawn("floor", mujoco.mjtGeom.mjGEOM_PLANE, [3.0, 3.0, 0.05],
+          [0.3, 0.0, -TABLE_HEIGHT], material="stand_floor")
 
 
 def _bead_grid(i: int) -> FloatArray:
