@@ -422,7 +422,22 @@ def _cli(argv: list[str] | None = None) -> int:
     ap.add_argument("--slugs-src", default=None, help="a slugs source tree to build")
     ap.add_argument("--no-random", action="store_true")
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results")
+    ap.add_argument("--from-log", type=Path, default=None,
+                    help="rebuild the table from a gr1_peers.jsonl of an earlier (possibly "
+                         "interrupted) run instead of measuring")
+    ap.add_argument("--note", action="append", default=[], help="a note for the table")
     args = ap.parse_args(argv)
+    if args.from_log is not None:
+        rows = []
+        for line in args.from_log.read_text(encoding="utf-8").splitlines():
+            rec = json.loads(line)
+            rows.append(Row(name=rec.pop("name"), n_vars=rec.pop("n_vars"), results=rec))
+        peers = [p for p in ("omega", "slugs") if rows and p in rows[0].results]
+        section = report(rows, timeout=args.timeout or 60.0, peers=peers, notes=args.note,
+                         source=f"Rebuilt from {args.from_log.name}: {len(rows)} specs.")
+        atomic_write_text(args.out / "gr1_peers.md", section)
+        sys.stdout.write(section)
+        return 0
     suites = args.suites if args.suites is not None else [
         Path(p) for p in os.environ.get("TLI_GR1_SUITES", "").split(os.pathsep) if p]
     timeout = args.timeout or float(os.environ.get("TLI_GR1_TIMEOUT", "60"))
