@@ -114,7 +114,7 @@ def check_spec(spec: GR1Spec, *, core: bool = False, hints: bool = False) -> Spe
     """
     start = time.perf_counter()
     game = build_game(spec)
-    solution = solve(game, keep_iterates=False)
+    solution = solve(game, keep_iterates=False, exact=False)
     diagnosis = None if solution.realizable else diagnose(game)
     warnings: list[str] = []
     bdd = game.manager

@@ -149,7 +149,7 @@ def diagnose(game: Game) -> Diagnosis:
 
     # 2. Safety: solve without liveness goals.
     safety_game = game.with_(env_goals=(), sys_goals=())
-    if not solve(safety_game, keep_iterates=False).realizable:
+    if not solve(safety_game, keep_iterates=False, exact=False).realizable:
         return _diagnose_safety(safety_game)
 
     # 3. Liveness: the first system goal that is unrealizable on its own.

@@ -39,6 +39,7 @@ state in which the environment has no legal move left is a dead end for the envi
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -55,12 +56,104 @@ def _prime(name: str) -> str:
     return name + PRIME
 
 
+@functools.lru_cache(maxsize=64)
+def _renaming(names: tuple[str, ...]) -> dict[str, str]:
+    """``{v: v'}`` for ``names`` (cached: :meth:`Game.prime` runs in every ``cpre``; callers
+    only read it)."""
+    return {v: _prime(v) for v in names}
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Goal:
     """A liveness goal ``GF(p)`` and its BDD."""
 
     formula: SpecFormula
     bdd: Any
+
+
+@dataclass(frozen=True, slots=True)
+class Heuristics:
+    """Named switches for the GR(1) performance heuristics of Firman, Maoz and Ringert (2020).
+
+    None of them changes the verdict or the winning set (``tests/property/
+    test_gr1_heuristics.py`` checks every combination against the others and against
+    omega); they change how much work the fixpoint does.
+
+    Attributes
+    ----------
+    partition : bool
+        Conjunctively partitioned transition relations with early quantification in the
+        controllable predecessor: ``exists Y'. rho_s & Z'`` as a chain of relational
+        products, each primed output quantified after the last part that mentions it, and
+        the environment side dually as a chain of ``or_forall`` (paper Sec. 4.2; Burch,
+        Clarke and Long 1991).
+    cluster_nodes : int
+        Parts are merged in order while their conjunction has at most this many nodes.
+    early_fixpoint : bool
+        Early detection of fixed points (paper Sec. 4.1): the outer ``nu Z`` stops once
+        ``|J_s|`` consecutive goal computations (not necessarily one pass from goal 0) left
+        ``Z`` unchanged, and the ``mu Y`` of goal ``j`` stops once it reaches the ``Y`` of
+        goal ``j`` in the previous outer iteration (``Z`` only shrinks, so that ``Y`` bounds
+        the new one from above).
+    recycle : bool
+        Fixed-point recycling (paper Sec. 4.3; Browne et al. 1997): the ``nu X`` of ring
+        ``r``, environment goal ``i`` and system goal ``j`` starts from its value in the
+        previous outer iteration instead of ``true`` (an upper bound of the new value, so the
+        iteration still descends to the greatest fixed point).
+    early_unrealizable : bool
+        Early detection of unrealizability (paper Sec. 4.4): every outer iterate of ``Z``
+        contains the winning set, so once the initial condition fails on it the spec is
+        unrealizable. Only used when the caller does not ask for the exact winning set
+        (``solve(..., exact=False)``).
+    interleave : bool
+        Variable order with each primed copy next to its variable (``x, x', y, y'``) rather
+        than all current variables above all primed ones (paper Sec. 4.5).
+    group_pairs : bool
+        Couple each variable with its primed copy for CUDD's group sifting, so that dynamic
+        reordering keeps the pairs adjacent and priming stays cheap (needs ``interleave``).
+    reorder : bool
+        CUDD's dynamic variable reordering (group sifting) on.
+
+    References
+    ----------
+    E. Firman, S. Maoz and J. O. Ringert, "Performance heuristics for GR(1) synthesis and
+    related algorithms", Acta Informatica 57:37-79, 2020.
+    """
+
+    partition: bool = True
+    cluster_nodes: int = 1000
+    early_fixpoint: bool = True
+    recycle: bool = True
+    early_unrealizable: bool = True
+    interleave: bool = True
+    group_pairs: bool = True
+    reorder: bool = True
+
+    @classmethod
+    def none(cls) -> Heuristics:
+        """Every heuristic off: the textbook algorithm (Bloem et al. 2012)."""
+        return cls(partition=False, early_fixpoint=False, recycle=False,
+                   early_unrealizable=False, interleave=True, group_pairs=False,
+                   reorder=True)
+
+
+HEURISTIC_SWITCHES = ("partition", "early_fixpoint", "recycle", "early_unrealizable",
+                      "interleave", "group_pairs", "reorder")
+"""The Boolean fields of :class:`Heuristics`."""
+
+DEFAULT_HEURISTICS = Heuristics()
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Schedule:
+    """A partitioned relation and when to quantify each variable (:meth:`Game.cpre`).
+
+    ``steps[k]`` is ``(part, names)``: fold ``part`` in at step ``k`` and quantify
+    ``names`` with it (the variables no later part mentions)."""
+
+    steps: tuple[tuple[Any, tuple[str, ...]], ...]
+    first: tuple[str, ...] = ()
+    """Variables no part mentions, quantified before the first step (environment side)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -91,6 +184,11 @@ class Game:
     safe_e: Any = None
     safe_s: Any = None
     semantics: str = "tli"
+    heuristics: Heuristics = DEFAULT_HEURISTICS
+    env_schedule: Schedule | None = None
+    """``~rho_e`` partitioned (:class:`Heuristics` ``partition``); None: monolithic."""
+    sys_schedule: Schedule | None = None
+    """``rho_s`` partitioned; None: monolithic."""
 
     @property
     def inputs_next(self) -> list[str]:
@@ -110,19 +208,42 @@ class Game:
 
     def prime(self, u: Any) -> Any:
         """Rename every unprimed variable of ``u`` to its primed copy."""
-        rename = {v: _prime(v) for v in self.inputs + self.outputs}
-        return self.manager.let(rename, u)
+        return self.manager.let(_renaming(self.inputs + self.outputs), u)
 
     def cpre(self, z: Any) -> Any:
-        """Controllable predecessor (Mealy): ``forall X'. rho_e -> exists Y'. rho_s & Z'``."""
+        """Controllable predecessor (Mealy): ``forall X'. rho_e -> exists Y'. rho_s & Z'``.
+
+        With partitioned relations (:class:`Heuristics` ``partition``) this is computed as
+        ``forall X'_m. ~rho_e^m | ... forall X'_1. ~rho_e^1 | forall X'_0. S`` with
+        ``S = exists Y'_n. rho_s^n & ... exists Y'_1. rho_s^1 & Z'``: each variable is
+        quantified right after the last part that mentions it (early quantification, Burch,
+        Clarke and Long 1991; Firman, Maoz and Ringert 2020, Sec. 4.2). Same function as
+        the monolithic formula; BDDs are canonical, so the same node.
+        """
         import dd.cudd
 
-        sys_can = dd.cudd.and_exists(self.rho_s, self.prime(z), self.outputs_next)
-        return self.manager.forall(self.inputs_next, ~self.rho_e | sys_can)
+        zp = self.prime(z)
+        if self.sys_schedule is None:
+            sys_can = dd.cudd.and_exists(self.rho_s, zp, self.outputs_next)
+        else:
+            sys_can = zp
+            for part, names in self.sys_schedule.steps:
+                sys_can = dd.cudd.and_exists(part, sys_can, names)
+        if self.env_schedule is None:
+            return self.manager.forall(self.inputs_next, ~self.rho_e | sys_can)
+        out = self.manager.forall(self.env_schedule.first, sys_can)
+        for neg_part, names in self.env_schedule.steps:
+            out = dd.cudd.or_forall(neg_part, out, names)
+        return out
 
     def with_(self, **changes: Any) -> Game:
-        """A copy with some components replaced (same manager)."""
+        """A copy with some components replaced (same manager). Replacing ``rho_e`` or
+        ``rho_s`` drops that side's partition (unless one is given)."""
         fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        if "rho_e" in changes:
+            fields["env_schedule"] = None
+        if "rho_s" in changes:
+            fields["sys_schedule"] = None
         fields.update(changes)
         return Game(**fields)
 
@@ -133,7 +254,8 @@ class Game:
         return u
 
 
-def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = None) -> Game:
+def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = None,
+               heuristics: Heuristics = DEFAULT_HEURISTICS) -> Game:
     """Compile ``spec`` to a :class:`Game`.
 
     Parameters
@@ -147,28 +269,37 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         module docstring. ``"textbook"`` (Spectra, slugs): the initial conditions are the
         ``init`` formulas alone and the transition relations the safety bodies alone, with
         no current-state consequence (``safe_e`` and ``safe_s`` are ``true``).
+    heuristics : Heuristics
+        Variable order, reordering and partitioning of the transition relations (and the
+        default of :func:`solve`); none of them changes an answer.
     """
-    import dd.cudd
-
     reading = spec.semantics if semantics is None else semantics
     if reading not in ("tli", "textbook"):
         raise ValueError(f"semantics must be 'tli' or 'textbook', got {reading!r}")
 
-    bdd = dd.cudd.BDD() if manager is None else manager
-    order = []
-    for v in spec.inputs + spec.outputs:
-        order += [v, _prime(v)]
-    bdd.declare(*order)
+    fresh = manager is None
+    bdd = new_manager() if fresh else manager
+    names = spec.inputs + spec.outputs
+    if heuristics.interleave:
+        bdd.declare(*[w for v in names for w in (v, _prime(v))])
+    else:
+        bdd.declare(*names, *[_prime(v) for v in names])
+    if fresh:
+        if heuristics.interleave and heuristics.group_pairs and names:
+            bdd.group({v: 2 for v in names})
+        if not heuristics.reorder:
+            bdd.configure(reordering=False)
+    memo: dict[tuple[int, bool], tuple[Any, Any]] = {}
 
     def safety(f: SpecFormula) -> Any:
         """Transition constraint of a conjunction of ``G(phi)``."""
         trans = bdd.true
         for g in _conjuncts(f.ltl):
-            trans &= _to_bdd(gr1_body(g, Slot.SAFETY), bdd, primed=False)
+            trans &= _to_bdd(gr1_body(g, Slot.SAFETY), bdd, primed=False, memo=memo)
         return trans
 
-    init_e = [(f, _to_bdd(f.ltl, bdd, primed=False)) for f in spec.assume.init]
-    init_s = [(f, _to_bdd(f.ltl, bdd, primed=False)) for f in spec.guarantee.init]
+    init_e = [(f, _to_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.assume.init]
+    init_s = [(f, _to_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.guarantee.init]
     safety_e = [(f, safety(f)) for f in spec.assume.safety]
     safety_s = [(f, safety(f)) for f in spec.guarantee.safety]
 
@@ -177,7 +308,7 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         for f in side:
             for g in _conjuncts(f.ltl):
                 out.append(Goal(formula=f, bdd=_to_bdd(gr1_body(g, Slot.LIVENESS), bdd,
-                                                       primed=False)))
+                                                       primed=False, memo=memo)))
         return tuple(out)
 
     inputs, outputs = list(spec.inputs), list(spec.outputs)
@@ -192,6 +323,14 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         safe_e = safety_closure(bdd, rho_e, {v: _prime(v) for v in inputs},
                                 outputs + inputs_next)
         safe_s = safety_closure(bdd, rho_s, rename, inputs_next + outputs_next)
+    env_schedule = sys_schedule = None
+    if heuristics.partition:
+        parts_e = [b for _, b in safety_e] + [bdd.let(rename, safe_e)]
+        parts_s = [b for _, b in safety_s] + [bdd.let(rename, safe_s)]
+        env_schedule = _schedule(bdd, parts_e, inputs_next, heuristics.cluster_nodes,
+                                 negate=True)
+        sys_schedule = _schedule(bdd, parts_s, outputs_next, heuristics.cluster_nodes,
+                                 negate=False)
     return Game(
         spec=spec,
         manager=bdd,
@@ -210,7 +349,75 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         safe_e=safe_e,
         safe_s=safe_s,
         semantics=reading,
+        heuristics=heuristics,
+        env_schedule=env_schedule,
+        sys_schedule=sys_schedule,
     )
+
+
+def _clusters(bdd: Any, parts: Sequence[Any], max_nodes: int) -> list[Any]:
+    """Merge consecutive ``parts`` while their conjunction stays within ``max_nodes``."""
+    out: list[Any] = []
+    current = bdd.true
+    for b in parts:
+        if b == bdd.true:
+            continue
+        merged = current & b
+        if current != bdd.true and merged.dag_size > max_nodes:
+            out.append(current)
+            current = b
+        else:
+            current = merged
+    if current != bdd.true or not out:
+        out.append(current)
+    return out
+
+
+def _schedule(bdd: Any, parts: Sequence[Any], quantified: Sequence[str], max_nodes: int, *,
+              negate: bool) -> Schedule:
+    """The early-quantification schedule of a conjunction of ``parts`` for ``quantified``
+    (:meth:`Game.cpre`): clusters in order, each with the variables of ``quantified`` that
+    it mentions and no later cluster does. The system side (``negate`` false) quantifies
+    the variables no cluster mentions with the first cluster (``Z'`` comes first in the
+    chain); the environment side (``negate``: the parts are stored negated, for
+    ``or_forall``) quantifies them first, in :attr:`Schedule.first`."""
+    clusters = _clusters(bdd, parts, max_nodes)
+    wanted = set(quantified)
+    supports = [bdd.support(c) & wanted for c in clusters]
+    later: set[str] = set()
+    names: list[tuple[str, ...]] = [()] * len(clusters)
+    for k in range(len(clusters) - 1, -1, -1):
+        names[k] = tuple(sorted(supports[k] - later))
+        later |= supports[k]
+    rest = tuple(sorted(wanted - later))
+    if negate:
+        return Schedule(steps=tuple((~c, n) for c, n in zip(clusters, names, strict=True)),
+                        first=rest)
+    names[0] = tuple(sorted(set(names[0]) | set(rest)))
+    return Schedule(steps=tuple(zip(clusters, names, strict=True)))
+
+
+MANAGER_MEMORY = 2**26
+"""Bytes a fresh CUDD manager is sized for at creation (:func:`new_manager`)."""
+MANAGER_CACHE = 2**14
+"""Initial slots of a fresh manager's computed table (CUDD grows it while it pays)."""
+
+
+def new_manager() -> Any:
+    """A fresh ``dd.cudd.BDD`` manager, cheap to create and free to grow.
+
+    ``dd.cudd.BDD()`` sizes the manager for 1 GiB with a computed table of 2^18 slots,
+    which costs 70-80 ms to allocate and free: most of the fixed cost of a small spec.
+    CUDD grows its unique and computed tables on demand (the computed table while its hit
+    rate pays, up to ``max_cache_hard``), so a manager sized for :data:`MANAGER_MEMORY`
+    with :data:`MANAGER_CACHE` slots, with the loose growth limit ``loose_up_to`` of the
+    1 GiB default restored, solves large games as fast and starts in well under 1 ms.
+    """
+    import dd.cudd
+
+    bdd = dd.cudd.BDD(memory_estimate=MANAGER_MEMORY, initial_cache_size=MANAGER_CACHE)
+    bdd.configure(loose_up_to=dd.cudd.DEFAULT_MEMORY // 32 // 5)  # CUDD's default rule
+    return bdd
 
 
 def _conj_bdd(bdd: Any, parts: Iterable[Any]) -> Any:
@@ -336,8 +543,31 @@ def _aps(f: Any) -> set[str]:
     return {str(a.ap_name()) for a in spot.atomic_prop_collect(f)}
 
 
-def _to_bdd(f: Any, bdd: Any, *, primed: bool) -> Any:
-    """BDD of a propositional formula with ``X`` at depth <= 1 (``X v`` -> ``v'``)."""
+def _to_bdd(f: Any, bdd: Any, *, primed: bool,
+            memo: dict[tuple[int, bool], tuple[Any, Any]] | None = None) -> Any:
+    """BDD of a propositional formula with ``X`` at depth <= 1 (``X v`` -> ``v'``).
+
+    ``memo`` ((Spot's formula id, primed) -> the BDD and the formula, kept alive so that the
+    id stays its own) may be shared by the formulas of one game: Spot shares equal
+    sub-formulas, so each is translated once."""
+    if memo is None:
+        return _to_bdd_memo(f, bdd, primed, {})
+    return _to_bdd_memo(f, bdd, primed, memo)
+
+
+def _to_bdd_memo(f: Any, bdd: Any, primed: bool,
+                 memo: dict[tuple[int, bool], tuple[Any, Any]]) -> Any:
+    key = (f.id(), primed)
+    hit = memo.get(key)
+    if hit is not None:
+        return hit[0]
+    u = _to_bdd_node(f, bdd, primed, memo)
+    memo[key] = (u, f)
+    return u
+
+
+def _to_bdd_node(f: Any, bdd: Any, primed: bool,
+                 memo: dict[tuple[int, bool], tuple[Any, Any]]) -> Any:
     import spot
 
     kind = f.kind()
@@ -349,8 +579,8 @@ def _to_bdd(f: Any, bdd: Any, *, primed: bool) -> Any:
         name = str(f.ap_name())
         return bdd.var(_prime(name) if primed else name)
     if kind == spot.op_X:
-        return _to_bdd(f[0], bdd, primed=True)
-    args = [_to_bdd(c, bdd, primed=primed) for c in f]
+        return _to_bdd_memo(f[0], bdd, True, memo)
+    args = [_to_bdd_memo(c, bdd, primed, memo) for c in f]
     if kind == spot.op_Not:
         return ~args[0]
     if kind == spot.op_And:
@@ -380,7 +610,7 @@ class Solution:
     ----------
     game : Game
     winning : BDD
-        ``Z``, the system's winning states.
+        ``Z``, the system's winning states (when ``exact``; else a superset of them).
     realizable : bool
         ``forall X. theta_e -> exists Y. theta_s & Z``.
     rings : tuple of tuple of BDD
@@ -389,6 +619,10 @@ class Solution:
     traps : tuple of tuple of tuple of BDD
         ``traps[j][r][i]`` is ``X^j_{r+1,i}``: states that stay until goal ``j`` or a lower ring
         is forced, while environment goal ``i`` is never met.
+    exact : bool
+        False when early unrealizability detection stopped the fixpoint (``solve(...,
+        exact=False)``): the verdict is exact, ``winning`` only contains the winning set and
+        the iterates are empty.
     """
 
     game: Game
@@ -396,6 +630,7 @@ class Solution:
     realizable: bool
     rings: tuple[tuple[Any, ...], ...]
     traps: tuple[tuple[tuple[Any, ...], ...], ...]
+    exact: bool = True
 
     def rank(self, j: int, state: Any) -> tuple[int, int] | None:
         """Lexicographically least ``(r, i)`` with ``state`` (a cube) in ``traps[j][r][i]``."""
@@ -410,17 +645,27 @@ def _goals_or_true(game: Game, goals: tuple[Goal, ...]) -> list[Any]:
     return [g.bdd for g in goals] or [game.true]
 
 
-def _nu_trap(game: Game, unless: Any, avoid_goal: Any) -> Any:
-    """``nu X. unless | (!J_e^i & cpre(X))``."""
-    x = game.true
+def _nu_trap(game: Game, unless: Any, not_goal: Any, start: Any) -> Any:
+    """``nu X. unless | (!J_e^i & cpre(X))``, iterated down from ``start`` (``true``, or with
+    fixed-point recycling an upper bound of the result that the step does not enlarge)."""
+    x = start
     while True:
-        new = unless | (~avoid_goal & game.cpre(x))
+        new = unless | (not_goal & game.cpre(x))
         if new == x:
             return x
         x = new
 
 
-def solve(game: Game, *, keep_iterates: bool = True) -> Solution:
+def _init_ok(game: Game, z: Any) -> bool:
+    """``forall X. theta_e -> exists Y. theta_s & z`` (the realizability test on ``z``)."""
+    bdd = game.manager
+    ok = bdd.forall(list(game.inputs),
+                    ~game.theta_e | bdd.exist(list(game.outputs), game.theta_s & z))
+    return bool(ok == bdd.true)
+
+
+def solve(game: Game, *, keep_iterates: bool = True, exact: bool = True,
+          heuristics: Heuristics | None = None) -> Solution:
     """Solve the GR(1) game by the 3-nested fixpoint (Bloem et al. 2012, Sec. 3).
 
     Parameters
@@ -428,41 +673,94 @@ def solve(game: Game, *, keep_iterates: bool = True) -> Solution:
     game : Game
     keep_iterates : bool
         Keep the rings and traps of the final outer iteration (needed for strategies).
+    exact : bool
+        Compute the exact winning set. False lets early unrealizability detection stop as
+        soon as the verdict is known (:attr:`Solution.exact`).
+    heuristics : Heuristics, optional
+        The fixpoint heuristics to use (default: the game's); see :class:`Heuristics`. The
+        partitioning and the variable order are the game's (:func:`build_game`).
+
+    Returns
+    -------
+    Solution
+        The same verdict, winning set and iterates for every choice of heuristics.
+
+    Notes
+    -----
+    Goals are processed in rounds ``j = 0, 1, ..., n-1, 0, 1, ...`` with ``Z`` narrowed after
+    each (``Z &= Y^j``, Gauss-Seidel); every iterate contains the greatest fixed point, and
+    a ``Z`` that ``n`` consecutive goals leave unchanged is a post-fixed point, hence the
+    greatest one. The heuristics of Firman, Maoz and Ringert (2020) rely on ``Z`` only
+    shrinking: the ``Y``, rings and traps of goal ``j`` computed from a smaller ``Z`` are
+    subsets of the previous ones, ring by ring.
+
+    References
+    ----------
+    R. Bloem, B. Jobstmann, N. Piterman, A. Pnueli and Y. Sa'ar, "Synthesis of Reactive(1)
+    designs", JCSS 78(3), 2012. E. Firman, S. Maoz and J. O. Ringert, "Performance
+    heuristics for GR(1) synthesis and related algorithms", Acta Informatica 57, 2020.
     """
-    env_goals = _goals_or_true(game, game.env_goals)
+    h = game.heuristics if heuristics is None else heuristics
+    not_env = [~g for g in _goals_or_true(game, game.env_goals)]
     sys_goals = _goals_or_true(game, game.sys_goals)
+    n = len(sys_goals)
     z = game.true
-    rings: list[tuple[Any, ...]] = []
-    traps: list[tuple[tuple[Any, ...], ...]] = []
+    rings: list[tuple[Any, ...]] = [()] * n
+    traps: list[tuple[tuple[Any, ...], ...]] = [()] * n
+    last_y: list[Any] = [None] * n  # Y^j of the previous computation of goal j
+    last_x: list[list[tuple[Any, ...]]] = [[] for _ in range(n)]  # its X layers, by ring
+    unchanged = 0  # consecutive goal computations that left z as it was
+    j = 0
+    pass_start = z
     while True:
-        z_old = z
-        rings, traps = [], []
-        for goal in sys_goals:
-            target = goal & game.cpre(z)
-            y = game.false
-            ring_list: list[Any] = []
-            trap_list: list[tuple[Any, ...]] = []
-            while True:
-                unless = target | game.cpre(y)
-                layer = tuple(_nu_trap(game, unless, eg) for eg in env_goals)
-                y_new = game.false
-                for x in layer:
-                    y_new |= x
-                if y_new == y:
-                    break
-                y = y_new
-                ring_list.append(y)
-                trap_list.append(layer)
-            z &= y
-            rings.append(tuple(ring_list))
-            traps.append(tuple(trap_list))
-        if z == z_old:
-            break
-    bdd = game.manager
-    init_ok = bdd.forall(
-        list(game.inputs), ~game.theta_e | bdd.exist(list(game.outputs), game.theta_s & z)
-    )
-    realizable = init_ok == bdd.true
+        goal = sys_goals[j]
+        target = goal & game.cpre(z)
+        y = game.false
+        ring_list: list[Any] = []
+        trap_list: list[tuple[Any, ...]] = []
+        layers: list[tuple[Any, ...]] = []
+        old_x = last_x[j] if h.recycle else []
+        while True:
+            unless = target | game.cpre(y)
+            r = len(layers)
+            layer = tuple(
+                _nu_trap(game, unless, ne,
+                         old_x[r][i] if r < len(old_x) else game.true)
+                for i, ne in enumerate(not_env))
+            layers.append(layer)
+            y_new = game.false
+            for x in layer:
+                y_new |= x
+            if y_new == y:
+                break
+            y = y_new
+            ring_list.append(y)
+            trap_list.append(layer)
+            if h.early_fixpoint and last_y[j] is not None and y == last_y[j]:
+                break  # y <= Y^j(new z) <= Y^j(old z) = y
+        last_y[j] = y
+        last_x[j] = layers
+        rings[j] = tuple(ring_list)
+        traps[j] = tuple(trap_list)
+        z_next = z & y
+        if z_next == z:
+            unchanged += 1
+        else:
+            unchanged = 0
+            z = z_next
+            if not exact and h.early_unrealizable and not _init_ok(game, z):
+                return Solution(game=game, winning=z, realizable=False, rings=(), traps=(),
+                                exact=False)
+        j = (j + 1) % n
+        if h.early_fixpoint:
+            if unchanged >= n:
+                break
+        elif j == 0:
+            if z == pass_start:
+                break
+            pass_start = z
+            unchanged = 0
+    realizable = _init_ok(game, z)
     if not keep_iterates:
         rings, traps = [], []
     return Solution(game=game, winning=z, realizable=realizable, rings=tuple(rings),

@@ -241,11 +241,9 @@ def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
 
 
 def _label_bdds(labels: Mapping[str, str], sensors: Sequence[str]) -> tuple[Any, dict[str, Any]]:
-    import dd.cudd
+    from tli_verify.logic.gr1 import _to_bdd, new_manager
 
-    from tli_verify.logic.gr1 import _to_bdd
-
-    bdd = dd.cudd.BDD()
+    bdd = new_manager()
     bdd.declare(*sensors)
     return bdd, {m: _to_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
                  for m, lab in labels.items()}

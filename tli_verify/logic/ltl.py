@@ -67,7 +67,8 @@ def _spot() -> Any:
 
 
 def parse_formula(text: str, *, where: str, max_nodes: int | None = MAX_FORMULA_NODES,
-                  max_depth: int = MAX_FORMULA_DEPTH) -> Any:
+                  max_depth: int = MAX_FORMULA_DEPTH,
+                  memo: dict[int, tuple[int, int, Any]] | None = None) -> Any:
     """Parse ``text`` with Spot.
 
     Parameters
@@ -84,6 +85,10 @@ def parse_formula(text: str, *, where: str, max_nodes: int | None = MAX_FORMULA_
     max_depth : int
         Deepest nesting accepted (parentheses in the text, runs of prefix operators before
         Spot parses it, operators in the parsed formula).
+    memo : dict, optional
+        Shared with :func:`formula_stats` over the formulas of one spec (Spot shares equal
+        sub-formulas between formulas too), so that each distinct sub-formula is measured
+        once per spec.
 
     Returns
     -------
@@ -122,7 +127,9 @@ def parse_formula(text: str, *, where: str, max_nodes: int | None = MAX_FORMULA_
                         ) from None
     if not f.is_ltl_formula():
         raise SpecError(f"{where}: {text!r} uses PSL/SERE operators; GR(1) specs use LTL only")
-    depth, size = formula_stats(f)
+    if _node_bound(text) <= min(max_depth, max_nodes or max_depth):
+        return f  # both limits hold: depth <= size <= _node_bound(text)
+    depth, size = formula_stats(f, memo=memo)
     if depth > max_depth:
         raise SpecError(f"{where}: formula nests operators deeper than the limit of "
                         f"{max_depth} levels")
@@ -130,6 +137,17 @@ def parse_formula(text: str, *, where: str, max_nodes: int | None = MAX_FORMULA_
         raise SpecError(f"{where}: formula has {size} operator nodes (counting shared "
                         f"sub-formulas at each use), more than the limit of {max_nodes}")
     return f
+
+
+def _node_bound(text: str) -> int:
+    """An upper bound on the operator nodes of the formula Spot parses from ``text``: its
+    characters other than blanks and parentheses. Every node of the parsed tree is written
+    with at least one character of its own (an atom, a constant or an operator; ``GFa`` is
+    three nodes in three characters), n-ary operators fold several written operators into
+    one node, and Spot's trivial rewritings only shrink the tree. Without PSL/SERE syntax
+    (:data:`_FORMULA_CHARS` refuses it) nothing expands, so the bound lets
+    :func:`parse_formula` skip measuring short formulas, most of a spec's parse time."""
+    return len(text) - sum(text.count(ch) for ch in " \t\r\n()")
 
 
 def _paren_depth(text: str) -> int:
@@ -169,11 +187,15 @@ def formula_depth(f: Any, *, limit: int = MAX_FORMULA_DEPTH) -> int:
     return formula_stats(f)[0]
 
 
-def formula_stats(f: Any) -> tuple[int, int]:
+def formula_stats(f: Any, *, memo: dict[int, tuple[int, int, Any]] | None = None
+                  ) -> tuple[int, int]:
     """``(depth, size)`` of a parsed formula: nesting depth, and the number of operator
     nodes of its tree (sub-formulas counted at every occurrence), by dynamic programming over
-    Spot's shared DAG (no recursion; linear in the number of distinct sub-formulas)."""
-    memo: dict[int, tuple[int, int]] = {}
+    Spot's shared DAG (no recursion; linear in the number of distinct sub-formulas).
+
+    ``memo`` (Spot's formula id -> depth, size and the formula, which it keeps alive so that
+    the id stays its own) may be shared between calls."""
+    memo = {} if memo is None else memo
     stack: list[tuple[Any, bool]] = [(f, False)]
     while stack:
         g, expanded = stack.pop()
@@ -183,12 +205,13 @@ def formula_stats(f: Any) -> tuple[int, int]:
         children = list(g)
         if expanded:
             stats = [memo[c.id()] for c in children]
-            memo[key] = (1 + max((d for d, _ in stats), default=0),
-                         1 + sum(n for _, n in stats))
+            memo[key] = (1 + max((d for d, _, _ in stats), default=0),
+                         1 + sum(n for _, n, _ in stats), g)
         else:
             stack.append((g, True))
             stack.extend((c, False) for c in children if c.id() not in memo)
-    return memo[f.id()]
+    depth, size, _ = memo[f.id()]
+    return depth, size
 
 
 def atomic_propositions(f: Any) -> set[str]:

@@ -320,7 +320,7 @@ def _with(spec: GR1Spec, *, assume: Sequence[SpecFormula] | None = None,
 
 
 def _realizable(spec: GR1Spec, manager: Any = None) -> bool:
-    return solve(build_game(spec, manager=manager), keep_iterates=False).realizable
+    return solve(build_game(spec, manager=manager), keep_iterates=False, exact=False).realizable
 
 
 def _shared_manager(spec: GR1Spec) -> Any:
