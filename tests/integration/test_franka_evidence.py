@@ -9,7 +9,6 @@ gate blocks); the full 30-trial campaign is ``tli evidence sim/franka``.
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -17,26 +16,22 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tests.support.cli import json_records, run
+from tests.support.sim import copy_franka_project
 from tests.unit.test_physics_evidence import attach_physics, physics_block
-from tli_verify.deploy.gate import rerun_physics, run_gate
-from tli_verify.io import bundled_dir, sha256_file
+from tli_verify.deploy.gate import rerun_physics, rerun_seed, run_gate
+from tli_verify.io import sha256_file
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 from tli_verify.verify.evidence import check_evidence, deployed_task_block
 
 pytestmark = pytest.mark.sim
 
-FRANKA = bundled_dir("sim") / "franka"
 EVIDENCE = "franka-scoop.campaign.json"
 
 
 @pytest.fixture
 def project(tmp_path: Path) -> Path:
     """A copy of the Franka project's spec, model and certificate."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
-                      ("models", "franka-scoop.model.json"),
-                      ("certificates", "franka-scoop.cert.json")):
-        (tmp_path / sub).mkdir()
-        shutil.copy(FRANKA / sub / name, tmp_path / sub / name)
+    copy_franka_project(tmp_path)
     return tmp_path
 
 
@@ -141,14 +136,22 @@ def test_gate_rerun_catches_evidence_whose_trials_do_not_hold(
 def test_a_full_budget_trial_reproduces_under_rerun(project: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """A trial with the full step budget (it may or may not deliver with the current model):
-    the gate's re-run judges it as the evidence recorded it."""
+    the gate re-runs a trial on its own seed with the settings the evidence recorded, and its
+    verdict is that of the same trial run from the CLI with those settings."""
     certs = project / "certificates"
     code, out, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration", "12",
                        "--json", "--evidence")
     trial, _ = json_records(out)
-    ok, message = rerun_physics(check_evidence(certs / EVIDENCE, physical=(FRANKA_PHYSICS,)),
-                                project / "models" / "franka-scoop.model.json", 1)
-    assert ok == (not trial["violations"]) == (code == 0), message
+    assert (code == 0) == (not trial["violations"])
+    check = check_evidence(certs / EVIDENCE, physical=(FRANKA_PHYSICS,))
+    model = project / "models" / "franka-scoop.model.json"
+    ok, message = rerun_physics(check, model, 1)
+    seed = rerun_seed(check, model, 1)
+    assert f"from seed {seed} (robot panda, LTL-DS, 12 s)" in message
+    code2, out2, _ = run(capsys, "sim", "franka", "--certificates", str(certs), "--duration",
+                         "12", "--seed", str(seed), "--json")
+    again, _ = json_records(out2)
+    assert ok == (not again["violations"]) == (code2 == 0), message
 
 
 def test_a_certificates_directory_by_another_name_is_the_one_bound(

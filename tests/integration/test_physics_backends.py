@@ -10,7 +10,6 @@ current ``sim/franka`` project: ``tli sim franka --workers 2 --backend process -
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -18,13 +17,12 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tests.support.cli import json_records, run
-from tli_verify.io import bundled_dir
+from tests.support.sim import copy_franka_project
 from tli_verify.sim.campaign import run_physics_campaign
 from tli_verify.sim.physics_config import PhysicsConfig
 
 pytestmark = [pytest.mark.sim, pytest.mark.slow]
 
-FRANKA = bundled_dir("sim") / "franka"
 SAME = ("seed", "success", "delivered", "mode_trace", "mode_sequence", "cuts_added", "events",
         "retries", "stopped", "perturbed_steps", "limit_ratios", "perturbations")
 
@@ -32,11 +30,7 @@ SAME = ("seed", "success", "delivered", "mode_trace", "mode_sequence", "cuts_add
 @pytest.fixture
 def project(tmp_path: Path) -> Path:
     """A copy of the Franka project's spec, task, model and certificate."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
-                      ("models", "franka-scoop.model.json"),
-                      ("certificates", "franka-scoop.cert.json")):
-        (tmp_path / sub).mkdir()
-        shutil.copy(FRANKA / sub / name, tmp_path / sub / name)
+    copy_franka_project(tmp_path)
     return tmp_path
 
 

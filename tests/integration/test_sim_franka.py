@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -11,21 +10,16 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tests.support.cli import json_records, run
+from tests.support.sim import copy_franka_project
 from tli_verify.cli import main
-from tli_verify.io import bundled_dir
 
 pytestmark = pytest.mark.sim
 
-ROOT = bundled_dir("sim") / "franka"  # the Franka project (not in the deployed models/)
 
 
 def _project(tmp: Path) -> Path:
     """A copy of the Franka scoop spec, model and certificate; its certificates dir."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
-                      ("models", "franka-scoop.model.json"),
-                      ("certificates", "franka-scoop.cert.json")):
-        (tmp / sub).mkdir(exist_ok=True)
-        shutil.copy(ROOT / sub / name, tmp / sub / name)
+    copy_franka_project(tmp)
     return tmp / "certificates"
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,3 +20,20 @@ def require_panda() -> Any:
         return load_panda()
     except AssetError as exc:
         pytest.skip(f"Panda assets not fetched (run `make sim-assets`): {exc}")
+
+
+FRANKA_FILES = (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
+                ("models", "franka-scoop.model.json"),
+                ("certificates", "franka-scoop.cert.json"))
+"""The Franka project's files a copy needs: spec, task, model and certificate."""
+
+
+def copy_franka_project(dest: Path) -> Path:
+    """Copy the bundled Franka project's :data:`FRANKA_FILES` into ``dest``; returns ``dest``."""
+    from tli_verify.io import bundled_dir
+
+    src = bundled_dir("sim") / "franka"
+    for sub, name in FRANKA_FILES:
+        (dest / sub).mkdir(exist_ok=True)
+        shutil.copy(src / sub / name, dest / sub / name)
+    return dest

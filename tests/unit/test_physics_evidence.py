@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 
 from tests.support.cli import run
+from tests.support.sim import copy_franka_project
 from tli_verify.deploy.gate import run_gate
 from tli_verify.io import bundled_dir, canonical_json
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS, MIN_PHYSICS_TRIALS
@@ -28,7 +29,6 @@ from tli_verify.verify.evidence import (
     write_evidence,
 )
 
-FRANKA = bundled_dir("sim") / "franka"
 REPO = bundled_dir("models").parent
 EVIDENCE = Path("certificates") / "franka-scoop.campaign.json"
 MODEL = "models/franka-scoop.model.json"
@@ -76,11 +76,7 @@ def attach_physics(project: Path, *, trials: int = MIN_PHYSICS_TRIALS, failed: i
 @pytest.fixture
 def franka(tmp_path: Path) -> Path:
     """A copy of the Franka project (spec, model, certificate) with valid physical evidence."""
-    for sub, name in (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
-                      ("models", "franka-scoop.model.json"),
-                      ("certificates", "franka-scoop.cert.json")):
-        (tmp_path / sub).mkdir()
-        shutil.copy(FRANKA / sub / name, tmp_path / sub / name)
+    copy_franka_project(tmp_path)
     attach_physics(tmp_path)
     return tmp_path
 
