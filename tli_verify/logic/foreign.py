@@ -918,17 +918,23 @@ def _param_names(toks: list[str], where: str, line: int) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _header_params(toks: list[str], where: str, line: int) -> tuple[tuple[str, ...], int]:
-    """Parameters of ``name(...)`` starting at ``toks[2]``, and the index after them."""
-    if len(toks) < 3 or toks[2] != "(":
-        return (), 2
-    depth, k = 0, 2
+def _closing(toks: list[str], k: int) -> int:
+    """Index of the ``)`` matching the ``(`` at ``toks[k]`` (``len(toks)`` if unclosed)."""
+    depth = 0
     while k < len(toks):
         depth += toks[k] == "("
         depth -= toks[k] == ")"
         if depth == 0:
             break
         k += 1
+    return k
+
+
+def _header_params(toks: list[str], where: str, line: int) -> tuple[tuple[str, ...], int]:
+    """Parameters of ``name(...)`` starting at ``toks[2]``, and the index after them."""
+    if len(toks) < 3 or toks[2] != "(":
+        return (), 2
+    k = _closing(toks, 2)
     inner = toks[3:k]
     return (_param_names(inner, where, line) if inner else ()), k + 1
 
@@ -1076,13 +1082,7 @@ def _spectra_type(toks: list[str], mod: _SpectraModule, where: str, line: int,
     elif toks[0] == "Int":
         if len(toks) < 2 or toks[1] != "(":
             raise _fail(where, line, "expected Int(lo..hi)")
-        depth, k = 0, 1
-        while k < len(toks):
-            depth += toks[k] == "("
-            depth -= toks[k] == ")"
-            if depth == 0:
-                break
-            k += 1
+        k = _closing(toks, 1)
         inner = toks[2:k]
         if ".." not in inner:
             raise _fail(where, line, "expected Int(lo..hi)")
