@@ -30,7 +30,6 @@ import argparse
 import contextlib
 import io
 import json
-import multiprocessing as mp
 import os
 import shutil
 import statistics
@@ -42,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from benchmarks.foreign_suites import last_message
 from tli_verify.io import atomic_write_text
 from tli_verify.logic.escape import markdown_text
 
@@ -183,17 +183,7 @@ def _repeat(tool: str, text: str, out: Any) -> None:
 
 
 def _in_process(tool: str, text: str, timeout: float) -> dict[str, Any]:
-    ctx = mp.get_context("fork")
-    q: Any = ctx.Queue()
-    proc = ctx.Process(target=_repeat, args=(tool, text, q))
-    proc.start()
-    proc.join(timeout)
-    if proc.is_alive():
-        proc.kill()
-        proc.join()
-    last = None
-    while not q.empty():
-        last = q.get()
+    last = last_message(_repeat, (tool, text), timeout)
     if last is None:
         return {"timeout": True}
     _, verdict, runs = last

@@ -23,9 +23,27 @@ import re
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.logic.foreign import FORMATS, import_spec_file
+
+
+def last_message(target: Any, args: tuple[Any, ...], timeout: float) -> Any:
+    """Run ``target(*args, queue)`` in a forked process for at most ``timeout`` seconds (then
+    killed) and return the last message it put on the queue, or None if it put none."""
+    ctx = mp.get_context("fork")
+    q: Any = ctx.Queue()
+    proc = ctx.Process(target=target, args=(*args, q))
+    proc.start()
+    proc.join(timeout)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+    last = None
+    while not q.empty():
+        last = q.get()
+    return last
 
 
 def _reason(msg: str) -> str:
@@ -93,18 +111,8 @@ def main(argv: list[str] | None = None) -> int:
     differ_readings = 0
     timeouts = 0
     load_errors: collections.Counter[str] = collections.Counter()
-    ctx = mp.get_context("fork")
     for k, (p, text) in enumerate(todo, start=1):
-        q: mp.Queue = ctx.Queue()  # type: ignore[type-arg]
-        proc = ctx.Process(target=_decide, args=(text, q))
-        proc.start()
-        proc.join(args.timeout)
-        if proc.is_alive():
-            proc.kill()
-            proc.join()
-        last = None
-        while not q.empty():
-            last = q.get()
+        last = last_message(_decide, (text,), args.timeout)
         if last is None or last[0] == "partial":
             timeouts += 1
             res = last[1] if last else {}
