@@ -186,22 +186,10 @@ class PhysicsOptions:
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:
             raise TliError(f"physics: solver {self.solver!r}: one of {', '.join(SOLVERS)}")
-        if not (self.sleep_tolerance > 0 and self.impratio >= 1):
+        if not (math.isfinite(self.sleep_tolerance) and math.isfinite(self.impratio)
+                and self.sleep_tolerance > 0 and self.impratio >= 1):
             raise TliError(f"physics: need sleep_tolerance > 0 and impratio >= 1, got "
                            f"{self.sleep_tolerance}, {self.impratio}")
-
-    @property
-    def label(self) -> str:
-        """A short name (``default``, ``sleep + cg``, ``impratio 1``, ...)."""
-        parts = (["sleep"] if self.sleep else []) + (
-            [self.solver] if self.solver != "newton" else []) + (
-            [f"impratio {self.impratio:g}"] if self.impratio != 10.0 else [])
-        return " + ".join(parts) or "default"
-
-    def to_dict(self) -> dict[str, object]:
-        """The evidence's record."""
-        return {"sleep": self.sleep, "sleep_tolerance": self.sleep_tolerance,
-                "solver": self.solver, "impratio": self.impratio}
 
 
 DEFAULT_PHYSICS = PhysicsOptions()
