@@ -131,7 +131,7 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
                         duration=config.duration, robot=config.robot, retry=config.retry,
                         sensors=config.sensors,
                         frame=frame if j == 0 else None)
-        verdict = check_trial(res, policy.automaton)
+        verdict = check_trial(res, policy.automaton, goal_modes=policy.goal_modes)
         out.append((res, verdict))
         if on_trial is not None:
             on_trial(k, res, verdict)

@@ -72,6 +72,7 @@ __all__ = [
     "ContactDetector",
     "Perturbation",
     "Recorder",
+    "TraceStep",
     "TrialResult",
     "draw_perturbations",
     "load_policy",
@@ -232,6 +233,31 @@ class TrialResult:
         }
 
 
+@dataclass(frozen=True, slots=True)
+class TraceStep:
+    """One control period of a trial as the robot saw it (``run_trial(trace=...)``).
+
+    Attributes
+    ----------
+    time : float
+        Seconds since the trial's start, at the period's start.
+    mode : str
+        The mode the executive ran in this period (after its decision).
+    target : ndarray, shape (4,)
+        The DS state ``z*`` the executive was given (the target pose, DS units: dm, rad).
+    measured : ndarray, shape (4,)
+        The measured DS state ``z`` (:func:`~tli_verify.sim.demos.to_ds` of the tray pose).
+    perturbed : bool
+        The robot's own estimate (:class:`ContactDetector`).
+    """
+
+    time: float
+    mode: str
+    target: FloatArray
+    measured: FloatArray
+    perturbed: bool
+
+
 def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
                 certificates: str | os.PathLike[str] | None = None) -> LTLDSPolicy:
     """The executive of ``variant`` for the bundled Franka scoop model, behind its certificate.
@@ -288,7 +314,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
               robot: str = "panda", retry: bool = True,
               detector: ContactDetector | None = None, sensors: str = "ideal",
-              physics: PhysicsOptions | None = None) -> TrialResult:
+              physics: PhysicsOptions | None = None,
+              trace: list[TraceStep] | None = None) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -323,6 +350,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     physics : PhysicsOptions, optional
         The scene's solver settings (default: the measured ones,
         :class:`~tli_verify.sim.scene.PhysicsOptions`).
+    trace : list, optional
+        Appended with one :class:`TraceStep` per control period (what the robot saw and
+        commanded: the Fig. 9-style pictures of :mod:`tli_verify.sim.scenario`).
 
     Returns
     -------
@@ -367,6 +397,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         # the arm pulls with a bounded force, in every axis, towards where the DS leads
         ref = np.clip(ref, z - LEASH, z + LEASH)
         v = policy.step(ref, reading.to_dict(), perturbed=perturbed)
+        if trace is not None:
+            trace.append(TraceStep(t, policy.mode, ref.copy(), z, perturbed))
         if stall is not None:
             retreat = stall.update(policy.mode, policy.done, ref, z)
             if retreat is not None:
