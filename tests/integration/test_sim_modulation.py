@@ -50,6 +50,12 @@ def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(
     # each failure cut the region at once; fewer failures than without the cuts
     assert len(ltl.cuts) == ltl.exits >= 1
     assert ltl.exits < free.exits
+    # each failure happens once: every later failure's last in-mode DS state (the period
+    # before it) obeys the cuts learned before it -- the modulated DS kept it inside them
+    for k, failure in enumerate(ltl.failures[1:], start=1):
+        before = ltl.trace[failure.step - 1].target
+        for cut in ltl.cuts[:k]:
+            assert float(np.asarray(cut.normal) @ (before - np.asarray(cut.point))) <= 1e-6
     # after the last cut the pour never leaves d again, and its DS states obey every cut
     last = ltl.failures[-1].step
     tail = ltl.trace[last + 1:]

@@ -22,6 +22,8 @@ from tli_verify.sim.loop import Perturbation, TrialResult
 from tli_verify.sim.trial_oracle import check_trial
 
 SPEC = bundled_dir("sim") / "franka" / "specs" / "franka-scoop.toml"
+GOALS = load_spec(SPEC).goal_modes
+"""The spec's ``[goal]`` (``d``: the pour may leave it, so it is not a sink)."""
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +55,7 @@ def jump(extra: tuple[str, ...] = ()) -> TrialResult:
 
 
 def test_the_nominal_trial_passes(automaton: Any) -> None:
-    verdict = check_trial(NOMINAL, automaton)
+    verdict = check_trial(NOMINAL, automaton, goal_modes=GOALS)
     assert verdict.ok and verdict.violations == () and verdict.replans == 0
 
 
@@ -86,7 +88,7 @@ FORGERIES: list[tuple[str, Callable[[], TrialResult], str, str]] = [
 def test_each_forgery_is_caught_by_exactly_one_check(
         automaton: Any, name: str, forge: Callable[[], TrialResult], kind: str,
         message: str) -> None:
-    verdict = check_trial(forge(), automaton)
+    verdict = check_trial(forge(), automaton, goal_modes=GOALS)
     assert verdict.violations == (kind,), (name, verdict)
     assert not verdict.ok
     assert any(message in m for m in verdict.messages), verdict.messages
@@ -95,7 +97,8 @@ def test_each_forgery_is_caught_by_exactly_one_check(
 @pytest.mark.parametrize("cause", ["Perturbation", "AssumptionViolationEvent"])
 def test_a_jump_replanned_after_a_perturbation_or_sensor_change_is_a_run(
         automaton: Any, cause: str) -> None:
-    verdict = check_trial(jump(("Replan at step 77", f"{cause} at step 77")), automaton)
+    verdict = check_trial(jump(("Replan at step 77", f"{cause} at step 77")), automaton,
+                          goal_modes=GOALS)
     assert verdict.ok and verdict.replans == 1
 
 
@@ -103,3 +106,15 @@ def test_the_goal_modes_can_be_given(automaton: Any) -> None:
     stopped = replace(NOMINAL, modes=NOMINAL_MODES[:200], events=changes(NOMINAL_MODES[:200]))
     assert check_trial(stopped, automaton, goal_modes=("c", "d")).ok
     assert check_trial(NOMINAL, automaton, goal_modes=("c",)).violations == ("reachability",)
+
+
+def test_the_pour_is_not_a_sink_so_the_goal_comes_from_the_spec(automaton: Any) -> None:
+    assert GOALS == ("d",) and "d" not in automaton.sink_modes()
+    verdict = check_trial(NOMINAL, automaton)  # default: the sinks, of which there are none
+    assert verdict.violations == ("reachability",) and "not a goal mode (-)" in \
+        verdict.messages[0]
+    # the pour swept past the bowl twice (d -> c, invariance failures) and came back: a run
+    modes = trace(("a", 77), ("b", 20), ("c", 189), ("d", 20), ("c", 10), ("d", 20), ("c", 8),
+                  ("d", 60))
+    swept = replace(NOMINAL, modes=modes, events=changes(modes))
+    assert check_trial(swept, automaton, goal_modes=GOALS).ok

@@ -42,6 +42,7 @@ class Executive:
         self.number = Executive.made
         self.cuts = 0
         self.automaton = None
+        self.goal_modes = ("d",)
 
 
 def fake_trial(policy: Executive, seed: int, **_: Any) -> TrialResult:
@@ -58,7 +59,7 @@ def stated(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(loop, "load_policy", lambda *a, **k: Executive())
     monkeypatch.setattr(loop, "run_trial", fake_trial)
     monkeypatch.setattr(campaign_module, "check_trial",
-                        lambda res, automaton: TrialVerdict(seed=res.seed))
+                        lambda res, automaton, goal_modes: TrialVerdict(seed=res.seed))
 
 
 def campaign(workers: int, **kw: Any) -> tuple[PhysicsResult, list[int]]:

@@ -123,15 +123,23 @@ def bundled_demos() -> list[Any]:
     return load_demos(sorted((project_dir() / "demos" / "franka").glob("*.csv")))
 
 
-def workspace() -> tuple[FloatArray, FloatArray]:
-    """Bounds of the target pose: the bundled demonstrations' box widened by ``MARGIN``.
+def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
+    """Bounds of the target pose: the bundled demonstrations' box widened by ``margin``.
+
+    Parameters
+    ----------
+    margin : array_like, shape (4,), optional
+        Per axis (dm, dm, dm, rad), >= 0; default :data:`MARGIN`.
 
     Returns
     -------
     lo, hi : ndarray, shape (4,)
     """
+    m = np.asarray(margin, dtype=np.float64)
+    if m.shape != (4,) or not bool(np.all(np.isfinite(m) & (m >= 0))):
+        raise TliError(f"workspace margin must be 4 finite numbers >= 0, got {margin!r}")
     x = np.vstack([d.x for d in bundled_demos()])
-    return x.min(axis=0) - MARGIN, x.max(axis=0) + MARGIN
+    return x.min(axis=0) - m, x.max(axis=0) + m
 
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
@@ -315,7 +323,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               robot: str = "panda", retry: bool = True,
               detector: ContactDetector | None = None, sensors: str = "ideal",
               physics: PhysicsOptions | None = None,
-              trace: list[TraceStep] | None = None) -> TrialResult:
+              trace: list[TraceStep] | None = None,
+              margin: npt.ArrayLike = MARGIN) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -353,6 +362,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     trace : list, optional
         Appended with one :class:`TraceStep` per control period (what the robot saw and
         commanded: the Fig. 9-style pictures of :mod:`tli_verify.sim.scenario`).
+    margin : array_like, shape (4,), optional
+        How far the target may leave the demonstrations' box (:func:`workspace`; default
+        :data:`MARGIN`).
 
     Returns
     -------
@@ -365,7 +377,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     debounce = Debounce()
     reading = debounce.update(rig.read())
     ref = to_ds(rig.pose())
-    lo, hi = workspace()
+    lo, hi = workspace(margin)
     policy.reset(ref, reading.to_dict())
     stall = StallRetry(policy.model, CONTROL_DT) if retry else None
     detect = ContactDetector() if detector is None else detector
@@ -407,6 +419,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         if speed > 1.0:
             v = v / speed
         ref = np.clip(ref + CONTROL_DT * v, lo, hi)
+        # no feed-forward into a workspace bound the target rests at: the arm is not driven on
+        # past it (the DS's velocity there once carried the tray 1.7 cm beyond a target at rest
+        # at the workspace's edge, across the target bowl's rim)
+        v = np.where(((ref >= hi) & (v > 0)) | ((ref <= lo) & (v < 0)), 0.0, v)
         rig.command(from_ds(ref), from_ds_velocity(v))
         _step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
