@@ -204,14 +204,37 @@ def _plane(ax: Any, normal: FloatArray, point: FloatArray, lo: FloatArray, hi: F
     ax.plot_surface(grid[0], grid[1], grid[2], **style)
 
 
+def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: float) -> None:
+    """The tray's ``y`` over time against the rim; failures and cuts marked."""
+    t = np.array([s.time for s in steps])
+    ax.plot(t, [s.measured[1] for s in steps], color="0.4", lw=1.0, label="measured tray y")
+    ax.plot(t, [s.target[1] for s in steps], color="tab:green", lw=1.0, ls="--",
+            label="target y")
+    ax.axhline(rim, color="tab:orange", lw=1.5, label="rim of the target column")
+    shade = [s.mode == run.scenario.mode for s in steps]
+    ax.fill_between(t, 0, 1, where=shade, transform=ax.get_xaxis_transform(),
+                    color="tab:green", alpha=0.08, label=f"in mode {run.scenario.mode}")
+    for k, f in enumerate(run.failures):
+        when = run.trace[f.step].time
+        ax.plot([when], [f.measured[1]], "x", color="red", ms=8,
+                label="invariance failure" if k == 0 else None)
+        if run.cuts:
+            ax.axvline(when, color="tab:blue", lw=0.8, ls=":",
+                       label="cut learned" if k == 0 else None)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("y (dm)")
+    ax.legend(loc="lower right", fontsize=7)
+
+
 def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None:
     """Fig. 9-style panels, one per run: the pour in ``(y, z, pitch)``.
 
-    Each panel: the target states the DS was evaluated at while the scenario's mode ran
+    Top, each run in 3-D: the target states the DS was evaluated at while the scenario's mode ran
     (green) and while the transport brought the tray back (red), the measured tray (grey), the
     invariance failures (red crosses at the measured state), the rim of the column above the
     target bowl that ``t`` ends at (orange plane, ``y`` = bowl centre + radius), the cut planes
-    learned in the mode (blue) and its attractor (pink diamond).
+    learned in the mode (blue) and its attractor (pink diamond). Below, the tray's ``y`` over
+    time against the rim, with the failures and the cuts.
 
     Parameters
     ----------
@@ -228,10 +251,10 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
 
     if not runs:
         raise TliError("plot_scenario: no runs to plot")
-    fig = plt.figure(figsize=(6.2 * len(runs), 6.0))
+    fig = plt.figure(figsize=(6.2 * len(runs), 9.6))
     rim = float((TARGET_BOWL.center[1] + TARGET_BOWL.radius) * POSITION_SCALE)
     for n, run in enumerate(runs):
-        ax = fig.add_subplot(1, len(runs), n + 1, projection="3d")
+        ax = fig.add_subplot(2, len(runs), n + 1, projection="3d")
         start = next((i for i, s in enumerate(run.trace) if s.mode == run.scenario.mode), 0)
         steps = run.trace[max(0, start - 25):]
         tgt = np.array([s.target for s in steps])
@@ -273,6 +296,7 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
         ax.set_title(f"{run.variant}: {run.exits} exit(s) of {run.scenario.mode}, "
                      f"{run.result.delivered} bead(s) delivered", fontsize=10)
         ax.legend(loc="upper left", fontsize=7)
+        _time_panel(fig.add_subplot(2, len(runs), len(runs) + n + 1), run, steps, rim)
     fig.suptitle(f"Scenario {runs[0].scenario.name} (seed {runs[0].scenario.seed}, Panda, "
                  "nominal): the pour with and without modulation", fontsize=11)
     buf = io.BytesIO()
