@@ -20,7 +20,8 @@ Per control period (``CONTROL_DT`` = 20 ms, the certified period):
    (:func:`workspace`);
 4. the rig tracks it for 10 physics steps of 2 ms: the Panda's Cartesian impedance controller
    (:class:`~tli_verify.sim.demos.PandaRig`, the default: 2,000 N/m, 50 Nm/rad, the target
-   ramped within the period with the DS velocity as feed-forward, the Franka's torque,
+   ramped within the period with the DS velocity as feed-forward -- none into a workspace bound
+   the target rests at -- the Franka's torque,
    torque-rate and joint-velocity limits enforced, :mod:`tli_verify.sim.franka_limits`) or the
    free tool's impedance law (:class:`~tli_verify.sim.demos.MocapRig`). A reflex stop ends the
    trial as failed.
