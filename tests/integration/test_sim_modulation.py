@@ -79,3 +79,21 @@ def test_the_fig9_picture_is_written(runs: dict[str, ScenarioRun], tmp_path: Pat
     plot_scenario([runs["no-modulation"], runs["LTL-DS"]], out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 20_000
     assert POUR_SCENARIO.mode == "d" and not POUR_SCENARIO.retry
+
+
+def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
+    """The same trial with the default workspace: the bound stops the target before the rim,
+    and the arm is not fed the DS's velocity past a target at rest there (it once was: 1.7 cm
+    beyond, across the rim, and the pour left its mode on the loop's account)."""
+    from dataclasses import replace
+
+    from tli_verify.sim.loop import MARGIN, workspace
+
+    run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=tuple(float(m) for m in MARGIN)))
+    hi_y = float(workspace()[1][1])
+    assert run.exits == 0 and run.cuts == (), run.result.mode_sequence()
+    reached = max(float(s.target[1]) for s in run.trace)
+    assert reached == pytest.approx(hi_y, abs=1e-9)  # the target did rest at the bound
+    overshoot = max(float(s.measured[1]) for s in run.trace) - hi_y
+    assert overshoot < 0.08, overshoot  # dm: the tray stays within tracking of the target
+    assert run.result.success

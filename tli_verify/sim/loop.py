@@ -76,6 +76,7 @@ __all__ = [
     "TraceStep",
     "TrialResult",
     "draw_perturbations",
+    "feed_forward",
     "load_policy",
     "make_rig",
     "plot_flow",
@@ -141,6 +142,32 @@ def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
         raise TliError(f"workspace margin must be 4 finite numbers >= 0, got {margin!r}")
     x = np.vstack([d.x for d in bundled_demos()])
     return x.min(axis=0) - m, x.max(axis=0) + m
+
+
+def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
+                 hi: FloatArray) -> FloatArray:
+    """The velocity fed forward to the arm with the new target: the DS's ``v`` without the
+    components that push into a workspace bound the target rests at.
+
+    The arm is not driven on past a target the workspace holds at rest (fed the DS's velocity
+    there, the tray went 1.7 cm beyond a target at the workspace's edge, across the target
+    bowl's rim, and the pour left its mode on the loop's account, not the DS's).
+
+    Parameters
+    ----------
+    target : ndarray, shape (4,)
+        The new target, already clipped to ``[lo, hi]``.
+    v : ndarray, shape (4,)
+        The DS velocity it was integrated with (dm/s, rad/s).
+    lo, hi : ndarray, shape (4,)
+        The workspace (:func:`workspace`).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+    """
+    into = ((target >= hi) & (v > 0)) | ((target <= lo) & (v < 0))
+    return np.where(into, 0.0, v)
 
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
@@ -420,11 +447,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         if speed > 1.0:
             v = v / speed
         ref = np.clip(ref + CONTROL_DT * v, lo, hi)
-        # no feed-forward into a workspace bound the target rests at: the arm is not driven on
-        # past it (the DS's velocity there once carried the tray 1.7 cm beyond a target at rest
-        # at the workspace's edge, across the target bowl's rim)
-        v = np.where(((ref >= hi) & (v > 0)) | ((ref <= lo) & (v < 0)), 0.0, v)
-        rig.command(from_ds(ref), from_ds_velocity(v))
+        rig.command(from_ds(ref), from_ds_velocity(feed_forward(ref, v, lo, hi)))
         _step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
         if frame is not None:
