@@ -89,7 +89,8 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
 
     from tli_verify.sim.loop import MARGIN, workspace
 
-    run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=tuple(float(m) for m in MARGIN)))
+    m0, m1, m2, m3 = (float(m) for m in MARGIN)
+    run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=(m0, m1, m2, m3)))
     hi_y = float(workspace()[1][1])
     assert run.exits == 0 and run.cuts == (), run.result.mode_sequence()
     reached = max(float(s.target[1]) for s in run.trace)
