@@ -1,5 +1,6 @@
-"""The Panda's torque loop (:meth:`ImpedanceController.compute_fast`, :meth:`LimitGuard.apply_lists`,
-:meth:`PandaRig.step`) gives *bit-identical* torques to the plain numpy formulation.
+"""The Panda's torque loop (:meth:`ImpedanceController.compute_fast`,
+:meth:`LimitGuard.apply_lists`, :meth:`PandaRig.step`) gives *bit-identical* torques to the plain
+numpy formulation.
 
 The committed physical evidence binds the trials' outcomes, so the speed-ups of the torque loop
 (floats instead of numpy on 6- and 7-vectors, ``out=`` buffers, skipped norms) must not change
@@ -217,6 +218,8 @@ def test_the_torque_loop_equals_the_plain_law_bit_for_bit(scene: Any, impedance:
     data = scene.new_data()
     data.qpos[scene.qpos_adr] = HOME_QPOS
     mujoco.mj_forward(scene.model, data)
+    pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data))
+    twist: np.ndarray | None = None
     for i in range(400):
         # a wandering state, now and then a fast joint (brake, reflex) or a far target (caps);
         # held for 99 calls once (the rate limit catches up: torque changes within the limit)
@@ -283,9 +286,11 @@ def test_the_rig_torque_loop_equals_the_plain_control_period() -> None:
     velocities = rng.normal(scale=[0.05, 0.05, 0.05, 0.2], size=(40, 4))
     for period in range(40):
         for r, (rig, log) in enumerate(zip(rigs, logs, strict=True)):
-            def before(k: int, rig: Any = rig, log: list[np.ndarray] = log) -> None:
+            def before(k: int, rig: Any = rig, log: list[np.ndarray] = log,
+                       push: np.ndarray = pushes[period] if period % 3 else 0.0 * pushes[0]
+                       ) -> None:
                 log.append(rig.data.ctrl.copy())
-                rig.push[:] = pushes[period] * (k / 10) if period % 3 else 0.0
+                rig.push[:] = push * (k / 10)
 
             goal = rig.pose() + 0.02 * velocities[period]
             rig.command(goal, velocities[period] if period % 4 else None)
