@@ -382,11 +382,11 @@ class ImpedanceController:
     ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext", "_ext_tau", "_idx_m", "_jac",
-                 "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list", "_kn",
+    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_tau", "_ext_tau_l", "_idx_m",
+                 "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list", "_kn",
                  "_kp6", "_kp6_list", "_lam_diag", "_lam_inv", "_last_tau", "_limits", "_mv",
                  "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr", "_quat", "_rhs", "_rhs_ext",
-                 "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "calls",
+                 "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "_y", "calls",
                  "ext_time_constant", "gains", "guard", "impedance", "map", "max_pos_error",
                  "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
                  "saturated_calls", "site")
@@ -441,8 +441,9 @@ class ImpedanceController:
         self._two_zeta = 2.0 * impedance.damping_ratio if impedance is not None else 0.0
         self.guard = guard
         self.ext_time_constant = float(ext_time_constant)
-        self._ext = np.zeros(6)
+        self._y = np.zeros((6, 3))  # the last solve's right-hand sides: column 2 is the wrench
         self._ext_tau = np.zeros(7)
+        self._ext_tau_l = [0.0] * 7  # its values, as floats
         self._prev: _Prev | None = None
         self.reset_stats()
 
@@ -481,7 +482,7 @@ class ImpedanceController:
         inverse ``Jbar^T = Lambda J M^-1``. Contacts (beads, bowls) count as external, as on
         the robot. No simulator state beyond the arm's joints and its model is read.
         """
-        return self._ext
+        return self._y[:, 2].copy()
 
     def _estimate_external(self, time: float, qd: list[float]) -> None:
         """Update the filtered joint-space external torque from the last call's step
@@ -499,8 +500,10 @@ class ImpedanceController:
         acc[:] = [(a - b) / dt for a, b in zip(qd, qd0, strict=True)]
         mv = np.matmul(m0, acc, out=self._mv).tolist()
         alpha = dt / (self.ext_time_constant + dt)
-        self._ext_tau[:] = [e + alpha * (m + b - t - p - e) for e, m, b, t, p in zip(
-            self._ext_tau.tolist(), mv, b0, tau0, p0, strict=True)]
+        ext = [e + alpha * (m + b - t - p - e) for e, m, b, t, p in zip(
+            self._ext_tau_l, mv, b0, tau0, p0, strict=True)]
+        self._ext_tau_l = ext
+        self._ext_tau[:] = ext
 
     def ds_state(self, data: Any) -> FloatArray:
         """The DS state ``(x, y, z, pitch)`` of the controlled site, shape (4,)."""
@@ -607,7 +610,7 @@ class ImpedanceController:
         _, y, info = _dposv(lam_inv, rhs)
         if info != 0:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
-        self._ext = y[:, 2].copy()
+        self._y = y
         if self._k6 is not None:
             force = self._impedance_force(err, vel, y[:, 3:].diagonal().tolist())
             fy = np.array([f - g for f, g in zip(force, y[:, 1].tolist(), strict=True)])
