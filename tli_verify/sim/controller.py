@@ -51,11 +51,19 @@ Fast path
     index (:func:`arm_mass_index`), and does two Cholesky solves (LAPACK ``dposv``: ``M^-1 J^T``,
     then ``Lambda`` applied to the impedance and posture terms at once), no explicit inverse and
     no Python loop over joints. The views of ``MjData``'s arrays it reads (arm velocities,
-    bias, site pose, ``M``, the motors' ``ctrl``) are made once per ``MjData`` (each attribute
-    access of ``MjData`` builds a new array object), and the 6-vector arithmetic of the
-    impedance term runs on floats (the same roundings as numpy's elementwise operations: the
-    torques are bit-identical to the plain numpy version). About 20 us per call in a tight
-    loop, 50-60 us inside the scene's closed loop (caches cold after each ``mj_step``).
+    bias, passive forces, site pose, ``M``, the motors' ``ctrl``) are made once per ``MjData``
+    (each attribute access of ``MjData`` builds a new array object). The torque loop's entry
+    :meth:`ImpedanceController.compute_fast` (what :class:`~tli_verify.sim.demos.PandaRig` calls
+    every physics step) takes the target as floats and returns a list; the elementwise work on
+    the 6- and 7-vectors (errors, damping, the external-torque filter, the posture term, the
+    limit guard's :meth:`~tli_verify.sim.franka_limits.LimitGuard.apply_lists`) runs on Python
+    floats, which round every operation as numpy's elementwise operations do, in the same order;
+    the matrix products stay numpy's (BLAS: their rounding is the library's), written into
+    preallocated ``out=`` buffers of the layout numpy would allocate; the norms of the task
+    wrench are BLAS's whenever they could reach their caps. The torques are bit-identical to the
+    plain numpy formulation (``tests/unit/test_panda_torque_loop_exact.py``, exact on every
+    branch). About 25-35 us per call in a tight loop, 60-70 us inside the scene's closed loop
+    (caches cold after each ``mj_step``; shared cores).
 
 Tracking a DS (the loop)
     Each control period ``T``: ``zdot = f(z_t)`` from the policy (evaluated at the target: the
