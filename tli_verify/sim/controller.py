@@ -62,7 +62,7 @@ Fast path
     preallocated ``out=`` buffers of the layout numpy would allocate; the norms of the task
     wrench are BLAS's whenever they could reach their caps. The torques are bit-identical to the
     plain numpy formulation (``tests/unit/test_panda_torque_loop_exact.py``, exact on every
-    branch). About 25-35 us per call in a tight loop, 60-70 us inside the scene's closed loop
+    branch). About 25 us per call in a tight loop, 45-70 us inside the scene's closed loop
     (caches cold after each ``mj_step``; shared cores).
 
 Tracking a DS (the loop)
