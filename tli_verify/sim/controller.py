@@ -51,11 +51,19 @@ Fast path
     index (:func:`arm_mass_index`), and does two Cholesky solves (LAPACK ``dposv``: ``M^-1 J^T``,
     then ``Lambda`` applied to the impedance and posture terms at once), no explicit inverse and
     no Python loop over joints. The views of ``MjData``'s arrays it reads (arm velocities,
-    bias, site pose, ``M``, the motors' ``ctrl``) are made once per ``MjData`` (each attribute
-    access of ``MjData`` builds a new array object), and the 6-vector arithmetic of the
-    impedance term runs on floats (the same roundings as numpy's elementwise operations: the
-    torques are bit-identical to the plain numpy version). About 20 us per call in a tight
-    loop, 50-60 us inside the scene's closed loop (caches cold after each ``mj_step``).
+    bias, passive forces, site pose, ``M``, the motors' ``ctrl``) are made once per ``MjData``
+    (each attribute access of ``MjData`` builds a new array object). The torque loop's entry
+    :meth:`ImpedanceController.compute_fast` (what :class:`~tli_verify.sim.demos.PandaRig` calls
+    every physics step) takes the target as floats and returns a list; the elementwise work on
+    the 6- and 7-vectors (errors, damping, the external-torque filter, the posture term, the
+    limit guard's :meth:`~tli_verify.sim.franka_limits.LimitGuard.apply_lists`) runs on Python
+    floats, which round every operation as numpy's elementwise operations do, in the same order;
+    the matrix products stay numpy's (BLAS: their rounding is the library's), written into
+    preallocated ``out=`` buffers of the layout numpy would allocate; the norms of the task
+    wrench are BLAS's whenever they could reach their caps. The torques are bit-identical to the
+    plain numpy formulation (``tests/unit/test_panda_torque_loop_exact.py``, exact on every
+    branch). About 25 us per call in a tight loop, 45-70 us inside the scene's closed loop
+    (caches cold after each ``mj_step``; shared cores).
 
 Tracking a DS (the loop)
     Each control period ``T``: ``zdot = f(z_t)`` from the policy (evaluated at the target: the
@@ -99,7 +107,7 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-_Prev = tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+_Prev = tuple[float, FloatArray, list[float], list[float], list[float], list[float]]
 """The last call's time, arm mass block, joint velocities, bias, torques and passive forces."""
 
 _dposv = lapack.dposv  # Cholesky solve of a symmetric positive-definite system
@@ -110,6 +118,10 @@ _LAMBDA_DAMPING = 1e-6
 #: (:class:`~tli_verify.sim.franka_limits.CartesianImpedance` mode).
 TASK_FORCE_LIMIT = 35.0
 TASK_TORQUE_LIMIT = 6.0
+# Squared norms below these are inside the limits whatever BLAS rounds (ImpedanceController.
+# _impedance_force): a sum of three squares is within a relative 3.4e-16 of the exact one.
+_FORCE_SQ_SAFE = TASK_FORCE_LIMIT * TASK_FORCE_LIMIT * (1.0 - 1e-9)
+_TORQUE_SQ_SAFE = TASK_TORQUE_LIMIT * TASK_TORQUE_LIMIT * (1.0 - 1e-9)
 
 #: Nominal orientation at pitch 0: tool z down, tool x along world +y, tool y along world +x.
 R0_DOWN: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -186,6 +198,13 @@ class DSStateMap:
         w0, x0, y0, z0 = self._q0
         quat = np.array((c * w0 - s * x0, c * x0 + s * w0, c * y0 - s * z0, c * z0 + s * y0))
         return np.array((x, y, zz)), quat
+
+    def target_quat_into(self, pitch: float, out: FloatArray) -> None:
+        """The quaternion of :meth:`target_pose_from_ds_state` at ``pitch`` (rad), written to
+        ``out`` (shape (4,)): the same floats, without the arrays."""
+        c, s = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+        w0, x0, y0, z0 = self._q0
+        out[:] = (c * w0 - s * x0, c * x0 + s * w0, c * y0 - s * z0, c * z0 + s * y0)
 
     def twist_from_ds_velocity(self, zdot: FloatArray) -> FloatArray:
         """Site twist ``(v, w)`` (m/s, rad/s; world frame), shape (6,), for a DS velocity
@@ -286,8 +305,8 @@ class _DataViews:
     data : MjData
     mass : ndarray, shape (nM,)
         ``data.M``.
-    qvel, bias, qpos, ctrl : ndarray, shape (7,), or None
-        The arm's entries of ``qvel``, ``qfrc_bias``, ``qpos`` and ``ctrl``.
+    qvel, bias, passive, qpos, ctrl : ndarray, shape (7,), or None
+        The arm's entries of ``qvel``, ``qfrc_bias``, ``qfrc_passive``, ``qpos`` and ``ctrl``.
     site_xpos : ndarray, shape (3,)
     site_xmat : ndarray, shape (9,)
     """
@@ -296,6 +315,7 @@ class _DataViews:
     mass: FloatArray
     qvel: FloatArray | None
     bias: FloatArray | None
+    passive: FloatArray | None
     qpos: FloatArray | None
     ctrl: FloatArray | None
     site_xpos: FloatArray
@@ -370,13 +390,14 @@ class ImpedanceController:
     ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_act", "_contig", "_dn", "_dof", "_ext", "_ext_tau", "_idx_m", "_jac", "_jac6",
-                 "_jacp", "_jacr", "_k6", "_k6a", "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list",
-                 "_last_tau", "_limits", "_n_sat", "_prev", "_q_idx", "_qerr", "_quat", "_rhs",
-                 "_two_zeta", "_views", "calls", "ext_time_constant", "gains", "guard",
-                 "impedance", "map",
-                 "max_pos_error", "max_rot_error", "model", "panda", "pos_error", "posture",
-                 "rot_error", "saturated_calls", "site")
+    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_tau", "_ext_tau_l", "_idx_m",
+                 "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list", "_kn",
+                 "_kp6", "_kp6_list", "_lam_diag", "_lam_inv", "_last_tau", "_limits", "_mv",
+                 "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr", "_quat", "_rhs", "_rhs_ext",
+                 "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "_y", "calls",
+                 "ext_time_constant", "gains", "guard", "impedance", "map", "max_pos_error",
+                 "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
+                 "saturated_calls", "site")
 
     def __init__(self, panda: Panda, site: int | None = None, gains: Gains | None = None,
                  posture: FloatArray | None = None, r0: FloatArray | None = None, *,
@@ -397,8 +418,17 @@ class ImpedanceController:
         self._idx_m = arm_mass_index(self.model, self._dof)
         self._qerr = np.zeros(4)
         self._quat = np.zeros(4)
-        self._rhs = np.zeros((6, 3 + 6))  # impedance, posture, external wrench, I (Lambda)
+        # impedance, posture, external wrench, I (Lambda); Fortran order (LAPACK's), so that
+        # the products fill columns 1 and 2 in place
+        self._rhs = np.zeros((6, 3 + 6), order="F")
         self._rhs[:, 3:] = np.eye(6)
+        self._rhs_post, self._rhs_ext = self._rhs[:, 1], self._rhs[:, 2]
+        # out= buffers of the products (the layout numpy would give a new result)
+        self._lam_inv = np.zeros((6, 6))
+        self._lam_diag = self._lam_inv.reshape(-1)[::7]  # a view of its diagonal
+        self._twist = np.zeros(6)
+        self._acc, self._mv, self._pvec = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._tau0, self._jtf = np.zeros(7), np.zeros(7)
         self._last_tau = np.zeros(7)
         g = self.gains
         self._kp6 = np.array([g.kp_pos] * 3 + [g.kp_rot] * 3)
@@ -416,13 +446,12 @@ class ImpedanceController:
         self._n_sat = 0
         self.impedance = impedance
         self._k6 = impedance.stiffness().tolist() if impedance is not None else None
-        self._k6a = np.asarray(impedance.stiffness(), dtype=np.float64) \
-            if impedance is not None else np.zeros(6)
         self._two_zeta = 2.0 * impedance.damping_ratio if impedance is not None else 0.0
         self.guard = guard
         self.ext_time_constant = float(ext_time_constant)
-        self._ext = np.zeros(6)
+        self._y = np.zeros((6, 3))  # the last solve's right-hand sides: column 2 is the wrench
         self._ext_tau = np.zeros(7)
+        self._ext_tau_l = [0.0] * 7  # its values, as floats
         self._prev: _Prev | None = None
         self.reset_stats()
 
@@ -461,21 +490,28 @@ class ImpedanceController:
         inverse ``Jbar^T = Lambda J M^-1``. Contacts (beads, bowls) count as external, as on
         the robot. No simulator state beyond the arm's joints and its model is read.
         """
-        return self._ext
+        return self._y[:, 2].copy()
 
-    def _estimate_external(self, data: Any, mass: FloatArray, qd: FloatArray,
-                           bias: FloatArray) -> None:
-        """Update the filtered joint-space external torque from the last call's step."""
+    def _estimate_external(self, time: float, qd: list[float]) -> None:
+        """Update the filtered joint-space external torque from the last call's step
+        (:attr:`external_wrench`; ``qd`` the arm's joint velocities now)."""
         prev = self._prev
         if prev is None:
             return
         t0, m0, qd0, b0, tau0, p0 = prev
-        dt = float(data.time) - t0
+        dt = time - t0
         if dt <= 0.0:
             return
-        raw = m0 @ ((qd - qd0) / dt) + b0 - tau0 - p0
+        # raw = M0 (qd - qd0) / dt + b0 - tau0 - p0; ext += alpha (raw - ext): elementwise in
+        # floats (the roundings of numpy's elementwise operations), the product with numpy
+        acc = self._acc
+        acc[:] = [(a - b) / dt for a, b in zip(qd, qd0, strict=True)]
+        mv = np.matmul(m0, acc, out=self._mv).tolist()
         alpha = dt / (self.ext_time_constant + dt)
-        self._ext_tau += alpha * (raw - self._ext_tau)
+        ext = [e + alpha * (m + b - t - p - e) for e, m, b, t, p in zip(
+            self._ext_tau_l, mv, b0, tau0, p0, strict=True)]
+        self._ext_tau_l = ext
+        self._ext_tau[:] = ext
 
     def ds_state(self, data: Any) -> FloatArray:
         """The DS state ``(x, y, z, pitch)`` of the controlled site, shape (4,)."""
@@ -510,6 +546,23 @@ class ImpedanceController:
         ndarray, shape (7,)
             The saturated torques (N m).
         """
+        px, py, pz = np.asarray(pos_d, dtype=np.float64).tolist()
+        tw = None if twist_d is None else np.asarray(twist_d, dtype=np.float64).tolist()
+        return np.array(self.compute_fast(data, px, py, pz,
+                                          np.asarray(quat_d, dtype=np.float64), tw))
+
+    def compute_fast(self, data: Any, px: float, py: float, pz: float, quat_d: FloatArray,
+                     twist_d: list[float] | None = None) -> list[float]:
+        """:meth:`compute` without the conversions (the torque loop's entry): the target
+        position as floats, ``quat_d`` a float64 array of shape (4,), ``twist_d`` a list of
+        6 floats or None. Returns the torques sent, as a list of 7 floats.
+
+        Elementwise arithmetic runs on Python floats (the same IEEE roundings as numpy's
+        elementwise operations, in the same order); every matrix product and solve is the
+        numpy / LAPACK call of the plain formulation, on operands of the same layout (a
+        preallocated ``out=`` buffer has the layout of the array numpy would allocate), so the
+        torques are bit-identical to it (``tests/unit/test_controller_fast_path.py``).
+        """
         v = self._views if self._views is not None and self._views.data is data \
             else self._bind(data)
         mujoco.mj_jacSite(self.model, data, self._jacp, self._jacr, self.site)
@@ -520,10 +573,11 @@ class ImpedanceController:
         _, x, info = _dposv(mass, jac.T)
         if info != 0:
             raise SolverError(f"model: the arm mass matrix is not positive definite (info {info})")
-        lam_inv = jac @ x
-        lam_inv.flat[::7] += _LAMBDA_DAMPING
+        lam_inv = np.matmul(jac, x, out=self._lam_inv)
+        self._lam_diag += _LAMBDA_DAMPING               # a view of lam_inv's diagonal
         # Pose error: position, and the rotation vector of R_d R^T (world frame).
-        ex, ey, ez = (pos_d - v.site_xpos).tolist()
+        sx, sy, sz = v.site_xpos.tolist()
+        ex, ey, ez = px - sx, py - sy, pz - sz
         qerr = self._qerr
         site_quat = self._quat
         mujoco.mju_mat2Quat(site_quat, v.site_xmat)
@@ -535,63 +589,60 @@ class ImpedanceController:
         vnorm = math.sqrt(a * a + b * b + c * c)
         angle = 2.0 * math.atan2(vnorm, w)
         k = angle / vnorm if vnorm > 1e-12 else 0.0
-        # rhs[:, 0] = Kp e - Kd (J qdot - v_d), per component in floats (the same products and
-        # differences numpy's elementwise operations round)
-        twist = jac @ qd                                 # measured site twist (6,)
-        vel = twist.tolist()
-        if twist_d is not None:
-            vel = [vi - ti for vi, ti in zip(vel, np.asarray(twist_d, dtype=np.float64).tolist(),
-                                             strict=True)]
-        kp, kd = self._kp6_list, self._kd6_list
+        # Kp e - Kd (J qdot - v_d), per component in floats
+        twist = np.matmul(jac, qd, out=self._twist).tolist()   # measured site twist (6,)
+        vel = twist if twist_d is None else \
+            [vi - ti for vi, ti in zip(twist, twist_d, strict=True)]
         err = (ex, ey, ez, a * k, b * k, c * k)
-        bias = v.bias if v.bias is not None else data.qfrc_bias[self._dof]
-        self._estimate_external(data, mass, qd, bias)
-        rhs = self._rhs
+        bias = (v.bias if v.bias is not None else data.qfrc_bias[self._dof]).tolist()
+        qdl = qd.tolist()
+        time = float(data.time)
+        self._estimate_external(time, qdl)
+        rhs = self._rhs                                 # Fortran order: contiguous columns
         if self._k6 is None:
+            kp, kd = self._kp6_list, self._kd6_list
             rhs[:, 0] = [kp[i] * err[i] - kd[i] * vel[i] for i in range(6)]
         # Posture torque (mass-weighted), projected with I - J^T Jbar^T, Jbar = M^-1 J^T Lambda:
         # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term,
         # and Lambda X^T tau_ext = Jbar^T tau_ext, the external wrench at the site; in the
         # Franka impedance law also Lambda itself (its diagonal sets the damping).
-        q = v.qpos if v.qpos is not None else data.qpos[self._q_idx]
-        tau0 = mass @ (self._kn * (self.posture - q) - self._dn * qd)
-        rhs[:, 1] = x.T @ tau0
-        rhs[:, 2] = x.T @ self._ext_tau
+        q = (v.qpos if v.qpos is not None else data.qpos[self._q_idx]).tolist()
+        kn, dn = self._kn, self._dn
+        pvec = self._pvec
+        pvec[:] = [kn * (p - qi) - dn * vi
+                   for p, qi, vi in zip(self.posture.tolist(), q, qdl, strict=True)]
+        tau0 = np.matmul(mass, pvec, out=self._tau0)
+        xt = x.T
+        np.matmul(xt, tau0, out=self._rhs_post)         # views of rhs's columns 1 and 2
+        np.matmul(xt, self._ext_tau, out=self._rhs_ext)
         _, y, info = _dposv(lam_inv, rhs)
         if info != 0:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
-        self._ext = y[:, 2].copy()
+        self._y = y
         if self._k6 is not None:
-            assert self.impedance is not None
-            k6 = self._k6a
-            lam_diag = np.abs(y[:, 3:].diagonal())
-            damp = self._two_zeta * np.sqrt(k6 * lam_diag)
-            force = k6 * np.array(err) - damp * np.array(vel)
-            # the task wrench within what the arm can give at the tray (the wrist's 12 N m);
-            # sqrt(f.f) is what np.linalg.norm computes for a real vector
-            f3, t3 = force[:3], force[3:]
-            fn, tn = math.sqrt(float(f3 @ f3)), math.sqrt(float(t3 @ t3))
-            if fn > TASK_FORCE_LIMIT:
-                force[:3] *= TASK_FORCE_LIMIT / fn
-            if tn > TASK_TORQUE_LIMIT:
-                force[3:] *= TASK_TORQUE_LIMIT / tn
-            tau = jac.T @ (force - y[:, 1]) + tau0 + bias
+            force = self._impedance_force(err, vel, y[:, 3:].diagonal().tolist())
+            fy = np.array([f - g for f, g in zip(force, y[:, 1].tolist(), strict=True)])
         else:
-            tau = jac.T @ (y[:, 0] - y[:, 1]) + tau0 + bias
-        n_sat = int(np.count_nonzero(np.abs(tau) > TORQUE_LIMITS))
+            fy = y[:, 0] - y[:, 1]
+        t = [a + b + c for a, b, c in zip(np.matmul(jac.T, fy, out=self._jtf).tolist(),
+                                          tau0.tolist(), bias, strict=True)]
+        n_sat = 0
+        for tj, lj in zip(t, self._limits, strict=True):
+            if abs(tj) > lj:
+                n_sat += 1
         if self.guard is not None:
-            tau = self.guard.apply(tau, qd, mass.diagonal(), twist)  # a new array
+            out = self.guard.apply_lists(t, qdl, mass, twist)
         elif n_sat:
-            tau = np.clip(tau, -TORQUE_LIMITS, TORQUE_LIMITS)
-        clipped = tau
-        # ``mass`` (a fancy-indexed block) and ``clipped`` are new arrays; qd and bias are views
-        self._prev = (float(data.time), mass, qd.copy(), bias.copy(),
-                      clipped if self.guard is not None else clipped.copy(),
-                      data.qfrc_passive[self._dof])
-        if v.ctrl is not None:
-            v.ctrl[:] = clipped
+            out = [min(max(tj, -lj), lj) for tj, lj in zip(t, self._limits, strict=True)]
         else:
-            data.ctrl[self._act] = clipped
+            out = t
+        self._prev = (time, mass, qdl, bias, out,
+                      (v.passive if v.passive is not None
+                       else data.qfrc_passive[self._dof]).tolist())
+        if v.ctrl is not None:
+            v.ctrl[:] = out
+        else:
+            data.ctrl[self._act] = out
         # Bookkeeping.
         pe = math.sqrt(ex * ex + ey * ey + ez * ez)
         self._n_sat = n_sat
@@ -604,7 +655,35 @@ class ImpedanceController:
             self.max_pos_error = pe
         if angle > self.max_rot_error:
             self.max_rot_error = angle
-        return clipped
+        return out
+
+    def _impedance_force(self, err: tuple[float, ...], vel: list[float],
+                         lam_diag: list[float]) -> list[float]:
+        """The Franka law's task wrench ``K e - 2 zeta sqrt(K |Lambda_jj|) vel``, within
+        :data:`TASK_FORCE_LIMIT` and :data:`TASK_TORQUE_LIMIT` (floats; module doc).
+
+        The norm of a part is numpy's (``sqrt(f @ f)``: BLAS ``ddot``) whenever it could exceed
+        its limit; a sum of three squares in floats is within a relative 4e-16 of it, so below
+        ``limit^2 (1 - 1e-9)`` the part is inside its limit whatever ``ddot`` rounds to, and is
+        left alone without the call."""
+        two_zeta, k6 = self._two_zeta, self._k6
+        assert k6 is not None
+        force = [kj * ej - two_zeta * math.sqrt(kj * abs(lj)) * vj
+                 for kj, ej, lj, vj in zip(k6, err, lam_diag, vel, strict=True)]
+        f0, f1, f2, t0, t1, t2 = force
+        if f0 * f0 + f1 * f1 + f2 * f2 > _FORCE_SQ_SAFE:
+            f3 = np.array(force[:3])
+            fn = math.sqrt(float(f3 @ f3))
+            if fn > TASK_FORCE_LIMIT:
+                s = TASK_FORCE_LIMIT / fn
+                force[0:3] = [f0 * s, f1 * s, f2 * s]
+        if t0 * t0 + t1 * t1 + t2 * t2 > _TORQUE_SQ_SAFE:
+            t3 = np.array(force[3:])
+            tn = math.sqrt(float(t3 @ t3))
+            if tn > TASK_TORQUE_LIMIT:
+                s = TASK_TORQUE_LIMIT / tn
+                force[3:6] = [t0 * s, t1 * s, t2 * s]
+        return force
 
     def _bind(self, data: Any) -> _DataViews:
         """Views of ``data``'s arrays that :meth:`compute` reads and writes, made once per
@@ -617,6 +696,7 @@ class ImpedanceController:
             data=data, mass=data.M,
             qvel=data.qvel[d0:d0 + 7] if self._contig else None,
             bias=data.qfrc_bias[d0:d0 + 7] if self._contig else None,
+            passive=data.qfrc_passive[d0:d0 + 7] if self._contig else None,
             qpos=data.qpos[a0:a0 + 7] if contig_q else None,
             ctrl=data.ctrl[act] if isinstance(act, slice) else None,
             site_xpos=data.site_xpos[self.site], site_xmat=data.site_xmat[self.site])

@@ -623,6 +623,8 @@ class PandaRig:
         # a person grabs the ladle, not the hand: their wrench acts at the ladle's centre of
         # mass (on the hand it levers about the tray, which the wrist's 12 N m cannot hold)
         self._carrier = int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "ladle"))
+        self._xfrc = self.data.xfrc_applied[self._carrier]  # a view (MjData never reallocates)
+        self._quat_d = np.zeros(4)  # the target quaternion of the torque loop (a buffer)
         self.data.qpos[self.panda.qpos_adr] = HOME_QPOS
         mujoco.mj_forward(self.model, self.data)
         self._from = self.pose()
@@ -659,14 +661,29 @@ class PandaRig:
         """``n`` physics steps, torques computed every step; the target ramps from the last
         commanded pose to the new one over them. ``before(k)`` (optional) is called before step
         ``k`` (0-based; e.g. to set :attr:`push`)."""
-        ctl, data = self.controller, self.data
+        # What ImpedanceController.step(substeps=1) does per physics step (mj_step1, the
+        # torques, mj_step2), with the ramp z = from + (goal - from) k / n and the target quat
+        # on floats (the roundings of the numpy version; bit-identical torques)
+        ctl, data, model = self.controller, self.data, self.model
+        step1, step2 = mujoco.mj_step1, mujoco.mj_step2  # looked up per call (benchmark probes)
+        start = self._from.tolist()
+        delta = (self._goal - self._from).tolist()
+        twist = None if self._twist is None else self._twist.tolist()
+        quat, xfrc, set_quat = self._quat_d, self._xfrc, ctl.map.target_quat_into
+        control = ctl.compute_fast
+        out = None
         for k in range(1, n + 1):
             if before is not None:
                 before(k - 1)
-            z = self._from + (self._goal - self._from) * (k / n)
-            pos, quat = ctl.target_pose_from_ds_state(z)
-            data.xfrc_applied[self._carrier] = self.push
-            ctl.step(data, pos, quat, self._twist, substeps=1, control_every=1)
+            r = k / n
+            x, y, z, pitch = [a + d * r for a, d in zip(start, delta, strict=True)]
+            set_quat(pitch, quat)
+            xfrc[:] = self.push
+            step1(model, data)
+            out = control(data, x, y, z, quat, twist)
+            step2(model, data)
+        if out is not None:
+            ctl._last_tau = np.array(out)
         self._from = self._goal
 
     def pose(self) -> FloatArray:

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from operator import add, sub, truediv
 from typing import Any
 
 import numpy as np
@@ -208,18 +209,27 @@ class LimitGuard:
         ndarray, shape (7,)
             Within the torque and torque-rate limits; zero torque change (hold) after a reflex.
         """
+        tw = None if twist is None else twist.tolist()
+        return np.array(self.apply_lists(tau.tolist(), qdot.tolist(), mass_diag, tw))
+
+    def apply_lists(self, tau: list[float], qdot: list[float], mass: FloatArray,
+                    twist: list[float] | None = None) -> list[float]:
+        """:meth:`apply` on lists of floats (the torque loop's entry; no conversions).
+
+        ``mass`` is the diagonal (shape (7,)) or the whole joint-space mass matrix (7, 7),
+        read only when a joint is braked. Returns the torques to send, a list of 7 floats.
+        """
         # Plain floats on the 7 joints: numpy's per-call overhead dominates on 7-vectors (the
         # torque loop runs this every physics step).
         lim = self.limits
-        qd = qdot.tolist()
+        qd = qdot
         vmax = self._vmax
-        vel_ratio = [abs(v) / w for v, w in zip(qd, vmax, strict=True)]
-        peak = max(vel_ratio)
+        peak = max(map(truediv, map(abs, qd), vmax))
         m = self._max
         if peak > m["joint_velocity"]:
             m["joint_velocity"] = peak
         if twist is not None:
-            tw = twist.tolist()
+            tw = twist
             lin = math.sqrt(tw[0] ** 2 + tw[1] ** 2 + tw[2] ** 2) / lim.cartesian_speed[0]
             rot = math.sqrt(tw[3] ** 2 + tw[4] ** 2 + tw[5] ** 2) / lim.cartesian_speed[1]
             if lin > m["cartesian_speed"]:
@@ -232,28 +242,34 @@ class LimitGuard:
                                 f"{lim.cartesian_speed[0]:g} m/s / {lim.cartesian_speed[1]:g} "
                                 "rad/s")
         if lim.reflex and self.stopped is None and peak > 1.0:
-            j = vel_ratio.index(peak)
+            j = list(map(truediv, map(abs, qd), vmax)).index(peak)
             self.stopped = (f"joint {j + 1} velocity {abs(qd[j]):.3f} rad/s beyond "
                             f"its limit {vmax[j]:g} rad/s")
-        t = tau.tolist()
+        t = tau
         if peak > lim.brake_from:
-            md = mass_diag.tolist()
+            t = list(t)
+            vel_ratio = list(map(truediv, map(abs, qd), vmax))
+            md = (mass.diagonal() if mass.ndim == 2 else mass).tolist()
             for j in range(7):
                 if vel_ratio[j] > lim.brake_from:
                     excess = qd[j] - math.copysign(lim.brake_from * vmax[j], qd[j])
                     t[j] -= lim.brake_gain * md[j] * excess
         tmax = self._tmax
-        worst = max(abs(a) / b for a, b in zip(t, tmax, strict=True))
+        worst = max(map(truediv, map(abs, t), tmax))
         if worst > m["torque"]:
             m["torque"] = worst
-        out = [min(max(a, -b), b) for a, b in zip(t, tmax, strict=True)]
+        # |a| / b <= 1 (rounded) implies |a| <= b: then the clip is the identity
+        out = t if worst <= 1.0 else [min(max(a, -b), b) for a, b in zip(t, tmax, strict=True)]
         last = self._last
         if last is not None:
             step = lim.torque_rate * self.dt
-            change = [a - b for a, b in zip(out, last, strict=True)]
-            rate = max(abs(c) for c in change) / step
+            change = list(map(sub, out, last))
+            rate = max(map(abs, change)) / step
             if rate > m["torque_rate"]:
                 m["torque_rate"] = rate
-            out = [b + min(max(c, -step), step) for b, c in zip(last, change, strict=True)]
+            out = list(map(add, last, change)) if rate <= 1.0 else \
+                [b + min(max(c, -step), step) for b, c in zip(last, change, strict=True)]
+        elif out is tau:
+            out = list(out)
         self._last = out
-        return np.array(out)
+        return out
