@@ -38,6 +38,7 @@ ends when the goal mode has poured for 2.5 s and the spoon is empty, or at its s
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -140,8 +141,18 @@ def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
     m = np.asarray(margin, dtype=np.float64)
     if m.shape != (4,) or not bool(np.all(np.isfinite(m) & (m >= 0))):
         raise TliError(f"workspace margin must be 4 finite numbers >= 0, got {margin!r}")
+    box_lo, box_hi = _demo_box()
+    return box_lo - m, box_hi + m
+
+
+@functools.lru_cache(maxsize=1)
+def _demo_box() -> tuple[FloatArray, FloatArray]:
+    """The bundled demonstrations' bounding box (read once per process: every trial needs it)."""
     x = np.vstack([d.x for d in bundled_demos()])
-    return x.min(axis=0) - m, x.max(axis=0) + m
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    return lo, hi
 
 
 def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
