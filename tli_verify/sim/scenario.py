@@ -17,10 +17,10 @@ the hand-set bound hides what the DS does.) No perturbation causes it, so each e
 * LTL-DS cuts ``d``'s region at each failure (appendix E.3: the plane through the last in-mode
   state that passes closest to the attractor and separates the failure) and modulates the
   pour DS with the cuts (eq. 7): each failure happens once, the next one at a state the earlier
-  cuts admit, and after 4 cuts (3-4 on seeds 0-9) the pour stays inside the column to the end. It is not one cut:
-  the plane the QCQP picks runs through the attractor and tilts into pitch (the failure step
-  moves the target in ``y`` *and* pitch), so it leaves room to sweep out a little further in
-  ``y`` at a lower height or a larger pitch.
+  cuts admit, and after 4 cuts (3-4 on seeds 0-9) the pour stays inside the column to the
+  end. It is not one cut: the plane the QCQP picks runs through the attractor and tilts into
+  pitch (the failure step moves the target in ``y`` *and* pitch), so it leaves room to sweep
+  out a little further in ``y`` at a lower height or a larger pitch.
 
 :func:`run_scenario` runs it for a variant and returns the trace the robot saw
 (:class:`~tli_verify.sim.loop.TraceStep`), the invariance failures and the cuts learned;
