@@ -146,6 +146,24 @@ def test_a_monitor_is_a_system_variable_its_constraints_guarantees() -> None:
     assert agree_with_omega(spec) == {"tli": True, "textbook": True}
 
 
+@pytest.mark.parametrize(("op", "realizable"), [("<->", False), ("->", True)])
+def test_a_monitor_without_a_value_for_some_state_blocks_that_state(op: str,
+                                                                   realizable: bool) -> None:
+    """SYNTECH17's Elevator_cmp_Elevator_54 (in ``all_realizable/``) in small: its monitor
+    ``currentFloor`` is defined by ``G floorK <-> (currentFloor=K)`` for four heights only, so
+    between floors no value satisfies it, and (the constraints being guarantees at every step,
+    spectra-synt's ``MonitorTranslator``) the system can never leave floor 0. Our import, omega
+    and slugs call it unrealizable; its siblings 42, 71, 72 write ``->`` and are realizable.
+    Here: the height must pass through 1 to reach 2, and the monitor has no value at 1."""
+    text = ("module M\nenv boolean e;\nsys Int(0..2) h;\n"
+            f"monitor Int(0..1) f {{\n  f=0;\n  G (h=0) {op} (f=0);\n  G (h=2) {op} (f=1);\n}}\n"
+            "gar ini h=0;\ngar G next(h) <= h+1 & h <= next(h)+1;\ngar GF h=2;\n")
+    spec = imported(text, "spectra")
+    assert spec.outputs == ("h_0", "h_1", "f_0")
+    assert texts(spec, "guarantee.safety")[0] == f"G(((((!h_0 & !h_1))) {op} (((!f_0)))))"
+    assert agree_with_omega(spec) == {"tli": realizable, "textbook": realizable}
+
+
 def test_quantifiers_in_sets_and_array_functions() -> None:
     text = ("module M\ntype Col = {RED, GREEN, BLUE};\nenv Col c;\nenv boolean[3] r;\n"
             "sys boolean s;\nsys boolean t;\n"
