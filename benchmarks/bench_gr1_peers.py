@@ -169,11 +169,11 @@ def _omega(text: str, semantics: str | None = None) -> tuple[bool, dict[str, flo
     return verdict, {"total": time.perf_counter() - t0}
 
 
-def _repeat(tool: str, text: str, semantics: str | None, out: Any) -> None:
+def _repeat(tool: str, text: str, semantics: str | None, repeats: int, out: Any) -> None:
     fn = _ours if tool == "ours" else _omega
     runs = []
     verdict = None
-    for _ in range(3):
+    for _ in range(repeats):
         verdict, times = fn(text, semantics)
         runs.append(times)
         out.put(("partial", verdict, runs))
@@ -182,16 +182,16 @@ def _repeat(tool: str, text: str, semantics: str | None, out: Any) -> None:
     out.put(("done", verdict, runs))
 
 
-def _in_process(tool: str, text: str, timeout: float,
-                semantics: str | None = None) -> dict[str, Any]:
+def _in_process(tool: str, text: str, timeout: float, semantics: str | None = None,
+                repeats: int = 3) -> dict[str, Any]:
     """``tool`` ("ours" or "omega") on the spec ``text`` in a forked process, in ``semantics``
-    (default: the spec's own)."""
+    (default: the spec's own), up to ``repeats`` runs while each takes at most 1 s."""
     t0 = time.perf_counter()
-    last = last_message(_repeat, (tool, text, semantics), timeout)
+    last = last_message(_repeat, (tool, text, semantics, repeats), timeout)
     if last is None:
         if time.perf_counter() - t0 < 0.95 * timeout:  # ended early without a verdict
             return {"timeout": False, "error": "the process ended without a verdict"}
-        return {"timeout": True}
+        return {"timeout": True, "limit": timeout}
     _, verdict, runs = last
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     return {"timeout": False, "verdict": verdict, **med}
@@ -212,7 +212,7 @@ def _slugs(binary: str, text: str, timeout: float) -> dict[str, Any]:
                                       capture_output=True, text=True, timeout=timeout,
                                       check=False)
             except subprocess.TimeoutExpired:
-                return {"timeout": True}
+                return {"timeout": True, "limit": timeout}
             runs.append(time.perf_counter() - t0)
             said = done.stdout + done.stderr
             if "is realizable" in said:
@@ -289,7 +289,10 @@ def measure(texts: list[tuple[str, str]], *, timeout: float, slugs: str | None,
 
 
 def _t(r: dict[str, Any], timeout: float) -> float:
-    return float(timeout) if r.get("timeout") else float(r.get("total", float("nan")))
+    """The time of one result; a time-out counts as its limit."""
+    if r.get("timeout"):
+        return float(r.get("limit", timeout))
+    return float(r.get("total", float("nan")))
 
 
 def table(rows: list[Row], *, timeout: float, peers: list[str]) -> list[str]:

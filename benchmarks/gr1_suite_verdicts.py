@@ -18,9 +18,9 @@ each tool in its own process with the time limit (a time-out is never a verdict)
 * in our reading (``semantics = "tli"``): ours and omega (slugs has no such reading). A tool
   that timed out in the textbook reading is not run again in ours (counted as not decided).
 
-Spectra's label of a file is taken from its folder (``realizable``/``all_realizable`` or
-``unrealizable``/``all_unrealizable``), else from its name (``unreal`` -> unrealizable, else
-``realizable``/``real`` as a word -> realizable); other files have no label. Writes
+Spectra's label of a file is its folder (``realizable``/``all_realizable`` or
+``unrealizable``/``all_unrealizable``), else the word ``realizable``/``unrealizable`` in its
+name (:func:`label_of`); other files have no label. Writes
 ``gr1_suite_verdicts.md``, ``gr1_peers.md`` and the per-spec log ``gr1_suite_runs.jsonl``
 under ``--out`` (default ``benchmarks/results``). ``--resume`` skips specs already in the log;
 ``--from-log`` only rebuilds the tables.
@@ -32,7 +32,6 @@ import argparse
 import collections
 import hashlib
 import json
-import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,19 +46,26 @@ READINGS = ("textbook", "tli")
 LOG = "gr1_suite_runs.jsonl"
 
 
-def label_of(path: Path) -> tuple[str | None, str]:
-    """Spectra's realizability label of a suite file (True/False as "R"/"U", or None) and
-    where it comes from ("folder", "name" or "")."""
+def label_of(path: Path, root: Path) -> tuple[str | None, str]:
+    """Spectra's realizability label of the suite file ``root / path``: "R", "U" or None, and
+    where it comes from ("folder" or "name").
+
+    A folder ``realizable``/``all_realizable`` or ``unrealizable``/``all_unrealizable`` on the
+    path is the label. Else the words ``realizable``/``unrealizable`` in the file name are,
+    except next to an ``unrealizable/`` folder: there the suite sorts by folder, and a file
+    left outside it (SYNTECH15's ``PCarLTL_Unrealizable_..._fixed``) has no label."""
     for part in reversed(path.parts[:-1]):
         low = part.lower()
         if low in ("unrealizable", "all_unrealizable"):
             return "U", "folder"
         if low in ("realizable", "all_realizable"):
             return "R", "folder"
+    if (root / path).parent.joinpath("unrealizable").is_dir():
+        return None, ""
     stem = path.stem.lower()
-    if "unreal" in stem:
+    if "unrealizab" in stem:
         return "U", "name"
-    if re.search(r"(^|[_\W\d])(v\d+)?real(izable)?($|[_\W\d])", stem):
+    if "realizab" in stem:
         return "R", "name"
     return None, ""
 
@@ -113,7 +119,7 @@ def collect(dirs: list[Path]) -> tuple[dict[str, Distinct], dict[str, Any], list
                 continue
             entry = specs.setdefault(spec_key(text), Distinct(text=text))
             entry.files.append(name)
-            lab, src = label_of(p.relative_to(d))
+            lab, src = label_of(p.relative_to(d), d)
             if lab is not None:
                 entry.labels[name] = (lab, src)
     return specs, counts, notes
@@ -132,6 +138,30 @@ def _verdict(r: dict[str, Any] | None) -> str:
     return "R" if r["verdict"] else "U"
 
 
+def decide(text: str, *, timeout: float, slugs: str | None) -> dict[str, Any]:
+    """One spec, every tool, both readings (the textbook runs timed, ours verdict-only)."""
+    rec: dict[str, Any] = {"limit": timeout}
+    for sem in READINGS:
+        res: dict[str, Any] = {}
+        for tool in ("ours", "omega"):
+            if sem != "textbook" and rec["textbook"][tool].get("timeout"):
+                res[tool] = {"timeout": True, "skipped": True, "limit": timeout}
+            else:
+                res[tool] = _in_process(tool, text, timeout, semantics=sem,
+                                        repeats=3 if sem == "textbook" else 1)
+        if sem == "textbook" and slugs is not None:
+            res["slugs"] = _slugs(slugs, text, timeout)
+        rec[sem] = res
+    return rec
+
+
+def _line(k: int, n: int, rec: dict[str, Any]) -> str:
+    got = " ".join(f"{sem}:" + "/".join(_verdict(rec[sem].get(t))
+                                         for t in ("ours", "omega", "slugs"))
+                   for sem in READINGS)
+    return f"[{k}/{n}] {rec['name']} ({rec['n_vars']} vars, {rec['limit']:g} s): {got}"
+
+
 def measure(specs: dict[str, Distinct], *, timeout: float, slugs: str | None,
             log_path: Path, resume: bool) -> None:
     """Decide every distinct spec (smallest first), one JSON line per spec in ``log_path``."""
@@ -145,29 +175,30 @@ def measure(specs: dict[str, Distinct], *, timeout: float, slugs: str | None,
         spec = parse_spec(entry.text, path=entry.files[0])
         todo.append((len(spec.inputs) + len(spec.outputs), entry.files[0], key, entry))
     todo.sort()
-    mode = "a" if resume else "w"
-    with log_path.open(mode, encoding="utf-8") as log:
+    with log_path.open("a" if resume else "w", encoding="utf-8") as log:
         for k, (n_vars, name, key, entry) in enumerate(todo, start=1):
             if key in done:
                 continue
-            rec: dict[str, Any] = {"key": key, "name": name, "n_vars": n_vars,
-                                   "files": entry.files, "labels": entry.labels}
-            for sem in READINGS:
-                res: dict[str, Any] = {}
-                for tool in ("ours", "omega"):
-                    if sem != "textbook" and rec["textbook"][tool].get("timeout"):
-                        res[tool] = {"timeout": True, "skipped": True}
-                    else:
-                        res[tool] = _in_process(tool, entry.text, timeout, semantics=sem)
-                if sem == "textbook" and slugs is not None:
-                    res["slugs"] = _slugs(slugs, entry.text, timeout)
-                rec[sem] = res
+            rec = {"key": key, "name": name, "n_vars": n_vars, "files": entry.files,
+                   "labels": entry.labels, **decide(entry.text, timeout=timeout, slugs=slugs)}
             log.write(json.dumps(rec) + "\n")
             log.flush()
-            got = " ".join(f"{sem}:" + "/".join(_verdict(rec[sem].get(t))
-                                                 for t in ("ours", "omega", "slugs"))
-                           for sem in READINGS)
-            print(f"[{k}/{len(todo)}] {name} ({n_vars} vars): {got}", flush=True)
+            print(_line(k, len(todo), rec), flush=True)
+
+
+def retry_timeouts(specs: dict[str, Distinct], *, timeout: float, slugs: str | None,
+                   log_path: Path) -> None:
+    """Decide again, with the (longer) ``timeout``, every spec of the log that a tool did not
+    decide within its limit (smallest first); the log is rewritten after each spec."""
+    recs = [json.loads(ln) for ln in log_path.read_text("utf-8").splitlines() if ln]
+    again = sorted((r["n_vars"], i) for i, r in enumerate(recs)
+                   if r.get("limit", 0) < timeout and r["key"] in specs
+                   and any(_verdict(x) == "T" for sem in READINGS for x in r[sem].values()))
+    for k, (_, i) in enumerate(again, start=1):
+        r = recs[i]
+        r.update(decide(specs[r["key"]].text, timeout=timeout, slugs=slugs))
+        atomic_write_text(log_path, "".join(json.dumps(x) + "\n" for x in recs))
+        print(_line(k, len(again), r), flush=True)
 
 
 # -- the tables --------------------------------------------------------------------------------
@@ -194,6 +225,29 @@ def _label(r: dict[str, Any]) -> str:
     return labels.pop() if len(labels) == 1 else ("conflict" if labels else "-")
 
 
+def limits(recs: list[dict[str, Any]], default: float) -> tuple[float, float, int]:
+    """The first limit, the longest, and how many specs were decided again with the longest."""
+    got = [float(r.get("limit", default)) for r in recs] or [default]
+    first, longest = min(got), max(got)
+    return first, longest, sum(x == longest for x in got) if longest > first else 0
+
+
+def command_text(recs: list[dict[str, Any]], default: float, slugs: bool) -> str:
+    first, longest, again = limits(recs, default)
+    base = ("python -m benchmarks.gr1_suite_verdicts SPECTRA_SPECS SLUGS/examples "
+            + ("--slugs SLUGS_BINARY " if slugs else ""))
+    out = f"{base}--timeout {first:g}"
+    if again:
+        out += f"`, then `{base}--timeout {longest:g} --retry-timeouts"
+    return out
+
+
+def limit_text(recs: list[dict[str, Any]], default: float) -> str:
+    first, longest, again = limits(recs, default)
+    return (f"a {first:g} s limit" + (f" ({longest:g} s for the {again} specs decided again "
+                                      "after a time-out)" if again else ""))
+
+
 def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
                    timeout: float, notes: list[str], command: str) -> str:
     tools = {"textbook": ("ours", "omega", "slugs"), "tli": ("ours", "omega")}
@@ -201,8 +255,9 @@ def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
     lines = ["## GR(1) verdicts on the field's suites: both readings, against omega, slugs "
              "and Spectra's labels", "", f"Reproduce: `{command}`.", ""]
     if counts:
+        fmts = ", ".join(f"{k} {v}" for k, v in sorted(counts["by_format"].items()))
         lines += [
-            f"Suite files: {counts['files']} ({', '.join(f'{k} {v}' for k, v in sorted(counts['by_format'].items()))}); "
+            f"Suite files: {counts['files']} ({fmts}); "
             f"imported {counts['imported']}, refused {counts['files'] - counts['imported']}; "
             f"imported but not loadable {sum(counts['not_loadable'].values())}; "
             f"{len(recs)} distinct specs decided (copies of one spec are decided once).", ""]
@@ -217,7 +272,7 @@ def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
                       for k, v in counts["not_loadable"].most_common()]
             lines.append("")
     lines += [
-        f"Each tool decides each spec in its own process with a {timeout:g} s limit; a "
+        f"Each tool decides each spec in its own process with {limit_text(recs, timeout)}; a "
         "time-out (T) or a failure (E) is never a verdict. *textbook* is Spectra's and "
         "slugs' reading of `G(phi)` at time 0 (the imported specs' own setting), *tli* ours "
         "(docs/explanation/logic.md, \"Two readings of safety at time 0\"); slugs has only "
@@ -299,6 +354,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results")
     ap.add_argument("--resume", action="store_true", help="keep the log, decide the rest")
     ap.add_argument("--from-log", action="store_true", help="only rebuild the tables")
+    ap.add_argument("--retry-timeouts", action="store_true",
+                    help="decide again, with --timeout, the specs of the log with a time-out "
+                         "under a shorter limit")
     ap.add_argument("--note", action="append", default=[], help="a note for the tables")
     args = ap.parse_args(argv)
     log_path = args.out / LOG
@@ -312,8 +370,11 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         slugs, slugs_note = find_slugs(args.slugs, args.slugs_src)
         notes.append(slugs_note)
-        measure(specs, timeout=args.timeout, slugs=slugs, log_path=log_path,
-                resume=args.resume)
+        if args.retry_timeouts:
+            retry_timeouts(specs, timeout=args.timeout, slugs=slugs, log_path=log_path)
+        else:
+            measure(specs, timeout=args.timeout, slugs=slugs, log_path=log_path,
+                    resume=args.resume)
         (args.out / "gr1_suite_counts.json").write_text(json.dumps(
             {k: (dict(v) if isinstance(v, collections.Counter) else v)
              for k, v in counts.items()}, indent=1), encoding="utf-8")
@@ -324,12 +385,21 @@ def main(argv: list[str] | None = None) -> int:
             counts = {k: (collections.Counter(v) if isinstance(v, dict) else v)
                       for k, v in raw.items()}
     recs = [json.loads(ln) for ln in log_path.read_text("utf-8").splitlines() if ln]
-    command = ("python -m benchmarks.gr1_suite_verdicts SPECTRA_SPECS_DIR SLUGS_DIR/examples "
-               f"--timeout {args.timeout:g} --slugs SLUGS_BINARY")
+    if not args.from_log:  # the labels as label_of gives them now
+        for r in recs:
+            if r["key"] in specs:
+                r["labels"] = specs[r["key"]].labels
+        atomic_write_text(log_path, "".join(json.dumps(x) + "\n" for x in recs))
+    has_slugs = any("slugs" in r["textbook"] for r in recs)
+    command = command_text(recs, args.timeout, has_slugs)
+    first, longest, again = limits(recs, args.timeout)
+    if again:
+        notes.append(f"the peer table counts a time-out as its limit ({first:g} s, or "
+                     f"{longest:g} s for the {again} specs decided again)")
     atomic_write_text(args.out / "gr1_suite_verdicts.md", verdict_report(
         recs, counts, timeout=args.timeout, notes=notes, command=command))
-    peers = ["omega"] + (["slugs"] if any("slugs" in r["textbook"] for r in recs) else [])
-    section = report(peer_rows(recs), timeout=args.timeout, peers=peers, notes=notes,
+    peers = ["omega"] + (["slugs"] if has_slugs else [])
+    section = report(peer_rows(recs), timeout=first, peers=peers, notes=notes,
                      source=f"Suites: the {len(recs)} distinct specs that `tli spec import` "
                      f"imports and loads (`{command}`; the textbook-reading runs).")
     atomic_write_text(args.out / "gr1_peers.md", section)
