@@ -287,7 +287,7 @@ def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
                 continue
             c = collections.Counter(_verdict(r[sem].get(t)) for r in recs)
             lines.append(f"| {sem} | {t} | {c['R']} | {c['U']} | {c['T']} | {c['E']} | {c['-']} |")
-    lines += ["", "| reading | ours vs | agree | disagree | not both decided |",
+    lines += ["", "| reading | comparison | agree | disagree | not both decided |",
               "|---|---|---:|---:|---:|"]
     disagreements: list[str] = []
     for sem in READINGS:
@@ -295,7 +295,7 @@ def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
             if t == "slugs" and not has_slugs:
                 continue
             a, d, u, names = _pair(recs, sem, "ours", t)
-            lines.append(f"| {sem} | {t} | {a} | {d} | {u} |")
+            lines.append(f"| {sem} | ours vs {t} | {a} | {d} | {u} |")
             disagreements += [f"{sem}, ours vs {t}: {markdown_text(n)}" for n in names]
     # Spectra's labels (textbook reading is Spectra's)
     labelled = [r for r in recs if _label(r) in ("R", "U")]
@@ -317,8 +317,8 @@ def verdict_report(recs: list[dict[str, Any]], counts: dict[str, Any] | None, *,
                             f"textbook, {t} vs Spectra's label {_label(r)} "
                             f"({', '.join(sorted({s for _, s in r['labels'].values()}))}): "
                             f"{markdown_text(r['name'])}")
-            lines.append(f"| {sem} | Spectra's label ({len(labelled)} labelled; "
-                         f"{t}'s verdict) | {agree} | {disagree} | {und} |")
+            lines.append(f"| {sem} | {t} vs Spectra's label ({len(labelled)} labelled) | "
+                         f"{agree} | {disagree} | {und} |")
     conflicts = [r["name"] for r in recs if _label(r) == "conflict"]
     differ = [r for r in recs if _verdict(r["textbook"]["ours"]) in ("R", "U")
               and _verdict(r["tli"]["ours"]) in ("R", "U")
