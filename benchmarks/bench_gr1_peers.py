@@ -163,6 +163,9 @@ def _omega(text: str, semantics: str | None = None) -> tuple[bool, dict[str, flo
     from tli_verify.logic.spec import parse_spec
 
     spec = parse_spec(text, path="imported.toml")
+    # omega's parser recurses once per operand of a formula (and logs its repr): the imported
+    # specs' long conjunctions need more than Python's default depth (this process only)
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 100_000))
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()):
         verdict = omega_realizable(spec, semantics=semantics)

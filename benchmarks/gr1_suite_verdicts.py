@@ -189,11 +189,12 @@ def measure(specs: dict[str, Distinct], *, timeout: float, slugs: str | None,
 def retry_timeouts(specs: dict[str, Distinct], *, timeout: float, slugs: str | None,
                    log_path: Path) -> None:
     """Decide again, with the (longer) ``timeout``, every spec of the log that a tool did not
-    decide within its limit (smallest first); the log is rewritten after each spec."""
+    decide within its limit or failed on (smallest first); the log is rewritten after each."""
     recs = [json.loads(ln) for ln in log_path.read_text("utf-8").splitlines() if ln]
     again = sorted((r["n_vars"], i) for i, r in enumerate(recs)
                    if r.get("limit", 0) < timeout and r["key"] in specs
-                   and any(_verdict(x) == "T" for sem in READINGS for x in r[sem].values()))
+                   and any(_verdict(x) in ("T", "E") for sem in READINGS
+                           for x in r[sem].values()))
     for k, (_, i) in enumerate(again, start=1):
         r = recs[i]
         r.update(decide(specs[r["key"]].text, timeout=timeout, slugs=slugs))
@@ -356,7 +357,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--from-log", action="store_true", help="only rebuild the tables")
     ap.add_argument("--retry-timeouts", action="store_true",
                     help="decide again, with --timeout, the specs of the log with a time-out "
-                         "under a shorter limit")
+                         "or a failure under a shorter limit")
     ap.add_argument("--note", action="append", default=[], help="a note for the tables")
     args = ap.parse_args(argv)
     log_path = args.out / LOG
