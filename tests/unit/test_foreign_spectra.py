@@ -164,6 +164,46 @@ def test_a_monitor_without_a_value_for_some_state_blocks_that_state(op: str,
     assert agree_with_omega(spec) == {"tli": realizable, "textbook": realizable}
 
 
+def test_an_order_between_wide_integers_is_a_comparator_with_the_same_meaning() -> None:
+    """``a < b`` over two 5-bit integers (1,024 value pairs) is written with a comparator over
+    one operand's bits, not as the disjunction of the value pairs (which made SYNTECH17's
+    ConvoyCar specs, two Int(0..255) compared, 2.8 million characters per formula). The
+    comparator side's domain must fill its bits (``d``'s does not: ``a`` is the comparator
+    there). Checked on random (current, next) assignments, both values of the output."""
+    text = ("module M\nenv Int(0..31) a;\nenv Int(3..34) b;\nenv Int(0..20) d;\n"
+            "sys boolean[5] s;\n"
+            "gar G (s[0] <-> a < b);\ngar G (s[1] <-> next(a) >= b);\n"
+            "gar G (s[2] <-> b <= a);\ngar G (s[3] <-> a > next(b));\n"
+            "gar G (s[4] <-> d > a);\n")
+    spec = imported(text, "spectra")
+    tests = [(("a", False), "<", ("b", False)), (("a", True), ">=", ("b", False)),
+             (("b", False), "<=", ("a", False)), (("a", False), ">", ("b", True)),
+             (("d", False), ">", ("a", False))]
+    lows = {"a": 0, "b": 3, "d": 0}
+    bits = {"a": 5, "b": 5, "d": 5}
+    cmp = {"<": lambda x, y: x < y, "<=": lambda x, y: x <= y, ">": lambda x, y: x > y,
+           ">=": lambda x, y: x >= y}
+
+    def assign(values: dict[str, int]) -> dict[str, bool]:
+        return {f"{v}_{i}": bool(((values[v] - lows[v]) >> i) & 1)
+                for v in values for i in range(bits[v])}
+
+    safety = spec.guarantee.safety
+    assert len(safety) == 5  # (d's domain constraint is an assumption)
+    assert max(len(f.text) for f in safety[:4]) < 8_000  # the pairs took about 30,000
+    rng = __import__("random").Random(7)
+    for k, ((x, xn), op, (y, yn)) in enumerate(tests):
+        g = body(safety[k].ltl)
+        for _ in range(400):
+            cur = {"a": rng.randint(0, 31), "b": rng.randint(3, 34), "d": rng.randint(0, 20)}
+            nxt = {"a": rng.randint(0, 31), "b": rng.randint(3, 34), "d": rng.randint(0, 20)}
+            want = cmp[op]((nxt if xn else cur)[x], (nxt if yn else cur)[y])
+            for s_val in (want, not want):
+                outs = {f"s_{i}": s_val for i in range(5)}
+                got = holds(g, {**assign(cur), **outs}, {**assign(nxt), **outs})
+                assert got == (s_val == want), (k, cur, nxt)
+
+
 def test_quantifiers_in_sets_and_array_functions() -> None:
     text = ("module M\ntype Col = {RED, GREEN, BLUE};\nenv Col c;\nenv boolean[3] r;\n"
             "sys boolean s;\nsys boolean t;\n"
