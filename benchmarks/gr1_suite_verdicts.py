@@ -386,10 +386,10 @@ def main(argv: list[str] | None = None) -> int:
             counts = {k: (collections.Counter(v) if isinstance(v, dict) else v)
                       for k, v in raw.items()}
     recs = [json.loads(ln) for ln in log_path.read_text("utf-8").splitlines() if ln]
-    if not args.from_log:  # the labels as label_of gives them now
+    if not args.from_log:  # the specs as imported now (a changed translation is a new key)
+        recs = [r for r in recs if r["key"] in specs]
         for r in recs:
-            if r["key"] in specs:
-                r["labels"] = specs[r["key"]].labels
+            r["labels"] = specs[r["key"]].labels
         atomic_write_text(log_path, "".join(json.dumps(x) + "\n" for x in recs))
     has_slugs = any("slugs" in r["textbook"] for r in recs)
     command = command_text(recs, args.timeout, has_slugs)
