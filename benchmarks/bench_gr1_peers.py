@@ -374,7 +374,8 @@ def report(rows: list[Row], *, timeout: float, peers: list[str], notes: list[str
         "",
         "Our slowest: " + "; ".join(
             f"{markdown_text(r.name)} ({r.n_vars} vars): ours {_t(r.results['ours'], timeout):.2f}"
-            " s, " + ", ".join(f"{p} {_t(r.results[p], timeout):.2f} s" for p in peers)
+            " s, " + ", ".join(f"{p} failed" if "error" in r.results[p] else
+                               f"{p} {_t(r.results[p], timeout):.2f} s" for p in peers)
             for r in slowest) + ".",
         "",
     ]
