@@ -143,38 +143,41 @@ def find_slugs(binary: str | None = None, source: str | None = None) -> tuple[st
 
 # -- one spec, one tool, one process -----------------------------------------------------------
 
-def _ours(text: str) -> tuple[bool, dict[str, float]]:
+def _ours(text: str, semantics: str | None = None) -> tuple[bool, dict[str, float]]:
     from tli_verify.logic.gr1 import build_game, solve
     from tli_verify.logic.spec import parse_spec
 
     t0 = time.perf_counter()
     spec = parse_spec(text, path="imported.toml")
     t1 = time.perf_counter()
-    game = build_game(spec)
+    game = build_game(spec, semantics=semantics)
     t2 = time.perf_counter()
     verdict = solve(game, keep_iterates=False, exact=False).realizable
     t3 = time.perf_counter()
     return verdict, {"parse": t1 - t0, "build": t2 - t1, "solve": t3 - t2, "total": t3 - t0}
 
 
-def _omega(text: str) -> tuple[bool, dict[str, float]]:
+def _omega(text: str, semantics: str | None = None) -> tuple[bool, dict[str, float]]:
     sys.path.insert(0, str(REPO))
     from tests.support.omega_oracle import omega_realizable
     from tli_verify.logic.spec import parse_spec
 
     spec = parse_spec(text, path="imported.toml")
+    # omega's parser recurses once per operand of a formula (and logs its repr): the imported
+    # specs' long conjunctions need more than Python's default depth (this process only)
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 100_000))
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()):
-        verdict = omega_realizable(spec)
+        verdict = omega_realizable(spec, semantics=semantics)
     return verdict, {"total": time.perf_counter() - t0}
 
 
-def _repeat(tool: str, text: str, out: Any) -> None:
+def _repeat(tool: str, text: str, semantics: str | None, repeats: int, out: Any) -> None:
     fn = _ours if tool == "ours" else _omega
     runs = []
     verdict = None
-    for _ in range(3):
-        verdict, times = fn(text)
+    for _ in range(repeats):
+        verdict, times = fn(text, semantics)
         runs.append(times)
         out.put(("partial", verdict, runs))
         if times["total"] > 1.0:
@@ -182,10 +185,16 @@ def _repeat(tool: str, text: str, out: Any) -> None:
     out.put(("done", verdict, runs))
 
 
-def _in_process(tool: str, text: str, timeout: float) -> dict[str, Any]:
-    last = last_message(_repeat, (tool, text), timeout)
+def _in_process(tool: str, text: str, timeout: float, semantics: str | None = None,
+                repeats: int = 3) -> dict[str, Any]:
+    """``tool`` ("ours" or "omega") on the spec ``text`` in a forked process, in ``semantics``
+    (default: the spec's own), up to ``repeats`` runs while each takes at most 1 s."""
+    t0 = time.perf_counter()
+    last = last_message(_repeat, (tool, text, semantics, repeats), timeout)
     if last is None:
-        return {"timeout": True}
+        if time.perf_counter() - t0 < 0.95 * timeout:  # ended early without a verdict
+            return {"timeout": False, "error": "the process ended without a verdict"}
+        return {"timeout": True, "limit": timeout}
     _, verdict, runs = last
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     return {"timeout": False, "verdict": verdict, **med}
@@ -206,7 +215,7 @@ def _slugs(binary: str, text: str, timeout: float) -> dict[str, Any]:
                                       capture_output=True, text=True, timeout=timeout,
                                       check=False)
             except subprocess.TimeoutExpired:
-                return {"timeout": True}
+                return {"timeout": True, "limit": timeout}
             runs.append(time.perf_counter() - t0)
             said = done.stdout + done.stderr
             if "is realizable" in said:
@@ -283,7 +292,10 @@ def measure(texts: list[tuple[str, str]], *, timeout: float, slugs: str | None,
 
 
 def _t(r: dict[str, Any], timeout: float) -> float:
-    return float(timeout) if r.get("timeout") else float(r.get("total", float("nan")))
+    """The time of one result; a time-out counts as its limit."""
+    if r.get("timeout"):
+        return float(r.get("limit", timeout))
+    return float(r.get("total", float("nan")))
 
 
 def table(rows: list[Row], *, timeout: float, peers: list[str]) -> list[str]:
@@ -302,6 +314,8 @@ def table(rows: list[Row], *, timeout: float, peers: list[str]) -> list[str]:
         label = "all" if (lo, hi) == (0, 0) else (f"{lo}-{hi}" if hi < 10**9 else f"> {lo - 1}")
         outs = [sum(bool(r.results[t].get("timeout")) for r in rs) for t in ["ours", *peers]]
         cells = []
+        n_specs = len(rs)
+        rs = [r for r in rs if "error" not in r.results["ours"]]  # ours failed: no ratio
         for p in peers:
             ratios = [_t(r.results["ours"], timeout) / _t(r.results[p], timeout) for r in rs
                       if "total" in r.results[p] or r.results[p].get("timeout")
@@ -311,14 +325,15 @@ def table(rows: list[Row], *, timeout: float, peers: list[str]) -> list[str]:
                          if ratios else "0, -, -")
         faster = []
         for r in rs:
-            best = min(_t(r.results[p], timeout) for p in peers)
+            decided = [_t(r.results[p], timeout) for p in peers if "error" not in r.results[p]]
+            best = min(decided, default=0.0)
             if best > MIN_PEER and not all(r.results[t].get("timeout")
                                            for t in ["ours", *peers]):
                 faster.append(_t(r.results["ours"], timeout) / best)
-        lines.append(f"| {label} | {len(rs)} | {' / '.join(map(str, outs))} | "
+        lines.append(f"| {label} | {n_specs} | {' / '.join(map(str, outs))} | "
                      + " | ".join(cells)
                      + f" | {max(faster):.2f}x |" if faster else
-                     f"| {label} | {len(rs)} | {' / '.join(map(str, outs))} | "
+                     f"| {label} | {n_specs} | {' / '.join(map(str, outs))} | "
                      + " | ".join(cells) + " | - |")
     return lines
 
@@ -359,7 +374,8 @@ def report(rows: list[Row], *, timeout: float, peers: list[str], notes: list[str
         "",
         "Our slowest: " + "; ".join(
             f"{markdown_text(r.name)} ({r.n_vars} vars): ours {_t(r.results['ours'], timeout):.2f}"
-            " s, " + ", ".join(f"{p} {_t(r.results[p], timeout):.2f} s" for p in peers)
+            " s, " + ", ".join(f"{p} failed" if "error" in r.results[p] else
+                               f"{p} {_t(r.results[p], timeout):.2f} s" for p in peers)
             for r in slowest) + ".",
         "",
     ]

@@ -146,6 +146,64 @@ def test_a_monitor_is_a_system_variable_its_constraints_guarantees() -> None:
     assert agree_with_omega(spec) == {"tli": True, "textbook": True}
 
 
+@pytest.mark.parametrize(("op", "realizable"), [("<->", False), ("->", True)])
+def test_a_monitor_without_a_value_for_some_state_blocks_that_state(op: str,
+                                                                   realizable: bool) -> None:
+    """SYNTECH17's Elevator_cmp_Elevator_54 (in ``all_realizable/``) in small: its monitor
+    ``currentFloor`` is defined by ``G floorK <-> (currentFloor=K)`` for four heights only, so
+    between floors no value satisfies it, and (the constraints being guarantees at every step,
+    spectra-synt's ``MonitorTranslator``) the system can never leave floor 0. Our import, omega
+    and slugs call it unrealizable; its siblings 42, 71, 72 write ``->`` and are realizable.
+    Here: the height must pass through 1 to reach 2, and the monitor has no value at 1."""
+    text = ("module M\nenv boolean e;\nsys Int(0..2) h;\n"
+            f"monitor Int(0..1) f {{\n  f=0;\n  G (h=0) {op} (f=0);\n  G (h=2) {op} (f=1);\n}}\n"
+            "gar ini h=0;\ngar G next(h) <= h+1 & h <= next(h)+1;\ngar GF h=2;\n")
+    spec = imported(text, "spectra")
+    assert spec.outputs == ("h_0", "h_1", "f_0")
+    assert texts(spec, "guarantee.safety")[0] == f"G(((((!h_0 & !h_1))) {op} (((!f_0)))))"
+    assert agree_with_omega(spec) == {"tli": realizable, "textbook": realizable}
+
+
+def test_an_order_between_wide_integers_is_a_comparator_with_the_same_meaning() -> None:
+    """``a < b`` over two 5-bit integers (1,024 value pairs) is written with a comparator over
+    one operand's bits, not as the disjunction of the value pairs (which made SYNTECH17's
+    ConvoyCar specs, two Int(0..255) compared, 2.8 million characters per formula). The
+    comparator side's domain must fill its bits (``d``'s does not: ``a`` is the comparator
+    there). Checked on random (current, next) assignments, both values of the output."""
+    text = ("module M\nenv Int(0..31) a;\nenv Int(3..34) b;\nenv Int(0..20) d;\n"
+            "sys boolean[5] s;\n"
+            "gar G (s[0] <-> a < b);\ngar G (s[1] <-> next(a) >= b);\n"
+            "gar G (s[2] <-> b <= a);\ngar G (s[3] <-> a > next(b));\n"
+            "gar G (s[4] <-> d > a);\n")
+    spec = imported(text, "spectra")
+    tests = [(("a", False), "<", ("b", False)), (("a", True), ">=", ("b", False)),
+             (("b", False), "<=", ("a", False)), (("a", False), ">", ("b", True)),
+             (("d", False), ">", ("a", False))]
+    lows = {"a": 0, "b": 3, "d": 0}
+    bits = {"a": 5, "b": 5, "d": 5}
+    cmp = {"<": lambda x, y: x < y, "<=": lambda x, y: x <= y, ">": lambda x, y: x > y,
+           ">=": lambda x, y: x >= y}
+
+    def assign(values: dict[str, int]) -> dict[str, bool]:
+        return {f"{v}_{i}": bool(((values[v] - lows[v]) >> i) & 1)
+                for v in values for i in range(bits[v])}
+
+    safety = spec.guarantee.safety
+    assert len(safety) == 5  # (d's domain constraint is an assumption)
+    assert max(len(f.text) for f in safety[:4]) < 8_000  # the pairs took about 30,000
+    rng = __import__("random").Random(7)
+    for k, ((x, xn), op, (y, yn)) in enumerate(tests):
+        g = body(safety[k].ltl)
+        for _ in range(400):
+            cur = {"a": rng.randint(0, 31), "b": rng.randint(3, 34), "d": rng.randint(0, 20)}
+            nxt = {"a": rng.randint(0, 31), "b": rng.randint(3, 34), "d": rng.randint(0, 20)}
+            want = cmp[op]((nxt if xn else cur)[x], (nxt if yn else cur)[y])
+            for s_val in (want, not want):
+                outs = {f"s_{i}": s_val for i in range(5)}
+                got = holds(g, {**assign(cur), **outs}, {**assign(nxt), **outs})
+                assert got == (s_val == want), (k, cur, nxt)
+
+
 def test_quantifiers_in_sets_and_array_functions() -> None:
     text = ("module M\ntype Col = {RED, GREEN, BLUE};\nenv Col c;\nenv boolean[3] r;\n"
             "sys boolean s;\nsys boolean t;\n"

@@ -504,12 +504,40 @@ class _Translator:
             "=": lambda x, y: x == y, "!=": lambda x, y: x != y, "<": lambda x, y: x < y,
             "<=": lambda x, y: x <= y, ">": lambda x, y: x > y, ">=": lambda x, y: x >= y,
         }[op]
+        if op in _FLIP and len(a) * len(b) > _PAIRS:
+            # an order between two wide operands: one side's bits as a comparator, not the
+            # disjunction of the value pairs (which grows as the product of the domains)
+            right = self.bitvector(rhs, primed=primed, c=c, stack=stack)
+            left = None if right is not None else self.bitvector(lhs, primed=primed, c=c,
+                                                                 stack=stack)
+            if right is not None or left is not None:
+                vec, other, rel = (right, a, _FLIP[op]) if right is not None else (left, b, op)
+                assert vec is not None
+                bits, lo = vec
+                conds = [(cond, _value_cmp(bits, lo, rel, v)) for v, cond in other.items()]
+                return _or([_and(cond, t) for cond, t in conds if t != "false"])
         terms = []
         for va, ca in a.items():
             match = [cb for vb, cb in b.items() if test(va, vb)]
             if match:
                 terms.append(_and(ca, _or(match)))
         return _or(terms)
+
+    def bitvector(self, n: Node, *, primed: bool, c: _Constraint,
+                  stack: tuple[str, ...]) -> tuple[list[str], int] | None:
+        """The bits (least significant first) and lower bound of ``n`` if it is an integer
+        variable (or its next value) whose domain fills its bits, else None."""
+        while True:
+            if n[0] == "next":
+                primed, n = True, n[1]
+            elif n[0] == "id" and n[1] in self.defines:
+                n, stack = self.define(n[1], c, stack), (*stack, n[1])
+            else:
+                break
+        var = self.vars.get(n[1]) if n[0] == "id" else None
+        if var is None or var.boolean or var.values or var.hi - var.lo + 1 != 1 << var.width:
+            return None
+        return [self.ap(var, primed, c, bit) for bit in var.bits()], var.lo
 
     def enum_of(self, n: Node, stack: tuple[str, ...]) -> _Var | None:
         while n[0] in ("next", "select"):
@@ -539,6 +567,37 @@ def _flatten(n: Node, kind: str) -> Iterator[Node]:
             stack.extend(reversed(m[1:]))
         else:
             yield m
+
+
+_PAIRS = 256
+"""An order comparison whose operands have more value pairs than this is written with a
+comparator over one operand's bits (:meth:`_Translator.bitvector`)."""
+
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}
+"""``x op y`` is ``y _FLIP[op] x``."""
+
+
+def _code_at_least(bits: Sequence[str], t: int) -> str:
+    """``sum(bit_i * 2**i) >= t`` over the literals ``bits`` (least significant first)."""
+    if t <= 0:
+        return "true"
+    if t >= 1 << len(bits):
+        return "false"
+    out = "true"
+    for i, bit in enumerate(bits):
+        if (t >> i) & 1:  # this bit must be 1 and the lower bits reach t's
+            out = bit if out == "true" else f"({bit} & {out})"
+        elif out != "true":  # this bit 1 suffices, else the lower bits decide
+            out = f"({bit} | {out})"
+    return out
+
+
+def _value_cmp(bits: Sequence[str], lo: int, op: str, k: int) -> str:
+    """``value op k`` for the integer ``lo + code(bits)`` (``op`` one of < <= > >=)."""
+    at_least = _code_at_least(bits, k - lo + (op in (">", "<=")))
+    if op in (">", ">="):
+        return at_least
+    return {"true": "false", "false": "true"}.get(at_least, f"!{at_least}")
 
 
 def _and(a: str, b: str) -> str:
