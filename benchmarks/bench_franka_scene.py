@@ -8,7 +8,9 @@ Targets, measured side by side in one run, one core (``threadpoolctl``), CPU tim
   operational-space controller, ``mj_step``), its physics steps per CPU second. The rig's
   construction (scene compilation, bead settling, the Panda's move to the start) is timed
   separately and *not* counted: its steps are not in the trial's simulated time either;
-- **bare ``mj_step`` on the same physical situation**: every physics step of that trial is
+- **bare ``mj_step`` on the same physical situation** (this comparison runs the *awake* scene,
+  ``PhysicsOptions(sleep=False)``: replaying a sleeping scene is not its physics, since
+  ``mj_setState`` wakes every body): every physics step of that trial is
   recorded (``mj_getState(..., mjSTATE_INTEGRATION)``: positions, velocities, warm start,
   controls, applied wrenches, mocap) in an untimed run, then replayed -- ``mj_setState`` +
   ``mj_step`` per recorded state, the ``mj_setState`` cost measured alone and subtracted. The
@@ -24,7 +26,8 @@ Targets, measured side by side in one run, one core (``threadpoolctl``), CPU tim
   half with its own executive): wall time (target < 10 min on 2 cores) and the success count.
 
 **Solver settings** (issue 21, item 7): for each :class:`~tli_verify.sim.scene.PhysicsOptions`
-in ``TLI_BENCH_FRANKA_PHYSICS`` (default ``default,sleep,cg,impratio1,sleep+cg``) the Panda's
+in ``TLI_BENCH_FRANKA_PHYSICS`` (default ``default,awake,cg,impratio1,awake+cg``; the default
+sleeps, ``awake`` does not) the Panda's
 nominal trial is measured as above, and the evidence's ``TRIALS`` perturbed trials (seeds
 0..TRIALS-1, the same two halves) are run again: a setting keeps the outcomes when every seed
 passes or fails as with the default (and the delivered beads are counted). The replay of a
@@ -140,8 +143,8 @@ def _probed(probe: _Probe) -> Iterator[None]:
             cls.__init__ = fn  # type: ignore[method-assign]
 
 
-PHYSICS_NAMES = {"default": {}, "sleep": {"sleep": True}, "cg": {"solver": "cg"},
-                 "impratio1": {"impratio": 1.0}, "sleep+cg": {"sleep": True, "solver": "cg"}}
+PHYSICS_NAMES = {"default": {}, "awake": {"sleep": False}, "cg": {"solver": "cg"},
+                 "impratio1": {"impratio": 1.0}, "awake+cg": {"sleep": False, "solver": "cg"}}
 """The solver settings the benchmark can measure (``TLI_BENCH_FRANKA_PHYSICS``)."""
 
 
@@ -323,7 +326,7 @@ def main(out_dir: Path) -> str:
     with threadpoolctl.threadpool_limits(1):
         for robot in robots:
             try:
-                rows[robot] = _measure(robot, repeats)
+                rows[robot] = _measure(robot, repeats, _physics("awake"))
             except AssetError as exc:  # the Menagerie Panda not fetched: say so
                 skipped[robot] = str(exc)
     campaigns: dict[str, dict[str, float]] = {}

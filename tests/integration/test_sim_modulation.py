@@ -30,12 +30,14 @@ def test_without_modulation_the_pour_repeats_its_invariance_failure(
         runs: dict[str, ScenarioRun]) -> None:
     run = runs["no-modulation"]
     assert run.exits >= 3, run.result.mode_sequence()
-    assert {f.to_mode for f in run.failures} == {"c"}  # the same failure: t lost, soup on
+    # the same failure: t lost at the rim (soup still on: c; or spilled outside: a)
+    assert {f.to_mode for f in run.failures} <= {"c", "a"} and run.failures[0].to_mode == "c"
     assert run.cuts == ()  # nothing learned: the variant never modulates
     rim = 2.8  # dm: the target bowl's centre (y = 2.0 dm) plus its radius (0.8 dm)
-    # the same place each time: the measured tray beyond the rim, moving out
-    assert all(f.measured[1] > rim - 0.15 for f in run.failures), [f.measured for f in
-                                                                   run.failures]
+    # the same place each time: the measured tray beyond the rim, moving out (a d -> a exit is
+    # t lost because no soup is left to deliver, wherever the tray is)
+    at_rim = [f.measured for f in run.failures if f.to_mode == "c"]
+    assert len(at_rim) >= 3 and all(m[1] > rim - 0.15 for m in at_rim), at_rim
 
 
 def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(

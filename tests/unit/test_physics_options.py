@@ -27,17 +27,20 @@ def test_the_default_is_the_measured_setting() -> None:
     assert opt.solver == mujoco.mjtSolver.mjSOL_NEWTON
     assert opt.impratio == 10.0 and opt.tolerance == 1e-6 and opt.timestep == 0.002
     assert opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
-    assert not opt.enableflags & SLEEP
+    assert opt.enableflags & SLEEP and opt.sleep_tolerance == pytest.approx(0.01)
     assert DEFAULT_PHYSICS == PhysicsOptions()
 
 
 def test_each_setting_changes_only_its_option() -> None:
     base = build_mocap_scene().opt
-    opt = build_mocap_scene(PhysicsOptions(sleep=True, sleep_tolerance=0.02)).opt
+    opt = build_mocap_scene(PhysicsOptions(sleep_tolerance=0.02)).opt
     assert opt.enableflags & SLEEP and opt.sleep_tolerance == pytest.approx(0.02)
     assert opt.solver == base.solver and opt.impratio == base.impratio
+    opt = build_mocap_scene(PhysicsOptions(sleep=False)).opt
+    assert not opt.enableflags & SLEEP
+    assert opt.solver == base.solver and opt.impratio == base.impratio
     opt = build_mocap_scene(PhysicsOptions(solver="cg")).opt
-    assert opt.solver == mujoco.mjtSolver.mjSOL_CG and not opt.enableflags & SLEEP
+    assert opt.solver == mujoco.mjtSolver.mjSOL_CG and opt.enableflags & SLEEP
     opt = build_mocap_scene(PhysicsOptions(impratio=1.0)).opt
     assert opt.impratio == 1.0 and opt.solver == base.solver
 
