@@ -12,12 +12,12 @@ again. (In the default workspace the bound on the target stops the sweep 2 cm in
 the hand-set bound hides what the DS does.) No perturbation causes it, so each exit is an
 *invariance failure* of ``d`` (paper Sec. 5):
 
-* without modulation (``no-modulation``) the pour leaves ``d`` again and again (6 times on bead
-  seed 0; 6-14 times on seeds 0-9) until the pitch it has gained on each pass keeps it inside;
+* without modulation (``no-modulation``) the pour leaves ``d`` again and again (14 times on bead
+  seed 0: 7 times at the rim, then 7 times with the spoon empty; 6-14 times on seeds 0-9);
 * LTL-DS cuts ``d``'s region at each failure (appendix E.3: the plane through the last in-mode
   state that passes closest to the attractor and separates the failure) and modulates the
   pour DS with the cuts (eq. 7): each failure happens once, the next one at a state the earlier
-  cuts admit, and after 4 cuts (3-4 on seeds 0-9) the pour stays inside the column to the
+  cuts admit, and after 3 cuts (3-4 on seeds 0-9) the pour stays inside the column to the
   end. It is not one cut: the plane the QCQP picks runs through the attractor and tilts into
   pitch (the failure step moves the target in ``y`` *and* pitch), so it leaves room to sweep
   out a little further in ``y`` at a lower height or a larger pitch.
