@@ -345,6 +345,16 @@ def main(out_dir: Path) -> str:
     data = {"repeats": repeats, "robots": rows, "skipped": skipped, "campaigns": campaigns,
             "physics_options": options}
     atomic_write_text(out_dir / "franka_scene.json", canonical_json(data))
+    return format_results(data)
+
+
+def format_results(data: dict[str, Any]) -> str:
+    """The Markdown section of a run's JSON record (``franka_scene.json``)."""
+    repeats = data["repeats"]
+    rows: dict[str, dict[str, Any]] = data["robots"]
+    skipped: dict[str, str] = data["skipped"]
+    campaigns: dict[str, dict[str, float]] = data["campaigns"]
+    options: list[dict[str, Any]] = data["physics_options"]
 
     def ok_(v: bool) -> str:
         return "met" if v else "**not met**"
@@ -361,11 +371,13 @@ def main(out_dir: Path) -> str:
             f"| {r['closed_over_bare']:.0%} | {r['share_in_mj_step']:.0%} "
             f"| {r['non_physics_us_per_step']:.0f} us | {r['real_time_factor']:.1f}x "
             f"({r['end_to_end_real_time_factor']:.1f}x with the rig's construction) "
-            f"| >= 90% of bare: {ok_(r['share_in_mj_step'] >= 0.9)}; >= 5x: "
-            f"{ok_(r['real_time_factor'] >= 5)} |")
+            f"| >= 90% of bare: {ok_(r['share_in_mj_step'] >= 0.9)} |")
     for robot, why in skipped.items():
         lines.append(f"| {names[robot]} | skipped: {why} | | | | | | |")
     notes = [
+        "The comparison with bare `mj_step` runs the *awake* scene (replaying a sleeping scene "
+        "is not its physics: `mj_setState` wakes every body); the scene's default sleeps (the "
+        "settings table below).",
         f"Nominal trial per robot ({DURATION:g} s budget, seeds "
         f"{', '.join(f'{k} {v}' for k, v in SEEDS.items())}), 30 beads, one core, CPU time, "
         f"medians of {repeats} runs. *Bare* = `mj_step` replayed from every recorded state of "
@@ -406,6 +418,11 @@ def main(out_dir: Path) -> str:
         opt_lines += (
             "\nA setting may become the default only if it keeps every outcome of the "
             "evidence's trials (the default's row is the evidence's own setting).\n")
+        default = next((o for o in options if o["setting"] == "default"), None)
+        if default is not None:
+            opt_lines += (f"\nReal time with the default setting: "
+                          f"{default['real_time_factor']:.1f}x; target >= 5x: "
+                          f"{ok_(default['real_time_factor'] >= 5)}.\n")
     return (
         "## The soup-scooping scene in MuJoCo, 30 beads (`bench_franka_scene`)\n\n"
         + "\n".join(lines) + "\n\n" + "\n\n".join(notes) + "\n\n"
