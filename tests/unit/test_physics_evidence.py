@@ -22,6 +22,7 @@ from tests.support.sim import copy_franka_project
 from tli_verify.deploy.gate import run_gate
 from tli_verify.io import bundled_dir, canonical_json
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS, MIN_PHYSICS_TRIALS
+from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.verify.evidence import (
     check_evidence,
     deployed_task_block,
@@ -41,6 +42,7 @@ def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: in
         "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed,
         "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
+        "scene": DEFAULT_PHYSICS.to_dict(),
         "outcomes": [{"seed": seed + k, "success": k >= failed,
                       "delivered": 4 if k >= failed else 0,
                       "violations": [] if k >= failed else ["delivery", "reachability"]}
@@ -210,3 +212,29 @@ def test_physical_evidence_that_is_no_evidence_blocks(franka: Path,
 def test_evidence_with_failures_is_written_and_blocks(franka: Path) -> None:
     attach_physics(franka, failed=2)
     assert "trials per kind: delivery: 2, reachability: 2" in only_campaign_blocks(franka)
+
+
+@pytest.mark.parametrize("scene", [
+    dict(DEFAULT_PHYSICS.to_dict(), sleep=not DEFAULT_PHYSICS.sleep),
+    dict(DEFAULT_PHYSICS.to_dict(), solver="cg" if DEFAULT_PHYSICS.solver != "cg" else "newton"),
+    None,
+])
+def test_evidence_made_in_other_solver_settings_is_refused(
+        franka: Path, scene: dict[str, Any] | None, capsys: pytest.CaptureFixture[str]) -> None:
+    """30 passing trials on the Panda, every file bound -- but run in solver settings that are
+    not the scene's default (or not saying which): only the scene check catches it."""
+    block = physics_block()
+    if scene is None:
+        del block["scene"]
+    else:
+        block["scene"] = scene
+    attach_physics(franka, physics=block)
+    report = run_gate(franka, rerun=0)
+    assert not report.ok
+    (blocker,) = [b for b in report.blockers if b.check == "campaign"]
+    assert ("physics.scene is missing" if scene is None else "the trials ran the scene with") \
+        in blocker.message
+    code, _, err = run(capsys, "gate", str(franka))
+    assert code == 1 and err.count("\n") == 1
+    attach_physics(franka, physics=physics_block())
+    assert run_gate(franka, rerun=0).ok

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from tli_verify.sim.chunks import chunk_seeds
+from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.verify.evidence import PhysicalWorld
 
 __all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_ROBOT", "WORLD",
@@ -33,7 +34,9 @@ than the kinematic campaigns' bound, and the gate's line says so."""
 
 def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
     """A physical campaign's block: consistent with the campaign, every trial delivered, made
-    on the Panda (:data:`REQUIRED_ROBOT`), the deployed variant, both perturbation levels.
+    on the Panda (:data:`REQUIRED_ROBOT`), in the scene's current solver settings
+    (``physics.scene`` equal to :data:`~tli_verify.sim.physics_options.DEFAULT_PHYSICS`), the
+    deployed variant, both perturbation levels.
 
     Parameters
     ----------
@@ -75,6 +78,15 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
         out.append(f"{shown}: the trials ran on the {phys['robot']!r} rig, not the Panda: "
                    "evidence for the Franka project must be made on the arm (tli sim franka "
                    "--robot panda --trials 30 --evidence)")
+    scene = phys.get("scene")
+    current = DEFAULT_PHYSICS.to_dict()
+    if scene is None:
+        out.append(f"{shown}: physics.scene is missing: the evidence does not say which solver "
+                   "settings its trials ran with; make it again (tli evidence sim/franka)")
+    elif dict(scene) != current:
+        out.append(f"{shown}: the trials ran the scene with {_settings(scene)}, but the scene's "
+                   f"default (which tli gate --rerun and the deployed loop use) is "
+                   f"{_settings(current)}: make the evidence again (tli evidence sim/franka)")
     if phys["variant"] != "LTL-DS":
         out.append(f"{shown}: the trials ran the {phys['variant']!r} ablation, the deployed "
                    "policy is LTL-DS (modulation and replanning on): not evidence for it")
@@ -96,6 +108,12 @@ FRANKA_PHYSICS = PhysicalWorld(name=WORLD, min_trials=MIN_PHYSICS_TRIALS,
                                check=check_physics_block)
 """The MuJoCo Franka's physical campaigns, for
 :func:`~tli_verify.verify.evidence.check_evidence`."""
+
+
+def _settings(scene: Mapping[str, Any]) -> str:
+    """``sleep=..., sleep_tolerance=..., solver=..., impratio=...`` for messages."""
+    return ", ".join(f"{k}={scene.get(k)!r}" for k in ("sleep", "sleep_tolerance", "solver",
+                                                         "impratio"))
 
 
 def _check_partition(doc: Mapping[str, Any], shown: str) -> list[str]:

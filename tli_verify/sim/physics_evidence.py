@@ -78,6 +78,7 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
     import mujoco
 
     from tli_verify.io import check_output_file
+    from tli_verify.sim.physics_options import DEFAULT_PHYSICS
     from tli_verify.verify.evidence import (
         EVIDENCE_SUFFIX,
         deployed_task_block,
@@ -96,6 +97,7 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         "cuts_added": result.cuts_added, "mujoco": str(mujoco.__version__),
         "wall_time": round(result.wall_time, 2),
         "controller": controller_record(c.robot),
+        "scene": DEFAULT_PHYSICS.to_dict(),  # the trials ran the scene's default (run_trial)
         "retries": sum(r.retries for r in result.results),
         # the partition: one executive per chunk, cuts carried over within it
         "workers": int(c.workers),

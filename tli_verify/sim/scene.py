@@ -32,6 +32,7 @@ import numpy.typing as npt
 from tli_verify.defaults import Stream
 from tli_verify.defaults import rng as default_rng
 from tli_verify.errors import TliError
+from tli_verify.sim.physics_options import DEFAULT_PHYSICS, SOLVERS, PhysicsOptions
 
 __all__ = [
     "BEAD_MASS",
@@ -151,53 +152,6 @@ SOUP_PIT = np.array([0.0, -0.06])
 (-y), the end of the scoop's sweep, so the beads always lie ahead of the ladle and against
 the bowl's wall."""
 TARGET_BOWL = Bowl("target", TARGET_CENTER, radius=0.08, floor=0.008, height=0.04)
-
-
-SOLVERS = ("newton", "cg")
-"""The constraint solvers :class:`PhysicsOptions` may pick (MuJoCo's Newton and CG)."""
-
-
-@dataclass(frozen=True, slots=True)
-class PhysicsOptions:
-    """The solver settings of the scene that trade speed against fidelity.
-
-    The default is the measured setting every trial and piece of evidence uses (module doc).
-    The others exist to be measured (``benchmarks/bench_franka_scene.py``: speed, and whether the
-    30 evidence trials keep their outcomes) before one becomes a default. Island sleeping became
-    the default on 2026-12-04: it kept every outcome of the 30 evidence trials and ran the Panda
-    at 6.8x real time against 3.9x awake (nominal trial), 7.7x against 3.3x (10 perturbed
-    trials). The demonstrations were recorded awake; ``sleep=False`` is the awake scene (the
-    benchmark's bare-replay baseline: ``mj_setState`` wakes every body).
-
-    Attributes
-    ----------
-    sleep : bool
-        MuJoCo's island sleeping (``mjENBL_SLEEP``): bodies at rest (the beads in the soup
-        bowl) leave the constraint solver until something touches them (default on).
-    sleep_tolerance : float
-        Velocity below which a body may sleep (MuJoCo ``sleep_tolerance``).
-    solver : str
-        ``"newton"`` (default) or ``"cg"``.
-    impratio : float
-        Frictional-to-normal impedance ratio of the elliptic cones (10: beads grip the tray).
-    """
-
-    sleep: bool = True
-    sleep_tolerance: float = 0.01
-    solver: str = "newton"
-    impratio: float = 10.0
-
-    def __post_init__(self) -> None:
-        if self.solver not in SOLVERS:
-            raise TliError(f"physics: solver {self.solver!r}: one of {', '.join(SOLVERS)}")
-        if not (math.isfinite(self.sleep_tolerance) and math.isfinite(self.impratio)
-                and self.sleep_tolerance > 0 and self.impratio >= 1):
-            raise TliError(f"physics: need sleep_tolerance > 0 and impratio >= 1, got "
-                           f"{self.sleep_tolerance}, {self.impratio}")
-
-
-DEFAULT_PHYSICS = PhysicsOptions()
-"""The scene's measured settings."""
 
 
 def set_contact_options(spec: mujoco.MjSpec, physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
