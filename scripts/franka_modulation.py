@@ -5,6 +5,8 @@ no retry) without modulation and with LTL-DS, prints each run's exits of the pou
 and beads delivered, and draws them side by side::
 
     .venv/bin/python scripts/franka_modulation.py [--out docs/img/franka_modulation.png]
+
+An output that cannot be written is one ``error:`` line, exit 2, before any trial runs.
 """
 
 from __future__ import annotations
@@ -14,17 +16,27 @@ import sys
 
 
 def main(argv: list[str] | None = None) -> int:
+    from tli_verify.errors import TliError
+    from tli_verify.io import check_output_file
+    from tli_verify.sim.loop import project_dir
     from tli_verify.sim.scenario import POUR_SCENARIO, plot_scenario, run_scenario
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/img/franka_modulation.png", metavar="OUT.png")
     args = ap.parse_args(argv)
-    runs = [run_scenario(v) for v in ("no-modulation", "LTL-DS")]
-    for run in runs:
-        print(f"{run.variant:14s} modes {run.result.mode_sequence()}: {run.exits} exit(s) of "
-              f"{POUR_SCENARIO.mode}, {len(run.cuts)} cut(s), {run.result.delivered} bead(s), "
-              f"success {run.result.success}")
-    plot_scenario(runs, args.out)
+    try:
+        # before the trials; never over a file of the Franka project the trials read
+        read = [f for f in project_dir().rglob("*") if f.is_file()]
+        check_output_file(args.out, inputs=read, what="picture")
+        runs = [run_scenario(v) for v in ("no-modulation", "LTL-DS")]
+        for run in runs:
+            print(f"{run.variant:14s} modes {run.result.mode_sequence()}: {run.exits} exit(s) "
+                  f"of {POUR_SCENARIO.mode}, {len(run.cuts)} cut(s), {run.result.delivered} "
+                  f"bead(s), success {run.result.success}")
+        plot_scenario(runs, args.out)
+    except TliError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 2
     print(f"wrote {args.out}")
     return 0
 

@@ -22,6 +22,22 @@ def require_panda() -> Any:
         pytest.skip(f"Panda assets not fetched (run `make sim-assets`): {exc}")
 
 
+def panda_with_beads(beads: int = 3) -> Any:
+    """The arm-only Panda with ``beads`` free spheres in its model (free joints after the arm's,
+    so the controller's index bookkeeping is exercised); skips like :func:`require_panda`."""
+    require_panda()
+    import mujoco
+
+    from tli_verify.sim.robot import Panda, panda_spec
+
+    spec = panda_spec()
+    for i in range(beads):
+        bead = spec.worldbody.add_body(name=f"bead{i}", pos=[0.5, 0.1 * i, 0.05])
+        bead.add_freejoint()
+        bead.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.008, 0, 0], mass=0.002)
+    return Panda.from_model(spec.compile())
+
+
 FRANKA_FILES = (("specs", "franka-scoop.toml"), ("tasks", "franka-scoop.toml"),
                 ("models", "franka-scoop.model.json"),
                 ("certificates", "franka-scoop.cert.json"))

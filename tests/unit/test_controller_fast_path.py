@@ -11,24 +11,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.support.sim import require_panda
+from tests.support.sim import panda_with_beads
 
 pytestmark = pytest.mark.sim
 
 
 @pytest.fixture(scope="module")
 def scene() -> Any:
-    require_panda()  # skips without the Menagerie assets
-    import mujoco
-
-    from tli_verify.sim.robot import Panda, panda_spec
-
-    spec = panda_spec()
-    for i in range(3):
-        bead = spec.worldbody.add_body(name=f"bead{i}", pos=[0.5, 0.1 * i, 0.05])
-        bead.add_freejoint()
-        bead.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.008, 0, 0], mass=0.002)
-    return Panda.from_model(spec.compile())
+    return panda_with_beads()
 
 
 def _reference(robot: Any, data: Any, ctl: Any, pos_d: Any, quat_d: Any,
