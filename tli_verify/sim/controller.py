@@ -390,11 +390,11 @@ class ImpedanceController:
     ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_tau", "_ext_tau_l", "_idx_m",
-                 "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list", "_kn",
-                 "_kp6", "_kp6_list", "_lam_diag", "_lam_inv", "_last_tau", "_limits", "_mv",
-                 "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr", "_quat", "_rhs", "_rhs_ext",
-                 "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "_y", "calls",
+    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_tau", "_ext_tau_l", "_fy",
+                 "_idx_m", "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list",
+                 "_kn", "_kp6", "_kp6_list", "_lam_diag", "_lam_inv", "_last_tau", "_limits",
+                 "_mv", "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr", "_quat", "_rhs",
+                 "_rhs_ext", "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "_y", "calls",
                  "ext_time_constant", "gains", "guard", "impedance", "map", "max_pos_error",
                  "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
                  "saturated_calls", "site")
@@ -428,7 +428,7 @@ class ImpedanceController:
         self._lam_diag = self._lam_inv.reshape(-1)[::7]  # a view of its diagonal
         self._twist = np.zeros(6)
         self._acc, self._mv, self._pvec = np.zeros(7), np.zeros(7), np.zeros(7)
-        self._tau0, self._jtf = np.zeros(7), np.zeros(7)
+        self._tau0, self._jtf, self._fy = np.zeros(7), np.zeros(7), np.zeros(6)
         self._last_tau = np.zeros(7)
         g = self.gains
         self._kp6 = np.array([g.kp_pos] * 3 + [g.kp_rot] * 3)
@@ -498,18 +498,28 @@ class ImpedanceController:
         prev = self._prev
         if prev is None:
             return
-        t0, m0, qd0, b0, tau0, p0 = prev
-        dt = time - t0
+        t_prev, m_prev, qd_prev, b_prev, tau_prev, p_prev = prev
+        dt = time - t_prev
         if dt <= 0.0:
             return
         # raw = M0 (qd - qd0) / dt + b0 - tau0 - p0; ext += alpha (raw - ext): elementwise in
-        # floats (the roundings of numpy's elementwise operations), the product with numpy
+        # floats, joint by joint (the roundings of numpy's elementwise operations), the
+        # product with numpy
+        a0, a1, a2, a3, a4, a5, a6 = qd
+        c0, c1, c2, c3, c4, c5, c6 = qd_prev
         acc = self._acc
-        acc[:] = [(a - b) / dt for a, b in zip(qd, qd0, strict=True)]
-        mv = np.matmul(m0, acc, out=self._mv).tolist()
+        acc[:] = ((a0 - c0) / dt, (a1 - c1) / dt, (a2 - c2) / dt, (a3 - c3) / dt,
+                  (a4 - c4) / dt, (a5 - c5) / dt, (a6 - c6) / dt)
+        m0, m1, m2, m3, m4, m5, m6 = np.matmul(m_prev, acc, out=self._mv).tolist()
+        b0, b1, b2, b3, b4, b5, b6 = b_prev
+        t0, t1, t2, t3, t4, t5, t6 = tau_prev
+        p0, p1, p2, p3, p4, p5, p6 = p_prev
+        e0, e1, e2, e3, e4, e5, e6 = self._ext_tau_l
         alpha = dt / (self.ext_time_constant + dt)
-        ext = [e + alpha * (m + b - t - p - e) for e, m, b, t, p in zip(
-            self._ext_tau_l, mv, b0, tau0, p0, strict=True)]
+        ext = [e0 + alpha * (m0 + b0 - t0 - p0 - e0), e1 + alpha * (m1 + b1 - t1 - p1 - e1),
+               e2 + alpha * (m2 + b2 - t2 - p2 - e2), e3 + alpha * (m3 + b3 - t3 - p3 - e3),
+               e4 + alpha * (m4 + b4 - t4 - p4 - e4), e5 + alpha * (m5 + b5 - t5 - p5 - e5),
+               e6 + alpha * (m6 + b6 - t6 - p6 - e6)]
         self._ext_tau_l = ext
         self._ext_tau[:] = ext
 
@@ -558,10 +568,12 @@ class ImpedanceController:
         6 floats or None. Returns the torques sent, as a list of 7 floats.
 
         Elementwise arithmetic runs on Python floats (the same IEEE roundings as numpy's
-        elementwise operations, in the same order); every matrix product and solve is the
-        numpy / LAPACK call of the plain formulation, on operands of the same layout (a
-        preallocated ``out=`` buffer has the layout of the array numpy would allocate), so the
-        torques are bit-identical to it (``tests/unit/test_controller_fast_path.py``).
+        elementwise operations, in the same order), written out per component (a
+        comprehension's frame and ``zip`` cost more than the arithmetic on 6- and 7-vectors);
+        every matrix product and solve is the numpy / LAPACK call of the plain formulation, on
+        operands of the same layout (a preallocated ``out=`` buffer has the layout of the array
+        numpy would allocate), so the torques are bit-identical to it
+        (``tests/unit/test_panda_torque_loop_exact.py``).
         """
         v = self._views if self._views is not None and self._views.data is data \
             else self._bind(data)
@@ -589,11 +601,15 @@ class ImpedanceController:
         vnorm = math.sqrt(a * a + b * b + c * c)
         angle = 2.0 * math.atan2(vnorm, w)
         k = angle / vnorm if vnorm > 1e-12 else 0.0
-        # Kp e - Kd (J qdot - v_d), per component in floats
-        twist = np.matmul(jac, qd, out=self._twist).tolist()   # measured site twist (6,)
-        vel = twist if twist_d is None else \
-            [vi - ti for vi, ti in zip(twist, twist_d, strict=True)]
         err = (ex, ey, ez, a * k, b * k, c * k)
+        # J qdot - v_d: the measured site twist less the target's
+        twist = np.matmul(jac, qd, out=self._twist).tolist()   # (6,)
+        if twist_d is None:
+            vel = twist
+        else:
+            w0, w1, w2, w3, w4, w5 = twist
+            d0, d1, d2, d3, d4, d5 = twist_d
+            vel = [w0 - d0, w1 - d1, w2 - d2, w3 - d3, w4 - d4, w5 - d5]
         bias = (v.bias if v.bias is not None else data.qfrc_bias[self._dof]).tolist()
         qdl = qd.tolist()
         time = float(data.time)
@@ -606,12 +622,16 @@ class ImpedanceController:
         # J^T Jbar^T tau0 = J^T Lambda X^T tau0. One solve gives F = Lambda acc and that term,
         # and Lambda X^T tau_ext = Jbar^T tau_ext, the external wrench at the site; in the
         # Franka impedance law also Lambda itself (its diagonal sets the damping).
-        q = (v.qpos if v.qpos is not None else data.qpos[self._q_idx]).tolist()
+        q0, q1, q2, q3, q4, q5, q6 = (v.qpos if v.qpos is not None
+                                      else data.qpos[self._q_idx]).tolist()
+        n0, n1, n2, n3, n4, n5, n6 = self.posture.tolist()
+        v0, v1, v2, v3, v4, v5, v6 = qdl
         kn, dn = self._kn, self._dn
-        pvec = self._pvec
-        pvec[:] = [kn * (p - qi) - dn * vi
-                   for p, qi, vi in zip(self.posture.tolist(), q, qdl, strict=True)]
-        tau0 = np.matmul(mass, pvec, out=self._tau0)
+        self._pvec[:] = (kn * (n0 - q0) - dn * v0, kn * (n1 - q1) - dn * v1,
+                         kn * (n2 - q2) - dn * v2, kn * (n3 - q3) - dn * v3,
+                         kn * (n4 - q4) - dn * v4, kn * (n5 - q5) - dn * v5,
+                         kn * (n6 - q6) - dn * v6)
+        tau0 = np.matmul(mass, self._pvec, out=self._tau0)
         xt = x.T
         np.matmul(xt, tau0, out=self._rhs_post)         # views of rhs's columns 1 and 2
         np.matmul(xt, self._ext_tau, out=self._rhs_ext)
@@ -620,16 +640,22 @@ class ImpedanceController:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
         self._y = y
         if self._k6 is not None:
-            force = self._impedance_force(err, vel, y[:, 3:].diagonal().tolist())
-            fy = np.array([f - g for f, g in zip(force, y[:, 1].tolist(), strict=True)])
+            ys = y.ravel(order="F").tolist()            # column by column (Fortran order)
+            f0, f1, f2, f3, f4, f5 = self._impedance_force(
+                err, vel, (ys[18], ys[25], ys[32], ys[39], ys[46], ys[53]))  # Lambda's diagonal
+            g0, g1, g2, g3, g4, g5 = ys[6:12]           # column 1
+            fy = self._fy
+            fy[:] = (f0 - g0, f1 - g1, f2 - g2, f3 - g3, f4 - g4, f5 - g5)
         else:
             fy = y[:, 0] - y[:, 1]
-        t = [a + b + c for a, b, c in zip(np.matmul(jac.T, fy, out=self._jtf).tolist(),
-                                          tau0.tolist(), bias, strict=True)]
-        n_sat = 0
-        for tj, lj in zip(t, self._limits, strict=True):
-            if abs(tj) > lj:
-                n_sat += 1
+        j0, j1, j2, j3, j4, j5, j6 = np.matmul(jac.T, fy, out=self._jtf).tolist()
+        s0, s1, s2, s3, s4, s5, s6 = tau0.tolist()
+        b0, b1, b2, b3, b4, b5, b6 = bias
+        t = [j0 + s0 + b0, j1 + s1 + b1, j2 + s2 + b2, j3 + s3 + b3, j4 + s4 + b4,
+             j5 + s5 + b5, j6 + s6 + b6]
+        l0, l1, l2, l3, l4, l5, l6 = self._limits
+        n_sat = (abs(t[0]) > l0) + (abs(t[1]) > l1) + (abs(t[2]) > l2) + (abs(t[3]) > l3) + \
+            (abs(t[4]) > l4) + (abs(t[5]) > l5) + (abs(t[6]) > l6)
         if self.guard is not None:
             out = self.guard.apply_lists(t, qdl, mass, twist)
         elif n_sat:
@@ -658,7 +684,7 @@ class ImpedanceController:
         return out
 
     def _impedance_force(self, err: tuple[float, ...], vel: list[float],
-                         lam_diag: list[float]) -> list[float]:
+                         lam_diag: tuple[float, ...]) -> tuple[float, ...]:
         """The Franka law's task wrench ``K e - 2 zeta sqrt(K |Lambda_jj|) vel``, within
         :data:`TASK_FORCE_LIMIT` and :data:`TASK_TORQUE_LIMIT` (floats; module doc).
 
@@ -666,24 +692,31 @@ class ImpedanceController:
         its limit; a sum of three squares in floats is within a relative 4e-16 of it, so below
         ``limit^2 (1 - 1e-9)`` the part is inside its limit whatever ``ddot`` rounds to, and is
         left alone without the call."""
-        two_zeta, k6 = self._two_zeta, self._k6
+        tz, k6 = self._two_zeta, self._k6
         assert k6 is not None
-        force = [kj * ej - two_zeta * math.sqrt(kj * abs(lj)) * vj
-                 for kj, ej, lj, vj in zip(k6, err, lam_diag, vel, strict=True)]
-        f0, f1, f2, t0, t1, t2 = force
+        k0, k1, k2, k3, k4, k5 = k6
+        e0, e1, e2, e3, e4, e5 = err
+        v0, v1, v2, v3, v4, v5 = vel
+        l0, l1, l2, l3, l4, l5 = lam_diag
+        f0 = k0 * e0 - tz * math.sqrt(k0 * abs(l0)) * v0
+        f1 = k1 * e1 - tz * math.sqrt(k1 * abs(l1)) * v1
+        f2 = k2 * e2 - tz * math.sqrt(k2 * abs(l2)) * v2
+        t0 = k3 * e3 - tz * math.sqrt(k3 * abs(l3)) * v3
+        t1 = k4 * e4 - tz * math.sqrt(k4 * abs(l4)) * v4
+        t2 = k5 * e5 - tz * math.sqrt(k5 * abs(l5)) * v5
         if f0 * f0 + f1 * f1 + f2 * f2 > _FORCE_SQ_SAFE:
-            f3 = np.array(force[:3])
+            f3 = np.array((f0, f1, f2))
             fn = math.sqrt(float(f3 @ f3))
             if fn > TASK_FORCE_LIMIT:
                 s = TASK_FORCE_LIMIT / fn
-                force[0:3] = [f0 * s, f1 * s, f2 * s]
+                f0, f1, f2 = f0 * s, f1 * s, f2 * s
         if t0 * t0 + t1 * t1 + t2 * t2 > _TORQUE_SQ_SAFE:
-            t3 = np.array(force[3:])
+            t3 = np.array((t0, t1, t2))
             tn = math.sqrt(float(t3 @ t3))
             if tn > TASK_TORQUE_LIMIT:
                 s = TASK_TORQUE_LIMIT / tn
-                force[3:6] = [t0 * s, t1 * s, t2 * s]
-        return force
+                t0, t1, t2 = t0 * s, t1 * s, t2 * s
+        return f0, f1, f2, t0, t1, t2
 
     def _bind(self, data: Any) -> _DataViews:
         """Views of ``data``'s arrays that :meth:`compute` reads and writes, made once per

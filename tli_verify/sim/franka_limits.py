@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from operator import add, sub, truediv
+from operator import truediv
 from typing import Any
 
 import numpy as np
@@ -218,13 +218,16 @@ class LimitGuard:
 
         ``mass`` is the diagonal (shape (7,)) or the whole joint-space mass matrix (7, 7),
         read only when a joint is braked. Returns the torques to send, a list of 7 floats.
+
+        The seven joints are written out one by one (Python floats, the IEEE roundings of
+        numpy's elementwise operations): numpy's per-call overhead, and a comprehension's
+        frame, dominate on 7-vectors, and the torque loop runs this every physics step.
         """
-        # Plain floats on the 7 joints: numpy's per-call overhead dominates on 7-vectors (the
-        # torque loop runs this every physics step).
         lim = self.limits
-        qd = qdot
-        vmax = self._vmax
-        peak = max(map(truediv, map(abs, qd), vmax))
+        q0, q1, q2, q3, q4, q5, q6 = qdot
+        v0, v1, v2, v3, v4, v5, v6 = self._vmax
+        peak = max(abs(q0) / v0, abs(q1) / v1, abs(q2) / v2, abs(q3) / v3, abs(q4) / v4,
+                   abs(q5) / v5, abs(q6) / v6)
         m = self._max
         if peak > m["joint_velocity"]:
             m["joint_velocity"] = peak
@@ -241,35 +244,45 @@ class LimitGuard:
                                 f"{rot * lim.cartesian_speed[1]:.2f} rad/s beyond "
                                 f"{lim.cartesian_speed[0]:g} m/s / {lim.cartesian_speed[1]:g} "
                                 "rad/s")
+        vmax = self._vmax
         if lim.reflex and self.stopped is None and peak > 1.0:
-            j = list(map(truediv, map(abs, qd), vmax)).index(peak)
-            self.stopped = (f"joint {j + 1} velocity {abs(qd[j]):.3f} rad/s beyond "
+            j = list(map(truediv, map(abs, qdot), vmax)).index(peak)
+            self.stopped = (f"joint {j + 1} velocity {abs(qdot[j]):.3f} rad/s beyond "
                             f"its limit {vmax[j]:g} rad/s")
         t = tau
         if peak > lim.brake_from:
             t = list(t)
-            vel_ratio = list(map(truediv, map(abs, qd), vmax))
+            vel_ratio = list(map(truediv, map(abs, qdot), vmax))
             md = (mass.diagonal() if mass.ndim == 2 else mass).tolist()
             for j in range(7):
                 if vel_ratio[j] > lim.brake_from:
-                    excess = qd[j] - math.copysign(lim.brake_from * vmax[j], qd[j])
+                    excess = qdot[j] - math.copysign(lim.brake_from * vmax[j], qdot[j])
                     t[j] -= lim.brake_gain * md[j] * excess
-        tmax = self._tmax
-        worst = max(map(truediv, map(abs, t), tmax))
+        t0, t1, t2, t3, t4, t5, t6 = t
+        l0, l1, l2, l3, l4, l5, l6 = self._tmax
+        worst = max(abs(t0) / l0, abs(t1) / l1, abs(t2) / l2, abs(t3) / l3, abs(t4) / l4,
+                    abs(t5) / l5, abs(t6) / l6)
         if worst > m["torque"]:
             m["torque"] = worst
         # |a| / b <= 1 (rounded) implies |a| <= b: then the clip is the identity
-        out = t if worst <= 1.0 else [min(max(a, -b), b) for a, b in zip(t, tmax, strict=True)]
+        if worst > 1.0:
+            t0, t1, t2, t3, t4, t5, t6 = (min(max(a, -b), b)
+                                          for a, b in zip(t, self._tmax, strict=True))
         last = self._last
-        if last is not None:
+        if last is None:
+            out = [t0, t1, t2, t3, t4, t5, t6]
+        else:
             step = lim.torque_rate * self.dt
-            change = list(map(sub, out, last))
-            rate = max(map(abs, change)) / step
+            b0, b1, b2, b3, b4, b5, b6 = last
+            c0, c1, c2, c3, c4, c5, c6 = t0 - b0, t1 - b1, t2 - b2, t3 - b3, t4 - b4, t5 - b5, \
+                t6 - b6
+            rate = max(abs(c0), abs(c1), abs(c2), abs(c3), abs(c4), abs(c5), abs(c6)) / step
             if rate > m["torque_rate"]:
                 m["torque_rate"] = rate
-            out = list(map(add, last, change)) if rate <= 1.0 else \
-                [b + min(max(c, -step), step) for b, c in zip(last, change, strict=True)]
-        elif out is tau:
-            out = list(out)
+            if rate <= 1.0:  # last + (out - last), as sent: not always out itself
+                out = [b0 + c0, b1 + c1, b2 + c2, b3 + c3, b4 + c4, b5 + c5, b6 + c6]
+            else:
+                out = [b + min(max(c, -step), step) for b, c in
+                       zip(last, (c0, c1, c2, c3, c4, c5, c6), strict=True)]
         self._last = out
         return out
