@@ -666,19 +666,21 @@ class PandaRig:
         # on floats (the roundings of the numpy version; bit-identical torques)
         ctl, data, model = self.controller, self.data, self.model
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2  # looked up per call (benchmark probes)
-        start = self._from.tolist()
-        delta = (self._goal - self._from).tolist()
+        x0, y0, z0, p0 = self._from.tolist()
+        dx, dy, dz, dp = (self._goal - self._from).tolist()
         twist = None if self._twist is None else self._twist.tolist()
         quat, xfrc, set_quat = self._quat_d, self._xfrc, ctl.map.target_quat_into
         control = ctl.compute_fast
         out = None
+        if before is None and n > 0:
+            xfrc[:] = self.push  # held over the steps (mj_step never writes xfrc_applied)
         for k in range(1, n + 1):
             if before is not None:
                 before(k - 1)
+                xfrc[:] = self.push
             r = k / n
-            x, y, z, pitch = [a + d * r for a, d in zip(start, delta, strict=True)]
-            set_quat(pitch, quat)
-            xfrc[:] = self.push
+            set_quat(p0 + dp * r, quat)
+            x, y, z = x0 + dx * r, y0 + dy * r, z0 + dz * r
             step1(model, data)
             out = control(data, x, y, z, quat, twist)
             step2(model, data)
