@@ -198,9 +198,9 @@ def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     The pitch is the angle of the tray's front (local +x) below the horizontal, signed: the
     front points along ``(0, -cos p, -sin p)`` for a pure pitch ``p``.
     """
-    front = data.site_xmat[site].reshape(3, 3)[:, 0]
-    pitch = math.atan2(-float(front[2]), -float(front[1]))
-    return np.array([*data.site_xpos[site].tolist(), pitch])
+    xmat = data.site_xmat[site].tolist()  # row-major: the front (column 0) is 0, 3, 6
+    x, y, z = data.site_xpos[site].tolist()
+    return np.array((x, y, z, math.atan2(-xmat[6], -xmat[3])))
 
 
 class MocapRig:

@@ -177,8 +177,28 @@ def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
     -------
     ndarray, shape (4,)
     """
-    into = ((target >= hi) & (v > 0)) | ((target <= lo) & (v < 0))
-    return np.where(into, 0.0, v)
+    return np.array(_feed_forward(np.asarray(target, dtype=np.float64).tolist(),
+                                  np.asarray(v, dtype=np.float64).tolist(),
+                                  np.asarray(lo, dtype=np.float64).tolist(),
+                                  np.asarray(hi, dtype=np.float64).tolist()))
+
+
+def _feed_forward(target: list[float], v: list[float], lo: list[float],
+                  hi: list[float]) -> list[float]:
+    """:func:`feed_forward` on lists of floats (the loop's; the same comparisons)."""
+    return [0.0 if (t >= h and a > 0.0) or (t <= low and a < 0.0) else a
+            for t, a, low, h in zip(target, v, lo, hi, strict=True)]
+
+
+def _clip(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
+    """``np.clip(x, lo, hi)`` of arrays, on floats, by numpy's rule: ``max(a, low)`` is ``a``
+    when ``a > low`` or ``a`` is NaN, else ``low``; then ``min(., h)`` alike with ``<``
+    (signed zeros and NaNs come out as numpy's; tested against it)."""
+    out = []
+    for a, low, h in zip(x, lo, hi, strict=True):
+        a = a if a > low or a != a else low
+        out.append(a if a < h or a != a else h)
+    return out
 
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
@@ -417,6 +437,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     reading = debounce.update(rig.read())
     ref = to_ds(rig.pose())
     lo, hi = workspace(margin)
+    lo_l, hi_l = lo.tolist(), hi.tolist()
+    leash, cap = LEASH.tolist(), SPEED_CAP.tolist()
     policy.reset(ref, reading.to_dict())
     stall = StallRetry(policy.model, CONTROL_DT) if retry else None
     detect = ContactDetector() if detector is None else detector
@@ -446,7 +468,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         perturbed_steps += perturbed
         # the target stays on a leash of the measured state: held back (a push, the pile),
         # the arm pulls with a bounded force, in every axis, towards where the DS leads
-        ref = np.clip(ref, z - LEASH, z + LEASH)
+        # (4-vectors on floats: numpy's elementwise roundings and clip rule, less overhead)
+        zl = z.tolist()
+        ref = np.array(_clip(ref.tolist(), [a - b for a, b in zip(zl, leash, strict=True)],
+                             [a + b for a, b in zip(zl, leash, strict=True)]))
         v = policy.step(ref, reading.to_dict(), perturbed=perturbed)
         if trace is not None:
             trace.append(TraceStep(t, policy.mode, ref.copy(), z, perturbed))
@@ -454,11 +479,14 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             retreat = stall.update(policy.mode, policy.done, ref, z)
             if retreat is not None:
                 v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
-        speed = float(np.max(np.abs(v) / SPEED_CAP))
+        vl = np.asarray(v, dtype=np.float64).tolist()
+        speed = max([abs(a) / c for a, c in zip(vl, cap, strict=True)])
         if speed > 1.0:
-            v = v / speed
-        ref = np.clip(ref + CONTROL_DT * v, lo, hi)
-        rig.command(from_ds(ref), from_ds_velocity(feed_forward(ref, v, lo, hi)))
+            vl = [a / speed for a in vl]
+        refl = _clip([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
+                     lo_l, hi_l)
+        ref = np.array(refl)
+        rig.command(from_ds(ref), from_ds_velocity(_feed_forward(refl, vl, lo_l, hi_l)))
         _step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
         if frame is not None:
