@@ -41,3 +41,39 @@ def test_the_loops_leash_clip_on_a_signed_zero() -> None:
     # np.clip with array bounds returns the bound on a tie: -0.0 against a bound of 0.0 is 0.0
     assert _bits(np.array(_clip([-0.0, 0.0], [0.0, -0.0], [1.0, 1.0]))) == \
         _bits(np.clip(np.array([-0.0, 0.0]), np.array([0.0, -0.0]), np.array([1.0, 1.0])))
+
+
+# points near a bowl's rim and its floor and height, where the answer is decided in the last bits
+near = st.floats(-1e-12, 1e-12)
+
+
+@given(st.sampled_from(["soup", "target"]), st.floats(0.0, 2 * np.pi), st.floats(0.5, 1.5),
+       near, st.floats(-0.02, 0.3), st.sampled_from([0.0, 0.02, 0.25]))
+def test_bowl_contains_is_inside_for_one_point(which: str, angle: float, scale: float,
+                                               eps: float, height: float, above: float) -> None:
+    from tli_verify.sim.scene import SOUP_BOWL, TARGET_BOWL
+
+    bowl = SOUP_BOWL if which == "soup" else TARGET_BOWL
+    cx, cy, cz = bowl.center.tolist()
+    rho = bowl.radius * (scale if scale < 0.9 or scale > 1.1 else 1.0) * (1.0 + eps)
+    p = np.array([cx + rho * np.cos(angle), cy + rho * np.sin(angle), cz + height])
+    want = bool(bowl.inside(p, above=above))
+    assert bowl.contains(*p.tolist(), above=above) is want
+    # on the floor and height bounds themselves
+    for zz in (bowl.floor - 1e-3, bowl.height + above):
+        q = np.array([p[0], p[1], cz + zz])
+        assert bowl.contains(*q.tolist(), above=above) is bool(bowl.inside(q, above=above))
+
+
+def test_bowl_contains_at_the_rim_in_the_last_bit() -> None:
+    from tli_verify.sim.scene import TARGET_BOWL
+
+    cx, cy, cz = TARGET_BOWL.center.tolist()
+    r = TARGET_BOWL.radius
+    z = cz + 0.02
+    xs = [cx + r]  # and the 4 floats on either side of it, where np.hypot decides
+    for _ in range(4):
+        xs = [float(np.nextafter(xs[0], -np.inf)), *xs, float(np.nextafter(xs[-1], np.inf))]
+    for x in xs:
+        p = np.array([x, cy, z])
+        assert TARGET_BOWL.contains(*p.tolist()) is bool(TARGET_BOWL.inside(p))

@@ -105,11 +105,14 @@ class ScoopSensors:
         self._is_tray = np.zeros(model.ngeom, dtype=bool)
         self._is_tray[list(self.ids.ladle_geoms)] = True
 
-    def _local(self, data: mujoco.MjData) -> FloatArray:
-        """Bead centres in the tray frame, shape (30, 3)."""
+    def _local(self, data: mujoco.MjData, beads: FloatArray | None = None) -> FloatArray:
+        """Bead centres in the tray frame, shape (30, 3) (``beads``: their world positions,
+        ``data.xpos`` of the bead bodies, when already read)."""
         site = self.ids.tray_site
         rot = data.site_xmat[site].reshape(3, 3)
-        return np.asarray((data.xpos[self.ids.bead_bodies] - data.site_xpos[site]) @ rot)
+        if beads is None:
+            beads = data.xpos[self.ids.bead_bodies]
+        return np.asarray((beads - data.site_xpos[site]) @ rot)
 
     def in_tray_volume(self, data: mujoco.MjData) -> BoolArray:
         """Beads whose centre lies in the tray's volume (tray frame; module doc), shape (30,)."""
@@ -118,14 +121,16 @@ class ScoopSensors:
         return (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
             (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
 
-    def on_ladle(self, data: mujoco.MjData) -> BoolArray:
+    def on_ladle(self, data: mujoco.MjData, beads: FloatArray | None = None) -> BoolArray:
         """Beads resting on the ladle, shape (30,).
 
         In the tray's volume and touching a tray geom (a contact), or lying on the tray floor
         (centre within ``FLOOR_GAP`` of one radius above it: a bead that rolls or bounces on
         the floor loses its contact for a step now and then), or touching such a bead.
+        ``beads``: the beads' world positions (``data.xpos`` of the bead bodies) when already
+        read.
         """
-        local = self._local(data)
+        local = self._local(data, beads)
         radial = np.hypot(local[:, 0], local[:, 1])
         inside = (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
             (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
@@ -167,12 +172,14 @@ class ScoopSensors:
         Reading
         """
         tray = data.site_xpos[self.ids.tray_site].copy()
-        on = self.on_ladle(data)
-        target = self.in_target(data)
-        r = bool(SOUP_BOWL.inside(tray, above=R_ABOVE))
-        above_target = bool(TARGET_BOWL.inside(tray, above=T_ABOVE))
+        beads = data.xpos[self.ids.bead_bodies]  # read once (a copy) for the three tests
+        on = self.on_ladle(data, beads)
+        target = TARGET_BOWL.inside(beads)
+        x, y, z = tray.tolist()
+        r = SOUP_BOWL.contains(x, y, z, above=R_ABOVE)
+        above_target = TARGET_BOWL.contains(x, y, z, above=T_ABOVE)
         s = bool(on.any())
-        t = above_target and (s or bool(self.over_target(data).any()))
+        t = above_target and (s or bool(TARGET_BOWL.inside(beads, above=T_ABOVE).any()))
         return Reading(r=r, s=s, t=t, on_ladle=on, in_target=target, tray=tray)
 
 
