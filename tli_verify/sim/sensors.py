@@ -95,7 +95,7 @@ class ScoopSensors:
         Default: looked up in ``model``.
     """
 
-    __slots__ = ("_bead_of_geom", "_is_tray", "ids", "model")
+    __slots__ = ("_bead_of_geom", "_bead_rows", "_is_tray", "_views", "ids", "model")
 
     def __init__(self, model: mujoco.MjModel, ids: SceneIds | None = None) -> None:
         self.model = model
@@ -104,15 +104,36 @@ class ScoopSensors:
         self._bead_of_geom[self.ids.bead_geoms] = np.arange(self.ids.bead_geoms.size)
         self._is_tray = np.zeros(model.ngeom, dtype=bool)
         self._is_tray[list(self.ids.ladle_geoms)] = True
+        b = self.ids.bead_bodies
+        # the beads' rows of xpos: a slice (a view, no copy) when their ids are consecutive
+        self._bead_rows: slice | npt.NDArray[np.int64] = (
+            slice(int(b[0]), int(b[0]) + b.size)
+            if b.size and np.array_equal(b, np.arange(b[0], b[0] + b.size)) else b)
+        self._views: tuple[mujoco.MjData, FloatArray, FloatArray, FloatArray] | None = None
+
+    def _bind(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Views of ``data``'s body positions (``xpos``), the tray site's position and its
+        rotation matrix (3, 3), made once per ``data``: each attribute access of ``MjData``
+        builds a new array object, and ``MjData`` never reallocates its arrays."""
+        v = self._views
+        if v is None or v[0] is not data:
+            site = self.ids.tray_site
+            v = (data, data.xpos, data.site_xpos[site], data.site_xmat[site].reshape(3, 3))
+            self._views = v
+        return v[1], v[2], v[3]
+
+    def _beads(self, data: mujoco.MjData) -> FloatArray:
+        """The beads' world positions, shape (30, 3) (a view of ``data.xpos`` when their body
+        ids are consecutive: read it before the next step)."""
+        return self._bind(data)[0][self._bead_rows]
 
     def _local(self, data: mujoco.MjData, beads: FloatArray | None = None) -> FloatArray:
         """Bead centres in the tray frame, shape (30, 3) (``beads``: their world positions,
-        ``data.xpos`` of the bead bodies, when already read)."""
-        site = self.ids.tray_site
-        rot = data.site_xmat[site].reshape(3, 3)
+        :meth:`_beads`, when already read)."""
+        xpos, site_pos, rot = self._bind(data)
         if beads is None:
-            beads = data.xpos[self.ids.bead_bodies]
-        return np.asarray((beads - data.site_xpos[site]) @ rot)
+            beads = xpos[self._bead_rows]
+        return np.asarray((beads - site_pos) @ rot)
 
     def in_tray_volume(self, data: mujoco.MjData) -> BoolArray:
         """Beads whose centre lies in the tray's volume (tray frame; module doc), shape (30,)."""
@@ -134,35 +155,37 @@ class ScoopSensors:
         radial = np.hypot(local[:, 0], local[:, 1])
         inside = (radial < TRAY_RADIUS) & (local[:, 2] > 0.0) & \
             (local[:, 2] < RIM_HEIGHT + 2 * BEAD_RADIUS)
-        if not inside.any():
+        if not np.count_nonzero(inside):  # (any(): numpy's Python-level reduction)
             return inside
         touching = local[:, 2] < BEAD_RADIUS + FLOOR_GAP
         pairs = data.contact.geom[: data.ncon]
-        b0, b1 = self._bead_of_geom[pairs[:, 0]], self._bead_of_geom[pairs[:, 1]]
-        touching[b0[(b0 >= 0) & self._is_tray[pairs[:, 1]]]] = True
-        touching[b1[(b1 >= 0) & self._is_tray[pairs[:, 0]]]] = True
+        bead = self._bead_of_geom[pairs]  # (ncon, 2): each side's bead, -1 for other geoms
+        is_bead = bead >= 0
+        # the beads in a contact whose other side is a tray geom
+        touching[bead[is_bead & self._is_tray[pairs[:, ::-1]]]] = True
         on = inside & touching
-        both = (b0 >= 0) & (b1 >= 0)
+        b0, b1 = bead[:, 0], bead[:, 1]
+        both = is_bead[:, 0] & is_bead[:, 1]
         for _ in range(2):  # beads lying on beads that lie on the tray
-            if not both.any():
+            if not np.count_nonzero(both):
                 break
             u, v = b0[both], b1[both]
             more = on.copy()
             more[u[on[v]]] = True
             more[v[on[u]]] = True
             more &= inside
-            if (more == on).all():
+            if not np.count_nonzero(more != on):
                 break
             on = more
         return on
 
     def in_target(self, data: mujoco.MjData) -> BoolArray:
         """Beads inside the target bowl, shape (30,)."""
-        return TARGET_BOWL.inside(data.xpos[self.ids.bead_bodies])
+        return TARGET_BOWL.inside(self._beads(data))
 
     def over_target(self, data: mujoco.MjData) -> BoolArray:
         """Beads in the target bowl or in the column above it (falling in), shape (30,)."""
-        return TARGET_BOWL.inside(data.xpos[self.ids.bead_bodies], above=T_ABOVE)
+        return TARGET_BOWL.inside(self._beads(data), above=T_ABOVE)
 
     def read(self, data: mujoco.MjData) -> Reading:
         """The reading at the current state of ``data`` (after ``mj_step``/``mj_forward``).
@@ -171,15 +194,17 @@ class ScoopSensors:
         -------
         Reading
         """
-        tray = data.site_xpos[self.ids.tray_site].copy()
-        beads = data.xpos[self.ids.bead_bodies]  # read once (a copy) for the three tests
+        xpos, site_pos, _ = self._bind(data)
+        tray = site_pos.copy()
+        beads = xpos[self._bead_rows]  # read once for the three tests
         on = self.on_ladle(data, beads)
         target = TARGET_BOWL.inside(beads)
         x, y, z = tray.tolist()
         r = SOUP_BOWL.contains(x, y, z, above=R_ABOVE)
         above_target = TARGET_BOWL.contains(x, y, z, above=T_ABOVE)
-        s = bool(on.any())
-        t = above_target and (s or bool(TARGET_BOWL.inside(beads, above=T_ABOVE).any()))
+        s = bool(np.count_nonzero(on))
+        t = above_target and (s or bool(np.count_nonzero(TARGET_BOWL.inside(beads,
+                                                                     above=T_ABOVE))))
         return Reading(r=r, s=s, t=t, on_ladle=on, in_target=target, tray=tray)
 
 
