@@ -77,3 +77,18 @@ def test_bowl_contains_at_the_rim_in_the_last_bit() -> None:
     for x in xs:
         p = np.array([x, cy, z])
         assert TARGET_BOWL.contains(*p.tolist()) is bool(TARGET_BOWL.inside(p))
+
+
+@given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), near,
+       st.sampled_from([25.0, 2.5]), st.sampled_from([0, 3]), special)
+def test_detector_threshold_is_the_norms(direction: list[float], eps: float, limit: float,
+                                         i: int, other: float) -> None:
+    from tli_verify.sim.loop import _beyond
+
+    d = np.array(direction)
+    n = float(np.linalg.norm(d))
+    part = d / n * limit * (1.0 + eps) if n > 1e-6 else d * limit
+    w = np.full(6, other)
+    w[i:i + 3] = part
+    assert _beyond(w, i, limit) is (float(np.linalg.norm(w[i:i + 3])) > limit)
+    assert _beyond(w, 3 - i, limit) is (float(np.linalg.norm(w[3 - i:6 - i])) > limit)

@@ -582,10 +582,13 @@ class ContactDetector:
         self._since = math.inf
 
     def update(self, wrench: FloatArray, dt: float) -> bool:
-        """Advance one period with the estimated wrench ``(F, tau)`` (shape (6,)); perturbed?"""
+        """Advance one period with the estimated wrench ``(F, tau)`` (shape (6,)); perturbed?
+
+        A part is beyond its threshold when its norm (``np.linalg.norm``) is; the norm is
+        computed only when the sum of squares in floats is within a relative 1e-9 of the
+        threshold's square (farther, the answer does not depend on the roundings)."""
         w = np.asarray(wrench, dtype=np.float64)
-        if float(np.linalg.norm(w[:3])) > self.force or \
-                float(np.linalg.norm(w[3:])) > self.torque:
+        if _beyond(w, 0, self.force) or _beyond(w, 3, self.torque):
             self._since = 0.0
         else:
             self._since += dt
@@ -594,6 +597,17 @@ class ContactDetector:
     def to_dict(self) -> dict[str, float]:
         """The evidence's record."""
         return {"force": self.force, "torque": self.torque, "hold": self.hold}
+
+
+def _beyond(w: FloatArray, i: int, limit: float) -> bool:
+    """``np.linalg.norm(w[i:i + 3]) > limit``, the norm computed only near ``limit``."""
+    a, b, c = w[i:i + 3].tolist()
+    sq, lim2 = a * a + b * b + c * c, limit * limit
+    if sq < lim2 * (1.0 - 1e-9):
+        return False
+    if sq > lim2 * (1.0 + 1e-9):
+        return True
+    return float(np.linalg.norm(w[i:i + 3])) > limit
 
 
 # --- the perturbing hands, every physics step (kept apart from the control loop) ----------
