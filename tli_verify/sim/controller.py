@@ -390,14 +390,14 @@ class ImpedanceController:
     ``substeps`` physics steps per call.
     """
 
-    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_tau", "_ext_tau_l", "_fy",
-                 "_idx_m", "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6", "_kd6", "_kd6_list",
-                 "_kn", "_kp6", "_kp6_list", "_lam_diag", "_lam_inv", "_last_tau", "_limits",
-                 "_mv", "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr", "_quat", "_rhs",
-                 "_rhs_ext", "_rhs_post", "_tau0", "_twist", "_two_zeta", "_views", "_y", "calls",
-                 "ext_time_constant", "gains", "guard", "impedance", "map", "max_pos_error",
-                 "max_rot_error", "model", "panda", "pos_error", "posture", "rot_error",
-                 "saturated_calls", "site")
+    __slots__ = ("_acc", "_act", "_contig", "_dn", "_dof", "_ext_stale", "_ext_tau",
+                 "_ext_tau_l", "_fy", "_idx_m", "_jac", "_jac6", "_jacp", "_jacr", "_jtf", "_k6",
+                 "_kd6", "_kd6_list", "_kn", "_kp6", "_kp6_list", "_lam_diag", "_lam_inv",
+                 "_last_tau", "_limits", "_mv", "_n_sat", "_prev", "_pvec", "_q_idx", "_qerr",
+                 "_quat", "_rhs", "_rhs_ext", "_rhs_post", "_tau0", "_twist", "_two_zeta",
+                 "_views", "_x", "_y", "calls", "ext_time_constant", "gains", "guard",
+                 "impedance", "map", "max_pos_error", "max_rot_error", "model", "panda",
+                 "pos_error", "posture", "rot_error", "saturated_calls", "site")
 
     def __init__(self, panda: Panda, site: int | None = None, gains: Gains | None = None,
                  posture: FloatArray | None = None, r0: FloatArray | None = None, *,
@@ -450,6 +450,8 @@ class ImpedanceController:
         self.guard = guard
         self.ext_time_constant = float(ext_time_constant)
         self._y = np.zeros((6, 3))  # the last solve's right-hand sides: column 2 is the wrench
+        self._x = np.zeros((7, 6))  # the last call's M^-1 J^T
+        self._ext_stale = False  # whether column 2 of _y is to be solved (external_wrench)
         self._ext_tau = np.zeros(7)
         self._ext_tau_l = [0.0] * 7  # its values, as floats
         self._prev: _Prev | None = None
@@ -489,7 +491,20 @@ class ImpedanceController:
         constant :attr:`ext_time_constant`, mapped to the site with the dynamically consistent
         inverse ``Jbar^T = Lambda J M^-1``. Contacts (beads, bowls) count as external, as on
         the robot. No simulator state beyond the arm's joints and its model is read.
+
+        Computed on access (once per call of :meth:`compute_fast`; the loop reads it once per
+        control period): column 2 of the last call's solve, redone with that call's ``Lambda^-1``
+        and right-hand sides and the filtered torque put in column 2 -- a triangular solve
+        treats each column alone, so this is the column the call's own solve would have given,
+        bit for bit, and the torque loop skips the product ``X^T tau_ext`` at every step.
         """
+        if self._ext_stale:
+            np.matmul(self._x.T, self._ext_tau, out=self._rhs_ext)
+            _, y, info = _dposv(self._lam_inv, self._rhs)
+            if info != 0:  # pragma: no cover - the call's own solve succeeded on it
+                raise SolverError(f"model: task-space inertia singular at the site (info {info})")
+            self._y = y
+            self._ext_stale = False
         return self._y[:, 2].copy()
 
     def _estimate_external(self, time: float, qd: list[float]) -> None:
@@ -633,12 +648,12 @@ class ImpedanceController:
                          kn * (n6 - q6) - dn * v6)
         tau0 = np.matmul(mass, self._pvec, out=self._tau0)
         xt = x.T
-        np.matmul(xt, tau0, out=self._rhs_post)         # views of rhs's columns 1 and 2
-        np.matmul(xt, self._ext_tau, out=self._rhs_ext)
+        np.matmul(xt, tau0, out=self._rhs_post)         # a view of rhs's column 1
+        # column 2 (the external wrench) is filled and solved on access (external_wrench)
         _, y, info = _dposv(lam_inv, rhs)
         if info != 0:
             raise SolverError(f"model: task-space inertia singular at the site (info {info})")
-        self._y = y
+        self._y, self._x, self._ext_stale = y, x, True
         if self._k6 is not None:
             ys = y.ravel(order="F").tolist()            # column by column (Fortran order)
             f0, f1, f2, f3, f4, f5 = self._impedance_force(
