@@ -631,22 +631,25 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
         return
     import mujoco
 
-    dt = float(rig.model.opt.timestep)
-    body = rig.carrier
+    model, data = rig.model, rig.data
+    dt = float(model.opt.timestep)
+    body, kind = rig.carrier, mujoco.mjtObj.mjOBJ_BODY
     vel6 = np.zeros(6)
+    omega, vel = vel6[:3], vel6[3:]  # views: mj_objectVelocity writes (rotation, translation)
+    # views of the carrier's rows (MjData never reallocates; the hand copies what it keeps)
+    pos, orientation = data.xipos[body], data.ximat[body]
+    push, object_velocity = rig.push, mujoco.mj_objectVelocity
 
     def before(j: int) -> None:
         tj = t + j * dt
         total = np.zeros(6)
         for i, hand in live:
             if hand.active(tj):
-                mujoco.mj_objectVelocity(rig.model, rig.data, mujoco.mjtObj.mjOBJ_BODY, body,
-                                         vel6, 0)
-                total += hand.wrench(tj, rig.data.xipos[body], rig.data.ximat[body],
-                                     vel6[3:], vel6[:3])
+                object_velocity(model, data, kind, body, vel6, 0)
+                total += hand.wrench(tj, pos, orientation, vel, omega)
                 if math.isnan(applied[i]):
                     applied[i] = tj
-        rig.push[:] = total
+        push[:] = total
 
     rig.step(substeps, before=before)
     rig.push[:] = 0.0

@@ -294,9 +294,16 @@ def _hat(w: FloatArray) -> FloatArray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
+def _norm(v: FloatArray) -> float:
+    """``np.linalg.norm`` of a 1-D float64 array, without its Python-level wrapper: the same
+    ``sqrt(v . v)`` (BLAS ``ddot``, then the square root), bit for bit."""
+    v = v.ravel(order="K")  # what np.linalg.norm hands to dot (a copy when strided)
+    return math.sqrt(float(v.dot(v)))
+
+
 def _exp(w: FloatArray) -> FloatArray:
     """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
-    theta = float(np.linalg.norm(w))
+    theta = _norm(w)
     if theta < 1e-12:
         return np.eye(3) + _hat(w)
     k = _hat(w / theta)
@@ -305,9 +312,10 @@ def _exp(w: FloatArray) -> FloatArray:
 
 def _log(r: FloatArray) -> FloatArray:
     """Rotation vector of the rotation matrix ``r`` (angle in ``[0, pi]``)."""
-    cos = min(1.0, max(-1.0, (float(np.trace(r)) - 1.0) / 2.0))
+    cos = min(1.0, max(-1.0, (float(r.trace()) - 1.0) / 2.0))
     theta = math.acos(cos)
-    vee = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / 2.0
+    (_, r01, r02), (r10, _, r12), (r20, r21, _) = r.tolist()
+    vee = np.array(((r21 - r12) / 2.0, (r02 - r20) / 2.0, (r10 - r01) / 2.0))
     if theta < 1e-6:
         return vee
     if math.pi - theta > 1e-4:
@@ -318,7 +326,7 @@ def _log(r: FloatArray) -> FloatArray:
     u = b[:, i] / math.sqrt(max(float(b[i, i]), 1e-12))
     if float(u @ vee) < 0:
         u = -u
-    return theta * u / float(np.linalg.norm(u))
+    return theta * u / _norm(u)
 
 
 def _matrix(orientation: npt.ArrayLike) -> FloatArray:
@@ -338,7 +346,7 @@ def _matrix(orientation: npt.ArrayLike) -> FloatArray:
 
 
 def _clip_norm(v: FloatArray, limit: float) -> FloatArray:
-    n = float(np.linalg.norm(v))
+    n = _norm(v)
     return v * (limit / n) if n > limit else v
 
 
@@ -480,15 +488,20 @@ class PersonHand:
             self.grab(p, r)
         self._last_p, self._last_r = p.copy(), r
         p_target, r_target = self.target(t)
-        force = _clip_norm(self.k * (p_target - p)
-                           - self.c * np.asarray(vel, dtype=np.float64).reshape(3), self.f_max)
-        torque = _clip_norm(self.k_r * _log(r_target @ r.T)
-                            - self.c_r * np.asarray(omega, dtype=np.float64).reshape(3),
-                            self.tau_max)
+        # the spring-dampers per component on floats (numpy's elementwise roundings)
+        k, c, k_r, c_r = self.k, self.c, self.k_r, self.c_r
+        (x, y, z), (tx, ty, tz) = p.tolist(), p_target.tolist()
+        vx, vy, vz = np.asarray(vel, dtype=np.float64).reshape(3).tolist()
+        force = _clip_norm(np.array((k * (tx - x) - c * vx, k * (ty - y) - c * vy,
+                                     k * (tz - z) - c * vz)), self.f_max)
+        ax, ay, az = _log(r_target @ r.T).tolist()
+        wx, wy, wz = np.asarray(omega, dtype=np.float64).reshape(3).tolist()
+        torque = _clip_norm(np.array((k_r * ax - c_r * wx, k_r * ay - c_r * wy,
+                                      k_r * az - c_r * wz)), self.tau_max)
         fade = min(1.0, max(0.0, (self.end - t) / HAND_RELEASE))
         force, torque = fade * force, fade * torque  # the person lets go over HAND_RELEASE
-        self.max_force = max(self.max_force, float(np.linalg.norm(force)))
-        self.max_torque = max(self.max_torque, float(np.linalg.norm(torque)))
+        self.max_force = max(self.max_force, _norm(force))
+        self.max_torque = max(self.max_torque, _norm(torque))
         return np.concatenate([force, torque])
 
 
