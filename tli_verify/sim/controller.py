@@ -57,13 +57,17 @@ Fast path
     every physics step) takes the target as floats and returns a list; the elementwise work on
     the 6- and 7-vectors (errors, damping, the external-torque filter, the posture term, the
     limit guard's :meth:`~tli_verify.sim.franka_limits.LimitGuard.apply_lists`) runs on Python
-    floats, which round every operation as numpy's elementwise operations do, in the same order;
-    the matrix products stay numpy's (BLAS: their rounding is the library's), written into
-    preallocated ``out=`` buffers of the layout numpy would allocate; the norms of the task
-    wrench are BLAS's whenever they could reach their caps. The torques are bit-identical to the
-    plain numpy formulation (``tests/unit/test_panda_torque_loop_exact.py``, exact on every
-    branch). About 25 us per call in a tight loop, 45-70 us inside the scene's closed loop
-    (caches cold after each ``mj_step``; shared cores).
+    floats, written out component by component (a comprehension's frame and ``zip`` cost more
+    than the arithmetic on 7 numbers), which round every operation as numpy's elementwise
+    operations do, in the same order; the matrix products stay numpy's (BLAS: their rounding is
+    the library's), written into preallocated ``out=`` buffers of the layout numpy would
+    allocate; the norms of the task wrench are BLAS's whenever they could reach their caps. The
+    external wrench's column of the second solve is filled and solved when
+    :attr:`ImpedanceController.external_wrench` is read (once per control period in the loop),
+    not at every physics step. The torques are bit-identical to the plain numpy formulation
+    (``tests/unit/test_panda_torque_loop_exact.py``, exact on every branch). About 17 us per
+    call in a tight loop (22 us before the per-component rewrite), 25-40 us inside the scene's
+    closed loop (caches cold after each ``mj_step``; shared cores).
 
 Tracking a DS (the loop)
     Each control period ``T``: ``zdot = f(z_t)`` from the policy (evaluated at the target: the
