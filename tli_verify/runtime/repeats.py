@@ -1,0 +1,164 @@
+"""Repeated invariance failures: does a run leave a mode again where it already failed?
+
+LTL-DS learns a cut from each invariance failure and modulates the mode's DS so that it never
+crosses that cut again (paper Sec. 5.2 and Thm. 2); hence "the system experiences each
+invariance failure only once" (paper Sec. 7.2). This module checks that claim on a recorded run,
+and measures how an unmodulated run breaks it:
+
+* a failure ``k`` of a mode *repeats* an earlier one ``j < k`` when its failure state
+  ``x^{T_f}`` lies beyond the cut learned from failure ``j`` -- the run left the mode across a
+  boundary it had already seen;
+* a run that learned cuts (LTL-DS) is checked against the cuts it learned
+  (:class:`~tli_verify.runtime.events.CutAdded`, in order); a run that learned none (the
+  no-modulation ablation) is checked against the cuts LTL-DS's rule *would* have learned from
+  the same failures (:func:`replay_cuts`: :func:`~tli_verify.runtime.online.online_cut` on
+  each failure in turn, the failures' ``x^0`` kept inside).
+
+The states are the executive's DS states (what the cuts and the modulation act on), not a
+simulator's ground truth. A modulated DS state stays on the inner side of every cut, so an
+LTL-DS run has no repeat unless something outside the DS moves its state (a perturbation is
+not an invariance failure; a state the executive resynchronised to the measured pose may be).
+
+References
+----------
+Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
+Policies from Demonstrations", CoRL 2022: Sec. 5.2 (cuts from invariance failures), Thm. 2
+(the modulated DS never penetrates the cuts), Sec. 7.2 and Fig. 6 (without modulation the
+plan loops; with it each invariance failure happens once).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.boundary.cuts import Cut
+from tli_verify.boundary.cuts import InvarianceFailure as FailureTriple
+from tli_verify.errors import TliError
+from tli_verify.runtime.events import CutAdded, InvarianceFailure
+from tli_verify.runtime.online import online_cut
+
+__all__ = ["REPEAT_TOL", "FailureCheck", "check_repeats", "replay_cuts"]
+
+FloatArray = npt.NDArray[np.float64]
+
+REPEAT_TOL = 1e-6
+"""A failure state counts as beyond a cut when ``w . (x - p) > REPEAT_TOL`` (state units): the
+modulated DS slides *on* a cut, so its states there lie on the plane up to rounding."""
+
+
+@dataclass(frozen=True, slots=True)
+class FailureCheck:
+    """One invariance failure of the checked mode, against the cuts learned before it.
+
+    Attributes
+    ----------
+    step : int
+        The executive's step of the failure.
+    to_mode : str
+    repeats : tuple of int
+        Indices of the earlier failures whose cut ``x^{T_f}`` lies beyond (empty: a new
+        failure).
+    cut : Cut or None
+        The cut learned (or, replayed, that would have been learned) from this failure; None
+        when no plane separates it.
+    """
+
+    step: int
+    to_mode: str
+    repeats: tuple[int, ...]
+    cut: Cut | None
+
+    @property
+    def repeated(self) -> bool:
+        """True iff the failure crosses a cut learned from an earlier one."""
+        return bool(self.repeats)
+
+
+def replay_cuts(model: Any, failures: Sequence[InvarianceFailure], *,
+                margin: float = 1e-3) -> list[Cut | None]:
+    """The cuts LTL-DS would have learned from ``failures``, in order.
+
+    Each failure is cut by :func:`~tli_verify.runtime.online.online_cut` on the model as the
+    earlier replayed cuts left it, with the entry states ``x^0`` of the failures so far kept
+    inside (the executive keeps every entry state it recorded; a replay has only these).
+
+    Parameters
+    ----------
+    model : Model
+        The model the run started from (its cuts included).
+    failures : sequence of InvarianceFailure
+        Failures of one mode, in order (executive events).
+    margin : float, optional
+        The cut QCQP's separation margin.
+
+    Returns
+    -------
+    list of Cut or None
+        One per failure; None where no separating plane exists.
+    """
+    out: list[Cut | None] = []
+    entries: list[FloatArray] = []
+    for f in failures:
+        entries.append(np.asarray(f.entry, dtype=np.float64))
+        triple = FailureTriple(entry=f.entry, last_inside=f.last_inside, outside=f.outside)
+        learned = online_cut(model, f.key, f.mode, triple, entries, margin=margin)
+        cut = learned.attempt.cut if learned.attempt is not None else None
+        if learned.model is not None and cut is not None:
+            model = learned.model
+            out.append(cut)
+        else:
+            out.append(None)
+    return out
+
+
+def check_repeats(events: Sequence[Any], mode: str, *, model: Any = None,
+                  margin: float = 1e-3, tol: float = REPEAT_TOL) -> tuple[FailureCheck, ...]:
+    """Check each invariance failure of ``mode`` in a run's events against the earlier cuts.
+
+    Parameters
+    ----------
+    events : sequence
+        The executive's events of one run (:mod:`tli_verify.runtime.events`).
+    mode : str
+    model : Model, optional
+        The model the run started from. Needed when the run learned no cut of ``mode`` (its
+        cuts are replayed, :func:`replay_cuts`); a run that learned cuts is checked against
+        its own.
+    margin : float, optional
+        The cut QCQP's margin for a replay.
+    tol : float, optional
+        :data:`REPEAT_TOL`.
+
+    Returns
+    -------
+    tuple of FailureCheck
+        One per failure of ``mode``, in order.
+
+    Raises
+    ------
+    TliError
+        A run that learned no cut and no ``model`` to replay them on.
+    """
+    failures = [e for e in events if isinstance(e, InvarianceFailure) and e.mode == mode]
+    added = {e.step: e.cut for e in events if isinstance(e, CutAdded) and e.mode == mode}
+    if added:
+        cuts: list[Cut | None] = [added.get(f.step) for f in failures]
+    elif not failures:
+        return ()
+    elif model is None:
+        raise TliError(f"the run learned no cut of mode {mode!r}: give the model it started "
+                       "from to replay them")
+    else:
+        cuts = replay_cuts(model, failures, margin=margin)
+    out = []
+    for k, (f, cut) in enumerate(zip(failures, cuts, strict=True)):
+        x = np.asarray(f.outside, dtype=np.float64)
+        repeats = tuple(j for j in range(k) if (c := cuts[j]) is not None
+                        and float(c.normal @ (x - c.point)) > tol)
+        out.append(FailureCheck(step=f.step, to_mode=f.to_mode, repeats=repeats, cut=cut))
+    return tuple(out)
