@@ -377,6 +377,8 @@ class _Translator:
         kind = n[0]
         if kind == "const":
             return "true" if n[1] else "false"
+        if kind == "raw":  # a formula over bits, already in our syntax
+            return str(n[1])
         if kind == "not":
             return f"!({self.btext(n[1], primed=primed, c=c, stack=stack)})"
         if kind in ("and", "or"):
@@ -1737,6 +1739,8 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
                             "variables): import the specs that use it")
         raise SpecError(f"{where}: no system variable (our specs need at least one output)")
     tr = _Translator(spec, where)
+    if fmt == "spectra":
+        spec.constraints = _project_initial_assumptions(spec, tr)
     sections: dict[tuple[str, str], list[tuple[int | None, str]]] = {}
     for c in spec.constraints:
         sections.setdefault((c.side, c.slot), []).append((c.line, tr.formula(c)))
@@ -1748,6 +1752,75 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
             sections.setdefault((owner, "init"), []).append((None, now))
             sections.setdefault((owner, "safety"), []).append((None, f"G({nxt})"))
     return _toml(spec, sections, semantics)
+
+
+_PROJECTION_CUBES = 64
+"""The most cubes a projected initial assumption is written with
+(:func:`_project_initial_assumptions`)."""
+
+
+def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_Constraint]:
+    """Spectra's reading of an initial assumption that mentions system variables.
+
+    Spectra checks the initial states as ``forall X, Y. theta_e(X, Y) -> exists Y'.
+    theta_s(X, Y') & Win(X, Y')`` (spectra-synt ``GameSolver.sysWinAllInitial``: the system's
+    variables are quantified only on the right), that is, ``theta_e`` is read as its projection
+    ``exists Y. theta_e`` onto the environment's variables. Our specs' initial assumptions
+    range over inputs only, so each top-level conjunct ``phi`` that mentions system variables is
+    replaced by ``exists Y. phi`` (the system variables' values within their domains), computed
+    with a BDD: dropped when it is ``true``, ``false`` when no value satisfies it, else written
+    as a disjunction of cubes over the environment's bits (refused by name and line beyond
+    :data:`_PROJECTION_CUBES` cubes).
+    """
+    import spot
+
+    from tli_verify.logic.gr1 import _to_bdd, new_manager
+
+    out: list[_Constraint] = []
+    by_ap = {b: v for v in spec.variables for b in v.bits()}
+    probe = _Constraint(side="guarantee", slot="safety", body=("const", True), line=0)
+    for c in spec.constraints:
+        if c.side != "assume" or c.slot != "init":
+            out.append(c)
+            continue
+        kept: list[Node] = []
+        for part in _flatten(c.body, "and"):
+            names = {m[1] for m in _nodes(part) if m[0] == "id"}
+            if not any(v.side == "sys" and v.name in names for v in spec.variables):
+                kept.append(part)
+                continue
+            f = spot.formula(tr.btext(part, primed=False, c=c, stack=()))
+            aps = sorted(str(a) for a in spot.atomic_prop_collect(f))
+            bdd = new_manager()
+            if aps:
+                bdd.declare(*aps)
+            u = _to_bdd(f, bdd, primed=False)
+            sys_bits = [a for a in aps if a in by_ap and by_ap[a].side == "sys"]
+            for var in {by_ap[a].name: by_ap[a] for a in sys_bits}.values():
+                dom = tr.domain(var, False, probe)
+                if dom is not None:
+                    u &= _to_bdd(spot.formula(dom), bdd, primed=False)
+            u = bdd.exist(sys_bits, u)
+            if u == bdd.true:
+                continue
+            if u == bdd.false:
+                kept = [("const", False)]
+                break
+            cubes: list[str] = []
+            for cube in bdd.pick_iter(u):
+                if len(cubes) == _PROJECTION_CUBES:
+                    raise tr.fail(c, "an initial assumption over system variables whose "
+                                  "projection onto the environment's variables (Spectra's "
+                                  f"reading) needs more than {_PROJECTION_CUBES} cubes")
+                lits = (a if v else f"!{a}" for a, v in sorted(cube.items()))
+                cubes.append("(" + " & ".join(lits) + ")")
+            kept.append(("raw", _or(cubes)))
+        if kept:
+            body = kept[0]
+            for part in kept[1:]:
+                body = ("and", body, part)
+            out.append(_Constraint(c.side, c.slot, body, c.line, c.where))
+    return out
 
 
 def _primed_justice(spec: ImportedSpec) -> None:

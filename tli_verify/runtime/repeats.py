@@ -14,6 +14,13 @@ and measures how an unmodulated run breaks it:
   the same failures (:func:`replay_cuts`: :func:`~tli_verify.runtime.online.online_cut` on
   each failure in turn, the failures' ``x^0`` kept inside).
 
+The bisimulation oracle of the 2-D campaigns (:mod:`tli_verify.verify.oracle`,
+``REPEATED_EXIT``) checks a run against its *own* cuts, as the crossing of a cut between the
+last in-mode and the failure reading; this module adds the replay, so that a run which learned
+no cut can be measured by the same boundaries, and counts an exit as repeated when its failure
+state lies beyond an earlier cut wherever the run was the period before (an unmodulated run is
+often beyond the replayed cut already before it leaves).
+
 The states are the executive's DS states (what the cuts and the modulation act on), not a
 simulator's ground truth. A modulated DS state stays on the inner side of every cut, so an
 LTL-DS run has no repeat unless something outside the DS moves its state (a perturbation is
