@@ -106,7 +106,7 @@ def test_a_second_exit_repeats_iff_it_crosses_the_first_cut(
     assert not any(isinstance(e, CutAdded) for e in blind.events)
     failures = [e for e in blind.events if isinstance(e, InvarianceFailure)]
     assert [f.mode for f in failures] == ["b", "b"]
-    replayed = check_repeats(blind.events, "b", model=start)
+    replayed = check_repeats(blind.events, "b", replay_from=start)
     assert [c.repeats for c in replayed] == [c.repeats for c in own]
     # the first replayed cut is the executive's own (the same failure, the same kept states)
     first = replay_cuts(start, failures[:1])[0]
@@ -115,9 +115,17 @@ def test_a_second_exit_repeats_iff_it_crosses_the_first_cut(
     np.testing.assert_allclose(first.point, cuts[0].point, atol=1e-12)
 
 
-def test_a_run_without_cuts_needs_the_model_to_replay(tmp_path: Path) -> None:
-    blind = _policy(tmp_path, learn_cuts=False)
-    _exit_twice(blind, REPEAT)
-    with pytest.raises(TliError, match="replay"):
-        check_repeats(blind.events, "b")
-    assert check_repeats(blind.events, "a") == ()  # no failure of a: nothing to check
+def test_a_failure_without_a_cut_is_no_boundary_and_a_learned_run_is_not_replayed(
+        tmp_path: Path) -> None:
+    learned = _policy(tmp_path, learn_cuts=True)
+    start = learned.model
+    _exit_twice(learned, REPEAT)
+    events = list(learned.events)
+    # drop the first cut, as if its QCQP had failed (CutFailed): nothing to repeat then
+    first = next(k for k, e in enumerate(events) if isinstance(e, CutAdded))
+    events.pop(first)
+    checks = check_repeats(events, "b")
+    assert checks[0].cut is None and [c.repeats for c in checks] == [(), ()]
+    with pytest.raises(TliError, match="its own"):
+        check_repeats(learned.events, "b", replay_from=start)
+    assert check_repeats(learned.events, "a") == ()  # no failure of a: nothing to check

@@ -8,11 +8,16 @@ and measures how an unmodulated run breaks it:
 * a failure ``k`` of a mode *repeats* an earlier one ``j < k`` when its failure state
   ``x^{T_f}`` lies beyond the cut learned from failure ``j`` -- the run left the mode across a
   boundary it had already seen;
-* a run that learned cuts (LTL-DS) is checked against the cuts it learned
-  (:class:`~tli_verify.runtime.events.CutAdded`, in order); a run that learned none (the
+* a run that learns cuts (LTL-DS) is checked against the cuts it learned
+  (:class:`~tli_verify.runtime.events.CutAdded`, in order); a run that does not (the
   no-modulation ablation) is checked against the cuts LTL-DS's rule *would* have learned from
   the same failures (:func:`replay_cuts`: :func:`~tli_verify.runtime.online.online_cut` on
-  each failure in turn, the failures' ``x^0`` kept inside).
+  each failure in turn, the failures' ``x^0`` kept inside -- the executive keeps every entry
+  state it recorded, so a replayed cut may differ from a learned one after the first).
+
+A failure counts as repeated wherever it goes (to which mode) and wherever the run was the
+period before: the unmodulated pour, for one, is often beyond the replayed cut already before
+it leaves.
 
 The bisimulation oracle of the 2-D campaigns (:mod:`tli_verify.verify.oracle`,
 ``REPEATED_EXIT``) checks a run against its *own* cuts, as the crossing of a cut between the
@@ -123,7 +128,7 @@ def replay_cuts(model: Any, failures: Sequence[InvarianceFailure], *,
     return out
 
 
-def check_repeats(events: Sequence[Any], mode: str, *, model: Any = None,
+def check_repeats(events: Sequence[Any], mode: str, *, replay_from: Any = None,
                   margin: float = 1e-3, tol: float = REPEAT_TOL) -> tuple[FailureCheck, ...]:
     """Check each invariance failure of ``mode`` in a run's events against the earlier cuts.
 
@@ -132,10 +137,11 @@ def check_repeats(events: Sequence[Any], mode: str, *, model: Any = None,
     events : sequence
         The executive's events of one run (:mod:`tli_verify.runtime.events`).
     mode : str
-    model : Model, optional
-        The model the run started from. Needed when the run learned no cut of ``mode`` (its
-        cuts are replayed, :func:`replay_cuts`); a run that learned cuts is checked against
-        its own.
+    replay_from : Model, optional
+        For a run that does not learn cuts (the no-modulation ablation): the model it started
+        from; the cuts are replayed on it (:func:`replay_cuts`). None (default): the run's own
+        cuts (:class:`~tli_verify.runtime.events.CutAdded` at a failure's step; a failure
+        without one -- :class:`~tli_verify.runtime.events.CutFailed` -- has none).
     margin : float, optional
         The cut QCQP's margin for a replay.
     tol : float, optional
@@ -145,23 +151,16 @@ def check_repeats(events: Sequence[Any], mode: str, *, model: Any = None,
     -------
     tuple of FailureCheck
         One per failure of ``mode``, in order.
-
-    Raises
-    ------
-    TliError
-        A run that learned no cut and no ``model`` to replay them on.
     """
     failures = [e for e in events if isinstance(e, InvarianceFailure) and e.mode == mode]
-    added = {e.step: e.cut for e in events if isinstance(e, CutAdded) and e.mode == mode}
-    if added:
-        cuts: list[Cut | None] = [added.get(f.step) for f in failures]
-    elif not failures:
-        return ()
-    elif model is None:
-        raise TliError(f"the run learned no cut of mode {mode!r}: give the model it started "
-                       "from to replay them")
+    if replay_from is not None:
+        if any(isinstance(e, CutAdded) and e.mode == mode for e in events):
+            raise TliError(f"the run learned cuts of mode {mode!r}: check it against its own "
+                           "(no replay_from)")
+        cuts = replay_cuts(replay_from, failures, margin=margin)
     else:
-        cuts = replay_cuts(model, failures, margin=margin)
+        added = {e.step: e.cut for e in events if isinstance(e, CutAdded) and e.mode == mode}
+        cuts = [added.get(f.step) for f in failures]
     out = []
     for k, (f, cut) in enumerate(zip(failures, cuts, strict=True)):
         x = np.asarray(f.outside, dtype=np.float64)

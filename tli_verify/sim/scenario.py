@@ -197,7 +197,8 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                 and event.cause == "invariance failure":
             k = event.step - 1  # the executive counts its steps from 1
             failures.append(Failure(k, event.to_mode, trace[k].target, trace[k].measured))
-    checks = check_repeats(policy.events, scenario.mode, model=start_model)
+    checks = check_repeats(policy.events, scenario.mode,
+                           replay_from=None if policy.learn_cuts else start_model)
     return ScenarioRun(scenario, variant, result, tuple(trace), tuple(failures),
                        tuple(policy.model.region_cuts(scenario.mode)),
                        np.asarray(policy.model.modes[keys[0]].ds.attractor, dtype=np.float64),
