@@ -31,8 +31,9 @@ def main(argv: list[str] | None = None) -> int:
         runs = [run_scenario(v) for v in ("no-modulation", "LTL-DS")]
         for run in runs:
             print(f"{run.variant:14s} modes {run.result.mode_sequence()}: {run.exits} exit(s) "
-                  f"of {POUR_SCENARIO.mode}, {len(run.cuts)} cut(s), {run.result.delivered} "
-                  f"bead(s), success {run.result.success}")
+                  f"of {POUR_SCENARIO.mode}, {run.repeats} repeated (beyond an earlier "
+                  f"failure's cut), {len(run.cuts)} cut(s), {run.result.delivered} bead(s), "
+                  f"success {run.result.success}")
         plot_scenario(runs, args.out)
     except TliError as exc:
         sys.stderr.write(f"error: {exc}\n")

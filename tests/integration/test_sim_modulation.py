@@ -38,6 +38,11 @@ def test_without_modulation_the_pour_repeats_its_invariance_failure(
     # t lost because no soup is left to deliver, wherever the tray is)
     at_rim = [f.measured for f in run.failures if f.to_mode == "c"]
     assert len(at_rim) >= 3 and all(m[1] > rim - 0.15 for m in at_rim), at_rim
+    # the paper's failure of the unmodulated plan (Sec. 7.2, Fig. 6: it loops): the same
+    # invariance failure again -- at least three exits beyond a cut LTL-DS would have learned
+    # from an earlier one (replayed with the executive's rule on this run's failures)
+    assert run.repeats >= 3 and not run.invariance_ok, [c.repeats for c in run.checks]
+    assert run.checks[0].repeats == () and all(c.cut is not None for c in run.checks)
 
 
 def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(
@@ -52,6 +57,10 @@ def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(
     # each failure cut the region at once; fewer failures than without the cuts
     assert len(ltl.cuts) == ltl.exits >= 1
     assert ltl.exits < free.exits
+    # each invariance failure happens once: no exit beyond a cut learned before it
+    assert ltl.invariance_ok and len(ltl.checks) == ltl.exits, [c.repeats for c in ltl.checks]
+    # the first cut is the one the replay gives the unmodulated run (same failure, same rule)
+    np.testing.assert_allclose(free.checks[0].cut.normal, ltl.cuts[0].normal, atol=1e-6)
     # each failure happens once: every later failure's last in-mode DS state (the period
     # before it) obeys the cuts learned before it -- the modulated DS kept it inside them
     for k, failure in enumerate(ltl.failures[1:], start=1):

@@ -290,3 +290,54 @@ def test_spec_check_reads_foreign_files_directly(tmp_path: Path) -> None:
     path.write_text("module M\nenv boolean e;\nsys boolean s;\ngar G (x);\n", encoding="utf-8")
     with pytest.raises(SpecError, match=r"m\.spectra:4: unknown identifier 'x'"):
         check_spec_file(path)
+
+
+def test_an_initial_assumption_over_system_variables_is_read_as_spectra_reads_it() -> None:
+    """Spectra checks ``forall X, Y. theta_e(X, Y) -> exists Y'. theta_s & Win`` (the system's
+    values in ``theta_e`` are quantified universally, outside): ``theta_e`` acts through its
+    projection ``exists Y. theta_e``. The import writes that projection over the inputs' bits;
+    checked here against brute force over every input value, the system's values within their
+    domains (``k`` in 0..2: its code 3 does not count)."""
+    text = ("module M\nenv Int(0..3) a;\nenv boolean req;\nsys Int(0..2) k;\nsys boolean b;\n"
+            "asm ini (a = k) | (req & b);\nasm ini !req | a != 0;\ngar ini k = 0;\n"
+            "gar G (b <-> req);\nasm GF req;\ngar GF b;\n")
+    spec = imported(text, "spectra")
+    init = [f.ltl for f in spec.assume.init]
+    assert all(set(map(str, __import__("spot").atomic_prop_collect(f))) <= set(spec.inputs)
+               for f in init)
+    for a, r in itertools.product(range(4), (False, True)):
+        env = {"a_0": bool(a & 1), "a_1": bool(a & 2), "req": r}
+        want = any((a == k) or (r and b) for k in range(3) for b in (False, True)) \
+            and (not r or a != 0)
+        got = all(holds(f, env) for f in init)
+        assert got == want, (a, r)
+    assert agree_with_omega(spec) == {"tli": True, "textbook": True}
+
+
+@pytest.mark.parametrize(("assumptions", "expected"), [
+    ("asm ini k = 3;", ["false"]),  # no value of k: the assumption is false
+    ("asm ini b | k = 1;", []),     # some system value satisfies it: nothing is assumed
+    # projected together, not conjunct by conjunct: exists k. (k = 0 -> req) & k = 0 is req
+    ("asm ini (k = 0 -> req) & k = 0;", ["((req))"]),
+    ("asm ini k = 0 -> req;\nasm ini k = 0;", ["((req))"]),
+    # k's domain is the system's initial condition in Spectra: its unused code 3 counts
+    ("asm ini !(k = 0) & !(k = 1) & !(k = 2);", []),
+])
+def test_initial_assumptions_over_system_variables_only_project_to_a_constant(
+        assumptions: str, expected: list[str]) -> None:
+    text = ("module M\nenv boolean req;\nsys Int(0..2) k;\nsys boolean b;\n"
+            f"{assumptions}\ngar ini b;\ngar G (b -> req);\n")
+    spec = imported(text, "spectra")
+    assert texts(spec, "assume.init") == expected
+    # the verdict follows: b must start true, and b -> req; realizable iff req is assumed
+    assert agree_with_omega(spec)["textbook"] is (expected != [])
+
+
+def test_a_projection_is_written_with_the_bdd_paths_not_every_assignment() -> None:
+    """``exists k. a > k`` over 7-bit integers is ``a != 0``: 7 paths, not 127 values."""
+    spec = imported("module M\nenv Int(0..127) a;\nsys Int(0..127) k;\nasm ini a > k;\n"
+                    "gar G k = 0;\n", "spectra")
+    (init,) = spec.assume.init
+    for a in range(128):
+        assert holds(init.ltl, {f"a_{i}": bool((a >> i) & 1) for i in range(7)}) == (a != 0)
+    assert init.text.count("|") == 6

@@ -377,6 +377,8 @@ class _Translator:
         kind = n[0]
         if kind == "const":
             return "true" if n[1] else "false"
+        if kind == "raw":  # a formula over bits, already in our syntax
+            return str(n[1])
         if kind == "not":
             return f"!({self.btext(n[1], primed=primed, c=c, stack=stack)})"
         if kind in ("and", "or"):
@@ -1737,6 +1739,8 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
                             "variables): import the specs that use it")
         raise SpecError(f"{where}: no system variable (our specs need at least one output)")
     tr = _Translator(spec, where)
+    if fmt == "spectra":
+        spec.constraints = _project_initial_assumptions(spec, tr)
     sections: dict[tuple[str, str], list[tuple[int | None, str]]] = {}
     for c in spec.constraints:
         sections.setdefault((c.side, c.slot), []).append((c.line, tr.formula(c)))
@@ -1748,6 +1752,95 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
             sections.setdefault((owner, "init"), []).append((None, now))
             sections.setdefault((owner, "safety"), []).append((None, f"G({nxt})"))
     return _toml(spec, sections, semantics)
+
+
+_PROJECTION_CUBES = 64
+"""The most cubes a projected initial assumption is written with
+(:func:`_project_initial_assumptions`)."""
+
+
+def _bdd_cubes(bdd: Any, u: Any, limit: int) -> list[dict[str, bool]] | None:
+    """The paths of ``u`` to ``true`` as partial assignments (disjoint cubes whose
+    disjunction is ``u``), or None when there are more than ``limit``."""
+    if u == bdd.false:
+        return []
+    if u == bdd.true:
+        return [{}]
+    top = min(bdd.support(u), key=bdd.level_of_var)
+    out: list[dict[str, bool]] = []
+    for value in (True, False):
+        sub = _bdd_cubes(bdd, bdd.let({top: value}, u), limit - len(out))
+        if sub is None:
+            return None
+        out += [{top: value, **cube} for cube in sub]
+        if len(out) > limit:
+            return None
+    return out
+
+
+def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_Constraint]:
+    """Spectra's reading of initial assumptions that mention system variables.
+
+    Spectra checks the initial states as ``forall X, Y. theta_e(X, Y) -> exists Y'.
+    theta_s(X, Y') & Win(X, Y')`` (spectra-synt ``GameSolver.sysWinAllInitial``: the system's
+    variables are quantified only on the right), that is, ``theta_e`` -- the conjunction of
+    every initial assumption -- acts through its projection ``exists Y. theta_e`` onto the
+    environment's variables. A system variable's domain belongs to the system's initial
+    condition there (``PlayerModule.addVar``), so ``Y`` ranges over every code of its bits.
+    Our specs' initial assumptions range over inputs only, so the top-level conjuncts of the
+    initial assumptions that mention system variables are projected *together* (``exists Y.
+    phi_1 & phi_2`` is not ``(exists Y. phi_1) & (exists Y. phi_2)`` when they share a
+    variable), with a BDD: nothing is assumed when the projection is ``true``; else it is one
+    more initial assumption, ``false`` or a disjunction of the BDD's paths over the inputs'
+    bits (refused by name and line beyond :data:`_PROJECTION_CUBES` paths). Conjuncts over
+    environment variables only are kept as they are.
+    """
+    import spot
+
+    from tli_verify.logic.gr1 import _to_bdd, new_manager
+
+    sys_vars = {v.name for v in spec.variables if v.side == "sys"}
+    sys_bits = {b for v in spec.variables if v.side == "sys" for b in v.bits()}
+    out: list[_Constraint] = []
+    mixed: list[tuple[_Constraint, Node]] = []
+    for c in spec.constraints:
+        if c.side != "assume" or c.slot != "init":
+            out.append(c)
+            continue
+        kept: list[Node] = []
+        for part in _flatten(c.body, "and"):
+            if any(m[0] == "id" and m[1] in sys_vars for m in _nodes(part)):
+                mixed.append((c, part))
+            else:
+                kept.append(part)
+        if kept:
+            body = kept[0]
+            for part in kept[1:]:
+                body = ("and", body, part)
+            out.append(_Constraint(c.side, c.slot, body, c.line, c.where))
+    if not mixed:
+        return out
+    texts = [tr.btext(part, primed=False, c=c, stack=()) for c, part in mixed]
+    formulas = [spot.formula(t) for t in texts]
+    aps = sorted({str(a) for f in formulas for a in spot.atomic_prop_collect(f)})
+    bdd = new_manager()
+    bdd.declare(*aps)
+    u = bdd.true
+    for f in formulas:
+        u &= _to_bdd(f, bdd, primed=False)
+    u = bdd.exist([a for a in aps if a in sys_bits], u)
+    first = mixed[0][0]
+    if u == bdd.true:
+        return out
+    cubes = _bdd_cubes(bdd, u, _PROJECTION_CUBES)
+    if cubes is None:
+        raise tr.fail(first, "the initial assumptions over system variables project onto the "
+                      f"environment's variables (Spectra's reading) with more than "
+                      f"{_PROJECTION_CUBES} cubes")
+    text = _or(["(" + " & ".join(a if v else f"!{a}" for a, v in sorted(cube.items())) + ")"
+                for cube in cubes])
+    out.append(_Constraint("assume", "init", ("raw", text), first.line, first.where))
+    return out
 
 
 def _primed_justice(spec: ImportedSpec) -> None:

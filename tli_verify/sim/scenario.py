@@ -49,6 +49,7 @@ import numpy.typing as npt
 
 from tli_verify.errors import TliError
 from tli_verify.runtime.events import Replan
+from tli_verify.runtime.repeats import FailureCheck, check_repeats
 from tli_verify.sim.demos import POSITION_SCALE
 from tli_verify.sim.loop import TraceStep, TrialResult, load_policy, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
@@ -131,6 +132,10 @@ class ScenarioRun:
         The cuts of ``scenario.mode``'s region at the end (:class:`~tli_verify.model.types.Cut`).
     attractor : ndarray, shape (4,)
         The mode's DS attractor.
+    checks : tuple of FailureCheck
+        Each failure against the cuts learned before it (for a variant that learns none: the
+        cuts LTL-DS would have learned from the same failures;
+        :func:`~tli_verify.runtime.repeats.check_repeats`).
     """
 
     scenario: Scenario
@@ -140,11 +145,23 @@ class ScenarioRun:
     failures: tuple[Failure, ...]
     cuts: tuple[Any, ...]
     attractor: FloatArray
+    checks: tuple[FailureCheck, ...] = ()
 
     @property
     def exits(self) -> int:
         """How many times the mode was left by an invariance failure."""
         return len(self.failures)
+
+    @property
+    def repeats(self) -> int:
+        """How many failures crossed a cut learned from an earlier one: the same invariance
+        failure again (paper Sec. 7.2: with modulation, none)."""
+        return sum(c.repeated for c in self.checks)
+
+    @property
+    def invariance_ok(self) -> bool:
+        """Each invariance failure happened once (:attr:`repeats` is 0)."""
+        return self.repeats == 0
 
 
 def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
@@ -169,6 +186,7 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
     if not keys:
         raise TliError(f"scenario {scenario.name}: the model has no DS for mode "
                        f"{scenario.mode!r}")
+    start_model = policy.model  # the model before any cut of this run (for the replay)
     trace: list[TraceStep] = []
     result = run_trial(policy, scenario.seed, variant=variant, perturbations=[],
                        duration=scenario.duration, robot=scenario.robot,
@@ -179,9 +197,12 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                 and event.cause == "invariance failure":
             k = event.step - 1  # the executive counts its steps from 1
             failures.append(Failure(k, event.to_mode, trace[k].target, trace[k].measured))
+    checks = check_repeats(policy.events, scenario.mode,
+                           replay_from=None if policy.learn_cuts else start_model)
     return ScenarioRun(scenario, variant, result, tuple(trace), tuple(failures),
                        tuple(policy.model.region_cuts(scenario.mode)),
-                       np.asarray(policy.model.modes[keys[0]].ds.attractor, dtype=np.float64))
+                       np.asarray(policy.model.modes[keys[0]].ds.attractor, dtype=np.float64),
+                       checks)
 
 
 _AXES = (1, 2, 3)  # y, z, pitch of the DS state (x, y, z in dm, pitch in rad)
@@ -214,10 +235,15 @@ def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: fl
     shade = [s.mode == run.scenario.mode for s in steps]
     ax.fill_between(t, 0, 1, where=shade, transform=ax.get_xaxis_transform(),
                     color="tab:green", alpha=0.08, label=f"in mode {run.scenario.mode}")
+    labelled: set[bool] = set()
     for k, f in enumerate(run.failures):
         when = run.trace[f.step].time
-        ax.plot([when], [f.measured[1]], "x", color="red", ms=8,
-                label="invariance failure" if k == 0 else None)
+        again = k < len(run.checks) and run.checks[k].repeated
+        ax.plot([when], [f.measured[1]], "o" if again else "x", color="red", ms=8 if not again
+                else 6, label=None if again in labelled else
+                ("repeated failure (beyond an earlier failure's cut)" if again
+                 else "invariance failure"))
+        labelled.add(again)
         if run.cuts:
             ax.axvline(when, color="tab:blue", lw=0.8, ls=":",
                        label="cut learned" if k == 0 else None)
@@ -294,7 +320,8 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
         ax.set_ylabel("z (dm)")
         ax.set_zlabel("pitch (rad)")
         ax.set_title(f"{run.variant}: {run.exits} exit(s) of {run.scenario.mode}, "
-                     f"{run.result.delivered} bead(s) delivered", fontsize=10)
+                     f"{run.repeats} repeated; {run.result.delivered} bead(s) delivered",
+                     fontsize=10)
         ax.legend(loc="upper left", fontsize=7)
         _time_panel(fig.add_subplot(2, len(runs), len(runs) + n + 1), run, steps, rim)
     fig.suptitle(f"Scenario {runs[0].scenario.name} (seed {runs[0].scenario.seed}, Panda, "
