@@ -34,7 +34,8 @@ passes or fails as with the default (and the delivered beads are counted). The r
 sleeping scene is not the loop's physics (``mj_setState`` wakes every body), so for those rows
 *bare* is the time inside ``mj_step`` in the loop itself.
 
-Rates are medians of ``REPEATS`` runs (``TLI_BENCH_FRANKA_REPEATS``, default 3).
+Rates are medians of ``REPEATS`` runs (``TLI_BENCH_FRANKA_REPEATS``, default 3); the bare
+replays and the closed-loop runs alternate, so both see the same load of a shared machine.
 ``TLI_BENCH_FRANKA_ROBOTS`` (default ``panda,free-tool``) picks the robots. The Panda rows need
 the Menagerie assets (``make sim-assets``); without them they are skipped and say so.
 """
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import math
 import os
 import sys
 import time
@@ -173,7 +175,8 @@ def _trial(robot: str, probe: _Probe, physics: Any = None) -> tuple[Any, float]:
 
 def _replay(model: Any, states: list[tuple[Any, int]], repeats: int
             ) -> tuple[float, float]:
-    """Bare ``mj_step`` from each recorded state: median steps per CPU second, and the largest
+    """Bare ``mj_step`` from each recorded state: median steps per CPU second over ``repeats``
+    timed replays (NaN for none: :func:`_bare_rate` times them one by one), and the largest
     difference between a replayed step's result and the next recorded state (0: the replay
     is the trial's physics)."""
     import mujoco
@@ -193,19 +196,27 @@ def _replay(model: Any, states: list[tuple[Any, int]], repeats: int
         mujoco.mj_setState(model, probe_data, s2, full)
         mujoco.mj_getState(model, probe_data, nxt, sig)
         worst = max(worst, float(np.max(np.abs(got - nxt))))
+    rates = [_bare_rate(model, states, data) for _ in range(repeats)]
+    return (float(np.median(rates)) if rates else math.nan), worst
+
+
+def _bare_rate(model: Any, states: list[tuple[Any, int]], data: Any = None) -> float:
+    """One timed replay of ``states`` (``mj_setState`` + ``mj_step`` each, the
+    ``mj_setState`` cost measured alone and subtracted): steps per CPU second."""
+    import mujoco
+
+    full = mujoco.mjtState.mjSTATE_INTEGRATION
+    data = mujoco.MjData(model) if data is None else data
     steps = sum(n for _, n in states)
-    rates = []
-    for _ in range(repeats):
-        c0 = time.process_time()
-        for s, n in states:
-            mujoco.mj_setState(model, data, s, full)
-            mujoco.mj_step(model, data, n)
-        total = time.process_time() - c0
-        c0 = time.process_time()
-        for s, _n in states:
-            mujoco.mj_setState(model, data, s, full)
-        rates.append(steps / (total - (time.process_time() - c0)))
-    return float(np.median(rates)), worst
+    c0 = time.process_time()
+    for s, n in states:
+        mujoco.mj_setState(model, data, s, full)
+        mujoco.mj_step(model, data, n)
+    total = time.process_time() - c0
+    c0 = time.process_time()
+    for s, _n in states:
+        mujoco.mj_setState(model, data, s, full)
+    return steps / (total - (time.process_time() - c0))
 
 
 def _measure(robot: str, repeats: int, physics: Any = None) -> dict[str, Any]:
@@ -219,14 +230,16 @@ def _measure(robot: str, repeats: int, physics: Any = None) -> dict[str, Any]:
     if abs(steps * dt - res0.sim_time) > 0.5 * dt:  # pragma: no cover - a wrapper missed some
         raise TliError(f"bench_franka_scene: recorded {steps} steps of a {res0.sim_time} s "
                        "trial")
-    bare, replay_err = _replay(rec.model, rec.states, repeats)
-    cpus, builds, modes = [], [], set()
-    for _ in range(repeats):
+    _, replay_err = _replay(rec.model, rec.states, 0)
+    bares, cpus, builds, modes = [], [], [], set()
+    for _ in range(repeats):  # bare and closed loop interleaved: both see the machine's load
+        bares.append(_bare_rate(rec.model, rec.states))
         probe = _Probe(record=False, timing=False)
         res, cpu = _trial(robot, probe, physics)
         cpus.append(cpu)
         builds.append(probe.build_cpu)
         modes.add((res.mode_sequence(), round(res.sim_time / dt)))
+    bare = float(np.median(bares))
     timing = _Probe(record=False, timing=True)
     res_t, cpu_t = _trial(robot, timing, physics)
     modes.add((res_t.mode_sequence(), round(res_t.sim_time / dt)))
@@ -380,10 +393,10 @@ def format_results(data: dict[str, Any]) -> str:
         "settings table below).",
         f"Nominal trial per robot ({DURATION:g} s budget, seeds "
         f"{', '.join(f'{k} {v}' for k, v in SEEDS.items())}), 30 beads, one core, CPU time, "
-        f"medians of {repeats} runs. *Bare* = `mj_step` replayed from every recorded state of "
-        "that trial (the same contacts), `mj_setState` cost subtracted; *closed loop* excludes "
-        "the rig's construction (scene compilation, bead settling), as the trial's simulated "
-        "time does.",
+        f"medians of {repeats} runs, bare and closed loop alternating. *Bare* = `mj_step` "
+        "replayed from every recorded state of that trial (the same contacts), `mj_setState` "
+        "cost subtracted; *closed loop* excludes the rig's construction (scene compilation, "
+        "bead settling), as the trial's simulated time does.",
     ]
     for robot, r in rows.items():
         notes.append(
