@@ -43,6 +43,13 @@ def test_without_modulation_the_pour_repeats_its_invariance_failure(
     # from an earlier one (replayed with the executive's rule on this run's failures)
     assert run.repeats >= 3 and not run.invariance_ok, [c.repeats for c in run.checks]
     assert run.checks[0].repeats == () and all(c.cut is not None for c in run.checks)
+    # and the physics oracle fails it: no failure was answered with a cut (its invariance
+    # check, as the 2-D oracle's), though it delivered and ended in the goal mode
+    from tli_verify.sim.loop import load_policy
+
+    policy = load_policy("no-modulation")
+    verdict = check_trial(run.result, policy.automaton, goal_modes=policy.goal_modes)
+    assert verdict.violations == ("invariance",) and run.result.success, verdict
 
 
 def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(

@@ -77,6 +77,9 @@ FORGERIES: list[tuple[str, Callable[[], TrialResult], str, str]] = [
      "automaton", "did not report"),
     ("starts in the scooping mode", lambda: replace(
         NOMINAL, modes=("b", *NOMINAL_MODES[1:])), "automaton", "not an initial mode"),
+    ("an exit of the pour no cut answered", lambda: replace(
+        NOMINAL, events=(*NOMINAL.events, "InvarianceFailure at step 300")),
+     "invariance", "did not answer with a cut"),
     ("a mode the spec lacks", lambda: replace(
         NOMINAL, modes=(*NOMINAL_MODES[:150], "z", *NOMINAL_MODES[151:])),
      "automaton", "'z' is not a mode"),
@@ -116,5 +119,13 @@ def test_the_pour_is_not_a_sink_so_the_goal_comes_from_the_spec(automaton: Any) 
     # the pour swept past the bowl twice (d -> c, invariance failures) and came back: a run
     modes = trace(("a", 77), ("b", 20), ("c", 189), ("d", 20), ("c", 10), ("d", 20), ("c", 8),
                   ("d", 60))
-    swept = replace(NOMINAL, modes=modes, events=changes(modes))
-    assert check_trial(swept, automaton, goal_modes=GOALS).ok
+    exits = [k for k in range(1, len(modes)) if modes[k - 1] == "d" and modes[k] == "c"]
+    failures = tuple(f"InvarianceFailure at step {k}" for k in exits)
+    cuts = tuple(f"CutAdded at step {k}" for k in exits)
+    swept = replace(NOMINAL, modes=modes, events=changes(modes) + failures + cuts)
+    assert check_trial(swept, automaton, goal_modes=GOALS).ok  # LTL-DS: each exit cut
+    # without modulation the same exits are answered by no cut: the 2-D oracle's INVARIANCE
+    blind = check_trial(replace(swept, events=changes(modes) + failures), automaton,
+                        goal_modes=GOALS)
+    assert blind.violations == ("invariance",)
+    assert f"step {exits[0]}:" in blind.messages[0] and "(and 1 more)" in blind.messages[0]

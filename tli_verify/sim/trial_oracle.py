@@ -1,11 +1,14 @@
 """The physics oracle: does one perturbed Franka trial satisfy its task?
 
 :func:`check_trial` passes a trial when soup was delivered (at least one bead ends in the target
-bowl), the goal mode was reached, and its mode trace is a run of the task automaton: it starts in
+bowl), the goal mode was reached, its mode trace is a run of the task automaton (it starts in
 an initial mode and every mode change is one the automaton can take
 (:meth:`~tli_verify.logic.automaton.TaskAutomaton.mode_transitions`), reported by the executive,
-or a replan after a perturbation or a sensor change the assumptions rule out. What it found is a
-:class:`TrialVerdict` (violation kinds :data:`VIOLATION_KINDS`).
+or a replan after a perturbation or a sensor change the assumptions rule out), and every
+invariance failure was answered with a cut, as the bisimulation oracle of the 2-D campaigns
+requires (:mod:`tli_verify.verify.oracle`, ``INVARIANCE``: without modulation every unprovoked
+exit is one). What it found is a :class:`TrialVerdict` (violation kinds
+:data:`VIOLATION_KINDS`).
 
 References
 ----------
@@ -30,7 +33,7 @@ __all__ = [
 ]
 
 
-VIOLATION_KINDS = ("delivery", "reachability", "automaton", "limits")
+VIOLATION_KINDS = ("delivery", "reachability", "automaton", "limits", "invariance")
 """What the physics oracle checks (:func:`check_trial`)."""
 
 
@@ -93,6 +96,10 @@ def check_trial(result: TrialResult, automaton: Any,
       with ``delivered``);
     * ``"reachability"`` -- the trace ends in a goal mode (default: the automaton's sink modes,
       :meth:`~tli_verify.logic.automaton.TaskAutomaton.sink_modes`);
+    * ``"invariance"`` -- every invariance failure the executive reported (a mode exit no
+      perturbation caused: ``InvarianceFailure at step k``) was answered with a cut of the mode
+      at that step (``CutAdded at step k``; paper Sec. 5.2). A policy that does not modulate
+      (the no-modulation ablation) fails it at its first such exit, as in the 2-D oracle;
     * ``"automaton"`` -- the trace is a run of the task automaton: every mode is one of its
       modes, the first is the mode of an initial state (or the executive reported the initial
       reading as an assumption violation), and every mode change ``m -> m'`` at step ``k`` was
@@ -161,6 +168,12 @@ def check_trial(result: TrialResult, automaton: Any,
             else:
                 fail("automaton", f"step {k}: mode {a} -> {b} is no transition of the "
                      "automaton and no replan after a perturbation or sensor change")
+    unanswered = sorted(k for k, names in events.items()
+                        if "InvarianceFailure" in names and "CutAdded" not in names)
+    if unanswered:
+        more = f" (and {len(unanswered) - 1} more)" if len(unanswered) > 1 else ""
+        fail("invariance", f"step {unanswered[0]}: an invariance failure (a mode exit no "
+             f"perturbation caused) that the policy did not answer with a cut{more}")
     kinds = tuple(k for k in VIOLATION_KINDS if k in found)
     return TrialVerdict(seed=result.seed, violations=kinds,
                         messages=tuple(m for k in kinds for m in found[k][:3]),

@@ -81,7 +81,7 @@ __all__ = [
 EVIDENCE_SCHEMA_VERSION = 3
 """Version of the evidence file format (``campaign.schema.json``). 3: ``campaign_semantics``
 recorded and required (2 compared the tool version instead; 1 bound no task)."""
-CAMPAIGN_SEMANTICS = 2
+CAMPAIGN_SEMANTICS = 3
 """What a campaign's verdict means; evidence recorded under another value does not count.
 
 Evidence records it (``campaign_semantics``) and ``tli gate`` requires this tool's value, so
@@ -105,7 +105,9 @@ Do not bump it for refactors, speed-ups, messages, new commands or a release by 
 change of the evidence *file format* bumps :data:`EVIDENCE_SCHEMA_VERSION` instead.
 History: 1 (tli-verify 0.1.0) is the first recorded value; 2: the Franka trials run on the
 Panda within its limits, with person-like perturbations drawn uniformly, ``perturbed`` from the
-estimated external wrench, and the ``limits`` oracle kind."""
+estimated external wrench, and the ``limits`` oracle kind; 3: the physical oracle's
+``invariance`` kind (an invariance failure not answered with a cut fails the trial, as in the
+2-D oracle)."""
 EVIDENCE_KIND = "tli-verify/campaign-evidence"
 EVIDENCE_SUFFIX = ".campaign.json"
 MIN_EVIDENCE_EXAMPLES = 500
