@@ -28,8 +28,8 @@ SOLVER = ("partition", "early_fixpoint", "recycle", "early_unrealizable")
 COMBOS = [
     Heuristics(**dict(zip(SOLVER, bits, strict=True)))
     for bits in itertools.product((False, True), repeat=len(SOLVER))
-] + [Heuristics(interleave=False, group_pairs=False), Heuristics(group_pairs=False),
-     Heuristics(reorder=False), Heuristics(cluster_nodes=1)]
+] + [Heuristics(interleave=False, group_pairs=False), Heuristics(group_pairs=True),
+     Heuristics(reorder=False), Heuristics(max_growth=1.2), Heuristics(cluster_nodes=1)]
 
 
 def _in(target: Any, u: Any) -> Any:
