@@ -32,7 +32,7 @@ def dot_string(text: str) -> str:
         ``"..."``, quotes included.
     """
     out = []
-    for ch in text:
+    for ch in text.replace("\r\n", "\n"):  # one line break, however written
         if ch in '\\"':
             out.append("\\" + ch)
         elif ch in "\r\n":
