@@ -258,7 +258,12 @@ def test_markdown_links_cannot_break_out(path: str) -> None:
     """The figure link of the single-mode report: the target has no space, parenthesis or
     bracket left, the alt text no unescaped bracket."""
     link = f"![{markdown_text(path)}]({markdown_url(path)})"
-    alt, target = link[2:].split("](", 1)
+    # the alt text ends at the first unescaped "]" (an escaped one, e.g. "\\](", does not)
+    end = re.match(r"(?:\\.|[^\\\]])*", link[2:])
+    assert end is not None
+    alt, rest = link[2:2 + end.end()], link[2 + end.end():]
+    assert rest.startswith("](")
+    target = rest[2:]
     assert not set(target[:-1]) & set(" ()[]<>\n\r\"'")
     assert not set(re.sub(r"\\.", "", alt)) & set("[]")
     assert unquote(target[:-1]) == path
