@@ -333,8 +333,8 @@ def test_initial_assumptions_over_system_variables_only_project_to_a_constant(
     assert agree_with_omega(spec)["textbook"] is (expected != [])
 
 
-def test_a_projection_is_written_with_the_bdd_paths_not_every_assignment() -> None:
-    """``exists k. a > k`` over 7-bit integers is ``a != 0``: 7 paths, not 127 values."""
+def test_a_projection_is_written_with_disjoint_cubes_not_every_assignment() -> None:
+    """``exists k. a > k`` over 7-bit integers is ``a != 0``: 7 cubes, not 127 values."""
     spec = imported("module M\nenv Int(0..127) a;\nsys Int(0..127) k;\nasm ini a > k;\n"
                     "gar G k = 0;\n", "spectra")
     (init,) = spec.assume.init

@@ -30,7 +30,7 @@ from typing import Any
 
 from tli_verify.errors import CheckFailed, SpecError
 from tli_verify.logic.escape import dot_string
-from tli_verify.logic.gr1 import Solution, _goals_or_true, cube
+from tli_verify.logic.gr1 import Solution, _goals_or_true, cube, disjoint_cubes
 
 __all__ = [
     "MAX_AUTOMATON_EDGES",
@@ -581,7 +581,7 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
             raise RuntimeError("internal error: winning state without a winning move")
         for xr, yv, readings in targets(choice):
             dst = state_id(xr, yv, j2)
-            cubes = _cubes(bdd, readings, Xp, MAX_AUTOMATON_EDGES - len(transitions))
+            cubes = disjoint_cubes(bdd, readings, Xp, MAX_AUTOMATON_EDGES - len(transitions))
             if cubes is None:
                 raise SpecError(f"{spec.path or spec.name}: the task automaton has more than "
                                 f"{MAX_AUTOMATON_EDGES} edges (the limit)")
@@ -608,26 +608,3 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
         transitions=tuple(transitions),
         free_inputs=free,
     )
-
-
-def _cubes(bdd: Any, u: Any, names: list[str], budget: int) -> list[dict[str, bool]] | None:
-    """Disjoint cubes covering ``u`` (Shannon expansion in ``names`` order, False first);
-    None if there are more than ``budget``."""
-    out: list[dict[str, bool]] = []
-    stack: list[tuple[Any, dict[str, bool], int]] = [(u, {}, 0)]
-    while stack:
-        w, fixed, k = stack.pop()
-        if w == bdd.false:
-            continue
-        if w == bdd.true:
-            out.append(fixed)
-            if len(out) > budget:
-                return None
-            continue
-        supp = bdd.support(w)
-        while names[k] not in supp:
-            k += 1
-        v = names[k]
-        stack.append((bdd.let({v: True}, w), {**fixed, v: True}, k + 1))
-        stack.append((bdd.let({v: False}, w), {**fixed, v: False}, k + 1))
-    return out

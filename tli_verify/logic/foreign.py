@@ -1759,25 +1759,6 @@ _PROJECTION_CUBES = 64
 (:func:`_project_initial_assumptions`)."""
 
 
-def _bdd_cubes(bdd: Any, u: Any, limit: int) -> list[dict[str, bool]] | None:
-    """The paths of ``u`` to ``true`` as partial assignments (disjoint cubes whose
-    disjunction is ``u``), or None when there are more than ``limit``."""
-    if u == bdd.false:
-        return []
-    if u == bdd.true:
-        return [{}]
-    top = min(bdd.support(u), key=bdd.level_of_var)
-    out: list[dict[str, bool]] = []
-    for value in (True, False):
-        sub = _bdd_cubes(bdd, bdd.let({top: value}, u), limit - len(out))
-        if sub is None:
-            return None
-        out += [{top: value, **cube} for cube in sub]
-        if len(out) > limit:
-            return None
-    return out
-
-
 def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_Constraint]:
     """Spectra's reading of initial assumptions that mention system variables.
 
@@ -1791,13 +1772,14 @@ def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_C
     initial assumptions that mention system variables are projected *together* (``exists Y.
     phi_1 & phi_2`` is not ``(exists Y. phi_1) & (exists Y. phi_2)`` when they share a
     variable), with a BDD: nothing is assumed when the projection is ``true``; else it is one
-    more initial assumption, ``false`` or a disjunction of the BDD's paths over the inputs'
-    bits (refused by name and line beyond :data:`_PROJECTION_CUBES` paths). Conjuncts over
+    more initial assumption, ``false`` or a disjunction of disjoint cubes over the inputs'
+    bits (:func:`~tli_verify.logic.gr1.disjoint_cubes`; refused by name and line beyond
+    :data:`_PROJECTION_CUBES` cubes). Conjuncts over
     environment variables only are kept as they are.
     """
     import spot
 
-    from tli_verify.logic.gr1 import _to_bdd, new_manager
+    from tli_verify.logic.gr1 import _to_bdd, disjoint_cubes, new_manager
 
     sys_vars = {v.name for v in spec.variables if v.side == "sys"}
     sys_bits = {b for v in spec.variables if v.side == "sys" for b in v.bits()}
@@ -1832,7 +1814,7 @@ def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_C
     first = mixed[0][0]
     if u == bdd.true:
         return out
-    cubes = _bdd_cubes(bdd, u, _PROJECTION_CUBES)
+    cubes = disjoint_cubes(bdd, u, [a for a in aps if a not in sys_bits], _PROJECTION_CUBES)
     if cubes is None:
         raise tr.fail(first, "the initial assumptions over system variables project onto the "
                       f"environment's variables (Spectra's reading) with more than "

@@ -819,6 +819,30 @@ def solve(game: Game, *, keep_iterates: bool = True, exact: bool = True,
                     traps=tuple(traps))
 
 
+def disjoint_cubes(bdd: Any, u: Any, names: list[str],
+                   budget: int) -> list[dict[str, bool]] | None:
+    """Disjoint cubes covering ``u`` (Shannon expansion in ``names`` order, False first);
+    None if there are more than ``budget``. ``names`` must hold ``u``'s support."""
+    out: list[dict[str, bool]] = []
+    stack: list[tuple[Any, dict[str, bool], int]] = [(u, {}, 0)]
+    while stack:
+        w, fixed, k = stack.pop()
+        if w == bdd.false:
+            continue
+        if w == bdd.true:
+            out.append(fixed)
+            if len(out) > budget:
+                return None
+            continue
+        supp = bdd.support(w)
+        while names[k] not in supp:
+            k += 1
+        v = names[k]
+        stack.append((bdd.let({v: True}, w), {**fixed, v: True}, k + 1))
+        stack.append((bdd.let({v: False}, w), {**fixed, v: False}, k + 1))
+    return out
+
+
 def cube(game: Game, values: Mapping[str, bool]) -> Any:
     """BDD of the assignment ``values`` (names may be primed)."""
     u = game.true

@@ -127,6 +127,17 @@ TASK_TORQUE_LIMIT = 6.0
 _FORCE_SQ_SAFE = TASK_FORCE_LIMIT * TASK_FORCE_LIMIT * (1.0 - 1e-9)
 _TORQUE_SQ_SAFE = TASK_TORQUE_LIMIT * TASK_TORQUE_LIMIT * (1.0 - 1e-9)
 
+
+def _cap3(x: float, y: float, z: float, limit: float) -> tuple[float, float, float]:
+    """``(x, y, z)`` scaled to norm ``limit`` when its norm (numpy's: ``sqrt`` of the BLAS
+    ``ddot``, as the plain law computes it) exceeds it; else unchanged."""
+    v = np.array((x, y, z))
+    n = math.sqrt(float(v @ v))
+    if n > limit:
+        s = limit / n
+        return x * s, y * s, z * s
+    return x, y, z
+
 #: Nominal orientation at pitch 0: tool z down, tool x along world +y, tool y along world +x.
 R0_DOWN: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 #: The pitch axis, in the world frame: world x.
@@ -724,17 +735,9 @@ class ImpedanceController:
         t1 = k4 * e4 - tz * math.sqrt(k4 * abs(l4)) * v4
         t2 = k5 * e5 - tz * math.sqrt(k5 * abs(l5)) * v5
         if f0 * f0 + f1 * f1 + f2 * f2 > _FORCE_SQ_SAFE:
-            f3 = np.array((f0, f1, f2))
-            fn = math.sqrt(float(f3 @ f3))
-            if fn > TASK_FORCE_LIMIT:
-                s = TASK_FORCE_LIMIT / fn
-                f0, f1, f2 = f0 * s, f1 * s, f2 * s
+            f0, f1, f2 = _cap3(f0, f1, f2, TASK_FORCE_LIMIT)
         if t0 * t0 + t1 * t1 + t2 * t2 > _TORQUE_SQ_SAFE:
-            t3 = np.array((t0, t1, t2))
-            tn = math.sqrt(float(t3 @ t3))
-            if tn > TASK_TORQUE_LIMIT:
-                s = TASK_TORQUE_LIMIT / tn
-                t0, t1, t2 = t0 * s, t1 * s, t2 * s
+            t0, t1, t2 = _cap3(t0, t1, t2, TASK_TORQUE_LIMIT)
         return f0, f1, f2, t0, t1, t2
 
     def _bind(self, data: Any) -> _DataViews:
