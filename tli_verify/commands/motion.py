@@ -76,6 +76,16 @@ def _rerun_examples(text: str) -> int:
     return value
 
 
+def _handoff_samples(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 10 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be between 10 and 100000, got {value}")
+    return value
+
+
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
 
@@ -110,6 +120,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "(default: the control period of the spec's task, else 0.001 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
+    p.add_argument("--no-handoff", action="store_true",
+                   help="skip the offline step: by default, where the spec's task declares its "
+                   "regions, every mode's exits are found and cut before deployment and the "
+                   "hand-off claims are recorded in the model (docs: explanation/handoff)")
+    p.add_argument("--handoff-samples", type=_handoff_samples, default=1000, metavar="N",
+                   help="states drawn per DS in each round of the offline step (default 1000)")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.set_defaults(handler=_learn)
 
@@ -205,6 +221,16 @@ def _learn(args: argparse.Namespace) -> int:
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf")
+    handoff = None
+    if not args.no_handoff and args.spec is not None:
+        from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
+
+        ctx = context_for_spec(args.spec)
+        if ctx is not None:
+            handoff = learn_handoffs(ctx.task, ctx.automaton, model, dt=control_dt,
+                                     goal_modes=ctx.goal_modes, samples=args.handoff_samples,
+                                     seed=args.seed)
+            model = handoff.model
     try:
         save_model(model, args.output)
     except ModelError as exc:  # learned numbers outside the declared limits: name the demos
@@ -232,6 +258,19 @@ def _learn(args: argparse.Namespace) -> int:
                              f"{fit.get('n_samples')} samples, attractor "
                              f"{[round(v, 4) for v in mm.ds.attractor.tolist()]}, decay rate "
                              f"{fit.get('rate', 0.0):.3g}/s{chosen}\n")
+    for claim in (handoff.claims if handoff is not None else ()):
+        if args.json:
+            _emit({"model": str(args.output), "handoff": claim.to_dict()})
+        else:
+            how = ("proved" if claim.established == "proved" else
+                   f"sampled: {claim.samples} states, {claim.exits} exits, {claim.rests} rests")
+            sys.stdout.write(f"hand-off {claim.key}: {claim.mode} -> "
+                             f"{'|'.join(claim.hands_to) or '(goal)'}, {claim.cuts} cuts "
+                             f"({claim.face_cuts} faces); {how}"
+                             f"{'' if claim.holds else ' -- ' + claim.note}\n")
+    if handoff is not None and not handoff.ok and not args.json:
+        sys.stdout.write("warning: a hand-off does not hold on the drawn states (above): the "
+                         "policy may leave these modes; see docs/explanation/handoff.md\n")
     if not args.json:
         sys.stdout.write(f"wrote {args.output} ({len(model.modes)} DS); certify it with: "
                          f"tli certify {args.output}\n")
@@ -318,9 +357,25 @@ def _check_cert(args: argparse.Namespace) -> int:
             sys.stdout.write(f"ok    {item}\n")
         for item in check.problems:
             sys.stdout.write(f"FAIL  {item}\n")
+    handoff_ok = True
+    if check.ok and check.model_path:
+        from tli_verify.model.serialize import load_model
+        from tli_verify.runtime.handoff import handoff_status
+
+        model = load_model(check.model_path)
+        if model.spec_path is not None and model.spec_path.is_file():
+            handoff_ok, lines = handoff_status(model, model.spec_path)
+            for line in lines:
+                if args.json:
+                    _emit({"certificate": check.path, "ok": handoff_ok, "message": line})
+                else:
+                    sys.stdout.write(f"{'ok   ' if handoff_ok else 'FAIL '} {line}\n")
     if not check.ok:
         raise CertificateError(f"{check.path}: certificate does not re-check "
                                f"({len(check.problems)} problem(s)): {check.problems[0]}")
+    if not handoff_ok:
+        raise CertificateError(f"{check.path}: the model's hand-off record does not re-check "
+                               "(above)")
     if not args.json:
         sys.stdout.write(f"{check.path}: valid (re-checked exactly against {check.model_path})\n")
     return 0

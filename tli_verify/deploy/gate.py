@@ -269,7 +269,21 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     items.append(_modes_item(model, name, result.spec, shown(spec_path)))
     items.append(_task_item(model, name, result.spec, spec_path, shown,
                             [c for _, c in covering]))
+    items.append(_handoff_item(model, name, spec_path))
     return items
+
+
+def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
+    """Which hand-off guarantees are proved (re-decided here) and which are tested
+    (:func:`tli_verify.runtime.handoff.handoff_status`)."""
+    from tli_verify.runtime.handoff import handoff_status
+
+    try:
+        ok, lines = handoff_status(model, spec_path)
+    except TliError as exc:
+        return GateItem("model", name, False, f"hand-off record does not re-check: {exc}",
+                        "handoff")
+    return GateItem("model", name, ok, "; ".join(lines), "handoff")
 
 
 def _task_item(model: Any, name: str, spec: Any, spec_path: Path,

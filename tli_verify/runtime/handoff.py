@@ -1014,3 +1014,64 @@ def recheck_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *,
                     f"{', '.join(claim.hands_to)})" if ok else
                     f"{claim.key}: claimed proved, re-check fails: {why}"))
     return out
+
+
+# ------------------------------------------------------------------------------ entry points
+@dataclass(frozen=True, slots=True, eq=False)
+class HandoffContext:
+    """What the hand-off step needs besides the model: the task, the automaton and the goal
+    (settled from a spec file by :func:`context_for_spec`)."""
+
+    task: Task
+    automaton: TaskAutomaton
+    goal_modes: tuple[str, ...]
+
+
+def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
+    """The task the spec names (None: it names none, or its sensors are computed by physics:
+    boundaries are learned online there), its automaton and its goal (the spec's, else the
+    task's, else the sink modes; checked reachable)."""
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.runtime.setup import check_goal
+    from tli_verify.tasks.project import spec_task
+    from tli_verify.tasks.task import Goal
+
+    spec = load_spec(spec_path)
+    task = spec_task(spec, spec_path)
+    if task is None or bool(getattr(task.sensor_model, "physics", False)):
+        return None
+    automaton = synthesize(spec)
+    goal = (Goal(spec.goal_modes, spec.goal_sensors)
+            if spec.goal_modes is not None or spec.goal_sensors else task.goal)
+    modes = check_goal(automaton, goal, where=str(spec_path))
+    return HandoffContext(task=task, automaton=automaton, goal_modes=tuple(modes))
+
+
+def handoff_status(model: Model, spec_path: str | Any) -> tuple[bool, list[str]]:
+    """The hand-off guarantees of a model file, re-checked where they can be: one line per
+    DS (proved and re-decided, tested on N states, or online only), and whether nothing
+    fails (a proved claim that does not re-decide, or a recorded hand-off with exits).
+
+    Returns
+    -------
+    ok : bool
+    lines : list of str
+    """
+    rec = (model.source or {}).get("handoff")
+    ctx = context_for_spec(spec_path)
+    if ctx is None:
+        return True, ["hand-off: online only (the task's sensors are computed by physics, or "
+                      "the spec names no task)"]
+    if not rec:
+        return True, ["hand-off: not established offline (the model has no hand-off record: "
+                      "its modes' boundaries are learned online; tli learn records it)"]
+    ok = True
+    lines: list[str] = []
+    for claim, good, msg in recheck_handoffs(ctx.task, ctx.automaton, model,
+                                             goal_modes=ctx.goal_modes):
+        if not good or (claim.established != PROVED and not claim.holds):
+            ok = False
+            msg = msg if not good else f"{msg}: {claim.note}"
+        lines.append(msg)
+    return ok, lines
