@@ -270,6 +270,7 @@ def write_report(result: Any, out: Path) -> list[Path]:
     lines += ["", f"Task satisfied in {result.task_satisfied} of {result.runs} runs; "
               f"{result.cuts_added} cut(s) added; {result.inconclusive} run(s) with "
               "reachability undecided (ended early).", ""]
+    lines += _cuts_table(result)
     cov = result.coverage
     lines += ["## Coverage", "",
               f"- automaton edges exercised: {cov['automaton_edges']['exercised']} of "
@@ -303,6 +304,44 @@ def write_report(result: Any, out: Path) -> list[Path]:
     atomic_write_text(md, "\n".join(lines) + "\n")
     files.insert(0, md)
     return files
+
+
+def _cuts_table(result: Any) -> list[str]:
+    """campaign.md's "Cuts per mode": the model's cuts (offline, with its hand-off claim) and
+    the cuts the runs learned online."""
+    from tli_verify.model.serialize import load_model
+
+    online = result.cuts_by_mode()
+    path = result.files.get("model", {}).get("path")
+    claims: dict[str, dict[str, Any]] = {}
+    model_cuts: dict[str, int] = {}
+    if path:
+        try:
+            model = load_model(path)
+        except TliError:
+            model = None
+        if model is not None:
+            for mode in sorted({mm.mode for mm in model.modes.values()}):
+                model_cuts[mode] = len(model.region_cuts(mode))
+            rec = (model.source or {}).get("handoff") or {}
+            for c in rec.get("claims", []) if isinstance(rec, dict) else []:
+                if isinstance(c, dict) and "mode" in c:
+                    claims.setdefault(str(c["mode"]), c)
+    modes = sorted(set(model_cuts) | set(online))
+    if not modes:
+        return []
+    out = ["## Cuts per mode", "",
+           "| mode | cuts in the model | hand-off | cuts learned online | runs cutting | most "
+           "in one run |", "|---|---:|---|---:|---:|---:|"]
+    for m in modes:
+        c = claims.get(m)
+        how = "online only" if c is None else (
+            "proved" if c.get("established") == "proved" else
+            f"sampled ({c.get('samples')} states, {c.get('exits')} exits)")
+        o = online.get(m, {"total": 0, "runs": 0, "max_per_run": 0})
+        out.append(f"| {m} | {model_cuts.get(m, 0)} | {how} | {int(o['total'])} | "
+                   f"{int(o['runs'])} | {int(o['max_per_run'])} |")
+    return [*out, ""]
 
 
 def _plot_case(result: Any, case_path: Path, png: Path) -> Path:

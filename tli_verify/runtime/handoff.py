@@ -131,8 +131,9 @@ class Exit:
             return (f"mode {self.mode} (DS {self.key}) entered at [{at}] rests without the next "
                     "reading (reachability)")
         through = f" across the boundary of region {self.crossed!r}" if self.crossed else ""
-        cls = ("composition gap: entered where the previous mode handed off"
-               if self.kind == "composition" else "invariance")
+        cls = {"composition": "composition gap: entered where the previous mode handed off",
+               "assumption": "a sensor change the spec's assumptions rule out"}.get(
+                   self.kind, "invariance")
         last = ", ".join(f"{v:.4g}" for v in self.last_inside)
         return (f"mode {self.mode} (DS {self.key}) entered at [{at}] leaves into "
                 f"{self.to_mode}{through} after [{last}] ({cls})")
@@ -458,9 +459,26 @@ class _Outcome:
     rests: int
 
 
+def _assumed(automaton: TaskAutomaton, mode: str, old: frozenset[str], new: frozenset[str]
+             ) -> bool:
+    """Whether the spec's assumptions allow the sensor change ``old -> new`` from a state of
+    ``mode`` read ``old`` (else the exit is the task's, not the policy's: a task/spec
+    mismatch the executive reports as an assumption violation and never cuts)."""
+    from tli_verify.logic.automaton import AssumptionViolation
+
+    for s in automaton.states:
+        if s.mode == mode and frozenset(s.inputs) == old:
+            try:
+                automaton.next_mode(s.id, new)
+            except AssumptionViolation:
+                continue
+            return True
+    return False
+
+
 def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
               is_entry: BoolArray, by_reading: Mapping[frozenset[str], frozenset[str]], *,
-              dt: float, steps: int) -> _Outcome:
+              dt: float, steps: int, automaton: TaskAutomaton) -> _Outcome:
     """Run the key's modulated DS from every start (vectorised), until its reading leaves
     the mode's readings or ``steps`` pass."""
     names = task.sensor_names
@@ -473,6 +491,9 @@ def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
     lo, hi = np.array(task.lo), np.array(task.hi)
     bits = 1 << np.arange(len(names), dtype=np.int64)
     own = np.array(sorted(_code(r, names) for r in k.readings), dtype=np.int64)
+    first, _ = task.read(X, X, lat)
+    prev_read = [frozenset(n for n, v in zip(names, row, strict=True) if v)
+                 for row in first.tolist()]
     for _ in range(steps):
         if active.size == 0:
             break
@@ -495,10 +516,12 @@ def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
                 continue
             to = "(beyond the workspace)" if beyond[j] else (
                 ",".join(sorted(modes)) if modes else "?")
+            kind = "composition" if bool(is_entry[i]) else "invariance"
+            if left[j] and not beyond[j] and not _assumed(automaton, k.mode, prev_read[i], r):
+                kind = "assumption"
             exits.append(Exit(k.key, k.mode, to, tuple(X0[i].tolist()),
                               tuple(Xa[j].tolist()), tuple(Xn[j].tolist()),
-                              _crossed_name(task, Xa[j], Xn[j]),
-                              "composition" if bool(is_entry[i]) else "invariance"))
+                              _crossed_name(task, Xa[j], Xn[j]), kind))
         active = active[~done]
     return _Outcome(exits, handed, 0 if k.goal else int(active.size))
 
@@ -526,7 +549,7 @@ def _horizon(model: Model, key: str, task: Task, dt: float) -> int:
 # ------------------------------------------------------------------------------ learning
 def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: float,
                    goal_modes: Sequence[str] | None = None, samples: int = 1000,
-                   rounds: int = 30, seed: int = 0, margin: float = 1e-3
+                   rounds: int = 60, seed: int = 0, margin: float = 1e-3
                    ) -> HandoffReport:
     """Learn every mode's cuts offline until no drawn state exits (module docstring).
 
@@ -578,10 +601,13 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
     rounds_used: dict[str, int] = {k.key: 0 for k in keys}
     history: list[tuple[str, int]] = []
     stuck: dict[str, str] = {}
+    clean = 0
     for k in keys:  # exact where the geometry allows: a convex cell's facets are cuts at once
         model, added = _facet_cuts(task, model, k, by_reading)
         face_cuts[k.mode] = face_cuts.get(k.mode, 0) + added
-    for r in range(rounds):
+    r = 0
+    while r < rounds:
+        r += 1
         found = False
         handed: list[tuple[str, FloatArray, BoolArray]] = []
         for k in keys:
@@ -589,31 +615,42 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
             if len(X) == 0:
                 continue
             out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                            steps=_horizon(model, k.key, task, dt))
+                            steps=_horizon(model, k.key, task, dt), automaton=automaton)
             handed += out.handed
+            out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
             if not out.exits:
                 continue
             found = True
-            rounds_used[k.key] = r + 1
+            rounds_used[k.key] = r
             model, added, faces, why = _cut_round(task, model, k, out.exits, X, margin)
             face_cuts[k.mode] = face_cuts.get(k.mode, 0) + faces
             history.append((k.key, added))
             if added == 0:
                 stuck[k.key] = why
+            else:
+                stuck.pop(k.key, None)
         for mode, x, la in handed:
             lst = entries.setdefault(mode, [])
             if len(lst) < 4 * samples:
                 lst.append((x, la))
-        if not found or all(k.key in stuck for k in keys if rounds_used[k.key] == r + 1):
-            break
+        if not found:
+            clean += 1
+            if clean >= 2:  # two rounds in a row without an exit
+                break
+        else:
+            clean = 0
+            if all(k.key in stuck for k in keys if rounds_used[k.key] == r):
+                break
     # the final, independent round
     claims: list[HandoffClaim] = []
     final_exits: list[Exit] = []
     for k in keys:
         X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
         out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                        steps=_horizon(model, k.key, task, dt))
-        final_exits += out.exits
+                        steps=_horizon(model, k.key, task, dt), automaton=automaton)
+        mismatch = [e for e in out.exits if e.kind == "assumption"]
+        out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
+        final_exits += out.exits + mismatch[:3]
         final_exits += [Exit(k.key, k.mode, "(rest)", tuple(x.tolist()), tuple(x.tolist()),
                              tuple(x.tolist()), "", "reachability")
                         for x in ([] if out.rests == 0 else [X[0]])]
@@ -624,6 +661,9 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
         note = why_not if established != PROVED else ""
         if exits:
             note = out.exits[0].describe()
+        elif mismatch:
+            note = (f"{len(mismatch)} drawn states leave by a sensor change the spec's "
+                    f"assumptions rule out (task/spec mismatch), e.g. {mismatch[0].describe()}")
         elif k.key in stuck:
             note = stuck[k.key]
         claims.append(HandoffClaim(

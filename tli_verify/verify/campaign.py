@@ -126,6 +126,18 @@ class CampaignResult:
     files: dict[str, Any] = field(default_factory=dict)
     task_name: str = ""
 
+    def cuts_by_mode(self) -> dict[str, dict[str, float]]:
+        """Cuts learned online per mode: ``{mode: {"total", "runs", "max_per_run"}}`` (runs
+        that learned at least one cut of the mode; the most one run learned)."""
+        out: dict[str, dict[str, float]] = {}
+        for o in self.outcomes:
+            for mode, n in o.cuts_by_mode:
+                e = out.setdefault(mode, {"total": 0, "runs": 0, "max_per_run": 0})
+                e["total"] += n
+                e["runs"] += 1
+                e["max_per_run"] = max(e["max_per_run"], n)
+        return dict(sorted(out.items()))
+
     def to_dict(self) -> dict[str, Any]:
         """The ``tli verify --json`` record."""
         c = self.config
@@ -148,6 +160,7 @@ class CampaignResult:
             "violating_runs": sum(1 for o in self.outcomes if not o.verdict.ok),
             "task_satisfied": self.task_satisfied,
             "cuts_added": self.cuts_added,
+            "cuts_by_mode": self.cuts_by_mode(),
             "inconclusive": self.inconclusive,
             "coverage": self.coverage,
             "counterexample": self.counterexample,

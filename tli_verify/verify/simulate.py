@@ -62,6 +62,8 @@ class RunOutcome:
     cuts_added : int
     modes : str
         The policy's run-length mode sequence.
+    cuts_by_mode : tuple of (str, int)
+        The cuts learned online, per mode (sorted by mode).
     """
 
     index: int
@@ -69,6 +71,7 @@ class RunOutcome:
     steps: int
     cuts_added: int
     modes: str
+    cuts_by_mode: tuple[tuple[str, int], ...] = ()
 
 
 class LoopWatchdog:
@@ -289,8 +292,14 @@ def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunO
     with threadpoolctl.threadpool_limits(1):
         sims = simulate(spec, [c for _, c in items])
         verdicts = load(spec).oracle.check_many([tr for tr, _ in sims])
+    from collections import Counter
+
+    from tli_verify.runtime.events import CutAdded
+
     return [RunOutcome(index=i, verdict=v, steps=res.steps, cuts_added=res.cuts_added,
-                       modes=mode_string(res))
+                       modes=mode_string(res),
+                       cuts_by_mode=tuple(sorted(Counter(
+                           e.mode for e in res.events if isinstance(e, CutAdded)).items())))
             for (i, _), (_, res), v in zip(items, sims, verdicts, strict=True)]
 
 
