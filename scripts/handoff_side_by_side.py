@@ -50,12 +50,12 @@ def main() -> int:
             in_model = sum(len(m.get("cuts", [])) for m in model["modes"].values())
             for pushes in ("0", "default"):
                 cmd = ["verify", "--spec", f"specs/{name}.toml", "--examples",
-                       str(a.examples), "--random-starts", "--json", "--out",
+                       str(a.examples), "--random-starts", "--out",
                        f"out/{pushes}", "--no-shrink"]
                 if pushes == "0":
                     cmd += ["--max-pushes", "0"]
-                r = _tli(*cmd, cwd=root)
-                rec = json.loads(r.stdout.strip().splitlines()[-1])
+                _tli(*cmd, cwd=root)
+                rec = json.loads((root / "out" / pushes / "campaign.json").read_text())
                 v = rec["violations"]
                 rows.append(f"| {name} | {step} | {pushes} | {rec['runs']} | "
                             f"{rec['task_satisfied']} | {v.get('looping', 0)} | "
