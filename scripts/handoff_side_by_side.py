@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from tests.support.awkward import TASKS, write_project  # noqa: E402
+from tests.support.awkward import TASKS, write_project
 
 
 def _tli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -60,7 +60,8 @@ def main() -> int:
                 rows.append(f"| {name} | {step} | {pushes} | {rec['runs']} | "
                             f"{rec['task_satisfied']} | {v.get('looping', 0)} | "
                             f"{rec['inconclusive']} | {rec['violating_runs']} | {in_model} | "
-                            f"{rec['cuts_added']} | {rec['cuts_added'] / max(rec['runs'], 1):.3f} |")
+                            f"{rec['cuts_added']} | "
+                            f"{rec['cuts_added'] / max(rec['runs'], 1):.3f} |")
                 print(rows[-1], flush=True)
     (a.out / "handoff_side_by_side.md").write_text("\n".join(rows) + "\n")
     return 0

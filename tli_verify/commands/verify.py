@@ -309,6 +309,7 @@ def write_report(result: Any, out: Path) -> list[Path]:
 def _cuts_table(result: Any) -> list[str]:
     """campaign.md's "Cuts per mode": the model's cuts (offline, with its hand-off claim) and
     the cuts the runs learned online."""
+    from tli_verify.errors import TliError
     from tli_verify.model.serialize import load_model
 
     online = result.cuts_by_mode()

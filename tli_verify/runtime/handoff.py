@@ -266,9 +266,9 @@ def _support(prim: Primitive, y: FloatArray) -> tuple[FloatArray, FloatArray] | 
         for i in range(y.size):
             for sign, bound in ((-1.0, float(prim.lower[i])), (1.0, float(prim.upper[i]))):
                 if math.isfinite(bound):
-                    d = abs(float(y[i]) - bound)
-                    if best is None or d < best[0]:
-                        best = (d, i, sign)
+                    gap = abs(float(y[i]) - bound)
+                    if best is None or gap < best[0]:
+                        best = (gap, i, sign)
         if best is None:
             return None
         _, i, sign = best
@@ -283,20 +283,19 @@ def _support(prim: Primitive, y: FloatArray) -> tuple[FloatArray, FloatArray] | 
         n = prim.A[j] / norms[j]
         return n, y - ((float(prim.A[j] @ y) - float(prim.b[j])) / norms[j]) * n
     if isinstance(prim, Ball):
-        d = y - prim.center
-        r = float(np.linalg.norm(d))
+        off = y - prim.center
+        r = float(np.linalg.norm(off))
         if r == 0.0:
             return None
-        n = d / r
-        return n, prim.center + float(prim.radius) * n
+        return off / r, prim.center + float(prim.radius) * (off / r)
     if isinstance(prim, Ellipsoid):
-        d = y - prim.center
-        g = prim.matrix @ d
+        off = y - prim.center
+        g = prim.matrix @ off
         gn = float(np.linalg.norm(g))
-        q = float(d @ prim.matrix @ d)
+        q = float(off @ prim.matrix @ off)
         if gn == 0.0 or q <= 0.0:
             return None
-        return g / gn, prim.center + d / math.sqrt(q)
+        return g / gn, prim.center + off / math.sqrt(q)
     return None  # pragma: no cover - every Primitive is one of the four
 
 
