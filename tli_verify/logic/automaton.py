@@ -289,6 +289,28 @@ class TaskAutomaton:
                     queue.append(p)
         return dist
 
+    def progress_moves(self, goal_modes: Iterable[str]) -> dict[str, frozenset[str]]:
+        """The mode changes that count as planned progress, per mode: the successors of the
+        mode (in the mode graph) at the least distance to a goal mode.
+
+        One rule for the executive (such a change is a replan, never an invariance failure to
+        cut), the oracle (it is not an unprovoked exit) and the offline hand-off step (an exit
+        there is an allowed hand-off): :mod:`tli_verify.runtime.handoff`.
+        """
+        goals = list(goal_modes)
+        dist = self.mode_distances(goals)
+        far = len(self.modes) + 1
+        succ: dict[str, set[str]] = {}
+        for a, b in self.mode_transitions():
+            if a != b:
+                succ.setdefault(a, set()).add(b)
+        out: dict[str, frozenset[str]] = {}
+        for m in sorted({st.mode for st in self.states}):
+            nxt = succ.get(m, set())
+            best = min((dist.get(n, far) for n in nxt), default=far)
+            out[m] = frozenset(n for n in nxt if dist.get(n, far) == best)
+        return out
+
     def planned_keys(self, ds: DSKeys, goal_modes: Sequence[str] | None = None
                      ) -> tuple[PlannedStep, ...]:
         """The planner: per state, the next mode to run towards and the DS key to run.

@@ -14,7 +14,9 @@ every control period returns the velocity to apply. Per step it
    velocity) while none exists -- it never crashes on a reading;
 3. **replanning**: a mode other than the planned next one is followed (receding horizon,
    :class:`~.events.Replan`);
-4. **invariance failures**: such an exit that no perturbation caused (the caller reports
+4. **invariance failures**: such an exit that no perturbation caused, into a mode that is not
+   planned progress either (a successor nearest the goal,
+   :meth:`TaskAutomaton.progress_moves`: the oracle's rule), (the caller reports
    perturbations: ``step(..., perturbed=True)`` or :meth:`LTLDSPolicy.notify_perturbation`) is
    an invariance failure of the mode left (an exit across a reading the assumptions rule out
    is reported as an assumption violation and cuts nothing). The executive records
@@ -185,6 +187,7 @@ class LTLDSPolicy:
         "_pending",
         "_plan_cache",
         "_planned",
+        "_progress",
         "_refused",
         "_spec_text",
         "_state",
@@ -223,6 +226,7 @@ class LTLDSPolicy:
         self.goal_inputs = frozenset(goal_inputs)
         self._plan_cache: dict[int, PlannedStep] = plan_states(
             automaton, model, self.goal_modes, str(model.path))
+        self._progress = automaton.progress_moves(self.goal_modes)
         self.learn_transitions = bool(learn_transitions)
         self._spec_text: str | None = None
         if spec is not None:
@@ -485,8 +489,11 @@ class LTLDSPolicy:
             # a cut only for a policy-made exit: not after a perturbation, and not across a
             # reading the assumptions rule out (a sensor glitch or an unreported push; its
             # "last in-mode state" may not be one)
-            if not expected and cause == "invariance failure" and self._last is not None \
-                    and self._entry is not None:
+            # nor for a move to a successor nearest the goal (planned progress: the oracle's
+            # and the offline hand-off step's rule, TaskAutomaton.progress_moves)
+            progress = new_mode in self._progress.get(old_mode, frozenset())
+            if not expected and not progress and cause == "invariance failure" and \
+                    self._last is not None and self._entry is not None:
                 self._failure(t, old_mode, new_mode, xv)
             self._enter(new_state)
             if not expected:
@@ -555,6 +562,7 @@ class LTLDSPolicy:
                                                      tuple(sorted(reading)), out.reason))
             return None
         self.automaton = out.automaton
+        self._progress = out.automaton.progress_moves(self.goal_modes)
         self._plan_cache = out.plans
         self._spec_text = spec_to_toml(out.spec)
         self._learned = (*self._learned, (from_mode, out.to_mode))

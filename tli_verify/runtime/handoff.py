@@ -383,15 +383,12 @@ class _Key:
 def _plan(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None
           ) -> tuple[list[_Key], dict[frozenset[str], frozenset[str]]]:
     """Per DS key the plan runs: its mode's readings and the modes its exits may read
-    (the planned next mode, and the successors nearest the goal: the oracle's rule)."""
+    (the planned next mode, and the successors nearest the goal:
+    :meth:`~tli_verify.logic.automaton.TaskAutomaton.progress_moves`, the executive's and the
+    oracle's rule)."""
     steps = plan_states(automaton, model, goal_modes, str(model.path or "model"))
     goals = tuple(automaton.sink_modes() if goal_modes is None else goal_modes)
-    dist = automaton.mode_distances(sorted(goals))
-    far = len(automaton.modes) + 1
-    succ: dict[str, set[str]] = {}
-    for a, b in automaton.mode_transitions():
-        if a != b:
-            succ.setdefault(a, set()).add(b)
+    progress = automaton.progress_moves(goals)
     by_reading: dict[frozenset[str], set[str]] = {}
     mode_readings: dict[str, set[frozenset[str]]] = {}
     for s in automaton.states:
@@ -402,9 +399,7 @@ def _plan(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | No
     for st in steps.values():
         if st.key is None or st.key in keys:
             continue
-        mine = succ.get(st.mode, set())
-        here = dist.get(st.mode, far)
-        allowed = {m for m in mine if dist.get(m, far) < here}
+        allowed = set(progress.get(st.mode, frozenset()))
         if st.next_mode is not None:
             allowed.add(st.next_mode)
         keys[st.key] = _Key(st.key, st.mode, st.next_mode,
