@@ -132,3 +132,45 @@ def test_dock_4d_campaign_with_the_offline_step(tmp_path: Path) -> None:
         "--out", "out/on", "--no-shrink", cwd=root)
     rec = json.loads((root / "out" / "on" / "campaign.json").read_text())
     assert rec["runs"] == 500 and rec["violations"]["looping"] == 0, rec["violations"]
+
+
+def test_a_loop_is_diagnosed_and_the_offline_step_removes_it(tmp_path: Path) -> None:
+    """The 3-D template of ``tli init``, learned without the offline step, loops ``abab...``
+    from a random start with no push (the zone is entered where its DS leaves); the campaign,
+    ``tli replay`` and the case say so: the mode, the regions, where it entered, and the
+    class. With the offline step the same campaign finds no loop."""
+    _ok("init", "proj", "--name", "box", "--dim", "3", cwd=tmp_path)
+    root = tmp_path / "proj"
+    _ok("demos", "tasks/box.toml", cwd=root)
+    demos = sorted(str(p.relative_to(root)) for p in (root / "demos").glob("*.csv"))
+    campaign = ("verify", "--spec", "specs/box.toml", "--examples", "500", "--random-starts",
+                "--max-pushes", "0", "--out")
+    _ok("learn", *demos, "--spec", "specs/box.toml", "-o", "models/box.model.json",
+        "--no-handoff", cwd=root)
+    _ok("certify", "models/box.model.json", cwd=root)
+    rc, out, err = run(*campaign, "out/off", cwd=root)
+    rec = json.loads((root / "out" / "off" / "campaign.json").read_text())
+    assert rc == 1 and rec["violations"]["looping"] >= 1, (out, err)
+    md = (root / "out" / "off" / "campaign.md").read_text()
+    assert "Diagnosis: mode b leaves into a" in md and "composition gap" in md
+    assert "from region zone" in md and "into region free" in md
+    rc, out, _ = run("replay", "out/off/counterexample.json", cwd=root)
+    assert rc == 1 and "REPRODUCED" in out
+    assert "Diagnosis: mode b leaves into a" in out and "where mode a's flow handed it off" in out
+    _ok("learn", *demos, "--spec", "specs/box.toml", "-o", "models/box.model.json", cwd=root)
+    _ok("certify", "models/box.model.json", cwd=root)
+    _ok(*campaign, "out/on", cwd=root)
+    rec = json.loads((root / "out" / "on" / "campaign.json").read_text())
+    assert rec["violating_runs"] == 0 and rec["cuts_added"] == 0, rec["violations"]
+
+
+def test_learn_refuses_demonstrations_of_another_dimension(tmp_path: Path) -> None:
+    relay = write_project(tmp_path / "relay", "relay")
+    dock = write_project(tmp_path / "dock", "dock")
+    _ok("demos", "tasks/relay.toml", cwd=relay)
+    rc, out, err = run("learn", str(relay / "demos" / "relay_1.csv"), "--spec",
+                       "specs/dock.toml", "-o", "models/dock.model.json", cwd=dock)
+    assert rc == 2 and out == ""
+    assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
+    assert "relay_1.csv: 3 state column(s)" in err and "'dock'" in err and "4 states" in err
+    assert not (dock / "models" / "dock.model.json").exists()

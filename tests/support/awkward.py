@@ -8,7 +8,9 @@ project with :func:`write_project`.
   goal (read as free without the latch) and box 2 (a third mode) on its way to box 1.
 * ``dock`` (4-D, five modes): an ellipsoid (``lens``), a rotated polytope (``dock``), a union
   of two boxes (``yard``), a box (``home``); two latches (``docked``, ``done``); the goal is a
-  mode *and* a sensor (``[goal] modes = ["e"], sensors = ["h"]``).
+  mode *and* a sensor (``[goal] modes = ["e"], sensors = ["h"]``). A push from ``home`` back
+  into the dock or the yard keeps ``docked`` (home is in its keep set), so the spec allows
+  ``a -> c | d`` (``tli task check --spec`` finds it when it does not).
 """
 
 from __future__ import annotations
@@ -203,7 +205,7 @@ e = "{_E}"
 [assume]
 init = "{_A}"
 safety = [
-  "G(({_A}) -> X(({_A}) | ({_B})))",
+  "G(({_A}) -> X(({_A}) | ({_B}) | ({_C}) | ({_D})))",
   "G(({_B}) -> X(({_A}) | ({_B}) | ({_C})))",
   "G(({_C}) -> X(({_A}) | ({_B}) | ({_C}) | ({_D})))",
   "G(({_D}) -> X(({_A}) | ({_B}) | ({_C}) | ({_D}) | ({_E})))",
@@ -214,7 +216,7 @@ liveness = ["GF(!a | l)", "GF(!b | k)", "GF(!c | y)", "GF(!d | h)"]
 [guarantee]
 init = "a & !p"
 safety = [
-  "G(a -> X(a | b))",
+  "G(a -> X(a | b | c | d))",
   "G(b -> X(a | b | c))",
   "G(c -> X(a | b | c | d))",
   "G(d -> X(a | b | c | d | e))",

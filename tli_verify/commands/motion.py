@@ -203,6 +203,30 @@ def _task_dt(spec: Path | None) -> Fraction | None:
     return None if task is None else Fraction(repr(task.dt))
 
 
+def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
+    """Refuse demonstrations whose state dimension differs from the spec's task (before any
+    learning: a model of another dimension would learn and certify, then every command that
+    runs it would refuse it). The sensor columns are checked against the spec's inputs by the
+    demonstration loader."""
+    if spec is None:
+        return
+    from tli_verify.demos import load_demo
+    from tli_verify.errors import DemoError
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.tasks.project import spec_task
+
+    task = spec_task(load_spec(spec), spec)
+    if task is None:
+        return
+    for path in demos:
+        demo = load_demo(path)
+        n = int(demo.x.shape[1])
+        if n != task.dim:
+            raise DemoError(f"{path}: {n} state column(s) (x0..x{n - 1}), but the spec's task "
+                            f"{task.name!r} ({task.where}) has {task.dim} states: these "
+                            "demonstrations are not of this task")
+
+
 def _learn(args: argparse.Namespace) -> int:
     from tli_verify.commands import check_plan
     from tli_verify.defaults import DEFAULT_DT_FLOAT
@@ -212,6 +236,7 @@ def _learn(args: argparse.Namespace) -> int:
 
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
+    _check_demos_fit_task(args.demos, args.spec)
     control_dt = args.control_dt
     if control_dt is None:
         task_dt = _task_dt(args.spec)

@@ -44,6 +44,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     check.add_argument("--picture", type=output_path, default=None, metavar="OUT.png",
                        help="draw the (first) task's regions (pairwise projections in n-D)")
     check.add_argument("--json", action="store_true", help="one JSON object per task")
+    check.add_argument("--spec", type=Path, default=None, metavar="SPEC.toml",
+                       help="also decide, on the task's geometry, that every sensor change it "
+                       "can produce under any push is one the spec's assumptions allow (exit 1 "
+                       "naming the pair of regions otherwise)")
     check.set_defaults(handler=_check)
     lst = tsub.add_parser("list", help="the tasks the registry knows")
     lst.add_argument("--project", type=Path, default=None,
@@ -163,6 +167,46 @@ def _check(args: argparse.Namespace) -> int:
         plot_task(loaded[0], args.picture)
         if not args.json:
             sys.stdout.write(f"wrote {args.picture}\n")
+    if args.spec is not None:
+        return _check_fit(loaded, args.spec, as_json=args.json)
+    return 0
+
+
+def _check_fit(tasks: list[Any], spec_path: Path, *, as_json: bool) -> int:
+    """``tli task check --spec``: inputs and sensors agree, and every sensor change the task
+    can produce is one the spec's assumptions allow (:mod:`tli_verify.tasks.fit`)."""
+    from tli_verify.errors import CheckFailed, TaskError
+    from tli_verify.io import canonical_json
+    from tli_verify.logic.check import synthesize
+    from tli_verify.logic.spec import load_spec
+    from tli_verify.tasks.fit import task_spec_mismatches
+
+    spec = load_spec(spec_path)
+    bad = 0
+    for task in tasks:
+        missing = [i for i in spec.inputs if i not in task.sensor_names]
+        extra = [s for s in task.sensor_names if s not in spec.inputs]
+        if missing or extra:
+            raise TaskError(f"{task.where}: does not fit {spec_path}: "
+                            + (f"spec input(s) {', '.join(missing)} have no sensor in the task"
+                               if missing else "")
+                            + ("; " if missing and extra else "")
+                            + (f"task sensor(s) {', '.join(extra)} are not inputs of the spec"
+                               if extra else ""))
+        found = task_spec_mismatches(task, synthesize(spec))
+        bad += len(found)
+        if as_json:
+            sys.stdout.write(canonical_json({"task": task.name, "spec": str(spec_path),
+                                             "mismatches": [m.describe() for m in found]}))
+            continue
+        for m in found:
+            sys.stdout.write(f"FAIL  {task.where}: {m.describe()}\n")
+        if not found:
+            sys.stdout.write(f"ok    {task.where}: every sensor change it can produce under "
+                             f"any push is allowed by {spec_path}'s assumptions\n")
+    if bad:
+        raise CheckFailed(f"{spec_path}: {bad} sensor change(s) the task can produce are ruled "
+                          "out by the spec's assumptions (above): a task/spec mismatch")
     return 0
 
 

@@ -382,6 +382,7 @@ def _replay(args: argparse.Namespace) -> int:
     record = {"case": str(args.case), "expected": want, "reproduced": reproduced,
               "violations": kinds,
               "messages": [v.message for v in verdict.violations][:5],
+              "diagnosis": verdict.diagnosis,
               "oracle_modes": verdict.oracle_modes[:200], "files_changed": notes}
     if args.json:
         sys.stdout.write(canonical_json(record))
@@ -391,5 +392,7 @@ def _replay(args: argparse.Namespace) -> int:
             + ("REPRODUCED" if reproduced else "does not reproduce")
             + f" (violations now: {', '.join(kinds) or 'none'}; modes "
             f"{verdict.oracle_modes[:40]})\n")
+        if verdict.diagnosis:
+            sys.stdout.write(f"{verdict.diagnosis}\n")
     return 1 if reproduced else 0
 

@@ -605,6 +605,10 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"{what}: interrupted, incomplete"
     if found:
         kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
+        bad = next((o.verdict for o in getattr(result, "outcomes", ()) if not o.verdict.ok),
+                   None)
+        if bad is not None:  # the first violating run's own words (the oracle's diagnosis)
+            kinds += f" (first: {bad.diagnosis or bad.violations[0].message})"
         return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
                        f"reproduce: tli verify --model {model} --seed {seed} "
                        f"--examples {examples}")

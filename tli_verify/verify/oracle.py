@@ -226,6 +226,11 @@ class Verdict:
         Of those, cuts the state came within ``touch_tol`` of while in their mode.
     oracle_modes : str
         The run-length mode sequence of the oracle's automaton run (``"abcd"``).
+    diagnosis : str
+        For a looping, undecided or assumption-breaking run: the mode, the region it leaves
+        through, where it entered it, and the class (composition gap, invariance,
+        reachability, or an assumption the task breaks); ``""`` otherwise
+        (:meth:`Oracle.diagnose`).
     """
 
     violations: tuple[Violation, ...]
@@ -243,6 +248,7 @@ class Verdict:
     cut_faces: int = 0
     cut_faces_touched: int = 0
     oracle_modes: str = ""
+    diagnosis: str = ""
 
     @property
     def ok(self) -> bool:
@@ -649,6 +655,13 @@ class Oracle:
                              if modes[t - 1] != modes[t]})
         perturbed = sorted({tr.modes[p - 1] for p in pushes if 1 <= p <= T})
         rank = {k: i for i, k in enumerate(PRIORITY)}
+        diagnosis = ""
+        if any(v.kind is ViolationKind.LOOPING for v in viol) or not conclusive \
+                or not assumptions_ok:
+            diagnosis = self.diagnose(tr, modes, readings, t0=min(max([last_push, 0]), end),
+                                      assumptions_ok=assumptions_ok)
+            viol = [Violation(v.kind, v.step, f"{v.message}. {diagnosis}")
+                    if v.kind is ViolationKind.LOOPING and diagnosis else v for v in viol]
         viol.sort(key=lambda v: (rank[v.kind], v.step))
         return Verdict(violations=tuple(viol), reached=goal_step is not None,
                        goal_step=goal_step, deadline_step=deadline, conclusive=conclusive,
@@ -656,7 +669,78 @@ class Oracle:
                        robustness=float(robustness), edges=tuple(edges),
                        mode_edges=tuple(mode_edges), modes_perturbed=tuple(perturbed),
                        cut_faces=len(tr.cuts), cut_faces_touched=touched,
-                       oracle_modes=_runs(modes))
+                       oracle_modes=_runs(modes), diagnosis=diagnosis)
+
+    # ------------------------------------------------------------------ diagnosis
+    def diagnose(self, tr: Trace, modes: Sequence[str], readings: Sequence[frozenset[str]],
+                 *, t0: int, assumptions_ok: bool) -> str:
+        """Why a run loops, stays undecided or leaves the assumptions, in one sentence.
+
+        Classes: an **assumption** the task breaks (a reading the spec's assumptions rule
+        out); a **composition gap** (the mode that keeps being left was entered where the
+        previous mode's flow handed it off, and its DS leaves from there); **invariance** (it
+        was entered at the start or by a push); **reachability** (no unprovoked exit: the
+        run rests in a mode, its DS at an attractor where the next reading never comes). The
+        region it leaves through is the true region of the states before and after the exit.
+        """
+        X = tr.read_states
+        names = tuple(getattr(self.world, "region_names", ()))
+
+        def region(t: int) -> str:
+            if not names:
+                return "?"
+            return str(names[int(self.world.region_index(X[t:t + 1])[0])])
+
+        def at(t: int) -> str:
+            return "[" + ", ".join(f"{v:.3g}" for v in X[t].tolist()) + "]"
+
+        end = len(modes) - 1
+        if not assumptions_ok:
+            t = end + 1 if end + 1 < len(readings) else end
+            prev = modes[end] if modes else "?"
+            return (f"Diagnosis: an assumption the task breaks: at step {t} the reading "
+                    f"{sorted(readings[t])} (region {region(min(t, len(X) - 1))}) is one the "
+                    f"spec's assumptions rule out from mode {prev} (a task/spec mismatch: "
+                    "tli task check --spec finds such pairs)")
+        pushes = set(tr.pushes)
+        lag = int(getattr(self.world, "lag", 0))
+        exits: dict[tuple[str, str], list[int]] = {}
+        for t in range(max(t0, 1), end + 1):
+            a, b = modes[t - 1], modes[t]
+            if a == b or b in self.planned.get(a, frozenset()):
+                continue
+            if any(t - lag - 1 <= p <= t for p in pushes):
+                continue
+            exits.setdefault((a, b), []).append(t)
+        if exits:
+            (a, b), steps = max(exits.items(), key=lambda kv: (len(kv[1]), kv[1][-1]))
+            t = steps[-1]
+            e = t - 1
+            while e > 0 and modes[e - 1] == a:
+                e -= 1
+            if e == 0:
+                how, cls = "at the start", "invariance"
+            elif any(e - lag - 1 <= p <= e for p in pushes):
+                how, cls = "by a push", "invariance"
+            elif a in self.planned.get(modes[e - 1], frozenset()):
+                how = f"where mode {modes[e - 1]}'s flow handed it off"
+                cls = ("composition gap: the previous mode's flow enters it where its DS "
+                       "leaves (tli learn's offline hand-off step closes it where the regions "
+                       "are known: docs/explanation/handoff)")
+            else:
+                how, cls = f"from mode {modes[e - 1]}", "invariance"
+            return (f"Diagnosis: mode {a} leaves into {b} {len(steps)} time(s) without a push, "
+                    f"last at step {t}, from region {region(t - 1)} at {at(t - 1)} into region "
+                    f"{region(t)}; it was entered at step {e} at {at(e)} {how}: {cls}")
+        m = modes[end] if modes else "?"
+        p = self.params.get(m)
+        if p is not None:
+            d = float(np.linalg.norm(X[end] - p.attractor))
+            return (f"Diagnosis: reachability: the run stays in mode {m} (region "
+                    f"{region(end)}) and ends {d:.3g} from its DS's attractor "
+                    f"{np.round(p.attractor, 4).tolist()} with no unprovoked exit: the next "
+                    "reading does not come where the DS rests")
+        return f"Diagnosis: the run stays in mode {m} (region {region(end)})"
 
 
 def _runs(modes: Sequence[str]) -> str:
