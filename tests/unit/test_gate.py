@@ -51,6 +51,7 @@ def test_gate_passes_on_a_certified_project(project: Path) -> None:
         ("model", "models/scoop.model.json", "spec"),
         ("model", "models/scoop.model.json", "modes"),
         ("model", "models/scoop.model.json", "task"),
+        ("model", "models/scoop.model.json", "handoff"),
         ("model", "models/scoop.model.json", "campaign"),
     ]
 

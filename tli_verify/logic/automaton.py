@@ -291,7 +291,8 @@ class TaskAutomaton:
 
     def progress_moves(self, goal_modes: Iterable[str]) -> dict[str, frozenset[str]]:
         """The mode changes that count as planned progress, per mode: the successors of the
-        mode (in the mode graph) at the least distance to a goal mode.
+        mode (in the mode graph) at the least distance to a goal mode, which is less than the
+        mode's own (none for a goal mode).
 
         One rule for the executive (such a change is a replan, never an invariance failure to
         cut), the oracle (it is not an unprovoked exit) and the offline hand-off step (an exit
@@ -300,16 +301,33 @@ class TaskAutomaton:
         goals = list(goal_modes)
         dist = self.mode_distances(goals)
         far = len(self.modes) + 1
-        succ: dict[str, set[str]] = {}
-        for a, b in self.mode_transitions():
-            if a != b:
-                succ.setdefault(a, set()).add(b)
         out: dict[str, frozenset[str]] = {}
-        for m in sorted({st.mode for st in self.states}):
-            nxt = succ.get(m, set())
+        for m, nxt in self._successors().items():
+            best = min((dist.get(n, far) for n in nxt), default=far)
+            # strictly nearer: the least-distance successors of a mode that reaches the goal
+            # (leaving a goal mode is never progress)
+            out[m] = frozenset(n for n in nxt if dist.get(n, far) == best
+                               and best < dist.get(m, far))
+        return out
+
+    def least_distance_successors(self, goal_modes: Iterable[str]) -> dict[str, frozenset[str]]:
+        """Per mode, its successors at the least distance to a goal mode (for a goal mode that
+        is not a sink: where a perturbation may take it; the oracle does not judge a run after
+        its goal)."""
+        dist = self.mode_distances(list(goal_modes))
+        far = len(self.modes) + 1
+        out: dict[str, frozenset[str]] = {}
+        for m, nxt in self._successors().items():
             best = min((dist.get(n, far) for n in nxt), default=far)
             out[m] = frozenset(n for n in nxt if dist.get(n, far) == best)
         return out
+
+    def _successors(self) -> dict[str, set[str]]:
+        succ: dict[str, set[str]] = {m: set() for m in sorted({st.mode for st in self.states})}
+        for a, b in self.mode_transitions():
+            if a != b and a in succ:
+                succ[a].add(b)
+        return succ
 
     def planned_keys(self, ds: DSKeys, goal_modes: Sequence[str] | None = None
                      ) -> tuple[PlannedStep, ...]:

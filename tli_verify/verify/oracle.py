@@ -383,15 +383,19 @@ class Oracle:
         goals = (frozenset(automaton.sink_modes()) if goal_modes is None
                  else frozenset(goal_modes))
         progress = automaton.progress_moves(sorted(goals))
+        nearest = automaton.least_distance_successors(sorted(goals))
         planned: dict[str, frozenset[str]] = {}
         nxt: dict[str, str | None] = {}
         for m in run_modes:
-            plan = set(progress.get(m, frozenset()))
+            # planned progress (the executive's rule); from a goal mode the run is complete
+            # and a change to its nearest successor is not judged
+            plan = set(nearest.get(m, frozenset()) if m in goals else
+                       progress.get(m, frozenset()))
             named = [mm.next_mode for mm in model.modes.values()
                      if mm.mode == m and mm.next_mode is not None]
             plan |= {s for s in named if s in succ[m]}
             planned[m] = frozenset(plan)
-            pick = [s for s in named if s in plan] or sorted(progress.get(m, frozenset()))
+            pick = [s for s in named if s in plan] or sorted(nearest.get(m, frozenset()))
             nxt[m] = pick[0] if pick and m not in goals else None
         path: dict[str, tuple[str, ...]] = {}
         for m in run_modes:
