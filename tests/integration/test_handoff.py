@@ -157,11 +157,20 @@ def test_a_loop_is_diagnosed_and_the_offline_step_removes_it(tmp_path: Path) -> 
     rc, out, _ = run("replay", "out/off/counterexample.json", cwd=root)
     assert rc == 1 and "REPRODUCED" in out
     assert "Diagnosis: mode b leaves into a" in out and "where mode a's flow handed it off" in out
+    # the workspace box is a bound: a run whose DS leaves it is flagged, not clipped
+    corner = "--start=-0.9999,-0.6103,-0.2127"
+    rc, out, err = run("run", "--spec", "specs/box.toml", corner, "--out", "out/r0", cwd=root)
+    flag = json.loads((root / "out" / "r0" / "run.json").read_text()).get("beyond_workspace")
+    assert flag is not None and flag["steps"] >= 1, (out, err)
+    assert "left the workspace box at step" in err
     _ok("learn", *demos, "--spec", "specs/box.toml", "-o", "models/box.model.json", cwd=root)
     _ok("certify", "models/box.model.json", cwd=root)
     _ok(*campaign, "out/on", cwd=root)
     rec = json.loads((root / "out" / "on" / "campaign.json").read_text())
     assert rec["violating_runs"] == 0 and rec["cuts_added"] == 0, rec["violations"]
+    assert rec["runs_beyond_workspace"] == 0
+    _ok("run", "--spec", "specs/box.toml", corner, "--out", "out/r1", cwd=root)
+    assert "beyond_workspace" not in json.loads((root / "out" / "r1" / "run.json").read_text())
 
 
 def test_learn_refuses_demonstrations_of_another_dimension(tmp_path: Path) -> None:

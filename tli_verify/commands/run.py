@@ -259,6 +259,15 @@ def _run(args: argparse.Namespace) -> int:
             record["animation"] = str(out / "run.gif")
         except TliError as exc:
             notes.append(f"animation not drawn: {exc}")
+    outside = ~task.in_workspace(res.states)
+    if outside.any():  # a bound of the task: flagged, never clipped silently
+        k = int(np.argmax(outside))
+        record["beyond_workspace"] = {"steps": int(outside.sum()), "first_step": k,
+                                      "state": [float(v) for v in res.states[k]]}
+        notes.append(f"the state left the workspace box at step {k} "
+                     f"({[round(float(v), 4) for v in res.states[k]]}; {int(outside.sum())} "
+                     "step(s) beyond it): the workspace is a bound of the task (joint limits "
+                     "in a joint-space task), and the picture shows the box only")
     picture = _picture(task, res, nominal, out / "run.png", variant, args.seed, notes)
     if picture is not None:
         record["picture"] = str(picture)

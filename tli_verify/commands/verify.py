@@ -270,6 +270,11 @@ def write_report(result: Any, out: Path) -> list[Path]:
     lines += ["", f"Task satisfied in {result.task_satisfied} of {result.runs} runs; "
               f"{result.cuts_added} cut(s) added; {result.inconclusive} run(s) with "
               "reachability undecided (ended early).", ""]
+    beyond = sum(1 for o in result.outcomes if o.verdict.beyond_workspace)
+    if beyond:
+        lines += [f"**{beyond} run(s) left the workspace box** (a bound of the task: joint "
+                  "limits in a joint-space task); the pictures show the box, not beyond it.",
+                  ""]
     lines += _cuts_table(result)
     cov = result.coverage
     lines += ["## Coverage", "",

@@ -161,6 +161,8 @@ class CampaignResult:
             "task_satisfied": self.task_satisfied,
             "cuts_added": self.cuts_added,
             "cuts_by_mode": self.cuts_by_mode(),
+            "runs_beyond_workspace": sum(1 for o in self.outcomes
+                                         if o.verdict.beyond_workspace),
             "inconclusive": self.inconclusive,
             "coverage": self.coverage,
             "counterexample": self.counterexample,

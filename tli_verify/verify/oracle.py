@@ -231,6 +231,9 @@ class Verdict:
         through, where it entered it, and the class (composition gap, invariance,
         reachability, or an assumption the task breaks); ``""`` otherwise
         (:meth:`Oracle.diagnose`).
+    beyond_workspace : int
+        States of the trace outside the task's workspace box (a bound: flagged, never
+        clipped; joint limits in a joint-space task).
     """
 
     violations: tuple[Violation, ...]
@@ -249,6 +252,7 @@ class Verdict:
     cut_faces_touched: int = 0
     oracle_modes: str = ""
     diagnosis: str = ""
+    beyond_workspace: int = 0
 
     @property
     def ok(self) -> bool:
@@ -673,7 +677,14 @@ class Oracle:
                        robustness=float(robustness), edges=tuple(edges),
                        mode_edges=tuple(mode_edges), modes_perturbed=tuple(perturbed),
                        cut_faces=len(tr.cuts), cut_faces_touched=touched,
-                       oracle_modes=_runs(modes), diagnosis=diagnosis)
+                       oracle_modes=_runs(modes), diagnosis=diagnosis,
+                       beyond_workspace=self._beyond(tr.states))
+
+    def _beyond(self, X: FloatArray) -> int:
+        inside = getattr(self.world, "in_workspace", None)
+        if inside is None:
+            return 0
+        return int(np.count_nonzero(~np.asarray(inside(X), dtype=bool)))
 
     # ------------------------------------------------------------------ diagnosis
     def diagnose(self, tr: Trace, modes: Sequence[str], readings: Sequence[frozenset[str]],
