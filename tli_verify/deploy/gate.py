@@ -273,13 +273,22 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     return items
 
 
+HANDOFF_RETEST = 100
+"""Fresh states per DS the gate draws (twice: drawn, then from the hand-offs) to re-test a
+*sampled* hand-off claim on its own seed (from the model file's SHA-256)."""
+
+
 def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
-    """Which hand-off guarantees are proved (re-decided here) and which are tested
-    (:func:`tli_verify.runtime.handoff.handoff_status`)."""
+    """Which hand-off guarantees are proved (re-decided here) and which are tested (re-tested
+    on the gate's own draw) (:func:`tli_verify.runtime.handoff.handoff_status`)."""
+    import hashlib
+
     from tli_verify.runtime.handoff import handoff_status
 
+    seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + Path(str(model.path)).read_bytes()
+                                         ).digest()[:4], "big") if model.path else 0
     try:
-        ok, lines = handoff_status(model, spec_path)
+        ok, lines = handoff_status(model, spec_path, retest=HANDOFF_RETEST, seed=seed)
     except TliError as exc:
         return GateItem("model", name, False, f"hand-off record does not re-check: {exc}",
                         "handoff")

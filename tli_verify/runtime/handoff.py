@@ -1082,7 +1082,29 @@ def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
     return HandoffContext(task=task, automaton=automaton, goal_modes=tuple(modes))
 
 
-def handoff_status(model: Model, spec_path: str | Any) -> tuple[bool, list[str]]:
+def retest_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: float,
+                    goal_modes: Sequence[str] | None = None, samples: int = 200,
+                    seed: int = 0) -> dict[str, list[Exit]]:
+    """Draw ``samples`` fresh states per DS key (with the modes' hand-off states) on ``seed``
+    and simulate them with the model's cuts, learning nothing: the exits each key shows (the
+    gate's own test of a *sampled* claim)."""
+    keys, by_reading = _plan(automaton, model, goal_modes)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))
+    entries: dict[str, list[tuple[FloatArray, BoolArray]]] = {}
+    out: dict[str, list[Exit]] = {}
+    for _ in range(2):  # the second pass starts from the first's hand-off states too
+        for k in keys:
+            X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
+            res = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
+                            steps=_horizon(model, k.key, task, dt), automaton=automaton)
+            out.setdefault(k.key, []).extend(e for e in res.exits if e.kind != "assumption")
+            for mode, x, la in res.handed:
+                entries.setdefault(mode, []).append((x, la))
+    return out
+
+
+def handoff_status(model: Model, spec_path: str | Any, *, retest: int = 0,
+                   seed: int = 0) -> tuple[bool, list[str]]:
     """The hand-off guarantees of a model file, re-checked where they can be: one line per
     DS (proved and re-decided, tested on N states, or online only), and whether nothing
     fails (a proved claim that does not re-decide, or a recorded hand-off with exits).
@@ -1102,10 +1124,22 @@ def handoff_status(model: Model, spec_path: str | Any) -> tuple[bool, list[str]]
                       "its modes' boundaries are learned online; tli learn records it)"]
     ok = True
     lines: list[str] = []
+    found: dict[str, list[Exit]] = {}
+    if retest:
+        found = retest_handoffs(ctx.task, ctx.automaton, model, dt=ctx.task.dt,
+                                goal_modes=ctx.goal_modes, samples=retest, seed=seed)
     for claim, good, msg in recheck_handoffs(ctx.task, ctx.automaton, model,
                                              goal_modes=ctx.goal_modes):
         if not good or (claim.established != PROVED and not claim.holds):
             ok = False
             msg = msg if not good else f"{msg}: {claim.note}"
+        elif claim.established == SAMPLED and retest:
+            bad = found.get(claim.key, [])
+            if bad and claim.exits == 0:
+                ok = False
+                msg = (f"{msg}; re-tested on {2 * retest} fresh states (seed {seed}): "
+                       f"{len(bad)} exit(s), the claim does not hold: {bad[0].describe()}")
+            else:
+                msg += f"; re-tested on {2 * retest} fresh states (seed {seed}): 0 exits"
         lines.append(msg)
     return ok, lines
