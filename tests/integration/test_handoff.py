@@ -183,3 +183,29 @@ def test_learn_refuses_demonstrations_of_another_dimension(tmp_path: Path) -> No
     assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
     assert "relay_1.csv: 3 state column(s)" in err and "'dock'" in err and "4 states" in err
     assert not (dock / "models" / "dock.model.json").exists()
+
+
+def test_the_gate_retests_a_sampled_claim_on_its_own_draw(relay: tuple[Path, str],
+                                                         tmp_path: Path) -> None:
+    """Forgery only the re-test catches: every cut removed, every claim rewritten as
+    "sampled, 0 exits" (no proved claim left to re-decide), the model re-certified (its
+    certificate now covers the forged bytes): the gate's own draw finds the exits."""
+    root, _ = relay
+    forged = tmp_path / "forged"
+    for sub in ("tasks", "specs", "models"):
+        (forged / sub).mkdir(parents=True)
+        for f in (root / sub).iterdir():
+            (forged / sub / f.name).write_bytes(f.read_bytes())
+    path = forged / "models" / "relay.model.json"
+    doc = json.loads(path.read_text())
+    for m in doc["modes"].values():
+        m["cuts"] = []
+    for c in doc["source"]["handoff"]["claims"]:
+        c.update(established="sampled", exits=0, rests=0, cuts=0, note="")
+    path.write_text(json.dumps(doc))
+    _ok("certify", "models/relay.model.json", cwd=forged)
+    rc, out, _ = run("check-cert", "certificates/relay.cert.json", cwd=forged)
+    assert rc == 0  # nothing proved to re-decide: check-cert reports the claims as tested
+    rc, out, _ = run("gate", ".", cwd=forged)
+    line = next(ln for ln in out.splitlines() if ": handoff: " in ln)
+    assert line.startswith("BLOCK") and "the claim does not hold" in line, line
