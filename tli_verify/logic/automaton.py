@@ -41,6 +41,7 @@ __all__ = [
     "TaskAutomaton",
     "Transition",
     "extract_automaton",
+    "plan_progress",
 ]
 
 MAX_AUTOMATON_STATES = 5_000
@@ -288,46 +289,6 @@ class TaskAutomaton:
                     dist[p] = dist[m] + 1
                     queue.append(p)
         return dist
-
-    def progress_moves(self, goal_modes: Iterable[str]) -> dict[str, frozenset[str]]:
-        """The mode changes that count as planned progress, per mode: the successors of the
-        mode (in the mode graph) at the least distance to a goal mode, which is less than the
-        mode's own (none for a goal mode).
-
-        One rule for the executive (such a change is a replan, never an invariance failure to
-        cut), the oracle (it is not an unprovoked exit) and the offline hand-off step (an exit
-        there is an allowed hand-off): :mod:`tli_verify.runtime.handoff`.
-        """
-        goals = list(goal_modes)
-        dist = self.mode_distances(goals)
-        far = len(self.modes) + 1
-        out: dict[str, frozenset[str]] = {}
-        for m, nxt in self._successors().items():
-            best = min((dist.get(n, far) for n in nxt), default=far)
-            # strictly nearer: the least-distance successors of a mode that reaches the goal
-            # (leaving a goal mode is never progress)
-            out[m] = frozenset(n for n in nxt if dist.get(n, far) == best
-                               and best < dist.get(m, far))
-        return out
-
-    def least_distance_successors(self, goal_modes: Iterable[str]) -> dict[str, frozenset[str]]:
-        """Per mode, its successors at the least distance to a goal mode (for a goal mode that
-        is not a sink: where a perturbation may take it; the oracle does not judge a run after
-        its goal)."""
-        dist = self.mode_distances(list(goal_modes))
-        far = len(self.modes) + 1
-        out: dict[str, frozenset[str]] = {}
-        for m, nxt in self._successors().items():
-            best = min((dist.get(n, far) for n in nxt), default=far)
-            out[m] = frozenset(n for n in nxt if dist.get(n, far) == best)
-        return out
-
-    def _successors(self) -> dict[str, set[str]]:
-        succ: dict[str, set[str]] = {m: set() for m in sorted({st.mode for st in self.states})}
-        for a, b in self.mode_transitions():
-            if a != b and a in succ:
-                succ[a].add(b)
-        return succ
 
     def planned_keys(self, ds: DSKeys, goal_modes: Sequence[str] | None = None
                      ) -> tuple[PlannedStep, ...]:
@@ -648,3 +609,34 @@ def extract_automaton(solution: Solution) -> TaskAutomaton:
         transitions=tuple(transitions),
         free_inputs=free,
     )
+
+
+def plan_progress(steps: Iterable[PlannedStep]) -> dict[str, frozenset[str]]:
+    """The mode changes that are planned progress, per mode: the modes *later on the mode's
+    planned path* (following the planner's next modes, :meth:`TaskAutomaton.planned_keys`,
+    from every state of the mode).
+
+    One rule for the executive (such a change is a replan, never an invariance failure to
+    cut) and the offline hand-off step (an exit there is an allowed hand-off,
+    :mod:`tli_verify.runtime.handoff`). A change to a later mode of the plan moves strictly
+    forward along a path the plan follows anyway, so such changes cannot cycle; the mode graph's
+    distance to the goal would not do (a spec that allows a shortcut from the first mode makes
+    it as near the goal as a later mode, and the two could hand the state back and forth).
+    """
+    nxt: dict[str, set[str]] = {}
+    for st in steps:
+        nxt.setdefault(st.mode, set())
+        if st.next_mode is not None:
+            nxt[st.mode].add(st.next_mode)
+    out: dict[str, frozenset[str]] = {}
+    for m in nxt:
+        seen: set[str] = set()
+        todo = list(nxt[m])
+        while todo:
+            n = todo.pop()
+            if n in seen or n == m:
+                continue
+            seen.add(n)
+            todo.extend(nxt.get(n, ()))
+        out[m] = frozenset(seen)
+    return out

@@ -15,8 +15,8 @@ every control period returns the velocity to apply. Per step it
 3. **replanning**: a mode other than the planned next one is followed (receding horizon,
    :class:`~.events.Replan`);
 4. **invariance failures**: such an exit that no perturbation caused, into a mode that is not
-   planned progress either (a successor nearest the goal,
-   :meth:`TaskAutomaton.progress_moves`: the oracle's rule), (the caller reports
+   planned progress either (a later mode of the plan,
+   :func:`~tli_verify.logic.automaton.plan_progress`), (the caller reports
    perturbations: ``step(..., perturbed=True)`` or :meth:`LTLDSPolicy.notify_perturbation`) is
    an invariance failure of the mode left (an exit across a reading the assumptions rule out
    is reported as an assumption violation and cuts nothing). The executive records
@@ -61,7 +61,12 @@ import numpy.typing as npt
 
 from tli_verify.boundary.cuts import InvarianceFailure as _Failure
 from tli_verify.errors import CertificateError, ModelError, TliError
-from tli_verify.logic.automaton import AssumptionViolation, PlannedStep, TaskAutomaton
+from tli_verify.logic.automaton import (
+    AssumptionViolation,
+    PlannedStep,
+    TaskAutomaton,
+    plan_progress,
+)
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import check_coverage, plan_states
 from tli_verify.runtime.events import (
@@ -226,7 +231,7 @@ class LTLDSPolicy:
         self.goal_inputs = frozenset(goal_inputs)
         self._plan_cache: dict[int, PlannedStep] = plan_states(
             automaton, model, self.goal_modes, str(model.path))
-        self._progress = automaton.progress_moves(self.goal_modes)
+        self._progress = plan_progress(self._plan_cache.values())
         self.learn_transitions = bool(learn_transitions)
         self._spec_text: str | None = None
         if spec is not None:
@@ -263,6 +268,15 @@ class LTLDSPolicy:
         self._holding = False
         self._entries: dict[str, list[FloatArray]] = {}
         self._inputs = frozenset(automaton.inputs)
+
+    def drop_cuts(self) -> None:
+        """Run the nominal DS of every mode from now on: the model's cuts -- the ones learned
+        offline included -- are not used (the no-modulation ablation, with
+        ``learn_cuts=False``; paper Sec. 7.2)."""
+        self._model = Model(state_names=self._model.state_names,
+                            modes={k: mm.with_cuts(()) for k, mm in self._model.modes.items()},
+                            spec=self._model.spec, path=self._model.path,
+                            source=self._model.source)
 
     # ---------------------------------------------------------------- public state
     @property
@@ -489,8 +503,8 @@ class LTLDSPolicy:
             # a cut only for a policy-made exit: not after a perturbation, and not across a
             # reading the assumptions rule out (a sensor glitch or an unreported push; its
             # "last in-mode state" may not be one)
-            # nor for a move to a successor nearest the goal (planned progress: the oracle's
-            # and the offline hand-off step's rule, TaskAutomaton.progress_moves)
+            # nor for a move to a later mode of the plan (planned progress: the offline
+            # hand-off step's rule too, plan_progress)
             progress = new_mode in self._progress.get(old_mode, frozenset())
             if not expected and not progress and cause == "invariance failure" and \
                     self._last is not None and self._entry is not None:
@@ -562,8 +576,8 @@ class LTLDSPolicy:
                                                      tuple(sorted(reading)), out.reason))
             return None
         self.automaton = out.automaton
-        self._progress = out.automaton.progress_moves(self.goal_modes)
         self._plan_cache = out.plans
+        self._progress = plan_progress(self._plan_cache.values())
         self._spec_text = spec_to_toml(out.spec)
         self._learned = (*self._learned, (from_mode, out.to_mode))
         self._refused = frozenset()  # the spec changed: earlier refusals may not hold now

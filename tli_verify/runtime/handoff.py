@@ -15,14 +15,14 @@ and ``V`` decreases at least as fast as without the cuts). If
 
 * **(E1)** every state of ``delta_m`` lies on the inner side of every cut of ``m``, and
 * **(E2)** every state reached from ``delta_m`` that is inside the cuts but no longer in
-  ``delta_m`` reads a mode the plan allows (``n``, or a mode nearer the goal),
+  ``delta_m`` reads a mode the plan allows (``n``, or a later mode of the plan),
 
 then from *every* state of ``delta_m`` -- wherever a previous mode or a push left it -- the
 closed loop stays in ``delta_m`` until it hands off to an allowed mode, within the certified
 deadline. If every key the plan runs satisfies (E1)-(E2), every mode change without a
-perturbation moves strictly closer to the goal in the automaton's mode graph, so after the last
-perturbation there are at most ``dist(m)`` mode changes and no cut is ever learned online:
-looping is impossible by construction.
+perturbation moves strictly forward along the planned path (:func:`plan_progress`), so after
+the last perturbation there are at most as many mode changes as the path has modes and no cut
+is ever learned online: looping is impossible by construction.
 
 **How it is established** (:func:`learn_handoffs`):
 
@@ -62,7 +62,7 @@ import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut, InvarianceFailure
 from tli_verify.errors import ModelError, TliError
-from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.logic.automaton import TaskAutomaton, plan_progress
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import plan_states
 from tli_verify.runtime.online import online_cut
@@ -383,12 +383,11 @@ class _Key:
 def _plan(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None
           ) -> tuple[list[_Key], dict[frozenset[str], frozenset[str]]]:
     """Per DS key the plan runs: its mode's readings and the modes its exits may read
-    (the planned next mode, and the successors nearest the goal:
-    :meth:`~tli_verify.logic.automaton.TaskAutomaton.progress_moves`, the executive's and the
-    oracle's rule)."""
+    (the planned next mode, and the later modes of its plan:
+    :func:`~tli_verify.logic.automaton.plan_progress`, the executive's rule)."""
     steps = plan_states(automaton, model, goal_modes, str(model.path or "model"))
     goals = tuple(automaton.sink_modes() if goal_modes is None else goal_modes)
-    progress = automaton.progress_moves(goals)
+    progress = plan_progress(steps.values())
     by_reading: dict[frozenset[str], set[str]] = {}
     mode_readings: dict[str, set[frozenset[str]]] = {}
     for s in automaton.states:

@@ -8,7 +8,8 @@ compared in the paper (:data:`VARIANTS`):
 
 - ``LTL-DS``: the executive (:class:`~tli_verify.runtime.executive.LTLDSPolicy`): replanning
   and cuts learned online;
-- ``no-modulation``: the executive without cuts (``learn_cuts=False``): replanning only;
+- ``no-modulation``: the executive without cuts (``learn_cuts=False``, and the model's own
+  cuts, offline ones included, dropped: :meth:`LTLDSPolicy.drop_cuts`): replanning only;
 - ``no-replan``: :class:`SequencePolicy`, the demonstrated mode sequence run open loop (a
   mode's DS runs until the reading shows the planned next mode; an unexpected reading does not
   change the DS run), cuts learned as in LTL-DS;
@@ -194,6 +195,9 @@ def make_policy(setup: Setup, variant: str, **kwargs: Any) -> LTLDSPolicy:
         return SequencePolicy(setup.automaton, setup.model, setup.certificate,
                               goal_modes=setup.goal.modes, goal_inputs=setup.goal.sensors,
                               dt=setup.task.dt, **kwargs)
-    return LTLDSPolicy(setup.automaton, setup.model, setup.certificate,
-                       learn_cuts=variant != "no-modulation", goal_modes=setup.goal.modes,
-                       goal_inputs=setup.goal.sensors, dt=setup.task.dt, **kwargs)
+    policy = LTLDSPolicy(setup.automaton, setup.model, setup.certificate,
+                         learn_cuts=variant != "no-modulation", goal_modes=setup.goal.modes,
+                         goal_inputs=setup.goal.sensors, dt=setup.task.dt, **kwargs)
+    if variant == "no-modulation":  # the nominal DS: no cut of the model either (offline ones)
+        policy.drop_cuts()
+    return policy

@@ -386,20 +386,19 @@ class Oracle:
         # the same distances the runtime's planner ranks by (logic layer, not policy code)
         goals = (frozenset(automaton.sink_modes()) if goal_modes is None
                  else frozenset(goal_modes))
-        progress = automaton.progress_moves(sorted(goals))
-        nearest = automaton.least_distance_successors(sorted(goals))
+        dist = automaton.mode_distances(sorted(goals))
+        far = len(run_modes) + 1
         planned: dict[str, frozenset[str]] = {}
         nxt: dict[str, str | None] = {}
         for m in run_modes:
-            # planned progress (the executive's rule); from a goal mode the run is complete
-            # and a change to its nearest successor is not judged
-            plan = set(nearest.get(m, frozenset()) if m in goals else
-                       progress.get(m, frozenset()))
+            best = min((dist.get(s, far) for s in succ[m]), default=far)
+            plan = {s for s in succ[m] if dist.get(s, far) == best}
             named = [mm.next_mode for mm in model.modes.values()
                      if mm.mode == m and mm.next_mode is not None]
             plan |= {s for s in named if s in succ[m]}
             planned[m] = frozenset(plan)
-            pick = [s for s in named if s in plan] or sorted(nearest.get(m, frozenset()))
+            pick = [s for s in named if s in plan] or sorted(s for s in plan
+                                                             if dist.get(s, far) == best)
             nxt[m] = pick[0] if pick and m not in goals else None
         path: dict[str, tuple[str, ...]] = {}
         for m in run_modes:

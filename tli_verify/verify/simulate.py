@@ -183,6 +183,8 @@ def load(spec: SimSpec) -> Loaded:
     goal_inputs = resolved.goal.sensors
     base = LTLDSPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation,
                          goal_modes=goal_modes, goal_inputs=goal_inputs, dt=task.dt)
+    if not spec.modulation:  # the ablation runs the nominal DS (make_policy's rule)
+        base.drop_cuts()
     oracle = Oracle.build(task, automaton, model, spec.certificate, dt=base.dt,
                           max_cycles=spec.max_cycles, goal_modes=goal_modes,
                           goal_inputs=goal_inputs)
