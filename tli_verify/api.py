@@ -57,7 +57,8 @@ def _spec_path(spec: Any) -> Path | None:
 
 
 def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
-          out: PathLike | None = None, **options: Any) -> Any:
+          out: PathLike | None = None, handoff: bool = True, handoff_samples: int = 1000,
+          **options: Any) -> Any:
     """Learn a certified-stable LPV-DS per mode from demonstrations (``tli learn``).
 
     Parameters
@@ -70,6 +71,12 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
     seed : int, optional
     out : path-like, optional
         Also save the model there (atomically).
+    handoff : bool, optional
+        Where the spec's task declares its regions, find every mode's exits offline, cut them
+        and record the hand-off claims in the model (``tli learn``'s default;
+        :func:`tli_verify.runtime.handoff.learn_handoffs`, docs/explanation/handoff).
+    handoff_samples : int, optional
+        States drawn per DS in each round of that step.
     **options
         More keyword arguments of :func:`tli_verify.model.learn.learn_model` (``eps``, ``rate``,
         ``control_dt``, ``clustering``, ``lyapunov``).
@@ -99,6 +106,16 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
             if task_dt is not None:
                 options["control_dt"] = task_dt
         model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, **options)
+        if handoff and spec_path is not None:
+            from tli_verify.defaults import DEFAULT_DT_FLOAT
+            from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
+
+            ctx = context_for_spec(spec_path)
+            if ctx is not None:
+                dt = float(options.get("control_dt") or DEFAULT_DT_FLOAT)
+                model = learn_handoffs(ctx.task, ctx.automaton, model, dt=dt,
+                                       goal_modes=ctx.goal_modes, samples=handoff_samples,
+                                       seed=seed).model
         if out is not None:
             save_model(model, out)
             from tli_verify.model.serialize import load_model

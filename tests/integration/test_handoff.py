@@ -209,3 +209,16 @@ def test_the_gate_retests_a_sampled_claim_on_its_own_draw(relay: tuple[Path, str
     rc, out, _ = run("gate", ".", cwd=forged)
     line = next(ln for ln in out.splitlines() if ": handoff: " in ln)
     assert line.startswith("BLOCK") and "the claim does not hold" in line, line
+
+
+def test_the_python_api_learns_the_hand_off_too(tmp_path: Path) -> None:
+    import tli_verify as tli
+
+    root = write_project(tmp_path, "relay")
+    task = tli.load_task(root / "tasks" / "relay.toml")
+    model = tli.learn(task.demonstrate(seed=0), spec=root / "specs" / "relay.toml")
+    claims = {c["key"]: c for c in model.source["handoff"]["claims"]}
+    assert claims["b"]["established"] == "proved" and len(model.region_cuts("b")) == 5
+    plain = tli.learn(task.demonstrate(seed=0), spec=root / "specs" / "relay.toml",
+                      handoff=False)
+    assert "handoff" not in (plain.source or {}) and not plain.region_cuts("b")

@@ -108,6 +108,29 @@ def _explain(check: Any) -> list[str]:
     return lines
 
 
+def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
+    """The spec's task against its assumptions (:mod:`tli_verify.tasks.fit`): a sensor change
+    the task can produce under a push that the spec rules out, at most 3 named, and the count;
+    nothing for a spec that names no task or a task whose sensors a plug-in computes."""
+    from tli_verify.logic.check import synthesize
+    from tli_verify.tasks.fit import task_spec_mismatches
+    from tli_verify.tasks.project import spec_task
+
+    try:
+        task = spec_task(spec, path)
+        if task is None or not bool(getattr(task.sensor_model, "cell_based", False)) or \
+                set(task.sensor_names) != set(spec.inputs):
+            return []
+        found = task_spec_mismatches(task, synthesize(spec))
+    except TliError:
+        return []
+    out = [f"task {task.name!r}: {m.describe()}" for m in found[:3]]
+    if len(found) > 3:
+        out.append(f"task {task.name!r}: {len(found) - 3} more such change(s) (tli task check "
+                   f"{task.source.path or task.name} --spec {path})")
+    return out
+
+
 def _check(args: argparse.Namespace) -> int:
     from tli_verify.logic.check import check_spec_file
 
@@ -132,6 +155,9 @@ def _check(args: argparse.Namespace) -> int:
         sys.stdout.write(f"{path}: {verdict} ({result.seconds * 1000:.1f} ms{reading})\n")
         for w in result.warnings:
             sys.stdout.write(f"  warning: {w}\n")
+        if result.realizable:
+            for w in _task_fit_warnings(result.spec, path):
+                sys.stdout.write(f"  warning: {w}\n")
         if result.diagnosis is not None:
             for line in result.diagnosis.lines():
                 sys.stdout.write(f"  {line}\n")
