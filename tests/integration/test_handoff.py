@@ -222,3 +222,25 @@ def test_the_python_api_learns_the_hand_off_too(tmp_path: Path) -> None:
     plain = tli.learn(task.demonstrate(seed=0), spec=root / "specs" / "relay.toml",
                       handoff=False)
     assert "handoff" not in (plain.source or {}) and not plain.region_cuts("b")
+
+
+def test_task_check_finds_a_sensor_change_the_spec_rules_out(tmp_path: Path) -> None:
+    """``tli task check --spec`` decides on the geometry every sensor change the task can
+    produce under a push; the dock task's ``docked`` latch survives a push from home back
+    into the dock, so a spec that allows only ``a -> b`` from mode ``a`` is a mismatch, named
+    by its pair of regions (exit 1), and ``tli spec check`` warns of it."""
+    root = write_project(tmp_path, "dock")
+    out = _ok("task", "check", "tasks/dock.toml", "--spec", "specs/dock.toml", cwd=root)
+    assert "ok    tasks/dock.toml: every sensor change" in out
+    spec = root / "specs" / "dock.toml"
+    text = spec.read_text()
+    a_line = next(ln for ln in text.splitlines() if ln.startswith('  "G((!l & !k & !y & !h) ->'))
+    spec.write_text(text.replace(a_line, '  "G((!l & !k & !y & !h) -> X((!l & !k & !y & !h) | '
+                                         '(l & !k & !y & !h)))",'))
+    rc, out, err = run("task", "check", "tasks/dock.toml", "--spec", "specs/dock.toml",
+                       cwd=root)
+    assert rc == 1 and err.startswith("error: specs/dock.toml: 2 sensor change(s)"), (out, err)
+    assert "from region home to region dock with latches docked set" in out
+    assert "{} -> {k}" in out
+    out = _ok("spec", "check", "specs/dock.toml", cwd=root)
+    assert "warning: task 'dock': a move or push from region home to region dock" in out

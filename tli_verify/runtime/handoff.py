@@ -27,8 +27,10 @@ is ever learned online: looping is impossible by construction.
 **How it is established** (:func:`learn_handoffs`):
 
 1. the states of each mode are drawn (uniform in the workspace, every latch valuation, read by
-   the task's own sensor model; plus the states where the previous modes' flows handed off
-   into it, so the composition itself is tested) and simulated with the modulated DS at ``dt``;
+   the task's own sensor model; a quarter of them moved along a random ray to just inside the
+   mode's boundary, where exits are likeliest; plus the states where the previous modes' flows
+   handed off into it, so the composition itself is tested) and simulated with the modulated
+   DS at ``dt``;
 2. an exit into a mode the plan does not allow is a failure. Its cut is the **supporting plane
    of the region shape crossed** (the face of a box or polytope, the tangent plane of a ball or
    ellipsoid) when that plane keeps every attractor of the mode strictly inside: a plane of the
@@ -680,12 +682,49 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
                          seed=report.seed, samples=report.samples, history=report.history)
 
 
+def _to_boundary(task: Task, k: _Key, X: FloatArray, lat: BoolArray,
+                 rng: np.random.Generator) -> FloatArray:
+    """Move each state along a random direction to just inside the boundary of the set where
+    the key's mode is read (bisection on the task's own sensors, the latches held): the
+    states where an exit is likeliest (the adversarial part of the draw)."""
+    if len(X) == 0:
+        return X
+    names = task.sensor_names
+    own = np.array(sorted(_code(r, names) for r in k.readings), dtype=np.int64)
+    bits = 1 << np.arange(len(names), dtype=np.int64)
+    d = rng.normal(size=X.shape)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    size = float(np.max(np.array(task.hi) - np.array(task.lo)))
+    lo = np.zeros(len(X))
+    hi = np.full(len(X), size)
+
+    def inside(t: FloatArray) -> npt.NDArray[np.bool_]:
+        Y = X + t[:, None] * d
+        r, _ = task.read(Y, Y, lat)
+        ws = np.all((Y >= np.array(task.lo)) & (Y <= np.array(task.hi)), axis=1)
+        return np.asarray(np.isin(r.astype(np.int64) @ bits, own) & ws)
+
+    far = inside(hi)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        ok = inside(mid)
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    t = np.where(far, 0.0, lo)  # a ray that never leaves: keep the state
+    return np.asarray(X + t[:, None] * d)
+
+
 def _starts(task: Task, k: _Key, samples: int, rng: np.random.Generator,
             entries: Sequence[tuple[FloatArray, BoolArray]]
             ) -> tuple[FloatArray, BoolArray, BoolArray]:
-    """Drawn states of the mode plus (a quarter) hand-off states of previous modes."""
+    """Drawn states of the mode (a quarter of them moved to just inside its boundary) plus (a
+    quarter) hand-off states of previous modes."""
     n_entry = min(len(entries), samples // 4)
     X, lat = _draw(task, k, samples - n_entry, rng)
+    q = len(X) // 4
+    if q:
+        X = X.copy()
+        X[:q] = _to_boundary(task, k, X[:q], lat[:q], rng)
     if n_entry:
         pick = rng.choice(len(entries), size=n_entry, replace=False)
         EX = np.array([entries[i][0] for i in pick.tolist()])
