@@ -27,8 +27,9 @@ is ever learned online: looping is impossible by construction.
 **How it is established** (:func:`learn_handoffs`):
 
 1. the states of each mode are drawn (uniform in the workspace, every latch valuation, read by
-   the task's own sensor model; a quarter of them moved along a random ray to just inside the
-   mode's boundary, where exits are likeliest; plus the states where the previous modes' flows
+   the task's own sensor model; where the mode's boundaries are flat, a quarter of them moved
+   along a random ray to just inside the boundary, where exits are likeliest; plus the states
+   where the previous modes' flows
    handed off into it, so the composition itself is tested) and simulated with the modulated
    DS at ``dt``;
 2. an exit into a mode the plan does not allow is a failure. Its cut is the **supporting plane
@@ -682,6 +683,20 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
                          seed=report.seed, samples=report.samples, history=report.history)
 
 
+def _flat(task: Task, k: _Key) -> bool:
+    """Whether every boundary of the key's mode is flat (its cells, and the cells listed before
+    them, are boxes and polytopes; for the background, every cell). On a curved boundary the
+    boundary draws would ask for a tangent plane at every point (measured: 256 cuts for the
+    4-D ellipsoid, exits left); there the uniform draws decide how many cuts are needed."""
+    cells = task.partition.cells
+    names = [c.name for c in cells]
+    mine = [n for n in _region_names(task, k, {}) if n in names]
+    upto = len(cells) if (task.partition.background in _region_names(task, k, {}) or not mine) \
+        else max(names.index(n) for n in mine) + 1
+    return all(isinstance(leaf, Box | Polytope)
+               for c in (*cells[:upto], *task.partition.layers) for leaf in c.region.leaves())
+
+
 def _to_boundary(task: Task, k: _Key, X: FloatArray, lat: BoolArray,
                  rng: np.random.Generator) -> FloatArray:
     """Move each state along a random direction to just inside the boundary of the set where
@@ -721,7 +736,7 @@ def _starts(task: Task, k: _Key, samples: int, rng: np.random.Generator,
     quarter) hand-off states of previous modes."""
     n_entry = min(len(entries), samples // 4)
     X, lat = _draw(task, k, samples - n_entry, rng)
-    q = len(X) // 4
+    q = len(X) // 4 if _flat(task, k) else 0
     if q:
         X = X.copy()
         X[:q] = _to_boundary(task, k, X[:q], lat[:q], rng)
