@@ -66,13 +66,15 @@ def _seed(text: str) -> int:
 
 
 def _rerun_examples(text: str) -> int:
-    """``--rerun N``: examples of the gate's re-run campaign, 1 to 100,000."""
+    """``--rerun N``: examples of the gate's re-run campaign, 1 to 100,000 (the command always
+    re-runs; only ``run_gate(rerun=0)`` in Python skips it, for tests of the other checks)."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
     if not 1 <= value <= 100_000:
-        raise argparse.ArgumentTypeError(f"must be between 1 and 100000, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be between 1 and 100000 (the gate always "
+                                         f"re-runs a sample), got {text!r}")
     return value
 
 
@@ -156,9 +158,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("directory", nargs="?", type=Path, default=Path("."), metavar="DIR")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.add_argument("--rerun", type=_rerun_examples, default=None, metavar="N",
-                   help="also re-run a campaign of N examples per deployed model, with its "
-                   "evidence's seed and world (physical evidence: N MuJoCo trials with its "
-                   "seed, robot, variant and duration); a violation blocks")
+                   help="re-run a campaign of N examples per deployed model (default 50; "
+                   "physical evidence: N MuJoCo trials, default 1), on a seed the gate derives "
+                   "from the evidence's digest and the model's SHA-256 (not the evidence's "
+                   "seed), with the evidence's recorded task and settings; a violation "
+                   "blocks; N is 1 to 100000 (the gate always re-runs)")
     p.set_defaults(handler=_gate)
 
 

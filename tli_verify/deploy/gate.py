@@ -22,12 +22,12 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
    * ``campaign``: campaign evidence ``certificates/<name>.campaign.json``
      (:mod:`tli_verify.verify.evidence`) binds its current spec, model and valid certificate,
      found 0 violations with modulation on, is complete and has at least
-     ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
-     campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
-     nothing. Evidence that binds no deployed model blocks too. A physical campaign's
+     ``MIN_EVIDENCE_EXAMPLES`` examples; a short campaign (``rerun``; default
+     ``DEFAULT_RERUN_EXAMPLES``, ``rerun=N``: ``tli gate --rerun N``; ``rerun=0`` from Python only) runs again on a
+     seed the gate derives (:func:`rerun_seed`, not the evidence's) and must find nothing. Evidence that binds no deployed model blocks too. A physical campaign's
      evidence (world ``franka-physics``, the Franka project ``sim/franka``) needs
      ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
-     re-runs ``N`` physical trials with the recorded robot, variant, duration and seed
+     re-runs ``N`` physical trials with the recorded robot, variant and duration, on a derived seed
      (:func:`tli_verify.sim.campaign.run_physics_campaign`) and every one must pass the
      physics oracle.
 
@@ -601,7 +601,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials
-    with the evidence's seed, robot, variant, duration, pushes and tilts, on the deployed files
+    with the evidence's robot, variant, duration, pushes and tilts on seeds the gate derives
+    (not the evidence's seed), on the deployed files
     (the project is the model's ``models/`` parent), each judged by the physics oracle
     (:func:`tli_verify.sim.trial_oracle.check_trial`).
 
