@@ -23,8 +23,9 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
      (:mod:`tli_verify.verify.evidence`) binds its current spec, model and valid certificate,
      found 0 violations with modulation on, is complete and has at least
      ``MIN_EVIDENCE_EXAMPLES`` examples; a short campaign (``rerun``; default
-     ``DEFAULT_RERUN_EXAMPLES``, ``rerun=N``: ``tli gate --rerun N``; ``rerun=0`` from Python only) runs again on a
-     seed the gate derives (:func:`rerun_seed`, not the evidence's) and must find nothing. Evidence that binds no deployed model blocks too. A physical campaign's
+     ``DEFAULT_RERUN_EXAMPLES``; ``rerun=N``: ``tli gate --rerun N``; ``rerun=0`` from Python
+     only) runs again on a seed the gate derives (:func:`rerun_seed`, not the evidence's) and
+     must find nothing. Evidence that binds no deployed model blocks too. A physical campaign's
      evidence (world ``franka-physics``, the Franka project ``sim/franka``) needs
      ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
      re-runs ``N`` physical trials with the recorded robot, variant and duration, on a derived seed
