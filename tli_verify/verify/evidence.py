@@ -359,11 +359,15 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     Parameters
     ----------
     config : tli_verify.verify.config.CampaignConfig
-        Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
+        The config given to :func:`~tli_verify.verify.campaign.run_campaign`. What is recorded
+        is the campaign the result says ran (``result.config``: the task's defaults filled in,
+        e.g. its perturbation ``window`` and ``max_pushes``), so evidence written from Python
+        with a config's defaults is the evidence ``tli verify --evidence`` writes; a config
+        whose seed, examples or modulation differ from the result's is refused.
     result : tli_verify.verify.campaign.CampaignResult
-        Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
-        ``inconclusive`` and ``files`` (the spec, model and certificate the campaign ran, with
-        the SHA-256 it ran them at).
+        Its ``config``, ``runs``, ``violations`` (kind -> count), ``counterexample``,
+        ``partial``, ``inconclusive`` and ``files`` (the spec, model and certificate the
+        campaign ran, with the SHA-256 it ran them at).
     path : path-like, optional
         Where to write it (default: :func:`evidence_path_for` the model, under the model's
         project: ``models/NAME.model.json`` -> ``certificates/NAME.campaign.json``).
@@ -371,16 +375,21 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     Returns
     -------
     (Path, dict)
-        The file and the document written. Evidence of a violating or partial campaign is
-        written too, as an honest record; the gate refuses it.
+        ``path``: the evidence file written; ``record``: the document written to it (the
+        JSON object of ``campaign.schema.json``: ``campaign`` with ``seed``, ``examples``,
+        ``runs`` and ``settings``, ``violations``, the bound files' SHA-256, ``digest``).
+        Evidence of a violating or partial campaign is written too, as an honest record; the
+        gate refuses it.
 
     Raises
     ------
     EvidenceError
-        (exit 2) A file changed since the campaign hashed it, or is missing.
+        (exit 2) A file changed since the campaign hashed it, or is missing; or ``config`` is
+        not the campaign ``result`` ran.
     OutputError
         (exit 2) The path cannot be written.
     """
+    config = _campaign_config(config, result)
     files = _campaign_files(config, result)
     model = files["model"][0]
     target = Path(path) if path is not None else evidence_path_for(model)
@@ -403,6 +412,20 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
         inconclusive=None if inconclusive is None else int(inconclusive),
         settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
+
+
+def _campaign_config(config: Any, result: Any) -> Any:
+    """The config the campaign ran (``result.config``, its task defaults filled in), checked
+    against the one given (the same seed, examples and modulation)."""
+    used = getattr(result, "config", None)
+    if used is None or config is None:
+        return used if config is None else config
+    for name in ("seed", "examples", "modulation"):
+        given, ran = getattr(config, name, None), getattr(used, name, None)
+        if given != ran:
+            raise _BadInput(f"config.{name} is {given!r}, the campaign ran with {ran!r}: pass "
+                            "the config the result came from (result.config)")
+    return used
 
 
 _CORE = frozenset({"task", "spec", "model", "certificate", "examples", "seed", "modulation",
