@@ -424,3 +424,23 @@ def test_a_project_task_edited_after_the_campaign_blocks(project: Path, repo: Pa
         f"{sha256_file(project / 'tasks' / 'scoop.toml')[:12]}...)" in message
     assert "the task changed after the campaign" in message
     assert message in only_campaign_blocks(project)
+
+
+FORGED_SETTINGS = [
+    ("target_examples", 2.5), ("target_examples", 10**9), ("target_examples", -1),
+    ("target_examples", True), ("batch_size", 0), ("batch_size", 10**9), ("window", 10**12),
+    ("window", 700.0), ("max_pushes", 10**6), ("lag", -1), ("lag", "0"), ("max_cycles", -3),
+    ("levels", ["push", "teleport"]), ("levels", []), ("shrink", 1), ("random_starts", "yes"),
+    ("start", [0.0, "x"]), ("workers_per_batch", 2),
+]
+
+
+@pytest.mark.parametrize(("key", "value"), FORGED_SETTINGS)
+def test_every_recorded_setting_is_validated_with_the_cli_limits(project: Path, key: str,
+                                                                 value: Any) -> None:
+    """A setting forged with the digest recomputed blocks the gate, without a re-run (issue 32:
+    ``target_examples`` 2.5 or 1e9 passed, since only the settings the re-run used were
+    checked)."""
+    forge(project, lambda doc: doc["campaign"]["settings"].__setitem__(key, value))
+    message = only_campaign_blocks(project)
+    assert "campaign.settings" in message and key in message, message

@@ -881,6 +881,7 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
         out.append(f"{shown}: {what}, fewer than the minimum {min_examples} ({const})")
     if not physical:
         settings = camp.get("settings") or {}
+        out += _check_settings(camp, settings, shown)
         window, pushes = settings.get("window"), settings.get("max_pushes")
         if not isinstance(window, int) or isinstance(window, bool) or window < MIN_WINDOW:
             out.append(f"{shown}: perturbation window {window!r}: campaigns must draw pushes "
@@ -896,6 +897,30 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                       f"{camp['seed']}), modulation on, 0 violations")
     return out
 
+
+
+def _check_settings(camp: Mapping[str, Any], settings: Mapping[str, Any], shown: str
+                    ) -> list[str]:
+    """Every recorded campaign setting (and the seed, examples and modulation), validated as
+    the command-line options are (:class:`~tli_verify.verify.config.CampaignConfig`), whether
+    or not the gate re-runs it: a forged ``target_examples = 1e9`` or ``2.5`` is refused."""
+    import dataclasses
+
+    from tli_verify.verify.config import CampaignConfig
+
+    known = {f.name for f in dataclasses.fields(CampaignConfig)} - _CORE
+    unknown = sorted(set(settings) - known)
+    if unknown:
+        return [f"{shown}: campaign.settings.{unknown[0]}: not a campaign setting (known: "
+                f"{', '.join(sorted(known))})"]
+    try:
+        CampaignConfig(examples=camp["examples"], seed=camp["seed"],
+                       modulation=camp["modulation"],
+                       **settings_for_config(settings, CampaignConfig))
+    except (TliError, TypeError, ValueError) as exc:
+        return [f"{shown}: campaign.settings: {exc} (recorded settings are validated with the "
+                "command line's limits)"]
+    return []
 
 
 def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str],
