@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
 
 __all__ = ["register"]
@@ -108,8 +108,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     help="physical campaigns: the stall retry off")
     ev.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
                     help="physical campaigns: the sensor model")
-    ev.add_argument("--duration", type=float, default=40.0,
-                    help="physical campaigns: budget per trial (simulated seconds)")
+    ev.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=40.0,
+                    help="physical campaigns: budget per trial (simulated seconds; default "
+                    "40, 0.5 to 600)")
     ev.set_defaults(handler=_evidence)
 
 
