@@ -248,6 +248,33 @@ def test_a_signal_is_exit_130_and_one_line(name: str, tmp_path: Path) -> None:
     assert (done.returncode, done.stdout) == (130, b"")
 
 
+def test_ctrl_c_before_any_run_finished_is_one_line(tmp_path: Path) -> None:
+    """``tli verify`` interrupted before its first batch finished: the partial report has no
+    run to plot; stderr holds the notes and one error line (it used to print matplotlib's
+    'No artists with labels found' warning first)."""
+    log = tmp_path / "stderr.txt"
+    with open(log, "wb") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "tli_verify.cli", "verify", "--task",
+                                 "scoop", "--examples", "5000", "--workers", "1",
+                                 "--out", str(tmp_path / "OUT")],
+                                cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL,
+                                stderr=err, stdin=subprocess.DEVNULL,
+                                preexec_fn=_interactive_signals)
+        try:
+            _wait_for(lambda: b"note: drawing" in log.read_bytes(), proc, "the campaign")
+            time.sleep(0.5)  # the worker starts; its first batch of 100 takes seconds
+            proc.send_signal(signal.SIGINT)
+            code = proc.wait(timeout=TIMEOUT)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    lines = log.read_text().strip().splitlines()
+    assert code == 130, lines
+    assert lines[-1].startswith("error: interrupted"), lines
+    assert all(line.startswith(("note:", "error:")) for line in lines), lines
+
+
 _IGNORING = """\
 import signal, sys
 import pytest

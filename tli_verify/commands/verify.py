@@ -229,7 +229,11 @@ def write_report(result: Any, out: Path) -> list[Path]:
     ax1.set_ylabel("steps")
     ax1.set_title(f"outcomes per run: {result.runs} runs"
                   + (" (PARTIAL)" if result.partial else ""), fontsize=9)
-    ax1.legend(fontsize=7, loc="best")
+    if groups:
+        ax1.legend(fontsize=7, loc="best")
+    else:  # interrupted before a run finished: nothing to label (and no matplotlib warning)
+        ax1.text(0.5, 0.5, "no run finished", ha="center", va="center",
+                 transform=ax1.transAxes, fontsize=9)
     cov = result.coverage
     names = ["automaton edges", "mode edges", "modes perturbed", "cut faces touched"]
     got = [cov["automaton_edges"]["exercised"], cov["mode_edges"]["exercised"],
