@@ -65,13 +65,14 @@ _ZOOM_PALETTE: tuple[tuple[str, str], ...] = (
 
 # ----------------------------------------------------------------------------- titles
 def episode_title(res: EpisodeResult, *, label: str = "", goal_label: str = "the goal") -> str:
-    """``"<label>: <modes> (reaches <goal>, <k> cuts)"`` (the mode sequence truncated to 12
+    """``"<label>: <modes> (reaches <goal>, <k> cuts)"`` or ``"... (does not reach <goal> in N
+    steps, <k> cuts)"`` (the mode sequence truncated to 12
     characters + ``"..."`` past 14)."""
     seq = mode_sequence(res.modes)
     if len(seq) > 14:
         seq = seq[:12] + "..."
     verdict = (f"reaches {goal_label}" if res.success
-               else f"no {goal_label} in {res.steps} steps")
+               else f"does not reach {goal_label} in {res.steps} steps")
     cuts = f"{res.cuts_added} cut{'' if res.cuts_added == 1 else 's'}"
     return f"{label + ': ' if label else ''}{seq} ({verdict}, {cuts})"
 
@@ -275,7 +276,8 @@ def plot_episodes(task: TaskLike, panels: Sequence[tuple[str, EpisodeResult]],
         its first panel in 2-D; at the end of its row, in its first coordinate pair, in n-D),
         drawn by mode (:func:`zoom_colors`).
     goal_label : str, optional
-        The goal in the titles: ``"reaches <goal_label>"`` / ``"no <goal_label> in N steps"``.
+        The goal in the titles: ``"reaches <goal_label>"`` / ``"does not reach <goal_label> in
+        N steps"`` (it reads for a mode name and for a phrase like ``"the goal"``).
     mode_colors : mapping of str to colour, optional
         Mode colours of the zoom panel.
     pairs : sequence of (int, int), optional
