@@ -499,9 +499,11 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
         check = check_evidence(evidence, model_path=model, valid_certificates=valid,
                                physical=(FRANKA_PHYSICS,))
         if not check.ok:
-            items.append(GateItem("model", name, False, f"{shown(evidence)}: "
-                                  f"{'; '.join(check.problems)}", "campaign"))
+            problems = "; ".join(_unprefixed(p, check.path) for p in check.problems)
+            items.append(GateItem("model", name, False, f"{shown(evidence)}: {problems}",
+                                  "campaign"))
             continue
+        comments = next((p for p in check.passed if "only its comments" in p), None)
         if check.physics:
             phys = dict(check.physics)
             items.append(GateItem(
@@ -515,8 +517,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
             items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on task "
                                   f"{check.world!r} with seed {check.seed}: {check.examples} "
                                   f"examples ({check.runs} runs), modulation on, 0 violations; "
-                                  "binds its task, spec, model and certificate (SHA-256)",
-                                  "campaign"))
+                                  "binds its task, spec, model and certificate (SHA-256)"
+                                  + (f"; {comments}" if comments else ""), "campaign"))
         count = (DEFAULT_RERUN_TRIALS if check.physics else DEFAULT_RERUN_EXAMPLES) \
             if rerun is None else int(rerun)
         if count > 0:
@@ -529,6 +531,11 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "model (the gate looks for models/<name>.model.json next to "
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
+
+
+def _unprefixed(problem: str, path: str) -> str:
+    """A problem without the evidence path it starts with (the gate's line names it once)."""
+    return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
 
 
 def _partition(phys: dict[str, Any]) -> str:

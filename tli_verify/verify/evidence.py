@@ -74,6 +74,7 @@ __all__ = [
     "evidence_path_for",
     "model_stem",
     "settings_for_config",
+    "task_content_sha256",
     "write_campaign_evidence",
     "write_evidence",
 ]
@@ -207,6 +208,9 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
         out: dict[str, Any] = {"name": task.name, "kind": "file",
                                "path": _relpath(Path(src.path), Path(base)),
                                "sha256": src.sha256}
+        content = task_content_sha256(src.path)
+        if content is not None:
+            out["content_sha256"] = content
     elif src.kind == "entry-point" and src.source_sha256 is not None:
         out = {"name": task.name, "kind": "entry-point", "sha256": src.source_sha256}
     else:
@@ -216,6 +220,29 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
         out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
                               "version": src.version, "source_sha256": src.source_sha256}
     return out
+
+
+def task_content_sha256(path: str | os.PathLike[str]) -> str | None:
+    """SHA-256 of a task file's content: the parsed TOML as canonical JSON (comments, blank
+    lines, key order and number spelling do not count). None if it does not parse.
+
+    Evidence records it next to the file's SHA-256, so the gate tells an edit of comments or
+    formatting (same content: accepted, and said) from a change of the task (blocked).
+    """
+    import hashlib
+    import json
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.loads(fh.read().decode("utf-8-sig"))
+        # sorted keys, one spelling per number (inf and nan too), dates as ISO text
+        text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+                          allow_nan=True, default=str)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, TypeError, ValueError,
+            RecursionError):
+        return None
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
@@ -752,18 +779,33 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 f"deployed task {want['name']!r} is "
                 f"{'kinematic' if physical else 'physical (its sensors come from a simulator)'}"
                 ": the kind of evidence must match the model"]
-    if got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]:
+    same_content = (got.get("kind") == want["kind"] == "file"
+                    and got.get("content_sha256") is not None
+                    and got.get("content_sha256") == want.get("content_sha256"))
+    if (got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]) and \
+            not same_content:
         where = want.get("path") or want.get("entry_point", {}).get("name")
+        why = "another task, or the task changed after the campaign"
+        if got.get("kind") == want["kind"] == "file" and got.get("name") == want["name"] \
+                and got.get("path") == want.get("path"):
+            why = ("its content changed since the campaign (not only comments or formatting)"
+                   if got.get("content_sha256") else
+                   "its bytes changed since the campaign; this evidence records no content "
+                   "hash, so an edit of comments alone cannot be told apart: re-run the "
+                   "campaign (tli evidence)")
         return [f"{shown}: the campaign ran on task {got.get('name')!r} "
                 f"({got.get('path') or got.get('entry_point', {}).get('name')}, SHA-256 "
                 f"{_short(str(got.get('sha256')))}), but the deployed spec's task is "
-                f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): another "
-                "task, or the task changed after the campaign"]
+                f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): {why}"]
     if "entry_point" in want and not _same_entry_point(got.get("entry_point"),
                                                        want["entry_point"]):
         return [f"{shown}: the task's entry point {want['entry_point']['name']!r} differs "
                 "from the one the campaign ran (distribution, version or source)"]
-    passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
+    if got.get("sha256") != want["sha256"]:
+        passed.append(f"task {want['name']!r} is the deployed spec's; only its comments or "
+                      "formatting changed since the campaign (its content SHA-256 matches)")
+    else:
+        passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
     return []
 
 
