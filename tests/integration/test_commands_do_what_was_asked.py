@@ -73,3 +73,78 @@ def test_a_user_s_pytest_run_shows_no_swig_warning(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "Swig" not in done.stdout and "swigvarlink" not in done.stdout
     assert "1 passed" in done.stdout and "warning" not in done.stdout
+
+
+@pytest.fixture(scope="module")
+def drawer(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A user's 3-D project with a learned, certified model (the CLI's own steps)."""
+    from tests.support.drawer3d import write_project
+    from tli_verify.cli import main
+
+    root = write_project(tmp_path_factory.mktemp("drawer-evidence"))
+    cwd = Path.cwd()
+    try:
+        import os
+
+        os.chdir(root)
+        assert main(["demos", "tasks/drawer.toml"]) == 0
+        assert main(["learn", "demos/drawer_1.csv", "demos/drawer_2.csv", "demos/drawer_3.csv",
+                     "--spec", "specs/drawer.toml", "-o", "models/drawer.model.json"]) == 0
+        assert main(["certify", "models/drawer.model.json"]) == 0
+    finally:
+        os.chdir(cwd)
+    return root
+
+
+def _evidence(drawer: Path) -> dict:
+    return json.loads((drawer / "certificates" / "drawer.campaign.json").read_text())
+
+
+def test_evidence_random_starts_and_no_silent_weakening(drawer: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    target = drawer / "certificates" / "drawer.campaign.json"
+    code, out, err = run(capsys, "evidence", str(drawer), "--examples", "20", "--workers", "2",
+                         "--random-starts")
+    assert code == 0, err
+    assert "random starts" in out
+    assert _evidence(drawer)["campaign"]["settings"]["random_starts"] is True
+    before = target.read_bytes()
+    for weaker, why in ((["--examples", "20"], "random starts, this one a nominal start"),
+                        (["--examples", "10", "--random-starts"], "20 examples, this one 10")):
+        code, out, err = run(capsys, "evidence", str(drawer), "--workers", "2", *weaker)
+        assert code == 2 and err.count("\n") == 1 and out == "", err
+        assert "holds evidence of a stronger campaign" in err and why in err
+        assert "--force" in err
+        assert target.read_bytes() == before  # kept, and nothing ran
+    code, _, err = run(capsys, "verify", "--spec", str(drawer / "specs" / "drawer.toml"),
+                       "--examples", "5", "--evidence", "--out", str(drawer / "out"))
+    assert code == 2 and "stronger campaign" in err and target.read_bytes() == before
+    code, out, err = run(capsys, "evidence", str(drawer), "--examples", "10", "--workers", "2",
+                         "--force")
+    assert code == 0, err
+    assert "note:" in err and "replacing evidence of a stronger campaign" in err
+    assert _evidence(drawer)["campaign"]["examples"] == 10
+
+
+def test_a_task_file_can_make_random_starts_the_default(drawer: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    task = drawer / "tasks" / "drawer.toml"
+    text = task.read_text()
+    assert "[starts]\nnominal = [[0.2, 0.5, 0.8]]\n" in text
+    task.write_text(text.replace("[starts]\nnominal = [[0.2, 0.5, 0.8]]\n",
+                                 "[starts]\nnominal = [[0.2, 0.5, 0.8]]\nrandom = true\n"))
+    try:
+        code, out, err = run(capsys, "evidence", str(drawer), "--examples", "12",
+                             "--workers", "2", "--force")
+        assert code == 0, err
+        assert _evidence(drawer)["campaign"]["settings"]["random_starts"] is True
+        # the nominal start stays the start of tli run
+        code, out, err = run(capsys, "run", "--spec", str(drawer / "specs" / "drawer.toml"),
+                             "--steps", "5", "--json", "--out", str(drawer / "out" / "r"))
+        assert json.loads(out)["start"] == pytest.approx([0.2, 0.5, 0.8])
+        code, _, err = run(capsys, "task", "check", str(task))
+        assert code == 0, err
+    finally:
+        task.write_text(text)

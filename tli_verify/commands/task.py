@@ -98,6 +98,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--backend", choices=("process", "serial", "dask"), default=None,
                     help="where the batches run (default: process for bisimulation campaigns, "
                     "serial for physical ones)")
+    ev.add_argument("--random-starts", action="store_true", default=None,
+                    help="bisimulation campaigns draw random starts (default: the task's "
+                    "[starts]: its first nominal start, or random starts with random = true "
+                    "or no nominal start)")
+    ev.add_argument("--force", action="store_true",
+                    help="replace evidence of a stronger campaign (more examples, random "
+                    "starts, a longer window, more pushes); without it such evidence is kept "
+                    "and nothing runs")
     ev.add_argument("--only", nargs="+", default=None, metavar="NAME",
                     help="only these models (models/NAME.model.json)")
     ev.add_argument("--trials", type=int_range(1, 100_000), default=None,
@@ -262,6 +270,12 @@ def _evidence(args: argparse.Namespace) -> int:
         resolved = resolve(model=model)
         physical = bool(getattr(resolved.task.sensor_model, "physics", False))
         plan.append((model, resolved, physical))
+        if not physical:  # nor replaces stronger evidence (unless --force)
+            from tli_verify.commands.verify import keep_stronger
+            from tli_verify.verify.config import resolve_config
+
+            keep_stronger(model_files(model).evidence,
+                          resolve_config(_config(args, resolved))[1], force=args.force)
     check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
                outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
     status = 0
@@ -276,20 +290,27 @@ def _evidence(args: argparse.Namespace) -> int:
     return status
 
 
+def _config(args: argparse.Namespace, resolved: Any) -> Any:
+    """The bisimulation campaign ``tli evidence`` runs for one model."""
+    from tli_verify.verify.config import CampaignConfig
+
+    return CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
+                          certificate=str(resolved.certificate), examples=args.examples,
+                          seed=args.seed, modulation=True, workers=args.workers,
+                          backend=args.backend or "process", random_starts=args.random_starts)
+
+
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.verify.campaign import run_campaign
-    from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import write_campaign_evidence
 
-    config = CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
-                            certificate=str(resolved.certificate), examples=args.examples,
-                            seed=args.seed, modulation=True, workers=args.workers,
-                            backend=args.backend or "process")
+    config = _config(args, resolved)
     result = run_campaign(config, progress=sys.stderr.isatty())
     path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
             f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
+            f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
 
 

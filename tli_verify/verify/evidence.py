@@ -75,6 +75,7 @@ __all__ = [
     "model_stem",
     "settings_for_config",
     "task_content_sha256",
+    "weaker_than_recorded",
     "write_campaign_evidence",
     "write_evidence",
 ]
@@ -439,6 +440,42 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
         inconclusive=None if inconclusive is None else int(inconclusive),
         settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
+
+
+def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | None:
+    """Why a campaign of ``config`` (its task defaults filled in:
+    :func:`~tli_verify.verify.config.resolve_config`) would be weaker than the passing
+    evidence at ``path``, or None (no such file, or it records a violation, an interrupted
+    campaign, or nothing stronger). ``tli evidence`` and ``tli verify --evidence`` refuse to
+    replace stronger evidence without ``--force``.
+
+    Stronger: more examples; random starts where the new campaign starts at a nominal state;
+    a longer perturbation window; more pushes per case; more perturbation levels.
+    """
+    from tli_verify.io import read_json
+
+    try:
+        doc = read_json(Path(path), what="campaign evidence", error=EvidenceError)
+        camp, viol = doc["campaign"], doc["violations"]
+        if int(viol["total"]) or camp["partial"] or not camp["modulation"]:
+            return None
+        old = camp.get("settings") or {}
+        why = []
+        if int(config.examples) < int(camp["examples"]):
+            why.append(f"{camp['examples']} examples, this one {config.examples}")
+        if old.get("random_starts") is True and not config.random_starts:
+            why.append("random starts, this one a nominal start")
+        for key, what in (("window", "perturbation window"), ("max_pushes", "pushes per case")):
+            was, now = old.get(key), getattr(config, key, None)
+            if isinstance(was, int) and isinstance(now, int) and now < was:
+                why.append(f"{what} {was}, this one {now}")
+        levels = old.get("levels")
+        if isinstance(levels, list) and not set(levels) <= set(config.levels):
+            why.append(f"levels {', '.join(map(str, levels))}, this one "
+                       f"{', '.join(config.levels)}")
+    except (TliError, OSError, KeyError, TypeError, ValueError, AttributeError):
+        return None
+    return "; ".join(why) or None
 
 
 def _campaign_config(config: Any, result: Any) -> Any:
