@@ -148,3 +148,16 @@ def test_a_task_file_can_make_random_starts_the_default(drawer: Path,
         assert code == 0, err
     finally:
         task.write_text(text)
+
+
+def test_task_list_shows_the_project_s_own_tasks(drawer: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(drawer)
+    code, out, _ = run(capsys, "task", "list")
+    assert code == 0
+    rows = dict(line.split("\t", 1) for line in out.splitlines())
+    assert rows["drawer"] == str(Path("tasks") / "drawer.toml") + " (this project)"
+    assert "scoop" in rows  # the bundled ones too
+    monkeypatch.chdir(drawer.parent)
+    code, out, _ = run(capsys, "task", "list", "--project", str(drawer))
+    assert "drawer\t" in out

@@ -45,9 +45,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                        help="draw the (first) task's regions (pairwise projections in n-D)")
     check.add_argument("--json", action="store_true", help="one JSON object per task")
     check.set_defaults(handler=_check)
-    lst = tsub.add_parser("list", help="the tasks the registry knows")
-    lst.add_argument("--project", type=Path, default=None,
-                     help="also a project's tasks/ (default: none)")
+    lst = tsub.add_parser("list", help="the tasks the registry knows: the project's own "
+                          "(tasks/*.toml), the bundled ones and entry points")
+    lst.add_argument("--project", type=Path, default=Path("."),
+                     help="the project whose tasks/ is listed too (default: the working "
+                     "folder, where tli run and tli verify find a task by name first)")
     lst.set_defaults(handler=_list)
 
     demos = sub.add_parser(
@@ -179,9 +181,12 @@ def _list(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import bundled_tasks, task_names
 
     bundled = bundled_tasks()
+    own = args.project / "tasks"
     for name in task_names(args.project):
-        where = bundled.get(name)
-        sys.stdout.write(f"{name}\t{where if where is not None else 'entry point / project'}\n")
+        mine = own / f"{name}.toml"
+        where = (f"{mine} (this project)" if mine.is_file() else bundled.get(name)
+                 or "entry point")
+        sys.stdout.write(f"{name}\t{where}\n")
     return 0
 
 
