@@ -239,12 +239,15 @@ def _labels(ax: Any, task: TaskLike, pair: Pair | None) -> None:
         ax.set_ylabel(task.state_names[pair[1]], fontsize=8)
 
 
-def _trajectory_handles(nominal: bool) -> list[Any]:
+def _trajectory_handles(nominal: bool, sliced: bool = False) -> list[Any]:
+    """The legend of the trajectories; ``sliced`` (n >= 3): a cut is drawn as its trace in the
+    2-D slice through its point, not as a shadow like the regions."""
     from matplotlib.lines import Line2D
 
     out = [Line2D([], [], color="k", lw=1.2, label="trajectory"),
            Line2D([], [], color="tab:red", lw=1.2, ls="--", label="push"),
-           Line2D([], [], color="tab:blue", lw=1.5, label="cut (trace)"),
+           Line2D([], [], color="tab:blue", lw=1.5,
+                  label="cut: slice through its point" if sliced else "cut"),
            Line2D([], [], ls="none", marker="o", mfc="gold", mec="k", label="last in-mode"),
            Line2D([], [], ls="none", marker="x", color="tab:red", mew=2, label="failure")]
     if nominal:
@@ -381,7 +384,8 @@ def _row_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeRe
             for ax in extra:
                 ax.axis("off")
             sub.suptitle(episode_title(r, label=label, goal_label=goal_label), fontsize=9)
-        fig.legend(handles=[*bg.legend_handles(), *_trajectory_handles(nominal is not None)],
+        fig.legend(handles=[*bg.legend_handles(), *_trajectory_handles(nominal is not None,
+                                                                     bool(bg.shadows))],
                    loc="outside right upper", fontsize=8, frameon=False)
     except BaseException:
         plt.close(fig)
