@@ -43,11 +43,13 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
     from tli_verify.runtime.executive import LTLDSPolicy
+    from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.tasks.project import resolve
     from tli_verify.tasks.registry import find_task
     from tli_verify.tasks.task import Task, load_task
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
+    from tli_verify.verify.evidence import write_campaign_evidence
 
 _NAMES: dict[str, str] = {
     "__version__": "tli_verify._version",
@@ -76,9 +78,11 @@ _NAMES: dict[str, str] = {
     "make_policy": "tli_verify.api",
     "LTLDSPolicy": "tli_verify.runtime.executive",
     "run": "tli_verify.api",
+    "EpisodeResult": "tli_verify.runtime.loop",
     # campaigns and the gate
     "CampaignConfig": "tli_verify.verify.config",
     "run_campaign": "tli_verify.verify.campaign",
+    "write_campaign_evidence": "tli_verify.verify.evidence",
     "run_gate": "tli_verify.deploy.gate",
     "GateReport": "tli_verify.deploy.gate",
     # errors (each input error is also the builtin it means: ValueError, FileNotFoundError)
@@ -97,6 +101,7 @@ __all__ = [
     "CertificateError",
     "DemoError",
     "Demonstration",
+    "EpisodeResult",
     "GR1Spec",
     "GateError",
     "GateReport",
@@ -124,6 +129,7 @@ __all__ = [
     "run_gate",
     "save_model",
     "synthesize",
+    "write_campaign_evidence",
 ]
 
 

@@ -53,7 +53,7 @@ import traceback
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import Any, ClassVar
 
 from tli_verify.commands import exit_code
 from tli_verify.errors import OutputError, TliError
@@ -75,9 +75,38 @@ COMMAND_MODULES: tuple[str, ...] = (
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose usage errors are one ``error:`` line and exit code 2."""
 
+    _argv: ClassVar[list[str]] = []
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                         namespace: argparse.Namespace | None = None
+                         ) -> tuple[argparse.Namespace, list[str]]:
+        top = not _Parser._argv  # the top-level parse: remember the words for the hint
+        if top:
+            _Parser._argv = [str(a) for a in (sys.argv[1:] if args is None else args)]
+        try:
+            return super().parse_known_args(args, namespace)
+        finally:
+            if top:
+                _Parser._argv = []
+
     def error(self, message: str) -> None:  # type: ignore[override]
-        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        sys.stderr.write(f"error: {self.prog}: {message}{_negative_hint(message, self._argv)}\n")
         raise SystemExit(2)
+
+
+def _negative_hint(message: str, argv: Sequence[str]) -> str:
+    """argparse reads ``--start -0.9,0`` as two options: say how to pass such a value."""
+    import re
+
+    m = re.match(r"argument (\S+?)(?:/\S+)?: expected (?:one|at least one) argument", message)
+    if m is None:
+        return ""
+    names = {n for n in m.group(0).split(":", 1)[0].split(" ", 1)[1].split("/")}
+    for i, word in enumerate(argv[:-1]):
+        nxt = argv[i + 1]
+        if word in names and re.match(r"-\.?\d", nxt):
+            return (f" (a value that starts with '-' needs '=': {word}={nxt})")
+    return ""
 
 
 class _Version(argparse.Action):

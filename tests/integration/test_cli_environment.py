@@ -212,11 +212,16 @@ def test_sigterm_stops_a_campaign_like_ctrl_c(tmp_path: Path) -> None:
 
 
 _SIGNAL = """\
-import signal, sys
+import signal, sys, time
 import tli_verify.cli as cli
 
 def check_paths(args):  # the signal arrives while the command runs
     signal.raise_signal(getattr(signal, sys.argv[1]))
+    # the interpreter runs a Python handler between bytecodes, not necessarily at once: the
+    # command goes on running (as a real one would) until it does, for up to a minute
+    end = time.monotonic() + 60.0
+    while time.monotonic() < end:
+        time.sleep(0.01)
     raise AssertionError("not interrupted")
 
 cli.check_paths = check_paths
@@ -224,14 +229,69 @@ sys.exit(cli.main(sys.argv[2:]))
 """
 
 
+def _interactive_signals() -> None:
+    """In the child before ``exec``: SIGINT and SIGTERM as an interactive shell leaves them
+    (default), whatever this process inherited: a test run in the background (``make test &``,
+    ``nohup``, some CI runners) has SIGINT ignored, and Python then installs no
+    KeyboardInterrupt handler in its children (the former cause of 'not interrupted')."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
 def test_a_signal_is_exit_130_and_one_line(name: str, tmp_path: Path) -> None:
     """SIGINT is a guard (already so); SIGTERM used to kill tli on the spot."""
     done = subprocess.run([sys.executable, "-c", _SIGNAL, name, "spec", "check", str(SPEC)],
                           cwd=tmp_path, env=_env(), capture_output=True, timeout=TIMEOUT,
-                          check=False)
+                          check=False, preexec_fn=_interactive_signals)
     assert _one_error_line(done.stderr).startswith("error: interrupted")
     assert (done.returncode, done.stdout) == (130, b"")
+
+
+def test_ctrl_c_before_any_run_finished_is_one_line(tmp_path: Path) -> None:
+    """``tli verify`` interrupted before its first batch finished: the partial report has no
+    run to plot; stderr holds the notes and one error line (it used to print matplotlib's
+    'No artists with labels found' warning first)."""
+    log = tmp_path / "stderr.txt"
+    with open(log, "wb") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "tli_verify.cli", "verify", "--task",
+                                 "scoop", "--examples", "5000", "--workers", "1",
+                                 "--out", str(tmp_path / "OUT")],
+                                cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL,
+                                stderr=err, stdin=subprocess.DEVNULL,
+                                preexec_fn=_interactive_signals)
+        try:
+            _wait_for(lambda: b"note: drawing" in log.read_bytes(), proc, "the campaign")
+            time.sleep(0.5)  # the worker starts; its first batch of 100 takes seconds
+            proc.send_signal(signal.SIGINT)
+            code = proc.wait(timeout=TIMEOUT)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    lines = log.read_text().strip().splitlines()
+    assert code == 130, lines
+    assert lines[-1].startswith("error: interrupted"), lines
+    assert all(line.startswith(("note:", "error:")) for line in lines), lines
+
+
+_IGNORING = """\
+import signal, sys
+import pytest
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in `make test &`: SIGINT ignored
+sys.exit(pytest.main(["-q", "-p", "no:cacheprovider", "-p", "no:xdist", sys.argv[1] + "::"
+                      "test_a_signal_is_exit_130_and_one_line"]))
+"""
+
+
+def test_the_signal_test_holds_where_sigint_is_ignored(tmp_path: Path) -> None:
+    """The signal test itself, run by a pytest whose SIGINT is ignored (the environment it
+    failed in): it passes, both signals."""
+    done = subprocess.run([sys.executable, "-c", _IGNORING, __file__], cwd=REPO, env=_env(),
+                          capture_output=True, timeout=4 * TIMEOUT, check=False,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert done.returncode == 0, done.stdout.decode()[-3000:]
+    assert b"2 passed" in done.stdout
 
 
 @pytest.fixture(scope="module")

@@ -58,7 +58,7 @@ def test_quick_json_contract(quick: tuple[subprocess.CompletedProcess[str], Path
     (["--seed", "-3"], "argument --seed: must be between 0 and 4294967295, got -3"),
     (["--workers", "0"], "argument --workers: must be between 1 and 256, got 0"),
     (["--trials", "two"], "argument --trials: expected an integer, got 'two'"),
-    (["--ds-eps", "0"], "argument --ds-eps: must be > 0, got '0'"),
+    (["--ds-eps", "0"], "argument --ds-eps: must be between 1e-09 and 1000, got '0'"),
     (["--ds-eps", "nan"], "argument --ds-eps: must be a finite number, got 'nan'"),
 ])
 def test_bad_input_exits_2(args: list[str], needle: str, tmp_path: Path) -> None:

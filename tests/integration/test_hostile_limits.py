@@ -34,21 +34,21 @@ OPTIONS = [  # (argv before the value, option, valid range; float: a real number
     (["experiment", "scoop", "--quick", "--episodes"], "--episodes", (1, 100_000)),
     (["experiment", "scoop", "--quick", "--experiments"], "--experiments", (1, 1000)),
     (["experiment", "single-mode", "--quick", "--trials"], "--trials", (1, 100_000)),
-    (["experiment", "single-mode", "--quick", "--ds-eps"], "--ds-eps", "float"),
+    (["experiment", "single-mode", "--quick", "--ds-eps"], "--ds-eps", (1e-9, 1e3)),
     (["evidence", ".", "--examples"], "--examples", (1, 10_000_000)),
     (["sim", "franka", "--seed"], "--seed", (0, SEED)),
     (["sim", "franka", "--workers"], "--workers", (1, 256)),
 ]
 
 
-def _valid(value: str, bounds: tuple[int, int] | str) -> bool:
+def _valid(value: str, bounds: tuple[int, int] | tuple[float, float]) -> bool:
     try:
         v = float(value)
     except ValueError:
         return False
-    if bounds == "float":
-        return v == v and 0 < v < float("inf")
     lo, hi = bounds
+    if isinstance(lo, float):  # a float option: its physical bounds
+        return lo <= v <= hi
     return value.lstrip("-").isdigit() and lo <= int(value) <= hi
 
 

@@ -177,7 +177,8 @@ def test_an_interrupted_campaign_never_replaces_complete_evidence(
     monkeypatch.setattr(campaign, "simulate_batch", interrupting)
     code, _, err = run(capsys, "verify", "--model", str(project / INPUTS["model"]),
                        "--examples", "30", "--batch-size", "10", "--backend", "serial",
-                       "--out", str(out), "--evidence", str(evidence))
+                       "--out", str(out), "--evidence", str(evidence),
+                       "--force")  # the evidence there is stronger: replacing it is asked for
     assert code == 130 and "no evidence written" in err
     assert evidence.read_bytes() == before
     assert (out / "campaign.md").read_text() == "the complete report\n"

@@ -60,7 +60,7 @@ def test_default_contracts_and_rate_zero_is_the_old_learner(
 def test_rate_and_control_dt_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, "learn", "x.csv", "-o", "m.json", "--rate", "-0.5")
     assert code == 2
-    assert "must be a finite number >= 0" in err and "Traceback" not in err
+    assert "must be 0 or between 1e-06 and 10000 1/s" in err and "Traceback" not in err
     code, _, err = run(capsys, "learn", "x.csv", "-o", "m.json", "--control-dt", "0")
     assert code == 2
     assert "must be " in err

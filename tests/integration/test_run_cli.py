@@ -18,7 +18,8 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 
 
 def test_json_fields_and_success(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = _run(["run", "--world", "scoop", "--seed", "2", "--perturb", "random:3",
+    code, out, err = _run(["run", "--world", "scoop", "--seed", "2", "--random-start",
+                           "--perturb", "random:3",
                            "--out", str(tmp_path), "--json"], capsys)
     rec = json.loads(out)
     assert code == 0 and rec["success"] is True, err
@@ -56,9 +57,11 @@ def test_animation_on_request(tmp_path: Path, capsys: pytest.CaptureFixture[str]
 def test_no_modulation_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # seed 19: the perturbations leave the spoon where the unmodulated system loops a -> b
     # -> a ... (Fig. 7); LTL-DS cuts the b -> a failure once and reaches d
-    code1, out1, _ = _run(["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3",
+    code1, out1, _ = _run(["run", "--world", "scoop", "--seed", "19", "--random-start",
+                           "--perturb", "random:3",
                            "--out", str(tmp_path / "a"), "--json"], capsys)
-    code2, out2, _ = _run(["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3",
+    code2, out2, _ = _run(["run", "--world", "scoop", "--seed", "19", "--random-start",
+                           "--perturb", "random:3",
                            "--no-modulation", "--out", str(tmp_path / "b"), "--json"], capsys)
     a, b = json.loads(out1), json.loads(out2)
     assert a["perturbations"] == b["perturbations"]
@@ -140,7 +143,8 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
     from tli_verify.model.serialize import load_model
 
     saved = tmp_path / "m" / "learned.model.json"
-    args = ["run", "--world", "scoop", "--seed", "19", "--perturb", "random:3", "--json"]
+    args = ["run", "--world", "scoop", "--seed", "19", "--random-start",
+            "--perturb", "random:3", "--json"]
     code, out, err = _run([*args, "--out", str(tmp_path / "a"), "-o", str(saved)], capsys)
     first = json.loads(out)
     assert code == 0 and first["cuts_added"] == 1, err

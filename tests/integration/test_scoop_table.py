@@ -10,6 +10,16 @@ seeded starts and perturbations, hence the same episodes. Policy steps are compa
 baseline's: its MLP episodes with many online cuts differed by one episode between runs of the
 former code in a process pool (experiment 6: 39 or 40 of 100; the same experiment alone gives
 39 in both codes), so BC may differ by one episode per experiment.
+
+The full table's LTL-DS, no-modulation and no-replan rows were re-recorded (issue 32) from
+``tli experiment scoop --seed 0``: the learner's default became the per-DS rate choice
+(``rate_budget=0.03``, commit a2312b6; before it, a fixed factor of the data's rate), so the
+models each experiment learns changed and with them the episodes. Bisected: 978/22 at 0a8538c
+and fc43f7b, 977/23 from a2312b6 on; the same code with ``rate_budget=None`` gives the former
+experiment 2 (96 of 100 without modulation) again. One no-modulation episode of experiment 2
+now ends in the Fig. 7 loop (977 successes, 23 loops), no-replan succeeds in 609 (was 612),
+LTL-DS still in all 1,000; BC and the Fig. 7 case are unchanged. The quick table is unchanged.
+``tests/unit/test_results_quoted.py`` keeps the README and the results page quoting this table.
 """
 
 from __future__ import annotations

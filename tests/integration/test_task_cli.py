@@ -74,7 +74,7 @@ def test_init_writes_a_project_and_refuses_to_overwrite(tmp_path: Path) -> None:
 
 def test_the_template_runs_and_pictures_are_drawn(learned: Path) -> None:
     rc, out, err = tli("run", "--task", "reach", "--perturb", "random:2", "--seed", "3",
-                       "--json", "--animate", "8", cwd=learned)
+                       "--random-start", "--json", "--animate", "8", cwd=learned)
     rec = json.loads(out)
     assert rc == 0 and rec["success"] and rec["task"] == "reach", err
     assert rec["files"]["task"].endswith("reach.toml")

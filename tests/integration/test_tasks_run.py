@@ -38,7 +38,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, dict
 def test_a_seeded_perturbed_episode_reaches_the_goal(
         repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], task: str,
         spec: str | None, seed: int, first: str, goal: str) -> None:
-    argv = ["--task", task, "--seed", str(seed), "--perturb", "random:2",
+    argv = ["--task", task, "--seed", str(seed), "--random-start", "--perturb", "random:2",
             "--out", str(tmp_path)]
     if spec is not None:
         argv += ["--spec", str(repo / "specs" / f"{spec}.toml")]
@@ -53,14 +53,15 @@ def test_a_seeded_perturbed_episode_reaches_the_goal(
 
 def test_inspection_is_done_at_the_release_not_on_entering_the_line(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, rec = _run(["--task", "inspection", "--seed", "2", "--out", str(tmp_path)], capsys)
+    code, rec = _run(["--task", "inspection", "--seed", "2", "--random-start",
+                      "--out", str(tmp_path)], capsys)
     assert code == 0
     from tli_verify.tasks.registry import find_task
 
     end = np.array(rec["final_state"])
     # the release station (8 <= x1 <= 9 on the line), not the entry of the track
     assert find_task("inspection").true_mode(end[None])[0] == "release"
-    code, rec = _run(["--task", "inspection", "--seed", "2", "--steps", "60",
+    code, rec = _run(["--task", "inspection", "--seed", "2", "--random-start", "--steps", "60",
                       "--out", str(tmp_path)], capsys)
     assert code == 1 and rec["success"] is False  # on the line, not yet released
 
@@ -83,7 +84,7 @@ def test_a_model_given_without_spec_runs_to_the_goal_of_the_spec_it_names(
     code, rec = _run(["--task", "cooking", "--model",
                       str(repo / "models" / "cooking-cc.model.json"), "--certificate",
                       str(repo / "certificates" / "cooking-cc.cert.json"), "--seed", "1",
-                      "--out", str(tmp_path)], capsys)
+                      "--random-start", "--out", str(tmp_path)], capsys)
     assert code == 0 and [m for m, _ in rec["mode_trace"]] == ["w", "y", "d"]
 
 
@@ -91,7 +92,7 @@ def test_no_replan_runs_a_model_with_per_transition_ds_only(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # cooking-cb's w1 has only 'w1->y': the open-loop sequence follows the automaton's plan
     # (it used to stop at w1 and exit 2, "no DS for 'w1'")
-    code, rec = _run(["--task", "cooking", "--seed", "3", "--perturb", "random:2",
+    code, rec = _run(["--task", "cooking", "--seed", "3", "--random-start", "--perturb", "random:2",
                       "--no-replan", "--out", str(tmp_path)], capsys)
     assert code in (0, 1) and rec["variant"] == "no-replan"
     assert [m for m, _ in rec["mode_trace"]][:2] == ["w1", "y"]

@@ -191,7 +191,10 @@ def test_ctrl_c_writes_a_partial_report(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "tli_verify.cli", "verify", "--world", "scoop", "--examples",
          "600", "--no-shrink", "--workers", "1", "--batch-size", "10", "--out",
-         str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+         str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        # SIGINT as an interactive shell leaves it, even when this run inherited it ignored
+        # (make test &, nohup): else the child would ignore the Ctrl-C this test sends
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.stderr is not None
     seen = []
     for line in proc.stderr:  # wait until the simulation started

@@ -31,6 +31,7 @@ from tli_verify.verify.evidence import (
     evidence_digest,
     evidence_path_for,
     task_block,
+    task_content_sha256,
     write_evidence,
 )
 
@@ -353,7 +354,7 @@ def test_evidence_on_an_edited_copy_of_the_task_is_refused(project: Path, repo: 
         f"{task.source.sha256[:12]}...)" in message
     assert "the deployed spec's task is 'scoop' (" in message and bundled[:12] in message
     assert "another task, or the task changed after the campaign" in message
-    assert message in only_campaign_blocks(project)
+    assert message.split(": ", 1)[1] in only_campaign_blocks(project)
 
 
 def test_evidence_on_another_task_is_refused(project: Path, repo: Path) -> None:
@@ -366,7 +367,7 @@ def test_evidence_on_another_task_is_refused(project: Path, repo: Path) -> None:
     assert "the campaign ran on task 'cooking' (" in message and "cooking.toml" in message
     assert sha256_file(repo / "tasks" / "cooking.toml")[:12] in message
     assert "but the deployed spec's task is 'scoop'" in message
-    assert message in only_campaign_blocks(project)
+    assert message.split(": ", 1)[1] in only_campaign_blocks(project)
 
 
 def test_a_spec_naming_no_task_blocks_its_models_evidence(project: Path) -> None:
@@ -387,7 +388,7 @@ def test_a_spec_naming_no_task_blocks_its_models_evidence(project: Path) -> None
     found = {(b.check, b.message) for b in report.blockers}
     assert {c for c, _ in found} == {"task", "campaign"}
     assert any(c == "task" and "names no task" in m for c, m in found)
-    assert any(c == "campaign" and message in m for c, m in found)
+    assert any(c == "campaign" and message.split(": ", 1)[1] in m for c, m in found)
 
 
 def test_honest_evidence_binds_the_deployed_specs_task(project: Path, repo: Path) -> None:
@@ -400,7 +401,7 @@ def test_honest_evidence_binds_the_deployed_specs_task(project: Path, repo: Path
     assert doc["task"] == {
         "name": "scoop", "kind": "file",
         "path": Path(os.path.relpath(bundled, (project / "certificates").resolve())).as_posix(),
-        "sha256": sha256_file(bundled)}
+        "sha256": sha256_file(bundled), "content_sha256": task_content_sha256(bundled)}
     assert deployed_task_block(model, project / "certificates") == doc["task"]
     report = run_gate(project, rerun=0)
     assert report.ok, [b.message for b in report.blockers]
@@ -422,5 +423,72 @@ def test_a_project_task_edited_after_the_campaign_blocks(project: Path, repo: Pa
     message = only_the_task_check_fails(project)
     assert "the deployed spec's task is 'scoop' (../tasks/scoop.toml, SHA-256 " \
         f"{sha256_file(project / 'tasks' / 'scoop.toml')[:12]}...)" in message
-    assert "the task changed after the campaign" in message
-    assert message in only_campaign_blocks(project)
+    assert "its content changed since the campaign (not only comments" in message
+    assert message.split(": ", 1)[1] in only_campaign_blocks(project)
+
+
+FORGED_SETTINGS = [
+    ("target_examples", 2.5), ("target_examples", 10**9), ("target_examples", -1),
+    ("target_examples", True), ("batch_size", 0), ("batch_size", 10**9), ("window", 10**12),
+    ("window", 700.0), ("max_pushes", 10**6), ("lag", -1), ("lag", "0"), ("max_cycles", -3),
+    ("levels", ["push", "teleport"]), ("levels", []), ("shrink", 1), ("random_starts", "yes"),
+    ("start", [0.0, "x"]), ("workers_per_batch", 2),
+]
+
+
+@pytest.mark.parametrize(("key", "value"), FORGED_SETTINGS)
+def test_every_recorded_setting_is_validated_with_the_cli_limits(project: Path, key: str,
+                                                                 value: Any) -> None:
+    """A setting forged with the digest recomputed blocks the gate, without a re-run (issue 32:
+    ``target_examples`` 2.5 or 1e9 passed, since only the settings the re-run used were
+    checked)."""
+    forge(project, lambda doc: doc["campaign"]["settings"].__setitem__(key, value))
+    message = only_campaign_blocks(project)
+    assert "campaign.settings" in message and key in message, message
+
+
+def _with_task(project: Path, repo: Path) -> Path:
+    (project / "tasks").mkdir()
+    task = project / "tasks" / "scoop.toml"
+    shutil.copy(repo / "tasks" / "scoop.toml", task)
+    attach_evidence(project)  # binds the project's own task file
+    assert run_gate(project, rerun=0).ok
+    return task
+
+
+@pytest.mark.parametrize("edit", [
+    lambda t: t + "\n# a note on the task\n",
+    lambda t: "# header comment\n\n" + t.replace("\n", "\n\n", 3),
+    lambda t: t.replace("\n", "  # trailing\n", 1) if t.split("\n", 1)[0].strip() and
+    not t.split("\n", 1)[0].rstrip().endswith(('"""', "'''")) else t + "#\n",
+])
+def test_a_comment_only_edit_of_the_task_does_not_block(project: Path, repo: Path,
+                                                        edit: Callable[[str], str]) -> None:
+    """Issue 32: editing a comment of the task file blocked the gate (the hash covered bytes,
+    not meaning). The evidence's content hash matches: it passes, and the line says why."""
+    task = _with_task(project, repo)
+    task.write_text(edit(task.read_text()))
+    report = run_gate(project, rerun=0)
+    assert report.ok, [b.message for b in report.blockers]
+    line = next(i for i in report.items if i.check == "campaign")
+    assert "only its comments or formatting changed" in line.message
+
+
+def test_a_change_of_the_task_blocks_and_says_it_is_not_a_comment(project: Path,
+                                                                 repo: Path) -> None:
+    task = _with_task(project, repo)
+    text = task.read_text()
+    assert "max_pushes = 3" in text
+    task.write_text(text.replace("max_pushes = 3", "max_pushes = 2"))
+    message = only_campaign_blocks(project)
+    assert "its content changed since the campaign (not only comments" in message
+    assert message.count("certificates/scoop.campaign.json") == 1  # the path once
+
+
+def test_old_evidence_without_a_content_hash_says_what_to_do(project: Path,
+                                                            repo: Path) -> None:
+    task = _with_task(project, repo)
+    forge(project, lambda doc: doc["task"].pop("content_sha256"))
+    task.write_text(task.read_text() + "# a comment\n")
+    message = only_campaign_blocks(project)
+    assert "records no content hash" in message and "tli evidence" in message

@@ -251,7 +251,7 @@ def test_titles() -> None:
     assert mode_sequence(["approach", "pull", "pull", "retract"]) == "approach-pull-retract"
     r = episode(3, success=False)
     assert episode_title(r, label="LTL-DS", goal_label="the open drawer") == \
-        "LTL-DS: ab (no the open drawer in 60 steps, 0 cuts)"
+        "LTL-DS: ab (does not reach the open drawer in 60 steps, 0 cuts)"
     assert episode_title(episode(3, cut=diagonal_cut(3))) == "ab (reaches the goal, 1 cut)"
     assert list(zoom_colors(["b", "a", "b"])) == ["b", "a"]
     assert zoom_colors(["b", "a"], {"a": "tab:red"})["a"] == ("tab:red", "tab:red")

@@ -77,6 +77,36 @@ def positive_float(text: str) -> float:
     return value
 
 
+def float_range(lo: float, hi: float, unit: str = "", *, zero: bool = False
+                ) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in ``[lo, hi]`` (``zero``: exactly 0 too), its
+    unit named in the message. Every float option has such physical bounds
+    (:doc:`/reference/limits`), so a subnormal period or an overflowing margin is refused
+    before any work.
+    """
+    import math
+
+    units = f" {unit}" if unit else ""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+        if zero and value == 0:
+            return 0.0
+        if not lo <= value <= hi:
+            either = "0 or " if zero else ""
+            raise argparse.ArgumentTypeError(f"must be {either}between {lo:g} and {hi:g}"
+                                             f"{units}, got {text!r}")
+        return value
+
+    parse.bounds = (lo, hi, zero)  # type: ignore[attr-defined]
+    return parse
+
+
 PROJECT_FOLDERS = ("tasks", "specs", "models", "certificates")
 """The folders of a project the gate reads: a report must not land in one (a JSON report in
 ``certificates/`` would be read as a certificate, in ``models/`` as a model)."""

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from tli_verify.commands import int_range, output_path, positive_float
+from tli_verify.commands import float_range, int_range, output_path
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
 
 QUICK_TRIALS = 3
@@ -52,8 +52,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     s.add_argument("--cut-constraints", choices=("entries", "paper"), default="entries",
                    help="states a new cut keeps inside: every observed entry state (default) "
                    "or only the failure's own x^0 (appendix E.3 as written)")
-    s.add_argument("--ds-eps", type=positive_float, default=1e-3,
-                   help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default 1e-3)")
+    s.add_argument("--ds-eps", type=float_range(1e-9, 1e3), default=1e-3,
+                   help="LPV-DS stability margin eps in A_k^T P + P A_k <= -eps I (default "
+                   "1e-3; 1e-9 to 1e3)")
     s.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s.set_defaults(handler=_single_mode)
     c = esub.add_parser(

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import output_path, positive_float
+from tli_verify.commands import float_range, output_path, positive_float
 from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
 
 __all__ = ["demo_stage", "register"]
@@ -24,12 +23,15 @@ __all__ = ["demo_stage", "register"]
 _positive_float = positive_float
 
 
-def _control_period(text: str) -> float:
-    """A control period in seconds: positive and at most 1 s (a DS step of a robot loop)."""
-    value = _positive_float(text)
-    if value > 1.0:
-        raise argparse.ArgumentTypeError(f"must be at most 1 (seconds), got {text!r}")
-    return value
+_control_period = float_range(1e-6, 1.0, "s")
+"""A control period: 1 microsecond to 1 s (a DS step of a robot loop; a subnormal or zero
+period would make the sampled condition vacuous)."""
+_margin = float_range(1e-9, 1e3)
+"""An LMI margin ``eps``: 1e-9 (below it the SDP solver's own tolerance decides) to 1e3."""
+_decay_rate = float_range(1e-6, 1e4, "1/s", zero=True)
+"""A certified decay rate: 0 (margin only), or 1e-6 to 1e4 per second."""
+_budget = float_range(1e-6, 100.0, zero=True)
+"""``--rate-budget``: 0, or a relative RMSE increase of 1e-6 to 100."""
 
 
 def _rational(text: str) -> Fraction:
@@ -42,16 +44,8 @@ def _rational(text: str) -> Fraction:
         raise argparse.ArgumentTypeError(str(exc)) from None
     if value <= 0:
         raise argparse.ArgumentTypeError(f"--dt: {text!r} must be positive")
-    return value
-
-
-def _nonnegative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    if not Fraction(1, 10**6) <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be between 1e-06 and 1 s, got {text!r}")
     return value
 
 
@@ -66,13 +60,15 @@ def _seed(text: str) -> int:
 
 
 def _rerun_examples(text: str) -> int:
-    """``--rerun N``: examples of the gate's re-run campaign, 1 to 100,000."""
+    """``--rerun N``: examples of the gate's re-run campaign, 1 to 100,000 (the command always
+    re-runs; only ``run_gate(rerun=0)`` in Python skips it, for tests of the other checks)."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
     if not 1 <= value <= 100_000:
-        raise argparse.ArgumentTypeError(f"must be between 1 and 100000, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be between 1 and 100000 (the gate always "
+                                         f"re-runs a sample), got {text!r}")
     return value
 
 
@@ -103,21 +99,22 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("-o", "--output", type=output_path, required=True, metavar="MODEL.json",
                    help="model file to write (must not be one of the inputs)")
     p.add_argument("--seed", type=_seed, default=0, help="clustering seed (default 0)")
-    p.add_argument("--eps", type=_positive_float, default=1e-3,
-                   help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3)")
+    p.add_argument("--eps", type=_margin, default=1e-3,
+                   help="LMI margin: A_k^T P + P A_k <= -eps I (default 1e-3; 1e-9 to 1e3)")
     rate = p.add_mutually_exclusive_group()
-    rate.add_argument("--rate", type=_nonnegative_float, default=None,
+    rate.add_argument("--rate", type=_decay_rate, default=None,
                       help="force this certified decay rate of V on every DS, A_k^T P + "
                       "P A_k <= -rate P (1/s; 0: margin --eps only, the earlier margin-only "
-                      "learner; default: chosen per DS under --rate-budget)")
-    rate.add_argument("--rate-budget", type=_nonnegative_float, default=None, metavar="B",
+                      "learner; else 1e-6 to 1e4; default: chosen per DS under --rate-budget)")
+    rate.add_argument("--rate-budget", type=_budget, default=None, metavar="B",
                       help="per DS, fit at rate 0, then certify the largest rate on a "
                       "half-octave grid up to the data's mean |xdot| / mean |x - x*| whose "
                       "training velocity RMSE is within (1 + B) x the rate-0 fit's (default "
-                      "0.03; recorded in the model's fit)")
+                      "0.03; 0 or 1e-6 to 100; recorded in the model's fit)")
     p.add_argument("--control-dt", type=_control_period, default=None, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
-                   "(default: the control period of the spec's task, else 0.001 s)")
+                   "(default: the control period of the spec's task, else 0.001 s; 1e-6 to "
+                   "1 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
     p.add_argument("--no-handoff", action="store_true",
@@ -172,9 +169,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("directory", nargs="?", type=Path, default=Path("."), metavar="DIR")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.add_argument("--rerun", type=_rerun_examples, default=None, metavar="N",
-                   help="also re-run a campaign of N examples per deployed model, with its "
-                   "evidence's seed and world (physical evidence: N MuJoCo trials with its "
-                   "seed, robot, variant and duration); a violation blocks")
+                   help="re-run a campaign of N examples per deployed model (default 50; "
+                   "physical evidence: N MuJoCo trials, default 1), on a seed the gate derives "
+                   "from the evidence's digest and the model's SHA-256 (not the evidence's "
+                   "seed), with the evidence's recorded task and settings; a violation "
+                   "blocks; N is 1 to 100000 (the gate always re-runs)")
     p.set_defaults(handler=_gate)
 
 

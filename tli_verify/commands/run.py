@@ -72,9 +72,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     add_task_arguments(p)
     p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0,
                    help="seed of the start and of random:N")
-    p.add_argument("--start", default=None, metavar="X1,...,Xn",
-                   help="start state, one number per coordinate (default: a seeded random "
-                   "state whose reading is an initial one of the spec)")
+    start = p.add_mutually_exclusive_group()
+    start.add_argument("--start", default=None, metavar="X1,...,Xn",
+                       help="start state, one number per coordinate; a negative first number "
+                       "needs '=' (--start=-0.9,0) (default: the task's first nominal start, "
+                       "[starts] nominal; a task without one: as --random-start)")
+    start.add_argument("--random-start", action="store_true",
+                       help="a seeded random start (--seed) whose reading is an initial one "
+                       "of the spec, instead of the task's nominal start")
     p.add_argument("--perturb", action="append", default=[], metavar="T:D1,...,Dn|random:N",
                    help="displace the state by (D1, ..., Dn) before step T (repeatable), or N "
                    "seeded random perturbations (directions uniform on the sphere, magnitudes "
@@ -218,6 +223,8 @@ def _run(args: argparse.Namespace) -> int:
             box = " x ".join(f"[{a:g}, {b:g}]" for a, b in zip(task.lo, task.hi, strict=True))
             raise TliError(f"--start {args.start!r}: outside the workspace {box} of task "
                            f"{task.name!r}")
+    elif task.starts.nominal and not args.random_start:
+        x0 = np.array(task.starts.nominal[0], dtype=np.float64)  # what tli verify starts at
     else:
         x0 = random_start(task, setup.automaton, rng(args.seed, Stream.START))
     variant = ("no-modulation" if args.no_modulation else

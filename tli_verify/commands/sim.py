@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
+from tli_verify.commands import DEFAULT_PATH, chosen_path, float_range, int_range, output_path
 from tli_verify.sim import TRIAL_DURATION
 
 __all__ = ["register"]
@@ -66,8 +66,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="ideal (default): noise-free sensors from the physics; franka: s "
                    "from a wrist F/T load, r and t from the noisy kinematic pose, with "
                    "latency (tli_verify.sim.franka_sensors)")
-    f.add_argument("--duration", type=float, default=TRIAL_DURATION,
-                   help="step budget per trial, simulated seconds (default %(default)g)")
+    f.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=TRIAL_DURATION,
+                   help="step budget per trial, simulated seconds (default %(default)g; 0.5 "
+                   "to 600)")
     f.add_argument("--workers", type=int_range(1, 256), default=1,
                    help="split the seeds into N contiguous chunks, one executive each (its "
                    "cuts carry over between the trials of its chunk only); default 1: one "

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
 
 __all__ = ["register"]
@@ -49,9 +49,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                        "can produce under any push is one the spec's assumptions allow (exit 1 "
                        "naming the pair of regions otherwise)")
     check.set_defaults(handler=_check)
-    lst = tsub.add_parser("list", help="the tasks the registry knows")
-    lst.add_argument("--project", type=Path, default=None,
-                     help="also a project's tasks/ (default: none)")
+    lst = tsub.add_parser("list", help="the tasks the registry knows: the project's own "
+                          "(tasks/*.toml), the bundled ones and entry points")
+    lst.add_argument("--project", type=Path, default=Path("."),
+                     help="the project whose tasks/ is listed too (default: the working "
+                     "folder, where tli run and tli verify find a task by name first)")
     lst.set_defaults(handler=_list)
 
     demos = sub.add_parser(
@@ -102,6 +104,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--backend", choices=("process", "serial", "dask"), default=None,
                     help="where the batches run (default: process for bisimulation campaigns, "
                     "serial for physical ones)")
+    ev.add_argument("--random-starts", action="store_true", default=None,
+                    help="bisimulation campaigns draw random starts (default: the task's "
+                    "[starts]: its first nominal start, or random starts with random = true "
+                    "or no nominal start)")
+    ev.add_argument("--force", action="store_true",
+                    help="replace evidence of a stronger campaign (more examples, random "
+                    "starts, a longer window, more pushes); without it such evidence is kept "
+                    "and nothing runs")
     ev.add_argument("--only", nargs="+", default=None, metavar="NAME",
                     help="only these models (models/NAME.model.json)")
     ev.add_argument("--trials", type=int_range(1, 100_000), default=None,
@@ -112,8 +122,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     help="physical campaigns: the stall retry off")
     ev.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
                     help="physical campaigns: the sensor model")
-    ev.add_argument("--duration", type=float, default=40.0,
-                    help="physical campaigns: budget per trial (simulated seconds)")
+    ev.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=40.0,
+                    help="physical campaigns: budget per trial (simulated seconds; default "
+                    "40, 0.5 to 600)")
     ev.set_defaults(handler=_evidence)
 
 
@@ -214,9 +225,12 @@ def _list(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import bundled_tasks, task_names
 
     bundled = bundled_tasks()
+    own = args.project / "tasks"
     for name in task_names(args.project):
-        where = bundled.get(name)
-        sys.stdout.write(f"{name}\t{where if where is not None else 'entry point / project'}\n")
+        mine = own / f"{name}.toml"
+        where = (f"{mine} (this project)" if mine.is_file() else bundled.get(name)
+                 or "entry point")
+        sys.stdout.write(f"{name}\t{where}\n")
     return 0
 
 
@@ -305,6 +319,12 @@ def _evidence(args: argparse.Namespace) -> int:
         resolved = resolve(model=model)
         physical = bool(getattr(resolved.task.sensor_model, "physics", False))
         plan.append((model, resolved, physical))
+        if not physical:  # nor replaces stronger evidence (unless --force)
+            from tli_verify.commands.verify import keep_stronger
+            from tli_verify.verify.config import resolve_config
+
+            keep_stronger(model_files(model).evidence,
+                          resolve_config(_config(args, resolved))[1], force=args.force)
     check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
                outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
     status = 0
@@ -319,20 +339,27 @@ def _evidence(args: argparse.Namespace) -> int:
     return status
 
 
+def _config(args: argparse.Namespace, resolved: Any) -> Any:
+    """The bisimulation campaign ``tli evidence`` runs for one model."""
+    from tli_verify.verify.config import CampaignConfig
+
+    return CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
+                          certificate=str(resolved.certificate), examples=args.examples,
+                          seed=args.seed, modulation=True, workers=args.workers,
+                          backend=args.backend or "process", random_starts=args.random_starts)
+
+
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.verify.campaign import run_campaign
-    from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import write_campaign_evidence
 
-    config = CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
-                            certificate=str(resolved.certificate), examples=args.examples,
-                            seed=args.seed, modulation=True, workers=args.workers,
-                            backend=args.backend or "process")
+    config = _config(args, resolved)
     result = run_campaign(config, progress=sys.stderr.isatty())
     path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
             f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
+            f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
 
 

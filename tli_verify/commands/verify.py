@@ -53,6 +53,10 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--window", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
                    help="perturbations happen in steps 1..WINDOW (default: the task's, else "
                    "700)")
+    p.add_argument("--force", action="store_true",
+                   help="with --evidence: replace evidence of a stronger campaign (more "
+                   "examples, random starts, a longer window, more pushes or levels); "
+                   "without it such evidence is kept and the command stops before any work")
     p.add_argument("--random-starts", action="store_true", default=None,
                    help="draw start states too (default: the task's first nominal start; a "
                    "task without one draws starts)")
@@ -106,11 +110,12 @@ def _verify(args: argparse.Namespace) -> int:
     from tli_verify.verify.config import resolve_config
     from tli_verify.verify.evidence import evidence_path_for
 
-    resolved, _ = resolve_config(cfg)  # before any work: the files, the task, their fit
+    resolved, filled = resolve_config(cfg)  # before any work: the files, the task, their fit
     out: Path = args.out
     evidence = None
     if args.evidence is not None:
         evidence = chosen_path(args.evidence) or evidence_path_for(resolved.model)
+        keep_stronger(evidence, filled, force=args.force)
     check_plan(inputs=resolved.inputs,
                outputs=[(out / "campaign.json", "campaign record"),
                         (out / "campaign.md", "campaign report"),
@@ -229,7 +234,11 @@ def write_report(result: Any, out: Path) -> list[Path]:
     ax1.set_ylabel("steps")
     ax1.set_title(f"outcomes per run: {result.runs} runs"
                   + (" (PARTIAL)" if result.partial else ""), fontsize=9)
-    ax1.legend(fontsize=7, loc="best")
+    if groups:
+        ax1.legend(fontsize=7, loc="best")
+    else:  # interrupted before a run finished: nothing to label (and no matplotlib warning)
+        ax1.text(0.5, 0.5, "no run finished", ha="center", va="center",
+                 transform=ax1.transAxes, fontsize=9)
     cov = result.coverage
     names = ["automaton edges", "mode edges", "modes perturbed", "cut faces touched"]
     got = [cov["automaton_edges"]["exercised"], cov["mode_edges"]["exercised"],
@@ -401,3 +410,25 @@ def _replay(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{verdict.diagnosis}\n")
     return 1 if reproduced else 0
 
+
+
+def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
+    """Refuse (exit 2, before any work) to replace the evidence of a stronger campaign, unless
+    ``force``; with ``force``, say on stderr what is being replaced.
+
+    Raises
+    ------
+    TliError
+        The evidence at ``path`` records a stronger campaign than ``config``'s.
+    """
+    from tli_verify.errors import TliError
+    from tli_verify.verify.evidence import weaker_than_recorded
+
+    why = weaker_than_recorded(path, config)
+    if why is None:
+        return
+    if not force:
+        raise TliError(f"{path}: holds evidence of a stronger campaign ({why}): not replaced; "
+                       "--force replaces it")
+    sys.stderr.write(f"note: {path}: replacing evidence of a stronger campaign ({why}) "
+                     "(--force)\n")

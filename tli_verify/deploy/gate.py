@@ -22,12 +22,13 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
    * ``campaign``: campaign evidence ``certificates/<name>.campaign.json``
      (:mod:`tli_verify.verify.evidence`) binds its current spec, model and valid certificate,
      found 0 violations with modulation on, is complete and has at least
-     ``MIN_EVIDENCE_EXAMPLES`` examples; with ``rerun=N`` (``tli gate --rerun N``) a short
-     campaign of ``N`` examples with the evidence's seed runs again (``rerun``) and must find
-     nothing. Evidence that binds no deployed model blocks too. A physical campaign's
+     ``MIN_EVIDENCE_EXAMPLES`` examples; a short campaign (``rerun``; default
+     ``DEFAULT_RERUN_EXAMPLES``; ``rerun=N``: ``tli gate --rerun N``; ``rerun=0`` from Python
+     only) runs again on a seed the gate derives (:func:`rerun_seed`, not the evidence's) and
+     must find nothing. Evidence that binds no deployed model blocks too. A physical campaign's
      evidence (world ``franka-physics``, the Franka project ``sim/franka``) needs
      ``MIN_PHYSICS_TRIALS`` perturbed MuJoCo trials that all delivered soup; its ``rerun``
-     re-runs ``N`` physical trials with the recorded robot, variant, duration and seed
+     re-runs ``N`` physical trials with the recorded robot, variant and duration, on a derived seed
      (:func:`tli_verify.sim.campaign.run_physics_campaign`) and every one must pass the
      physics oracle.
 
@@ -521,9 +522,11 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
         check = check_evidence(evidence, model_path=model, valid_certificates=valid,
                                physical=(FRANKA_PHYSICS,))
         if not check.ok:
-            items.append(GateItem("model", name, False, f"{shown(evidence)}: "
-                                  f"{'; '.join(check.problems)}", "campaign"))
+            problems = "; ".join(_unprefixed(p, check.path) for p in check.problems)
+            items.append(GateItem("model", name, False, f"{shown(evidence)}: {problems}",
+                                  "campaign"))
             continue
+        comments = next((p for p in check.passed if "only its comments" in p), None)
         if check.physics:
             phys = dict(check.physics)
             items.append(GateItem(
@@ -537,8 +540,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
             items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on task "
                                   f"{check.world!r} with seed {check.seed}: {check.examples} "
                                   f"examples ({check.runs} runs), modulation on, 0 violations; "
-                                  "binds its task, spec, model and certificate (SHA-256)",
-                                  "campaign"))
+                                  "binds its task, spec, model and certificate (SHA-256)"
+                                  + (f"; {comments}" if comments else ""), "campaign"))
         count = (DEFAULT_RERUN_TRIALS if check.physics else DEFAULT_RERUN_EXAMPLES) \
             if rerun is None else int(rerun)
         if count > 0:
@@ -551,6 +554,11 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "model (the gate looks for models/<name>.model.json next to "
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
+
+
+def _unprefixed(problem: str, path: str) -> str:
+    """A problem without the evidence path it starts with (the gate's line names it once)."""
+    return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
 
 
 def _partition(phys: dict[str, Any]) -> str:
@@ -628,7 +636,8 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials
-    with the evidence's seed, robot, variant, duration, pushes and tilts, on the deployed files
+    with the evidence's robot, variant, duration, pushes and tilts on seeds the gate derives
+    (not the evidence's seed), on the deployed files
     (the project is the model's ``models/`` parent), each judged by the physics oracle
     (:func:`tli_verify.sim.trial_oracle.check_trial`).
 

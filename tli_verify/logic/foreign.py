@@ -1777,9 +1777,8 @@ def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_C
     :data:`_PROJECTION_CUBES` cubes). Conjuncts over
     environment variables only are kept as they are.
     """
-    import spot
-
     from tli_verify.logic.gr1 import _to_bdd, disjoint_cubes, new_manager
+    from tli_verify.logic.spot_import import spot
 
     sys_vars = {v.name for v in spec.variables if v.side == "sys"}
     sys_bits = {b for v in spec.variables if v.side == "sys" for b in v.bits()}

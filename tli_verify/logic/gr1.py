@@ -566,7 +566,7 @@ def closed_relation(game: Game, parts: Sequence[Any], *, system: bool) -> Any:
 
 
 def _conjuncts(f: Any) -> list[Any]:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     if f.kind() == spot.op_And:
         out = []
@@ -577,7 +577,7 @@ def _conjuncts(f: Any) -> list[Any]:
 
 
 def _has_next(f: Any) -> bool:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     if f.kind() == spot.op_X:
         return True
@@ -585,7 +585,7 @@ def _has_next(f: Any) -> bool:
 
 
 def _aps(f: Any) -> set[str]:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     return {str(a.ap_name()) for a in spot.atomic_prop_collect(f)}
 
@@ -615,7 +615,7 @@ def _to_bdd_memo(f: Any, bdd: Any, primed: bool,
 
 def _to_bdd_node(f: Any, bdd: Any, primed: bool,
                  memo: dict[tuple[int, bool], tuple[Any, Any]]) -> Any:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     kind = f.kind()
     if kind == spot.op_tt:

@@ -453,20 +453,20 @@ def spec_to_toml(spec: GR1Spec) -> str:
 
 
 def _ap(f: Any) -> str | None:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     return str(f.ap_name()) if f.kind() == spot.op_ap else None
 
 
 def _g_body(f: Any) -> Any | None:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     return f[0] if f.kind() == spot.op_G else None
 
 
 def _marker_parts(body: Any, markers: set[str]) -> tuple[str, str] | None:
     """``(marker, rhs text)`` if ``body`` is ``X p <-> R`` (or ``!X p``: ``R`` false)."""
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     def xp(g: Any) -> str | None:
         if g.kind() == spot.op_X:
@@ -521,10 +521,9 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     UnrealizableError
         The grown spec is unrealizable or not well-separated (the old spec is kept).
     """
-    import spot
-
     from tli_verify.logic.check import check_spec
     from tli_verify.logic.gr1 import _to_bdd
+    from tli_verify.logic.spot_import import spot
 
     where = spec.path or spec.name
     if spec.modes is None:
@@ -587,7 +586,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
 def _or_next(rhs: Any, extra: str) -> str:
     """``rhs | X extra`` as text; ``X(D | extra)`` when ``rhs`` is ``X D``, so that repeated
     growth keeps the formula flat (Spot's n-ary ``|``)."""
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     if rhs.kind() == spot.op_X:
         return f"X(({rhs[0]!s}) | ({extra}))"

@@ -66,7 +66,7 @@ class Slot(Enum):
 
 
 def _spot() -> Any:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     return spot
 

@@ -380,7 +380,7 @@ def label_holds(spec: GR1Spec, mode: str, sensors: Mapping[str, bool]) -> bool:
 
 
 def _eval_bool(f: Any, values: Mapping[str, bool]) -> bool:
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     kind = f.kind()
     if kind == spot.op_tt:
@@ -536,7 +536,7 @@ def _side(raw: Any, side: str, inputs: tuple[str, ...], outputs: tuple[str, ...]
 
 def _check_assumption_vars(f: Any, outputs: tuple[str, ...], slot: Slot, tag: str) -> None:
     """Assumptions may not constrain the system's initial or next values."""
-    import spot
+    from tli_verify.logic.spot_import import spot
 
     outs = set(outputs)
     if slot is Slot.INIT:

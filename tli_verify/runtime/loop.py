@@ -22,6 +22,7 @@ from tli_verify.model.types import Model
 from tli_verify.runtime.events import (
     CutAdded,
     Event,
+    mode_sequence,
 )
 from tli_verify.runtime.executive import LTLDSPolicy
 
@@ -57,22 +58,35 @@ class SensorModel(Protocol):
 
 @dataclass(frozen=True, slots=True, eq=False)
 class EpisodeResult:
-    """One closed-loop episode.
+    """One closed-loop episode (what :func:`tli_verify.run` returns; ``tli run`` writes the
+    same episode to ``run.json``).
 
     Attributes
     ----------
     success : bool
-        A goal mode was reached within the step budget.
+        A goal mode was reached (with the task's goal sensors, if any) within the step budget.
     steps : int
-        Control steps taken.
+        Control steps taken (each ``dt`` of the task long).
     states : ndarray, shape (steps + 1, n)
+        The state at each step, the start first (``states[t]`` is the state the mode
+        ``modes[t]`` ran at), in the task's state coordinates.
     modes : tuple of str
-        The mode run at each step (``len = steps + 1``; index 0 after ``reset``).
+        The mode run at each step, one entry per step (``len = steps + 1``; index 0 after
+        ``reset``). Collapsed to the modes visited: :attr:`mode_sequence`.
     automaton_states : tuple of int
+        The task automaton's state at each step (``len = steps + 1``), as numbered by
+        :class:`~tli_verify.logic.automaton.TaskAutomaton`.
     events : tuple of Event
+        What the executive reported, in order: mode changes, replans, invariance failures,
+        cuts added (or failed), perturbations, assumption violations
+        (:mod:`tli_verify.runtime.events`).
     cuts_added : int
+        Cuts learned online in this episode (modulation on; 0 without it).
     model : Model
         The model at the end (with the cuts learned online).
+    mode_sequence : str
+        (property) The modes visited, in order, repeats collapsed (``"abcd"``; names longer
+        than one character joined by ``-``): the ``mode_sequence`` of ``run.json``.
     """
 
     success: bool
@@ -83,6 +97,11 @@ class EpisodeResult:
     events: tuple[Event, ...]
     cuts_added: int
     model: Model
+
+    @property
+    def mode_sequence(self) -> str:
+        """The modes visited, in order, repeats collapsed (``run.json``'s ``mode_sequence``)."""
+        return mode_sequence(self.modes)
 
 
 Perturb = Callable[[int, FloatArray], "FloatArray | None"]

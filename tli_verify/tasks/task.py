@@ -168,10 +168,15 @@ class Starts:
     region : str or None
         The region random starts are drawn in (None: the whole workspace); only states whose
         first reading the spec's initial assumption allows are used.
+    random : bool
+        Campaigns draw random starts by default (``[starts] random = true``), though the task
+        keeps nominal starts (for ``tli run`` and ``--start``-less tools); without nominal
+        starts campaigns draw random starts anyway.
     """
 
     nominal: tuple[tuple[float, ...], ...] = ()
     region: str | None = None
+    random: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -991,7 +996,7 @@ def _goal(raw: Any, sensors: Sequence[str], where: str) -> Goal:
 
 def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Partition,
             where: str) -> Starts:
-    t = _keys(raw, ("nominal", "region"), f"{where}: [starts]")
+    t = _keys(raw, ("nominal", "region", "random"), f"{where}: [starts]")
     nominal_raw = t.get("nominal", [])
     if not isinstance(nominal_raw, list) or len(nominal_raw) > 1000:
         raise TaskError(f"{where}: starts.nominal: expected a list of at most 1000 states")
@@ -1007,7 +1012,10 @@ def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Parti
     if region is not None and region not in known:
         raise TaskError(f"{where}: starts.region: unknown region {region!r} (regions: "
                         f"{', '.join(sorted(known))})")
-    return Starts(tuple(nominal), region)
+    random = t.get("random", False)
+    if not isinstance(random, bool):
+        raise TaskError(f"{where}: starts.random: expected true or false, got {random!r}")
+    return Starts(tuple(nominal), region, random)
 
 
 def _perturbations(raw: Any, where: str) -> PerturbationBounds:

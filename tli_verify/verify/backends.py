@@ -24,7 +24,8 @@ from typing import Any, Protocol, TypeVar
 
 from tli_verify.errors import CampaignError, WorkerLost
 
-__all__ = ["MAX_RETRIES", "Backend", "ProcessBackend", "SerialBackend", "make_backend"]
+__all__ = ["MAX_RETRIES", "Backend", "ProcessBackend", "SerialBackend", "make_backend",
+           "unguarded_main_call"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -99,6 +100,14 @@ class ProcessBackend:
     def _new_pool(self) -> Any:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
+
+        where = unguarded_main_call()
+        if where is not None:
+            raise CampaignError(
+                f"{where[0]}:{where[1]}: a campaign on worker processes started from the top "
+                "level of a script without an `if __name__ == \"__main__\":` guard: each worker "
+                "re-imports the script and would start it again; put the call under the guard "
+                "(or use backend=\"serial\")")
 
         ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
@@ -205,3 +214,61 @@ def make_backend(kind: str = "process", *, workers: int | None = None,
         backend: Backend = DaskBackend(scheduler=scheduler, workers=workers, on_event=on_event)
         return backend
     raise CampaignError(f"--backend {kind!r}: unknown backend (serial, process, dask)")
+
+
+def unguarded_main_call() -> tuple[str, int] | None:
+    """Where the running script calls into tli-verify from its top level outside an
+    ``if __name__ == "__main__":`` block, or None.
+
+    Worker processes (``forkserver``, ``spawn``) import the main script again before they run
+    anything; an unguarded call there would start the campaign again in every worker (which
+    dies, and the campaign ends in :class:`~tli_verify.errors.WorkerLost`). The check reads
+    the call's line in the script (:mod:`ast`): a line under a top-level ``if`` that tests
+    ``__name__ == "__main__"`` is guarded. An interactive session or ``python -c`` has no
+    script file and is never refused.
+
+    Returns
+    -------
+    (str, int) or None
+        The script and the line of its top-level statement that made the call.
+    """
+    import ast
+    import sys
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path or not str(path).endswith(".py") or not os.path.isfile(path):
+        return None
+    frame = sys._getframe(1)
+    line = None
+    while frame is not None:
+        if frame.f_code.co_name == "<module>" and frame.f_globals is vars(main):
+            line = frame.f_lineno
+            break
+        frame = frame.f_back  # type: ignore[assignment]
+    if line is None:
+        return None
+    try:
+        with open(path, encoding="utf-8") as fh:
+            tree = ast.parse(fh.read(), filename=str(path))
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in tree.body:
+        if isinstance(node, ast.If) and _is_main_test(node.test):
+            end = getattr(node, "end_lineno", None) or node.lineno
+            if node.lineno <= line <= end:
+                return None
+    return str(path), int(line)
+
+
+def _is_main_test(test: Any) -> bool:
+    """``__name__ == "__main__"`` (either way round)."""
+    import ast
+
+    if not isinstance(test, ast.Compare) or len(test.ops) != 1 or \
+            not isinstance(test.ops[0], ast.Eq):
+        return False
+    sides = [test.left, test.comparators[0]]
+    names = [s for s in sides if isinstance(s, ast.Name) and s.id == "__name__"]
+    consts = [s for s in sides if isinstance(s, ast.Constant) and s.value == "__main__"]
+    return len(names) == 1 and len(consts) == 1

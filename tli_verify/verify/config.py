@@ -63,7 +63,7 @@ class CampaignConfig:
         Fixed start (default: the task's first nominal start).
     random_starts : bool or None
         Draw starts too (in the regions whose first reading the spec allows); default: when
-        the task has no nominal start.
+        the task has no nominal start, or its ``[starts] random = true``.
     lag : int or None
         Sensor lag (steps; default: the task's).
     max_cycles : int or None
@@ -203,7 +203,7 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
     start = cfg.start
     random_starts = cfg.random_starts
     if random_starts is None:
-        random_starts = start is None and not task.starts.nominal
+        random_starts = start is None and (not task.starts.nominal or task.starts.random)
     if not random_starts and start is None:
         if not task.starts.nominal:
             raise CampaignError(f"task {task.name!r} has no nominal start ([starts] nominal): "

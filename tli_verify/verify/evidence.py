@@ -74,6 +74,8 @@ __all__ = [
     "evidence_path_for",
     "model_stem",
     "settings_for_config",
+    "task_content_sha256",
+    "weaker_than_recorded",
     "write_campaign_evidence",
     "write_evidence",
 ]
@@ -207,6 +209,9 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
         out: dict[str, Any] = {"name": task.name, "kind": "file",
                                "path": _relpath(Path(src.path), Path(base)),
                                "sha256": src.sha256}
+        content = task_content_sha256(src.path)
+        if content is not None:
+            out["content_sha256"] = content
     elif src.kind == "entry-point" and src.source_sha256 is not None:
         out = {"name": task.name, "kind": "entry-point", "sha256": src.source_sha256}
     else:
@@ -216,6 +221,29 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
         out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
                               "version": src.version, "source_sha256": src.source_sha256}
     return out
+
+
+def task_content_sha256(path: str | os.PathLike[str]) -> str | None:
+    """SHA-256 of a task file's content: the parsed TOML as canonical JSON (comments, blank
+    lines, key order and number spelling do not count). None if it does not parse.
+
+    Evidence records it next to the file's SHA-256, so the gate tells an edit of comments or
+    formatting (same content: accepted, and said) from a change of the task (blocked).
+    """
+    import hashlib
+    import json
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.loads(fh.read().decode("utf-8-sig"))
+        # sorted keys, one spelling per number (inf and nan too), dates as ISO text
+        text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+                          allow_nan=True, default=str)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, TypeError, ValueError,
+            RecursionError):
+        return None
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
@@ -359,11 +387,15 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     Parameters
     ----------
     config : tli_verify.verify.config.CampaignConfig
-        Its ``world``, ``seed``, ``examples``, ``modulation``, ``backend`` and ``workers``.
+        The config given to :func:`~tli_verify.verify.campaign.run_campaign`. What is recorded
+        is the campaign the result says ran (``result.config``: the task's defaults filled in,
+        e.g. its perturbation ``window`` and ``max_pushes``), so evidence written from Python
+        with a config's defaults is the evidence ``tli verify --evidence`` writes; a config
+        whose seed, examples or modulation differ from the result's is refused.
     result : tli_verify.verify.campaign.CampaignResult
-        Its ``runs``, ``violations`` (kind -> count), ``counterexample``, ``partial``,
-        ``inconclusive`` and ``files`` (the spec, model and certificate the campaign ran, with
-        the SHA-256 it ran them at).
+        Its ``config``, ``runs``, ``violations`` (kind -> count), ``counterexample``,
+        ``partial``, ``inconclusive`` and ``files`` (the spec, model and certificate the
+        campaign ran, with the SHA-256 it ran them at).
     path : path-like, optional
         Where to write it (default: :func:`evidence_path_for` the model, under the model's
         project: ``models/NAME.model.json`` -> ``certificates/NAME.campaign.json``).
@@ -371,16 +403,21 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
     Returns
     -------
     (Path, dict)
-        The file and the document written. Evidence of a violating or partial campaign is
-        written too, as an honest record; the gate refuses it.
+        ``path``: the evidence file written; ``record``: the document written to it (the
+        JSON object of ``campaign.schema.json``: ``campaign`` with ``seed``, ``examples``,
+        ``runs`` and ``settings``, ``violations``, the bound files' SHA-256, ``digest``).
+        Evidence of a violating or partial campaign is written too, as an honest record; the
+        gate refuses it.
 
     Raises
     ------
     EvidenceError
-        (exit 2) A file changed since the campaign hashed it, or is missing.
+        (exit 2) A file changed since the campaign hashed it, or is missing; or ``config`` is
+        not the campaign ``result`` ran.
     OutputError
         (exit 2) The path cannot be written.
     """
+    config = _campaign_config(config, result)
     files = _campaign_files(config, result)
     model = files["model"][0]
     target = Path(path) if path is not None else evidence_path_for(model)
@@ -403,6 +440,56 @@ def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[st
         inconclusive=None if inconclusive is None else int(inconclusive),
         settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
+
+
+def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | None:
+    """Why a campaign of ``config`` (its task defaults filled in:
+    :func:`~tli_verify.verify.config.resolve_config`) would be weaker than the passing
+    evidence at ``path``, or None (no such file, or it records a violation, an interrupted
+    campaign, or nothing stronger). ``tli evidence`` and ``tli verify --evidence`` refuse to
+    replace stronger evidence without ``--force``.
+
+    Stronger: more examples; random starts where the new campaign starts at a nominal state;
+    a longer perturbation window; more pushes per case; more perturbation levels.
+    """
+    from tli_verify.io import read_json
+
+    try:
+        doc = read_json(Path(path), what="campaign evidence", error=EvidenceError)
+        camp, viol = doc["campaign"], doc["violations"]
+        if int(viol["total"]) or camp["partial"] or not camp["modulation"]:
+            return None
+        old = camp.get("settings") or {}
+        why = []
+        if int(config.examples) < int(camp["examples"]):
+            why.append(f"{camp['examples']} examples, this one {config.examples}")
+        if old.get("random_starts") is True and not config.random_starts:
+            why.append("random starts, this one a nominal start")
+        for key, what in (("window", "perturbation window"), ("max_pushes", "pushes per case")):
+            was, now = old.get(key), getattr(config, key, None)
+            if isinstance(was, int) and isinstance(now, int) and now < was:
+                why.append(f"{what} {was}, this one {now}")
+        levels = old.get("levels")
+        if isinstance(levels, list) and not set(levels) <= set(config.levels):
+            why.append(f"levels {', '.join(map(str, levels))}, this one "
+                       f"{', '.join(config.levels)}")
+    except (TliError, OSError, KeyError, TypeError, ValueError, AttributeError):
+        return None
+    return "; ".join(why) or None
+
+
+def _campaign_config(config: Any, result: Any) -> Any:
+    """The config the campaign ran (``result.config``, its task defaults filled in), checked
+    against the one given (the same seed, examples and modulation)."""
+    used = getattr(result, "config", None)
+    if used is None or config is None:
+        return used if config is None else config
+    for name in ("seed", "examples", "modulation"):
+        given, ran = getattr(config, name, None), getattr(used, name, None)
+        if given != ran:
+            raise _BadInput(f"config.{name} is {given!r}, the campaign ran with {ran!r}: pass "
+                            "the config the result came from (result.config)")
+    return used
 
 
 _CORE = frozenset({"task", "spec", "model", "certificate", "examples", "seed", "modulation",
@@ -729,18 +816,33 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 f"deployed task {want['name']!r} is "
                 f"{'kinematic' if physical else 'physical (its sensors come from a simulator)'}"
                 ": the kind of evidence must match the model"]
-    if got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]:
+    same_content = (got.get("kind") == want["kind"] == "file"
+                    and got.get("content_sha256") is not None
+                    and got.get("content_sha256") == want.get("content_sha256"))
+    if (got.get("kind") != want["kind"] or got.get("sha256") != want["sha256"]) and \
+            not same_content:
         where = want.get("path") or want.get("entry_point", {}).get("name")
+        why = "another task, or the task changed after the campaign"
+        if got.get("kind") == want["kind"] == "file" and got.get("name") == want["name"] \
+                and got.get("path") == want.get("path"):
+            why = ("its content changed since the campaign (not only comments or formatting)"
+                   if got.get("content_sha256") else
+                   "its bytes changed since the campaign; this evidence records no content "
+                   "hash, so an edit of comments alone cannot be told apart: re-run the "
+                   "campaign (tli evidence)")
         return [f"{shown}: the campaign ran on task {got.get('name')!r} "
                 f"({got.get('path') or got.get('entry_point', {}).get('name')}, SHA-256 "
                 f"{_short(str(got.get('sha256')))}), but the deployed spec's task is "
-                f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): another "
-                "task, or the task changed after the campaign"]
+                f"{want['name']!r} ({where}, SHA-256 {_short(want['sha256'])}): {why}"]
     if "entry_point" in want and not _same_entry_point(got.get("entry_point"),
                                                        want["entry_point"]):
         return [f"{shown}: the task's entry point {want['entry_point']['name']!r} differs "
                 "from the one the campaign ran (distribution, version or source)"]
-    passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
+    if got.get("sha256") != want["sha256"]:
+        passed.append(f"task {want['name']!r} is the deployed spec's; only its comments or "
+                      "formatting changed since the campaign (its content SHA-256 matches)")
+    else:
+        passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
     return []
 
 
@@ -858,6 +960,7 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
         out.append(f"{shown}: {what}, fewer than the minimum {min_examples} ({const})")
     if not physical:
         settings = camp.get("settings") or {}
+        out += _check_settings(camp, settings, shown)
         window, pushes = settings.get("window"), settings.get("max_pushes")
         if not isinstance(window, int) or isinstance(window, bool) or window < MIN_WINDOW:
             out.append(f"{shown}: perturbation window {window!r}: campaigns must draw pushes "
@@ -873,6 +976,30 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                       f"{camp['seed']}), modulation on, 0 violations")
     return out
 
+
+
+def _check_settings(camp: Mapping[str, Any], settings: Mapping[str, Any], shown: str
+                    ) -> list[str]:
+    """Every recorded campaign setting (and the seed, examples and modulation), validated as
+    the command-line options are (:class:`~tli_verify.verify.config.CampaignConfig`), whether
+    or not the gate re-runs it: a forged ``target_examples = 1e9`` or ``2.5`` is refused."""
+    import dataclasses
+
+    from tli_verify.verify.config import CampaignConfig
+
+    known = {f.name for f in dataclasses.fields(CampaignConfig)} - _CORE
+    unknown = sorted(set(settings) - known)
+    if unknown:
+        return [f"{shown}: campaign.settings.{unknown[0]}: not a campaign setting (known: "
+                f"{', '.join(sorted(known))})"]
+    try:
+        CampaignConfig(examples=camp["examples"], seed=camp["seed"],
+                       modulation=camp["modulation"],
+                       **settings_for_config(settings, CampaignConfig))
+    except (TliError, TypeError, ValueError) as exc:
+        return [f"{shown}: campaign.settings: {exc} (recorded settings are validated with the "
+                "command line's limits)"]
+    return []
 
 
 def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str],

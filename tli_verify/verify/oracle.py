@@ -37,8 +37,9 @@ Checks (violation kinds, :class:`ViolationKind`):
 4. **No looping** (``LOOPING``) -- after the last disturbance (perturbation, or an unprovoked
    exit answered with a cut: learning a cut is progress, Thm. 2) the run re-enters a mode it
    already visited at most ``max_cycles`` times (default: the number of modes), and after the
-   last perturbation the policy learns at most ``max_cuts`` cuts (default: 3 per mode; the
-   failures must stop).
+   last perturbation the policy learns at most ``max_cuts`` cuts (default: 3 x the number of
+   modes, in total over all modes, so a task with 5 modes allows 15 cuts wherever they fall;
+   the failures must stop).
 
 The reachability deadline (sampled time)
 ----------------------------------------
@@ -87,6 +88,7 @@ __all__ = [
     "Verdict",
     "Violation",
     "ViolationKind",
+    "cut_bound_message",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -314,7 +316,7 @@ class Oracle:
     max_cycles : int
         Re-entries into visited modes allowed after the last disturbance.
     max_cuts : int
-        Cuts allowed after the last perturbation.
+        Cuts allowed after the last perturbation, in total over all modes.
     factor, slack : float, int
         Deadline margin.
     touch_tol : float
@@ -358,7 +360,8 @@ class Oracle:
         max_cycles : int, optional
             Default: the number of modes.
         max_cuts : int, optional
-            Cuts the policy may learn after the last perturbation (default: 3 per mode).
+            Cuts the policy may learn after the last perturbation (default: 3 x the number of
+            modes, in total over all modes).
         goal_modes : sequence of str, optional
             The task's goal modes (default: the sink modes; a cyclic task has none).
         goal_inputs : sequence of str, optional
@@ -603,9 +606,9 @@ class Oracle:
         learned = [t for t in answered_steps if t > last_push]
         if len(learned) > self.max_cuts:
             viol.append(Violation(ViolationKind.LOOPING, learned[self.max_cuts],
-                                  f"{len(learned)} cuts learned after the last perturbation "
-                                  f"(step {last_push}; bound {self.max_cuts}): the failures "
-                                  "do not stop"))
+                                  cut_bound_message(learned=len(learned), last_push=last_push,
+                                                    bound=self.max_cuts,
+                                                    modes=len(self.automaton.modes))))
         # (2) reachability after the last disturbance
         goal_step = next((t for t in range(end + 1) if modes[t] in self.goals
                           and self.goal_inputs <= readings[t]), None)
@@ -774,3 +777,28 @@ def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
         w = sla.eigh(M.T @ P @ M, P, eigvals_only=True)
         worst = max(worst, float(np.max(w)))
     return worst * (1.0 + 1e-9)
+
+
+def cut_bound_message(*, learned: int, last_push: int, bound: int, modes: int) -> str:
+    """The looping violation's message for too many cuts after the last perturbation: it says
+    how the bound counts (by default 3 x the number of modes, in total over all modes).
+
+    Parameters
+    ----------
+    learned : int
+        Cuts learned after the last perturbation.
+    last_push : int
+        The step of the last perturbation.
+    bound : int
+        The oracle's ``max_cuts``.
+    modes : int
+        Modes of the task automaton.
+
+    Returns
+    -------
+    str
+    """
+    how = (f"3 x {modes} modes, in total over all modes" if bound == 3 * modes
+           else "max_cuts, in total over all modes")
+    return (f"{learned} cuts learned after the last perturbation (step {last_push}; bound "
+            f"{bound} = {how}): the failures do not stop")

@@ -65,13 +65,14 @@ _ZOOM_PALETTE: tuple[tuple[str, str], ...] = (
 
 # ----------------------------------------------------------------------------- titles
 def episode_title(res: EpisodeResult, *, label: str = "", goal_label: str = "the goal") -> str:
-    """``"<label>: <modes> (reaches <goal>, <k> cuts)"`` (the mode sequence truncated to 12
+    """``"<label>: <modes> (reaches <goal>, <k> cuts)"`` or ``"... (does not reach <goal> in N
+    steps, <k> cuts)"`` (the mode sequence truncated to 12
     characters + ``"..."`` past 14)."""
     seq = mode_sequence(res.modes)
     if len(seq) > 14:
         seq = seq[:12] + "..."
     verdict = (f"reaches {goal_label}" if res.success
-               else f"no {goal_label} in {res.steps} steps")
+               else f"does not reach {goal_label} in {res.steps} steps")
     cuts = f"{res.cuts_added} cut{'' if res.cuts_added == 1 else 's'}"
     return f"{label + ': ' if label else ''}{seq} ({verdict}, {cuts})"
 
@@ -238,12 +239,15 @@ def _labels(ax: Any, task: TaskLike, pair: Pair | None) -> None:
         ax.set_ylabel(task.state_names[pair[1]], fontsize=8)
 
 
-def _trajectory_handles(nominal: bool) -> list[Any]:
+def _trajectory_handles(nominal: bool, sliced: bool = False) -> list[Any]:
+    """The legend of the trajectories; ``sliced`` (n >= 3): a cut is drawn as its trace in the
+    2-D slice through its point, not as a shadow like the regions."""
     from matplotlib.lines import Line2D
 
     out = [Line2D([], [], color="k", lw=1.2, label="trajectory"),
            Line2D([], [], color="tab:red", lw=1.2, ls="--", label="push"),
-           Line2D([], [], color="tab:blue", lw=1.5, label="cut (trace)"),
+           Line2D([], [], color="tab:blue", lw=1.5,
+                  label="cut: slice through its point" if sliced else "cut"),
            Line2D([], [], ls="none", marker="o", mfc="gold", mec="k", label="last in-mode"),
            Line2D([], [], ls="none", marker="x", color="tab:red", mew=2, label="failure")]
     if nominal:
@@ -275,7 +279,8 @@ def plot_episodes(task: TaskLike, panels: Sequence[tuple[str, EpisodeResult]],
         its first panel in 2-D; at the end of its row, in its first coordinate pair, in n-D),
         drawn by mode (:func:`zoom_colors`).
     goal_label : str, optional
-        The goal in the titles: ``"reaches <goal_label>"`` / ``"no <goal_label> in N steps"``.
+        The goal in the titles: ``"reaches <goal_label>"`` / ``"does not reach <goal_label> in
+        N steps"`` (it reads for a mode name and for a phrase like ``"the goal"``).
     mode_colors : mapping of str to colour, optional
         Mode colours of the zoom panel.
     pairs : sequence of (int, int), optional
@@ -379,7 +384,8 @@ def _row_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeRe
             for ax in extra:
                 ax.axis("off")
             sub.suptitle(episode_title(r, label=label, goal_label=goal_label), fontsize=9)
-        fig.legend(handles=[*bg.legend_handles(), *_trajectory_handles(nominal is not None)],
+        fig.legend(handles=[*bg.legend_handles(), *_trajectory_handles(nominal is not None,
+                                                                     bool(bg.shadows))],
                    loc="outside right upper", fontsize=8, frameon=False)
     except BaseException:
         plt.close(fig)

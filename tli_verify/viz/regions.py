@@ -4,8 +4,12 @@
   (demonstrations are drawn as ``x(t)``, time normalised to ``[0, 1]``);
 * ``n = 2``: the exact partition, ``task.region_index`` on a grid, as an image;
 * ``n >= 3``: one panel per coordinate pair (:func:`pairs_for`), each region drawn as its
-  *shadow*, the projection onto the pair's plane, estimated from seeded uniform samples of the
-  region (``task.sample_region``; :func:`region_shadows`, :func:`shadow_mask`). Shadows overlap;
+  *shadow*, the projection onto the pair's plane. A region whose cell is one box, ball,
+  ellipsoid or polytope (inside the workspace, overlapped by no region listed before it) is
+  drawn exactly (:func:`exact_shadow`: a rectangle, an ellipse, or the polygon of LP support
+  points); only unions, intersections, differences and overlapped cells are estimated from
+  seeded uniform samples of the region (``task.sample_region``; :func:`region_shadows`,
+  :func:`shadow_mask`). Shadows overlap;
   they are drawn semi-transparent, the largest region (by volume) first. A region that cannot
   be sampled is listed in the legend as ``"<name> (too small to draw)"``
   (:func:`legend_labels`), never dropped silently.
@@ -43,6 +47,7 @@ __all__ = [
     "as_task",
     "check_task",
     "cut_trace",
+    "exact_shadow",
     "legend_labels",
     "pairs_for",
     "plot_task",
@@ -505,6 +510,114 @@ def cut_trace(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
     return np.array([origin + s0 * d, origin + s1 * d], dtype=np.float64)
 
 
+# ----------------------------------------------------------------------------- exact shadows
+_PRIMITIVES = ("Box", "Ball", "Ellipsoid", "Polytope")
+_ELLIPSE_POINTS = 181
+_LP_DIRECTIONS = 96
+
+
+def exact_shapes(task: TaskLike, *, seed: int = 0, samples: int = 4000) -> tuple[Any, ...]:
+    """Per region of ``task``: its shape when the region's cell *is* that shape (one box, ball,
+    ellipsoid or polytope inside the workspace) and so its shadow can be drawn exactly, else
+    None (drawn from samples).
+
+    A cell is the shape minus the regions listed before it (a state lies in the first listed
+    region holding it). The cell equals the shape when no such region overlaps it: checked on
+    ``samples`` seeded uniform states of the shape (of its bounding box, kept where the shape
+    holds them) -- every one must lie in the region's cell. Tasks without a ``partition``
+    (duck-typed worlds) have no shapes.
+    """
+    partition = getattr(task, "partition", None)
+    cells = getattr(partition, "cells", None)
+    if not cells:
+        return ()
+    lo, hi = _box(task)
+    names = tuple(task.region_names)
+    out: list[Any] = []
+    for k, name in enumerate(names):
+        cell = next((c for c in cells if c.name == name), None)
+        shape = None if cell is None else cell.region
+        if shape is None or type(shape).__name__ not in _PRIMITIVES:
+            out.append(None)
+            continue
+        b_lo, b_hi = (np.asarray(v, dtype=np.float64) for v in shape.bounds())
+        b_lo, b_hi = np.maximum(b_lo, lo), np.minimum(b_hi, hi)
+        inside_box = bool(np.all(np.asarray(shape.bounds()[0]) >= lo - 1e-12) and
+                          np.all(np.asarray(shape.bounds()[1]) <= hi + 1e-12))
+        if type(shape).__name__ in ("Ball", "Ellipsoid") and not inside_box:
+            out.append(None)  # an ellipsoid cut by the workspace: its shadow is not an ellipse
+            continue
+        if not np.all(b_hi > b_lo):
+            out.append(None)
+            continue
+        rng = np.random.default_rng([seed, 0xE7AC, k])
+        X = rng.uniform(b_lo, b_hi, size=(samples, lo.size))
+        X = X[np.asarray(shape.contains(X), dtype=bool)]
+        ok = len(X) > 0 and bool(np.all(_region_index(task, X) == k))
+        out.append(shape if ok else None)
+    return tuple(out)
+
+
+def exact_shadow(shape: Any, i: int, j: int, lo: npt.ArrayLike, hi: npt.ArrayLike
+                 ) -> FloatArray | None:
+    """The exact projection of ``shape`` (clipped to the workspace box) onto the
+    ``(x_i, x_j)`` plane, as a closed polygon.
+
+    * a box: the rectangle of its ``i``, ``j`` sides (clipped);
+    * a ball or an ellipsoid ``(x - c)^T M (x - c) <= 1`` inside the workspace: the ellipse
+      ``(y - c_ij)^T (S_ij)^{-1} (y - c_ij) <= 1`` with ``S = M^{-1}`` (the projection of an
+      ellipsoid is the ellipse of the marginal of its shape matrix's inverse), 181 points;
+    * a polytope ``A x <= b`` (with the workspace box): its support points in 96 directions of
+      the plane, one LP each (every one a vertex of the projection), in angular order.
+
+    Returns
+    -------
+    ndarray, shape (m, 2), or None
+        None for another kind of shape, an empty shadow, or an LP that fails.
+    """
+    lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    kind = type(shape).__name__
+    if kind == "Box":
+        a = np.maximum(np.asarray(shape.lower, dtype=np.float64), lo_a)
+        b = np.minimum(np.asarray(shape.upper, dtype=np.float64), hi_a)
+        if not (b[i] > a[i] and b[j] > a[j]):
+            return None
+        return np.array([[a[i], a[j]], [b[i], a[j]], [b[i], b[j]], [a[i], b[j]]])
+    if kind in ("Ball", "Ellipsoid"):
+        c = np.asarray(shape.center, dtype=np.float64)
+        if kind == "Ball":
+            S2 = np.eye(2) * float(shape.radius) ** 2
+        else:
+            S = np.linalg.inv(np.asarray(shape.matrix, dtype=np.float64))
+            S2 = S[np.ix_([i, j], [i, j])]
+            S2 = 0.5 * (S2 + S2.T)
+        L = np.linalg.cholesky(S2)
+        t = np.linspace(0.0, 2.0 * math.pi, _ELLIPSE_POINTS)[:-1]
+        return np.asarray(np.array([c[i], c[j]]) + (L @ np.vstack([np.cos(t), np.sin(t)])).T,
+                          dtype=np.float64)
+    if kind == "Polytope":
+        from scipy.optimize import linprog
+
+        A = np.asarray(shape.A, dtype=np.float64)
+        b = np.asarray(shape.b, dtype=np.float64).ravel()
+        bounds = list(zip(lo_a.tolist(), hi_a.tolist(), strict=True))
+        pts = []
+        for t in np.linspace(0.0, 2.0 * math.pi, _LP_DIRECTIONS, endpoint=False):
+            cost = np.zeros(lo_a.size)
+            cost[i], cost[j] = -math.cos(t), -math.sin(t)  # maximise the direction
+            res = linprog(cost, A_ub=A, b_ub=b, bounds=bounds, method="highs")
+            if res.status != 0:
+                return None
+            pts.append((float(res.x[i]), float(res.x[j])))
+        P = np.unique(np.round(np.array(pts), 12), axis=0)
+        if len(P) < 3:
+            return None
+        mid = P.mean(axis=0)
+        order = np.argsort(np.arctan2(P[:, 1] - mid[1], P[:, 0] - mid[0]))
+        return np.asarray(P[order], dtype=np.float64)
+    return None
+
+
 # ----------------------------------------------------------------------------- drawing
 def _aspect(lo: FloatArray, hi: FloatArray, i: int, j: int) -> str:
     """``"equal"`` unless the pair's ranges differ by more than 4x (then ``"auto"``)."""
@@ -538,6 +651,8 @@ class _Background:
     hi: FloatArray
     grid: IntArray | None
     shadows: tuple[RegionShadow, ...]
+    exact: tuple[Any, ...] = ()
+    """Per region: its primitive shape when its shadow is drawn exactly, else None."""
 
     @property
     def legend(self) -> tuple[str, ...]:
@@ -549,10 +664,16 @@ class _Background:
         from matplotlib.patches import Patch
 
         hatch = {s.index for s in self.shadows if not s.drawable}
-        return [Patch(facecolor="none" if k in hatch else c, edgecolor="0.3",
-                      hatch="//" if k in hatch else None, label=label)
-                for k, (c, label) in enumerate(zip(self.task.region_colors, self.legend,
-                                                   strict=True))]
+        out = [Patch(facecolor="none" if k in hatch else c, edgecolor="0.3",
+                     hatch="//" if k in hatch else None, label=label)
+               for k, (c, label) in enumerate(zip(self.task.region_colors, self.legend,
+                                                  strict=True))]
+        if self.shadows:  # n >= 3: say what a panel shows
+            exact = sum(1 for s in self.exact if s is not None)
+            out.append(Patch(facecolor="none", edgecolor="none",
+                             label=f"regions: shadows (projections; {exact} exact, "
+                             f"{len(self.shadows) - exact} sampled)"))
+        return out
 
     def draw(self, ax: Any, pair: Pair | None, *, t_range: tuple[float, float] = (0.0, 1.0)
              ) -> None:
@@ -584,6 +705,14 @@ class _Background:
     def _draw_shadow(self, ax: Any, s: RegionShadow, i: int, j: int) -> None:
         assert s.points is not None
         lo, hi = self.lo, self.hi
+        shape = self.exact[s.index] if s.index < len(self.exact) else None
+        poly = None if shape is None else exact_shadow(shape, i, j, lo, hi)
+        if poly is not None:
+            ax.fill(poly[:, 0], poly[:, 1], color=s.color, alpha=SHADOW_ALPHA, lw=0,
+                    zorder=0.5)
+            ax.plot([*poly[:, 0], poly[0, 0]], [*poly[:, 1], poly[0, 1]],
+                    color=_darker(s.color), lw=0.7, zorder=0.6)
+            return
         mask = shadow_mask(s.points, i, j, lo, hi)
         if not mask.any():
             return
@@ -619,7 +748,8 @@ def _background(task: TaskLike, *, resolution: int = 300, samples: int = DEFAULT
                              np.linspace(lo[1], hi[1], resolution))
         X = np.column_stack([gx.ravel(), gy.ravel()])
         return _Background(task, lo, hi, _region_index(task, X).reshape(gx.shape), ())
-    return _Background(task, lo, hi, None, region_shadows(task, samples=samples, seed=seed))
+    return _Background(task, lo, hi, None, region_shadows(task, samples=samples, seed=seed),
+                       exact_shapes(task, seed=seed))
 
 
 def _grid_shape(count: int, max_cols: int = 3) -> tuple[int, int]:
