@@ -36,6 +36,7 @@ __all__ = [
     "UnrealizableError",
     "WorkerLost",
     "bad_input",
+    "bad_type",
     "missing",
 ]
 
@@ -163,6 +164,24 @@ def bad_input(cls: type[TliError], message: str) -> TliError:
         An instance of ``cls`` and of :class:`ValueError`.
     """
     return _variant(cls, ValueError)(message)
+
+
+def bad_type(cls: type[TliError], message: str) -> TliError:
+    """An error of ``cls`` for an argument of the wrong type: also a :class:`TypeError` (and
+    a :class:`ValueError`, as all bad input is), e.g. ``load_spec(None)``.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`TliError` subclass.
+    message : str
+
+    Returns
+    -------
+    TliError
+        An instance of ``cls``, :class:`ValueError` and :class:`TypeError`.
+    """
+    return _variant(cls, ValueError, TypeError)(message)
 
 
 def missing(cls: type[TliError], message: str, path: object) -> TliError:

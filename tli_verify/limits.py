@@ -36,6 +36,7 @@ __all__ = [
     "MAX_FORMULA_DEPTH",
     "MAX_FORMULA_NODES",
     "MAX_INPUT_BYTES",
+    "MAX_NAME_BYTES",
     "MAX_NESTING",
     "MAX_PUSHES",
     "MAX_SEED",
@@ -48,6 +49,11 @@ MAX_INPUT_BYTES = 4 * 1024 * 1024
 
 The bundled model is 20 kB and a LASA model about 30 kB; 4 MiB is two orders of magnitude
 above any model, spec or demonstration the tool produces or the paper uses."""
+
+MAX_NAME_BYTES = 255
+"""Longest component of a path (a file or folder name) read or written, in bytes of its
+file-system encoding: the limit (NAME_MAX) of every common Linux and macOS file system. A longer
+name is refused as bad input before any work, never left to fail as ``ENAMETOOLONG`` inside."""
 
 MAX_NESTING = 64
 """Deepest nesting of ``[``/``{`` brackets (outside strings) in an input file.

@@ -285,6 +285,8 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
                             seed=args.seed, modulation=True, workers=args.workers,
                             backend=args.backend or "process")
     result = run_campaign(config, progress=sys.stderr.isatty())
+    if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
+        raise KeyboardInterrupt
     path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,

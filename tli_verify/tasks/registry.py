@@ -127,7 +127,9 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
                 raise
             except TypeError:
                 task = None
-            except Exception as exc:
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:  # SystemExit too: a plug-in never ends the process
                 raise TaskError(f"entry point {text!r}: building the task failed "
                                 f"({type(exc).__name__}: {exc})") from None
         if not isinstance(task, Task):
