@@ -527,6 +527,41 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _float_int(text: str) -> int:
+    value = int(text)
+    if abs(value) > _FLOAT_MAX:
+        raise ValueError(f"integer {text[:20]}... is too large for a double (numbers must be "
+                         "finite)")
+    return value
+
+
+_FLOAT_MAX = int(float.fromhex("0x1.fffffffffffffp+1023"))
+
+
+def check_numbers(data: Any, *, where: str, error: type[TliError]) -> None:
+    """Refuse an integer that does not fit a double anywhere in parsed TOML or JSON data
+    (``lag = 1`` followed by 400 zeros): every reader turns numbers into floats, where such an
+    integer would be an ``OverflowError``, not an error naming the field.
+
+    Raises
+    ------
+    error
+        ``"<where>: <field>: integer ... is too large for a double"``.
+    """
+    stack: list[tuple[tuple[str | int, ...], Any]] = [((), data)]
+    while stack:
+        at, value = stack.pop()
+        if isinstance(value, dict):
+            stack.extend(((*at, str(k)), v) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend(((*at, i), v) for i, v in enumerate(value))
+        elif isinstance(value, int) and not isinstance(value, bool) and \
+                abs(value) > _FLOAT_MAX:
+            digits = len(str(abs(value))) if value.bit_length() < 14_000 else "many"
+            raise error(f"{where}: {field_path(at) or 'value'}: an integer of {digits} digits "
+                        "is too large for a double (numbers must be finite)")
+
+
 def parse_json(text: str) -> Any:
     """``json.loads`` as every reader of tli-verify does: no NaN or Infinity, no number that
     overflows a double, no duplicate key.
@@ -536,7 +571,7 @@ def parse_json(text: str) -> Any:
     ValueError, json.JSONDecodeError
     """
     return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float,
-                      object_pairs_hook=_unique_keys)
+                      parse_int=_float_int, object_pairs_hook=_unique_keys)
 
 
 def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:

@@ -45,6 +45,7 @@ from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
+from tli_verify.limits import MAX_FORMULA_DEPTH
 
 __all__ = ["FORMATS", "ImportedSpec", "import_spec_file", "import_spec_text"]
 
@@ -178,6 +179,15 @@ class _Parser:
         self.toks, self.i = toks, 0
         self.where, self.line, self.dialect, self.refuse = where, line, dialect, refuse
         self.table = _SPECTRA_BINARY if dialect == "spectra" else _BINARY
+        self.depth = 0
+
+    def enter(self) -> None:
+        """One more level of nesting (a parenthesis, a prefix operator, a right operand):
+        refused past ``MAX_FORMULA_DEPTH``, the one depth limit of every formula parser."""
+        self.depth += 1
+        if self.depth > MAX_FORMULA_DEPTH:
+            raise self.fail(f"formula nested deeper than {MAX_FORMULA_DEPTH} levels "
+                            "(MAX_FORMULA_DEPTH)")
 
     def fail(self, msg: str) -> SpecError:
         return _fail(self.where, self.line, msg)
@@ -203,6 +213,13 @@ class _Parser:
         return node
 
     def expr(self, min_prec: int) -> Node:
+        self.enter()
+        try:
+            return self._expr(min_prec)
+        finally:
+            self.depth -= 1
+
+    def _expr(self, min_prec: int) -> Node:
         if (self.dialect == "spectra" and self.peek() in ("forall", "exists")
                 and self.peek(2) == "in"):
             return self.quantifier()
@@ -282,6 +299,13 @@ class _Parser:
                 raise self.fail("expected ',' or ')' in an argument list")
 
     def unary(self) -> Node:
+        self.enter()
+        try:
+            return self._unary()
+        finally:
+            self.depth -= 1
+
+    def _unary(self) -> Node:
         tok = self.take()
         if tok in self.refuse:
             raise self.fail(self.refuse[tok])
@@ -1722,9 +1746,60 @@ def import_spec_file(path: str | Path, *, semantics: str | None = "textbook") ->
 def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name: str = "spec",
                      semantics: str | None = "textbook", base: Path | None = None) -> str:
     """Translate the text of a foreign spec (``fmt``: a value of :data:`FORMATS`) to TOML."""
+    try:
+        return _import(text, fmt=fmt, where=where, default_name=default_name,
+                       semantics=semantics, base=base)
+    except RecursionError:  # the backstop of the depth checks: never an internal error
+        raise SpecError(f"{where}: formulas nested too deeply to translate (a prefix chain, "
+                        f"parentheses, or a recursive pattern or define; the limit is "
+                        f"{MAX_FORMULA_DEPTH} levels, MAX_FORMULA_DEPTH)") from None
+
+
+def _check_depth(constraints: Sequence[_Constraint], where: str) -> None:
+    """Refuse a constraint whose tree nests deeper than ``MAX_FORMULA_DEPTH`` (a chain of one
+    associative operator, ``a & b & c``, counts as one level, as our specs count n-ary
+    ``&``/``|``); iterative and linear in the shared tree (slugsin's memory buffers)."""
+    chains = ("and", "or")
+    for c in constraints:
+        depth: dict[int, int] = {}
+        stack: list[tuple[Any, bool]] = [(c.body, False)]
+        while stack:
+            node, done = stack.pop()
+            if not isinstance(node, tuple) or id(node) in depth:
+                continue
+            kids = _children(node)
+            if not done:
+                stack.append((node, True))
+                stack.extend((k, False) for k in kids if id(k) not in depth)
+                continue
+            d = 0
+            for k in kids:
+                kd = depth.get(id(k), 0)
+                d = max(d, kd if (node[0] in chains and k[0] == node[0]) else kd + 1)
+            depth[id(node)] = d
+            if d > MAX_FORMULA_DEPTH:
+                raise _fail(c.where or where, c.line, f"formula nested deeper than "
+                            f"{MAX_FORMULA_DEPTH} levels (MAX_FORMULA_DEPTH)")
+
+
+def _children(node: Node) -> list[Node]:
+    """The sub-formulas of a node: its tuple items, and the items of its argument tuples."""
+    out: list[Node] = []
+    for k in node[1:]:
+        if isinstance(k, tuple) and k:
+            if isinstance(k[0], str):
+                out.append(k)
+            else:
+                out += [x for x in k if isinstance(x, tuple) and x and isinstance(x[0], str)]
+    return out
+
+
+def _import(text: str, *, fmt: str, where: str, default_name: str,
+            semantics: str | None, base: Path | None) -> str:
     if fmt == "spectra":
         mod = _parse_spectra(text, where, default_name, base)
         spec = mod.spec
+        _check_depth(mod.constraints, where)
         spec.constraints = _Expander(mod).run()
     elif fmt == "structuredslugs":
         spec = _parse_structuredslugs(text, where, default_name)
@@ -1732,6 +1807,7 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
         spec = _parse_slugsin(text, where, default_name)
     else:
         raise SpecError(f"{where}: unknown format {fmt!r}")
+    _check_depth(spec.constraints, where)
     _primed_justice(spec)
     if not spec.outputs():
         if fmt == "spectra" and not spec.variables and (mod.patterns or mod.predicates):

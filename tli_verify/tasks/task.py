@@ -883,7 +883,7 @@ def parse_task(text: str, *, path: str | None = None,
     TaskError
         (exit 2) Naming the file and the field.
     """
-    from tli_verify.io import validate_schema
+    from tli_verify.io import check_numbers, validate_schema
 
     where = path or "<task>"
     if not text.strip():
@@ -894,6 +894,9 @@ def parse_task(text: str, *, path: str | None = None,
         raise TaskError(f"{where}: invalid TOML: {exc}") from None
     except RecursionError:
         raise TaskError(f"{where}: arrays or tables nested too deeply") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise TaskError(f"{where}: invalid TOML: {exc}") from None
+    check_numbers(data, where=where, error=TaskError)
     task = _build(data, where, text, path, entry_points)
     validate_schema(data, "task.schema.json", where=where, error=TaskError)
     return task
@@ -1117,6 +1120,13 @@ def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Parti
     if region is not None and region not in known:
         raise TaskError(f"{where}: starts.region: unknown region {region!r} (regions: "
                         f"{', '.join(sorted(known))})")
+    if region is not None:  # random starts are drawn in its box within the workspace
+        for nr in (*partition.cells, *partition.layers):
+            if nr.name == region:
+                rlo, rhi = nr.region.bounds()
+                if not np.all(np.maximum(lo, rlo) <= np.minimum(hi, rhi)):
+                    raise TaskError(f"{where}: starts.region: region {region!r} lies outside "
+                                    "the workspace: no start can be drawn in it")
     return Starts(tuple(nominal), region)
 
 
