@@ -38,7 +38,6 @@ mode's attractor lies inside the next mode).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
