@@ -58,6 +58,7 @@ from tli_verify.errors import (
     ModelError,
     SpecError,
     TaskError,
+    bad_argument,
     bad_input,
     bad_type,
 )
@@ -381,9 +382,9 @@ def _check_dt(dt: Any) -> Fraction:
     try:
         value = Fraction(repr(dt)) if isinstance(dt, float) else Fraction(dt)
     except (ValueError, ZeroDivisionError, OverflowError):
-        raise bad_input(CertificateError, f"dt: {dt!r} is not a number") from None
+        raise bad_argument(CertificateError, f"dt: {dt!r} is not a number") from None
     if value <= 0:
-        raise bad_input(CertificateError, f"dt: the control period must be > 0, got {dt!r}")
+        raise bad_argument(CertificateError, f"dt: the control period must be > 0, got {dt!r}")
     return value
 
 

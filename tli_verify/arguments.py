@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import InputError, TliError, bad_input, bad_type
+from tli_verify.errors import InputError, TliError, bad_argument, bad_type
 from tli_verify.limits import MAX_NAME_BYTES
 
 __all__ = ["check_choice", "check_float", "check_int", "check_path", "check_type",
@@ -41,16 +41,16 @@ def check_path(value: Any, name: str, *, error: type[TliError] = InputError) -> 
     if not isinstance(text, str):
         raise bad_type(error, f"{name}: expected a text path, got {type(text).__name__}")
     if text == "":
-        raise bad_input(error, f"{name}: an empty path")
+        raise bad_argument(error, f"{name}: an empty path")
     if "\0" in text:
-        raise bad_input(error, f"{name}: a path with a NUL byte")
+        raise bad_argument(error, f"{name}: a path with a NUL byte")
     for part in Path(text).parts:
         try:
             size = len(os.fsencode(part))
         except UnicodeError:
-            raise bad_input(error, f"{name}: cannot be encoded for the file system") from None
+            raise bad_argument(error, f"{name}: cannot be encoded for the file system") from None
         if size > MAX_NAME_BYTES:
-            raise bad_input(error, f"{name}: {_short(text)} has a component of {size} bytes, "
+            raise bad_argument(error, f"{name}: {_short(text)} has a component of {size} bytes, "
                             f"longer than {MAX_NAME_BYTES} (MAX_NAME_BYTES)")
     return Path(text)
 
@@ -70,7 +70,7 @@ def check_int(value: Any, name: str, lo: int | None = None, hi: int | None = Non
     v = int(value)
     if (lo is not None and v < lo) or (hi is not None and v > hi):
         span = f"[{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
-        raise bad_input(error, f"{name}: {v} is outside {span}")
+        raise bad_argument(error, f"{name}: {v} is outside {span}")
     return v
 
 
@@ -90,11 +90,11 @@ def check_float(value: Any, name: str, *, lo: float | None = None, hi: float | N
     try:
         v = float(value)
     except OverflowError:
-        raise bad_input(error, f"{name}: {_short(value)} is too large for a float") from None
+        raise bad_argument(error, f"{name}: {_short(value)} is too large for a float") from None
     if not math.isfinite(v):
-        raise bad_input(error, f"{name}: expected a finite number, got {v}")
+        raise bad_argument(error, f"{name}: expected a finite number, got {v}")
     if (lo is not None and v < lo) or (hi is not None and v > hi):
-        raise bad_input(error, f"{name}: {v:g} is outside [{lo}, {hi}]")
+        raise bad_argument(error, f"{name}: {v:g} is outside [{lo}, {hi}]")
     return v
 
 
@@ -124,9 +124,9 @@ def check_vector(value: Any, name: str, dim: int | None = None, *,
                        f"{_short(value)}") from None
     want = "(n,)" if dim is None else f"({dim},)"
     if arr.ndim != 1 or (dim is not None and arr.shape[0] != dim):
-        raise bad_input(error, f"{name}: expected shape {want}, got {arr.shape}")
+        raise bad_argument(error, f"{name}: expected shape {want}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise bad_input(error, f"{name}: expected finite numbers, got {_short(value)}")
+        raise bad_argument(error, f"{name}: expected finite numbers, got {_short(value)}")
     return arr
 
 
@@ -144,7 +144,7 @@ def check_choice(value: Any, name: str, choices: Iterable[str], *,
         raise bad_type(error, f"{name}: expected one of {', '.join(options)}, got "
                        f"{type(value).__name__}")
     if value not in options:
-        raise bad_input(error, f"{name}: expected one of {', '.join(options)}, got {value!r}")
+        raise bad_argument(error, f"{name}: expected one of {', '.join(options)}, got {value!r}")
     return value
 
 

@@ -35,6 +35,7 @@ __all__ = [
     "TliError",
     "UnrealizableError",
     "WorkerLost",
+    "bad_argument",
     "bad_input",
     "bad_type",
     "missing",
@@ -179,9 +180,24 @@ def bad_type(cls: type[TliError], message: str) -> TliError:
     Returns
     -------
     TliError
-        An instance of ``cls``, :class:`ValueError` and :class:`TypeError`.
+        An instance of ``cls``, :class:`InputError` (a :class:`ValueError`) and
+        :class:`TypeError`.
     """
-    return _variant(cls, ValueError, TypeError)(message)
+    return _variant(cls, InputError, TypeError)(message)
+
+
+def bad_argument(cls: type[TliError], message: str, *, builtin: type[Exception] = ValueError
+                 ) -> TliError:
+    """An error of ``cls`` for a bad argument of a public function: also an
+    :class:`InputError` (whatever family ``cls`` is in: a bad argument of ``certify`` is a
+    :class:`CertificateError` that is bad input, not the verdict) and ``builtin``
+    (:class:`ValueError` for a value, :class:`TypeError` for a type).
+
+    Returns
+    -------
+    TliError
+    """
+    return _variant(cls, InputError, builtin)(message)
 
 
 def missing(cls: type[TliError], message: str, path: object) -> TliError:

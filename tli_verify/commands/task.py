@@ -74,7 +74,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "sensors), the folders demos/, models/, certificates/, DIR/README.md with the "
         "commands from demonstrations to the gate, and DIR/ci/tli-gate.yml. Refuses to "
         "overwrite existing files.")
-    init.add_argument("directory", type=Path, metavar="DIR")
+    init.add_argument("directory", type=output_path, metavar="DIR")
     init.add_argument("--name", default="mytask", help="task name (default mytask)")
     init.add_argument("--dim", type=int_range(1, 32), default=2,
                       help="state dimension of the template (default 2)")

@@ -44,6 +44,7 @@ from typing import Any
 
 from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
@@ -413,7 +414,11 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     GateError
         ``root`` is not a directory (exit 2).
     """
-    base = Path(root)
+    from tli_verify.arguments import check_int, check_path
+
+    base = check_path(root, "root", error=GateError)
+    if rerun is not None:
+        rerun = check_int(rerun, "rerun", 0, MAX_EXAMPLES, error=GateError)
     if not base.is_dir():
         raise bad_input(GateError, f"{base}: not a directory")
 
