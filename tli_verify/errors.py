@@ -133,6 +133,9 @@ def _variant(cls: type[TliError], *builtins: type[Exception]) -> type[TliError]:
     if found is not None:
         return found
     extra = tuple(b for b in builtins if not issubclass(cls, b))
+    for b in extra:  # e.g. TliError and InputError: the variant is InputError's
+        if issubclass(b, cls):
+            return _VARIANTS.setdefault(key, _variant(b, *(x for x in builtins if x is not b)))
     made: type[TliError] = cls if not extra else type(cls.__name__, (cls, *extra), {
         "__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__,
         "__reduce__": _reduce, "_tli_variant": (cls, builtins)})

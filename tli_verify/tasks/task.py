@@ -1166,7 +1166,14 @@ def _entry_sensor_model(name: str, where: str, source: TaskSource,
     except BaseException as exc:
         raise TaskError(f"{where}: sensor_model {name!r}: the entry point failed to build a "
                         f"sensor model ({_raised(exc)})") from None
-    if not isinstance(model, SensorModel):
+    try:
+        conforms = isinstance(model, SensorModel)  # reads its attributes (properties run)
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:
+        raise TaskError(f"{where}: sensor_model {name!r}: reading the sensor model's "
+                        f"attributes raised {_raised(exc)}") from None
+    if not conforms:
         raise TaskError(f"{where}: sensor_model {name!r}: the entry point returned "
                         f"{type(model).__name__}, not a sensor model (sensor_names, "
                         "latent_names, cell_based, initial_latent, read)")
