@@ -422,3 +422,96 @@ def test_the_gates_rerun_draws_its_own_starts(nominal: list[tuple[float, float]]
     assert all(0 <= sd and sd + c <= 2**32 for _, c, sd in plan)
     if nominal and examples >= 2 * len(nominal):
         assert {s for s, _, _ in plan[1:]} == {tuple(p) for p in nominal}
+
+
+# ------------------------------------------------------------------ class 3: unbounded work
+def _memory_doubling(n: int) -> str:
+    """A slugsin formula whose memory cells double ``n`` times (2^n nodes written out)."""
+    cells = " ".join(f"& ? {i} ? {i}" for i in range(n))
+    return f"[INPUT]\na\n[OUTPUT]\nb\n[SYS_TRANS]\n$ {n + 1} b {cells}\n"
+
+
+BOMBS = {
+    "slugsin memory doubling 40x": ("x.slugsin", _memory_doubling(40), "MAX_FORMULA_NODES"),
+    "slugsin memory doubling 25x": ("x.slugsin", _memory_doubling(25), "MAX_FORMULA_NODES"),
+    "spectra boolean[4096][4096]": ("x.spectra", "module M\nenv boolean a;\n"
+                                    "sys boolean[4096][4096] b;\ngar G b[0][0];\n",
+                                    "MAX_IMPORT_CELLS"),
+    "spectra Int[64][64][64]": ("x.spectra", "module M\nenv boolean a;\n"
+                                "sys Int(0..3)[64][64][64] b;\ngar G b[0][0][0] = 1;\n",
+                                "MAX_IMPORT_CELLS"),
+    "spectra forall over 10^6": ("x.spectra", "module M\nenv boolean a;\n"
+                                 "sys Int(0..1000000) b;\n"
+                                 "gar G forall i in Int(0..1000000). b != i | a;\n",
+                                 "MAX_IMPORT_CELLS"),
+    "spectra nested forall 100x100": ("x.spectra", "module M\nenv boolean a;\n"
+                                      "sys Int(0..99) b;\nsys Int(0..99) c;\n"
+                                      "gar G forall i in Int(0..99). forall j in Int(0..99). "
+                                      "b != i | c != j | a;\n", "MAX_IMPORT_CELLS"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BOMBS))
+def test_spec_import_refuses_a_bomb_before_the_work(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str) -> None:
+    """A few hundred bytes that ask for 2^40 nodes, 16M variables or 10^6 copies: exit 2 at
+    once (before: killed at 60 s / 3 GB), naming the limit; nothing written."""
+    import time
+
+    name, text, limit = BOMBS[case]
+    src = tmp_path / name
+    src.write_text(text)
+    out = tmp_path / "out.toml"
+    t0 = time.perf_counter()
+    code, _, err = run(capsys, "spec", "import", str(src), "-o", str(out))
+    assert code == 2, (case, code, err[:300])
+    assert limit in _one_error_line(err) and len(err) < 500 and str(src) in err
+    assert time.perf_counter() - t0 < 10
+    assert not out.exists()
+
+
+def test_spec_import_never_writes_what_no_reader_accepts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The translation is held to MAX_INPUT_BYTES before it is written, and the error names
+    the input, in one short line (before: a 10 MB TOML no command could read back)."""
+    gar = "gar G forall i in Int(0..4095). b != i | a;\n"
+    src = tmp_path / "big.spectra"
+    src.write_text("module M\nenv boolean a;\nsys Int(0..4095) b;\n" + gar * 12)
+    assert src.stat().st_size < 1000
+    out = tmp_path / "out.toml"
+    code, _, err = run(capsys, "spec", "import", str(src), "-o", str(out))
+    assert code == 2, (code, err[:300])
+    assert "MAX_INPUT_BYTES" in _one_error_line(err) and str(src) in err and len(err) < 500
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("where", "edit"), [
+    ("a script's duration", ('label = "scoop"', 'label = "scoop"\nduration = 10000.0')),
+    ("the default duration", ("duration = 12.0", "duration = 10000.0")),
+    ("dt", ("dt = 0.05\n", "dt = 0.0001\n")),
+])
+def test_demos_and_learn_agree_on_the_sample_limit(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], where: str,
+        edit: tuple[str, str]) -> None:
+    """A demonstrator asking for more samples than ``tli learn`` reads is refused when the
+    task loads (before: a per-script duration skipped the check, 10^8 samples, MemoryError)."""
+    old, new = edit
+    assert old in SCOOP
+    task = tmp_path / "t.toml"
+    task.write_text(SCOOP.replace(old, new, 1).replace('spec = "../specs/scoop.toml"\n', ""))
+    code, _, err = run(capsys, "demos", str(task), "--out", str(tmp_path / "d"))
+    assert code == 2, (where, code, err)
+    assert "MAX_DEMO_SAMPLES" in _one_error_line(err)
+    assert not (tmp_path / "d").exists()
+
+
+def test_learn_refuses_more_rows_than_demos_may_write(tmp_path: Path) -> None:
+    from tli_verify.demos import load_demo
+    from tli_verify.errors import DemoError
+    from tli_verify.limits import MAX_DEMO_SAMPLES
+
+    rows = "\n".join(f"{i},0,0" for i in range(MAX_DEMO_SAMPLES + 1))
+    path = tmp_path / "d.csv"
+    path.write_text("t,x0,x1\n" + rows + "\n")
+    with pytest.raises(DemoError, match="MAX_DEMO_SAMPLES"):
+        load_demo(path)
