@@ -101,8 +101,11 @@ def min_jerk_path(waypoints: npt.ArrayLike, duration: float, dt: float
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
     ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / duration
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
-    if not np.all(np.diff(chord) > 0):
-        raise TaskError("two consecutive waypoints coincide")
+    steps = np.diff(chord)
+    if not np.all(steps > 0):
+        k = int(np.argmin(steps > 0))
+        raise TaskError(f"two consecutive waypoints coincide (points {k} and {k + 1} of the "
+                        "path, the start counted as point 0)")
     spline = CubicSpline(chord / chord[-1], W, bc_type="natural")
     x = np.asarray(spline(s), dtype=np.float64)
     dx = np.asarray(spline(s, 1), dtype=np.float64) * ds[:, None]
@@ -203,9 +206,16 @@ class Demonstrator:
                 W = W.copy()
                 for row, k in enumerate(moving):
                     W[k] = W[k] + s.jitter[k] * noise[row]
-            t, x, dx = min_jerk_path(np.vstack([start, W]),
-                                     s.duration if s.duration is not None else self.duration,
-                                     self.dt)
+            try:
+                t, x, dx = min_jerk_path(np.vstack([start, W]),
+                                         s.duration if s.duration is not None
+                                         else self.duration, self.dt)
+            except TaskError as exc:  # name the file and the script
+                k = i % len(self.scripts)
+                raise TaskError(f"{task.where}: demonstrator.scripts[{k}] ({s.label}), "
+                                f"demonstration {i + 1}: {exc} (with its start and jitter "
+                                "drawn from seed {seed})".replace("{seed}", str(seed))
+                                ) from None
             out.append(Demonstration(path=f"<{task.name} demo {i + 1} ({s.label})>", t=t, x=x,
                                      dx=dx, sensor_names=task.sensor_names,
                                      sensors=task.sensors(x), velocities_from_file=True))

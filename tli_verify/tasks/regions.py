@@ -501,7 +501,11 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
         norms = np.linalg.norm(A, axis=1)
         if not np.all(norms > 0):
             raise TaskError(f"{here}.A: row {int(np.argmin(norms))} is zero")
-        if not _polytope_nonempty(A, b):
+        found = _polytope_nonempty(A, b)
+        if found is None:
+            raise TaskError(f"{here}: cannot decide whether the polytope is empty (the LP "
+                            "solver failed on these rows; rescale A and b)")
+        if not found:
             raise TaskError(f"{here}: empty polytope (no x with A x <= b)")
         A.setflags(write=False)
         return Polytope(A, b)
@@ -527,9 +531,17 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
     return cls(tuple(parts), tuple(names))
 
 
-def _polytope_nonempty(A: FloatArray, b: FloatArray) -> bool:
+def _polytope_nonempty(A: FloatArray, b: FloatArray) -> bool | None:
+    """Whether ``A x <= b`` has a solution (rows scaled to unit norm first, so the LP is well
+    conditioned); None when the solver cannot tell (never "empty" for a failure)."""
     from scipy.optimize import linprog
 
-    res = linprog(np.zeros(A.shape[1]), A_ub=A, b_ub=b, bounds=[(None, None)] * A.shape[1],
+    norms = np.linalg.norm(A, axis=1)
+    An, bn = A / norms[:, None], b / norms
+    res = linprog(np.zeros(A.shape[1]), A_ub=An, b_ub=bn, bounds=[(None, None)] * A.shape[1],
                   method="highs")
-    return bool(res.status == 0)
+    if res.status in (0, 3):  # optimal, or unbounded (a feasible point exists)
+        return True
+    if res.status == 2:  # infeasible
+        return False
+    return None
