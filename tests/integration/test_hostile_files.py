@@ -515,3 +515,25 @@ def test_learn_refuses_more_rows_than_demos_may_write(tmp_path: Path) -> None:
     path.write_text("t,x0,x1\n" + rows + "\n")
     with pytest.raises(DemoError, match="MAX_DEMO_SAMPLES"):
         load_demo(path)
+
+
+# ------------------------------------------------------------------ class 6: messages
+@pytest.mark.parametrize("shape", [
+    "ellipsoid = { center = [0.0, 0.0], matrix = [[1e308, 0.0], [0.0, 1e308]] }",
+    "ball = { center = [1e308, 0.0], radius = 1.0 }",
+    "polytope = { A = [[1e308, 0.0], [-1e308, 0.0]], b = [1.0, 1.0] }",
+    "box = { lower = [-1e308, 0.0], upper = [1e308, 1.0] }",
+])
+def test_huge_shapes_give_one_error_line_and_no_numpy_warning(tmp_path: Path,
+                                                              shape: str) -> None:
+    """A real process: stderr is exactly one ``error:`` line (before: numpy RuntimeWarnings
+    first, then a misleading "not positive definite (smallest eigenvalue nan)")."""
+    import subprocess
+
+    path = tmp_path / "t.toml"
+    path.write_text('name = "huge"\n[state]\nlower = [-2.0, -2.0]\nupper = [2.0, 2.0]\n'
+                    f'[regions.p]\n{shape}\n[sensors]\np = "p"\n')
+    proc = subprocess.run([sys.executable, "-m", "tli_verify.cli", "task", "check", str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "regions.p" in _one_error_line(proc.stderr) and "Warning" not in proc.stderr
