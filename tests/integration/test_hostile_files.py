@@ -537,3 +537,27 @@ def test_huge_shapes_give_one_error_line_and_no_numpy_warning(tmp_path: Path,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2, proc.stderr
     assert "regions.p" in _one_error_line(proc.stderr) and "Warning" not in proc.stderr
+
+
+def test_the_gates_rerun_never_starts_where_the_evidence_says(tmp_path: Path) -> None:
+    """The re-run ignores the recorded start: one no task could hold (outside the workspace)
+    changes nothing -- the gate's own starts are used (before: the re-run started there and
+    failed, or, with a start chosen to work, trusted it)."""
+    import dataclasses
+
+    from tli_verify.deploy.gate import rerun_campaign
+    from tli_verify.verify.evidence import check_evidence
+
+    for rel in ("tasks/scoop.toml", "specs/scoop.toml", "models/scoop.model.json",
+                "certificates/scoop.cert.json", "certificates/scoop.campaign.json"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(REPO / rel, tmp_path / rel)
+    model = tmp_path / "models" / "scoop.model.json"
+    check = check_evidence(tmp_path / "certificates" / "scoop.campaign.json", model_path=model)
+    assert check.ok, check.problems
+    forged = {**dict(check.settings), "start": [100.0, 100.0], "random_starts": False}
+    check = dataclasses.replace(check, settings=tuple(sorted(forged.items())))
+    ok, message = rerun_campaign(check, model, 4)
+    assert ok, message
+    assert "its own starts (2 from starts drawn in the task's start region, 2 from its 1 " \
+        "nominal start(s)" in message
