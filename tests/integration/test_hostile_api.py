@@ -240,7 +240,7 @@ def _calls(r: Path, policy: Any) -> dict[str, tuple[Callable[[], Any], type, str
                                       ValueError, "perturbations"),
         "run(task=3)": (lambda: tli.run(policy, task=3), TypeError, "task"),
         "task.clearance(nan)": (lambda: task.clearance([np.nan, 0.0]), ValueError, "NaN"),
-        "task.clearance('ab')": (lambda: task.clearance("ab"), TypeError, "states"),
+        "task.clearance('ab')": (lambda: task.clearance("ab"), TypeError, "x: expected numbers"),
         "task.sensors(NaN)": (lambda: task.sensors(np.full((3, 2), np.nan)), ValueError,
                               "NaN"),
         "task.sensors(inf)": (lambda: task.sensors(np.array([[np.inf, 0.0]])), ValueError,

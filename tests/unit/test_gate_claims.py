@@ -136,6 +136,8 @@ def test_forged_settings_are_refused_naming_the_field(key: str, value: Any) -> N
 
 def test_a_forged_batch_size_blocks_the_re_run_with_one_line(project: Path) -> None:
     attach_evidence(project, settings={"window": 700, "max_pushes": 3, "batch_size": "x"})
-    rerun = [b.message for b in run_gate(project, rerun=3).blockers if b.check == "rerun"]
-    assert rerun == ["the re-run campaign failed: batch_size: expected an integer in "
-                     "[1, 10000], got 'x'"]
+    blockers = run_gate(project, rerun=3).blockers
+    # refused with the other settings no command line records (issue 31), before any re-run
+    assert [b.check for b in blockers] == ["campaign"]
+    assert "campaign.settings.batch_size: 'x' is not an integer in [1, 10000]" in \
+        blockers[0].message

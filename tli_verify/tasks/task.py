@@ -724,7 +724,7 @@ class Task:
         -------
         float
         """
-        xa = self._states(x).reshape(1, -1)
+        xa = self._states(x, "x", finite=True).reshape(1, -1)
         k = int(self.partition.index(xa)[0])
         cells = self.partition.cells[:k + 1]
         leaves: list[Primitive] = []
@@ -811,9 +811,11 @@ class Task:
             raise TaskError(f"{self.where}: no [demonstrator] table")
         return self.demonstrator.demonstrate(self, seed, n_demos)
 
-    def _states(self, X: npt.ArrayLike, name: str = "states") -> FloatArray:
-        """``X`` as finite float states of this task's dimension (the boundary check of every
-        public method that takes states)."""
+    def _states(self, X: npt.ArrayLike, name: str = "states", *, finite: bool = False
+                ) -> FloatArray:
+        """``X`` as float states of this task's dimension (the boundary check of every public
+        method that takes states); ``finite``: NaN and infinities refused too (region tests
+        classify them, a clearance or a sensor reading of them means nothing)."""
         try:
             Xa = np.asarray(X, dtype=np.float64)
         except (TypeError, ValueError, OverflowError):
@@ -822,7 +824,7 @@ class Task:
         if Xa.shape[-1:] != (self.dim,):
             raise TaskError(f"{self.where}: {name} must have {self.dim} coordinates, got "
                             f"shape {Xa.shape}")
-        if not np.isfinite(Xa).all():
+        if finite and not np.isfinite(Xa).all():
             raise TaskError(f"{self.where}: {name}: NaN or infinite coordinates")
         return Xa
 
