@@ -18,6 +18,15 @@ what is deployed): :func:`certify` of a model that was never saved writes it, wi
 path, into a private temporary folder the :class:`Certificate` keeps alive; :meth:`Certificate.
 save` writes the pair where you want it (re-issued for the saved model's bytes).
 
+Every function that writes keeps the command line's read/write rule
+(:func:`tli_verify.io.check_plan`, ``docs/reference/limits.md``): before any work it refuses
+an output that is one of the files it reads -- named (a demonstration, a model), or implied
+(the spec a model names, the task that spec names, the certificate and evidence the project
+layout puts next to a model) -- or another of its outputs, with an
+:class:`~tli_verify.errors.OutputError` (an ``InputError``, so a ``ValueError``). Arguments are
+checked at the boundary: a wrong type is an ``InputError`` that is also a ``TypeError``, a
+value out of range one that is a ``ValueError``; each names the parameter.
+
 References
 ----------
 Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation: Learning Plan-Satisficing Motion
@@ -37,7 +46,23 @@ from typing import Any
 
 import numpy.typing as npt
 
-from tli_verify.errors import CertificateError, ModelError, SpecError, TaskError, bad_input
+from tli_verify.arguments import (
+    check_choice,
+    check_int,
+    check_path,
+    check_type,
+    check_vector,
+)
+from tli_verify.errors import (
+    CertificateError,
+    ModelError,
+    SpecError,
+    TaskError,
+    bad_argument,
+    bad_input,
+    bad_type,
+)
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
 
 __all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
 
@@ -48,12 +73,23 @@ def _spec_path(spec: Any) -> Path | None:
     if spec is None:
         return None
     if isinstance(spec, str | os.PathLike):
-        return Path(spec)
+        return check_path(spec, "spec", error=SpecError)
+    from tli_verify.logic.spec import GR1Spec
+
+    if not isinstance(spec, GR1Spec):
+        raise bad_type(SpecError, f"spec: expected a path or a GR1Spec, got "
+                       f"{type(spec).__name__}")
     path = getattr(spec, "path", None)
     if path is None:
         raise bad_input(SpecError, "spec: a GR1Spec loaded from a file is needed (the model "
                         "and its certificate bind the spec file); use load_spec(path)")
     return Path(path)
+
+
+def _spec_inputs(spec: Path | None) -> list[Path]:
+    from tli_verify.tasks.project import spec_inputs
+
+    return spec_inputs(spec)
 
 
 def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
@@ -86,19 +122,33 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
     Model
     """
     from tli_verify.demos import Demonstration, demo_to_csv
-    from tli_verify.io import atomic_write_text
+    from tli_verify.errors import DemoError
+    from tli_verify.io import atomic_write_text, check_plan
     from tli_verify.model.learn import learn_model
 
+    if isinstance(demos, str | bytes | os.PathLike) or not isinstance(demos, Sequence):
+        raise bad_type(DemoError, f"demos: expected a sequence of demonstration files or "
+                       f"Demonstration objects, got {type(demos).__name__}")
+    if not demos:
+        raise bad_input(DemoError, "demos: no demonstrations given")
+    given: list[Demonstration | Path] = [
+        d if isinstance(d, Demonstration) else check_path(d, f"demos[{i}]", error=DemoError)
+        for i, d in enumerate(demos)]
     spec_path = _spec_path(spec)
+    seed = check_int(seed, "seed", 0, MAX_SEED)
+    if out is not None:  # the read/write rule, before any work
+        out = check_path(out, "out", error=ModelError)
+        check_plan(inputs=[*(d for d in given if isinstance(d, Path)),
+                           *_spec_inputs(spec_path)], outputs=[(out, "model")])
     with tempfile.TemporaryDirectory(prefix="tli-learn-") as tmp:
         paths: list[Path] = []
-        for i, d in enumerate(demos):
+        for i, d in enumerate(given):
             if isinstance(d, Demonstration):
                 p = Path(tmp) / f"demo_{i + 1}.csv"
                 atomic_write_text(p, demo_to_csv(d))
                 paths.append(p)
             else:
-                paths.append(Path(d))
+                paths.append(d)
         target = Path(out) if out is not None else Path(tmp) / "model.json"
         if options.get("control_dt") is None:  # the period the task runs at
             options.pop("control_dt", None)
@@ -156,11 +206,35 @@ def save_model(model: Any, path: PathLike) -> Any:
     -------
     Model
     """
-    from tli_verify.model.serialize import load_model, relocate_model
+    from tli_verify.io import check_plan
+    from tli_verify.model.serialize import IN_MEMORY, load_model, relocate_model
     from tli_verify.model.serialize import save_model as _save
+    from tli_verify.model.types import Model
 
-    _save(relocate_model(model, path), path)
-    return load_model(path)
+    check_type(model, "model", Model, "a Model (tli_verify.learn, load_model)",
+               error=ModelError)
+    target = check_path(path, "path", error=ModelError)
+    check_plan(inputs=_model_reads(model, IN_MEMORY), outputs=[(target, "model")])
+    _save(relocate_model(model, target), target)
+    return load_model(target)
+
+
+def _model_reads(model: Any, in_memory: str) -> list[Path]:
+    """What a model object implies, for the read/write rule: its spec and the spec's task,
+    the demonstrations it was learned from, and the certificate and evidence next to its
+    file (not the file itself: saving a model over its own file rewrites it)."""
+    from tli_verify.tasks.project import model_files
+
+    reads = _spec_inputs(model.spec_path)
+    base = Path(model.path).parent if model.path else Path(".")
+    for demo in (model.source or {}).get("demos") or ():
+        p = str(demo.get("path", "")) if hasattr(demo, "get") else ""
+        if p and not p.startswith(in_memory):
+            reads.append(base / p)
+    if model.path is not None:
+        files = model_files(model.path)
+        reads += [files.certificate, files.evidence]
+    return reads
 
 
 def _task_dt(spec_path: Path) -> float | None:
@@ -227,13 +301,20 @@ class Certificate:
         Certificate
             Re-issued for the files written.
         """
+        from tli_verify.io import check_plan
         from tli_verify.model.serialize import load_model
 
+        target = check_path(path, "path", error=CertificateError)
         mpath = Path(self.model_path)
+        current = load_model(mpath)
+        reads = [mpath, *_spec_inputs(current.spec_path)]
         if model is not None:
-            mpath = Path(model)
-            save_model(load_model(self.model_path), mpath)
-        return certify(mpath, dt=self.dt, out=path)
+            mpath = check_path(model, "model", error=ModelError)
+            check_plan(inputs=reads, outputs=[(mpath, "model"), (target, "certificate")])
+            save_model(current, mpath)
+        else:
+            check_plan(inputs=reads, outputs=[(target, "certificate")])
+        return certify(mpath, dt=self.dt, out=target)
 
 
 def certify(model: Any, *, dt: Fraction | str | None = None,
@@ -262,9 +343,16 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.defaults import DEFAULT_DT
+    from tli_verify.io import check_plan
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
 
+    if not isinstance(model, Model):
+        model = check_path(model, "model", error=ModelError)
+    if out is not None:
+        out = check_path(out, "out", error=CertificateError)
+    if dt is not None:
+        dt = _check_dt(dt)
     tmp: Path | None = None
     if isinstance(model, Model):
         if model.path is not None and Path(model.path).is_file() and \
@@ -289,6 +377,9 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
         from tli_verify.tasks.project import model_files
 
         cpath = model_files(mpath).certificate
+    # the read/write rule, before any work: the certificate is none of the files it binds
+    check_plan(inputs=[mpath, *_spec_inputs(load_model(mpath).spec_path)],
+               outputs=[(cpath, "certificate")])
     doc = issue_certificate(mpath, cert_path=cpath, dt=dt)
     write_certificate(doc, cpath)
     cert = Certificate(doc=doc, path=cpath, model_path=mpath, _tmp=tmp)
@@ -298,6 +389,20 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
 
         weakref.finalize(cert, shutil.rmtree, tmp, True)
     return cert
+
+
+def _check_dt(dt: Any) -> Fraction:
+    """``dt`` as a positive Fraction (``certify(dt=...)``)."""
+    if isinstance(dt, bool) or not isinstance(dt, Fraction | str | int | float):
+        raise bad_type(CertificateError, f"dt: expected a Fraction or a decimal string, got "
+                       f"{type(dt).__name__}")
+    try:
+        value = Fraction(repr(dt)) if isinstance(dt, float) else Fraction(dt)
+    except (ValueError, ZeroDivisionError, OverflowError):
+        raise bad_argument(CertificateError, f"dt: {dt!r} is not a number") from None
+    if value <= 0:
+        raise bad_argument(CertificateError, f"dt: the control period must be > 0, got {dt!r}")
+    return value
 
 
 def _same_bytes(model: Any, path: Path) -> bool:
@@ -338,11 +443,20 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
     from tli_verify.logic.automaton import TaskAutomaton
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
-    from tli_verify.runtime.setup import Setup, check_goal
+    from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
     from tli_verify.runtime.setup import make_policy as _make
     from tli_verify.tasks.project import resolve
 
-    cpath = certificate.path if isinstance(certificate, Certificate) else Path(certificate)
+    variant = check_choice(variant, "variant", VARIANTS)
+    cpath = certificate.path if isinstance(certificate, Certificate) else check_path(
+        certificate, "certificate", error=CertificateError)
+    if not isinstance(model, Model):
+        model = check_path(model, "model", error=ModelError)
+    if not isinstance(spec, TaskAutomaton | str | os.PathLike):
+        from tli_verify.logic.spec import GR1Spec
+
+        check_type(spec, "spec", GR1Spec, "a path, a GR1Spec or a TaskAutomaton",
+                   error=SpecError)
     if isinstance(model, Model):
         if model.path is None and isinstance(certificate, Certificate):
             model = load_model(certificate.model_path)
@@ -389,19 +503,24 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
     -------
     EpisodeResult
     """
-    import numpy as np
-
     from tli_verify.defaults import Stream, rng
     from tli_verify.runtime.episodes import pusher, random_start
+    from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import run_episode
     from tli_verify.runtime.worlds import WorldSensors
     from tli_verify.tasks.project import spec_task
     from tli_verify.tasks.registry import find_task
     from tli_verify.tasks.task import Task
 
+    check_type(policy, "policy", LTLDSPolicy, "an LTLDSPolicy (make_policy)", error=TaskError)
+    steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
+    seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
     if isinstance(task, Task):
         world = task
     elif task is not None:
+        if not isinstance(task, str | os.PathLike):
+            raise bad_type(TaskError, f"task: expected a Task, a task name or a task file, "
+                           f"got {type(task).__name__}")
         world = find_task(task)
     else:
         from tli_verify.logic.spec import load_spec
@@ -411,7 +530,30 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
         if found is None:
             raise bad_input(TaskError, "run: the policy's spec names no task: pass task=...")
         world = found
-    x0 = (np.asarray(start, dtype=np.float64) if start is not None
-          else random_start(world, policy.automaton, rng(seed, Stream.START)))
+    if start is not None:
+        x0 = check_vector(start, "start", world.dim, error=TaskError)
+        if not bool(world.in_workspace(x0[None])[0]):
+            raise bad_input(TaskError, f"start: {x0.tolist()} lies outside the workspace of "
+                            f"task {world.name!r}")
+    else:
+        x0 = random_start(world, policy.automaton, rng(seed, Stream.START))
+    table = _perturbations(perturbations, world.dim, steps)
     return run_episode(policy.fork(), WorldSensors(world), x0, steps=steps,
-                       perturb=pusher(world, dict(perturbations or {})))
+                       perturb=pusher(world, table))
+
+
+def _perturbations(perturbations: Any, dim: int, steps: int) -> dict[int, Any]:
+    """``run(perturbations=...)`` checked: steps in ``[0, steps)``, displacements of shape
+    ``(dim,)`` and finite."""
+    from collections.abc import Mapping
+
+    if perturbations is None:
+        return {}
+    if not isinstance(perturbations, Mapping):
+        raise bad_type(TaskError, f"perturbations: expected a mapping step -> displacement, "
+                       f"got {type(perturbations).__name__}")
+    table: dict[int, Any] = {}
+    for step, d in perturbations.items():
+        t = check_int(step, "perturbations (a step)", 0, steps - 1, error=TaskError)
+        table[t] = check_vector(d, f"perturbations[{t}]", dim, error=TaskError)
+    return table

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -148,10 +149,15 @@ def check_paths(args: argparse.Namespace) -> None:
     OutputError
         (exit 2) Naming the output and what is wrong with it.
     """
+    from tli_verify.arguments import check_path
     from tli_verify.io import check_output_dir, check_output_file
 
     inputs: list[Path] = []
     for name, value in vars(args).items():
+        for v in value if isinstance(value, list | tuple) else [value]:
+            if isinstance(v, Path) and str(v) != "":  # every path fits the file system
+                check_path(v, f"--{name.replace('_', '-')}", error=OutputError if name in (
+                    "output", "out", "repair") else TliError)
         if name in ("output", "out", "repair"):
             continue
         if isinstance(value, Path):
@@ -391,13 +397,28 @@ def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
         _flush_quietly(sys.stdout)
         _say("error: interrupted" + (" (SIGTERM)" if isinstance(exc, _Terminated) else ""))
         return 130
-    except Exception as exc:  # an internal bug: still one line unless --debug
-        if debug:
-            traceback.print_exc()
-        _say(f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())}); "
-             "rerun with --debug for a traceback")
+    except OSError as exc:
+        if exc.errno not in (errno.ENAMETOOLONG, errno.EILSEQ):
+            return _internal(exc, debug)
+        # a path the file system cannot hold (a name longer than MAX_NAME_BYTES): bad input
+        name = str(exc.filename or "")
+        shown = name if len(name) <= 80 else name[:77] + "..."
+        _say(f"error: {shown}: {exc.strerror or 'bad path'} (a path component is at most "
+             "255 bytes, MAX_NAME_BYTES)")
         _flush_quietly(sys.stdout)
-        return 70
+        return 2
+    except Exception as exc:  # an internal bug: still one line unless --debug
+        return _internal(exc, debug)
+
+
+def _internal(exc: BaseException, debug: bool) -> int:
+    """An internal bug: one ``error:`` line unless ``--debug``, exit 70."""
+    if debug:
+        traceback.print_exc()
+    _say(f"error: internal error ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+         "rerun with --debug for a traceback")
+    _flush_quietly(sys.stdout)
+    return 70
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from tli_verify.errors import DemoError
 from tli_verify.io import read_text
-from tli_verify.limits import MAX_ABS_VALUE, MAX_STATE_DIM
+from tli_verify.limits import MAX_ABS_VALUE, MAX_DEMO_SAMPLES, MAX_STATE_DIM
 
 __all__ = [
     "Demonstration",
@@ -213,6 +213,9 @@ def load_demo(path: str | os.PathLike[str], *,
         raise DemoError(f"{where}: empty file (expected a header row: t,x0,...)")
     t_col, x_cols, dx_cols, s_cols, s_names = _header(header, where, sensor_names)
     names = [h.strip() for h in header]
+    if len(rows) > MAX_DEMO_SAMPLES:
+        raise DemoError(f"{where}: {len(rows):,} data rows, more than the limit of "
+                        f"{MAX_DEMO_SAMPLES:,} (MAX_DEMO_SAMPLES)")
     if len(rows) < MIN_ROWS:
         raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
                         f"{MIN_ROWS}")

@@ -35,7 +35,9 @@ __all__ = [
     "TliError",
     "UnrealizableError",
     "WorkerLost",
+    "bad_argument",
     "bad_input",
+    "bad_type",
     "missing",
 ]
 
@@ -131,6 +133,9 @@ def _variant(cls: type[TliError], *builtins: type[Exception]) -> type[TliError]:
     if found is not None:
         return found
     extra = tuple(b for b in builtins if not issubclass(cls, b))
+    for b in extra:  # e.g. TliError and InputError: the variant is InputError's
+        if issubclass(b, cls):
+            return _VARIANTS.setdefault(key, _variant(b, *(x for x in builtins if x is not b)))
     made: type[TliError] = cls if not extra else type(cls.__name__, (cls, *extra), {
         "__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__,
         "__reduce__": _reduce, "_tli_variant": (cls, builtins)})
@@ -163,6 +168,39 @@ def bad_input(cls: type[TliError], message: str) -> TliError:
         An instance of ``cls`` and of :class:`ValueError`.
     """
     return _variant(cls, ValueError)(message)
+
+
+def bad_type(cls: type[TliError], message: str) -> TliError:
+    """An error of ``cls`` for an argument of the wrong type: also a :class:`TypeError` (and
+    a :class:`ValueError`, as all bad input is), e.g. ``load_spec(None)``.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`TliError` subclass.
+    message : str
+
+    Returns
+    -------
+    TliError
+        An instance of ``cls``, :class:`InputError` (a :class:`ValueError`) and
+        :class:`TypeError`.
+    """
+    return _variant(cls, InputError, TypeError)(message)
+
+
+def bad_argument(cls: type[TliError], message: str, *, builtin: type[Exception] = ValueError
+                 ) -> TliError:
+    """An error of ``cls`` for a bad argument of a public function: also an
+    :class:`InputError` (whatever family ``cls`` is in: a bad argument of ``certify`` is a
+    :class:`CertificateError` that is bad input, not the verdict) and ``builtin``
+    (:class:`ValueError` for a value, :class:`TypeError` for a type).
+
+    Returns
+    -------
+    TliError
+    """
+    return _variant(cls, InputError, builtin)(message)
 
 
 def missing(cls: type[TliError], message: str, path: object) -> TliError:

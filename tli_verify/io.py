@@ -71,6 +71,21 @@ def _why(exc: OSError) -> str:
 # Outputs
 # --------------------------------------------------------------------------------------------
 
+def check_path_arg(path: Any, *, what: str, error: type[TliError] = OutputError) -> Path:
+    """``path`` as a :class:`Path`, refused unless it is a ``str`` or ``os.PathLike`` whose
+    every component fits ``MAX_NAME_BYTES``.
+
+    Raises
+    ------
+    error
+        Also a :class:`TypeError` for a path of another type (``None``, an int), a
+        :class:`ValueError` for a component longer than ``MAX_NAME_BYTES`` or a NUL byte.
+    """
+    from tli_verify.arguments import check_path
+
+    return check_path(path, f"the {what} path", error=error)
+
+
 def _existing_ancestor(p: Path) -> Path:
     """The nearest ancestor of ``p`` (absolute) that exists (``lstat``), or ``p`` itself."""
     cur = p
@@ -142,9 +157,9 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
         regular file; a directory we cannot write in; or a path that resolves (symlinks,
         ``./``, ``..``, hard links) to one of ``inputs``.
     """
-    if str(path) == "":
+    if isinstance(path, str) and path == "":
         raise OutputError(f"empty path given for the {what}")
-    p = Path(path)
+    p = check_path_arg(path, what=what)
     shown = str(path)
     _check_dotdot(p, shown, what)
     for src in inputs:
@@ -160,6 +175,39 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
                               f"socket); refusing to replace it with the {what}")
     _check_writable_dir(_existing_ancestor(p.absolute().parent), shown, what)
     return p
+
+
+def check_plan(*, inputs: Iterable[PathLike | None],
+               outputs: Iterable[tuple[PathLike | None, str]]) -> None:
+    """The read/write rule of every command and every public function that writes: refuse,
+    before any work, an output that cannot be written, that is one of the command's
+    inputs (named, defaulted or implied), or that is another of its outputs.
+
+    Parameters
+    ----------
+    inputs : iterable of path-like or None
+        Every file the command reads (None entries are skipped).
+    outputs : iterable of (path-like or None, str)
+        Every file it writes -- sidecars and files inside ``--out`` included -- with what it is.
+
+    Raises
+    ------
+    OutputError
+        (exit 2) Naming the output and what is wrong with it.
+    """
+    read = [Path(p) for p in inputs if p is not None]
+    written: list[tuple[Path, str]] = []
+    for path, what in outputs:
+        if path is None:
+            continue
+        p = Path(path)
+        check_output_file(p, inputs=read, what=what)
+        for other, other_what in written:
+            if os.path.abspath(other) == os.path.abspath(p) or (
+                    p.exists() and other.exists() and os.path.samefile(p, other)):
+                raise OutputError(f"{p}: the {what} and the {other_what} would be the same "
+                                  "file; choose other output paths")
+        written.append((p, what))
 
 
 def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
@@ -182,9 +230,9 @@ def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
         (exit 2) An empty path; an existing file; a path under a regular file; a directory we
         cannot write in.
     """
-    if str(path) == "":
+    if isinstance(path, str) and path == "":
         raise OutputError(f"empty path given for the {what}")
-    p = Path(path)
+    p = check_path_arg(path, what=what)
     _check_dotdot(p, str(path), what)
     if os.path.lexists(p) and not p.is_dir():
         raise OutputError(f"{p}: exists and is not a directory, expected the {what}")
@@ -308,9 +356,9 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     str
         The text, without a leading byte-order mark.
     """
-    p = Path(path)
-    if str(path) == "":
+    if isinstance(path, str) and path == "":
         raise error(f"empty path given for the {what} file")
+    p = check_path_arg(path, what=f"{what} file", error=error)
     try:
         st = p.stat()
     except FileNotFoundError as exc:
@@ -479,6 +527,41 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _float_int(text: str) -> int:
+    value = int(text)
+    if abs(value) > _FLOAT_MAX:
+        raise ValueError(f"integer {text[:20]}... is too large for a double (numbers must be "
+                         "finite)")
+    return value
+
+
+_FLOAT_MAX = int(float.fromhex("0x1.fffffffffffffp+1023"))
+
+
+def check_numbers(data: Any, *, where: str, error: type[TliError]) -> None:
+    """Refuse an integer that does not fit a double anywhere in parsed TOML or JSON data
+    (``lag = 1`` followed by 400 zeros): every reader turns numbers into floats, where such an
+    integer would be an ``OverflowError``, not an error naming the field.
+
+    Raises
+    ------
+    error
+        ``"<where>: <field>: integer ... is too large for a double"``.
+    """
+    stack: list[tuple[tuple[str | int, ...], Any]] = [((), data)]
+    while stack:
+        at, value = stack.pop()
+        if isinstance(value, dict):
+            stack.extend(((*at, str(k)), v) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend(((*at, i), v) for i, v in enumerate(value))
+        elif isinstance(value, int) and not isinstance(value, bool) and \
+                abs(value) > _FLOAT_MAX:
+            digits = len(str(abs(value))) if value.bit_length() < 14_000 else "many"
+            raise error(f"{where}: {field_path(at) or 'value'}: an integer of {digits} digits "
+                        "is too large for a double (numbers must be finite)")
+
+
 def parse_json(text: str) -> Any:
     """``json.loads`` as every reader of tli-verify does: no NaN or Infinity, no number that
     overflows a double, no duplicate key.
@@ -488,7 +571,7 @@ def parse_json(text: str) -> Any:
     ValueError, json.JSONDecodeError
     """
     return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float,
-                      object_pairs_hook=_unique_keys)
+                      parse_int=_float_int, object_pairs_hook=_unique_keys)
 
 
 def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:

@@ -32,10 +32,13 @@ __all__ = [
     "MAX_ABS_VALUE",
     "MAX_BATCH_SIZE",
     "MAX_CAMPAIGN_STEPS",
+    "MAX_DEMO_SAMPLES",
     "MAX_EXAMPLES",
     "MAX_FORMULA_DEPTH",
     "MAX_FORMULA_NODES",
+    "MAX_IMPORT_CELLS",
     "MAX_INPUT_BYTES",
+    "MAX_NAME_BYTES",
     "MAX_NESTING",
     "MAX_PUSHES",
     "MAX_SEED",
@@ -48,6 +51,11 @@ MAX_INPUT_BYTES = 4 * 1024 * 1024
 
 The bundled model is 20 kB and a LASA model about 30 kB; 4 MiB is two orders of magnitude
 above any model, spec or demonstration the tool produces or the paper uses."""
+
+MAX_NAME_BYTES = 255
+"""Longest component of a path (a file or folder name) read or written, in bytes of its
+file-system encoding: the limit (NAME_MAX) of every common Linux and macOS file system. A longer
+name is refused as bad input before any work, never left to fail as ``ENAMETOOLONG`` inside."""
 
 MAX_NESTING = 64
 """Deepest nesting of ``[``/``{`` brackets (outside strings) in an input file.
@@ -70,6 +78,12 @@ operators in the parsed formula (``a -> a -> ...`` nests without parentheses). R
 benchmark formulas nest a few levels (n-ary ``&``/``|`` are one level); the limit keeps every
 recursive pass over a formula far from Python's recursion limit."""
 
+MAX_IMPORT_CELLS = 4096
+"""Most variables one Spectra array declares (the product of its dimensions, each at most
+4096), and most copies of a body nested ``forall``/``exists`` expand (the product of their
+domains) in ``tli spec import``: checked before any is made. Each is a Boolean variable or a
+copy of a formula in the translated spec, which GR(1) synthesis handles in the hundreds."""
+
 MAX_STATE_DIM = 32
 """Largest state dimension ``n`` of a demonstration (and so of a learned model).
 
@@ -84,6 +98,12 @@ except the covariances (attractor, P, means, A_k, cut normals and points).
 States in the units the paper uses (metres, millimetres: LASA spans about 50 mm) are 3-6 orders
 of magnitude inside it. With it, ``|A_k (x - x*)| <= n * 1e6 * 2e6`` at every state with
 ``|x_i| <= 1e6`` (``docs/design.md``, "Errors and limits")."""
+
+MAX_DEMO_SAMPLES = 100_000
+"""Most samples (rows) of one demonstration: what ``tli learn`` reads and what ``tli demos``
+writes (every script's ``duration / dt``, checked when the task loads, together with the
+bound that its CSV fits ``MAX_INPUT_BYTES``). The paper's demonstrations have hundreds of
+samples; learning fits a GMM on every one."""
 
 MAX_ABS_COVARIANCE = MAX_ABS_VALUE**2
 """Largest magnitude of a GMM covariance entry (1e12): covariances have squared state units."""

@@ -37,7 +37,7 @@ def test_rerun_blocks_a_model_whose_ds_leaves_its_mode(project: Path,
     blocked = [r for r in records if r.get("ok") is False]
     assert [(r["check"], r["path"]) for r in blocked] == [("rerun", "models/scoop.model.json")]
     assert "re-ran 4 examples on the gate's own seed" in blocked[0]["message"]
-    assert "(task 'scoop'" in blocked[0]["message"]
+    assert "task 'scoop'" in blocked[0]["message"] and "its own starts" in blocked[0]["message"]
     assert "violations by kind" in blocked[0]["message"]
     assert err.startswith("error: gate blocked: 1 problem(s)") and err.count("\n") == 1
 

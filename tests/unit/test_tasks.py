@@ -137,7 +137,7 @@ y = "prev(armed) & !armed"
     (BOX3 + '[regions.a]\nbox = { lower = [0, 0], upper = [1, 1] }\n[sensors]\nq = "a"',
      "regions.a.box.lower: expected a list of 3 numbers"),
     (BOX3 + '[regions.a]\nball = { center = [0, 0, 0], radius = -1 }\n[sensors]\nq = "a"',
-     "regions.a.ball.radius: expected a finite number > 0"),
+     "regions.a.ball.radius: expected a number in (0, 1e+06]"),
     (BOX3 + '[regions.a]\nellipsoid = { center = [0, 0, 0], matrix = [[1, 0, 0], [0, -1, 0], '
      '[0, 0, 1]] }\n[sensors]\nq = "a"', "not positive definite"),
     (BOX3 + '[regions.a]\npolytope = { A = [[1, 0, 0], [-1, 0, 0]], b = [0, -1] }\n'

@@ -11,10 +11,11 @@ overwrite an input, are refused with exit 2 before any work. Output arguments us
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
 
 from tli_verify.errors import CheckFailed, TliError
+from tli_verify.io import check_plan as check_plan  # the library's read/write rule
 
 
 def output_path(text: str) -> Path:
@@ -133,43 +134,6 @@ def check_report_dir(out: Path | str | None) -> None:
             raise OutputError(f"{out}: a report directory inside a project's {part}/ folder: "
                               f"tli gate reads every file there as a {part[:-1]} file; "
                               "choose another --out")
-
-
-def check_plan(*, inputs: Iterable[Path | str | None],
-               outputs: Iterable[tuple[Path | str | None, str]]) -> None:
-    """Refuse, before any work, an output that cannot be written, that is one of the command's
-    inputs (named, defaulted or implied), or that is another of its outputs.
-
-    Parameters
-    ----------
-    inputs : iterable of path-like or None
-        Every file the command reads (None entries are skipped).
-    outputs : iterable of (path-like or None, str)
-        Every file it writes -- sidecars and files inside ``--out`` included -- with what it is.
-
-    Raises
-    ------
-    OutputError
-        (exit 2) Naming the output and what is wrong with it.
-    """
-    import os
-
-    from tli_verify.errors import OutputError
-    from tli_verify.io import check_output_file
-
-    read = [Path(p) for p in inputs if p is not None]
-    written: list[tuple[Path, str]] = []
-    for path, what in outputs:
-        if path is None:
-            continue
-        p = Path(path)
-        check_output_file(p, inputs=read, what=what)
-        for other, other_what in written:
-            if os.path.abspath(other) == os.path.abspath(p) or (
-                    p.exists() and other.exists() and os.path.samefile(p, other)):
-                raise OutputError(f"{p}: the {what} and the {other_what} would be the same "
-                                  "file; choose other output paths")
-        written.append((p, what))
 
 
 def exit_code(exc: TliError) -> int:

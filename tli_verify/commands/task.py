@@ -80,7 +80,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "sensors), the folders demos/, models/, certificates/, DIR/README.md with the "
         "commands from demonstrations to the gate, and DIR/ci/tli-gate.yml. Refuses to "
         "overwrite existing files.")
-    init.add_argument("directory", type=Path, metavar="DIR")
+    init.add_argument("directory", type=output_path, metavar="DIR")
     init.add_argument("--name", default="mytask", help="task name (default mytask)")
     init.add_argument("--dim", type=int_range(1, 32), default=2,
                       help="state dimension of the template (default 2)")
@@ -355,6 +355,8 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
 
     config = _config(args, resolved)
     result = run_campaign(config, progress=sys.stderr.isatty())
+    if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
+        raise KeyboardInterrupt
     path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,

@@ -45,10 +45,11 @@ from typing import Any
 
 from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
-           "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed",
+           "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed", "rerun_starts",
            "run_gate"]
 
 CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
@@ -437,7 +438,11 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     GateError
         ``root`` is not a directory (exit 2).
     """
-    base = Path(root)
+    from tli_verify.arguments import check_int, check_path
+
+    base = check_path(root, "root", error=GateError)
+    if rerun is not None:
+        rerun = check_int(rerun, "rerun", 0, MAX_EXAMPLES, error=GateError)
     if not base.is_dir():
         raise bad_input(GateError, f"{base}: not a directory")
 
@@ -537,6 +542,11 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                 f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
                 "violations; binds its task, spec, model and certificate (SHA-256)", "campaign"))
         else:
+            forged = _settings_problems(check, model)
+            if forged:
+                items.append(GateItem("model", name, False, f"{shown(evidence)}: "
+                                      f"{'; '.join(forged)}", "campaign"))
+                continue
             items.append(GateItem("model", name, True, f"{shown(evidence)}: campaign on task "
                                   f"{check.world!r} with seed {check.seed}: {check.examples} "
                                   f"examples ({check.runs} runs), modulation on, 0 violations; "
@@ -561,6 +571,19 @@ def _unprefixed(problem: str, path: str) -> str:
     return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
 
 
+def _settings_problems(check: Any, model: Path) -> list[str]:
+    """Recorded campaign settings no CLI command could have produced on the model's task
+    (:func:`tli_verify.verify.evidence.settings_problems`)."""
+    from tli_verify.tasks.project import resolve
+    from tli_verify.verify.evidence import settings_problems
+
+    try:
+        task = resolve(model=model).task
+    except TliError as exc:
+        return [f"the model's task does not resolve: {exc}"]
+    return settings_problems(dict(check.settings), task)
+
+
 def _partition(phys: dict[str, Any]) -> str:
     """How a physical campaign's trials were split, for the gate's line ("" for one chunk)."""
     chunks = phys.get("chunks") or ()
@@ -569,8 +592,10 @@ def _partition(phys: dict[str, Any]) -> str:
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     """The gate's re-run: a short campaign on a seed the gate derives (:func:`rerun_seed`)
-    with the evidence's recorded settings (validated like the CLI's options), modulation on,
-    on the deployed files; not shrunk (the line says how to reproduce it), in this process when
+    and from starts it chooses itself (:func:`rerun_starts`: drawn in the task's start region,
+    and the task's nominal starts; the evidence's recorded start is never used), with the
+    evidence's other recorded settings (validated like the CLI's options), modulation on, on
+    the deployed files; not shrunk (the line says how to reproduce it), in this process when
     ``N`` fits in one batch.
 
     Parameters
@@ -601,37 +626,93 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     # would only add its start-up)
     settings["shrink"] = False
     settings.pop("target_examples", None)
+    # the gate's own starts, never the recorded ones: drawn in the task's start region, and
+    # the task's nominal starts (a recorded start is the campaign's claim, not a fact)
+    settings.pop("start", None)
+    settings.pop("random_starts", None)
     seed = rerun_seed(check, model, examples)
     try:
+        from tli_verify.tasks.project import resolve
+
+        nominal = resolve(model=model).task.starts.nominal
+        plan = rerun_starts(nominal, examples, seed)
         batch = settings.get("batch_size", 100)
-        single = isinstance(batch, int) and examples <= batch
-        config = CampaignConfig(spec=str(check.spec_path), model=str(model),
-                                certificate=str(check.certificate_path), examples=examples,
-                                seed=seed, modulation=True,
-                                backend="serial" if single else "process", **settings)
-        result = run_campaign(config)
+        runs = inconclusive = 0
+        found: dict[str, int] = {}
+        partial = False
+        first_bad = None
+        for start, count, part_seed in plan:
+            single = isinstance(batch, int) and count <= batch
+            config = CampaignConfig(spec=str(check.spec_path), model=str(model),
+                                    certificate=str(check.certificate_path), examples=count,
+                                    seed=part_seed, modulation=True,
+                                    backend="serial" if single else "process",
+                                    start=start, random_starts=start is None, **settings)
+            result = run_campaign(config)
+            runs += int(result.runs)
+            inconclusive += int(result.inconclusive)
+            partial = partial or bool(getattr(result, "partial", False))
+            if first_bad is None:
+                first_bad = next((o.verdict for o in getattr(result, "outcomes", ())
+                                  if not o.verdict.ok), None)
+            for k, v in dict(result.violations).items():
+                if int(v):
+                    key = str(getattr(k, "value", k))
+                    found[key] = found.get(key, 0) + int(v)
     except TliError as exc:
         return False, f"the re-run campaign failed: {exc}"
     except TypeError as exc:  # a recorded setting the config does not take
         return False, f"the evidence's recorded settings are malformed: {exc}"
-    found = {str(getattr(k, "value", k)): int(v) for k, v in dict(result.violations).items()
-             if int(v)}
-    what = (f"re-ran {examples} examples on the gate's own seed {seed} (task "
-            f"{check.world!r}, {result.runs} runs, {result.inconclusive} undecided)")
-    if getattr(result, "partial", False):
+    drawn = sum(c for s, c, _ in plan if s is None)
+    starts = (f"{drawn} from starts drawn in the task's start region"
+              + (f", {examples - drawn} from its {len(nominal)} nominal start(s)"
+                 if examples > drawn else ""))
+    what = (f"re-ran {examples} examples on the gate's own seed {seed} and its own starts "
+            f"({starts}; task {check.world!r}, {runs} runs, {inconclusive} undecided)")
+    if partial:
         return False, f"{what}: interrupted, incomplete"
     if found:
         kinds = ", ".join(f"{k} {v}" for k, v in sorted(found.items()))
-        bad = next((o.verdict for o in getattr(result, "outcomes", ()) if not o.verdict.ok),
-                   None)
-        if bad is not None:  # the first violating run's own words (the oracle's diagnosis)
-            kinds += f" (first: {bad.diagnosis or bad.violations[0].message})"
+        if first_bad is not None:  # the first violating run's own words (its diagnosis)
+            kinds += f" (first: {first_bad.diagnosis or first_bad.violations[0].message})"
+        first = plan[0]
+        how = (f"--seed {first[2]} --examples {first[1]} --random-starts" if first[0] is None
+               else f"--seed {first[2]} --examples {first[1]}")
         return False, (f"{what}: violations by kind (a run may count under several): {kinds}; "
-                       f"reproduce: tli verify --model {model} --seed {seed} "
-                       f"--examples {examples}")
-    if result.inconclusive == result.runs:
+                       f"reproduce (first part): tli verify --model {model} {how}")
+    if inconclusive == runs:
         return False, f"{what}: no run was decided: the re-run shows nothing"
     return True, f"{what}: 0 violations"
+
+
+def rerun_starts(nominal: Any, examples: int, seed: int
+                 ) -> list[tuple[tuple[float, ...] | None, int, int]]:
+    """How the gate's re-run splits its examples among its own starts: half (rounded up) on
+    starts drawn in the task's start region, the rest spread over the task's nominal starts
+    (all drawn when the task has none); each part on a seed derived from ``seed``.
+
+    Parameters
+    ----------
+    nominal : sequence of sequence of float
+        The task's nominal starts.
+    examples : int
+    seed : int
+        The re-run's seed (:func:`rerun_seed`).
+
+    Returns
+    -------
+    list of (start or None, count, seed)
+        ``None``: random starts.
+    """
+    fixed = [tuple(float(v) for v in s) for s in nominal]
+    on_nominal = examples // 2 if fixed else 0
+    plan: list[tuple[tuple[float, ...] | None, int, int]] = [
+        (None, examples - on_nominal, seed)]
+    for i, start in enumerate(fixed):
+        count = on_nominal // len(fixed) + (1 if i < on_nominal % len(fixed) else 0)
+        if count:
+            plan.append((start, count, (seed + 104_729 * (i + 1)) % (2**32 - count)))
+    return [p for p in plan if p[1] > 0]
 
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tli_verify.errors import UnrealizableError
+from tli_verify.errors import SpecError, UnrealizableError, bad_type
 from tli_verify.logic.automaton import TaskAutomaton, extract_automaton
 from tli_verify.logic.diagnose import Diagnosis, diagnose
 from tli_verify.logic.gr1 import build_game, solve
@@ -101,7 +101,27 @@ class SpecCheck:
         }
 
 
-def check_spec(spec: GR1Spec, *, core: bool = False, hints: bool = False) -> SpecCheck:
+def _spec_arg(spec: Any) -> GR1Spec:
+    """The ``spec`` argument of :func:`check_spec` and :func:`synthesize`: a GR1Spec, or a
+    spec file (loaded as :func:`check_spec_file` would)."""
+    if isinstance(spec, GR1Spec):
+        return spec
+    if isinstance(spec, str | os.PathLike) and not isinstance(spec, bool):
+        from tli_verify.arguments import check_path
+
+        path = check_path(spec, "spec", error=SpecError)
+        from tli_verify.logic.foreign import FORMATS, import_spec_file
+
+        if path.suffix in FORMATS:
+            return parse_spec(import_spec_file(path), path=f"{path} (imported)",
+                              default_name=path.stem)
+        return load_spec(path)
+    raise bad_type(SpecError, f"spec: expected a GR1Spec (load_spec) or a spec file, got "
+                   f"{type(spec).__name__}")
+
+
+def check_spec(spec: GR1Spec | str | os.PathLike[str], *, core: bool = False,
+               hints: bool = False) -> SpecCheck:
     """Decide realizability of ``spec``, diagnose it when unrealizable, check well-separation.
 
     Parameters
@@ -112,6 +132,7 @@ def check_spec(spec: GR1Spec, *, core: bool = False, hints: bool = False) -> Spe
     hints : bool
         Also compute vacuity hints (formulas that do not affect the verdict).
     """
+    spec = _spec_arg(spec)
     start = time.perf_counter()
     game = build_game(spec)
     solution = solve(game, keep_iterates=False, exact=False)
@@ -152,7 +173,7 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
     return check_spec(load_spec(path), core=core, hints=hints)
 
 
-def synthesize(spec: GR1Spec) -> TaskAutomaton:
+def synthesize(spec: GR1Spec | str | os.PathLike[str]) -> TaskAutomaton:
     """The task automaton of a realizable spec (paper Sec. 4.2, "Task-Level Reactivity in
     LTL": the GR(1) game's winning strategy as a finite-state machine).
 
@@ -171,6 +192,7 @@ def synthesize(spec: GR1Spec) -> TaskAutomaton:
     UnrealizableError
         With the diagnosis summary, when the spec is unrealizable.
     """
+    spec = _spec_arg(spec)
     game = build_game(spec)
     solution = solve(game)
     if not solution.realizable:

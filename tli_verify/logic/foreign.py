@@ -45,6 +45,12 @@ from typing import Any
 
 from tli_verify.errors import SpecError
 from tli_verify.io import read_text
+from tli_verify.limits import (
+    MAX_FORMULA_DEPTH,
+    MAX_FORMULA_NODES,
+    MAX_IMPORT_CELLS,
+    MAX_INPUT_BYTES,
+)
 
 __all__ = ["FORMATS", "ImportedSpec", "import_spec_file", "import_spec_text"]
 
@@ -178,6 +184,15 @@ class _Parser:
         self.toks, self.i = toks, 0
         self.where, self.line, self.dialect, self.refuse = where, line, dialect, refuse
         self.table = _SPECTRA_BINARY if dialect == "spectra" else _BINARY
+        self.depth = 0
+
+    def enter(self) -> None:
+        """One more level of nesting (a parenthesis, a prefix operator, a right operand):
+        refused past ``MAX_FORMULA_DEPTH``, the one depth limit of every formula parser."""
+        self.depth += 1
+        if self.depth > MAX_FORMULA_DEPTH:
+            raise self.fail(f"formula nested deeper than {MAX_FORMULA_DEPTH} levels "
+                            "(MAX_FORMULA_DEPTH)")
 
     def fail(self, msg: str) -> SpecError:
         return _fail(self.where, self.line, msg)
@@ -203,6 +218,13 @@ class _Parser:
         return node
 
     def expr(self, min_prec: int) -> Node:
+        self.enter()
+        try:
+            return self._expr(min_prec)
+        finally:
+            self.depth -= 1
+
+    def _expr(self, min_prec: int) -> Node:
         if (self.dialect == "spectra" and self.peek() in ("forall", "exists")
                 and self.peek(2) == "in"):
             return self.quantifier()
@@ -282,6 +304,13 @@ class _Parser:
                 raise self.fail("expected ',' or ')' in an argument list")
 
     def unary(self) -> Node:
+        self.enter()
+        try:
+            return self._unary()
+        finally:
+            self.depth -= 1
+
+    def _unary(self) -> Node:
         tok = self.take()
         if tok in self.refuse:
             raise self.fail(self.refuse[tok])
@@ -356,6 +385,16 @@ class _Translator:
         for v in spec.variables:
             for k, lit in enumerate(v.values):
                 self.literals.setdefault(lit, set()).add(k)
+        self.written = 0  # characters of the translation so far (all constraints)
+
+    def budget(self, c: _Constraint, size: int) -> None:
+        """Stop as soon as the text being built exceeds what any reader accepts: the
+        translation is never larger than ``MAX_INPUT_BYTES``, and never costs much more."""
+        if self.written + size > MAX_INPUT_BYTES:
+            raise self.fail(c, f"the translation would exceed {MAX_INPUT_BYTES:,} bytes of "
+                            "TOML, more than any reader accepts (MAX_INPUT_BYTES): stopped "
+                            "here, nothing written (integer comparisons and quantifiers are "
+                            "written out bit by bit)")
 
     def formula(self, c: _Constraint) -> str:
         body = c.body
@@ -364,6 +403,8 @@ class _Translator:
         elif c.slot == "liveness":
             body = body[1] if body[0] == "GF" else body
         text = self.btext(body, primed=False, c=c, stack=())
+        self.budget(c, len(text))
+        self.written += len(text)
         if c.slot == "safety":
             return f"G({text})"
         if c.slot == "liveness":
@@ -382,13 +423,18 @@ class _Translator:
         if kind == "not":
             return f"!({self.btext(n[1], primed=primed, c=c, stack=stack)})"
         if kind in ("and", "or"):
-            parts = [self.btext(m, primed=primed, c=c, stack=stack) for m in _flatten(n, kind)]
+            parts, total = [], 0
+            for m in _flatten(n, kind):
+                parts.append(self.btext(m, primed=primed, c=c, stack=stack))
+                total += len(parts[-1]) + 3
+                self.budget(c, total)
             op = " & " if kind == "and" else " | "
             return "(" + op.join(parts) + ")"
         if kind in ("xor", "imp", "iff"):
             op = {"xor": "^", "imp": "->", "iff": "<->"}[kind]
             a = self.btext(n[1], primed=primed, c=c, stack=stack)
             b = self.btext(n[2], primed=primed, c=c, stack=stack)
+            self.budget(c, len(a) + len(b))
             return f"(({a}) {op} ({b}))"
         if kind == "next":
             if primed:
@@ -401,7 +447,9 @@ class _Translator:
         if kind in ("G", "GF"):
             raise self.fail(c, f"temporal operator {kind} nested inside a formula is not GR(1)")
         if kind == "cmp":
-            return self.compare(n, primed=primed, c=c, stack=stack)
+            text = self.compare(n, primed=primed, c=c, stack=stack)
+            self.budget(c, len(text))
+            return text
         if kind == "select":  # ("select", ((condition, value), ...)): an array read
             return _or([_and(self.btext(k, primed=primed, c=c, stack=stack),
                              self.btext(v, primed=primed, c=c, stack=stack)) for k, v in n[1]])
@@ -1176,6 +1224,12 @@ def _spectra_type(toks: list[str], mod: _SpectraModule, where: str, line: int,
         if size < 1 or size > 1 << 12:
             raise _fail(where, line, f"array size {size} outside 1..4096")
         dims, rest = (*dims, size), rest[close + 1:]
+        cells = 1
+        for d in dims:
+            cells *= d
+        if cells > MAX_IMPORT_CELLS:
+            raise _fail(where, line, f"an array of {' x '.join(map(str, dims))} = {cells:,} "
+                        f"variables, more than {MAX_IMPORT_CELLS:,} (MAX_IMPORT_CELLS)")
     return base, dims, rest
 
 
@@ -1252,6 +1306,7 @@ class _Expander:
         self.past: dict[Node, str] = {}
         self.out: list[_Constraint] = []
         self.fresh_count = 0
+        self.scale = 1  # how many times the enclosing quantifiers expand what is expanded now
 
     def run(self) -> list[_Constraint]:
         for c in self.mod.constraints:
@@ -1471,13 +1526,25 @@ class _Expander:
         if dims or rest:
             raise self.fail(c, f"quantifier over {' '.join(typ)!r}: expected a scalar type")
         values: list[Node]
+        count = (2 if base[0] == "bool" else int(base[2]) - int(base[1]) + 1
+                 if base[0] == "int" else len(base[1]))
+        scale = self.scale * max(count, 1)  # nested quantifiers multiply
+        if scale > MAX_IMPORT_CELLS:
+            raise self.fail(c, f"{op} over {' '.join(typ)!r}: expands its body {scale:,} "
+                            f"times (nested quantifiers multiply), more than "
+                            f"{MAX_IMPORT_CELLS:,} (MAX_IMPORT_CELLS), refused before "
+                            "expanding it")
         if base[0] == "bool":
             values = [("const", False), ("const", True)]
         elif base[0] == "int":
             values = [("num", k) for k in range(int(base[1]), int(base[2]) + 1)]
         else:
             values = [("id", v, False) for v in base[1]]
-        parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
+        outer, self.scale = self.scale, scale
+        try:
+            parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
+        finally:
+            self.scale = outer
         node = parts[0]
         for p in parts[1:]:
             node = ("and" if op == "forall" else "or", node, p)
@@ -1722,9 +1789,69 @@ def import_spec_file(path: str | Path, *, semantics: str | None = "textbook") ->
 def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name: str = "spec",
                      semantics: str | None = "textbook", base: Path | None = None) -> str:
     """Translate the text of a foreign spec (``fmt``: a value of :data:`FORMATS`) to TOML."""
+    try:
+        return _import(text, fmt=fmt, where=where, default_name=default_name,
+                       semantics=semantics, base=base)
+    except RecursionError:  # the backstop of the depth checks: never an internal error
+        raise SpecError(f"{where}: formulas nested too deeply to translate (a prefix chain, "
+                        f"parentheses, or a recursive pattern or define; the limit is "
+                        f"{MAX_FORMULA_DEPTH} levels, MAX_FORMULA_DEPTH)") from None
+
+
+def _check_depth(constraints: Sequence[_Constraint], where: str) -> None:
+    """Refuse a constraint whose tree nests deeper than ``MAX_FORMULA_DEPTH`` (a chain of one
+    associative operator, ``a & b & c``, counts as one level, as our specs count n-ary
+    ``&``/``|``), or that written out (a shared sub-formula at every use, as the TOML repeats
+    it) has more than ``MAX_FORMULA_NODES`` nodes; iterative and linear in the shared tree
+    (slugsin's memory buffers), so a file whose buffers double 40 times is refused at once."""
+    chains = ("and", "or")
+    for c in constraints:
+        depth: dict[int, int] = {}
+        size: dict[int, int] = {}  # nodes written, a shared sub-formula at every use
+        stack: list[tuple[Any, bool]] = [(c.body, False)]
+        while stack:
+            node, done = stack.pop()
+            if not isinstance(node, tuple) or id(node) in depth:
+                continue
+            kids = _children(node)
+            if not done:
+                stack.append((node, True))
+                stack.extend((k, False) for k in kids if id(k) not in depth)
+                continue
+            d = 0
+            for k in kids:
+                kd = depth.get(id(k), 0)
+                d = max(d, kd if (node[0] in chains and k[0] == node[0]) else kd + 1)
+            depth[id(node)] = d
+            if d > MAX_FORMULA_DEPTH:
+                raise _fail(c.where or where, c.line, f"formula nested deeper than "
+                            f"{MAX_FORMULA_DEPTH} levels (MAX_FORMULA_DEPTH)")
+            n = size[id(node)] = 1 + sum(size.get(id(k), 1) for k in kids)
+            if n > MAX_FORMULA_NODES:
+                raise _fail(c.where or where, c.line, f"formula of more than "
+                            f"{MAX_FORMULA_NODES:,} operators once its shared parts (memory "
+                            "buffers, defines, quantifiers) are written out "
+                            "(MAX_FORMULA_NODES), refused before translating it")
+
+
+def _children(node: Node) -> list[Node]:
+    """The sub-formulas of a node: its tuple items, and the items of its argument tuples."""
+    out: list[Node] = []
+    for k in node[1:]:
+        if isinstance(k, tuple) and k:
+            if isinstance(k[0], str):
+                out.append(k)
+            else:
+                out += [x for x in k if isinstance(x, tuple) and x and isinstance(x[0], str)]
+    return out
+
+
+def _import(text: str, *, fmt: str, where: str, default_name: str,
+            semantics: str | None, base: Path | None) -> str:
     if fmt == "spectra":
         mod = _parse_spectra(text, where, default_name, base)
         spec = mod.spec
+        _check_depth(mod.constraints, where)
         spec.constraints = _Expander(mod).run()
     elif fmt == "structuredslugs":
         spec = _parse_structuredslugs(text, where, default_name)
@@ -1732,6 +1859,7 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
         spec = _parse_slugsin(text, where, default_name)
     else:
         raise SpecError(f"{where}: unknown format {fmt!r}")
+    _check_depth(spec.constraints, where)
     _primed_justice(spec)
     if not spec.outputs():
         if fmt == "spectra" and not spec.variables and (mod.patterns or mod.predicates):
@@ -1751,7 +1879,13 @@ def import_spec_text(text: str, *, fmt: str, where: str = "<spec>", default_name
         if now is not None and nxt is not None:
             sections.setdefault((owner, "init"), []).append((None, now))
             sections.setdefault((owner, "safety"), []).append((None, f"G({nxt})"))
-    return _toml(spec, sections, semantics)
+    out = _toml(spec, sections, semantics)
+    size = len(out.encode("utf-8"))
+    if size > MAX_INPUT_BYTES:  # never write what no command can read back
+        raise SpecError(f"{where}: the translation would be {size:,} bytes of TOML, more than "
+                        f"any reader accepts ({MAX_INPUT_BYTES:,} bytes, MAX_INPUT_BYTES); "
+                        "nothing written")
+    return out
 
 
 _PROJECTION_CUBES = 64

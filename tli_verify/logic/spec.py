@@ -240,10 +240,15 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     except RecursionError:  # tomllib reads nested arrays recursively
         raise SpecError(f"{where}:{_deep_line(text)}: arrays or tables nested deeper than "
                         f"the limit of {MAX_TOML_DEPTH} levels") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise SpecError(f"{where}: invalid TOML: {exc}") from None
     deep = _too_deep(data)
     if deep is not None:
         raise SpecError(f"{where}: '{deep}': arrays or tables nested deeper than the limit of "
                         f"{MAX_TOML_DEPTH} levels")
+    from tli_verify.io import check_numbers
+
+    check_numbers(data, where=where, error=SpecError)
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise SpecError(f"{where}: unknown top-level key {unknown[0]!r} "

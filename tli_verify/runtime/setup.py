@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy.typing as npt
 
-from tli_verify.errors import TaskError, TliError
+from tli_verify.errors import TaskError, TliError, bad_input
 from tli_verify.logic.automaton import TaskAutomaton
 from tli_verify.model.types import Model
 from tli_verify.runtime.executive import LTLDSPolicy
@@ -190,7 +190,8 @@ def make_policy(setup: Setup, variant: str, **kwargs: Any) -> LTLDSPolicy:
         (exit 1) The certificate does not cover the model, or not the task's control period.
     """
     if variant not in VARIANTS:
-        raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
+        raise bad_input(TliError, f"variant: unknown variant {variant!r} (one of "
+                        f"{', '.join(VARIANTS)})")
     if variant == "no-replan":
         return SequencePolicy(setup.automaton, setup.model, setup.certificate,
                               goal_modes=setup.goal.modes, goal_inputs=setup.goal.sensors,

@@ -30,6 +30,7 @@ import numpy.typing as npt
 from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TaskError
 from tli_verify.io import atomic_write_text
+from tli_verify.limits import MAX_DEMO_SAMPLES, MAX_INPUT_BYTES
 from tli_verify.tasks.fields import number, vector
 
 
@@ -100,8 +101,11 @@ def min_jerk_path(waypoints: npt.ArrayLike, duration: float, dt: float
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
     ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / duration
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
-    if not np.all(np.diff(chord) > 0):
-        raise TaskError("two consecutive waypoints coincide")
+    steps = np.diff(chord)
+    if not np.all(steps > 0):
+        k = int(np.argmin(steps > 0))
+        raise TaskError(f"two consecutive waypoints coincide (points {k} and {k + 1} of the "
+                        "path, the start counted as point 0)")
     spline = CubicSpline(chord / chord[-1], W, bc_type="natural")
     x = np.asarray(spline(s), dtype=np.float64)
     dx = np.asarray(spline(s, 1), dtype=np.float64) * ds[:, None]
@@ -202,9 +206,16 @@ class Demonstrator:
                 W = W.copy()
                 for row, k in enumerate(moving):
                     W[k] = W[k] + s.jitter[k] * noise[row]
-            t, x, dx = min_jerk_path(np.vstack([start, W]),
-                                     s.duration if s.duration is not None else self.duration,
-                                     self.dt)
+            try:
+                t, x, dx = min_jerk_path(np.vstack([start, W]),
+                                         s.duration if s.duration is not None
+                                         else self.duration, self.dt)
+            except TaskError as exc:  # name the file and the script
+                k = i % len(self.scripts)
+                raise TaskError(f"{task.where}: demonstrator.scripts[{k}] ({s.label}), "
+                                f"demonstration {i + 1}: {exc} (with its start and jitter "
+                                "drawn from seed {seed})".replace("{seed}", str(seed))
+                                ) from None
             out.append(Demonstration(path=f"<{task.name} demo {i + 1} ({s.label})>", t=t, x=x,
                                      dx=dx, sensor_names=task.sensor_names,
                                      sensors=task.sensors(x), velocities_from_file=True))
@@ -252,6 +263,24 @@ def write_demos(task: Task, directory: str | os.PathLike[str], *, seed: int = 0,
     return out
 
 
+_CSV_ROW_BYTES = 25
+"""Most bytes one number of a demonstration CSV takes (``repr`` of a double and a comma)."""
+
+
+def _check_samples(duration: float, dt: float, dim: int, where: str) -> None:
+    """Refuse, when the task loads, a demonstration ``tli learn`` would refuse: more than
+    ``MAX_DEMO_SAMPLES`` samples, or a CSV that may exceed ``MAX_INPUT_BYTES`` (a row holds
+    ``t``, the state, its velocity and up to 64 sensors)."""
+    samples = int(duration / dt) + 1
+    row = (1 + 2 * dim) * _CSV_ROW_BYTES + 2 * 64
+    if samples > MAX_DEMO_SAMPLES or samples * row > MAX_INPUT_BYTES:
+        most = min(MAX_DEMO_SAMPLES, MAX_INPUT_BYTES // row)
+        raise TaskError(f"{where}: {duration:g} s at dt = {dt:g} s gives {samples:,} samples "
+                        f"per demonstration; at most {most:,} in {dim} dimensions "
+                        "(MAX_DEMO_SAMPLES, and the CSV tli learn reads is at most "
+                        "MAX_INPUT_BYTES)")
+
+
 def parse_demonstrator(raw: Any, *, dim: int, where: str) -> Demonstrator:
     """The ``[demonstrator]`` table of a task file.
 
@@ -273,8 +302,7 @@ def parse_demonstrator(raw: Any, *, dim: int, where: str) -> Demonstrator:
         raise TaskError(f"{here}.scripts: expected at least one [[demonstrator.scripts]] table")
     duration = number(raw.get("duration", 10.0), f"{here}.duration", lo=1e-3, hi=1e4)
     dt = number(raw.get("dt", 0.05), f"{here}.dt", lo=1e-4, hi=10.0)
-    if duration / dt > 1e6:
-        raise TaskError(f"{here}: duration / dt gives more than 1e6 samples")
+    _check_samples(duration, dt, dim, f"{here}.duration")
     sigma = number(raw.get("sigma", 1.0), f"{here}.sigma", lo=0.0, hi=1e6)
     count_raw = raw.get("count", len(scripts_raw))
     if not isinstance(count_raw, int) or isinstance(count_raw, bool) or \
@@ -310,6 +338,8 @@ def parse_demonstrator(raw: Any, *, dim: int, where: str) -> Demonstrator:
                                 hi=1e6),
             waypoints=waypoints, jitter=jitter,
             duration=None if sd is None else number(sd, f"{at}.duration", lo=1e-3, hi=1e4)))
+        if sd is not None:  # a script's own duration is held to the same limits
+            _check_samples(scripts[-1].duration or duration, dt, dim, f"{at}.duration")
     return Demonstrator(scripts=tuple(scripts), count=int(count_raw), duration=duration, dt=dt,
                         sigma=sigma)
 

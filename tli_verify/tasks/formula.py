@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TaskError
+from tli_verify.limits import MAX_FORMULA_DEPTH
 
 __all__ = ["MAX_FORMULA_CHARS", "NAME_PATTERN", "Formula", "is_name", "parse"]
 
@@ -116,7 +117,7 @@ def parse(text: str, *, names: Collection[str], where: str,
         raise TaskError(f"{where}: more than {MAX_FORMULA_NODES} operators and names")
     parser = _Parser(tokens, text, where, frozenset(names),
                      frozenset(names if prev_names is None else prev_names))
-    fn = parser.expr(0)
+    fn, _ = parser.expr(0)
     if parser.i != len(tokens):
         raise TaskError(f"{where}: {text!r}: unexpected {tokens[parser.i]!r}")
     return Formula(text=text, now=frozenset(parser.now), prev=frozenset(parser.prev), _fn=fn)
@@ -143,7 +144,8 @@ class _Parser:
         self.depth = 0
 
     def fail(self, what: str) -> TaskError:
-        return TaskError(f"{self.where}: {self.text!r}: {what}")
+        shown = self.text if len(self.text) <= 80 else self.text[:77] + "..."
+        return TaskError(f"{self.where}: {shown!r}: {what}")
 
     def peek(self) -> str | None:
         return self.t[self.i] if self.i < len(self.t) else None
@@ -158,36 +160,57 @@ class _Parser:
         self.i += 1
         return tok
 
-    def expr(self, min_prec: int) -> Node:
+    def enter(self) -> None:
         self.depth += 1
-        if self.depth > 200:
-            raise self.fail("nested deeper than 200 levels")
-        left = self.unary()
+        if self.depth > MAX_FORMULA_DEPTH:
+            raise self.fail(f"nested deeper than {MAX_FORMULA_DEPTH} levels "
+                            "(MAX_FORMULA_DEPTH)")
+
+    def expr(self, min_prec: int) -> tuple[Node, int]:
+        """The expression from here, and the depth of the closures it builds (a chain of one
+        associative operator, ``a & b & c``, is one level: it is evaluated in a loop)."""
+        self.enter()
+        left, depth = self.unary()
         while True:
             op = self.peek()
             prec = _PREC.get(op or "")
             if op is None or prec is None or prec < min_prec:
                 break
             self.i += 1
-            # '->' is right-associative, the others left-associative
-            right = self.expr(prec if op == "->" else prec + 1)
-            left = _combine(op, left, right)
+            if op == "->":  # right-associative
+                right, rd = self.expr(prec)
+                left, depth = _chain(op, [left, right]), max(depth, rd) + 1
+            else:  # left-associative: the whole chain of this operator, one node
+                parts, deepest = [left], depth
+                while True:
+                    right, rd = self.expr(prec + 1)
+                    parts.append(right)
+                    deepest = max(deepest, rd)
+                    if self.peek() != op:
+                        break
+                    self.i += 1
+                left, depth = _chain(op, parts), deepest + 1
+            if depth > MAX_FORMULA_DEPTH:
+                raise self.fail(f"operators nested deeper than {MAX_FORMULA_DEPTH} levels "
+                                "(MAX_FORMULA_DEPTH)")
         self.depth -= 1
-        return left
+        return left, depth
 
-    def unary(self) -> Node:
+    def unary(self) -> tuple[Node, int]:
         tok = self.take()
         if tok == "!":
-            inner = self.unary()
-            return lambda now, prev, n: ~inner(now, prev, n)
+            self.enter()
+            inner, depth = self.unary()
+            self.depth -= 1
+            return (lambda now, prev, n: ~inner(now, prev, n)), depth + 1
         if tok == "(":
-            inner = self.expr(0)
+            node = self.expr(0)
             self.take(")")
-            return inner
+            return node
         if tok == "true":
-            return lambda now, prev, n: np.ones(n, dtype=bool)
+            return (lambda now, prev, n: np.ones(n, dtype=bool)), 0
         if tok == "false":
-            return lambda now, prev, n: np.zeros(n, dtype=bool)
+            return (lambda now, prev, n: np.zeros(n, dtype=bool)), 0
         if tok == "prev":
             self.take("(")
             name = self.take()
@@ -196,13 +219,13 @@ class _Parser:
                                 + _known(self.prev_names))
             self.take(")")
             self.prev.add(name)
-            return lambda now, prev, n: prev[name]
+            return (lambda now, prev, n: prev[name]), 0
         if not is_name(tok):
             raise self.fail(f"unexpected {tok!r}")
         if tok not in self.names:
             raise self.fail(f"unknown name {tok!r}" + _known(self.names))
         self.now.add(tok)
-        return lambda now, prev, n: now[tok]
+        return (lambda now, prev, n: now[tok]), 0
 
 
 def _known(names: frozenset[str]) -> str:
@@ -212,13 +235,21 @@ def _known(names: frozenset[str]) -> str:
     return f" (known: {', '.join(shown[:12])}{', ...' if len(shown) > 12 else ''})"
 
 
-def _combine(op: str, a: Node, b: Node) -> Node:
-    if op == "&":
-        return lambda now, prev, n: a(now, prev, n) & b(now, prev, n)
-    if op == "|":
-        return lambda now, prev, n: a(now, prev, n) | b(now, prev, n)
-    if op == "^":
-        return lambda now, prev, n: a(now, prev, n) ^ b(now, prev, n)
+def _chain(op: str, parts: list[Node]) -> Node:
+    """``parts[0] op parts[1] op ...`` (left to right; ``->`` takes exactly two), evaluated
+    in a loop, so a long chain never recurses."""
     if op == "->":
+        a, b = parts
         return lambda now, prev, n: ~a(now, prev, n) | b(now, prev, n)
-    return lambda now, prev, n: a(now, prev, n) == b(now, prev, n)
+    step: Callable[[BoolArray, BoolArray], BoolArray] = {
+        "&": np.logical_and, "|": np.logical_or, "^": np.logical_xor,
+        "<->": np.equal}[op]
+    first, rest = parts[0], tuple(parts[1:])
+
+    def chained(now: Env, prev: Env, n: int) -> BoolArray:
+        out = first(now, prev, n)
+        for p in rest:
+            out = step(out, p(now, prev, n))
+        return out
+
+    return chained

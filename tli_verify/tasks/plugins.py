@@ -45,7 +45,9 @@ def entry_point(name: str) -> Any:
                         f"{', '.join(sorted(_entry_points())) or 'none'})")
     try:
         return ep.load()
-    except Exception as exc:
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # SystemExit too: a plug-in never ends the process
         raise TaskError(f"entry point {name!r} ({ep.value}) does not load: "
                         f"{type(exc).__name__}: {exc}") from None
 

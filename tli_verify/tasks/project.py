@@ -180,6 +180,68 @@ def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
         raise TaskError(f"{spec_path}: task = {ref!r}: {exc}") from None
 
 
+def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
+    """The files a spec implies: the spec itself and the task file it names (when that task
+    is a file). What every writer that reads the spec must not overwrite (the read/write rule,
+    :func:`tli_verify.io.check_plan`).
+
+    Parameters
+    ----------
+    spec : path-like or None
+
+    Returns
+    -------
+    list of Path
+        Empty for None. A spec that does not load, or names a task that does not, implies only
+        itself (the error comes from the work that reads it).
+    """
+    if spec is None:
+        return []
+    from tli_verify.errors import TliError
+    from tli_verify.logic.spec import load_spec
+
+    found = [Path(spec)]
+    try:
+        task = spec_task(load_spec(spec), spec)
+    except TliError:
+        return found
+    if task is not None and task.source.path is not None:
+        found.append(Path(task.source.path))
+    return found
+
+
+def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list[Path]:
+    """The files a model file implies: itself, its spec (``spec``, or the one it names), the
+    spec's task file, and the certificate and evidence the project layout puts next to it.
+
+    Parameters
+    ----------
+    model : path-like or None
+        A model file (None: only the spec's files).
+    spec : path-like, optional
+        The model's spec when it is known already (a model that was never saved).
+
+    Returns
+    -------
+    list of Path
+    """
+    from tli_verify.errors import TliError
+
+    found: list[Path] = []
+    if model is not None:
+        found.append(Path(model))
+        files = model_files(model)
+        found += [files.certificate, files.evidence]
+        if spec is None and Path(model).is_file():
+            from tli_verify.model.serialize import load_model
+
+            try:
+                spec = load_model(model).spec_path
+            except TliError:
+                spec = None
+    return found + spec_inputs(spec)
+
+
 def resolve(*, task: str | os.PathLike[str] | Task | None = None,
             spec: str | os.PathLike[str] | None = None,
             model: str | os.PathLike[str] | None = None,

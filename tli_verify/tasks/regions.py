@@ -38,7 +38,6 @@ mode's attractor lies inside the next mode).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,6 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TaskError
+from tli_verify.limits import MAX_ABS_COVARIANCE, MAX_ABS_VALUE
 from tli_verify.tasks import geometry
 
 __all__ = [
@@ -387,14 +387,22 @@ def _interior(region: Region, X: npt.ArrayLike) -> BoolArray:
 
 
 # ------------------------------------------------------------------------------ parsing
-def _vector(raw: Any, dim: int, where: str, *, allow_inf: bool = False) -> FloatArray:
+def _vector(raw: Any, dim: int, where: str, *, allow_inf: bool = False,
+            bound: float = MAX_ABS_VALUE, limit: str = "MAX_ABS_VALUE") -> FloatArray:
     if not isinstance(raw, list) or len(raw) != dim or not all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in raw):
         raise TaskError(f"{where}: expected a list of {dim} numbers")
-    out = np.array(raw, dtype=np.float64)
+    try:
+        out = np.array(raw, dtype=np.float64)
+    except OverflowError:
+        raise TaskError(f"{where}: a number too large for a double") from None
     if np.isnan(out).any() or (not allow_inf and not np.isfinite(out).all()):
         raise TaskError(f"{where}: expected {dim} finite numbers"
                         + (" (or +/-inf)" if allow_inf else ""))
+    finite = out[np.isfinite(out)]
+    if finite.size and float(np.abs(finite).max()) > bound:
+        raise TaskError(f"{where}: {float(np.abs(finite).max()):g} is outside the declared "
+                        f"range |v| <= {bound:g} ({limit})")
     out.setflags(write=False)
     return out
 
@@ -403,7 +411,8 @@ def _matrix(raw: Any, rows: int | None, cols: int, where: str) -> FloatArray:
     if not isinstance(raw, list) or not raw or (rows is not None and len(raw) != rows):
         want = f"{rows} rows" if rows is not None else "a non-empty list of rows"
         raise TaskError(f"{where}: expected {want} of {cols} numbers")
-    return np.vstack([_vector(r, cols, f"{where}[{i}]") for i, r in enumerate(raw)])
+    return np.vstack([_vector(r, cols, f"{where}[{i}]", bound=MAX_ABS_COVARIANCE,
+                              limit="MAX_ABS_COVARIANCE") for i, r in enumerate(raw)])
 
 
 def _table(raw: Any, keys: Sequence[str], where: str) -> Mapping[str, Any]:
@@ -464,9 +473,10 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
         t = _table(spec, ("center", "radius"), here)
         c = _vector(t["center"], dim, f"{here}.center")
         r = t["radius"]
-        if not isinstance(r, int | float) or isinstance(r, bool) or not math.isfinite(r) \
-                or r <= 0:
-            raise TaskError(f"{here}.radius: expected a finite number > 0, got {r!r}")
+        if not isinstance(r, int | float) or isinstance(r, bool) or \
+                not 0 < r <= MAX_ABS_VALUE:
+            raise TaskError(f"{here}.radius: expected a number in (0, {MAX_ABS_VALUE:g}] "
+                            f"(MAX_ABS_VALUE), got {r!r}")
         return Ball(c, float(r))
     if kind == "ellipsoid":
         t = _table(spec, ("center", "matrix"), here)
@@ -486,11 +496,16 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
         A = _matrix(t["A"], None, dim, f"{here}.A")
         if len(A) > MAX_REGION_PARTS * dim:
             raise TaskError(f"{here}.A: more than {MAX_REGION_PARTS * dim} rows")
-        b = _vector(t["b"], len(A), f"{here}.b")
+        b = _vector(t["b"], len(A), f"{here}.b", bound=MAX_ABS_COVARIANCE,
+                    limit="MAX_ABS_COVARIANCE")
         norms = np.linalg.norm(A, axis=1)
         if not np.all(norms > 0):
             raise TaskError(f"{here}.A: row {int(np.argmin(norms))} is zero")
-        if not _polytope_nonempty(A, b):
+        found = _polytope_nonempty(A, b)
+        if found is None:
+            raise TaskError(f"{here}: cannot decide whether the polytope is empty (the LP "
+                            "solver failed on these rows; rescale A and b)")
+        if not found:
             raise TaskError(f"{here}: empty polytope (no x with A x <= b)")
         A.setflags(write=False)
         return Polytope(A, b)
@@ -516,9 +531,17 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
     return cls(tuple(parts), tuple(names))
 
 
-def _polytope_nonempty(A: FloatArray, b: FloatArray) -> bool:
+def _polytope_nonempty(A: FloatArray, b: FloatArray) -> bool | None:
+    """Whether ``A x <= b`` has a solution (rows scaled to unit norm first, so the LP is well
+    conditioned); None when the solver cannot tell (never "empty" for a failure)."""
     from scipy.optimize import linprog
 
-    res = linprog(np.zeros(A.shape[1]), A_ub=A, b_ub=b, bounds=[(None, None)] * A.shape[1],
+    norms = np.linalg.norm(A, axis=1)
+    An, bn = A / norms[:, None], b / norms
+    res = linprog(np.zeros(A.shape[1]), A_ub=An, b_ub=bn, bounds=[(None, None)] * A.shape[1],
                   method="highs")
-    return bool(res.status == 0)
+    if res.status in (0, 3):  # optimal, or unbounded (a feasible point exists)
+        return True
+    if res.status == 2:  # infeasible
+        return False
+    return None

@@ -100,6 +100,9 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         (exit 2) An unknown name (the message lists the known ones), a file that does not
         load, an entry point that is not a task.
     """
+    from tli_verify.arguments import check_path
+
+    check_path(ref, "task", error=TaskError)
     text = os.fspath(ref)
     p = Path(text)
     if p.suffix == ".toml" or p.exists() or os.sep in text or "/" in text:
@@ -127,7 +130,9 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
                 raise
             except TypeError:
                 task = None
-            except Exception as exc:
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:  # SystemExit too: a plug-in never ends the process
                 raise TaskError(f"entry point {text!r}: building the task failed "
                                 f"({type(exc).__name__}: {exc})") from None
         if not isinstance(task, Task):

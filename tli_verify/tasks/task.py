@@ -88,7 +88,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TaskError, TliError
+from tli_verify.errors import TaskError, TliError, bad_type
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import Demonstrator, parse_demonstrator
 from tli_verify.tasks.fields import number, vector
@@ -343,6 +343,102 @@ class SensorModel(Protocol):
 
     def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
              ) -> tuple[BoolArray, BoolArray]: ...
+
+
+def _raised(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if len(text) > 200:
+        text = text[:197] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class PluginSensors:
+    """A plug-in's sensor model behind a guard: whatever the plug-in raises -- ``SystemExit``
+    included -- or returns in the wrong shape is a :class:`~tli_verify.errors.TaskError` naming
+    the plug-in and the task file (exit 2, or a blocked gate), never the end of the process or
+    an internal error. Other attributes (``physics``) are the plug-in's own.
+
+    Parameters
+    ----------
+    model : SensorModel
+        What the entry point built.
+    name : str
+        The entry point's name.
+    where : str
+        The task file that names it.
+    """
+
+    __slots__ = ("_model", "_name", "_where", "cell_based", "latent_names", "sensor_names")
+
+    def __init__(self, model: Any, *, name: str, where: str) -> None:
+        self._model = model
+        self._name = name
+        self._where = where
+        self.sensor_names = self._names("sensor_names")
+        self.latent_names = self._names("latent_names")
+        self.cell_based = bool(self._call("cell_based", lambda: bool(model.cell_based)))
+
+    def __getattr__(self, attr: str) -> Any:
+        if attr.startswith("_"):
+            raise AttributeError(attr)
+        return getattr(self._model, attr)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.__slots__}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, v)
+
+    def _fail(self, what: str) -> TaskError:
+        return TaskError(f"{self._where}: sensor_model {self._name!r}: {what}")
+
+    def _call(self, what: str, fn: Callable[[], Any]) -> Any:
+        try:
+            return fn()
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # SystemExit and GeneratorExit too
+            raise self._fail(f"{what} raised {_raised(exc)}") from None
+
+    def _names(self, attr: str) -> tuple[str, ...]:
+        names = self._call(attr, lambda: tuple(getattr(self._model, attr)))
+        if not all(isinstance(n, str) and n for n in names):
+            raise self._fail(f"{attr} must be non-empty strings, got {list(names)!r}")
+        if len(set(names)) != len(names):
+            raise self._fail(f"{attr} names a sensor twice: {list(names)!r}")
+        return tuple(names)
+
+    def _bools(self, value: Any, what: str, shape: tuple[int, int]) -> BoolArray:
+        try:
+            arr = np.asarray(value)
+        except Exception as exc:
+            raise self._fail(f"{what} is not an array ({_raised(exc)})") from None
+        if arr.shape != shape:
+            raise self._fail(f"{what} has shape {arr.shape}, expected {shape} (batch, "
+                             "one column per name)")
+        if arr.dtype != bool:
+            if arr.dtype.kind not in "biu" or not np.isin(arr, (0, 1)).all():
+                raise self._fail(f"{what} must be booleans, got dtype {arr.dtype}")
+            arr = arr.astype(bool)
+        return arr
+
+    def initial_latent(self, batch: int) -> BoolArray:
+        """The plug-in's initial latent state, checked: shape (batch, L) bool."""
+        value = self._call("initial_latent()", lambda: self._model.initial_latent(batch))
+        return self._bools(value, "initial_latent()", (batch, len(self.latent_names)))
+
+    def read(self, x_prev: FloatArray, x: FloatArray, latent: BoolArray
+             ) -> tuple[BoolArray, BoolArray]:
+        """One step of the plug-in, checked: a (reading (B, m), latent (B, L)) pair."""
+        out = self._call("read()", lambda: self._model.read(x_prev, x, latent))
+        if not isinstance(out, tuple | list) or len(out) != 2:
+            raise self._fail(f"read() returned {type(out).__name__}, expected a (reading, "
+                             "latent) pair")
+        batch = int(np.shape(x)[0])
+        reading = self._bools(out[0], "read()'s reading", (batch, len(self.sensor_names)))
+        lat = self._bools(out[1], "read()'s latent", (batch, len(self.latent_names)))
+        return reading, lat
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -633,7 +729,7 @@ class Task:
         -------
         float
         """
-        xa = self._states(x).reshape(1, -1)
+        xa = self._states(x, "x", finite=True).reshape(1, -1)
         k = int(self.partition.index(xa)[0])
         cells = self.partition.cells[:k + 1]
         leaves: list[Primitive] = []
@@ -679,13 +775,19 @@ class Task:
         readings : ndarray of bool, shape (T, m) or (B, T, m)
         latents : ndarray of bool, shape (T, L) or (B, T, L)
         """
-        Xa = np.asarray(X, dtype=np.float64)
+        try:
+            Xa = np.asarray(X, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise bad_type(TaskError, f"{self.where}: X: expected states (numbers), got "
+                           f"{type(X).__name__}") from None
         single = Xa.ndim == 2
         if single:
             Xa = Xa[None]
         if Xa.ndim != 3 or Xa.shape[1] < 1 or Xa.shape[2] != self.dim:
             raise TaskError(f"{self.where}: states must be (T, {self.dim}) or "
                             f"(B, T, {self.dim}), got {np.shape(X)}")
+        if not np.isfinite(Xa).all():
+            raise TaskError(f"{self.where}: X: NaN or infinite coordinates")
         B, T, _ = Xa.shape
         L = len(self.latent_names)
         lat = (self.initial_latent(B) if latent is None
@@ -714,11 +816,21 @@ class Task:
             raise TaskError(f"{self.where}: no [demonstrator] table")
         return self.demonstrator.demonstrate(self, seed, n_demos)
 
-    def _states(self, X: npt.ArrayLike) -> FloatArray:
-        Xa = np.asarray(X, dtype=np.float64)
+    def _states(self, X: npt.ArrayLike, name: str = "states", *, finite: bool = False
+                ) -> FloatArray:
+        """``X`` as float states of this task's dimension (the boundary check of every public
+        method that takes states); ``finite``: NaN and infinities refused too (region tests
+        classify them, a clearance or a sensor reading of them means nothing)."""
+        try:
+            Xa = np.asarray(X, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise bad_type(TaskError, f"{self.where}: {name}: expected numbers, got "
+                           f"{type(X).__name__}") from None
         if Xa.shape[-1:] != (self.dim,):
-            raise TaskError(f"{self.where}: states must have {self.dim} coordinates, got shape "
-                            f"{Xa.shape}")
+            raise TaskError(f"{self.where}: {name} must have {self.dim} coordinates, got "
+                            f"shape {Xa.shape}")
+        if finite and not np.isfinite(Xa).all():
+            raise TaskError(f"{self.where}: {name}: NaN or infinite coordinates")
         return Xa
 
 
@@ -778,7 +890,7 @@ def parse_task(text: str, *, path: str | None = None,
     TaskError
         (exit 2) Naming the file and the field.
     """
-    from tli_verify.io import validate_schema
+    from tli_verify.io import check_numbers, validate_schema
 
     where = path or "<task>"
     if not text.strip():
@@ -789,6 +901,9 @@ def parse_task(text: str, *, path: str | None = None,
         raise TaskError(f"{where}: invalid TOML: {exc}") from None
     except RecursionError:
         raise TaskError(f"{where}: arrays or tables nested too deeply") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise TaskError(f"{where}: invalid TOML: {exc}") from None
+    check_numbers(data, where=where, error=TaskError)
     task = _build(data, where, text, path, entry_points)
     validate_schema(data, "task.schema.json", where=where, error=TaskError)
     return task
@@ -1012,6 +1127,13 @@ def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Parti
     if region is not None and region not in known:
         raise TaskError(f"{where}: starts.region: unknown region {region!r} (regions: "
                         f"{', '.join(sorted(known))})")
+    if region is not None:  # random starts are drawn in its box within the workspace
+        for nr in (*partition.cells, *partition.layers):
+            if nr.name == region:
+                rlo, rhi = nr.region.bounds()
+                if not np.all(np.maximum(lo, rlo) <= np.minimum(hi, rhi)):
+                    raise TaskError(f"{where}: starts.region: region {region!r} lies outside "
+                                    "the workspace: no start can be drawn in it")
     random = t.get("random", False)
     if not isinstance(random, bool):
         raise TaskError(f"{where}: starts.random: expected true or false, got {random!r}")
@@ -1038,18 +1160,34 @@ def _entry_sensor_model(name: str, where: str, source: TaskSource,
     from tli_verify.tasks.plugins import entry_point, entry_point_source
 
     resolve = entry_points or entry_point
-    obj = resolve(name)
+    try:
+        obj = resolve(name)
+    except TliError as exc:
+        raise TaskError(f"{where}: sensor_model {name!r}: {exc}") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # SystemExit too: a plug-in never ends the process
+        raise TaskError(f"{where}: sensor_model {name!r}: the entry point does not load "
+                        f"({_raised(exc)})") from None
     try:
         model = obj(dim=dim, partition=partition)
-    except TliError:
+    except KeyboardInterrupt:
         raise
-    except Exception as exc:
+    except BaseException as exc:
         raise TaskError(f"{where}: sensor_model {name!r}: the entry point failed to build a "
-                        f"sensor model ({type(exc).__name__}: {exc})") from None
-    if not isinstance(model, SensorModel):
+                        f"sensor model ({_raised(exc)})") from None
+    try:
+        conforms = isinstance(model, SensorModel)  # reads its attributes (properties run)
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:
+        raise TaskError(f"{where}: sensor_model {name!r}: reading the sensor model's "
+                        f"attributes raised {_raised(exc)}") from None
+    if not conforms:
         raise TaskError(f"{where}: sensor_model {name!r}: the entry point returned "
                         f"{type(model).__name__}, not a sensor model (sensor_names, "
                         "latent_names, cell_based, initial_latent, read)")
+    model = PluginSensors(model, name=name, where=where)
     info = entry_point_source(name) if entry_points is None else {}
     return model, replace(source, entry_point=name, distribution=info.get("distribution"),
                           version=info.get("version"), source_sha256=info.get("source_sha256"))

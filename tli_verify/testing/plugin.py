@@ -41,7 +41,6 @@ Options
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -172,6 +171,11 @@ def pytest_configure(config: pytest.Config) -> None:
                  for a in config.args]
         for d in st.cases:
             for f in sorted(d.glob("*.json")):
+                if not f.is_file():  # a FIFO, a device, a dangling link: never an argument
+                    config.issue_config_time_warning(pytest.PytestConfigWarning(
+                        f"{f}: not a regular file, so not a case file: skipped (a FIFO or "
+                        "/dev/zero would never end)"), stacklevel=2)
+                    continue
                 if not any(f == r or f.is_relative_to(r) for r in roots if r.is_dir()
                            or r == f):
                     config.args.append(str(f))
@@ -309,18 +313,23 @@ class CaseItem(pytest.Item):
 
     def runtest(self) -> None:
         """Replay the case (and, for a no-modulation case, the same case under LTL-DS)."""
-        from tli_verify.errors import TliError
+        from tli_verify.errors import CampaignError, TliError
+        from tli_verify.io import read_json
         from tli_verify.verify.cases import replay_case
 
         path = self.path
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
+        try:  # a regular file within MAX_INPUT_BYTES, nested at most MAX_NESTING deep
+            doc = read_json(path, what="case", error=CampaignError)
+        except TliError as exc:
             raise CaseFailure(f"{path.name}: not a readable case file ({exc})") from None
+        if not isinstance(doc, dict):
+            raise CaseFailure(f"{path.name}: not a case file (a JSON object is expected)")
         try:
             _, verdict, reproduced, notes = replay_case(path)
         except TliError as exc:
             raise CaseFailure(str(exc)) from None
+        except RecursionError:  # the backstop: one line, never hundreds
+            raise CaseFailure(f"{path.name}: nested too deeply to replay") from None
         if notes:
             raise CaseFailure(f"{path.name}: {'; '.join(notes)}: re-record the case (tli "
                               "verify ... or assert_satisfies) and check it still shows what "

@@ -239,8 +239,11 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     WorkerLost
         A batch's worker died more than twice.
     """
+    from tli_verify.arguments import check_type
+    from tli_verify.errors import CampaignError
     from tli_verify.verify.backends import make_backend
 
+    check_type(config, "config", CampaignConfig, "a CampaignConfig", error=CampaignError)
     t0 = time.perf_counter()
     events: list[str] = []
 
