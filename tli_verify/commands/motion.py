@@ -14,7 +14,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import float_range, output_path, positive_float
+from tli_verify.commands import float_range, int_range, output_path, positive_float
 from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
 
 __all__ = ["demo_stage", "register"]
@@ -72,16 +72,6 @@ def _rerun_examples(text: str) -> int:
     return value
 
 
-def _handoff_samples(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if not 10 <= value <= 100_000:
-        raise argparse.ArgumentTypeError(f"must be between 10 and 100000, got {value}")
-    return value
-
-
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
 
@@ -121,7 +111,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="skip the offline step: by default, where the spec's task declares its "
                    "regions, every mode's exits are found and cut before deployment and the "
                    "hand-off claims are recorded in the model (docs: explanation/handoff)")
-    p.add_argument("--handoff-samples", type=_handoff_samples, default=1000, metavar="N",
+    p.add_argument("--handoff-samples", type=int_range(10, 100_000), default=1000, metavar="N",
                    help="states drawn per DS in each round of the offline step (default 1000)")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.set_defaults(handler=_learn)

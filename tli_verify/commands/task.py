@@ -156,6 +156,11 @@ def _check(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
 
     loaded = [find_task(t) for t in args.tasks]
+    spec = None
+    if args.spec is not None:  # a spec that does not load is one error line before any output
+        from tli_verify.logic.spec import load_spec
+
+        spec = load_spec(args.spec)
     if args.picture is not None:
         from tli_verify.viz.regions import plot_task
 
@@ -178,21 +183,19 @@ def _check(args: argparse.Namespace) -> int:
         plot_task(loaded[0], args.picture)
         if not args.json:
             sys.stdout.write(f"wrote {args.picture}\n")
-    if args.spec is not None:
-        return _check_fit(loaded, args.spec, as_json=args.json)
+    if spec is not None:
+        return _check_fit(loaded, spec, args.spec, as_json=args.json)
     return 0
 
 
-def _check_fit(tasks: list[Any], spec_path: Path, *, as_json: bool) -> int:
+def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:
     """``tli task check --spec``: inputs and sensors agree, and every sensor change the task
     can produce is one the spec's assumptions allow (:mod:`tli_verify.tasks.fit`)."""
     from tli_verify.errors import CheckFailed, TaskError
     from tli_verify.io import canonical_json
     from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
     from tli_verify.tasks.fit import task_spec_mismatches
 
-    spec = load_spec(spec_path)
     bad = 0
     for task in tasks:
         missing = [i for i in spec.inputs if i not in task.sensor_names]

@@ -381,9 +381,10 @@ class _Key:
     readings: frozenset[frozenset[str]]
     allowed: frozenset[str]
     goal: bool = False
+    region: tuple[str, ...] = ()
 
 
-def _plan(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None
+def _plan(task: Task, automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None
           ) -> tuple[list[_Key], dict[frozenset[str], frozenset[str]]]:
     """Per DS key the plan runs: its mode's readings and the modes its exits may read
     (the planned next mode, and the later modes of its plan:
@@ -404,9 +405,9 @@ def _plan(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | No
         allowed = set(progress.get(st.mode, frozenset()))
         if st.next_mode is not None:
             allowed.add(st.next_mode)
-        keys[st.key] = _Key(st.key, st.mode, st.next_mode,
-                            frozenset(mode_readings.get(st.mode, set())), frozenset(allowed),
-                            st.mode in goals)
+        readings = frozenset(mode_readings.get(st.mode, set()))
+        keys[st.key] = _Key(st.key, st.mode, st.next_mode, readings, frozenset(allowed),
+                            st.mode in goals, _region_names(task, readings))
     return list(keys.values()), {r: frozenset(m) for r, m in by_reading.items()}
 
 
@@ -522,10 +523,10 @@ def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
     return _Outcome(exits, handed, 0 if k.goal else int(active.size))
 
 
-def _horizon(model: Model, key: str, task: Task, dt: float) -> int:
-    """Steps to simulate: until ``V`` of the farthest workspace state falls below that of a
-    hundredth of the workspace, at the certified... nominal rate of the DS (floats; a bound on
-    the steps a hand-off may take, capped)."""
+def _horizon(model: Model, key: str, dt: float) -> int:
+    """Steps to simulate: 1.5 times the time the DS's own rate (the smallest decay of
+    ``A_k^T P + P A_k`` relative to ``P``, floats) takes to bring ``V`` down by the condition
+    number of ``P`` times 1e4, plus 50 steps; at least 200, at most 20,000."""
     ds = model.modes[key].ds
     P = np.asarray(ds.P, dtype=np.float64)
     A = np.asarray(ds.A, dtype=np.float64)
@@ -534,11 +535,8 @@ def _horizon(model: Model, key: str, task: Task, dt: float) -> int:
         Q = Ak.T @ P + P @ Ak
         lam = float(np.max(np.linalg.eigvals(np.linalg.solve(P, Q)).real))
         rate = min(rate, -lam)
-    size = float(np.max(np.array(task.hi) - np.array(task.lo)))
     eig = np.linalg.eigvalsh(P)
-    ratio = float(eig[-1] / eig[0]) * 1e4
-    t = math.log(ratio) / max(rate, 1e-6)
-    del size
+    t = math.log(float(eig[-1] / eig[0]) * 1e4) / max(rate, 1e-6)
     return int(min(max(200.0, 1.5 * t / dt + 50.0), 20000.0))
 
 
@@ -589,7 +587,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
         raise TliError(f"rounds must be a non-negative integer, got {rounds!r}")
     if model.dim != task.dim:
         raise TliError(f"{task.where}: the task has {task.dim} states, the model {model.dim}")
-    keys, by_reading = _plan(automaton, model, goal_modes)
+    keys, by_reading = _plan(task, automaton, model, goal_modes)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 30]))
     start_cuts = {m: len(model.region_cuts(m)) for m in {k.mode for k in keys}}
     face_cuts: dict[str, int] = {}
@@ -599,7 +597,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
     stuck: dict[str, str] = {}
     clean = 0
     for k in keys:  # exact where the geometry allows: a convex cell's facets are cuts at once
-        model, added = _facet_cuts(task, model, k, by_reading)
+        model, added = _facet_cuts(task, model, k)
         face_cuts[k.mode] = face_cuts.get(k.mode, 0) + added
     r = 0
     while r < rounds:
@@ -611,7 +609,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
             if len(X) == 0:
                 continue
             out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                            steps=_horizon(model, k.key, task, dt), automaton=automaton)
+                            steps=_horizon(model, k.key, dt), automaton=automaton)
             handed += out.handed
             out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
             if not out.exits:
@@ -643,7 +641,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
     for k in keys:
         X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
         out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                        steps=_horizon(model, k.key, task, dt), automaton=automaton)
+                        steps=_horizon(model, k.key, dt), automaton=automaton)
         mismatch = [e for e in out.exits if e.kind == "assumption"]
         out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
         final_exits += out.exits + mismatch[:3]
@@ -666,7 +664,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
             key=k.key, mode=k.mode,
             hands_to=tuple([*([k.next_mode] if k.next_mode else []),
                             *sorted(k.allowed - {k.next_mode})]),
-            region=_region_names(task, k, by_reading), cuts=len(model.region_cuts(k.mode)),
+            region=k.region, cuts=len(model.region_cuts(k.mode)),
             cuts_offline=len(model.region_cuts(k.mode)) - start_cuts[k.mode],
             face_cuts=face_cuts.get(k.mode, 0), established=established, samples=n,
             exits=exits, rests=out.rests, bound=(3.0 / n if n and exits == 0 else 1.0),
@@ -690,8 +688,8 @@ def _flat(task: Task, k: _Key) -> bool:
     4-D ellipsoid, exits left); there the uniform draws decide how many cuts are needed."""
     cells = task.partition.cells
     names = [c.name for c in cells]
-    mine = [n for n in _region_names(task, k, {}) if n in names]
-    upto = len(cells) if (task.partition.background in _region_names(task, k, {}) or not mine) \
+    mine = [n for n in k.region if n in names]
+    upto = len(cells) if (task.partition.background in k.region or not mine) \
         else max(names.index(n) for n in mine) + 1
     return all(isinstance(leaf, Box | Polytope)
                for c in (*cells[:upto], *task.partition.layers) for leaf in c.region.leaves())
@@ -796,9 +794,9 @@ def _cut_round(task: Task, model: Model, k: _Key, exits: Sequence[Exit], starts:
     return model, added, faces, why
 
 
-def _region_names(task: Task, k: _Key, by_reading: Mapping[frozenset[str], frozenset[str]]
-                  ) -> tuple[str, ...]:
-    """The cells where the key's mode label can hold (some latch valuation)."""
+def _region_names(task: Task, readings: frozenset[frozenset[str]]) -> tuple[str, ...]:
+    """The cells where a mode's label (one of ``readings``) can hold, under some latch
+    valuation (computed once per DS key, by :func:`_plan`)."""
     names = task.sensor_names
     vals = _valuations(len(task.latent_names))
     out: list[str] = []
@@ -809,10 +807,9 @@ def _region_names(task: Task, k: _Key, by_reading: Mapping[frozenset[str], froze
         X = np.repeat(pts, len(vals), axis=0)
         lat = np.tile(vals, (len(pts), 1))
         reading, _ = task.read(X, X, lat)
-        if any(frozenset(n for n, v in zip(names, row, strict=True) if v) in k.readings
+        if any(frozenset(n for n, v in zip(names, row, strict=True) if v) in readings
                for row in reading.tolist()):
             out.append(nr_name)
-    del by_reading
     return tuple(out)
 
 
@@ -869,7 +866,7 @@ def _prove(task: Task, model: Model, k: _Key,
     if task.partition.layers or not isinstance(task.sensor_model, FormulaSensors):
         return False, "the task has layers or a sensor plug-in (not decided exactly)"
     cells = task.partition.cells
-    region = _region_names(task, k, by_reading)
+    region = k.region
     if len(region) != 1 or region[0] == task.partition.background:
         return False, "the mode's region is not one box or polytope cell (sampled)"
     idx = [c.name for c in cells].index(region[0])
@@ -951,10 +948,9 @@ def _prove(task: Task, model: Model, k: _Key,
     return True, ""
 
 
-def _convex_cell(task: Task, k: _Key, by_reading: Mapping[frozenset[str], frozenset[str]]
-                 ) -> tuple[int, FloatArray, FloatArray] | None:
+def _convex_cell(task: Task, k: _Key) -> tuple[int, FloatArray, FloatArray] | None:
     """The mode's region as ``(cell index, A, b)`` when it is one box or polytope cell."""
-    region = _region_names(task, k, by_reading)
+    region = k.region
     cells = [c.name for c in task.partition.cells]
     if len(region) != 1 or region[0] not in cells:
         return None
@@ -964,11 +960,10 @@ def _convex_cell(task: Task, k: _Key, by_reading: Mapping[frozenset[str], frozen
     return None if poly is None else (idx, poly[0], poly[1])
 
 
-def _facet_cuts(task: Task, model: Model, k: _Key,
-                by_reading: Mapping[frozenset[str], frozenset[str]]) -> tuple[Model, int]:
+def _facet_cuts(task: Task, model: Model, k: _Key) -> tuple[Model, int]:
     """Every facet of a convex cell mode that keeps all the mode's attractors strictly inside
     and meets the workspace, as a cut (just inside the facet); returns the model and the count."""
-    cell = _convex_cell(task, k, by_reading)
+    cell = _convex_cell(task, k)
     if cell is None:
         return model, 0
     _, A, b = cell
@@ -1078,7 +1073,7 @@ def recheck_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *,
     where = str(model.path or "model")
     if not isinstance(rec, Mapping) or not isinstance(rec.get("claims"), list):
         raise ModelError(f"{where}: source.handoff: malformed record")
-    keys, by_reading = _plan(automaton, model, goal_modes)
+    keys, by_reading = _plan(task, automaton, model, goal_modes)
     by_key = {k.key: k for k in keys}
     out: list[tuple[HandoffClaim, bool, str]] = []
     for raw in rec["claims"]:
@@ -1141,7 +1136,7 @@ def retest_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: f
     """Draw ``samples`` fresh states per DS key (with the modes' hand-off states) on ``seed``
     and simulate them with the model's cuts, learning nothing: the exits each key shows (the
     gate's own test of a *sampled* claim)."""
-    keys, by_reading = _plan(automaton, model, goal_modes)
+    keys, by_reading = _plan(task, automaton, model, goal_modes)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))
     entries: dict[str, list[tuple[FloatArray, BoolArray]]] = {}
     out: dict[str, list[Exit]] = {}
@@ -1149,7 +1144,7 @@ def retest_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: f
         for k in keys:
             X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
             res = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                            steps=_horizon(model, k.key, task, dt), automaton=automaton)
+                            steps=_horizon(model, k.key, dt), automaton=automaton)
             out.setdefault(k.key, []).extend(e for e in res.exits if e.kind != "assumption")
             for mode, x, la in res.handed:
                 entries.setdefault(mode, []).append((x, la))
