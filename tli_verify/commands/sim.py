@@ -59,13 +59,19 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "impedance controller within the Franka's limits (needs the Menagerie "
                    "assets: python -m tli_verify.sim.assets fetch); free-tool: the ladle on a "
                    "free body under an impedance law, no arm (the demonstrations' rig)")
-    f.add_argument("--no-retry", action="store_true",
-                   help="switch the stall retry off (the policy's documented recovery: a mode "
-                   "that rests 1.5 s outside the goal is run again from its entry)")
-    f.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
-                   help="ideal (default): noise-free sensors from the physics; franka: s "
-                   "from a wrist F/T load, r and t from the noisy kinematic pose, with "
-                   "latency (tli_verify.sim.franka_sensors)")
+    f.add_argument("--no-retry", "--no-stall-rule", dest="no_retry", action="store_true",
+                   help="switch the stall rule off (the executive's documented answer to a "
+                   "converged DS without the next mode's reading: re-enter the mode from its "
+                   "predecessor, tli_verify.runtime.stall)")
+    f.add_argument("--sensors", choices=("franka", "ideal"), default="franka",
+                   help="franka (default): s from a wrist F/T load, r and t from the noisy "
+                   "kinematic pose, with latency (tli_verify.sim.franka_sensors); ideal: "
+                   "noise-free sensors from the physics")
+    f.add_argument("--controller", choices=("passive", "tracking"), default=None,
+                   help="passive (the Panda's default): the DS at the measured pose every "
+                   "period, tracked by the passive-DS law (tli_verify.sim.passive); tracking: "
+                   "the DS integrated to a target the Cartesian impedance law tracks (the free "
+                   "tool's only law)")
     f.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g; 0.5 "
                    "to 600)")
@@ -167,6 +173,7 @@ def _run(args: argparse.Namespace) -> int:
     from tli_verify.sim.loop import TrialResult, load_policy
     from tli_verify.sim.physics_config import PhysicsConfig
     from tli_verify.sim.physics_evidence import write_physics_evidence
+    from tli_verify.sim.loop import default_controller
     from tli_verify.sim.trial_oracle import TrialVerdict
 
     variant = ("no-modulation" if args.no_modulation else
@@ -183,6 +190,7 @@ def _run(args: argparse.Namespace) -> int:
     config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,
                            robot=args.robot, variant=variant, duration=args.duration,
                            retry=not args.no_retry, sensors=args.sensors,
+                           controller=args.controller or default_controller(args.robot),
                            pushes=0 if args.no_perturb else 1,
                            tilts=0 if args.no_perturb else 1,
                            certificates=None if args.certificates is None

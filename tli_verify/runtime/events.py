@@ -22,7 +22,9 @@ __all__ = [
     "InvarianceFailure",
     "ModeChange",
     "Perturbation",
+    "Reentered",
     "Replan",
+    "Stall",
     "TransitionLearned",
     "TransitionRefused",
     "event_to_json",
@@ -260,8 +262,61 @@ class TransitionRefused:
     reason: str
 
 
+@dataclass(frozen=True, slots=True)
+class Stall:
+    """The assumption monitor: the mode's certified DS has converged (``V`` below the stall
+    rule's level for its dwell time) and the reading of the next mode has not come -- the
+    environment's liveness assumption for the mode is being broken. The executive answers by
+    the stall rule (:class:`~tli_verify.runtime.stall.StallRule`): it re-enters the mode from
+    its predecessor (a ``ModeChange`` to ``via`` at the same step).
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+        The stalled mode.
+    key : str
+        Its DS.
+    value : float
+        The certified ``V`` of ``key`` at the state (the last of the dwell).
+    via : str
+        The predecessor mode whose DS (``via_key``) runs back to the mode's entry.
+    via_key : str
+    """
+
+    step: int
+    mode: str
+    key: str
+    value: float
+    via: str
+    via_key: str
+
+
+@dataclass(frozen=True, slots=True)
+class Reentered:
+    """The stall rule's re-entry ended: the predecessor's DS converged (or the reading
+    changed) and the executive resumed the automaton's mode (a ``ModeChange`` at the same
+    step, from ``via``).
+
+    Attributes
+    ----------
+    step : int
+    mode : str
+        The mode re-entered (the stalled one).
+    via : str
+    converged : bool
+        The predecessor's DS converged (False: the reading changed first).
+    """
+
+    step: int
+    mode: str
+    via: str
+    converged: bool
+
+
 Event = (ModeChange | Replan | InvarianceFailure | CutAdded | CutFailed
-         | AssumptionViolationEvent | Perturbation | TransitionLearned | TransitionRefused)
+         | AssumptionViolationEvent | Perturbation | TransitionLearned | TransitionRefused
+         | Stall | Reentered)
 
 
 def event_to_json(event: Event) -> dict[str, Any]:

@@ -77,11 +77,14 @@ from tli_verify.runtime.events import (
     InvarianceFailure,
     ModeChange,
     Perturbation,
+    Reentered,
     Replan,
+    Stall,
     TransitionLearned,
     TransitionRefused,
 )
 from tli_verify.runtime.online import online_cut
+from tli_verify.runtime.stall import StallRule, lyapunov_level, lyapunov_value
 
 if TYPE_CHECKING:
     from tli_verify.logic.spec import GR1Spec
@@ -167,6 +170,10 @@ class LTLDSPolicy:
     goal_inputs : sequence of str, optional
         Sensors that must also read true for a goal mode to complete the task (a cyclic task
         such as inspection, ``GF(b & rel)``: done at the first ``b & rel``).
+    stall : StallRule, optional
+        The assumption monitor's stall rule (:mod:`tli_verify.runtime.stall`): a converged DS
+        without the next mode's reading is reported and the mode re-entered from its
+        predecessor. Default off.
 
     Raises
     ------
@@ -193,7 +200,11 @@ class LTLDSPolicy:
         "_plan_cache",
         "_planned",
         "_progress",
+        "_reentry",
         "_refused",
+        "_stall_at",
+        "_stall_count",
+        "_stall_levels",
         "_spec_text",
         "_state",
         "_steps",
@@ -206,13 +217,15 @@ class LTLDSPolicy:
         "goal_modes",
         "learn_cuts",
         "learn_transitions",
+        "stall_rule",
     )
 
     def __init__(self, automaton: TaskAutomaton, model: Model,
                  certificate: str | os.PathLike[str], *, dt: float | None = None,
                  goal_modes: Sequence[str] | None = None, learn_cuts: bool = True,
                  cut_margin: float = 1e-3, spec: GR1Spec | None = None,
-                 learn_transitions: bool = False, goal_inputs: Sequence[str] = ()) -> None:
+                 learn_transitions: bool = False, goal_inputs: Sequence[str] = (),
+                 stall: StallRule | None = None) -> None:
         cert_dt = check_coverage(model, certificate)
         if dt is None:
             dt = float(cert_dt)
@@ -268,6 +281,11 @@ class LTLDSPolicy:
         self._holding = False
         self._entries: dict[str, list[FloatArray]] = {}
         self._inputs = frozenset(automaton.inputs)
+        self.stall_rule = stall
+        self._stall_levels: dict[str, float] = {}
+        self._stall_count = 0
+        self._stall_at: tuple[int | None, str] = (None, "")
+        self._reentry: tuple[str, str, str, frozenset[str]] | None = None
 
     def drop_cuts(self) -> None:
         """Run the nominal DS of every mode from now on: the model's cuts -- the ones learned
@@ -390,6 +408,9 @@ class LTLDSPolicy:
         self._pending = False
         self._holding = False
         self._state = None
+        self._reentry = None
+        self._stall_count = 0
+        self._stall_at = (None, "")
         reading = self._read(sensors)
         try:
             sid = self.automaton.initial_state(reading)
@@ -470,6 +491,14 @@ class LTLDSPolicy:
         if perturbed:
             self.events.append(Perturbation(t, self._mode))
         cause = "perturbation" if perturbed else "invariance failure"
+        if self._reentry is not None:  # the stall rule's re-entry (runtime.stall)
+            mode, via, via_key, reading0 = self._reentry
+            converged = self._converged(via_key, xv)
+            if reading == reading0 and not perturbed and not converged:
+                self._last = xv
+                return via_key
+            self._reentry = None
+            self.events.append(Reentered(t, mode, via, converged))
         was_holding = self._holding
         if was_holding and not perturbed:
             cause = "assumption violation"
@@ -545,7 +574,66 @@ class LTLDSPolicy:
         key = self.decide(x, sensors, perturbed=perturbed)
         if not key or self._last is None:
             return np.zeros(self.model.dim)
+        if self.stall_rule is not None and self._reentry is None:
+            key = self._monitor_stall(key, self._last)
         return self.model.modes[key].velocity(self._last, dt=self.dt)
+
+    # ---------------------------------------------------------------- the stall rule
+    def _level(self, key: str) -> float:
+        """``lambda_min(P) r^2`` of DS ``key`` (:func:`~.stall.lyapunov_level`), cached."""
+        level = self._stall_levels.get(key)
+        if level is None:
+            assert self.stall_rule is not None
+            level = lyapunov_level(self.model.modes[key].ds.P, self.stall_rule.radius)
+            self._stall_levels[key] = level
+        return level
+
+    def _converged(self, key: str, x: FloatArray) -> bool:
+        """The certified ``V`` of DS ``key`` at ``x`` is below the stall rule's level."""
+        ds = self.model.modes[key].ds
+        return lyapunov_value(ds.attractor, ds.P, x) < self._level(key)
+
+    def _predecessor(self, mode: str) -> tuple[str, str] | None:
+        """``(p, key)``: a mode ``p`` with ``p -> mode`` and ``mode -> p`` mode transitions of
+        the automaton and a DS ``key`` of ``p`` planned into ``mode`` (the first by key)."""
+        graph = {(a, b) for a, b in self.automaton.mode_transitions()}
+        keys = sorted(k for k, mm in self.model.modes.items()
+                      if mm.next_mode == mode and mm.mode != mode
+                      and (mm.mode, mode) in graph and (mode, mm.mode) in graph)
+        return (self.model.modes[keys[0]].mode, keys[0]) if keys else None
+
+    def _monitor_stall(self, key: str, x: FloatArray) -> str:
+        """The assumption monitor's stall test after a step (:mod:`~.stall`); the DS key to
+        run (the predecessor's when the rule fires)."""
+        rule = self.stall_rule
+        assert rule is not None
+        if self.done or self._holding or self._mode in self.goal_modes:
+            self._stall_count = 0
+            return key
+        if self._stall_at != (self._state, key):
+            self._stall_at, self._stall_count = (self._state, key), 0
+        if not self._converged(key, x):
+            self._stall_count = 0
+            return key
+        self._stall_count += 1
+        if self._stall_count < max(1, round(rule.dwell / self.dt)):
+            return key
+        self._stall_count = 0
+        pred = self._predecessor(self._mode)
+        if pred is None:
+            return key
+        via, via_key = pred
+        t, mode = self._steps, self._mode
+        ds = self.model.modes[key].ds
+        assert self._state is not None
+        reading = frozenset(self.automaton.states[self._state].inputs)
+        self.events.append(Stall(t, mode, key, lyapunov_value(ds.attractor, ds.P, x), via,
+                                 via_key))
+        self.events.append(ModeChange(t, mode, via, self._state, False))
+        self._reentry = (mode, via, via_key, reading)
+        self._mode, self._key, self._planned = via, via_key, mode
+        self._entry = x
+        return via_key
 
     def velocity(self, x: npt.ArrayLike) -> FloatArray:
         """The current DS's velocity at ``x`` without advancing (zero while holding)."""

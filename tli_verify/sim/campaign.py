@@ -129,7 +129,7 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
         res = run_trial(policy, seed, variant=config.variant,
                         perturbations=draw(seed, pushes=config.pushes, tilts=config.tilts),
                         duration=config.duration, robot=config.robot, retry=config.retry,
-                        sensors=config.sensors,
+                        sensors=config.sensors, controller=config.controller,
                         frame=frame if j == 0 else None)
         verdict = check_trial(res, policy.automaton, goal_modes=policy.goal_modes)
         out.append((res, verdict))

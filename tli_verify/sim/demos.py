@@ -536,6 +536,10 @@ PANDA_POSTURE_GAINS = Gains(kn=25.0, dn=10.0)
 """Null-space posture gains of the Panda rig (per unit joint mass); its task-space gains are
 :data:`PANDA_IMPEDANCE`."""
 
+CONTROLLERS = ("passive", "tracking")
+"""The Panda's control laws: passive-DS (the DS at the measured pose, :mod:`.passive`) and
+target tracking (Cartesian impedance on a target integrated from the DS)."""
+
 PANDA_TIMESTEPS = (0.002, 0.001)
 """Physics (and torque-loop) periods the Panda rig offers: 500 Hz (default) and 1 kHz, the
 robot's own torque-loop rate."""
@@ -576,12 +580,20 @@ class PandaRig:
     physics : PhysicsOptions, optional
         Solver settings (default: the measured ones,
         :class:`~tli_verify.sim.scene.PhysicsOptions`).
+    controller : str, optional
+        ``"tracking"`` (default here: the Cartesian impedance law tracks the commanded pose,
+        :meth:`command`) or ``"passive"``: after the setup move, the passive-DS law
+        (:class:`~tli_verify.sim.passive.PassiveDSController`) tracks the DS velocity given by
+        :meth:`command_velocity` at the measured pose.
+    passive_gains : PassiveGains, optional
+        Gains of the passive-DS law.
     """
 
     def __init__(self, seed: int = 0, *, assets: Path | None = None, timestep: float = 0.002,
                  impedance: CartesianImpedance | None = None,
                  limits: FrankaLimits | None = None, sensors: str = "ideal",
-                 physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
+                 physics: PhysicsOptions = DEFAULT_PHYSICS, controller: str = "tracking",
+                 passive_gains: Any = None) -> None:
         from tli_verify.sim.controller import ImpedanceController
         from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
         from tli_verify.sim.scene import add_ladle, add_scene, add_stand, set_contact_options
@@ -637,6 +649,25 @@ class PandaRig:
             self.step(round(CONTROL_DT / timestep))
         reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step)
         self.guard.reset_ratios()
+        if controller not in CONTROLLERS:
+            raise TliError(f"controller {controller!r}: one of {', '.join(CONTROLLERS)}")
+        self.control_kind = controller
+        self.passive: Any = None
+        if controller == "passive":
+            from tli_verify.sim.passive import PassiveDSController
+
+            self.passive = PassiveDSController(
+                self.panda, self.ids.tray_site, self.controller.map, gains=passive_gains,
+                posture=PANDA_POSTURE_GAINS, guard=self.guard)
+            self.passive.posture = self.controller.posture
+
+    def command_velocity(self, velocity: npt.ArrayLike) -> None:
+        """The DS velocity ``(dx, dy, dz [m/s], dpitch [rad/s])`` the passive-DS law tracks
+        from the next :meth:`step` on (``controller="passive"``)."""
+        if self.passive is None:
+            raise TliError("command_velocity needs the passive-DS controller "
+                           "(PandaRig(controller='passive'))")
+        self.passive.set_velocity(velocity)
 
     @property
     def carrier(self) -> int:
@@ -666,6 +697,19 @@ class PandaRig:
         # on floats (the roundings of the numpy version; bit-identical torques)
         ctl, data, model = self.controller, self.data, self.model
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2  # looked up per call (benchmark probes)
+        passive = getattr(self, "passive", None)
+        if passive is not None:  # the passive-DS law: no target pose
+            xfrc = self._xfrc
+            if before is None and n > 0:
+                xfrc[:] = self.push
+            for k in range(n):
+                if before is not None:
+                    before(k)
+                    xfrc[:] = self.push
+                step1(model, data)
+                passive.compute(data)
+                step2(model, data)
+            return
         x0, y0, z0, p0 = self._from.tolist()
         dx, dy, dz, dp = (self._goal - self._from).tolist()
         twist = None if self._twist is None else self._twist.tolist()
@@ -694,7 +738,10 @@ class PandaRig:
 
     def external_wrench(self) -> FloatArray:
         """The controller's external wrench estimate at the tray (N, N m; world), shape (6,)
-        (:attr:`~tli_verify.sim.controller.ImpedanceController.external_wrench`)."""
+        (:attr:`~tli_verify.sim.controller.ImpedanceController.external_wrench`, or the
+        passive-DS law's alike)."""
+        if self.passive is not None:
+            return self.passive.external_wrench
         return self.controller.external_wrench
 
     @property

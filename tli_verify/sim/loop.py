@@ -51,11 +51,12 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import InputError, TliError
-from tli_verify.runtime.events import CutAdded
+from tli_verify.runtime.events import CutAdded, Stall
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import (
     CONTROL_DT,
+    CONTROLLERS,
     MocapRig,
     PandaRig,
     from_ds,
@@ -65,7 +66,7 @@ from tli_verify.sim.demos import (
 from tli_verify.sim.franka_sensors import SENSOR_KINDS
 from tli_verify.sim.perturbations import PersonHand, Perturbation, draw
 from tli_verify.sim.render import Recorder
-from tli_verify.sim.retry import StallRetry
+from tli_verify.runtime.stall import StallRule
 from tli_verify.sim.scene import DEFAULT_PHYSICS, PhysicsOptions
 from tli_verify.sim.sensors import Debounce
 
@@ -259,6 +260,17 @@ class TrialResult:
         (:meth:`~tli_verify.sim.franka_limits.LimitGuard.ratios`; empty for the free tool).
     perturbed_steps : int
         Control periods in which the robot counted itself perturbed (:class:`ContactDetector`).
+    controller : str
+        The control law (:data:`~tli_verify.sim.demos.CONTROLLERS`).
+    sensors : str
+        The sensor model (:data:`~tli_verify.sim.franka_sensors.SENSOR_KINDS`).
+    cut_gap : dict of str to float
+        The measured pose against the cut set of the mode being run (:class:`CutGap`).
+    tank_low : float or None
+        The passive-DS law's lowest energy-tank level (J; None under target tracking).
+    stalls : int
+        Stalls the assumption monitor reported (the stall rule fired:
+        :mod:`tli_verify.runtime.stall`).
     """
 
     seed: int
@@ -278,6 +290,11 @@ class TrialResult:
     stopped: str | None = None
     limit_ratios: dict[str, float] = field(default_factory=dict)
     perturbed_steps: int = 0
+    controller: str = "tracking"
+    sensors: str = "ideal"
+    cut_gap: dict[str, float] = field(default_factory=dict)
+    tank_low: float | None = None
+    stalls: int = 0
 
     def mode_sequence(self) -> str:
         """The mode trace as runs: ``"a b c b c d"``."""
@@ -297,6 +314,9 @@ class TrialResult:
             "events": list(self.events), "retries": self.retries, "robot": self.robot,
             "retry": self.retry, "stopped": self.stopped,
             "limit_ratios": dict(self.limit_ratios), "perturbed_steps": self.perturbed_steps,
+            "controller": self.controller, "sensors": self.sensors,
+            "cut_gap": dict(self.cut_gap), "tank_low": self.tank_low, "stalls": self.stalls,
+            "stall_fired": self.stalls > 0,
         }
 
 
@@ -380,10 +400,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
               settle: float = 1.0, frame: Callable[[Any], None] | None = None,
               robot: str = "panda", retry: bool = True,
-              detector: ContactDetector | None = None, sensors: str = "ideal",
+              detector: ContactDetector | None = None, sensors: str = "franka",
               physics: PhysicsOptions | None = None,
               trace: list[TraceStep] | None = None,
-              margin: npt.ArrayLike = MARGIN) -> TrialResult:
+              margin: npt.ArrayLike = MARGIN, controller: str | None = None) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -424,14 +444,22 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     margin : array_like, shape (4,), optional
         How far the target may leave the demonstrations' box (:func:`workspace`; default
         :data:`MARGIN`).
+    controller : str, optional
+        ``"passive"`` (the Panda's default: the DS at the measured pose every period, tracked
+        by the passive-DS law, :mod:`tli_verify.sim.passive`) or ``"tracking"`` (the free
+        tool's only one, and the Panda's for comparison: the DS integrated to a target the
+        impedance law tracks).
 
     Returns
     -------
     TrialResult
     """
     t0 = time.perf_counter()
+    control = default_controller(robot) if controller is None else controller
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics)
+    rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics, controller=control)
+    passive = control == "passive"
+    cut_gap = CutGap()
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     debounce = Debounce()
     reading = debounce.update(rig.read())
@@ -440,7 +468,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     lo_l, hi_l = lo.tolist(), hi.tolist()
     leash, cap = LEASH.tolist(), SPEED_CAP.tolist()
     policy.reset(ref, reading.to_dict())
-    stall = StallRetry(policy.model, CONTROL_DT) if retry else None
+    policy.stall_rule = StallRule() if retry else None  # the stall rule (runtime.stall)
     detect = ContactDetector() if detector is None else detector
     detect.reset()
     modes = [policy.mode]
@@ -470,23 +498,27 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         # the arm pulls with a bounded force, in every axis, towards where the DS leads
         # (4-vectors on floats: numpy's elementwise roundings and clip rule, less overhead)
         zl = z.tolist()
-        ref = np.array(_clip(ref.tolist(), [a - b for a, b in zip(zl, leash, strict=True)],
-                             [a + b for a, b in zip(zl, leash, strict=True)]))
+        if passive:  # the DS at the measured state: no target
+            ref = z
+        else:
+            ref = np.array(_clip(ref.tolist(),
+                                 [a - b for a, b in zip(zl, leash, strict=True)],
+                                 [a + b for a, b in zip(zl, leash, strict=True)]))
         v = policy.step(ref, reading.to_dict(), perturbed=perturbed)
+        cut_gap.update(policy.model.region_cuts(policy.mode), z)
         if trace is not None:
             trace.append(TraceStep(t, policy.mode, ref.copy(), z, perturbed))
-        if stall is not None:
-            retreat = stall.update(policy.mode, policy.done, ref, z)
-            if retreat is not None:
-                v = retreat  # the mode stalled at its attractor: back to its entry (sim.retry)
         vl = np.asarray(v, dtype=np.float64).tolist()
         speed = max([abs(a) / c for a, c in zip(vl, cap, strict=True)])
         if speed > 1.0:
             vl = [a / speed for a in vl]
-        refl = _clip([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
-                     lo_l, hi_l)
-        ref = np.array(refl)
-        rig.command(from_ds(ref), from_ds_velocity(_feed_forward(refl, vl, lo_l, hi_l)))
+        if passive:  # no velocity out of the workspace where the robot is at or beyond it
+            rig.command_velocity(from_ds_velocity(_feed_forward(zl, vl, lo_l, hi_l)))
+        else:
+            refl = _clip([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
+                         lo_l, hi_l)
+            ref = np.array(refl)
+            rig.command(from_ds(ref), from_ds_velocity(_feed_forward(refl, vl, lo_l, hi_l)))
         _step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
         if frame is not None:
@@ -507,6 +539,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         if goal_for >= done_steps and not reading.s:  # poured: nothing left on the spoon
             break
     rig.push[:] = 0.0
+    if passive:
+        rig.command_velocity(np.zeros(4))  # the settle: the arm held by damping alone
     if stopped is None:
         for _ in range(round(settle / CONTROL_DT)):
             rig.step(substeps)
@@ -517,26 +551,37 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     events = tuple(f"{type(e).__name__} at step {getattr(e, 'step', '?')}"
                    for e in policy.events)
     ratios = rig.guard.ratios() if hasattr(rig, "guard") else {}
+    stalls = sum(isinstance(e, Stall) for e in policy.events)
     return TrialResult(
         seed=seed, variant=variant, success=delivered >= 1 and stopped is None,
         delivered=delivered, modes=tuple(modes),
         cuts_added=sum(isinstance(e, CutAdded) for e in policy.events),
         sim_time=t, wall_time=time.perf_counter() - t0, perturbations=tuple(perts),
         applied=tuple(applied), events=events,
-        retries=stall.retries if stall is not None else 0, robot=robot, retry=retry,
+        retries=stalls, robot=robot, retry=retry, stalls=stalls,
         stopped=stopped, limit_ratios={k: round(v, 4) for k, v in ratios.items()},
-        perturbed_steps=perturbed_steps)
+        perturbed_steps=perturbed_steps, controller=control,
+        sensors=sensors, cut_gap=cut_gap.to_dict(),
+        tank_low=round(rig.passive.tank_low, 4) if passive else None)
+
+
+def default_controller(robot: str) -> str:
+    """The control law a rig runs by default: ``"passive"`` on the Panda, ``"tracking"`` on
+    the free tool (which has no passive-DS law)."""
+    return "passive" if robot == "panda" else "tracking"
 
 
 def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
-             physics: PhysicsOptions | None = None) -> Any:
-    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors`` and the
-    solver settings ``physics`` (default: the measured ones).
+             physics: PhysicsOptions | None = None, controller: str | None = None) -> Any:
+    """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors``, the
+    solver settings ``physics`` (default: the measured ones) and the control law
+    ``controller`` (:data:`CONTROLLERS`; default :func:`default_controller`).
 
     Raises
     ------
     InputError
-        An unknown robot (``"hand"``, the free tool's old name, says so).
+        An unknown robot (``"hand"``, the free tool's old name, says so), or the passive law
+        on the free tool.
     """
     if robot == "hand":
         raise InputError("robot 'hand' is now called 'free-tool' (the ladle on a free body, no "
@@ -545,9 +590,55 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
         raise InputError(f"robot {robot!r}: one of {', '.join(ROBOTS)}")
     if sensors not in SENSOR_KINDS:
         raise InputError(f"sensors {sensors!r}: one of {', '.join(SENSOR_KINDS)}")
+    control = default_controller(robot) if controller is None else controller
+    if control not in CONTROLLERS:
+        raise InputError(f"controller {control!r}: one of {', '.join(CONTROLLERS)}")
+    if robot == "free-tool" and control != "tracking":
+        raise InputError("controller 'passive' runs on the Panda only; the free tool tracks a "
+                         "target (--controller tracking)")
     options = DEFAULT_PHYSICS if physics is None else physics
-    return PandaRig(seed, sensors=sensors, physics=options) if robot == "panda" else \
-        MocapRig(seed, sensors=sensors, physics=options)
+    return PandaRig(seed, sensors=sensors, physics=options, controller=control) \
+        if robot == "panda" else MocapRig(seed, sensors=sensors, physics=options)
+
+
+class CutGap:
+    """The measured pose against the cuts of the mode being run, per control period.
+
+    For the cuts ``{x : n . (x - p) <= 0}`` of the running mode's region (the model's after the
+    executive's step), the signed distance of the measured DS state ``z`` to the nearest plane
+    (DS units: dm and rad mixed, as the cuts are; positive inside).
+
+    Attributes (of :meth:`to_dict`)
+    -------------------------------
+    min_margin : the smallest such distance over the trial (NaN-free: ``inf`` without cuts);
+    outside_steps : control periods in which ``z`` was outside a cut's half-space;
+    max_outside : the farthest it was outside (0 when never).
+    """
+
+    __slots__ = ("max_outside", "min_margin", "outside_steps", "steps")
+
+    def __init__(self) -> None:
+        self.min_margin = math.inf
+        self.max_outside = 0.0
+        self.outside_steps = 0
+        self.steps = 0
+
+    def update(self, cuts: Any, z: FloatArray) -> None:
+        """One period: the running mode's cuts and the measured state (shape (n,))."""
+        if not cuts:
+            return
+        self.steps += 1
+        d = min(-float(np.dot(c.normal, z - c.point)) for c in cuts)
+        self.min_margin = min(self.min_margin, d)
+        if d < 0.0:
+            self.outside_steps += 1
+            self.max_outside = max(self.max_outside, -d)
+
+    def to_dict(self) -> dict[str, float]:
+        """The trial record's ``cut_gap``."""
+        return {"steps_with_cuts": self.steps,
+                "min_margin": None if math.isinf(self.min_margin) else round(self.min_margin, 4),
+                "outside_steps": self.outside_steps, "max_outside": round(self.max_outside, 4)}
 
 
 class ContactDetector:
@@ -657,8 +748,9 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
 
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
                duration: float = TRIAL_DURATION, robot: str = "panda",
-               retry: bool = True, sensors: str = "ideal",
-               physics: PhysicsOptions | None = None) -> list[dict[str, Any]]:
+               retry: bool = True, sensors: str = "franka",
+               physics: PhysicsOptions | None = None, controller: str | None = None
+               ) -> list[dict[str, Any]]:
     """Trials with one executive (cuts carry over), as JSON records; for worker processes.
 
     Parameters
@@ -680,7 +772,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
     policy = load_policy(variant)
     return [run_trial(policy, s, variant=variant, perturbations=None if perturb else [],
                       duration=duration, robot=robot, retry=retry, sensors=sensors,
-                      physics=physics).to_dict()
+                      physics=physics, controller=controller).to_dict()
             for s in seeds]
 
 

@@ -16,11 +16,19 @@ from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.verify.evidence import PhysicalWorld
 
-__all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_ROBOT", "WORLD",
-           "check_physics_block"]
+__all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_CONTROLLER", "REQUIRED_ROBOT",
+           "REQUIRED_SENSORS", "WORLD", "check_physics_block"]
 
 REQUIRED_ROBOT = "panda"
 """The rig the Franka project's physical evidence must be made on: the arm, not the free tool."""
+
+REQUIRED_CONTROLLER = "passive"
+"""The control law the Franka project's evidence must be made with: the passive-DS law on the
+measured pose (:mod:`tli_verify.sim.passive`), the one the project deploys."""
+
+REQUIRED_SENSORS = "franka"
+"""The sensor model the Franka project's evidence must be made with: the robot's own
+(:mod:`tli_verify.sim.franka_sensors`), not the simulator's privileged ones."""
 
 WORLD = "franka-physics"
 """The ``world`` of the Franka's physical campaign evidence."""
@@ -78,6 +86,19 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
         out.append(f"{shown}: the trials ran on the {phys['robot']!r} rig, not the Panda: "
                    "evidence for the Franka project must be made on the arm (tli sim franka "
                    "--robot panda --trials 30 --evidence)")
+    controller = phys.get("controller")
+    kind = controller.get("kind") if isinstance(controller, dict) else None
+    if phys.get("controller") is None or phys.get("sensors") is None:
+        out.append(f"{shown}: the evidence does not say which controller and sensors its "
+                   "trials ran with; make it again (tli evidence sim/franka)")
+    else:
+        if kind != "passive-ds":
+            out.append(f"{shown}: the trials ran the {kind!r} controller, the project deploys "
+                       f"the passive-DS law ({REQUIRED_CONTROLLER!r}): not evidence for it")
+        if phys["sensors"] != REQUIRED_SENSORS:
+            out.append(f"{shown}: the trials ran with the {phys['sensors']!r} sensors, the "
+                       f"project's robot reads its own ({REQUIRED_SENSORS!r}): not evidence "
+                       "for it")
     scene = phys.get("scene")
     current = DEFAULT_PHYSICS.to_dict()
     if scene is None:

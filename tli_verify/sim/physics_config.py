@@ -62,7 +62,11 @@ class PhysicsConfig:
     retry : bool
         The stall retry on (:mod:`tli_verify.sim.retry`).
     sensors : str
-        ``"ideal"`` or ``"franka"`` (:mod:`tli_verify.sim.franka_sensors`).
+        ``"franka"`` (default: the robot's own) or ``"ideal"``
+        (:mod:`tli_verify.sim.franka_sensors`).
+    controller : str
+        ``"passive"`` (the Panda's default, :mod:`tli_verify.sim.passive`) or ``"tracking"``
+        (the free tool's only law).
     certificates : str or None
         The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
         gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
@@ -87,16 +91,21 @@ class PhysicsConfig:
     tilts: int = 1
     certificates: str | None = None
     retry: bool = True
-    sensors: str = "ideal"
+    sensors: str = "franka"
     workers: int = 1
     backend: str = "serial"
+    controller: str = "passive"
 
     def __post_init__(self) -> None:
+        if self.robot == "free-tool" and self.controller == "passive":
+            object.__setattr__(self, "controller", "tracking")  # its only law
         if self.robot not in ROBOTS:
             raise TliError(f"robot {self.robot!r}: one of {', '.join(ROBOTS)}"
                            + (" ('hand' is now 'free-tool')" if self.robot == "hand" else ""))
         if self.sensors not in SENSOR_KINDS:
             raise TliError(f"sensors {self.sensors!r}: one of {', '.join(SENSOR_KINDS)}")
+        if self.controller not in ("passive", "tracking"):
+            raise TliError(f"controller {self.controller!r}: one of passive, tracking")
         if self.variant not in VARIANTS:
             raise TliError(f"variant {self.variant!r}: one of {', '.join(VARIANTS)}")
         if self.seed < 0 or self.trials < 1:
@@ -133,4 +142,4 @@ class PhysicsConfig:
         """The evidence's ``physics`` settings (what a re-run needs besides seed and trials)."""
         return {"robot": self.robot, "variant": self.variant, "duration": float(self.duration),
                 "pushes": int(self.pushes), "tilts": int(self.tilts), "retry": self.retry,
-                "sensors": self.sensors}
+                "sensors": self.sensors, "controller": self.controller}

@@ -45,6 +45,7 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
                     "reproduce": f"tli sim franka --certificates {c.cert_dir} "
                                  f"--seed {res.seed} --trials 1 --robot {c.robot} "
                                  f"--duration {c.duration:g} --sensors {c.sensors}"
+                                 + f" --controller {c.controller}"
                                  + ("" if c.retry else " --no-retry")}
     return None
 
@@ -96,7 +97,9 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         "delivered": sum(r.delivered for r in result.results),
         "cuts_added": result.cuts_added, "mujoco": str(mujoco.__version__),
         "wall_time": round(result.wall_time, 2),
-        "controller": controller_record(c.robot),
+        "controller": controller_record(c.robot, c.controller),
+        "stall_rule": _stall_rule() if c.retry else None,
+        "stalls": sum(r.stalls for r in result.results),
         "scene": DEFAULT_PHYSICS.to_dict(),  # the trials ran the scene's default (run_trial)
         "retries": sum(r.retries for r in result.results),
         # the partition: one executive per chunk, cuts carried over within it
@@ -105,6 +108,8 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
                    (result.chunks or chunk_seeds(c.seed, len(result.results), c.workers))],
         "outcomes": [{"seed": r.seed, "success": bool(r.success), "delivered": r.delivered,
                       "violations": list(v.violations), "retries": r.retries,
+                      "stalls": r.stalls, "stall_fired": r.stalls > 0,
+                      "cut_gap": dict(r.cut_gap), "tank_low": r.tank_low,
                       "stopped": r.stopped, "perturbed_steps": r.perturbed_steps,
                       "limit_ratios": dict(r.limit_ratios)}
                      for r, v in zip(result.results, result.verdicts, strict=True)],
@@ -121,15 +126,28 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
     return target, doc
 
 
-def controller_record(robot: str) -> dict[str, Any]:
+def _stall_rule() -> dict[str, float]:
+    """The stall rule's settings (:class:`~tli_verify.runtime.stall.StallRule`)."""
+    from tli_verify.runtime.stall import StallRule
+
+    return StallRule().to_dict()
+
+
+def controller_record(robot: str, controller: str = "tracking") -> dict[str, Any]:
     """The controller settings a physical campaign ran with (the evidence's
-    ``physics.controller``): for the Panda the impedance, the limits, the torque-loop period and
-    the perturbation detector; for the free tool its impedance law."""
+    ``physics.controller``): for the Panda the control law (passive-DS with its gains, or
+    the target-tracking impedance), the limits, the torque-loop period and the perturbation
+    detector; for the free tool its impedance law."""
     from tli_verify.sim.demos import PANDA_IMPEDANCE
     from tli_verify.sim.franka_limits import FrankaLimits
     from tli_verify.sim.loop import LEASH, ContactDetector
+    from tli_verify.sim.passive import PassiveGains
 
     common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}
+    if robot == "panda" and controller == "passive":
+        return {"detector": ContactDetector().to_dict(), "kind": "passive-ds",
+                "gains": PassiveGains().to_dict(), "limits": FrankaLimits().to_dict(),
+                "torque_period": 0.002, "ds_period": 0.02}
     if robot == "panda":
         return dict(common, kind="cartesian-impedance", impedance=PANDA_IMPEDANCE.to_dict(),
                     limits=FrankaLimits().to_dict(), torque_period=0.002,
@@ -140,5 +158,6 @@ def controller_record(robot: str) -> dict[str, Any]:
 def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an
     evidence's ``physics`` block."""
-    keys = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors")
+    keys = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors",
+            "controller")
     return {k: physics[k] for k in keys if k in physics}

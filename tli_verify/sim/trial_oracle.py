@@ -107,7 +107,9 @@ def check_trial(result: TrialResult, automaton: Any,
       automaton can take
       (:meth:`~tli_verify.logic.automaton.TaskAutomaton.mode_transitions`) or a replan
       (``Replan at step k``) after a perturbation or a sensor change the assumptions rule out
-      (``Perturbation`` or ``AssumptionViolationEvent`` at step ``k``).
+      (``Perturbation`` or ``AssumptionViolationEvent`` at step ``k``); a change at a step
+      with a ``Stall`` (the stall rule, :mod:`tli_verify.runtime.stall`) must be a transition
+      of the automaton too, and every reported stall must come with its mode change.
 
     Parameters
     ----------
@@ -153,6 +155,7 @@ def check_trial(result: TrialResult, automaton: Any,
             fail("automaton", f"starts in mode {modes[0]!r}, not an initial mode "
                  f"({', '.join(sorted(initial))})")
         graph = {(a, b) for a, b in automaton.mode_transitions()}
+        stalled: list[tuple[int, str, str]] = []  # re-entries (step, mode, via) not back yet
         for k in range(1, len(modes)):
             a, b = modes[k - 1], modes[k]
             if a == b:
@@ -161,6 +164,13 @@ def check_trial(result: TrialResult, automaton: Any,
             if "ModeChange" not in at:
                 fail("automaton", f"step {k}: mode {a} -> {b} that the executive did not "
                      "report (no ModeChange at that step)")
+            elif "Stall" in at and (a, b) not in graph:
+                fail("automaton", f"step {k}: the stall rule's re-entry {a} -> {b} is no "
+                     "transition of the automaton")
+            elif "Stall" in at:
+                stalled.append((k, a, b))
+            elif "Reentered" in at and stalled and stalled[-1][1:] == (b, a):
+                stalled.pop()  # the re-entry came back to the stalled mode
             elif (a, b) in graph:
                 continue
             elif "Replan" in at and at & {"Perturbation", "AssumptionViolationEvent"}:
@@ -174,6 +184,10 @@ def check_trial(result: TrialResult, automaton: Any,
         more = f" (and {len(unanswered) - 1} more)" if len(unanswered) > 1 else ""
         fail("invariance", f"step {unanswered[0]}: an invariance failure (a mode exit no "
              f"perturbation caused) that the policy did not answer with a cut{more}")
+    for k in sorted(k for k, names in events.items() if "Stall" in names):
+        if k >= len(modes) or k < 1 or modes[k] == modes[k - 1]:
+            fail("automaton", f"step {k}: a stall reported without the stall rule's mode "
+                 "change (re-entry from the predecessor)")
     kinds = tuple(k for k in VIOLATION_KINDS if k in found)
     return TrialVerdict(seed=result.seed, violations=kinds,
                         messages=tuple(m for k in kinds for m in found[k][:3]),

@@ -1,0 +1,77 @@
+"""The stall rule: a mode whose DS has converged without the next mode's reading.
+
+LTL-DS guarantees that each mode's certified DS reaches its attractor, and the demonstrations
+put that attractor where the next mode's reading comes (paper Asm. 3, Sec. 4.4). The spec's
+environment liveness assumptions (``GF(!b | s)``: "while scooping, soup eventually gets on the
+spoon") say the reading does come. When the DS has converged and the reading has not come, the
+environment is breaking that assumption, and the runtime assumption monitor says so
+(:class:`~tli_verify.runtime.events.Stall`). The executive answers by one rule, the same for
+every task, stated on the automaton and the model:
+
+    **Stall rule.** In a non-goal mode ``m`` run by DS ``k``, when the certified Lyapunov
+    function of ``k`` stays below ``level(k) = lambda_min(P_k) r^2`` for ``dwell`` seconds
+    (so the state is within ``r`` of ``k``'s attractor, in the state's units) with the
+    automaton state unchanged, the executive re-enters ``m`` from its predecessor: it runs the
+    DS ``p -> m`` (``p`` a mode the automaton can go from to ``m`` and back, ``m -> p`` and
+    ``p -> m`` both mode transitions, the model having a DS of ``p`` planned into ``m``) until
+    that DS converges by the same test (``V`` below its level, no dwell) or the reading
+    changes, then resumes ``m``: the mode trace shows ``m p m``, both changes reported by the
+    executive (``ModeChange``), the first with a :class:`~tli_verify.runtime.events.Stall` at its
+    step, the second with a :class:`~tli_verify.runtime.events.Reentered`.
+
+The rule uses only what the robot knows: its measured state, the certified ``V`` and the
+reading. It is the paper's "LTL replans the scooping DS until the robot enters the
+transferring mode successfully" (appendix, Robot Experiment 1), made an event the oracle checks
+(:func:`tli_verify.sim.trial_oracle.check_trial`), not a heuristic outside the executive.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from tli_verify.errors import TliError
+
+__all__ = ["StallRule", "lyapunov_level", "lyapunov_value"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class StallRule:
+    """The stall rule's parameters (module doc).
+
+    Attributes
+    ----------
+    radius : float
+        ``r``: the DS has converged when ``V < lambda_min(P) r^2`` (state units).
+    dwell : float
+        Seconds ``V`` must stay below the level before a stall is reported.
+    """
+
+    radius: float = 0.3
+    dwell: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.radius) and self.radius > 0 and math.isfinite(self.dwell)
+                and self.dwell >= 0):
+            raise TliError(f"stall rule: need radius > 0 and dwell >= 0, got {self.radius}, "
+                           f"{self.dwell}")
+
+    def to_dict(self) -> dict[str, float]:
+        """The evidence's record."""
+        return {"radius": self.radius, "dwell": self.dwell}
+
+
+def lyapunov_value(attractor: FloatArray, P: FloatArray, x: FloatArray) -> float:
+    """``V(x) = (x - x*)^T P (x - x*)``, the DS's certified Lyapunov function."""
+    d = np.asarray(x, dtype=np.float64) - attractor
+    return float(d @ P @ d)
+
+
+def lyapunov_level(P: FloatArray, radius: float) -> float:
+    """``lambda_min(P) r^2``: ``V`` below it puts the state within ``r`` of the attractor."""
+    return float(np.linalg.eigvalsh(np.asarray(P, dtype=np.float64))[0]) * radius * radius
