@@ -39,7 +39,8 @@ def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: in
                   **overrides: Any) -> dict[str, Any]:
     block: dict[str, Any] = {
         "robot": "panda", "variant": "LTL-DS", "duration": 40.0, "pushes": 1, "tilts": 1,
-        "retry": True, "sensors": "ideal", "trials": trials, "successes": trials - failed,
+        "retry": True, "sensors": "franka", "trials": trials, "successes": trials - failed,
+        "controller": {"kind": "passive-ds"},
         "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
         "scene": DEFAULT_PHYSICS.to_dict(),
@@ -112,7 +113,7 @@ def test_valid_physical_evidence_passes_the_gate(franka: Path,
     check = check_evidence(franka / EVIDENCE, physical=(FRANKA_PHYSICS,))
     assert check.ok and dict(check.physics) == {"robot": "panda", "variant": "LTL-DS",
                                                 "duration": 40.0, "pushes": 1, "tilts": 1,
-                                                "retry": True, "sensors": "ideal"}
+                                                "retry": True, "sensors": "franka"}
 
 
 def test_evidence_made_on_the_free_tool_is_refused(franka: Path,
@@ -128,6 +129,28 @@ def test_evidence_made_on_the_free_tool_is_refused(franka: Path,
     assert code == 1 and err.count("\n") == 1
     attach_physics(franka, physics=physics_block(robot="panda"))
     assert run_gate(franka, rerun=0).ok
+
+
+@pytest.mark.parametrize(("field", "value", "says"), [
+    ("controller", {"kind": "cartesian-impedance"}, "'cartesian-impedance' controller"),
+    ("sensors", "ideal", "'ideal' sensors"),
+    ("controller", None, "does not say which controller and sensors"),
+])
+def test_evidence_of_another_controller_or_sensor_model_is_refused(
+        franka: Path, capsys: pytest.CaptureFixture[str], field: str, value: Any,
+        says: str) -> None:
+    """A forged record (digest recomputed, every file still bound) made with the target-tracking
+    controller or the simulator's ideal sensors is not evidence for the project's robot."""
+    assert run_gate(franka, rerun=0).ok
+
+    def edit(doc: dict[str, Any]) -> None:
+        doc["physics"][field] = value
+
+    forge(franka, edit)
+    message = only_campaign_blocks(franka)
+    assert says in message, message
+    code, _, err = run(capsys, "gate", str(franka))
+    assert code == 1 and err.count("\n") == 1 and says in err, err
 
 
 def test_a_tampered_model_blocks_naming_it(franka: Path,

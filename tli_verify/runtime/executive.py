@@ -494,11 +494,19 @@ class LTLDSPolicy:
         if self._reentry is not None:  # the stall rule's re-entry (runtime.stall)
             mode, via, via_key, reading0 = self._reentry
             converged = self._converged(via_key, xv)
+            self._last = xv
             if reading == reading0 and not perturbed and not converged:
-                self._last = xv
                 return via_key
+            # back to the stalled mode (its automaton state was kept); a changed reading or
+            # a perturbation is the next period's step, from there
             self._reentry = None
+            self._pending = perturbed
+            assert self._state is not None
+            self._enter(self._state)
             self.events.append(Reentered(t, mode, via, converged))
+            self.events.append(ModeChange(t, via, mode, self._state, True))
+            self._entry = xv
+            return self._key
         was_holding = self._holding
         if was_holding and not perturbed:
             cause = "assumption violation"

@@ -14,10 +14,12 @@ every task, stated on the automaton and the model:
     automaton state unchanged, the executive re-enters ``m`` from its predecessor: it runs the
     DS ``p -> m`` (``p`` a mode the automaton can go from to ``m`` and back, ``m -> p`` and
     ``p -> m`` both mode transitions, the model having a DS of ``p`` planned into ``m``) until
-    that DS converges by the same test (``V`` below its level, no dwell) or the reading
-    changes, then resumes ``m``: the mode trace shows ``m p m``, both changes reported by the
-    executive (``ModeChange``), the first with a :class:`~tli_verify.runtime.events.Stall` at its
-    step, the second with a :class:`~tli_verify.runtime.events.Reentered`.
+    that DS converges by the same test (``V`` below its level, no dwell), the reading changes
+    or a perturbation is reported, then resumes ``m`` (the automaton state of ``m`` is kept
+    throughout; a changed reading is the next period's automaton step, from ``m``): the mode
+    trace shows ``m p m``, both changes reported by the executive (``ModeChange``), the first
+    with a :class:`~tli_verify.runtime.events.Stall` at its step, the second with a
+    :class:`~tli_verify.runtime.events.Reentered`.
 
 The rule uses only what the robot knows: its measured state, the certified ``V`` and the
 reading. It is the paper's "LTL replans the scooping DS until the robot enters the

@@ -661,13 +661,14 @@ class PandaRig:
                 posture=PANDA_POSTURE_GAINS, guard=self.guard)
             self.passive.posture = self.controller.posture
 
-    def command_velocity(self, velocity: npt.ArrayLike) -> None:
+    def command_velocity(self, velocity: npt.ArrayLike, pitch: float | None = None) -> None:
         """The DS velocity ``(dx, dy, dz [m/s], dpitch [rad/s])`` the passive-DS law tracks
-        from the next :meth:`step` on (``controller="passive"``)."""
+        from the next :meth:`step` on (``controller="passive"``), and the orientation servo's
+        pitch (rad; None: none about the pitch axis)."""
         if self.passive is None:
             raise TliError("command_velocity needs the passive-DS controller "
                            "(PandaRig(controller='passive'))")
-        self.passive.set_velocity(velocity)
+        self.passive.set_velocity(velocity, pitch)
 
     @property
     def carrier(self) -> int:

@@ -466,6 +466,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     ref = to_ds(rig.pose())
     lo, hi = workspace(margin)
     lo_l, hi_l = lo.tolist(), hi.tolist()
+    pitch_ref = float(ref[3])  # the passive law's orientation servo (pitch)
     leash, cap = LEASH.tolist(), SPEED_CAP.tolist()
     policy.reset(ref, reading.to_dict())
     policy.stall_rule = StallRule() if retry else None  # the stall rule (runtime.stall)
@@ -513,7 +514,12 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         if speed > 1.0:
             vl = [a / speed for a in vl]
         if passive:  # no velocity out of the workspace where the robot is at or beyond it
-            rig.command_velocity(from_ds_velocity(_feed_forward(zl, vl, lo_l, hi_l)))
+            vl = _feed_forward(zl, vl, lo_l, hi_l)
+            # the orientation servo's pitch: integrated from the DS's pitch rate, on a leash
+            # of the measured pitch (the position has no target: passive-DS)
+            pitch_ref = min(max(pitch_ref + CONTROL_DT * vl[3], zl[3] - leash[3]),
+                            zl[3] + leash[3])
+            rig.command_velocity(from_ds_velocity(vl), pitch_ref)
         else:
             refl = _clip([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
                          lo_l, hi_l)

@@ -189,6 +189,7 @@ class PassiveDSController:
         self._idx_m = arm_mass_index(self.model, self._dof)
         self._jac6 = np.zeros((6, self.model.nv))
         self._f = np.zeros(4)  # the DS velocity (m/s, rad/s) held over the control period
+        self._pitch: float | None = None  # the orientation servo's pitch (None: measured)
         self._quat = np.zeros(4)
         self._qd = np.zeros(4)
         self._qerr = np.zeros(4)
@@ -205,13 +206,15 @@ class PassiveDSController:
         self.tank_low = self.tank
         self.withheld = 0
 
-    def set_velocity(self, f: npt.ArrayLike) -> None:
+    def set_velocity(self, f: npt.ArrayLike, pitch: float | None = None) -> None:
         """The DS velocity ``(vx, vy, vz [m/s], pitch rate [rad/s])`` to track until the next
-        call (evaluated by the loop at the measured state), shape (4,)."""
+        call (evaluated by the loop at the measured state), shape (4,), and the orientation
+        servo's pitch (rad; None: the measured pitch, no spring about x)."""
         fa = np.asarray(f, dtype=np.float64).reshape(-1)
         if fa.shape != (4,) or not np.all(np.isfinite(fa)):
             raise SolverError(f"passive control: DS velocity must be 4 finite numbers, got {f!r}")
         self._f[:] = fa
+        self._pitch = None if pitch is None else float(pitch)
 
     def compute(self, data: Any) -> list[float]:
         """Joint torques of the law at the current state (after ``mj_step1``), written to the
@@ -254,7 +257,7 @@ class PassiveDSController:
         force = -damp_v + beta * lam_f
         # orientation: pitch rate about world x towards the DS's, roll and yaw held at the
         # nominal orientation of the measured pitch
-        pitch = float(self.map.ds_state(data)[3])
+        pitch = float(self.map.ds_state(data)[3]) if self._pitch is None else self._pitch
         self.map.target_quat_into(pitch, self._qd)
         mujoco.mju_mat2Quat(self._quat, data.site_xmat[self.site])
         mujoco.mju_negQuat(self._quat, self._quat)
@@ -264,7 +267,8 @@ class PassiveDSController:
             ea, eb, ec, ew = -ea, -eb, -ec, -ew
         vn = math.sqrt(ea * ea + eb * eb + ec * ec)
         k = 2.0 * math.atan2(vn, ew) / vn if vn > 1e-12 else 0.0
-        torque = np.array((-g.d_pitch * (float(w[0]) - beta * f_p),
+        spring_x = 0.0 if self._pitch is None else g.k_rot * ea * k
+        torque = np.array((spring_x - g.d_pitch * (float(w[0]) - beta * f_p),
                            g.k_rot * eb * k - g.d_rot * float(w[1]),
                            g.k_rot * ec * k - g.d_rot * float(w[2])))
         fn, tn = float(np.linalg.norm(force)), float(np.linalg.norm(torque))

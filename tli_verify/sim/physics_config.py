@@ -139,7 +139,8 @@ class PhysicsConfig:
         return Path(self.root) / "models" / f"{MODEL_NAME}.model.json"
 
     def settings(self) -> dict[str, Any]:
-        """The evidence's ``physics`` settings (what a re-run needs besides seed and trials)."""
+        """The evidence's ``physics`` settings (what a re-run needs besides seed and trials;
+        the control law is recorded in ``physics.controller``, with its gains)."""
         return {"robot": self.robot, "variant": self.variant, "duration": float(self.duration),
                 "pushes": int(self.pushes), "tilts": int(self.tilts), "retry": self.retry,
-                "sensors": self.sensors, "controller": self.controller}
+                "sensors": self.sensors}

@@ -158,6 +158,9 @@ def controller_record(robot: str, controller: str = "tracking") -> dict[str, Any
 def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an
     evidence's ``physics`` block."""
-    keys = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors",
-            "controller")
-    return {k: physics[k] for k in keys if k in physics}
+    keys = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors")
+    out = {k: physics[k] for k in keys if k in physics}
+    record = physics.get("controller")
+    if isinstance(record, Mapping):  # the law is recorded with its gains
+        out["controller"] = "passive" if record.get("kind") == "passive-ds" else "tracking"
+    return out
