@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -205,6 +206,8 @@ class LTLDSPolicy:
         "_stall_at",
         "_stall_count",
         "_stall_levels",
+        "_stall_trend",
+        "_pending_seen",
         "_spec_text",
         "_state",
         "_steps",
@@ -285,6 +288,8 @@ class LTLDSPolicy:
         self._stall_levels: dict[str, float] = {}
         self._stall_count = 0
         self._stall_at: tuple[int | None, str] = (None, "")
+        self._stall_trend: deque[float] = deque()
+        self._pending_seen = False
         self._reentry: tuple[str, str, str, frozenset[str]] | None = None
 
     def drop_cuts(self) -> None:
@@ -411,6 +416,8 @@ class LTLDSPolicy:
         self._reentry = None
         self._stall_count = 0
         self._stall_at = (None, "")
+        self._stall_trend = deque()
+        self._pending_seen = False
         reading = self._read(sensors)
         try:
             sid = self.automaton.initial_state(reading)
@@ -488,6 +495,7 @@ class LTLDSPolicy:
         t = self._steps
         perturbed = perturbed or self._pending
         self._pending = False
+        self._pending_seen = perturbed
         if perturbed:
             self.events.append(Perturbation(t, self._mode))
         cause = "perturbation" if perturbed else "invariance failure"
@@ -618,25 +626,30 @@ class LTLDSPolicy:
         if self.done or self._holding or self._mode in self.goal_modes:
             self._stall_count = 0
             return key
-        if self._stall_at != (self._state, key):
+        if self._stall_at != (self._state, key) or self._pending_seen:
             self._stall_at, self._stall_count = (self._state, key), 0
-        if not self._converged(key, x):
-            self._stall_count = 0
-            return key
-        self._stall_count += 1
-        if self._stall_count < max(1, round(rule.dwell / self.dt)):
+            self._stall_trend.clear()
+        ds = self.model.modes[key].ds
+        value = lyapunov_value(ds.attractor, ds.P, x)
+        trend = self._stall_trend
+        trend.append(value)
+        window = max(2, round(rule.blocked_after / self.dt))
+        if len(trend) > window:
+            trend.popleft()
+        blocked = len(trend) == window and value > (1.0 - rule.progress) * trend[0]
+        self._stall_count = self._stall_count + 1 if value < self._level(key) else 0
+        if self._stall_count < max(1, round(rule.dwell / self.dt)) and not blocked:
             return key
         self._stall_count = 0
+        trend.clear()
         pred = self._predecessor(self._mode)
         if pred is None:
             return key
         via, via_key = pred
         t, mode = self._steps, self._mode
-        ds = self.model.modes[key].ds
         assert self._state is not None
         reading = frozenset(self.automaton.states[self._state].inputs)
-        self.events.append(Stall(t, mode, key, lyapunov_value(ds.attractor, ds.P, x), via,
-                                 via_key))
+        self.events.append(Stall(t, mode, key, value, via, via_key))
         self.events.append(ModeChange(t, mode, via, self._state, False))
         self._reentry = (mode, via, via_key, reading)
         self._mode, self._key, self._planned = via, via_key, mode

@@ -10,8 +10,11 @@ every task, stated on the automaton and the model:
 
     **Stall rule.** In a non-goal mode ``m`` run by DS ``k``, when the certified Lyapunov
     function of ``k`` stays below ``level(k) = lambda_min(P_k) r^2`` for ``dwell`` seconds
-    (so the state is within ``r`` of ``k``'s attractor, in the state's units) with the
-    automaton state unchanged, the executive re-enters ``m`` from its predecessor: it runs the
+    (so the state is within ``r`` of ``k``'s attractor, in the state's units) -- *converged* --
+    or falls by less than a fraction ``progress`` of itself over ``blocked_after`` seconds
+    with no perturbation reported -- *blocked*: the certificate's decrease is not happening on
+    the robot -- with the automaton state unchanged, the executive re-enters ``m`` from its
+    predecessor: it runs the
     DS ``p -> m`` (``p`` a mode the automaton can go from to ``m`` and back, ``m -> p`` and
     ``p -> m`` both mode transitions, the model having a DS of ``p`` planned into ``m``) until
     that DS converges by the same test (``V`` below its level, no dwell), the reading changes
@@ -52,20 +55,33 @@ class StallRule:
         ``r``: the DS has converged when ``V < lambda_min(P) r^2`` (state units).
     dwell : float
         Seconds ``V`` must stay below the level before a stall is reported.
+    blocked_after : float
+        Seconds over which ``V`` must fall by at least ``progress`` (a fraction) of its value,
+        no perturbation reported and the automaton state unchanged; otherwise the DS is
+        blocked (the robot does not follow the certified decrease: wedged against the pile or
+        a slope) and a stall is reported too.
+    progress : float
     """
 
     radius: float = 0.3
     dwell: float = 1.0
+    blocked_after: float = 1.5
+    progress: float = 0.02
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.radius) and self.radius > 0 and math.isfinite(self.dwell)
                 and self.dwell >= 0):
             raise TliError(f"stall rule: need radius > 0 and dwell >= 0, got {self.radius}, "
                            f"{self.dwell}")
+        if not (math.isfinite(self.blocked_after) and self.blocked_after > 0
+                and 0.0 <= self.progress < 1.0):
+            raise TliError(f"stall rule: need blocked_after > 0 and 0 <= progress < 1, got "
+                           f"{self.blocked_after}, {self.progress}")
 
     def to_dict(self) -> dict[str, float]:
         """The evidence's record."""
-        return {"radius": self.radius, "dwell": self.dwell}
+        return {"radius": self.radius, "dwell": self.dwell,
+                "blocked_after": self.blocked_after, "progress": self.progress}
 
 
 def lyapunov_value(attractor: FloatArray, P: FloatArray, x: FloatArray) -> float:
