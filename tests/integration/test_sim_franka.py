@@ -92,6 +92,9 @@ def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     ["sim", "cartpole"],
     ["sim", "franka", "--robot", "ur5"],
     ["sim", "franka", "--robot", "hand"],
+    ["sim", "franka", "--controller", "impedance"],
+    ["sim", "franka", "--robot", "free-tool", "--controller", "passive"],
+    ["sim", "franka", "--sensors", "camera"],
 ])
 def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, *argv)

@@ -95,7 +95,7 @@ def test_a_reading_during_the_reentry_returns_to_the_mode_first(policy: Any) -> 
 
 
 def test_no_stall_away_from_the_attractor_or_without_the_rule(policy: Any) -> None:
-    modes, xb = _enter_b(policy)
+    _modes, xb = _enter_b(policy)
     far = xb + np.array([0.0, 0.8, 0.5, 0.0])  # V far above the level
     path = [far + k * 0.02 * (xb - far) for k in range(40)]  # V falls along the way
     for x in path:
@@ -111,7 +111,7 @@ def test_a_blocked_ds_is_a_stall_unless_perturbed(policy: Any) -> None:
     """Held where the DS's certified V does not fall (wedged): after blocked_after (1.5 s) a
     stall, kind blocked (V far above the converged level); a reported perturbation restarts
     the count."""
-    modes, xb = _enter_b(policy)
+    _modes, xb = _enter_b(policy)
     far = xb + np.array([0.0, 0.8, 0.5, 0.0])
     window = round(1.5 / DT)
     for k in range(window + 10):

@@ -137,6 +137,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
+    if args.controller == "passive" and args.robot == "free-tool":
+        raise TliError("--controller passive runs on the Panda only; the free tool tracks a "
+                       "target (--controller tracking)")
     try:  # before anything imports MuJoCo indirectly (sim.loop does)
         import mujoco  # noqa: F401
     except ImportError:
@@ -170,10 +173,9 @@ def _run(args: argparse.Namespace) -> int:
     check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
     from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import run_physics_campaign
-    from tli_verify.sim.loop import TrialResult, load_policy
+    from tli_verify.sim.loop import TrialResult, default_controller, load_policy
     from tli_verify.sim.physics_config import PhysicsConfig
     from tli_verify.sim.physics_evidence import write_physics_evidence
-    from tli_verify.sim.loop import default_controller
     from tli_verify.sim.trial_oracle import TrialVerdict
 
     variant = ("no-modulation" if args.no_modulation else

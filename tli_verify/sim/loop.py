@@ -2,29 +2,35 @@
 
 Per control period (``CONTROL_DT`` = 20 ms, the certified period):
 
-1. sensors (:class:`~tli_verify.sim.sensors.ScoopSensors`, or the Franka-like ones of
-   :mod:`tli_verify.sim.franka_sensors`), debounced as the executive sees them
-   (:class:`~tli_verify.sim.sensors.Debounce`), the DS state ``z`` from the tray pose
+1. sensors (by default the Franka-like ones of :mod:`tli_verify.sim.franka_sensors`: the wrist
+   F/T load and the noisy kinematic pose; ``sensors="ideal"``: the simulator's
+   :class:`~tli_verify.sim.sensors.ScoopSensors`), debounced as the executive sees them
+   (:class:`~tli_verify.sim.sensors.Debounce`), the measured DS state ``z`` from the tray pose
    (:func:`~tli_verify.sim.demos.to_ds`), and ``perturbed`` from the robot's own estimate of
    the external wrench (:class:`ContactDetector`: 25 N or 2.5 N m, held 1.5 s) -- never from
    the simulator's list of perturbations;
-2. ``v = LTLDSPolicy.step(z*, reading, perturbed)``: the automaton picks the mode, the mode's
-   certified, modulated DS gives the velocity (cuts are learned online on invariance
-   failures); with the stall retry on (``retry``, :class:`~tli_verify.sim.retry.StallRetry`:
-   the ladle stayed put 1.5 s outside the goal mode) the certified DS leading into the mode
-   takes over until its attractor, counted in the result, the executive still judged;
-3. the velocity (capped per axis at ``SPEED_CAP``) is integrated to a target pose,
-   ``z* <- z* + dt v``, kept on a leash of the measured state (``LEASH``: held back by a push
-   or the pile, the arm pulls with a bounded force in every axis -- the wedge deadlock of a
-   target that restarted at the measured state is gone) and inside the workspace
-   (:func:`workspace`);
-4. the rig tracks it for 10 physics steps of 2 ms: the Panda's Cartesian impedance controller
-   (:class:`~tli_verify.sim.demos.PandaRig`, the default: 2,000 N/m, 50 Nm/rad, the target
-   ramped within the period with the DS velocity as feed-forward -- none into a workspace bound
-   the target rests at -- the Franka's torque,
-   torque-rate and joint-velocity limits enforced, :mod:`tli_verify.sim.franka_limits`) or the
-   free tool's impedance law (:class:`~tli_verify.sim.demos.MocapRig`). A reflex stop ends the
-   trial as failed.
+2. ``v = LTLDSPolicy.step(z, reading, perturbed)`` -- under the passive-DS law (the Panda's
+   default) at the *measured* state ``z``; under target tracking at the target ``z*``: the
+   automaton picks the mode, the mode's certified, modulated DS gives the velocity (cuts are
+   learned online on invariance failures); with the stall rule on (``retry``,
+   :mod:`tli_verify.runtime.stall`) the executive's assumption monitor reports a converged or
+   blocked DS without the next mode's reading and re-enters the mode from its predecessor;
+3. the velocity is capped per axis at ``SPEED_CAP``; *passive* (``controller="passive"``,
+   :mod:`tli_verify.sim.passive`): without the components leaving the workspace
+   (:func:`workspace`) where the robot is at its bound, it is the velocity field the passive
+   law tracks by damping until the next period (the orientation servo's pitch integrated on a
+   leash of the measured pitch); *tracking* (``controller="tracking"``, the free tool's only
+   law): it is integrated to a target pose ``z* <- z* + dt v``, kept on a leash of the measured
+   state (``LEASH``) and inside the workspace;
+4. the rig runs 10 physics steps of 2 ms, torques every step within the Franka's torque,
+   torque-rate and joint-velocity limits (:mod:`tli_verify.sim.franka_limits`): the passive-DS
+   law, or the Panda's Cartesian impedance controller (2,000 N/m, 50 Nm/rad, the target ramped
+   within the period with the DS velocity as feed-forward), or the free tool's impedance law
+   (:class:`~tli_verify.sim.demos.MocapRig`). A reflex stop ends the trial as failed.
+
+Per trial the result records the controller, the sensors, the stall rule's firings
+(``stalls``), the measured pose against the running mode's cuts (:class:`CutGap`) and the
+passive law's lowest tank level.
 
 Perturbations (the environment's side; :mod:`tli_verify.sim.perturbations`, drawn uniformly
 from the trial's seed): a person's hand grabs the ladle and drags it 10-30 cm (a push) or turns
@@ -53,6 +59,7 @@ import numpy.typing as npt
 from tli_verify.errors import InputError, TliError
 from tli_verify.runtime.events import CutAdded, Stall
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.stall import StallRule
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import (
     CONTROL_DT,
@@ -66,7 +73,6 @@ from tli_verify.sim.demos import (
 from tli_verify.sim.franka_sensors import SENSOR_KINDS
 from tli_verify.sim.perturbations import PersonHand, Perturbation, draw
 from tli_verify.sim.render import Recorder
-from tli_verify.runtime.stall import StallRule
 from tli_verify.sim.scene import DEFAULT_PHYSICS, PhysicsOptions
 from tli_verify.sim.sensors import Debounce
 
@@ -248,11 +254,11 @@ class TrialResult:
     events : tuple of str
         The executive's events, one line each.
     retries : int
-        Stalled modes retried from their entry (:mod:`tli_verify.sim.retry`).
+        The stall rule's re-entries (the same as ``stalls``; the record's old name).
     robot : str
         The rig (:data:`ROBOTS`).
     retry : bool
-        Whether the stall retry was on.
+        Whether the stall rule was on (:mod:`tli_verify.runtime.stall`).
     stopped : str or None
         The reflex stop that ended the trial (a failed trial), if one did.
     limit_ratios : dict of str to float
@@ -264,7 +270,7 @@ class TrialResult:
         The control law (:data:`~tli_verify.sim.demos.CONTROLLERS`).
     sensors : str
         The sensor model (:data:`~tli_verify.sim.franka_sensors.SENSOR_KINDS`).
-    cut_gap : dict of str to float
+    cut_gap : dict of str to float or None
         The measured pose against the cut set of the mode being run (:class:`CutGap`).
     tank_low : float or None
         The passive-DS law's lowest energy-tank level (J; None under target tracking).
@@ -292,7 +298,7 @@ class TrialResult:
     perturbed_steps: int = 0
     controller: str = "tracking"
     sensors: str = "ideal"
-    cut_gap: dict[str, float] = field(default_factory=dict)
+    cut_gap: dict[str, float | None] = field(default_factory=dict)
     tank_low: float | None = None
     stalls: int = 0
 
@@ -428,8 +434,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         (:class:`~tli_verify.sim.demos.MocapRig`, the ladle on a free body under an impedance
         law: the rig the demonstrations were recorded with).
     retry : bool, optional
-        The stall retry (:class:`~tli_verify.sim.retry.StallRetry`, part of the documented
-        policy); ``False``: ``--no-retry``.
+        The stall rule (:class:`~tli_verify.runtime.stall.StallRule`, the executive's
+        documented answer to a converged or blocked DS without the next reading);
+        ``False``: ``--no-stall-rule``.
     detector : ContactDetector, optional
         How ``perturbed`` is estimated (default :class:`ContactDetector` ``()``).
     sensors : str, optional
@@ -640,7 +647,7 @@ class CutGap:
             self.outside_steps += 1
             self.max_outside = max(self.max_outside, -d)
 
-    def to_dict(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float | None]:
         """The trial record's ``cut_gap``."""
         return {"steps_with_cuts": self.steps,
                 "min_margin": None if math.isinf(self.min_margin) else round(self.min_margin, 4),

@@ -60,7 +60,7 @@ class PhysicsConfig:
     pushes, tilts : int
         Perturbations per trial (:func:`~tli_verify.sim.perturbations.draw`).
     retry : bool
-        The stall retry on (:mod:`tli_verify.sim.retry`).
+        The stall rule on (:mod:`tli_verify.runtime.stall`).
     sensors : str
         ``"franka"`` (default: the robot's own) or ``"ideal"``
         (:mod:`tli_verify.sim.franka_sensors`).
