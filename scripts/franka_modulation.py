@@ -5,6 +5,11 @@ no retry) without modulation and with LTL-DS, prints each run's exits of the pou
 and beads delivered, and draws them side by side::
 
     .venv/bin/python scripts/franka_modulation.py [--out docs/img/franka_modulation.png]
+        [--passive] [--seed S]
+
+``--passive`` runs the scenario under the passive-DS law with the robot's sensors
+(``PASSIVE_POUR_SCENARIO``, issue 34) instead of the target-tracking loop it was found in;
+``--seed`` another bead seed.
 
 An output that cannot be written is one ``error:`` line, exit 2, before any trial runs.
 """
@@ -16,22 +21,35 @@ import sys
 
 
 def main(argv: list[str] | None = None) -> int:
+    from dataclasses import replace
+
     from tli_verify.errors import TliError
     from tli_verify.io import check_output_file
     from tli_verify.sim.loop import project_dir
-    from tli_verify.sim.scenario import POUR_SCENARIO, plot_scenario, run_scenario
+    from tli_verify.sim.scenario import (
+        PASSIVE_POUR_SCENARIO,
+        POUR_SCENARIO,
+        plot_scenario,
+        run_scenario,
+    )
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/img/franka_modulation.png", metavar="OUT.png")
+    ap.add_argument("--passive", action="store_true",
+                    help="the passive-DS law and the robot's sensors")
+    ap.add_argument("--seed", type=int, default=None, help="bead seed (default 0)")
     args = ap.parse_args(argv)
+    scenario = PASSIVE_POUR_SCENARIO if args.passive else POUR_SCENARIO
+    if args.seed is not None:
+        scenario = replace(scenario, seed=args.seed)
     try:
         # before the trials; never over a file of the Franka project the trials read
         read = [f for f in project_dir().rglob("*") if f.is_file()]
         check_output_file(args.out, inputs=read, what="picture")
-        runs = [run_scenario(v) for v in ("no-modulation", "LTL-DS")]
+        runs = [run_scenario(v, scenario) for v in ("no-modulation", "LTL-DS")]
         for run in runs:
             print(f"{run.variant:14s} modes {run.result.mode_sequence()}: {run.exits} exit(s) "
-                  f"of {POUR_SCENARIO.mode}, {run.repeats} repeated (beyond an earlier "
+                  f"of {scenario.mode}, {run.repeats} repeated (beyond an earlier "
                   f"failure's cut), {len(run.cuts)} cut(s), {run.result.delivered} bead(s), "
                   f"success {run.result.success}")
         plot_scenario(runs, args.out)

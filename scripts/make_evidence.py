@@ -4,8 +4,8 @@ Franka project (a thin wrapper; the command does the work).
 Usage (after any bundled model, certificate, spec or task changed)::
 
     .venv/bin/python scripts/make_evidence.py [--examples 1000] [--seed 0] [--workers W]
-        [--only NAME ...] [--franka [--trials 30] [--robot panda|free-tool] [--no-retry]
-        [--sensors ideal|franka] [--duration 40]]
+        [--only NAME ...] [--franka [--trials 30] [--robot panda|free-tool] [--no-stall-rule]
+        [--sensors franka|ideal] [--controller passive|tracking] [--duration 40]]
 
 is ``tli evidence . [...]`` (every ``models/*.model.json``: a bisimulation campaign on the
 model, its certificate, the spec it names and the spec's task), and with ``--franka``

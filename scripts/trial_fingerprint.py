@@ -14,6 +14,9 @@ path, e.g. a checkout of main at ``/tmp/main``::
     .venv/bin/python scripts/trial_fingerprint.py compare /tmp/ref.npz /tmp/new.npz
 
 ``--awake`` runs the scene without island sleeping (the benchmark's comparison scene).
+The trials run the loop's defaults (since issue 34: the passive-DS law and the robot's
+sensors); ``--controller tracking --sensors ideal`` runs the loop of before, for a comparison
+with a version older than that (which has neither option: leave them out there).
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ from typing import Any
 import numpy as np
 
 
-def dump(out: str, seeds: list[int], *, awake: bool = False) -> None:
+def dump(out: str, seeds: list[int], *, awake: bool = False,
+         controller: str | None = None, sensors: str | None = None) -> None:
     """Run the trials of ``seeds`` (nominal and perturbed) and save their fingerprints to
     ``out`` (``.npz``; module doc)."""
     import mujoco
@@ -60,9 +64,15 @@ def dump(out: str, seeds: list[int], *, awake: bool = False) -> None:
             for perturbed in (False, True):
                 states.clear()
                 trace: list[TraceStep] = []
+                extra: dict[str, Any] = {}
+                if controller is not None:
+                    extra["controller"] = controller
+                if sensors is not None:
+                    extra["sensors"] = sensors
                 res = run_trial(load_policy("LTL-DS"), seed,
                                 perturbations=None if perturbed else [], trace=trace,
-                                physics=PhysicsOptions(sleep=False) if awake else None)
+                                physics=PhysicsOptions(sleep=False) if awake else None,
+                                **extra)
                 record = res.to_dict()
                 record.pop("wall_time")
                 key = f"s{seed}_{'perturbed' if perturbed else 'nominal'}"
@@ -101,12 +111,17 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("out", metavar="OUT.npz")
     d.add_argument("--seeds", default="0,1,13", help="comma-separated (default 0,1,13)")
     d.add_argument("--awake", action="store_true", help="no island sleeping")
+    d.add_argument("--controller", choices=("passive", "tracking"), default=None,
+                   help="the Panda's control law (default: the loop's)")
+    d.add_argument("--sensors", choices=("franka", "ideal"), default=None,
+                   help="the sensor model (default: the loop's)")
     c = sub.add_parser("compare", help="compare two dumps")
     c.add_argument("a", metavar="A.npz")
     c.add_argument("b", metavar="B.npz")
     args = ap.parse_args(argv)
     if args.command == "dump":
-        dump(args.out, [int(s) for s in args.seeds.split(",")], awake=args.awake)
+        dump(args.out, [int(s) for s in args.seeds.split(",")], awake=args.awake,
+             controller=args.controller, sensors=args.sensors)
         return 0
     return 0 if compare(args.a, args.b) else 1
 

@@ -118,10 +118,14 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     help="physical campaigns: trials (default: the gate's minimum, 30)")
     ev.add_argument("--robot", type=robot_name, default="panda",
                     help="physical campaigns: the robot (panda, default; or free-tool)")
-    ev.add_argument("--no-retry", action="store_true",
-                    help="physical campaigns: the stall retry off")
-    ev.add_argument("--sensors", choices=("ideal", "franka"), default="ideal",
-                    help="physical campaigns: the sensor model")
+    ev.add_argument("--no-retry", "--no-stall-rule", dest="no_retry", action="store_true",
+                    help="physical campaigns: the stall rule off (tli_verify.runtime.stall)")
+    ev.add_argument("--sensors", choices=("franka", "ideal"), default="franka",
+                    help="physical campaigns: the sensor model (franka, default: the robot's "
+                    "own; ideal: the simulator's)")
+    ev.add_argument("--controller", choices=("passive", "tracking"), default=None,
+                    help="physical campaigns: the Panda's control law (passive, default; "
+                    "tracking: the target-tracking impedance, for comparison)")
     ev.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=40.0,
                     help="physical campaigns: budget per trial (simulated seconds; default "
                     "40, 0.5 to 600)")
@@ -387,6 +391,8 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
                            duration=args.duration, retry=not args.no_retry,
                            sensors=args.sensors,
+                           controller=args.controller or
+                           ("passive" if args.robot == "panda" else "tracking"),
                            workers=1 if args.workers is None else args.workers,
                            backend=args.backend or "serial")
 
