@@ -4,7 +4,7 @@ Kronander and Billard's passive interaction control with dynamical systems (the 
 runs it, Sec. 7.2 and its appendix on the robot experiment): the DS ``f`` is evaluated at the
 *measured* state once per control period (the loop, :mod:`tli_verify.sim.loop`, with the
 executive's modulation and mode switching), and the torque loop (every physics step, 500 Hz or
-1 kHz) applies
+1 kHz) applies::
 
     F_lin = -D (v - f_lin(x)),   D = Q diag(lambda1, lambda2, lambda2) Q^T,   Q e1 = f / |f|
     tau_x = -d_pitch (w_x - f_pitch(x))                  (the pitch axis, world x)
