@@ -328,4 +328,7 @@ def test_a_nominal_panda_trial_succeeds_with_franka_sensors(
     monkeypatch.setattr(demos, "ScoopSensors",
                         lambda model, ids: FrankaSensors(model, ids, seed=0))
     result = run_trial(load_policy("LTL-DS"), 0, perturbations=[], robot="panda")
-    assert result.success and result.mode_sequence() == "a b c d"
+    # under the passive-DS law (the default) the wrist reads no soup while the tray rests in
+    # the pile: mode b ends by the stall rule's re-entry from a (b a b), which lifts it
+    assert result.success and result.mode_sequence() == "a b a b c d"
+    assert result.stalls == 1 and result.controller == "passive"
