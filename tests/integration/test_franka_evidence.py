@@ -49,17 +49,22 @@ def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
     assert doc["campaign"]["examples"] == doc["campaign"]["runs"] == 1
     phys = doc["physics"]
     assert (phys["robot"], phys["variant"], phys["duration"]) == ("panda", "LTL-DS", 2.0)
-    assert (phys["retry"], phys["sensors"]) == (True, "ideal")
-    assert phys["controller"]["kind"] == "cartesian-impedance"
-    assert phys["controller"]["impedance"]["stiffness_pos"] == 2000.0
+    assert (phys["retry"], phys["sensors"]) == (True, "franka")
+    assert phys["controller"]["kind"] == "passive-ds"
+    assert phys["controller"]["gains"]["lambda1"] == 200.0
+    assert phys["stall_rule"] == {"radius": 0.3, "dwell": 1.0, "blocked_after": 1.5,
+                                  "progress": 0.02}
     assert (phys["pushes"], phys["tilts"], phys["trials"]) == (1, 1, 1)
     assert phys["successes"] == int(trial["success"])
     (outcome,) = phys["outcomes"]
     assert {k: outcome[k] for k in ("seed", "success", "delivered", "violations", "retries",
-                                    "stopped", "limit_ratios")} == {
+                                    "stopped", "limit_ratios", "stalls", "stall_fired",
+                                    "cut_gap", "tank_low")} == {
         "seed": 3, "success": trial["success"], "delivered": trial["delivered"],
         "violations": trial["violations"], "retries": trial["retries"],
-        "stopped": trial["stopped"], "limit_ratios": trial["limit_ratios"]}
+        "stopped": trial["stopped"], "limit_ratios": trial["limit_ratios"],
+        "stalls": trial["stalls"], "stall_fired": trial["stall_fired"],
+        "cut_gap": trial["cut_gap"], "tank_low": trial["tank_low"]}
     assert set(outcome["limit_ratios"]) == {"torque", "torque_rate", "joint_velocity",
                                             "cartesian_speed", "rotation_speed"}
     assert doc["violations"]["total"] == len(trial["violations"])
