@@ -7,13 +7,14 @@ executive's modulation and mode switching), and the torque loop (every physics s
 1 kHz) applies::
 
     F_lin = -D (v - f_lin(x)),   D = Q diag(lambda1, lambda2, lambda2) Q^T,   Q e1 = f / |f|
-    tau_x = -d_pitch (w_x - f_pitch(x))                  (the pitch axis, world x)
-    tau_yz = k_r e_yz - d_r w_yz                          (roll and yaw held at the DS's pitch)
+    tau_x = k_r e_x - d_pitch (w_x - f_pitch(x))        (the pitch axis, world x)
+    tau_yz = k_r e_yz - d_r w_yz                          (roll and yaw held)
     tau = J^T (F_lin, tau) + (I - J^T Jbar^T) M [Kn (q_n - q) - Dn qdot] + C qdot + g
 
-with ``v, w`` the measured site twist ``J qdot`` (world frame), ``e_yz`` the world-y and -z
-parts of the rotation vector from the tray's orientation to the nominal one at its own measured
-pitch (:class:`~tli_verify.sim.controller.DSStateMap`), the dynamically consistent null-space
+with ``v, w`` the measured site twist ``J qdot`` (world frame), ``e`` the rotation vector from
+the tray's orientation to the nominal one at the servo's pitch
+(:class:`~tli_verify.sim.controller.DSStateMap`; without a servo pitch, the measured one and
+``e_x = 0``), the dynamically consistent null-space
 projector of :mod:`tli_verify.sim.controller` and MuJoCo's bias (gravity and Coriolis
 compensation). There is no target pose: the DS's velocity field is the reference, so the robot
 goes where the DS at its *own* state sends it, and a cut learned on the measured state bounds
@@ -29,9 +30,12 @@ Passivity (the energy tank)
     while ``s > s_min``, otherwise it is switched off for that physics step (``beta = 0``) and
     the law is pure damping. Arm plus tank then never gain energy other than through the
     external port (the person's hand, the beads) and the posture spring (a potential): the
-    closed loop is passive (Kronander and Billard 2016, Sec. IV; Ferraguti et al. 2013 for the
-    tank). The roll/yaw spring is a potential too. Recorded per trial: the lowest tank level and
-    the physics steps at which the DS part was withheld.
+    translational passive-DS law is passive (Kronander and Billard 2016, Sec. IV; Ferraguti
+    et al. 2013 for the tank). **Not covered**: the orientation servo's reference pitch moves
+    (it is integrated from the DS's pitch rate), so its spring is not a fixed potential and the
+    energy it injects is not drawn from the tank; it is bounded by the servo's leash (0.15 rad
+    at 50 Nm/rad: 0.56 J of spring energy at most). Recorded per trial: the lowest tank level
+    and the physics steps at which the DS part was withheld.
 
 What carries over from the certificate, and what does not
     The certificate proves ``V`` decreasing along the sampled-data DS ``x_{k+1} = x_k + T f(x_k)``
@@ -46,14 +50,19 @@ What carries over from the certificate, and what does not
     robot was -- not 4-5 cm ahead of it on an integrated target.
 
 Gains (:class:`PassiveGains`)
-    ``lambda1 = 150 Ns/m`` along the flow, ``lambda2 = 120 Ns/m`` across it, ``d_pitch =
-    3 Nms/rad``; roll/yaw ``k_r = 50 Nm/rad`` (the tracking rig's), ``d_r = 3 Nms/rad``. The
-    Franka documents Cartesian stiffness in 10-3,000 N/m and 1-300 Nm/rad and critically damps
-    it; the damping it would apply at the top of the range on this arm's task-space inertia
-    (about 2-4 kg at the tray) is ``2 sqrt(3000 x 3) ~ 190 Ns/m``, and its rotational one
-    ``2 sqrt(300 x 0.02) ~ 5 Nms/rad``: the gains are within those. The task wrench is capped at
-    the tracking rig's 35 N / 6 N m and the joint torques pass the
+    ``lambda1 = 200 Ns/m`` along the flow, ``lambda2 = 150 Ns/m`` across it, ``d_pitch =
+    6 Nms/rad``; roll/yaw ``k_r = 50 Nm/rad`` (the tracking rig's), ``d_r = 3 Nms/rad``; the
+    tank holds up to 10 J, starts full and withholds the DS part below 0.05 J. The Franka
+    documents Cartesian stiffness in 10-3,000 N/m and 1-300 Nm/rad and critically damps it; the
+    damping it would apply at the top of the range on this arm's task-space inertia (about 2-4
+    kg at the tray) is ``2 sqrt(3000 x 3) ~ 190 Ns/m``, and its rotational one ``2 sqrt(300 x
+    0.03) ~ 6 Nms/rad``: :data:`DAMPING_RANGE` refuses more. The task wrench is capped at the
+    tracking rig's 35 N / 6 N m and the joint torques pass the
     :class:`~tli_verify.sim.franka_limits.LimitGuard` (torque, torque rate, velocity, reflex).
+    An orientation servo (``k_r``) holds the tray at a pitch the loop integrates from the DS's
+    pitch rate on a 0.15 rad leash of the measured pitch (:meth:`PassiveDSController.set_velocity`
+    ``pitch``): without it the pile's contact torques turned the tray, which pure damping does
+    not resist.
 
 References
 ----------
