@@ -268,8 +268,9 @@ def _run(args: argparse.Namespace) -> int:
     verdict = "delivered" if res.success else "FAILED"
     fig.suptitle(f"{ROBOT_NAMES[args.robot]}, seed {args.seed}, {what}: {verdict}, "
                  f"{res.delivered} bead{'' if res.delivered == 1 else 's'} in the target bowl\n"
-                 f"modes {short_modes(res.mode_sequence())}; {res.retries} retr"
-                 f"{'y' if res.retries == 1 else 'ies'}; {res.sim_time:.1f} s simulated, "
+                 f"modes {short_modes(res.mode_sequence())}; {res.controller} control, "
+                 f"{res.sensors} sensors, stall rule fired {res.stalls}x; "
+                 f"{res.sim_time:.1f} s simulated, "
                  f"rendered headless ({backend})", fontsize=9.5)
     fig.tight_layout()
     buf = io.BytesIO()
