@@ -30,9 +30,12 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.deploy.gate import GateReport, run_gate
     from tli_verify.errors import (
         CertificateError,
+        CheckFailed,
         DemoError,
         GateError,
+        InputError,
         ModelError,
+        OutputError,
         SpecError,
         TaskError,
         TliError,
@@ -42,6 +45,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.logic.spec import GR1Spec, load_spec
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
+    from tli_verify.project import Session, control_period, open_project
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.tasks.project import resolve
@@ -64,6 +68,10 @@ _NAMES: dict[str, str] = {
     "find_task": "tli_verify.tasks.registry",
     "Task": "tli_verify.tasks.task",
     "resolve": "tli_verify.tasks.project",
+    # a project opened once: files found, read and settled once
+    "open_project": "tli_verify.project",
+    "Session": "tli_verify.project",
+    "control_period": "tli_verify.project",
     # demonstrations and learning (paper Sec. 5)
     "load_demos": "tli_verify.demos",
     "Demonstration": "tli_verify.demos",
@@ -93,21 +101,28 @@ _NAMES: dict[str, str] = {
     "ModelError": "tli_verify.errors",
     "CertificateError": "tli_verify.errors",
     "GateError": "tli_verify.errors",
+    "InputError": "tli_verify.errors",
+    "OutputError": "tli_verify.errors",
+    "CheckFailed": "tli_verify.errors",
 }
 
 __all__ = [
     "CampaignConfig",
     "Certificate",
     "CertificateError",
+    "CheckFailed",
     "DemoError",
     "Demonstration",
     "EpisodeResult",
     "GR1Spec",
     "GateError",
     "GateReport",
+    "InputError",
     "LTLDSPolicy",
     "Model",
     "ModelError",
+    "OutputError",
+    "Session",
     "SpecError",
     "Task",
     "TaskAutomaton",
@@ -116,6 +131,7 @@ __all__ = [
     "__version__",
     "certify",
     "check_spec",
+    "control_period",
     "find_task",
     "learn",
     "load_demos",
@@ -123,6 +139,7 @@ __all__ = [
     "load_spec",
     "load_task",
     "make_policy",
+    "open_project",
     "resolve",
     "run",
     "run_campaign",

@@ -36,13 +36,14 @@ conditions a certificate proves), eq. 6 (the executive), Sec. 4.4 (campaigns).
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy.typing as npt
 
@@ -63,10 +64,35 @@ from tli_verify.errors import (
     bad_type,
 )
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.project import control_period
+from tli_verify.snapshot import active
+
+if TYPE_CHECKING:
+    from tli_verify.certification.certificate import CertCheck
+    from tli_verify.demos import Demonstration
+    from tli_verify.ds.lpvds import Clustering, LyapunovKind
+    from tli_verify.logic.automaton import TaskAutomaton
+    from tli_verify.logic.spec import GR1Spec
+    from tli_verify.model.types import Model
+    from tli_verify.runtime.executive import LTLDSPolicy
+    from tli_verify.runtime.loop import EpisodeResult
+    from tli_verify.tasks.task import Task
 
 __all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
 
 PathLike = str | os.PathLike[str]
+F = TypeVar("F", bound=Callable[..., object])
+
+
+def _in_snapshot(fn: F) -> F:
+    """Run a public function inside a snapshot (:mod:`tli_verify.snapshot`): each file it
+    reads is read once, and hashed and parsed from the same bytes."""
+    @functools.wraps(fn)
+    def inner(*args: object, **kwargs: object) -> object:
+        with active():
+            return fn(*args, **kwargs)
+
+    return inner  # type: ignore[return-value]
 
 
 def _spec_path(spec: Any) -> Path | None:
@@ -92,9 +118,12 @@ def _spec_inputs(spec: Path | None) -> list[Path]:
     return spec_inputs(spec)
 
 
-def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
-          out: PathLike | None = None, handoff: bool = True, handoff_samples: int = 1000,
-          **options: Any) -> Any:
+@_in_snapshot
+def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec | None = None,
+          seed: int = 0, out: PathLike | None = None, handoff: bool = True,
+          handoff_samples: int = 1000, eps: float = 1e-3, rate: float | None = None,
+          rate_budget: float | None = 0.03, control_dt: float | Fraction | None = None,
+          clustering: Clustering = "pc-gmm", lyapunov: LyapunovKind = "p-qlf") -> Model:
     """Learn a certified-stable LPV-DS per mode from demonstrations (``tli learn``).
 
     Parameters
@@ -113,9 +142,12 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
         :func:`tli_verify.runtime.handoff.learn_handoffs`, docs/explanation/handoff).
     handoff_samples : int, optional
         States drawn per DS in each round of that step.
-    **options
-        More keyword arguments of :func:`tli_verify.model.learn.learn_model` (``eps``, ``rate``,
-        ``control_dt``, ``clustering``, ``lyapunov``).
+    eps, rate, rate_budget, clustering, lyapunov : optional
+        As :func:`tli_verify.model.learn.learn_model` (``tli learn --eps --rate --rate-budget
+        --baseline``).
+    control_dt : float or Fraction, optional
+        The period of the sampled-data constraint (default: the spec's task's, else
+        :data:`~tli_verify.defaults.DEFAULT_DT`: :func:`tli_verify.project.control_period`).
 
     Returns
     -------
@@ -150,19 +182,15 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
             else:
                 paths.append(d)
         target = Path(out) if out is not None else Path(tmp) / "model.json"
-        if options.get("control_dt") is None:  # the period the task runs at
-            options.pop("control_dt", None)
-            task_dt = _task_dt(spec_path) if spec_path is not None else None
-            if task_dt is not None:
-                options["control_dt"] = task_dt
-        model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, **options)
+        dt = float(control_period(control_dt, spec_path))
+        model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, eps=eps,
+                            rate=rate, rate_budget=rate_budget, control_dt=dt,
+                            clustering=clustering, lyapunov=lyapunov)
         if handoff and spec_path is not None:
-            from tli_verify.defaults import DEFAULT_DT_FLOAT
             from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 
             ctx = context_for_spec(spec_path)
             if ctx is not None:
-                dt = float(options.get("control_dt") or DEFAULT_DT_FLOAT)
                 model = learn_handoffs(ctx.task, ctx.automaton, model, dt=dt,
                                        goal_modes=ctx.goal_modes, samples=handoff_samples,
                                        seed=seed).model
@@ -174,7 +202,8 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
         return _in_memory(model, paths, Path(tmp), spec_path)
 
 
-def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | None) -> Any:
+def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path | None
+               ) -> Model:
     """A learned model that has no file: its spec path absolute, and the demonstrations that
     were objects recorded as ``in-memory:demo_<i>`` (their SHA-256 kept), so nothing points
     into the deleted temporary folder."""
@@ -193,7 +222,8 @@ def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | N
         spec=None if spec_path is None else str(spec_path.resolve()))
 
 
-def save_model(model: Any, path: PathLike) -> Any:
+@_in_snapshot
+def save_model(model: Model, path: PathLike) -> Model:
     """Write a model where you want it (relative paths inside rewritten for its folder);
     return the model as loaded from there (its ``path`` set).
 
@@ -219,7 +249,7 @@ def save_model(model: Any, path: PathLike) -> Any:
     return load_model(target)
 
 
-def _model_reads(model: Any, in_memory: str) -> list[Path]:
+def _model_reads(model: Model, in_memory: str) -> list[Path]:
     """What a model object implies, for the read/write rule: its spec and the spec's task,
     the demonstrations it was learned from, and the certificate and evidence next to its
     file (not the file itself: saving a model over its own file rewrites it)."""
@@ -235,14 +265,6 @@ def _model_reads(model: Any, in_memory: str) -> list[Path]:
         files = model_files(model.path)
         reads += [files.certificate, files.evidence]
     return reads
-
-
-def _task_dt(spec_path: Path) -> float | None:
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
-
-    task = spec_task(load_spec(spec_path), spec_path)
-    return None if task is None else task.dt
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,7 +297,7 @@ class Certificate:
         check_certificate`: digest, hashes, P, the Lyapunov and sampled-data conditions)."""
         return bool(self.check().ok)
 
-    def check(self) -> Any:
+    def check(self) -> CertCheck:
         """The exact re-check (a :class:`~tli_verify.certification.certificate.CertCheck`)."""
         from tli_verify.certification.certificate import check_certificate
 
@@ -317,7 +339,8 @@ class Certificate:
         return certify(mpath, dt=self.dt, out=target)
 
 
-def certify(model: Any, *, dt: Fraction | str | None = None,
+@_in_snapshot
+def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
             out: PathLike | None = None) -> Certificate:
     """Prove a model's Lyapunov conditions exactly and issue its certificate (``tli certify``).
 
@@ -327,7 +350,8 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
         A model object (saved or not) or a model file.
     dt : Fraction or str, optional
         The control period the sampled-data conditions hold at (default: the control period
-        of the task the model's spec names, else 1/1000 s).
+        of the task the model's spec names, else 1/100 s: :func:`tli_verify.project.
+        control_period`).
     out : path-like, optional
         Write the certificate there (default: kept with the model: a temporary file for an
         unsaved model).
@@ -342,7 +366,6 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
         A DS does not certify with the model's own P (naming the mode and the condition).
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.defaults import DEFAULT_DT
     from tli_verify.io import check_plan
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
@@ -365,10 +388,7 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
             save_model(model, mpath)
     else:
         mpath = Path(model)
-    if dt is None:
-        spec = load_model(mpath).spec_path
-        task_dt = _task_dt(spec) if spec is not None else None
-        dt = Fraction(repr(task_dt)) if task_dt is not None else DEFAULT_DT
+    dt = control_period(dt, load_model(mpath).spec_path)
     if out is not None:
         cpath = Path(out)
     elif tmp is not None:
@@ -414,8 +434,10 @@ def _same_bytes(model: Any, path: Path) -> bool:
         path.read_text(encoding="utf-8")
 
 
-def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
-                variant: str = "LTL-DS") -> Any:
+@_in_snapshot
+def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLike,
+                certificate: Certificate | PathLike, *, task: Task | PathLike | None = None,
+                variant: str = "LTL-DS") -> LTLDSPolicy:
     """The certified LTL-DS executive (paper eq. 6) of a spec, model and certificate.
 
     Parameters
@@ -482,8 +504,11 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
     return _make(setup, variant)
 
 
-def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
-        perturbations: Any = None, steps: int = 3000, seed: int = 0) -> Any:
+@_in_snapshot
+def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
+        start: npt.ArrayLike | None = None,
+        perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
+        seed: int = 0) -> EpisodeResult:
     """One closed-loop episode of a policy on its task (``tli run``).
 
     Parameters

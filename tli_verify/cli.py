@@ -58,6 +58,7 @@ from typing import Any, ClassVar
 
 from tli_verify.commands import exit_code
 from tli_verify.errors import OutputError, TliError
+from tli_verify.snapshot import active as snapshot_active
 
 __all__ = ["build_parser", "check_paths", "exit_code", "main"]
 
@@ -376,7 +377,8 @@ def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
             else:
                 _check_cwd()
                 check_paths(args)
-                code = int(handler(args))
+                with snapshot_active():  # each file read once, hashed and parsed from those bytes
+                    code = int(handler(args))
         except SystemExit:  # argparse: --help, --version, usage errors
             sys.stdout.flush()  # raises _StdoutError if it cannot be written
             raise

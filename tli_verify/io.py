@@ -32,6 +32,8 @@ from typing import Any
 
 from tli_verify.errors import OutputError, TliError, missing
 from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
+from tli_verify.snapshot import current as _snapshot
+from tli_verify.snapshot import remember as _remember
 
 __all__ = [
     "BUNDLED_FOLDERS",
@@ -279,6 +281,7 @@ def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    _remember(target, data)  # a snapshot in force sees what was written
 
 
 def atomic_write_text(path: PathLike, text: str) -> None:
@@ -292,7 +295,26 @@ def canonical_json(obj: Any) -> str:
 
 
 def sha256_file(path: PathLike) -> str:
-    """Hex SHA-256 of a file's bytes."""
+    """Hex SHA-256 of a file's bytes.
+
+    Inside a snapshot (:mod:`tli_verify.snapshot`) the hash is of the bytes the snapshot
+    keeps for the file -- the very bytes a parser of the same session uses; a regular file
+    within the input limit not yet kept is read once and kept.
+    """
+    snap = _snapshot()
+    if snap is not None:
+        kept = snap.kept(path)
+        if kept is not None:
+            return kept.sha256
+        try:
+            st = os.stat(path)
+        except OSError:
+            st = None
+        if st is not None and stat.S_ISREG(st.st_mode) and st.st_size <= MAX_INPUT_BYTES:
+            with open(path, "rb") as handle:
+                data = handle.read(MAX_INPUT_BYTES + 1)
+            if len(data) <= MAX_INPUT_BYTES:
+                return snap.keep(path, data).sha256
     digest = hashlib.sha256()
     with open(path, "rb") as handle:
         for block in iter(lambda: handle.read(1 << 16), b""):
@@ -359,6 +381,10 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     if isinstance(path, str) and path == "":
         raise error(f"empty path given for the {what} file")
     p = check_path_arg(path, what=f"{what} file", error=error)
+    snap = _snapshot()
+    kept = snap.kept(p) if snap is not None else None
+    if kept is not None:  # read once in this session: the same bytes again
+        return _decode(kept.data, p, what=what, error=error)
     try:
         st = p.stat()
     except FileNotFoundError as exc:
@@ -381,6 +407,13 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     if len(raw) > MAX_INPUT_BYTES:  # the file grew, or its size is not what stat said
         raise error(f"{p}: {what} file is larger than the limit of {MAX_INPUT_BYTES} bytes "
                     "(MAX_INPUT_BYTES)")
+    if snap is not None:
+        snap.keep(p, raw)
+    return _decode(raw, p, what=what, error=error)
+
+
+def _decode(raw: bytes, p: Path, *, what: str, error: type[TliError]) -> str:
+    """The text of an input file's bytes (:func:`read_text`'s checks after the read)."""
     if b"\x00" in raw:
         raise error(f"{p}: not a text file (contains NUL bytes)")
     try:

@@ -169,7 +169,8 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     cert_path : path-like
         Where the certificate will be written (paths inside are relative to its directory).
     dt : Fraction or str, optional
-        Control period of the sampled-data conditions (default 1/1000 s).
+        Control period of the sampled-data conditions (default
+        :data:`~tli_verify.defaults.DEFAULT_DT`).
 
     Returns
     -------

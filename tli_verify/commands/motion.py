@@ -16,6 +16,7 @@ from typing import Any
 
 from tli_verify.commands import float_range, int_range, output_path, positive_float
 from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
+from tli_verify.project import control_period
 
 __all__ = ["demo_stage", "register"]
 
@@ -181,17 +182,6 @@ def _task_file(spec: Path | None) -> Path | None:
     return None if task is None or task.source.path is None else Path(task.source.path)
 
 
-def _task_dt(spec: Path | None) -> Fraction | None:
-    """The control period of the task a spec names (None: no spec, or it names no task)."""
-    if spec is None:
-        return None
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
-
-    task = spec_task(load_spec(spec), spec)
-    return None if task is None else Fraction(repr(task.dt))
-
-
 def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
     """Refuse demonstrations whose state dimension differs from the spec's task (before any
     learning: a model of another dimension would learn and certify, then every command that
@@ -218,7 +208,6 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
 
 def _learn(args: argparse.Namespace) -> int:
     from tli_verify.commands import check_plan
-    from tli_verify.defaults import DEFAULT_DT_FLOAT
     from tli_verify.ds.lyapunov import RATE_BUDGET
     from tli_verify.model.learn import learn_model
     from tli_verify.model.serialize import save_model
@@ -226,10 +215,7 @@ def _learn(args: argparse.Namespace) -> int:
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
     _check_demos_fit_task(args.demos, args.spec)
-    control_dt = args.control_dt
-    if control_dt is None:
-        task_dt = _task_dt(args.spec)
-        control_dt = DEFAULT_DT_FLOAT if task_dt is None else float(task_dt)
+    control_dt = float(control_period(args.control_dt, args.spec))
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
                         eps=args.eps, rate=args.rate, control_dt=control_dt,
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
@@ -303,13 +289,12 @@ def default_certificate_path(model: Path) -> Path:
 
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.defaults import DEFAULT_DT
     from tli_verify.io import check_output_file
     from tli_verify.model.serialize import load_model
 
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
-    dt = args.dt if args.dt is not None else (_task_dt(spec_path) or DEFAULT_DT)
+    dt = control_period(args.dt, spec_path)
     task_file = _task_file(spec_path)
     inputs = [args.model, *([spec_path] if spec_path else []), *([task_file] if task_file else [])]
     out: Path = args.output or default_certificate_path(args.repair or args.model)

@@ -29,8 +29,8 @@ from tli_verify.commands import check_plan, int_range, output_path
 from tli_verify.defaults import Stream, rng
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 
-__all__ = ["add_task_arguments", "demo_stage", "parse_floats", "parse_perturb", "register",
-           "resolve_args"]
+__all__ = ["add_task_arguments", "demo_stage", "open_args", "parse_floats", "parse_perturb",
+           "register"]
 
 MAX_RUN_STEPS = MAX_CAMPAIGN_STEPS
 """Largest ``--steps`` of ``tli run`` (100,000 control steps: 1,000 s at 10 ms)."""
@@ -53,13 +53,14 @@ def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None
                    help="sensor lag in control steps (default: the task's)")
 
 
-def resolve_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
-    """:func:`tli_verify.tasks.project.resolve` of the command's task options (``use_spec``
-    False: ``--spec`` is not the model's spec, e.g. the spec ``--learn-transitions`` grows)."""
-    from tli_verify.tasks.project import resolve
+def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
+    """The project session (:func:`tli_verify.project.open_project`) of the command's task
+    options (``use_spec`` False: ``--spec`` is not the model's spec, e.g. the spec
+    ``--learn-transitions`` grows)."""
+    from tli_verify.project import open_project
 
-    return resolve(task=args.task, spec=args.spec if use_spec else None, model=args.model,
-                   certificate=args.certificate, lag=args.lag)
+    return open_project(task=args.task, spec=args.spec if use_spec else None,
+                        model=args.model, certificate=args.certificate, lag=args.lag)
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -192,14 +193,14 @@ def _run(args: argparse.Namespace) -> int:
         random_start,
         run_variant,
     )
-    from tli_verify.runtime.setup import load_setup, make_policy
     from tli_verify.tasks.project import model_files
 
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
     if args.grown_spec is not None and not args.learn_transitions:
         raise TliError("--grown-spec needs --learn-transitions")
-    resolved = resolve_args(args, use_spec=not args.learn_transitions)
+    session = open_args(args, use_spec=not args.learn_transitions)
+    resolved = session.files
     out: Path = args.out
     saved_cert = model_files(args.output).certificate if args.output is not None else None
     check_plan(inputs=[*resolved.inputs, args.spec],
@@ -207,15 +208,17 @@ def _run(args: argparse.Namespace) -> int:
                         (out / "run.gif" if args.animate is not None else None, "animation"),
                         (args.output, "model"), (saved_cert, "certificate"),
                         (args.grown_spec, "grown spec")])
-    setup = load_setup(resolved)
+    setup = session.setup
     task = setup.task
     start_spec = _growth_start(setup, args.spec) if args.learn_transitions else None
+    grown = None
     if start_spec is not None:
         from dataclasses import replace
 
         from tli_verify.logic.check import synthesize
 
-        setup = replace(setup, automaton=synthesize(start_spec))
+        grown = synthesize(start_spec)
+        setup = replace(setup, automaton=grown)
     perturbations = parse_perturb(args.perturb, seed=args.seed, task=task, steps=args.steps)
     if args.start is not None:
         x0 = np.array(parse_floats(args.start, task.dim, f"--start {args.start!r}"))
@@ -230,13 +233,17 @@ def _run(args: argparse.Namespace) -> int:
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
     # refuses a model its certificate does not cover
-    policy = (make_policy(setup, variant) if start_spec is None
-              else make_policy(setup, variant, spec=start_spec, learn_transitions=True))
+    if start_spec is None:
+        policy = session.policy(variant)
+    else:
+        from tli_verify.runtime.setup import make_policy
+
+        policy = make_policy(setup, variant, spec=start_spec, learn_transitions=True)
     t0 = time.perf_counter()
     res = run_variant(setup, variant, x0, perturbations, steps=args.steps, policy=policy)
     seconds = time.perf_counter() - t0
     nominal = run_variant(setup, variant, x0, {}, steps=args.steps,
-                          policy=make_policy(setup, variant))
+                          policy=session.policy(variant, automaton=grown))
     record = episode_json(res, task=task.name, variant=variant, seconds=seconds, x0=x0,
                           perturbations=perturbations, dt=policy.dt)
     record["files"] = {"task": task.where, "spec": str(resolved.spec),

@@ -19,7 +19,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.runtime.setup import Setup, load_setup
+from tli_verify.runtime.setup import Setup
 
 __all__ = [
     "learn_setup",
@@ -28,11 +28,11 @@ __all__ = [
 
 
 def scoop_setup(*, lag: int = 0) -> Setup:
-    """The bundled scoop task, spec, model and certificate
-    (:func:`~tli_verify.tasks.project.resolve` of task ``scoop``)."""
-    from tli_verify.tasks.project import resolve
+    """The bundled scoop task, spec, model and certificate (the project session of task
+    ``scoop``: :func:`~tli_verify.project.open_project`)."""
+    from tli_verify.project import open_project
 
-    return load_setup(resolve(task="scoop", lag=lag))
+    return open_project(task="scoop", lag=lag).setup
 
 
 def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,

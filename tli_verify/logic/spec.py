@@ -43,6 +43,7 @@ initial state (their current-state consequence). ``tli spec import`` writes ``"t
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import os
 import tomllib
 from collections.abc import Iterable, Mapping
@@ -224,8 +225,15 @@ def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     SpecError
         Naming the file, line and field of the first problem.
     """
+    from tli_verify.snapshot import current
+
     text = read_text(path, what="spec", error=SpecError)
-    return parse_spec(text, path=str(path), default_name=Path(path).stem)
+    snap = current()
+    if snap is None:
+        return parse_spec(text, path=str(path), default_name=Path(path).stem)
+    spec = snap.parse("spec", path,
+                      lambda: parse_spec(text, path=str(path), default_name=Path(path).stem))
+    return spec if spec.path == str(path) else dataclasses.replace(spec, path=str(path))
 
 
 def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec") -> GR1Spec:

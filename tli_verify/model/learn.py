@@ -79,7 +79,8 @@ def learn_model(
         (``RATE_FACTOR``), the default before the choice.
     control_dt : float, optional
         Control period at which the learned DS must also decrease ``V`` per explicit step
-        (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.
+        (default :data:`~tli_verify.defaults.DEFAULT_DT`, 1/100 s); None for continuous time
+        only. Ignored when ``rate`` is 0.
     clustering, lyapunov : str, optional
         See :func:`tli_verify.ds.lpvds.learn_lpvds`.
 

@@ -6,6 +6,7 @@ bit-for-bit -- which the certificate's exact check relies on. Format: :mod:`tli_
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Mapping
@@ -152,6 +153,16 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         Naming the file and the JSON field, e.g.
         ``models/x.json: modes.a.components[2].cov: not symmetric positive definite``.
     """
+    from tli_verify.snapshot import current
+
+    snap = current()
+    if snap is None:
+        return _load_model(path)
+    model = snap.parse("model", path, lambda: _load_model(path))
+    return model if model.path == str(path) else dataclasses.replace(model, path=str(path))
+
+
+def _load_model(path: str | os.PathLike[str]) -> Model:
     data = read_json(path, what="model", error=ModelError)
     return model_from_dict(data, where=str(path), path=str(path))
 

@@ -11,6 +11,7 @@ import os
 from fractions import Fraction
 from pathlib import Path
 
+from tli_verify.defaults import DEFAULT_DT
 from tli_verify.model.types import Model
 
 __all__ = ["save_certified"]
@@ -18,7 +19,7 @@ __all__ = ["save_certified"]
 
 def save_certified(model: Model, model_path: str | os.PathLike[str],
                    cert_path: str | os.PathLike[str], *,
-                   dt: Fraction | str = "1/1000") -> Model:
+                   dt: Fraction | str = DEFAULT_DT) -> Model:
     """Write ``model`` (with its cuts) to ``model_path`` and a re-issued certificate.
 
     Both files are written atomically; the model file is written only after its certificate

@@ -88,6 +88,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.errors import TaskError, TliError, bad_type
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import Demonstrator, parse_demonstrator
@@ -564,7 +565,7 @@ class Task:
     partition: Partition
     sensor_model: SensorModel
     lag: int = 0
-    dt: float = 0.01
+    dt: float = DEFAULT_DT_FLOAT
     goal: Goal = field(default_factory=Goal)
     starts: Starts = field(default_factory=Starts)
     perturbations: PerturbationBounds = field(default_factory=PerturbationBounds)
@@ -943,7 +944,7 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
     if len(set(state_names)) != dim:
         raise TaskError(f"{where}: state.names: names must be distinct")
     lag = number(data.get("lag", 0), f"{where}: lag", lo=0, hi=MAX_LAG, integer=True)
-    dt = number(data.get("dt", 0.01), f"{where}: dt", lo=1e-6, hi=10.0)
+    dt = number(data.get("dt", DEFAULT_DT_FLOAT), f"{where}: dt", lo=1e-6, hi=10.0)
     if dt <= 0:
         raise TaskError(f"{where}: dt: must be > 0")
     background = _name(data.get("background", "outside"), f"{where}: background")
