@@ -284,7 +284,7 @@ class Certificate:
     doc: dict[str, Any]
     path: Path
     model_path: Path
-    _tmp: Any = field(default=None, repr=False)
+    _tmp: Path | None = field(default=None, repr=False)
 
     @property
     def dt(self) -> Fraction:

@@ -96,11 +96,13 @@ def _existing_ancestor(p: Path) -> Path:
     return cur
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def same_file(a: PathLike, b: PathLike) -> bool:
+    """Whether two paths name the same file: the same resolved path, or the same inode (a hard
+    link); False when either cannot be resolved or does not exist."""
     try:
-        if a.resolve() == b.resolve():
+        if Path(a).resolve() == Path(b).resolve():
             return True
-        return a.exists() and b.exists() and os.path.samefile(a, b)
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
     except (OSError, RuntimeError):  # RuntimeError: a symlink loop
         return False
 
@@ -165,7 +167,7 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
     shown = str(path)
     _check_dotdot(p, shown, what)
     for src in inputs:
-        if _same_file(p, Path(src)):
+        if same_file(p, Path(src)):
             raise OutputError(f"{shown}: the {what} would overwrite the input file {src}; "
                               "choose another output path")
     if p.is_dir() or p.name in ("", ".", ".."):

@@ -177,7 +177,7 @@ def test_the_library_never_replaces_evidence_with_a_partial_campaign(project: Pa
                              "sha256": hashlib.sha256(
                                  (project / FILES["task"]).read_bytes()).hexdigest()}}
     with pytest.raises(OutputError, match="partial"):
-        write_campaign_evidence(config, result, project / FILES["evidence"])
+        write_campaign_evidence(config, result, path=project / FILES["evidence"])
     assert _digest(project) == before
 
 

@@ -47,7 +47,7 @@ from tli_verify.certification.exact import (
 )
 from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError, ModelError, bad_input, missing
-from tli_verify.io import atomic_write_text, canonical_json, sha256_file
+from tli_verify.io import atomic_write_text, canonical_json, same_file, sha256_file
 
 __all__ = [
     "CERT_KIND",
@@ -353,11 +353,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed), dt_text)
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.resolve() == b.resolve() or os.path.samefile(a, b)
-    except OSError:
-        return False
 
 
 def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
@@ -372,7 +367,7 @@ def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any,
     named = Path(os.path.realpath(cpath.parent / spec["path"]))
     if not spec_path.is_file():
         return [f"spec file {spec_path} not found"]
-    if not _same_file(named, spec_path):
+    if not same_file(named, spec_path):
         return [f"{cpath}: spec.path {spec['path']!r} ({named}) is not the spec the model "
                 f"names ({spec_path}): the certificate binds another spec"]
     if sha256_file(spec_path) != spec["sha256"]:

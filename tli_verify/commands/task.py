@@ -360,7 +360,7 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     result = run_campaign(config, progress=sys.stderr.isatty())
     if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
         raise KeyboardInterrupt
-    path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
+    path, doc = write_campaign_evidence(result.config, result, path=resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
             f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "

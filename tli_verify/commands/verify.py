@@ -141,7 +141,7 @@ def _verify(args: argparse.Namespace) -> int:
     if args.evidence is not None and not result.partial:
         from tli_verify.verify.evidence import write_campaign_evidence
 
-        target, _ = write_campaign_evidence(result.config, result, evidence)
+        target, _ = write_campaign_evidence(result.config, result, path=evidence)
         record["evidence"] = str(target)
     if args.junit is not None and not result.partial:
         from tli_verify.testing.junit import write_junit

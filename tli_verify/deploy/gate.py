@@ -41,12 +41,15 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import GateError, TliError, bad_input
 from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+
+if TYPE_CHECKING:
+    from tli_verify.logic.check import SpecCheck
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
            "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed", "rerun_starts",
@@ -169,7 +172,7 @@ def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
                     "load")
 
 
-def _default_spec_checker() -> Callable[[Path], Any]:
+def _default_spec_checker() -> Callable[[Path], SpecCheck]:
     from tli_verify.logic.check import check_spec_file
 
     return check_spec_file
@@ -178,7 +181,7 @@ def _default_spec_checker() -> Callable[[Path], Any]:
 class _Specs:
     """Spec checks, each file checked once (keyed by resolved path)."""
 
-    def __init__(self, checker: Callable[[Path], Any] | None) -> None:
+    def __init__(self, checker: Callable[[Path], SpecCheck] | None) -> None:
         self._checker = checker
         self._done: dict[Path, Any] = {}
 
@@ -406,7 +409,7 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
 
 
 def run_gate(root: str | os.PathLike[str] = ".", *,
-             spec_checker: Callable[[Path], Any] | None = None, rerun: int | None = None,
+             spec_checker: Callable[[Path], SpecCheck] | None = None, rerun: int | None = None,
              campaign_runner: CampaignRunner | None = None) -> GateReport:
     """Run the deployment gate on a project directory.
 

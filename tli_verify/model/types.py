@@ -285,7 +285,7 @@ class Model:
                 if options else f"; known keys: {', '.join(sorted(self.modes))}")
         raise ModelError(f"{self.path or 'model'}: no DS for {what!r}{hint}")
 
-    def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None, *,
+    def velocity(self, X: npt.ArrayLike, mode: str, *, next_mode: str | None = None,
                  dt: float | None = None) -> FloatArray:
         """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 7).
 
@@ -307,7 +307,7 @@ class Model:
         """
         return self.modes[self.key(mode, next_mode)].velocity(X, dt=dt)
 
-    def nominal_velocity(self, X: npt.ArrayLike, mode: str,
+    def nominal_velocity(self, X: npt.ArrayLike, mode: str, *,
                          next_mode: str | None = None) -> FloatArray:
         """``f(x)`` of the mode's LPV-DS without modulation (paper eq. 4)."""
         return self.modes[self.key(mode, next_mode)].ds.velocity(X)

@@ -89,6 +89,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
+from tli_verify.demos import Demonstration
 from tli_verify.errors import TaskError, TliError, bad_type
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import Demonstrator, parse_demonstrator
@@ -805,7 +806,7 @@ class Task:
         return readings, latents
 
     # ------------------------------------------------------------------ demonstrations
-    def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Any]:
+    def demonstrate(self, seed: int, n_demos: int | None = None) -> list[Demonstration]:
         """Seeded scripted demonstrations (:class:`~tli_verify.tasks.demonstrator.Demonstrator`).
 
         Raises
@@ -861,7 +862,7 @@ def _name(raw: Any, where: str) -> str:
 
 
 def load_task(path: str | os.PathLike[str], *,
-              entry_points: Callable[[str], Any] | None = None) -> Task:
+              entry_points: Callable[[str], object] | None = None) -> Task:
     """Load and validate a task file.
 
     Parameters

@@ -53,10 +53,20 @@ import os
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tli_verify.errors import EvidenceError, TliError, missing
-from tli_verify.io import atomic_write_text, canonical_json, check_output_file, sha256_file
+from tli_verify.io import (
+    atomic_write_text,
+    canonical_json,
+    check_output_file,
+    same_file,
+    sha256_file,
+)
+
+if TYPE_CHECKING:
+    from tli_verify.verify.campaign import CampaignResult
+    from tli_verify.verify.config import CampaignConfig
 
 __all__ = [
     "CAMPAIGN_SEMANTICS",
@@ -381,7 +391,8 @@ def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any
     return doc
 
 
-def write_campaign_evidence(config: Any, result: Any, path: str | os.PathLike[str] | None = None
+def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
+                            path: str | os.PathLike[str] | None = None
                             ) -> tuple[Path, dict[str, Any]]:
     """Write the evidence of a finished campaign (``tli verify ... --evidence [PATH]``).
 
@@ -715,11 +726,6 @@ class EvidenceCheck:
         return not self.problems
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.resolve() == b.resolve() or os.path.samefile(a, b)
-    except (OSError, RuntimeError):
-        return False
 
 
 def _short(sha: str) -> str:
@@ -792,7 +798,7 @@ def check_evidence(path: str | os.PathLike[str], *,
     named = {k: Path(os.path.realpath(base / doc[k]["path"]))
              for k in ("model", "spec", "certificate")}
     mpath = Path(model_path) if model_path is not None else named["model"]
-    if model_path is not None and not _same_file(named["model"], mpath):
+    if model_path is not None and not same_file(named["model"], mpath):
         problems.append(f"{shown}: model.path {doc['model']['path']!r} ({named['model']}) is "
                         f"not the deployed model {mpath}: the evidence binds another model")
     seen = {k: Path(os.path.normpath(base / doc[k]["path"])) for k in ("spec", "certificate")}
@@ -800,7 +806,7 @@ def check_evidence(path: str | os.PathLike[str], *,
     if mpath.is_file():
         problems += _check_task(doc, shown, mpath, base, passed, worlds)
     if valid_certificates is not None and named["certificate"].is_file() and not any(
-            _same_file(named["certificate"], Path(c)) for c in valid_certificates):
+            same_file(named["certificate"], Path(c)) for c in valid_certificates):
         problems.append(f"{shown}: certificate {doc['certificate']['path']!r} is not a valid "
                         f"certificate of {mpath}")
     if min_examples is None:
@@ -963,7 +969,7 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
     spec = named["spec"]
     if model.spec_path is None:
         out.append(f"{mpath} names no spec, the evidence binds {doc['spec']['path']!r}")
-    elif not _same_file(spec, model.spec_path):
+    elif not same_file(spec, model.spec_path):
         out.append(f"{shown}: spec.path {doc['spec']['path']!r} ({spec}) is not the spec the "
                    f"model names ({model.spec_path}): the campaign ran another spec")
     elif not spec.is_file():
