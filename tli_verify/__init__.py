@@ -50,7 +50,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.tasks.project import resolve
     from tli_verify.tasks.registry import find_task
-    from tli_verify.tasks.task import Task, load_task
+    from tli_verify.tasks.task import Task
+    from tli_verify.tasks.taskfile import load_task
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
     from tli_verify.verify.evidence import write_campaign_evidence
@@ -64,7 +65,7 @@ _NAMES: dict[str, str] = {
     "synthesize": "tli_verify.logic.check",
     "TaskAutomaton": "tli_verify.logic.automaton",
     # tasks as data
-    "load_task": "tli_verify.tasks.task",
+    "load_task": "tli_verify.tasks.taskfile",
     "find_task": "tli_verify.tasks.registry",
     "Task": "tli_verify.tasks.task",
     "resolve": "tli_verify.tasks.project",

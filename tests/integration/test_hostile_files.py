@@ -69,7 +69,7 @@ def test_a_huge_number_in_a_task_file_is_refused_naming_the_field(
     text = SCOOP.replace(old, template.format(v=value), 1)
     path = tmp_path_factory.mktemp("num") / "t.toml"
     path.write_text(text)
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     with pytest.raises(TaskError) as info:
         load_task(path)
@@ -100,7 +100,7 @@ def test_every_command_that_reads_a_task_refuses_a_huge_integer(
 
 
 def test_a_start_region_outside_the_workspace_is_refused_at_load(tmp_path: Path) -> None:
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     text = SCOOP.replace("[starts]\n", "[regions.far]\nbox = { lower = [20.0, 20.0], upper = "
                          "[30.0, 30.0] }\n\n[starts]\nregion = \"far\"\n", 1)
@@ -127,7 +127,7 @@ def test_a_task_formula_loads_and_evaluates_or_is_refused_at_load(
     text = SCOOP.replace('r = "yellow & !delivered"', f'r = "{formula}"', 1)
     path = tmp_path_factory.mktemp("f") / "t.toml"
     path.write_text(text)
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     try:
         task = load_task(path)
@@ -319,7 +319,7 @@ def test_a_plugin_failing_at_load_is_one_line_naming_it(
 @pytest.mark.parametrize("mode", AT_READ)
 def test_a_plugin_failing_when_read_is_a_task_error_naming_it(
         on_path: Path, tmp_path: Path, mode: str) -> None:
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     task = load_task(_plugin_task(tmp_path, mode))
     with pytest.raises(TaskError) as info:

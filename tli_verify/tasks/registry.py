@@ -34,7 +34,8 @@ from tli_verify.tasks.plugins import (
     entry_point,
     entry_point_source,
 )
-from tli_verify.tasks.task import Task, load_task
+from tli_verify.tasks.task import Task
+from tli_verify.tasks.taskfile import load_task
 
 __all__ = ["ENTRY_POINT_GROUP", "bundled_tasks", "entry_point", "entry_point_source",
            "find_task", "task_names"]

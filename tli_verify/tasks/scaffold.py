@@ -21,7 +21,7 @@ def task_text(name: str, dim: int) -> str:
     lo_rest, hi_rest = [-0.3] * (dim - 1), [0.3] * (dim - 1)
     names = ", ".join(f'"x{i}"' for i in range(dim))
     return f'''# Task "{name}": what the world is (../specs/{name}.toml says what to do).
-# Reference: tli_verify.tasks.task (format), tli_verify.tasks.formula (sensor formulas).
+# Reference: tli_verify.tasks.taskfile (format), tli_verify.tasks.formula (sensor formulas).
 name = "{name}"
 description = "A reaching task: approach the zone, cross it to the goal, stay done."
 lag = 0                      # sensor lag in control steps
