@@ -143,7 +143,8 @@ def _config(args: argparse.Namespace) -> Any:
 
 def _single_mode(args: argparse.Namespace) -> int:
     from tli_verify.errors import TliError
-    from tli_verify.experiments.single_mode import run, summarize, write_outputs
+    from tli_verify.experiments.single_mode import run
+    from tli_verify.experiments.single_mode_report import summarize, write_outputs
     from tli_verify.io import canonical_json
 
     cfg = _config(args)
@@ -255,7 +256,8 @@ def _scoop_table(summary: dict[str, Any]) -> str:
 
 def demo_stage(out: Path) -> list[str]:
     """Run a quick single-mode study for ``make demo``; return one summary line per result."""
-    from tli_verify.experiments.single_mode import SingleModeConfig, run, summarize, write_outputs
+    from tli_verify.experiments.single_mode import SingleModeConfig, run
+    from tli_verify.experiments.single_mode_report import summarize, write_outputs
 
     cfg = SingleModeConfig(trials=2, bc_max_epochs=QUICK_BC_EPOCHS)
     t0 = time.perf_counter()
