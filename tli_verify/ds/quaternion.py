@@ -45,6 +45,7 @@ certify the pose.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -56,7 +57,10 @@ from tli_verify.ds.lpvds import LPVDS, FitInfo
 from tli_verify.errors import ModelError
 
 __all__ = [
+    "ORIENTATION_MODEL_KIND",
     "QuaternionDS",
+    "load_orientation_model",
+    "write_orientation_model",
     "canonical_hemisphere",
     "learn_quaternion_ds",
     "quat_exp",
@@ -66,6 +70,9 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+ORIENTATION_MODEL_KIND = "tli-verify/orientation-ds"
+"""``kind`` of an orientation model file (:func:`write_orientation_model`)."""
 
 
 def quat_multiply(p: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
@@ -377,3 +384,50 @@ def learn_quaternion_ds(
     tangent, info = learn_lpvds(Xi, dXi, np.zeros(3), seed=seed, rate_budget=rate_budget,
                                 control_dt=control_dt, max_components=max_components)
     return QuaternionDS(attractor=q_star, tangent=tangent), info
+
+
+def write_orientation_model(ds: QuaternionDS, path: str | os.PathLike[str], *,
+                            fit: FitInfo | None = None) -> None:
+    """Write an orientation DS as canonical JSON (atomic; floats round-trip exactly).
+
+    Fields: ``kind`` (:data:`ORIENTATION_MODEL_KIND`), ``version`` (1), ``convention``
+    (``"scalar-first"``: the attractor is ``(w, x, y, z)``), ``orientation``
+    (:meth:`QuaternionDS.to_dict`), and ``fit`` (how it was learned, when given).
+
+    Parameters
+    ----------
+    ds : QuaternionDS
+    path : path-like
+    fit : FitInfo, optional
+    """
+    import dataclasses
+
+    from tli_verify.io import atomic_write_text, canonical_json
+
+    doc: dict[str, Any] = {"kind": ORIENTATION_MODEL_KIND, "version": 1,
+                           "convention": "scalar-first", "orientation": ds.to_dict()}
+    if fit is not None:
+        doc["fit"] = dataclasses.asdict(fit)
+    atomic_write_text(path, canonical_json(doc))
+
+
+def load_orientation_model(path: str | os.PathLike[str]) -> QuaternionDS:
+    """Read an orientation model file (:func:`write_orientation_model`).
+
+    Raises
+    ------
+    ModelError
+        Unreadable, not JSON, another kind of file, or malformed parameters (naming the file).
+    """
+    from tli_verify.io import read_json
+
+    doc = read_json(path, what="orientation model", error=ModelError)
+    if not isinstance(doc, dict) or doc.get("kind") != ORIENTATION_MODEL_KIND:
+        raise ModelError(f"{path}: not an orientation model (kind must be "
+                         f"{ORIENTATION_MODEL_KIND!r})")
+    if doc.get("version") != 1 or doc.get("convention") != "scalar-first":
+        raise ModelError(f"{path}: version must be 1 and convention 'scalar-first'")
+    body = doc.get("orientation")
+    if not isinstance(body, dict):
+        raise ModelError(f"{path}: orientation: missing or not an object")
+    return QuaternionDS.from_dict(body, where=f"{path}: orientation")
