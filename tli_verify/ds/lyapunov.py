@@ -511,7 +511,7 @@ def _lmi_least_squares(
     start = time.perf_counter()
     Q, q, c0 = objective
     m = lin.shape[0]
-    n = int(round(np.sqrt(m)))
+    n = round(np.sqrt(m))
     i, j, w = _svec_rows(const.shape[0])
     block = -(lin[:, i, j] * w).T  # (svec, n^2): s = b - A theta
     A_mat = sp.block_diag([sp.csc_matrix(block)] * K, format="csc")

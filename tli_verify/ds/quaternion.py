@@ -59,14 +59,14 @@ from tli_verify.errors import ModelError
 __all__ = [
     "ORIENTATION_MODEL_KIND",
     "QuaternionDS",
-    "load_orientation_model",
-    "write_orientation_model",
     "canonical_hemisphere",
     "learn_quaternion_ds",
+    "load_orientation_model",
     "quat_exp",
     "quat_log",
     "quat_multiply",
     "rotation_angle",
+    "write_orientation_model",
 ]
 
 FloatArray = npt.NDArray[np.float64]
