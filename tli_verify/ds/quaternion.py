@@ -380,6 +380,8 @@ def learn_quaternion_ds(
     if not (np.isfinite(norm) and norm > 0.0):
         raise ModelError("orientation attractor is zero or not finite")
     q_star = q_star / norm
+    if q_star[0] < 0.0:  # the same rotation, stated with w >= 0
+        q_star = -q_star
     Xi, dXi = tangent_data(times, quaternions, q_star)
     tangent, info = learn_lpvds(Xi, dXi, np.zeros(3), seed=seed, rate_budget=rate_budget,
                                 control_dt=control_dt, max_components=max_components)
