@@ -91,3 +91,25 @@ def test_output_over_an_input_is_refused_before_work(tmp_path: Path,
     assert code == 2
     _one_error(err)
     assert Path(demos[0]).read_bytes() == before
+
+
+def test_the_gate_re_checks_orientation_certificates(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    from tli_verify.deploy.gate import run_gate
+
+    demos = _write_demos(tmp_path)
+    (tmp_path / "orientation").mkdir()
+    (tmp_path / "certificates").mkdir()
+    model = tmp_path / "orientation" / "tool.json"
+    cert = tmp_path / "certificates" / "tool.orientation.cert.json"
+    assert run(capsys, "learn-orientation", *demos, "-o", str(model))[0] == 0
+    assert run(capsys, "certify", str(model), "-o", str(cert))[0] == 0
+    report = run_gate(tmp_path, rerun=0)
+    item = next(i for i in report.items if i.kind == "certificate")
+    assert item.ok and "orientation DS re-checked exactly" in item.message
+    assert not report.ok  # no deployable (position) model: the gate still fails closed
+    doc = json.loads(cert.read_text(encoding="utf-8"))
+    doc["P"][0][0] *= 2.0
+    cert.write_text(json.dumps(doc), encoding="utf-8")
+    item = next(i for i in run_gate(tmp_path, rerun=0).items if i.kind == "certificate")
+    assert not item.ok and "P is not the model's" in item.message
