@@ -54,6 +54,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.ds.lpvds import LPVDS, FitInfo
+from tli_verify.ds.lyapunov import RATE_BUDGET
 from tli_verify.errors import ModelError
 
 __all__ = [
@@ -341,7 +342,7 @@ def learn_quaternion_ds(
     attractor: npt.ArrayLike | None = None,
     *,
     seed: int = 0,
-    rate_budget: float | None = 0.03,
+    rate_budget: float | None = RATE_BUDGET,
     control_dt: float | None = 1e-3,
     max_components: int = 12,
 ) -> tuple[QuaternionDS, FitInfo]:
