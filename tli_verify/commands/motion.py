@@ -151,6 +151,22 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(handler=_check_cert)
 
     p = sub.add_parser(
+        "learn-orientation", help="learn a certified orientation DS from pose demonstrations",
+        description="Reads pose demonstration CSVs (time, x0.., q0..q3 with a '# quaternion: "
+        "scalar-first|scalar-last' line), fixes hemisphere flips and normalises non-unit "
+        "quaternions (reported), and learns an LPV-DS in the tangent space at the attractor "
+        "q* (the mean last orientation), with its own Lyapunov matrix, the rate choice and "
+        "the sampled-data constraint at --control-dt. Writes the orientation model JSON; "
+        "certify it with tli certify.")
+    p.add_argument("demos", nargs="+", type=Path, metavar="POSE.csv")
+    p.add_argument("-o", "--output", type=output_path, required=True, metavar="OUT.json")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the mixture (default 0)")
+    p.add_argument("--control-dt", type=positive_float, default=1e-3, metavar="SECONDS",
+                   help="control period of the sampled-data constraint (default 0.001)")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_learn_orientation)
+
+    p = sub.add_parser(
         "gate", help="deployment gate: every certificate, model and spec re-checks",
         description="Exit 0 only when every certificate under DIR/certificates re-checks "
         "exactly, every model under DIR/models has a valid certificate and campaign evidence "
@@ -287,11 +303,109 @@ def default_certificate_path(model: Path) -> Path:
     return model_files(model).certificate
 
 
+def _kind(path: Path, error: type[TliError]) -> str | None:
+    """The ``kind`` field of a JSON file (None when it has none); unreadable: ``error``."""
+    from tli_verify.io import read_json
+
+    if path.is_dir():
+        raise bad_input(error, f"{path}: is a directory, expected a JSON file")
+    doc = read_json(path, what="JSON file", error=error)
+    kind = doc.get("kind") if isinstance(doc, dict) else None
+    return kind if isinstance(kind, str) else None
+
+
+def _learn_orientation(args: argparse.Namespace) -> int:
+    from tli_verify.demos import load_pose_demo
+    from tli_verify.ds.quaternion import learn_quaternion_ds, write_orientation_model
+    from tli_verify.io import check_output_file
+
+    check_output_file(args.output, inputs=args.demos, what="orientation model")
+    demos = [load_pose_demo(p) for p in args.demos]
+    for d in demos:
+        for note in d.notes:
+            if args.json:
+                _emit({"note": note})
+            else:
+                sys.stdout.write(f"note: {note}\n")
+    ds, info = learn_quaternion_ds([d.t for d in demos], [d.q for d in demos], seed=args.seed,
+                                   control_dt=float(control_period(args.control_dt, None)))
+    write_orientation_model(ds, args.output, fit=info)
+    record = {"model": str(args.output), "attractor": ds.attractor.tolist(),
+              "components": info.n_components, "decay_rate": info.rate,
+              "control_dt": info.control_dt, "seconds": round(info.seconds, 3)}
+    if args.json:
+        _emit(record)
+    else:
+        q = ", ".join(f"{v:.4f}" for v in ds.attractor)
+        sys.stdout.write(f"wrote {args.output}: orientation DS, q* = ({q}) (w, x, y, z), "
+                         f"K = {info.n_components}, decay rate {info.rate:.3g}/s, learned in "
+                         f"{info.seconds:.2f} s; certify it with: tli certify {args.output} "
+                         "-o CERT.json\n")
+    return 0
+
+
+def _certify_orientation(args: argparse.Namespace) -> int:
+    from tli_verify.certification.orientation import (
+        issue_orientation_certificate,
+        write_orientation_certificate,
+    )
+    from tli_verify.io import check_output_file
+
+    if args.repair is not None:
+        raise bad_input(ModelError, f"{args.model}: --repair is not available for orientation "
+                        "models")
+    out: Path = args.output or default_certificate_path(args.model)
+    check_output_file(out, inputs=[args.model], what="certificate")
+    dt = control_period(args.dt, None)
+    doc = issue_orientation_certificate(args.model, out, dt=dt)
+    write_orientation_certificate(doc, out)
+    ex = doc["exact"]
+    record = {"certificate": str(out), "model": str(args.model), "kind": "orientation",
+              "dt": doc["dt"], "decay_rate": ex["decay_rate"],
+              "region_V_below": ex["region_V_below"], "exact": True}
+    if args.json:
+        _emit(record)
+    else:
+        angle = float(Fraction(ex["region_angle_squared_below"])) ** 0.5
+        sys.stdout.write(f"orientation: P > 0, {len(ex['continuous'])} components with "
+                         f"A_k^T P + P A_k < 0, decrease per step at dt = {doc['dt']}, decay "
+                         f"rate {float(Fraction(ex['decay_rate'])):.4g}/s, chart region "
+                         f"V < {float(Fraction(ex['region_V_below'])):.4g} (every start within "
+                         f"{angle * 57.29577951308232:.1f} degrees of q*); exact: yes\n"
+                         f"wrote {out}\n")
+    return 0
+
+
+def _check_orientation_cert(args: argparse.Namespace) -> int:
+    from tli_verify.certification.orientation import check_orientation_certificate
+
+    if args.model is not None:
+        raise bad_input(CertificateError, f"{args.certificate}: --model is not available for "
+                        "orientation certificates (they bind their model file)")
+    check = check_orientation_certificate(args.certificate)
+    for item in check.failures:
+        if args.json:
+            _emit({"certificate": str(args.certificate), "ok": False, "message": item})
+        else:
+            sys.stdout.write(f"FAIL  {item}\n")
+    if args.json:
+        _emit({"certificate": str(args.certificate), "kind": "orientation", "valid": check.ok})
+    if not check.ok:
+        raise CertificateError(f"{args.certificate}: orientation certificate does not re-check "
+                               f"({len(check.failures)} problem(s)): {check.failures[0]}")
+    if not args.json:
+        sys.stdout.write(f"{args.certificate}: valid (orientation DS re-checked exactly)\n")
+    return 0
+
+
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import issue_certificate, write_certificate
+    from tli_verify.ds.quaternion import ORIENTATION_MODEL_KIND
     from tli_verify.io import check_output_file
     from tli_verify.model.serialize import load_model
 
+    if _kind(args.model, ModelError) == ORIENTATION_MODEL_KIND:
+        return _certify_orientation(args)
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
     dt = control_period(args.dt, spec_path)
@@ -339,11 +453,15 @@ def _certify(args: argparse.Namespace) -> int:
 
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import check_certificate
+    from tli_verify.certification.orientation import ORIENTATION_CERT_KIND
 
     for path, what, error in ((args.certificate, "certificate", CertificateError),
                               (args.model, "model", ModelError)):
         if path is not None and path.is_dir():  # not "no such file": say what it is
             raise bad_input(error, f"{path}: is a directory, expected a {what} file")
+    if args.certificate.is_file() and \
+            _kind(args.certificate, CertificateError) == ORIENTATION_CERT_KIND:
+        return _check_orientation_cert(args)
     check = check_certificate(args.certificate, model_path=args.model)
     if args.json:
         for item in check.passed:

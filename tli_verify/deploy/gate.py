@@ -8,7 +8,9 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
 2. every certificate under ``DIR/certificates/`` re-checks exactly
    (:func:`tli_verify.certification.certificate.check_certificate`): digest, model and spec hashes,
    the spec it names is the model's, ``P`` is the model's (the runtime's) ``P``, the cuts, the
-   continuous-time, sampled-data and decay-rate conditions;
+   continuous-time, sampled-data and decay-rate conditions; an orientation certificate
+   (:mod:`tli_verify.certification.orientation`, recognised by its ``kind``) likewise, with its
+   chart region;
 3. every model under ``DIR/models/`` -- a *deployed* model -- is bound to its spec and covered:
 
    * ``certificate``: a valid certificate covers its exact bytes (SHA-256), cuts included;
@@ -44,7 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tli_verify.certification.certificate import CertCheck, check_certificate
-from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.errors import CertificateError, GateError, TliError, bad_input
 from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 
@@ -214,6 +216,34 @@ def _spec_item(result: Any, shown: str) -> GateItem:
                         f"{'realizable' if expected else 'unrealizable'}")
     return GateItem("spec", shown, False, f"{verdict} but not well-separated: it may be won "
                     "vacuously (declare expect = \"not-well-separated\" if intended)")
+
+
+def _orientation_item(cert: Path, shown: str) -> GateItem | None:
+    """The re-check of an orientation certificate (:mod:`tli_verify.certification.orientation`),
+    or None when ``cert`` is not one. Orientation models are not deployed by the gate yet (no
+    pose task or campaign); their certificates re-check exactly all the same, and a failing one
+    blocks."""
+    from tli_verify.certification.orientation import (
+        ORIENTATION_CERT_KIND,
+        check_orientation_certificate,
+    )
+    from tli_verify.io import read_json
+
+    try:
+        doc = read_json(cert, what="certificate", error=CertificateError)
+    except (TliError, RecursionError):
+        return None  # check_certificate reports it
+    if not (isinstance(doc, dict) and doc.get("kind") == ORIENTATION_CERT_KIND):
+        return None
+    try:
+        check = check_orientation_certificate(cert)
+    except TliError as exc:
+        return GateItem("certificate", shown, False, f"unreadable: {exc}")
+    if check.ok:
+        return GateItem("certificate", shown, True, "orientation DS re-checked exactly (P, "
+                        "continuous, sampled, decay rate, chart region); covers "
+                        f"{doc['model']['path']}")
+    return GateItem("certificate", shown, False, "; ".join(check.failures))
 
 
 def _certificate_line(check: CertCheck) -> str:
@@ -469,6 +499,10 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         bad = _irregular(cert, "certificate", shown(cert))
         if bad is not None:
             items.append(bad)
+            continue
+        orientation = _orientation_item(cert, shown(cert))
+        if orientation is not None:
+            items.append(orientation)
             continue
         try:
             check = check_certificate(cert)

@@ -323,8 +323,9 @@ def learn_lpvds(
     from threadpoolctl import threadpool_limits
 
     start = time.perf_counter()
-    # small matrices: multi-threaded BLAS only adds contention (20x slower on a busy machine)
-    with threadpool_limits(limits=1, user_api="blas"):
+    # small matrices: multi-threaded BLAS and OpenMP (k-means) only add contention: 20x
+    # slower on a busy machine (k-means init 0.3 s with 2 OpenMP threads, 0.01 s with one)
+    with threadpool_limits(limits=1):
         ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, rate=rate,
                          rate_budget=rate_budget, control_dt=control_dt,
                          clustering=clustering, lyapunov=lyapunov,
