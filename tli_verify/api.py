@@ -52,7 +52,6 @@ from tli_verify.arguments import (
     check_int,
     check_path,
     check_type,
-    check_vector,
 )
 from tli_verify.errors import (
     CertificateError,
@@ -63,7 +62,7 @@ from tli_verify.errors import (
     bad_input,
     bad_type,
 )
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.limits import MAX_SEED
 from tli_verify.project import control_period
 from tli_verify.snapshot import active
 
@@ -518,7 +517,8 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
     task : Task, path-like or str, optional
         Default: the task of the policy's spec.
     start : array_like, shape (n,), optional
-        Default: a seeded random state whose reading is an initial one of the spec.
+        Default: the task's first nominal start, else a seeded random state whose reading is
+        an initial one of the spec (as ``tli run``).
     perturbations : mapping of int to array_like, optional
         ``{step: displacement}`` (each shape (n,)).
     steps : int, optional
@@ -528,25 +528,21 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
     -------
     EpisodeResult
     """
-    from tli_verify.defaults import Stream, rng
-    from tli_verify.runtime.episodes import pusher, random_start
+    from tli_verify.project.session import run_policy
     from tli_verify.runtime.executive import LTLDSPolicy
-    from tli_verify.runtime.loop import run_episode
-    from tli_verify.runtime.worlds import WorldSensors
     from tli_verify.tasks.project import spec_task
     from tli_verify.tasks.registry import find_task
     from tli_verify.tasks.task import Task
 
     check_type(policy, "policy", LTLDSPolicy, "an LTLDSPolicy (make_policy)", error=TaskError)
-    steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
-    seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
+    found: Task | None
     if isinstance(task, Task):
-        world = task
+        found = task
     elif task is not None:
         if not isinstance(task, str | os.PathLike):
             raise bad_type(TaskError, f"task: expected a Task, a task name or a task file, "
                            f"got {type(task).__name__}")
-        world = find_task(task)
+        found = find_task(task)
     else:
         from tli_verify.logic.spec import load_spec
 
@@ -554,31 +550,5 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
         found = spec_task(load_spec(spec), spec) if spec is not None else None
         if found is None:
             raise bad_input(TaskError, "run: the policy's spec names no task: pass task=...")
-        world = found
-    if start is not None:
-        x0 = check_vector(start, "start", world.dim, error=TaskError)
-        if not bool(world.in_workspace(x0[None])[0]):
-            raise bad_input(TaskError, f"start: {x0.tolist()} lies outside the workspace of "
-                            f"task {world.name!r}")
-    else:
-        x0 = random_start(world, policy.automaton, rng(seed, Stream.START))
-    table = _perturbations(perturbations, world.dim, steps)
-    return run_episode(policy.fork(), WorldSensors(world), x0, steps=steps,
-                       perturb=pusher(world, table))
-
-
-def _perturbations(perturbations: Any, dim: int, steps: int) -> dict[int, Any]:
-    """``run(perturbations=...)`` checked: steps in ``[0, steps)``, displacements of shape
-    ``(dim,)`` and finite."""
-    from collections.abc import Mapping
-
-    if perturbations is None:
-        return {}
-    if not isinstance(perturbations, Mapping):
-        raise bad_type(TaskError, f"perturbations: expected a mapping step -> displacement, "
-                       f"got {type(perturbations).__name__}")
-    table: dict[int, Any] = {}
-    for step, d in perturbations.items():
-        t = check_int(step, "perturbations (a step)", 0, steps - 1, error=TaskError)
-        table[t] = check_vector(d, f"perturbations[{t}]", dim, error=TaskError)
-    return table
+    return run_policy(policy, found, start=start, perturbations=perturbations, steps=steps,
+                      seed=seed)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cached_property
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
     from tli_verify.verify.campaign import CampaignResult
     from tli_verify.verify.config import CampaignConfig
 
-__all__ = ["Session", "locate", "open_project"]
+__all__ = ["Session", "locate", "open_project", "run_policy"]
 
 PathLike = str | os.PathLike[str]
 
@@ -152,36 +153,14 @@ class Session:
             return make_policy(setup, variant)
 
     def run(self, *, start: npt.ArrayLike | None = None,
-            perturbations: dict[int, npt.ArrayLike] | None = None, steps: int = 3000,
+            perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
             seed: int = 0, variant: str = "LTL-DS") -> EpisodeResult:
-        """One closed-loop episode (``tli run``) from ``start`` (default: the task's first
-        nominal start, else a seeded random start whose reading the spec allows)."""
-        from tli_verify.arguments import check_int, check_vector
-        from tli_verify.defaults import Stream, rng
-        from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
-        from tli_verify.runtime.episodes import pusher, random_start
-        from tli_verify.runtime.loop import run_episode
-        from tli_verify.runtime.worlds import WorldSensors
-
-        task = self.task
-        steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
-        seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
-        if start is not None:
-            x0 = check_vector(start, "start", task.dim, error=TaskError)
-            if not bool(task.in_workspace(x0[None])[0]):
-                raise bad_input(TaskError, f"start: {x0.tolist()} lies outside the workspace "
-                                f"of task {task.name!r}")
-        elif task.starts.nominal:
-            x0 = np.array(task.starts.nominal[0], dtype=np.float64)
-        else:
-            x0 = random_start(task, self.automaton, rng(seed, Stream.START))
-        table = {check_int(k, "perturbations (a step)", 0, steps - 1, error=TaskError):
-                 check_vector(v, f"perturbations[{k}]", task.dim, error=TaskError)
-                 for k, v in (perturbations or {}).items()}
+        """One closed-loop episode of a variant on the session's task (``tli run``;
+        :func:`run_policy`)."""
         policy = self.policy(variant)
         with self.snapshot.use():
-            return run_episode(policy, WorldSensors(task), x0, steps=steps,
-                               perturb=pusher(task, table))
+            return run_policy(policy, self.task, start=start, perturbations=perturbations,
+                              steps=steps, seed=seed)
 
     def campaign(self, config: CampaignConfig) -> CampaignResult:
         """A falsification campaign (Sec. 4.4) on this session's files; ``config``'s own
@@ -193,6 +172,66 @@ class Session:
                       model=str(files.model), certificate=str(files.certificate))
         with self.snapshot.use():
             return run_campaign(cfg)
+
+
+def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None = None,
+               perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
+               seed: int = 0) -> EpisodeResult:
+    """One closed-loop episode of a policy on a task (``tli run``, :meth:`Session.run`,
+    :func:`tli_verify.run`), its arguments checked at the boundary.
+
+    Parameters
+    ----------
+    policy : LTLDSPolicy
+        Forked: the caller's executive is left as it was.
+    task : Task
+    start : array_like, shape (n,), optional
+        Default: the task's first nominal start, else a seeded random state (in the task's
+        start region) whose reading is an initial one of the spec -- the rule ``tli run``
+        follows.
+    perturbations : mapping of int to array_like, optional
+        ``{step: displacement}``, steps in ``[0, steps)``, displacements of shape (n,).
+    steps : int, optional
+    seed : int, optional
+        Seed of the random start.
+
+    Returns
+    -------
+    EpisodeResult
+
+    Raises
+    ------
+    InputError
+        (a TaskError; also a ValueError or TypeError) Naming the argument.
+    """
+    from tli_verify.arguments import check_int, check_vector
+    from tli_verify.defaults import Stream, rng
+    from tli_verify.errors import bad_type
+    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+    from tli_verify.runtime.episodes import pusher, random_start
+    from tli_verify.runtime.loop import run_episode
+    from tli_verify.runtime.worlds import WorldSensors
+
+    steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
+    seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
+    if start is not None:
+        x0 = check_vector(start, "start", task.dim, error=TaskError)
+        if not bool(task.in_workspace(x0[None])[0]):
+            raise bad_input(TaskError, f"start: {x0.tolist()} lies outside the workspace of "
+                            f"task {task.name!r}")
+    elif task.starts.nominal:
+        x0 = np.array(task.starts.nominal[0], dtype=np.float64)
+    else:
+        x0 = random_start(task, policy.automaton, rng(seed, Stream.START))
+    if perturbations is not None and not isinstance(perturbations, Mapping):
+        raise bad_type(TaskError, f"perturbations: expected a mapping step -> displacement, "
+                       f"got {type(perturbations).__name__}")
+    table = {}
+    for step, d in (perturbations or {}).items():
+        t = check_int(step, "perturbations (a step)", 0, steps - 1, error=TaskError)
+        table[t] = check_vector(d, f"perturbations[{t}]", task.dim, error=TaskError)
+    return run_episode(policy.fork(), WorldSensors(task), x0, steps=steps,
+                       perturb=pusher(task, table))
 
 
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,
