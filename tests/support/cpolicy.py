@@ -199,6 +199,7 @@ class Trace:
     failures_py: list[int] = field(default_factory=list)
     failures_c: list[int] = field(default_factory=list)
     cuts_added: int = 0
+    refused: int = 0
     modulated_steps: int = 0
 
     def max_rel(self) -> float:
@@ -255,10 +256,14 @@ def run_side_by_side(policy: Any, cpol: CPolicy, art: dict[str, Any], sensors: A
             tr.failures_py.append(t)
         if info.flags & F_FAILURE:
             tr.failures_c.append(t)
-        for e in new:
-            if isinstance(e, CutAdded):
-                cpol.add_cut(modes.index(e.mode), e.cut.normal, e.cut.point)
-                tr.cuts_added += 1
+        try:
+            for e in new:
+                if isinstance(e, CutAdded):
+                    cpol.add_cut(modes.index(e.mode), e.cut.normal, e.cut.point)
+                    tr.cuts_added += 1
+        except CError as exc:  # the fixed storage is full: the C side refuses, parity ends
+            tr.refused = exc.code
+            break
         v_c = cpol.velocity()
         tr.modes_py.append(policy.mode)
         tr.modes_c.append(modes[info.mode])

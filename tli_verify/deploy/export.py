@@ -44,7 +44,8 @@ import numpy as np
 from tli_verify.errors import ExportError, GateError, TliError, bad_input
 
 __all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "Exported", "build_artifact",
-           "check_artifact", "export_policy", "render_text", "text_path_for"]
+           "check_artifact", "content_hash", "export_policy", "render_text", "text_path_for",
+           "write_artifact"]
 
 FORMAT = "tli-policy"
 """The artifact's ``format`` field."""
@@ -56,6 +57,9 @@ MAX_C_BITS = 64
 """Most sensors and most modes the C evaluator takes (one 64-bit mask each)."""
 DEFAULT_MAX_ONLINE_CUTS = 16
 """Cuts the C evaluator can add per DS at run time (fixed storage; one more is refused)."""
+MAX_ONLINE_CUTS = 63
+"""Most online cut slots per DS (the C evaluator holds at most 64 cuts per DS, offline ones
+included: ``TLI_MAX_CUTS``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -333,13 +337,13 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
         Bad input (exit 2).
     """
     from tli_verify.deploy.gate import run_gate
-    from tli_verify.io import atomic_write_text, canonical_json, check_plan
+    from tli_verify.io import check_plan
     from tli_verify.runtime.setup import check_goal, load_setup, make_policy
     from tli_verify.tasks.project import model_files, resolve
 
     if isinstance(max_online_cuts, bool) or not isinstance(max_online_cuts, int) or \
-            not 0 <= max_online_cuts <= 1024:
-        raise bad_input(ExportError, f"max_online_cuts must be an integer in 0..1024, got "
+            not 0 <= max_online_cuts <= MAX_ONLINE_CUTS:
+        raise bad_input(ExportError, f"max_online_cuts must be an integer in 0..{MAX_ONLINE_CUTS}, got "
                         f"{max_online_cuts!r}")
     resolved = resolve(model=model)
     out_json = Path(out)
@@ -371,6 +375,20 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                "evidence": _hash_or_none(Path(resolved.evidence))}
     art = build_artifact(setup, goal_modes=goal_modes, goal_inputs=resolved.goal.sensors,
                          sources=sources, max_online_cuts=max_online_cuts)
+    return write_artifact(art, out_json)
+
+
+def write_artifact(art: dict[str, Any], out: str | os.PathLike[str]) -> Exported:
+    """Hash an artifact's content and write it (JSON) and its text form, atomically.
+
+    The caller checked the paths (:func:`tli_verify.io.check_plan`); ``art`` is the content of
+    :func:`build_artifact` (its ``content_sha256`` is set here).
+    """
+    from tli_verify.io import atomic_write_text, canonical_json
+
+    out_json = Path(out)
+    out_text = text_path_for(out_json)
+    art = {k: v for k, v in art.items() if k != "content_sha256"}
     body = render_text(art)
     digest = hashlib.sha256(body.encode("utf-8")).hexdigest()
     art["content_sha256"] = digest
