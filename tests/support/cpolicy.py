@@ -198,6 +198,7 @@ class Trace:
     v_c: list[np.ndarray] = field(default_factory=list)
     failures_py: list[int] = field(default_factory=list)
     failures_c: list[int] = field(default_factory=list)
+    cut_steps: list[bool] = field(default_factory=list)
     cuts_added: int = 0
     refused: int = 0
     modulated_steps: int = 0
@@ -271,8 +272,9 @@ def run_side_by_side(policy: Any, cpol: CPolicy, art: dict[str, Any], sensors: A
         tr.keys_c.append(keys[info.ds] if info.ds >= 0 else "")
         tr.v_py.append(np.array(v_py))
         tr.v_c.append(v_c)
-        if policy.key and policy.model.modes[policy.key].cuts:
-            tr.modulated_steps += 1
+        cut = bool(policy.key and policy.model.modes[policy.key].cuts)
+        tr.cut_steps.append(cut)
+        tr.modulated_steps += int(cut)
         x = x + dt * np.asarray(v_py)
         if policy.done:
             break
