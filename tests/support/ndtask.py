@@ -71,7 +71,7 @@ class NDSensors:
 
 
 def _ds(rng: np.random.Generator, mode: str, nxt: str | None, att: np.ndarray, K: int,
-        spin: float) -> dict[str, Any]:
+        spin: float, cuts: int = 0) -> dict[str, Any]:
     n = att.size
     M = rng.normal(size=(n, n))
     P = M @ M.T / n + np.eye(n)
@@ -88,15 +88,20 @@ def _ds(rng: np.random.Generator, mode: str, nxt: str | None, att: np.ndarray, K
         mean = att + rng.normal(scale=0.5, size=n) - np.r_[0.8, np.zeros(n - 1)]
         comps.append({"prior": 1.0 / K, "mean": mean.tolist(), "cov": cov.tolist(),
                       "A": A.tolist()})
+    planes = []
+    for _ in range(cuts):  # offline cuts keeping x* inside (h in [0.3, 0.6])
+        w = rng.normal(size=n)
+        w /= np.linalg.norm(w)
+        planes.append({"normal": w.tolist(), "point": (att + rng.uniform(0.3, 0.6) * w).tolist()})
     return {"mode": mode, "next_mode": nxt, "attractor": att.tolist(), "P": P.tolist(),
-            "components": comps, "cuts": []}
+            "components": comps, "cuts": planes}
 
 
-def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0
-             ) -> SimpleNamespace:
+def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0,
+             cuts: int = 0) -> SimpleNamespace:
     """Write spec, model and certificate of the n-D task under ``root``; return the policy's
     pieces (``automaton``, ``model``, ``certificate``, ``spec``, ``setup`` for
-    :func:`tli_verify.deploy.export.build_artifact`)."""
+    :func:`tli_verify.deploy.export.build_artifact`); ``cuts`` offline cuts per DS."""
     from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import parse_spec
@@ -107,7 +112,7 @@ def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0
         (root / d).mkdir(parents=True, exist_ok=True)
     (root / "specs" / "nd.toml").write_text(SPEC)
     e0 = np.r_[1.0, np.zeros(n - 1)]
-    modes = {m: _ds(rng, m, nxt, x0 * e0, K, spin)
+    modes = {m: _ds(rng, m, nxt, x0 * e0, K, spin, cuts)
              for m, nxt, x0 in (("a", "b", 1.5), ("b", "c", 2.5), ("c", "d", 3.5),
                                 ("d", None, 4.0))}
     doc = {"schema_version": 1, "state_names": [f"x{i}" for i in range(n)],
