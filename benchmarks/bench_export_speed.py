@@ -60,7 +60,8 @@ int main(int argc, char **argv) {
             sink += v[0];
         }
         clock_gettime(CLOCK_MONOTONIC, &b);
-        printf("%.3f\n", ((double)(b.tv_sec - a.tv_sec) * 1e9 + (double)(b.tv_nsec - a.tv_nsec)) / N);
+        printf("%.3f\n", ((double)(b.tv_sec - a.tv_sec) * 1e9
+                          + (double)(b.tv_nsec - a.tv_nsec)) / N);
     }
     fprintf(stderr, "%g\n", sink);
     tli_policy_free(p);

@@ -173,8 +173,8 @@ class CPolicy:
         return out
 
     def add_cut(self, mode: int, normal: Any, point: Any) -> None:
-        a, pa = _vec(normal, self.n)
-        b, pb = _vec(point, self.n)
+        _a, pa = _vec(normal, self.n)  # the arrays stay alive until the call returns
+        _b, pb = _vec(point, self.n)
         err = ctypes.create_string_buffer(512)
         code = self.lib.tli_policy_add_cut(self.handle, mode, pa, pb, err, 512)
         if code:

@@ -58,7 +58,7 @@ def test_an_edited_artifact_is_refused(project: Path, tmp_path: Path) -> None:
     art = json.loads(out.read_text())
     art["ds"][0]["A"][0][0][0] *= 1.0000001
     out.write_text(json.dumps(art))
-    with pytest.raises(ExportError, match="content_sha256 .* is not the hash of its content"):
+    with pytest.raises(ExportError, match=r"content_sha256 .* is not the hash of its content"):
         check_artifact(out)
 
 

@@ -95,7 +95,7 @@ def _hash_or_none(path: Path | None) -> dict[str, str] | None:
 
 
 def _floats(a: Any) -> list[Any]:
-    return np.asarray(a, dtype=np.float64).tolist()  # type: ignore[no-any-return]
+    return np.asarray(a, dtype=np.float64).tolist()
 
 
 def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequence[str],
@@ -233,7 +233,8 @@ def render_text(art: dict[str, Any]) -> str:
         f"sizes {n} {len(inputs)} {len(modes)} {len(aut['states'])} {len(aut['initial'])} "
         f"{len(aut['edges'])} {len(keys)} {total_k} {total_cuts} {int(mod['max_online_cuts'])}",
         f"dt {float(art['dt'])!r}",
-        f"modulation {_nums([mod['barrier_rate'], mod['degenerate_tol'], mod['boundary_tol'], mod['guard_tol']])}",
+        "modulation " + _nums([mod["barrier_rate"], mod["degenerate_tol"],
+                               mod["boundary_tol"], mod["guard_tol"]]),
     ]
     for what in ("spec", "model", "certificate", "task", "evidence"):
         src = art["sources"].get(what)
@@ -343,8 +344,8 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
 
     if isinstance(max_online_cuts, bool) or not isinstance(max_online_cuts, int) or \
             not 0 <= max_online_cuts <= MAX_ONLINE_CUTS:
-        raise bad_input(ExportError, f"max_online_cuts must be an integer in 0..{MAX_ONLINE_CUTS}, got "
-                        f"{max_online_cuts!r}")
+        raise bad_input(ExportError, "max_online_cuts must be an integer in "
+                        f"0..{MAX_ONLINE_CUTS}, got {max_online_cuts!r}")
     resolved = resolve(model=model)
     out_json = Path(out)
     out_text = text_path_for(out_json)
