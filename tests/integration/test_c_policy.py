@@ -21,18 +21,23 @@ import numpy as np
 import pytest
 
 from tests.support.cpolicy import (
+    F_ASSUMPTION,
+    F_DONE,
     F_FAILURE,
+    F_HOLDING,
     CError,
     CPolicy,
     build,
     c_source_dir,
     compiler,
     library,
+    mask,
     run_side_by_side,
 )
 from tests.support.ndtask import NDSensors, write_nd
 from tli_verify.boundary.cuts import Cut
 from tli_verify.deploy.export import build_artifact, write_artifact
+from tli_verify.runtime.events import AssumptionViolationEvent, InvarianceFailure
 from tli_verify.runtime.executive import LTLDSPolicy
 
 REL = 1e-12
@@ -287,3 +292,50 @@ def test_no_allocation_after_load() -> None:
                   for f in funcs if re.search(r"\b(malloc|calloc|realloc)\(", f)
                   and re.match(r"(?:static )?[a-z_ ]+?\**([a-z_0-9]+)\(", f.strip())}
     assert allocating == {"parse", "tli_policy_load_buffer", "tli_policy_load"}
+
+
+@pytest.mark.parametrize("n", [2, 5])
+def test_automaton_parity_under_arbitrary_readings(lib: Any, nd_artifacts: dict[int, Any],
+                                                   n: int) -> None:
+    """Readings no physics would produce (random bits, random pushes): assumption violations,
+    resynchronisation and holding -- the same states, modes, DS, failures, holding and done
+    flags, and velocities (no cuts learned: ``learn_cuts=False``, so bit for bit)."""
+    nd = nd_artifacts[n]
+    inputs = nd.exported.artifact["automaton"]["inputs"]
+    modes = nd.exported.artifact["automaton"]["modes"]
+    keys = [d["key"] for d in nd.exported.artifact["ds"]]
+    rng = np.random.default_rng(n)
+    seen = {"assumption": 0, "holding": 0, "failure": 0, "done": 0}
+    for _ in range(5):
+        pol = LTLDSPolicy(nd.automaton, nd.model, nd.certificate, dt=0.01, learn_cuts=False)
+        c = CPolicy(lib, nd.exported.text_path)
+        reading = frozenset(v for v in inputs if rng.random() < 0.3)
+        x = rng.normal(size=n)
+        pol.reset(x, reading)
+        info = c.reset(x, mask(reading, inputs))
+        assert (info.state, modes[info.mode]) == (pol.state, pol.mode)
+        assert bool(info.flags & F_HOLDING) == pol.holding
+        for _ in range(400):
+            if rng.random() < 0.2:
+                reading = frozenset(v for v in inputs if rng.random() < 0.3)
+            x = x + rng.normal(scale=0.05, size=n)
+            perturbed = bool(rng.random() < 0.1)
+            n_events = len(pol.events)
+            v_py = pol.step(x, reading, perturbed=perturbed)
+            info = c.decide(x, mask(reading, inputs), perturbed)
+            v_c = c.velocity()
+            new = pol.events[n_events:]
+            assert (info.state, modes[info.mode]) == (pol.state, pol.mode)
+            assert (keys[info.ds] if info.ds >= 0 else "") == ("" if pol.holding else pol.key)
+            assert bool(info.flags & F_HOLDING) == pol.holding
+            assert bool(info.flags & F_DONE) == pol.done
+            assert bool(info.flags & F_FAILURE) == any(isinstance(e, InvarianceFailure)
+                                                       for e in new)
+            assert bool(info.flags & F_ASSUMPTION) == any(
+                isinstance(e, AssumptionViolationEvent) for e in new)
+            assert np.array_equal(v_py, v_c)
+            seen["assumption"] += bool(info.flags & F_ASSUMPTION)
+            seen["holding"] += bool(info.flags & F_HOLDING)
+            seen["failure"] += bool(info.flags & F_FAILURE)
+            seen["done"] += bool(info.flags & F_DONE)
+    assert all(v > 0 for v in seen.values()), seen
