@@ -146,8 +146,7 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
     for k in keys:
         mm = model.modes[k]
         lp = mm.ds
-        mix = lp._mix
-        center, _pairs, rows = mix._one
+        center, rows = lp.mixture.quadratic_form()
         ds.append({
             "key": k, "mode": mm.mode, "next_mode": mm.next_mode,
             "attractor": _floats(lp.attractor), "P": _floats(lp.P),
