@@ -16,6 +16,8 @@ from tests.support.cpolicy import compiler
 from tli_verify.deploy.export import export_policy
 from tli_verify.deploy.gate import _evaluator_note
 from tli_verify.io import bundled_dir
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+from tli_verify.verify.evidence import check_evidence
 
 pytestmark = [pytest.mark.sim,
               pytest.mark.skipif(compiler() is None, reason="no system C compiler")]
@@ -41,7 +43,13 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     assert rec["steps"] > 100 and rec["max_rel_diff"] <= 1e-12
     phys = json.loads(evidence.read_text())["physics"]
     assert phys["evaluator"] == rec
-    assert ex.content_sha256 in _evaluator_note(phys)
+    # the evidence checks (schema, digest, bindings) and the gate's line names the artifact
+    check = check_evidence(evidence, model_path=franka / "models" / "franka-scoop.model.json",
+                           valid_certificates=[franka / "certificates" / "franka-scoop.cert.json"],
+                           physical=(FRANKA_PHYSICS,))
+    # one trial: only the campaign's size blocks (the gate wants 30)
+    assert len(check.problems) == 1 and "fewer than the minimum 30" in check.problems[0]
+    assert ex.content_sha256 in _evaluator_note(dict(check.physics))
 
 
 def test_an_artifact_of_another_model_is_refused(tmp_path: Path, repo: Path,
