@@ -37,8 +37,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    metavar="POLICY.tli.json", help="the artifact to write (the text form goes "
                    "next to it, .json replaced by .txt)")
     p.add_argument("--rerun", type=int_range(1, 100_000), default=None, metavar="N",
-                   help="examples of the gate's re-run campaign per model (default: the "
-                   "gate's, 50)")
+                   help="size of the gate's re-run per model: examples, or physical trials "
+                   "for physical evidence (default: the gate's, 50 examples or 1 trial)")
     p.add_argument("--max-online-cuts", type=int_range(0, 63), default=16, metavar="N",
                    help="cuts the C evaluator may add per DS at run time (fixed storage; "
                    "default 16)")
