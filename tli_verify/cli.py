@@ -71,6 +71,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.verify",
     "tli_verify.commands.sim",
     "tli_verify.commands.task",
+    "tli_verify.commands.deploy",
 )
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "CheckFailed",
     "DemoError",
     "EvidenceError",
+    "ExportError",
     "GateError",
     "InputError",
     "ModelError",
@@ -107,6 +108,12 @@ class EvidenceError(CheckFailed):
 
 class GateError(CheckFailed):
     """The deployment gate blocks: something is uncertified or tampered with."""
+
+
+class ExportError(InputError):
+    """A policy artifact (``tli export``) cannot be built or does not check: malformed, edited
+    (its ``content_sha256`` is not the hash of its content), or beyond the C evaluator's
+    limits."""
 
 
 class AssetError(InputError):

@@ -86,6 +86,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
                    "pitch) with the cuts learned in them (paper Fig. 11 style)")
+    f.add_argument("--c-evaluator", type=Path, default=None, metavar="POLICY.tli.json",
+                   help="drive the robot with this exported artifact (tli export) in the C "
+                   "evaluator, built with the system compiler; the Python executive runs "
+                   "alongside as its supervisor (same automaton, cuts solved in Python and "
+                   "handed to the evaluator); the artifact must have been exported from the "
+                   "model being run; with --evidence the evidence records its hash (serial "
+                   "backend, one worker)")
     f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
@@ -128,6 +135,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.fig9 is not None and args.workers > 1:
         raise TliError(f"--fig9 plots the cuts one executive learned: not with --workers "
                        f"{args.workers} (one executive per chunk)")
+    if args.c_evaluator is not None and (args.backend != "serial" or args.workers > 1
+                                         or args.no_modulation or args.no_replan):
+        raise TliError("--c-evaluator: one executive in this process (--backend serial, "
+                       "--workers 1), the deployed variant (no --no-modulation, --no-replan)")
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
@@ -173,8 +184,18 @@ def _run(args: argparse.Namespace) -> int:
                "no-replan" if args.no_replan else "LTL-DS")
     # exit 1 if the certificate does not cover the model (on the other backends the campaign
     # checks it before any worker starts, and each chunk loads its own executive)
-    policy = load_policy(variant, certificates=args.certificates) \
+    policy: Any = load_policy(variant, certificates=args.certificates) \
         if args.backend == "serial" else None
+    evaluator = None
+    if args.c_evaluator is not None:
+        import tempfile
+
+        from tli_verify.deploy.cloop import in_the_loop
+
+        with tempfile.TemporaryDirectory(prefix="tli-c-") as build_dir:  # loaded: removable
+            policy = evaluator = in_the_loop(policy, args.c_evaluator, build_dir)
+        sys.stderr.write(f"note: the C evaluator drives the robot: artifact "
+                         f"{evaluator.sha256}\n")
     recorder = None
     if args.video is not None:
         from tli_verify.sim.render import Recorder
@@ -220,8 +241,13 @@ def _run(args: argparse.Namespace) -> int:
         "wall_time": round(sum(r.wall_time for r in results), 2),
         "workers": args.workers, "backend": args.backend,
         "chunks": [list(c) for c in campaign.chunks]}
+    record: dict[str, Any] | None = None
+    if evaluator is not None:
+        record = {"kind": "c", "artifact_sha256": evaluator.sha256, "steps": evaluator.steps,
+                  "max_rel_diff": evaluator.max_rel_diff}
+        summary["evaluator"] = record
     if evidence is not None:
-        target, _ = write_physics_evidence(campaign, evidence)
+        target, _ = write_physics_evidence(campaign, evidence, evaluator=record)
         summary["evidence"] = str(target)
     if recorder is not None:
         recorder.save(args.video)
@@ -239,6 +265,9 @@ def _run(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(f"{variant}: {ok}/{len(results)} trials delivered soup, {passed} "
                          "passed the oracle"
+                         + (f"; C evaluator {evaluator.sha256[:12]}: {evaluator.steps} steps, "
+                            f"velocities within {evaluator.max_rel_diff:.1e} of the runtime's"
+                            if evaluator is not None else "")
                          + (f"; video {args.video}" if args.video is not None else "")
                          + (f"; evidence {summary['evidence']}" if evidence is not None
                             else "") + "\n")

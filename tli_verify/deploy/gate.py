@@ -577,7 +577,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                 f"{check.examples} perturbed trials from seed {check.seed}"
                 f"{_partition(phys)} ({phys['pushes']} "
                 f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
-                "violations; binds its task, spec, model and certificate (SHA-256)", "campaign"))
+                "violations; binds its task, spec, model and certificate (SHA-256)"
+                + _evaluator_note(phys), "campaign"))
         else:
             forged = _settings_problems(check, model)
             if forged:
@@ -601,6 +602,16 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "model (the gate looks for models/<name>.model.json next to "
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
+
+
+def _evaluator_note(phys: dict[str, Any]) -> str:
+    """``; the trials ran artifact <sha> in the C evaluator`` when the evidence says so."""
+    ev = phys.get("evaluator")
+    if not isinstance(ev, dict):
+        return ""
+    return (f"; the trials ran the exported artifact {ev.get('artifact_sha256')} in the C "
+            f"evaluator ({ev.get('steps')} steps, velocities within "
+            f"{float(ev.get('max_rel_diff', 0.0)):.1e} of the runtime's)")
 
 
 def _unprefixed(problem: str, path: str) -> str:

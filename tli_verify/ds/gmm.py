@@ -143,6 +143,23 @@ class GMM:
         """State dimension n."""
         return int(self.means.shape[1])
 
+    def quadratic_form(self) -> tuple[tuple[float, ...], tuple[tuple[tuple[float, ...], float],
+                                                                 ...]]:
+        """The polynomial :meth:`posterior_one` evaluates, for an evaluator in another language.
+
+        ``log pi_k N(x | mu_k, Sigma_k) = c_k + sum_l phi_l(u) a_kl`` with ``u = x - center``
+        and ``phi(u) = [u_i u_j for i <= j (row-major upper triangle), u_1 .. u_n]``; summed
+        from ``c_k`` left to right, exactly as :meth:`posterior_one` does.
+
+        Returns
+        -------
+        center : tuple of float, length n
+        rows : tuple of (tuple of float, float), length K
+            Per component the coefficients ``a_k`` (length n(n+1)/2 + n) and ``c_k``.
+        """
+        center, _, rows = self._one
+        return center, rows
+
     def log_joint(self, X: npt.ArrayLike) -> FloatArray:
         """``log pi_k + log N(x_i | mu_k, Sigma_k)``.
 

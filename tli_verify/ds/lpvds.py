@@ -122,6 +122,11 @@ class LPVDS:
         return int(self.attractor.size)
 
     @property
+    def mixture(self) -> GMM:
+        """The position GMM of ``gamma_k`` (paper eq. 4)."""
+        return self._mix
+
+    @property
     def n_components(self) -> int:
         """Number of linear systems K."""
         return int(self.priors.size)

@@ -50,7 +50,8 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
 
 
 def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] | None = None,
-                           *, inputs: Sequence[str | os.PathLike[str]] = ()
+                           *, inputs: Sequence[str | os.PathLike[str]] = (),
+                           evaluator: dict[str, Any] | None = None
                            ) -> tuple[Path, dict[str, Any]]:
     """Write the campaign evidence of a physical campaign (atomically, canonical JSON).
 
@@ -61,6 +62,9 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         Default ``<cert_dir>/franka-scoop.campaign.json`` (``<root>/certificates``).
     inputs : sequence of path-like, optional
         Other files the evidence must not overwrite (the demonstrations, a plot, ...).
+    evaluator : dict, optional
+        The trials ran an exported artifact in the C evaluator (``physics.evaluator``:
+        ``kind``, ``artifact_sha256``, ``steps``, ``max_rel_diff``).
 
     Returns
     -------
@@ -109,6 +113,8 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
                       "limit_ratios": dict(r.limit_ratios)}
                      for r, v in zip(result.results, result.verdicts, strict=True)],
     })
+    if evaluator is not None:
+        physics["evaluator"] = dict(evaluator)
     doc = write_evidence(
         target, world=WORLD, task=deployed_task_block(files["model"], target.parent),
         spec=files["spec"], model=files["model"],

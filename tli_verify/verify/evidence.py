@@ -703,7 +703,8 @@ class EvidenceCheck:
         The evidence's recorded digest (the gate derives its re-run seeds from it).
     physics : tuple of (str, object)
         A physical campaign's settings (``physics``: robot, variant, duration, pushes,
-        tilts); empty for a 2-D world.
+        tilts, retry, sensors, and ``evaluator`` when the trials ran an exported artifact in
+        the C evaluator); empty for a 2-D world.
     """
 
     path: str
@@ -815,7 +816,7 @@ def check_evidence(path: str | os.PathLike[str], *,
     problems += _check_campaign(doc, shown, min_examples, passed, worlds)
     problems += _check_physics(doc, shown, passed, worlds)
     camp = doc["campaign"]
-    keep = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors")
+    keep = ("robot", "variant", "duration", "pushes", "tilts", "retry", "sensors", "evaluator")
     return EvidenceCheck(shown, tuple(problems), tuple(passed), world=doc["world"],
                          seed=int(camp["seed"]), examples=int(camp["examples"]),
                          runs=int(camp["runs"]), model_path=str(mpath),
