@@ -102,3 +102,56 @@ def test_cli_exports_a_gated_project(project: Path, tmp_path: Path,
     assert code == 0, err
     art = check_artifact(out)
     assert art["content_sha256"] in stdout and text_path_for(out).is_file()
+
+
+def test_the_gate_binds_a_deployed_artifact_to_what_it_checked(project: Path,
+                                                               tmp_path: Path) -> None:
+    """``tli gate --artifact``: the exported policy passes; each forgery only the binding
+    catches blocks it -- a text form edited behind a valid JSON, an artifact of another
+    model, a certificate re-issued since, evidence replaced since (no campaign tested it)."""
+    from tli_verify.deploy.gate import run_gate
+
+    out = tmp_path / "scoop.tli.json"
+    export_policy(project / "models" / "scoop.model.json", out, rerun=0)
+
+    def artifact_line(path: Path) -> tuple[bool, str]:
+        report = run_gate(project, rerun=0, artifacts=[path])
+        item = next(i for i in report.items if i.kind == "artifact")
+        return item.ok, item.message
+
+    ok, why = artifact_line(out)
+    assert ok, why
+    # the text form the C evaluator loads, edited (the JSON and its own hash untouched)
+    text = text_path_for(out)
+    good = text.read_text()
+    text.write_text(good.replace("dt 0.01", "dt 0.02", 1))
+    ok, why = artifact_line(out)
+    assert not ok and "text form" in why and "edited" in why
+    text.write_text(good)
+    # evidence replaced since the export, and its trials never ran the artifact
+    evidence = project / "certificates" / "scoop.campaign.json"
+    saved = evidence.read_bytes()
+    evidence.write_bytes(saved.replace(b"\n", b"\n ", 1))
+    ok, why = artifact_line(out)
+    assert not ok and "no campaign tested it" in why
+    evidence.write_bytes(saved)
+    assert artifact_line(out)[0]
+    # an artifact whose recorded model is none of the project's (digest recomputed)
+    from tli_verify.deploy.export import write_artifact
+
+    art = json.loads(out.read_text())
+    art["sources"]["model"]["sha256"] = "0" * 64
+    other = tmp_path / "other.tli.json"
+    write_artifact(art, other)
+    ok, why = artifact_line(other)
+    assert not ok and "none of the project's models" in why
+    # a certificate re-issued since the export (same model, other bytes): binding broken
+    cert = project / "certificates" / "scoop.cert.json"
+    doc = json.loads(cert.read_text())
+    art = json.loads(out.read_text())
+    art["sources"]["certificate"]["sha256"] = "1" * 64
+    forged = tmp_path / "forged.tli.json"
+    write_artifact(art, forged)
+    ok, why = artifact_line(forged)
+    assert not ok and "its certificate" in why
+    assert doc  # the real certificate untouched

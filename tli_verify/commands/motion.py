@@ -181,6 +181,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "from the evidence's digest and the model's SHA-256 (not the evidence's "
                    "seed), with the evidence's recorded task and settings; a violation "
                    "blocks; N is 1 to 100000 (the gate always re-runs)")
+    p.add_argument("--artifact", type=Path, action="append", default=None,
+                   metavar="POLICY.tli.json",
+                   help="an exported policy to be deployed (tli export; repeatable): it must "
+                   "re-check (its hash, its text form), be the policy of a model the gate "
+                   "passes, with the same spec, certificate and task, and be tested by the "
+                   "current evidence (exported with it, or run by its trials in the C "
+                   "evaluator)")
     p.set_defaults(handler=_gate)
 
 
@@ -501,7 +508,7 @@ def _check_cert(args: argparse.Namespace) -> int:
 def _gate(args: argparse.Namespace) -> int:
     from tli_verify.deploy.gate import run_gate
 
-    report = run_gate(args.directory, rerun=args.rerun)
+    report = run_gate(args.directory, rerun=args.rerun, artifacts=args.artifact or ())
     for item in report.items:
         if args.json:
             _emit(item.to_dict())

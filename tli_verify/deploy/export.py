@@ -41,20 +41,22 @@ from typing import Any
 
 import numpy as np
 
+from tli_verify.deploy.artifact import (
+    FORMAT,
+    MAX_C_BITS,
+    SCHEMA_VERSION,
+    TEXT_MAGIC,
+    check_artifact,
+    content_hash,
+    render_text,
+    text_path_for,
+)
 from tli_verify.errors import ExportError, GateError, TliError, bad_input
 
 __all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "Exported", "build_artifact",
            "check_artifact", "content_hash", "export_policy", "render_text", "text_path_for",
            "write_artifact"]
 
-FORMAT = "tli-policy"
-"""The artifact's ``format`` field."""
-SCHEMA_VERSION = 1
-"""The artifact's ``schema_version`` (the C loader refuses any other)."""
-TEXT_MAGIC = "tli-policy-text"
-"""First token of the text form."""
-MAX_C_BITS = 64
-"""Most sensors and most modes the C evaluator takes (one 64-bit mask each)."""
 DEFAULT_MAX_ONLINE_CUTS = 16
 """Cuts the C evaluator can add per DS at run time (fixed storage; one more is refused)."""
 MAX_ONLINE_CUTS = 63
@@ -77,13 +79,6 @@ class Exported:
     text_path: Path
     content_sha256: str
     artifact: dict[str, Any]
-
-
-def text_path_for(json_path: str | os.PathLike[str]) -> Path:
-    """``policy.tli.txt`` next to ``policy.tli.json`` (``.json`` replaced, else ``.txt``
-    appended)."""
-    p = Path(json_path)
-    return p.with_suffix(".txt") if p.suffix == ".json" else p.with_name(p.name + ".txt")
 
 
 def _hash_or_none(path: Path | None) -> dict[str, str] | None:
@@ -188,126 +183,6 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
     }
 
 
-def _hex(text: str) -> str:
-    return text.encode("utf-8").hex() or "-"
-
-
-def _mask(names: Sequence[str], order: Sequence[str]) -> int:
-    index = {n: i for i, n in enumerate(order)}
-    out = 0
-    for n in names:
-        out |= 1 << index[n]
-    return out
-
-
-def _nums(values: Any) -> str:
-    return " ".join(repr(float(v)) for v in np.asarray(values, dtype=np.float64).ravel())
-
-
-def render_text(art: dict[str, Any]) -> str:
-    """The text form's body (no ``sha256`` line) of an artifact's content.
-
-    Whitespace-separated tokens, one record per line; names hex-encoded UTF-8 (``-`` for the
-    empty name); floats as Python's shortest round-trip ``repr`` (``strtod`` reads them back
-    bit for bit); masks as unsigned decimal integers, bit ``i`` = ``inputs[i]`` (or
-    ``modes[i]``). Layout: ``docs/howto/deploy-to-robot.md``.
-
-    Raises
-    ------
-    KeyError, TypeError, ValueError
-        On content that does not follow the schema (callers validate first).
-    """
-    aut = art["automaton"]
-    inputs, modes = aut["inputs"], aut["modes"]
-    mode_ix = {m: i for i, m in enumerate(modes)}
-    keys = [d["key"] for d in art["ds"]]
-    key_ix = {k: i for i, k in enumerate(keys)}
-    n = int(art["dim"])
-    total_k = sum(len(d["priors"]) for d in art["ds"])
-    total_cuts = sum(len(d["cuts"]) for d in art["ds"])
-    mod = art["modulation"]
-    lines = [
-        f"{TEXT_MAGIC} {int(art['schema_version'])}",
-        f"name {_hex(art['name'])}",
-        f"sizes {n} {len(inputs)} {len(modes)} {len(aut['states'])} {len(aut['initial'])} "
-        f"{len(aut['edges'])} {len(keys)} {total_k} {total_cuts} {int(mod['max_online_cuts'])}",
-        f"dt {float(art['dt'])!r}",
-        "modulation " + _nums([mod["barrier_rate"], mod["degenerate_tol"],
-                               mod["boundary_tol"], mod["guard_tol"]]),
-    ]
-    for what in ("spec", "model", "certificate", "task", "evidence"):
-        src = art["sources"].get(what)
-        lines.append(f"source {what} {src['sha256'] if src else '-'}")
-    lines += [f"input {_hex(v)}" for v in inputs]
-    lines.append(f"free {_mask(aut['free_inputs'], inputs)}")
-    goal_set = set(aut["goal_modes"])
-    for m in modes:
-        lines.append(f"mode {_hex(m)} {_mask(aut['progress'].get(m, []), modes)} "
-                     f"{int(m in goal_set)}")
-    lines.append(f"goal_inputs {_mask(aut['goal_inputs'], inputs)}")
-    for s in aut["states"]:
-        planned = -1 if s["planned"] is None else mode_ix[s["planned"]]
-        lines.append(f"state {int(s['id'])} {mode_ix[s['mode']]} {int(s['goal'])} "
-                     f"{_mask(s['inputs'], inputs)} {key_ix[s['ds']]} {planned}")
-    lines.append("initial " + " ".join(str(int(i)) for i in aut["initial"]))
-    for e in aut["edges"]:
-        lines.append(f"edge {int(e['from'])} {int(e['to'])} {_mask(e['on'], inputs)} "
-                     f"{_mask(e['off'], inputs)}")
-    for d in art["ds"]:
-        k = len(d["priors"])
-        nxt = -1 if d["next_mode"] is None else mode_ix.get(d["next_mode"], -1)
-        lines.append(f"ds {_hex(d['key'])} {mode_ix[d['mode']]} {nxt} {k} {len(d['cuts'])}")
-        lines.append(f"attractor {_nums(d['attractor'])}")
-        lines.append(f"P {_nums(d['P'])}")
-        lines.append(f"priors {_nums(d['priors'])}")
-        lines.append(f"means {_nums(d['means'])}")
-        lines.append(f"covs {_nums(d['covs'])}")
-        lines.append(f"center {_nums(d['gmm']['center'])}")
-        for q, lin, c in zip(d["gmm"]["quadratic"], d["gmm"]["linear"], d["gmm"]["constant"],
-                             strict=True):
-            lines.append(f"component {_nums([*q, *lin, c])}")
-        lines.append(f"A {_nums(d['A'])}")
-        lines.append(f"b {_nums(d['b'])}")
-        for c in d["cuts"]:
-            lines.append(f"cut {_nums([*c['normal'], *c['point']])}")
-    lines.append("end")
-    return "\n".join(lines) + "\n"
-
-
-def content_hash(art: dict[str, Any]) -> str:
-    """SHA-256 (hex) of the text form's body: the artifact's ``content_sha256``."""
-    return hashlib.sha256(render_text(art).encode("utf-8")).hexdigest()
-
-
-def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Load a JSON artifact and check it: schema and its own hash.
-
-    Returns
-    -------
-    dict
-        The artifact.
-
-    Raises
-    ------
-    ExportError
-        Unreadable, not the schema, or ``content_sha256`` is not the hash of its content
-        (exit 2).
-    """
-    from tli_verify.io import read_json, validate_schema
-
-    data = read_json(path, what="policy artifact", error=ExportError)
-    validate_schema(data, "policy.schema.json", where=str(path), error=ExportError)
-    body = {k: v for k, v in data.items() if k != "content_sha256"}
-    try:
-        digest = content_hash(body)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise bad_input(ExportError, f"{path}: inconsistent artifact: {exc}") from None
-    if digest != data["content_sha256"]:
-        raise bad_input(ExportError, f"{path}: content_sha256 {data['content_sha256']} is not "
-                        f"the hash of its content ({digest}): the file was edited")
-    return dict(data)
-
-
 def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                   rerun: int | None = None, max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS,
                   ) -> Exported:
@@ -317,7 +192,7 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
     ----------
     model : path-like
         A model file under a project's ``models/`` (its spec, task, certificate and evidence
-        are found by the project rules, :func:`tli_verify.tasks.project.resolve`).
+        are found and read once by the project session, :func:`tli_verify.project.open_project`).
     out : path-like
         The JSON artifact to write; the text form goes to :func:`text_path_for`.
     rerun : int, optional
@@ -338,14 +213,16 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
     """
     from tli_verify.deploy.gate import run_gate
     from tli_verify.io import check_plan
-    from tli_verify.runtime.setup import check_goal, load_setup, make_policy
-    from tli_verify.tasks.project import model_files, resolve
+    from tli_verify.project import open_project
+    from tli_verify.runtime.setup import check_goal
+    from tli_verify.tasks.project import model_files
 
     if isinstance(max_online_cuts, bool) or not isinstance(max_online_cuts, int) or \
             not 0 <= max_online_cuts <= MAX_ONLINE_CUTS:
         raise bad_input(ExportError, "max_online_cuts must be an integer in "
                         f"0..{MAX_ONLINE_CUTS}, got {max_online_cuts!r}")
-    resolved = resolve(model=model)
+    session = open_project(model=model)
+    resolved = session.files
     out_json = Path(out)
     out_text = text_path_for(out_json)
     check_plan(inputs=[*resolved.inputs, resolved.evidence],
@@ -361,10 +238,10 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                for i in report.items):
         raise bad_input(GateError, f"{resolved.model}: refused: not a model the gate checked "
                         f"under {root}/models/")
-    setup = load_setup(resolved)
+    setup = session.setup
     goal_modes = check_goal(setup.automaton, resolved.goal, where=str(resolved.spec))
     try:  # the executive's own checks: certificate coverage, control period, plan per state
-        make_policy(setup, "LTL-DS")
+        session.policy("LTL-DS")
     except TliError as exc:
         raise GateError(f"{resolved.model}: refused: {exc}") from None
     task_file = Path(resolved.task.source.path) if resolved.task.source.path else None

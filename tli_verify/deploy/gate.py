@@ -40,7 +40,7 @@ A directory with no model to deploy fails closed ("nothing to gate"). Any failur
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -440,7 +440,8 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
 
 def run_gate(root: str | os.PathLike[str] = ".", *,
              spec_checker: Callable[[Path], SpecCheck] | None = None, rerun: int | None = None,
-             campaign_runner: CampaignRunner | None = None) -> GateReport:
+             campaign_runner: CampaignRunner | None = None,
+             artifacts: Sequence[str | os.PathLike[str]] = ()) -> GateReport:
     """Run the deployment gate on a project directory.
 
     Parameters
@@ -460,6 +461,9 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     campaign_runner : callable, optional
         ``(evidence check, model path, examples) -> (ok, message)`` for ``rerun`` (default:
         :func:`rerun_campaign`, which calls :func:`tli_verify.verify.campaign.run_campaign`).
+    artifacts : sequence of path-like, optional
+        Exported policies to be deployed (``tli gate --artifact``): each is checked
+        (:func:`artifact_item`) against the project and the campaign that tested it.
 
     Returns
     -------
@@ -528,12 +532,111 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         items += [bad] if bad is not None else _model_checks(model, shown, certified, specs)
     items += _campaign_items(base, models, shown, certified, rerun=rerun,
                              runner=campaign_runner)
+    items += [artifact_item(Path(a), base, items, shown) for a in artifacts]
     if not models:
         items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
                               f"{shown(base / 'models')}/ to deploy (the gate fails closed)",
                               "contents"))
     return GateReport(root=str(base), items=tuple(items))
 
+
+
+# --------------------------------------------------------------------------------------------
+# Deployed artifacts
+# --------------------------------------------------------------------------------------------
+
+def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
+                  shown: Callable[[Path], str]) -> GateItem:
+    """Check an exported policy (``tli export``) against what the gate passed.
+
+    It binds "the artifact that will be deployed" to "the campaign that tested it": the
+    artifact re-checks (schema, its own content hash, its text form -- what the C evaluator
+    loads -- the exact rendering of its JSON); its model is one of the project's models, and
+    the gate passed every check of it; its spec, certificate and task are the files the model
+    resolves to, byte for byte; and its campaign is the current evidence: either the artifact
+    was exported with this evidence, or this evidence's trials ran this very artifact in the C
+    evaluator (``physics.evaluator``).
+
+    Returns
+    -------
+    GateItem
+        Kind ``artifact``; blocking on the first mismatch, naming it.
+    """
+    from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
+    from tli_verify.io import read_json, same_file, sha256_file
+    from tli_verify.tasks.project import resolve
+
+    name = shown(path)
+
+    def block(why: str, check: str) -> GateItem:
+        return GateItem("artifact", name, False, why, check)
+
+    bad = _irregular(path, "artifact", name)
+    if bad is not None:
+        return bad
+    try:
+        art = check_artifact(path)
+    except TliError as exc:
+        return block(f"refused: {exc}", "re-check")
+    text = text_path_for(path)
+    want = render_text({k: v for k, v in art.items() if k != "content_sha256"}) + \
+        f"sha256 {art['content_sha256']}\n"
+    try:
+        have = text.read_text(encoding="utf-8") if text.is_file() else None
+    except (OSError, UnicodeDecodeError) as exc:
+        return block(f"its text form {shown(text)} is unreadable: {exc}", "re-check")
+    if have is None:
+        return block(f"no text form {shown(text)} next to it (the file the C evaluator "
+                     "loads)", "re-check")
+    if have != want:
+        return block(f"its text form {shown(text)} is not the rendering of the JSON "
+                     "artifact: the file the C evaluator loads was edited", "re-check")
+    src = art["sources"]
+    model_sha = (src.get("model") or {}).get("sha256")
+    models = [m for m in _files(base / "models", "*.json")
+              if _irregular(m, "model", shown(m)) is None and sha256_file(m) == model_sha]
+    if not models:
+        return block(f"its model (SHA-256 {str(model_sha)[:12]}...) is none of the project's "
+                     f"models under {shown(base / 'models')}/: not a policy this gate checked",
+                     "binding")
+    model = models[0]
+    blocked = [i for i in items if not i.ok and i.path == shown(model)]
+    if blocked:
+        return block(f"its model {shown(model)} is blocked: {blocked[0].message}", "binding")
+    try:
+        files = resolve(model=model)
+    except TliError as exc:
+        return block(f"its model {shown(model)} does not resolve: {exc}", "binding")
+    task_file = Path(files.task.source.path) if files.task.source.path else None
+    for what, file in (("spec", files.spec), ("certificate", files.certificate),
+                       ("task", task_file)):
+        recorded = (src.get(what) or {}).get("sha256")
+        actual = sha256_file(file) if file is not None and file.is_file() else None
+        if recorded != actual:
+            return block(f"its {what} (SHA-256 {str(recorded)[:12]}...) is not the {what} "
+                         f"{shown(file) if file else '(none)'} the model resolves to now "
+                         f"({str(actual)[:12]}...)", "binding")
+    evidence = files.evidence
+    if not evidence.is_file():
+        return block(f"no campaign evidence {shown(evidence)} for its model", "campaign")
+    recorded = (src.get("evidence") or {}).get("sha256")
+    if recorded == sha256_file(evidence):
+        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
+                        f"the policy of {shown(model)} as gated, exported with the current "
+                        f"evidence {shown(evidence)}", "binding")
+    try:
+        doc = read_json(evidence, what="campaign evidence", error=GateError)
+    except TliError as exc:
+        return block(f"its evidence does not load: {exc}", "campaign")
+    ran = ((doc.get("physics") or {}).get("evaluator") or {}).get("artifact_sha256") \
+        if isinstance(doc, dict) else None
+    if ran == art["content_sha256"] and same_file(evidence, files.evidence):
+        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
+                        f"the campaign {shown(evidence)} ran this artifact in the C evaluator",
+                        "binding")
+    return block(f"no campaign tested it: it was exported with other evidence than "
+                 f"{shown(evidence)}, whose trials did not run it (re-export it, or run the "
+                 f"campaign with it: tli sim franka --c-evaluator {name} --evidence)", "campaign")
 
 
 # --------------------------------------------------------------------------------------------
