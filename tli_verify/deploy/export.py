@@ -214,8 +214,7 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
     from tli_verify.deploy.gate import run_gate
     from tli_verify.io import check_plan
     from tli_verify.project import open_project
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import model_files
+    from tli_verify.tasks.project import check_goal, model_files
 
     if isinstance(max_online_cuts, bool) or not isinstance(max_online_cuts, int) or \
             not 0 <= max_online_cuts <= MAX_ONLINE_CUTS:

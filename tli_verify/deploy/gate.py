@@ -337,9 +337,7 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
     from fractions import Fraction
 
     from tli_verify.logic.check import synthesize
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import spec_task
-    from tli_verify.tasks.task import Goal
+    from tli_verify.tasks.project import check_goal, goal_of, spec_task
 
     try:
         task = spec_task(spec, spec_path)
@@ -355,8 +353,7 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
     if set(task.sensor_names) != set(spec.inputs):
         problems.append(f"task {task.name!r} has sensors {', '.join(task.sensor_names)}, the "
                         f"spec's inputs are {', '.join(spec.inputs)}")
-    goal = (Goal(spec.goal_modes, spec.goal_sensors)
-            if spec.goal_modes is not None or spec.goal_sensors else task.goal)
+    goal = goal_of(spec, task)
     try:
         modes = check_goal(synthesize(spec), goal, where=shown(spec_path))
     except TliError as exc:

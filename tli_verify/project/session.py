@@ -85,7 +85,7 @@ class Session:
             (exit 2) The goal is not reachable in the automaton.
         """
         from tli_verify.logic.check import synthesize
-        from tli_verify.runtime.setup import check_goal
+        from tli_verify.tasks.project import check_goal
 
         automaton = synthesize(self.spec)
         check_goal(automaton, self.files.goal, where=str(self.files.spec))

@@ -1115,8 +1115,7 @@ def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
     task's, else the sink modes; checked reachable)."""
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import load_spec
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import spec_task
+    from tli_verify.tasks.project import check_goal, spec_task
     from tli_verify.tasks.task import Goal
 
     spec = load_spec(spec_path)

@@ -163,8 +163,7 @@ def load(spec: SimSpec) -> Loaded:
         campaign).
     """
     from tli_verify.io import sha256_file
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import resolve
+    from tli_verify.tasks.project import check_goal, resolve
 
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
         if sha256_file(path) != want:
