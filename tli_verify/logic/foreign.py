@@ -60,10 +60,14 @@ FORMATS = {".spectra": "spectra", ".structuredslugs": "structuredslugs",
 
 # --------------------------------------------------------------------------------------------
 # Expression trees (tuples): ("const", bool) ("num", int) ("id", name, primed)
-# ("not", a) ("and"|"or"|"xor"|"imp"|"iff", a, b) ("next", a) ("cmp", op, a, b)
+# ("not", a) ("and"|"or", a, b, ...) ("xor"|"imp"|"iff", a, b) ("next", a) ("cmp", op, a, b)
 # ("add"|"sub", a, b) ("G", a) ("GF", a)
 
 Node = tuple
+
+_CHAINS = ("and", "or")
+"""The associative operators whose chains (``a & b & c``) are one n-ary node: one level of
+nesting, however long (parsed, expanded and written without recursion per operand)."""
 
 
 @dataclass(slots=True)
@@ -249,6 +253,8 @@ class _Parser:
                 left = (_ARITH[tok], left, right)
             elif kind in ("since", "triggered"):
                 left = ("past", kind.upper(), (left, right))
+            elif kind in _CHAINS and left[0] == kind:
+                left = (*left, right)  # a chain of one associative operator: one n-ary node
             else:
                 left = (kind, left, right)
 
@@ -1307,6 +1313,8 @@ class _Expander:
         self.out: list[_Constraint] = []
         self.fresh_count = 0
         self.scale = 1  # how many times the enclosing quantifiers expand what is expanded now
+        self.level = 0  # nesting of the formula being expanded, defines and patterns inlined
+        self.instantiating: tuple[str, ...] = ()  # the patterns being instantiated, outermost first
 
     def run(self) -> list[_Constraint]:
         for c in self.mod.constraints:
@@ -1336,7 +1344,7 @@ class _Expander:
         if body[0] == "call" and body[1] in self.mod.patterns:
             # Spectra ignores a temporal keyword before a pattern (Spectra2GameInputTranslator:
             # a constraint that references a pattern is a pattern constraint)
-            self.pattern(c, body)
+            self.pattern(c, body, dict(env or {}))
             return
         body = self.ex(body, dict(env or {}), c, ())
         if c.slot == "stateinv":
@@ -1352,14 +1360,39 @@ class _Expander:
         return any(m[0] == "id" and m[1] in self.vars and self.vars[m[1]].side == "sys"
                    for m in _nodes(n))
 
-    def pattern(self, c: _Constraint, call: Node) -> None:
+    def deeper(self, c: _Constraint, what: str) -> None:
+        """One more level of expansion: refused past ``MAX_FORMULA_DEPTH``, the depth limit of
+        the parsers, applied to the formula as defines, predicates and patterns inline it (a
+        chain of them, each within the limit, nests deeper than any one of them)."""
+        self.level += 1
+        if self.level > MAX_FORMULA_DEPTH:
+            raise self.fail(c, f"{what} nested deeper than {MAX_FORMULA_DEPTH} levels once "
+                            "defines, predicates and patterns are expanded (MAX_FORMULA_DEPTH)")
+
+    def pattern(self, c: _Constraint, call: Node, env: dict[str, Node] | None = None) -> None:
+        """Instantiate the pattern ``call`` names; its arguments are read in ``env`` (the
+        parameters and variables of the pattern instantiating it, if any)."""
+        if call[1] in self.instantiating:
+            chain = " -> ".join((*self.instantiating[self.instantiating.index(call[1]):],
+                                 call[1]))
+            raise self.fail(c, f"pattern {call[1]!r} instantiates itself ({chain})")
+        self.deeper(c, "patterns")
+        outer = self.instantiating
+        self.instantiating = (*outer, call[1])
+        try:
+            self._pattern(c, call, env or {})
+        finally:
+            self.instantiating = outer
+            self.level -= 1
+
+    def _pattern(self, c: _Constraint, call: Node, outer: dict[str, Node]) -> None:
         pat = self.mod.patterns[call[1]]
         args = call[2]
         if len(args) != len(pat.params):
             raise self.fail(c, f"pattern {pat.name!r} takes {len(pat.params)} arguments, "
                             f"{len(args)} given")
-        env: dict[str, Node] = {p: self.ex(a, {}, c, ()) for p, a in zip(pat.params, args,
-                                                                          strict=True)}
+        env: dict[str, Node] = {p: self.ex(a, outer, c, ()) for p, a in zip(pat.params, args,
+                                                                             strict=True)}
         for type_toks, vname in pat.variables:
             base, dims, rest = _spectra_type(type_toks, self.mod, pat.where, c.line)
             if dims or rest:
@@ -1372,6 +1405,16 @@ class _Expander:
 
     def ex(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
            ) -> Node:
+        """``n`` with defines, predicates, arrays, quantifiers and ``in`` resolved, and
+        past-time operators replaced by auxiliary variables."""
+        self.deeper(c, "formula")
+        try:
+            return self._ex(n, env, c, stack)
+        finally:
+            self.level -= 1
+
+    def _ex(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+            ) -> Node:
         kind = n[0]
         if kind in ("const", "num"):
             return n
@@ -1386,9 +1429,7 @@ class _Expander:
         if kind == "in":
             lhs = self.ex(n[1], env, c, stack)
             terms = [("cmp", "=", lhs, self.ex(v, env, c, stack)) for v in n[2]]
-            node: Node = terms[0]
-            for t in terms[1:]:
-                node = ("or", node, t)
+            node: Node = _chain("or", terms)
             return ("not", node) if n[3] else node
         if kind == "quant":
             return self.quantifier(n, env, c, stack)
@@ -1421,6 +1462,8 @@ class _Expander:
             if func in _ARRAY_FUNCS and (arr in self.mod.arrays or arr in self.mod.defines):
                 elems = self.elements(arr, env, c, stack)
                 op = {"all": "and", "any": "or", "sum": "add", "prod": "mul"}[func]
+                if op in _CHAINS:
+                    return _chain(op, elems)
                 node = elems[0]
                 for e in elems[1:]:
                     node = (op, node, e)
@@ -1545,10 +1588,7 @@ class _Expander:
             parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
         finally:
             self.scale = outer
-        node = parts[0]
-        for p in parts[1:]:
-            node = ("and" if op == "forall" else "or", node, p)
-        return node
+        return _chain("and" if op == "forall" else "or", parts)
 
     def past_op(self, op: str, args: tuple[Node, ...], c: _Constraint) -> Node:
         key = (op, *args)
@@ -1588,6 +1628,12 @@ def _nodes(n: object) -> Iterator[Node]:
             todo.extend(m[1:])
         else:
             todo.extend(m)
+
+
+def _chain(kind: str, parts: Sequence[Node]) -> Node:
+    """``parts[0] kind parts[1] kind ...`` as one n-ary node (``kind``: ``and`` or ``or``;
+    one part is itself)."""
+    return parts[0] if len(parts) == 1 else (kind, *parts)
 
 
 def _has(n: Node, kind: str) -> bool:
@@ -1804,7 +1850,7 @@ def _check_depth(constraints: Sequence[_Constraint], where: str) -> None:
     ``&``/``|``), or that written out (a shared sub-formula at every use, as the TOML repeats
     it) has more than ``MAX_FORMULA_NODES`` nodes; iterative and linear in the shared tree
     (slugsin's memory buffers), so a file whose buffers double 40 times is refused at once."""
-    chains = ("and", "or")
+    chains = _CHAINS
     for c in constraints:
         depth: dict[int, int] = {}
         size: dict[int, int] = {}  # nodes written, a shared sub-formula at every use
