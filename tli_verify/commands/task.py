@@ -156,6 +156,8 @@ def _check(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
 
     loaded = [find_task(t) for t in args.tasks]
+    for task in loaded:  # the sensors read once: a plug-in's failure is an error line here
+        _read_once(task)
     spec = None
     if args.spec is not None:  # a spec that does not load is one error line before any output
         from tli_verify.logic.spec import load_spec
@@ -186,6 +188,23 @@ def _check(args: argparse.Namespace) -> int:
     if spec is not None:
         return _check_fit(loaded, spec, args.spec, as_json=args.json)
     return 0
+
+
+def _read_once(task: Any) -> None:
+    """Read the task's sensors once, at its first nominal start (else the workspace's
+    centre), two steps there (not a physics scene's sensors): a sensor plug-in's ``read()`` runs, and its reading's shape is
+    checked against the sensor names (:class:`~tli_verify.tasks.plugins.PluginSensors`): a
+    reading of the wrong shape or type, an exception or an exit is one error line naming the
+    plug-in and the task file, not a crash later in ``tli run``, ``tli verify`` or the gate."""
+    import numpy as np
+
+    if getattr(task.sensor_model, "physics", False):  # read by a simulated scene, not a state
+        return
+    if task.starts.nominal:
+        x = np.asarray(task.starts.nominal[0], dtype=float)
+    else:
+        x = (np.asarray(task.lo, dtype=float) + np.asarray(task.hi, dtype=float)) / 2
+    task.sensors(np.stack([x, x]))
 
 
 def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:

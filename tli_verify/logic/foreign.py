@@ -253,8 +253,13 @@ class _Parser:
                 left = (_ARITH[tok], left, right)
             elif kind in ("since", "triggered"):
                 left = ("past", kind.upper(), (left, right))
-            elif kind in _CHAINS and left[0] == kind:
-                left = (*left, right)  # a chain of one associative operator: one n-ary node
+            elif kind in _CHAINS:  # a chain of one associative operator: one n-ary node
+                parts = [left, right]
+                while (self.peek() or "") in self.table and \
+                        self.table[self.peek() or ""] == (prec, kind):
+                    self.take()
+                    parts.append(self.expr(prec + 1))
+                left = (kind, *parts)
             else:
                 left = (kind, left, right)
 
@@ -392,6 +397,7 @@ class _Translator:
             for k, lit in enumerate(v.values):
                 self.literals.setdefault(lit, set()).add(k)
         self.written = 0  # characters of the translation so far (all constraints)
+        self.memo: dict[tuple[str, bool, str], Mapping[int, str]] = {}  # see cubes()
 
     def budget(self, c: _Constraint, size: int) -> None:
         """Stop as soon as the text being built exceeds what any reader accepts: the
@@ -486,6 +492,17 @@ class _Translator:
                             "(assumptions may read the next inputs only)")
         return f"X {name}" if primed else name
 
+    def cubes(self, var: _Var, primed: bool, c: _Constraint) -> Mapping[int, str]:
+        """``value -> cube`` of an integer variable, made once per variable, time step and
+        side (a formula comparing one wide variable with many constants reads it each time:
+        without the memo each comparison costs the variable's whole domain)."""
+        key = (var.name, primed, c.side)
+        got = self.memo.get(key)
+        if got is None:
+            got = {k: self.value_cube(var, k, primed, c) for k in range(var.lo, var.hi + 1)}
+            self.memo[key] = got
+        return got
+
     def value_cube(self, var: _Var, k: int, primed: bool, c: _Constraint) -> str:
         code = k - var.lo
         lits = []
@@ -519,7 +536,7 @@ class _Translator:
                                  stack=(*stack, name), enum=enum)
             var = self.vars.get(name)
             if var is not None and not var.boolean:
-                return {k: self.value_cube(var, k, primed, c) for k in range(var.lo, var.hi + 1)}
+                return self.cubes(var, primed, c)
             if var is None:
                 if enum is not None and name in enum.values:
                     return {enum.values.index(name): "true"}
@@ -572,6 +589,11 @@ class _Translator:
                 bits, lo = vec
                 conds = [(cond, _value_cmp(bits, lo, rel, v)) for v, cond in other.items()]
                 return _or([_and(cond, t) for cond, t in conds if t != "false"])
+        if op == "=" and (len(a) == 1 or len(b) == 1):  # against one value: a look-up
+            (vb, cb), = b.items() if len(b) == 1 else a.items()
+            ca = (a if len(b) == 1 else b).get(vb)
+            return _or([] if ca is None else
+                       [_and(ca, _or([cb])) if len(b) == 1 else _and(cb, _or([ca]))])
         terms = []
         for va, ca in a.items():
             match = [cb for vb, cb in b.items() if test(va, vb)]
