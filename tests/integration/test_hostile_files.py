@@ -653,3 +653,48 @@ def test_every_error_message_is_one_bounded_line(head: str, middle: str, tail: s
     msg = str(SpecError(f"HEAD{h} {middle} {t}TAIL"))
     assert "\n" not in msg and len(msg) <= MAX_MESSAGE_CHARS
     assert msg.startswith("HEAD" + h[:20]) and msg.endswith(t[-20:] + "TAIL")
+
+
+@HYP
+@given(field=st.sampled_from(["backend", "workers"]),
+       value=st.one_of(st.sampled_from(["threads", "mpi", "", "PROCESS", 0, 257, 100_000,
+                                        True, 2.5]),
+                       st.text(min_size=1, max_size=32).filter(
+                           lambda t: t not in ("process", "dask", "serial"))))
+def test_how_a_campaign_ran_is_validated_with_the_cli_choices(
+        tmp_path_factory: pytest.TempPathFactory, field: str, value: Any) -> None:
+    """``campaign.backend`` and ``campaign.workers`` (beyond the kinematic settings): only
+    what ``--backend`` and ``--workers`` take; the digest is recomputed, so the evidence is
+    otherwise consistent (before: any short string, up to 100,000 workers)."""
+    from tli_verify.verify.evidence import check_evidence, evidence_digest
+
+    root = tmp_path_factory.mktemp("ev")
+    for rel in ("tasks/scoop.toml", "specs/scoop.toml", "models/scoop.model.json",
+                "certificates/scoop.cert.json", "certificates/scoop.campaign.json"):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(REPO / rel, root / rel)
+    path = root / "certificates" / "scoop.campaign.json"
+    doc = json.loads(path.read_text())
+    doc["campaign"][field] = value
+    doc["digest"] = evidence_digest(doc)
+    path.write_text(json.dumps(doc))
+    check = check_evidence(path)
+    assert not check.ok
+    assert any(f"campaign.{field}" in p or "malformed" in p for p in check.problems), \
+        check.problems
+
+
+@HYP
+@given(pushes=st.integers(0, 64), tilts=st.integers(0, 64))
+def test_a_physical_campaign_records_what_tli_sim_records(pushes: int, tilts: int) -> None:
+    """``physics.pushes`` / ``physics.tilts``: the CLI records 1 and 1 per perturbed trial;
+    the schema admits 0..64, the gate only 1 and 1 (before: anything from 1 to 64, which its
+    re-run then ran)."""
+    from tli_verify.sim.physics_checks import check_physics_block
+
+    doc = json.loads((REPO / "sim" / "franka" / "certificates" /
+                      "franka-scoop.campaign.json").read_text())
+    doc["physics"].update(pushes=pushes, tilts=tilts)
+    problems = check_physics_block(doc, "e.json", [])
+    bad = [p for p in problems if "push(es)" in p]
+    assert bool(bad) == ((pushes, tilts) != (1, 1)), (pushes, tilts, problems)
