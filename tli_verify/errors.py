@@ -19,6 +19,7 @@ from __future__ import annotations
 import errno
 
 __all__ = [
+    "MAX_MESSAGE_CHARS",
     "AssetError",
     "CampaignError",
     "CertificateError",
@@ -43,6 +44,13 @@ __all__ = [
 ]
 
 
+MAX_MESSAGE_CHARS = 1000
+"""Longest error message (:class:`~tli_verify.errors.TliError`), hence ``error:`` line, in
+characters: a longer one keeps its start (the file, line and field) and its end (the reason)
+and says how many characters of the middle were cut. Messages quote names and formulas from
+their input, which may be megabytes long."""
+
+
 class TliError(Exception):
     """Base class of every error raised on purpose by tli-verify.
 
@@ -50,7 +58,7 @@ class TliError(Exception):
     ----------
     message : str
         One line that names the file, line or field at fault (whitespace runs are folded, so
-        the message stays one line; beyond :data:`~tli_verify.limits.MAX_MESSAGE_CHARS` its
+        the message stays one line; beyond :data:`MAX_MESSAGE_CHARS` its
         middle is cut, so a formula or name quoted from a multi-megabyte input never makes a
         multi-megabyte line, and the file named at its start and the reason at its end stay).
     """
@@ -63,10 +71,8 @@ class TliError(Exception):
 
 def one_line(message: str) -> str:
     """``message`` with its whitespace runs folded to one space and, when longer than
-    :data:`~tli_verify.limits.MAX_MESSAGE_CHARS`, its middle replaced by a note of how many
+    :data:`MAX_MESSAGE_CHARS`, its middle replaced by a note of how many
     characters were cut (the start, which names the file, and the end, which says why, stay)."""
-    from tli_verify.limits import MAX_MESSAGE_CHARS
-
     text = " ".join(message.split())
     if len(text) <= MAX_MESSAGE_CHARS:
         return text

@@ -38,7 +38,6 @@ __all__ = [
     "MAX_FORMULA_NODES",
     "MAX_IMPORT_CELLS",
     "MAX_INPUT_BYTES",
-    "MAX_MESSAGE_CHARS",
     "MAX_NAME_BYTES",
     "MAX_NESTING",
     "MAX_PUSHES",
@@ -53,12 +52,6 @@ MAX_INPUT_BYTES = 4 * 1024 * 1024
 
 The bundled model is 20 kB and a LASA model about 30 kB; 4 MiB is two orders of magnitude
 above any model, spec or demonstration the tool produces or the paper uses."""
-
-MAX_MESSAGE_CHARS = 1000
-"""Longest error message (:class:`~tli_verify.errors.TliError`), hence ``error:`` line, in
-characters: a longer one keeps its start (the file, line and field) and its end (the reason)
-and says how many characters of the middle were cut. Messages quote names and formulas from
-their input, which may be megabytes long."""
 
 MAX_NAME_BYTES = 255
 """Longest component of a path (a file or folder name) read or written, in bytes of its

@@ -625,7 +625,7 @@ def test_spec_import_error_lines_are_bounded_and_name_the_input(
     """A 3 MB identifier quoted by the importer: one line of at most MAX_MESSAGE_CHARS (+
     ``error: ``) that starts with the input file and says why at its end (before: a 3 MB
     line; with the translation refused, a 12 MB line naming the output file)."""
-    from tli_verify.limits import MAX_MESSAGE_CHARS
+    from tli_verify.errors import MAX_MESSAGE_CHARS
 
     src = tmp_path / "long.spectra"
     src.write_text("module M\nenv boolean a;\nsys boolean b;\ngar G " + "q" * 3_000_000
@@ -646,8 +646,7 @@ def test_spec_import_error_lines_are_bounded_and_name_the_input(
 def test_every_error_message_is_one_bounded_line(head: str, middle: str, tail: str) -> None:
     """Any TliError: one line, at most MAX_MESSAGE_CHARS, its start (the file) and end (the
     reason) kept when its middle is cut."""
-    from tli_verify.errors import SpecError
-    from tli_verify.limits import MAX_MESSAGE_CHARS
+    from tli_verify.errors import MAX_MESSAGE_CHARS, SpecError
 
     h, t = " ".join(head.split()), " ".join(tail.split())
     msg = str(SpecError(f"HEAD{h} {middle} {t}TAIL"))

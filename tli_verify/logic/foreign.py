@@ -397,7 +397,7 @@ class _Translator:
             for k, lit in enumerate(v.values):
                 self.literals.setdefault(lit, set()).add(k)
         self.written = 0  # characters of the translation so far (all constraints)
-        self.memo: dict[tuple[str, bool, str], Mapping[int, str]] = {}  # see cubes()
+        self.memo: dict[tuple[str, bool, str], dict[int, str]] = {}  # see cubes(); read-only
 
     def budget(self, c: _Constraint, size: int) -> None:
         """Stop as soon as the text being built exceeds what any reader accepts: the
@@ -492,7 +492,7 @@ class _Translator:
                             "(assumptions may read the next inputs only)")
         return f"X {name}" if primed else name
 
-    def cubes(self, var: _Var, primed: bool, c: _Constraint) -> Mapping[int, str]:
+    def cubes(self, var: _Var, primed: bool, c: _Constraint) -> dict[int, str]:
         """``value -> cube`` of an integer variable, made once per variable, time step and
         side (a formula comparing one wide variable with many constants reads it each time:
         without the memo each comparison costs the variable's whole domain)."""
