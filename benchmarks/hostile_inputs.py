@@ -5,8 +5,8 @@ Usage::
     python -m benchmarks.hostile_inputs [--no-gate]
 
 Runs the issue's test files with hypothesis statistics: a parametrized case is one input, a
-hypothesis test counts the examples it actually ran (passing + failing + invalid ones are not
-inputs and are left out). Each test is assigned to one surface by its name. Then ``tli gate``
+hypothesis test counts the examples it actually ran (passing + failing; invalid ones are not
+inputs and are left out). Loops inside one test (several commands on one input) count once. Each test is assigned to one surface by its name. Then ``tli gate``
 on the repository (every bundled model, default re-run) and ``tli gate --rerun 50`` per model
 in a one-model copy of the project, timed. Prints a Markdown table.
 """
@@ -57,8 +57,8 @@ def count_inputs() -> dict[str, dict[str, int]]:
         cwd=REPO, capture_output=True, text=True, check=False)
     out = proc.stdout
     per: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
-    # hypothesis: "tests/...py::test_x:" then "  - during generate phase ...: N passing
-    # examples, M failing examples, K invalid examples"
+    # hypothesis: "tests/...py::test_x:", then per phase "N passing, M failing, and K
+    # invalid test cases" (the explicit and generate phases both count)
     current = None
     hyp_tests = set()
     for line in out.splitlines():
@@ -67,7 +67,7 @@ def count_inputs() -> dict[str, dict[str, int]]:
             current = m.group(2)
             hyp_tests.add(current)
             continue
-        m = re.search(r"(\d+) passing examples, (\d+) failing examples", line)
+        m = re.search(r"(\d+) passing, (\d+) failing", line)
         if m and current:
             per[surface(current)]["hypothesis examples"] += int(m.group(1)) + int(m.group(2))
     ids = subprocess.run([sys.executable, "-m", "pytest", *FILES, "--collect-only", "-q",
