@@ -6,9 +6,10 @@ Usage::
 
 Runs the issue's test files with hypothesis statistics: a parametrized case is one input, a
 hypothesis test counts the examples it actually ran (passing + failing; invalid ones are not
-inputs and are left out). Loops inside one test (several commands on one input) count once. Each test is assigned to one surface by its name. Then ``tli gate``
-on the repository (every bundled model, default re-run) and ``tli gate --rerun 50`` per model
-in a one-model copy of the project, timed. Prints a Markdown table.
+inputs and are left out); a loop inside one test (several commands on one input) counts once.
+Each test is assigned to one surface by its name. Then ``tli gate`` on the repository (every
+bundled model, default re-run) and ``tli gate --rerun 50`` per model in a one-model copy of
+the project, timed. Prints Markdown tables.
 """
 
 from __future__ import annotations
