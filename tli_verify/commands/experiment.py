@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from tli_verify.commands import float_range, int_range, output_path
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED, MAX_WORKERS
 
 QUICK_TRIALS = 3
 QUICK_BC_EPOCHS = 300
@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     s.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     s.add_argument("--out", type=output_path, default=Path("out/single-mode"),
                    help="output directory (default out/single-mode)")
-    s.add_argument("--workers", type=int_range(1, 256), default=None,
+    s.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     s.add_argument("--max-cuts", type=int_range(0, 10_000), default=20,
                    help="cap on cuts per policy and noise")
@@ -79,7 +79,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="sensor lag of the task (default 0)")
     c.add_argument("--steps", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
                    help="step budget per episode at dt = 1/100 (default 3000; 2000 with --quick)")
-    c.add_argument("--workers", type=int_range(1, 256), default=None,
+    c.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     c.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     c.add_argument("--out", type=output_path, default=Path("out/scoop"),

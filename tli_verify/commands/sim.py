@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import DEFAULT_PATH, chosen_path, float_range, int_range, output_path
+from tli_verify.limits import MAX_WORKERS
 from tli_verify.sim import TRIAL_DURATION
 
 __all__ = ["register"]
@@ -69,7 +70,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g; 0.5 "
                    "to 600)")
-    f.add_argument("--workers", type=int_range(1, 256), default=1,
+    f.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=1,
                    help="split the seeds into N contiguous chunks, one executive each (its "
                    "cuts carry over between the trials of its chunk only); default 1: one "
                    "executive for every trial. The same seed, trials and workers give the "

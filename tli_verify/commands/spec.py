@@ -225,8 +225,8 @@ def _import(args: argparse.Namespace) -> int:
         raise OutputError(f"{args.output}: output must end in .toml")
     text = import_spec_file(args.file,
                             semantics=None if args.semantics == "tli" else args.semantics)
-    where = str(args.output) if args.output is not None else f"{args.file} (imported)"
-    spec = parse_spec(text, path=where, default_name=args.file.stem)  # the result must load
+    # the result must load; a problem in it is the input's (nothing is written yet)
+    spec = parse_spec(text, path=f"{args.file} (translated)", default_name=args.file.stem)
     if args.output is None:
         sys.stdout.write(text)
         return 0

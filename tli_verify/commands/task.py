@@ -22,6 +22,7 @@ from typing import Any
 
 from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
+from tli_verify.limits import MAX_WORKERS
 
 __all__ = ["register"]
 
@@ -97,7 +98,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--examples", type=int_range(1, 10_000_000), default=DEFAULT_EXAMPLES,
                     help=f"examples per model (default {DEFAULT_EXAMPLES})")
     ev.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
-    ev.add_argument("--workers", type=int_range(1, 256), default=None,
+    ev.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                     help="bisimulation campaigns: worker processes (default: the CPU count); "
                     "physical campaigns: contiguous chunks of seeds, one executive each "
                     "(default 1: one executive for every trial)")
@@ -156,6 +157,8 @@ def _check(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
 
     loaded = [find_task(t) for t in args.tasks]
+    for task in loaded:  # the sensors read once: a plug-in's failure is an error line here
+        _read_once(task)
     spec = None
     if args.spec is not None:  # a spec that does not load is one error line before any output
         from tli_verify.logic.spec import load_spec
@@ -186,6 +189,24 @@ def _check(args: argparse.Namespace) -> int:
     if spec is not None:
         return _check_fit(loaded, spec, args.spec, as_json=args.json)
     return 0
+
+
+def _read_once(task: Any) -> None:
+    """Read the task's sensors once, at its first nominal start (else the workspace's
+    centre), two steps there (not a physics scene's sensors): a sensor plug-in's ``read()``
+    runs, and its reading's shape is checked against the sensor names
+    (:class:`~tli_verify.tasks.plugins.PluginSensors`): a reading of the wrong shape or type,
+    an exception or an exit is one error line naming the plug-in and the task file, not a
+    crash later in ``tli run``, ``tli verify`` or the gate."""
+    import numpy as np
+
+    if getattr(task.sensor_model, "physics", False):  # read by a simulated scene, not a state
+        return
+    if task.starts.nominal:
+        x = np.asarray(task.starts.nominal[0], dtype=float)
+    else:
+        x = (np.asarray(task.lo, dtype=float) + np.asarray(task.hi, dtype=float)) / 2
+    task.sensors(np.stack([x, x]))
 
 
 def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:

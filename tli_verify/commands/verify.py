@@ -19,6 +19,7 @@ from tli_verify.limits import (
     MAX_EXAMPLES,
     MAX_PUSHES,
     MAX_SEED,
+    MAX_WORKERS,
 )
 
 __all__ = ["register", "write_report"]
@@ -41,7 +42,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--seed", type=int_range(0, MAX_SEED), default=0, help="seed (default 0)")
     p.add_argument("--no-modulation", action="store_true",
                    help="the ablation without cuts (replanning only)")
-    p.add_argument("--workers", type=int_range(1, 256), default=None,
+    p.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: CPU count)")
     p.add_argument("--backend", choices=("process", "dask", "serial"), default="process")
     p.add_argument("--scheduler", default=None, metavar="ADDR",

@@ -60,10 +60,14 @@ FORMATS = {".spectra": "spectra", ".structuredslugs": "structuredslugs",
 
 # --------------------------------------------------------------------------------------------
 # Expression trees (tuples): ("const", bool) ("num", int) ("id", name, primed)
-# ("not", a) ("and"|"or"|"xor"|"imp"|"iff", a, b) ("next", a) ("cmp", op, a, b)
+# ("not", a) ("and"|"or", a, b, ...) ("xor"|"imp"|"iff", a, b) ("next", a) ("cmp", op, a, b)
 # ("add"|"sub", a, b) ("G", a) ("GF", a)
 
 Node = tuple
+
+_CHAINS = ("and", "or")
+"""The associative operators whose chains (``a & b & c``) are one n-ary node: one level of
+nesting, however long (parsed, expanded and written without recursion per operand)."""
 
 
 @dataclass(slots=True)
@@ -249,6 +253,13 @@ class _Parser:
                 left = (_ARITH[tok], left, right)
             elif kind in ("since", "triggered"):
                 left = ("past", kind.upper(), (left, right))
+            elif kind in _CHAINS:  # a chain of one associative operator: one n-ary node
+                parts = [left, right]
+                while (self.peek() or "") in self.table and \
+                        self.table[self.peek() or ""] == (prec, kind):
+                    self.take()
+                    parts.append(self.expr(prec + 1))
+                left = (kind, *parts)
             else:
                 left = (kind, left, right)
 
@@ -386,6 +397,7 @@ class _Translator:
             for k, lit in enumerate(v.values):
                 self.literals.setdefault(lit, set()).add(k)
         self.written = 0  # characters of the translation so far (all constraints)
+        self.memo: dict[tuple[str, bool, str], dict[int, str]] = {}  # see cubes(); read-only
 
     def budget(self, c: _Constraint, size: int) -> None:
         """Stop as soon as the text being built exceeds what any reader accepts: the
@@ -480,6 +492,17 @@ class _Translator:
                             "(assumptions may read the next inputs only)")
         return f"X {name}" if primed else name
 
+    def cubes(self, var: _Var, primed: bool, c: _Constraint) -> dict[int, str]:
+        """``value -> cube`` of an integer variable, made once per variable, time step and
+        side (a formula comparing one wide variable with many constants reads it each time:
+        without the memo each comparison costs the variable's whole domain)."""
+        key = (var.name, primed, c.side)
+        got = self.memo.get(key)
+        if got is None:
+            got = {k: self.value_cube(var, k, primed, c) for k in range(var.lo, var.hi + 1)}
+            self.memo[key] = got
+        return got
+
     def value_cube(self, var: _Var, k: int, primed: bool, c: _Constraint) -> str:
         code = k - var.lo
         lits = []
@@ -513,7 +536,7 @@ class _Translator:
                                  stack=(*stack, name), enum=enum)
             var = self.vars.get(name)
             if var is not None and not var.boolean:
-                return {k: self.value_cube(var, k, primed, c) for k in range(var.lo, var.hi + 1)}
+                return self.cubes(var, primed, c)
             if var is None:
                 if enum is not None and name in enum.values:
                     return {enum.values.index(name): "true"}
@@ -566,6 +589,11 @@ class _Translator:
                 bits, lo = vec
                 conds = [(cond, _value_cmp(bits, lo, rel, v)) for v, cond in other.items()]
                 return _or([_and(cond, t) for cond, t in conds if t != "false"])
+        if op == "=" and (len(a) == 1 or len(b) == 1):  # against one value: a look-up
+            (vb, cb), = b.items() if len(b) == 1 else a.items()
+            ca = (a if len(b) == 1 else b).get(vb)
+            return _or([] if ca is None else
+                       [_and(ca, _or([cb])) if len(b) == 1 else _and(cb, _or([ca]))])
         terms = []
         for va, ca in a.items():
             match = [cb for vb, cb in b.items() if test(va, vb)]
@@ -1307,6 +1335,8 @@ class _Expander:
         self.out: list[_Constraint] = []
         self.fresh_count = 0
         self.scale = 1  # how many times the enclosing quantifiers expand what is expanded now
+        self.level = 0  # nesting of the formula being expanded, defines and patterns inlined
+        self.instantiating: tuple[str, ...] = ()  # the patterns being instantiated, outermost first
 
     def run(self) -> list[_Constraint]:
         for c in self.mod.constraints:
@@ -1336,7 +1366,7 @@ class _Expander:
         if body[0] == "call" and body[1] in self.mod.patterns:
             # Spectra ignores a temporal keyword before a pattern (Spectra2GameInputTranslator:
             # a constraint that references a pattern is a pattern constraint)
-            self.pattern(c, body)
+            self.pattern(c, body, dict(env or {}))
             return
         body = self.ex(body, dict(env or {}), c, ())
         if c.slot == "stateinv":
@@ -1352,14 +1382,39 @@ class _Expander:
         return any(m[0] == "id" and m[1] in self.vars and self.vars[m[1]].side == "sys"
                    for m in _nodes(n))
 
-    def pattern(self, c: _Constraint, call: Node) -> None:
+    def deeper(self, c: _Constraint, what: str) -> None:
+        """One more level of expansion: refused past ``MAX_FORMULA_DEPTH``, the depth limit of
+        the parsers, applied to the formula as defines, predicates and patterns inline it (a
+        chain of them, each within the limit, nests deeper than any one of them)."""
+        self.level += 1
+        if self.level > MAX_FORMULA_DEPTH:
+            raise self.fail(c, f"{what} nested deeper than {MAX_FORMULA_DEPTH} levels once "
+                            "defines, predicates and patterns are expanded (MAX_FORMULA_DEPTH)")
+
+    def pattern(self, c: _Constraint, call: Node, env: dict[str, Node] | None = None) -> None:
+        """Instantiate the pattern ``call`` names; its arguments are read in ``env`` (the
+        parameters and variables of the pattern instantiating it, if any)."""
+        if call[1] in self.instantiating:
+            chain = " -> ".join((*self.instantiating[self.instantiating.index(call[1]):],
+                                 call[1]))
+            raise self.fail(c, f"pattern {call[1]!r} instantiates itself ({chain})")
+        self.deeper(c, "patterns")
+        outer = self.instantiating
+        self.instantiating = (*outer, call[1])
+        try:
+            self._pattern(c, call, env or {})
+        finally:
+            self.instantiating = outer
+            self.level -= 1
+
+    def _pattern(self, c: _Constraint, call: Node, outer: dict[str, Node]) -> None:
         pat = self.mod.patterns[call[1]]
         args = call[2]
         if len(args) != len(pat.params):
             raise self.fail(c, f"pattern {pat.name!r} takes {len(pat.params)} arguments, "
                             f"{len(args)} given")
-        env: dict[str, Node] = {p: self.ex(a, {}, c, ()) for p, a in zip(pat.params, args,
-                                                                          strict=True)}
+        env: dict[str, Node] = {p: self.ex(a, outer, c, ()) for p, a in zip(pat.params, args,
+                                                                             strict=True)}
         for type_toks, vname in pat.variables:
             base, dims, rest = _spectra_type(type_toks, self.mod, pat.where, c.line)
             if dims or rest:
@@ -1372,6 +1427,16 @@ class _Expander:
 
     def ex(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
            ) -> Node:
+        """``n`` with defines, predicates, arrays, quantifiers and ``in`` resolved, and
+        past-time operators replaced by auxiliary variables."""
+        self.deeper(c, "formula")
+        try:
+            return self._ex(n, env, c, stack)
+        finally:
+            self.level -= 1
+
+    def _ex(self, n: Node, env: dict[str, Node], c: _Constraint, stack: tuple[str, ...]
+            ) -> Node:
         kind = n[0]
         if kind in ("const", "num"):
             return n
@@ -1386,9 +1451,7 @@ class _Expander:
         if kind == "in":
             lhs = self.ex(n[1], env, c, stack)
             terms = [("cmp", "=", lhs, self.ex(v, env, c, stack)) for v in n[2]]
-            node: Node = terms[0]
-            for t in terms[1:]:
-                node = ("or", node, t)
+            node: Node = _chain("or", terms)
             return ("not", node) if n[3] else node
         if kind == "quant":
             return self.quantifier(n, env, c, stack)
@@ -1421,6 +1484,8 @@ class _Expander:
             if func in _ARRAY_FUNCS and (arr in self.mod.arrays or arr in self.mod.defines):
                 elems = self.elements(arr, env, c, stack)
                 op = {"all": "and", "any": "or", "sum": "add", "prod": "mul"}[func]
+                if op in _CHAINS:
+                    return _chain(op, elems)
                 node = elems[0]
                 for e in elems[1:]:
                     node = (op, node, e)
@@ -1545,10 +1610,7 @@ class _Expander:
             parts = [self.ex(body, {**env, name: v}, c, stack) for v in values]
         finally:
             self.scale = outer
-        node = parts[0]
-        for p in parts[1:]:
-            node = ("and" if op == "forall" else "or", node, p)
-        return node
+        return _chain("and" if op == "forall" else "or", parts)
 
     def past_op(self, op: str, args: tuple[Node, ...], c: _Constraint) -> Node:
         key = (op, *args)
@@ -1588,6 +1650,12 @@ def _nodes(n: object) -> Iterator[Node]:
             todo.extend(m[1:])
         else:
             todo.extend(m)
+
+
+def _chain(kind: str, parts: Sequence[Node]) -> Node:
+    """``parts[0] kind parts[1] kind ...`` as one n-ary node (``kind``: ``and`` or ``or``;
+    one part is itself)."""
+    return parts[0] if len(parts) == 1 else (kind, *parts)
 
 
 def _has(n: Node, kind: str) -> bool:
@@ -1804,7 +1872,7 @@ def _check_depth(constraints: Sequence[_Constraint], where: str) -> None:
     ``&``/``|``), or that written out (a shared sub-formula at every use, as the TOML repeats
     it) has more than ``MAX_FORMULA_NODES`` nodes; iterative and linear in the shared tree
     (slugsin's memory buffers), so a file whose buffers double 40 times is refused at once."""
-    chains = ("and", "or")
+    chains = _CHAINS
     for c in constraints:
         depth: dict[int, int] = {}
         size: dict[int, int] = {}  # nodes written, a shared sub-formula at every use

@@ -93,6 +93,10 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
     if int(phys["pushes"]) < 1 or int(phys["tilts"]) < 1:
         out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
                    "the evidence must perturb at both levels (motion pushes and task tilts)")
+    elif int(phys["pushes"]) > 1 or int(phys["tilts"]) > 1:  # the schema admits up to 64
+        out.append(f"{shown}: {phys['pushes']} push(es) and {phys['tilts']} tilt(s) per trial: "
+                   "tli sim franka records one push and one tilt per perturbed trial; no "
+                   "command writes these settings (the gate's re-run would take them)")
     if not out:
         chunks = phys.get("chunks")
         split = "" if chunks is None or len(chunks) == 1 else \

@@ -1057,11 +1057,32 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
     if runs < examples:
         out.append(f"{shown}: {runs} run(s) for {examples} examples: every example is at "
                    "least one run")
+    out += _check_run_settings(camp, shown)
     if not out:
         passed.append(f"{examples} examples ({runs} runs, {decided} decided, seed "
                       f"{camp['seed']}), modulation on, 0 violations")
     return out
 
+
+
+BACKENDS = ("process", "dask", "serial")
+"""The ``--backend`` choices of ``tli verify``, ``tli evidence`` and ``tli sim franka``."""
+def _check_run_settings(camp: Mapping[str, Any], shown: str) -> list[str]:
+    """How the campaign ran (``campaign.backend``, ``campaign.workers``; kinematic and physical
+    alike), validated with the command line's choices and range, like every other recorded
+    setting: the schema alone admits any short string and up to 100,000 workers."""
+    from tli_verify.limits import MAX_WORKERS
+
+    out = []
+    backend, workers = camp.get("backend"), camp.get("workers")
+    if backend is not None and backend not in BACKENDS:
+        out.append(f"{shown}: campaign.backend {backend!r}: not one of {', '.join(BACKENDS)} "
+                   "(what --backend takes)")
+    if workers is not None and not (isinstance(workers, int) and not isinstance(workers, bool)
+                                    and 1 <= workers <= MAX_WORKERS):
+        out.append(f"{shown}: campaign.workers {workers!r}: not an integer in [1, "
+                   f"{MAX_WORKERS}] (what --workers takes)")
+    return out
 
 
 def _check_settings(camp: Mapping[str, Any], settings: Mapping[str, Any], shown: str
