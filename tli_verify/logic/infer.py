@@ -241,11 +241,11 @@ def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
 
 
 def _label_bdds(labels: Mapping[str, str], sensors: Sequence[str]) -> tuple[Any, dict[str, Any]]:
-    from tli_verify.logic.gr1 import _to_bdd, new_manager
+    from tli_verify.logic.gr1 import formula_bdd, new_manager
 
     bdd = new_manager()
     bdd.declare(*sensors)
-    return bdd, {m: _to_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
+    return bdd, {m: formula_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
                  for m, lab in labels.items()}
 
 
@@ -522,7 +522,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
         The grown spec is unrealizable or not well-separated (the old spec is kept).
     """
     from tli_verify.logic.check import check_spec
-    from tli_verify.logic.gr1 import _to_bdd
+    from tli_verify.logic.gr1 import formula_bdd
     from tli_verify.logic.spot_import import spot
 
     where = spec.path or spec.name
@@ -563,7 +563,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
         lhs = body[0]
         if atomic_propositions(lhs) - set(spec.inputs) or not lhs.is_boolean():
             continue
-        if (_to_bdd(lhs, bdd, primed=False) & labs["from"]) != bdd.false:
+        if (formula_bdd(lhs, bdd, primed=False) & labs["from"]) != bdd.false:
             changed[(f.section, f.index)] = f"G(({lhs!s}) -> {_or_next(body[1], l_to)})"
     grown = _replace(spec, changed)
     _check_change_allowed(grown, from_mode, to_mode)
@@ -613,13 +613,13 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
 def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     """Whether the game already has a move from ``from_mode`` (under its label) to
     ``to_mode`` (under its label) that both players' safety formulas allow."""
-    from tli_verify.logic.gr1 import _to_bdd, build_game
+    from tli_verify.logic.gr1 import build_game, formula_bdd
 
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
-    lf = _to_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
-    lt = _to_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
+    lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
+    lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
     move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
     return bool(move != bdd.false)
 
@@ -627,13 +627,13 @@ def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
     """The grown assumptions let the sensors move from ``from_mode``'s label to
     ``to_mode``'s while the system runs ``from_mode``."""
-    from tli_verify.logic.gr1 import _to_bdd, build_game
+    from tli_verify.logic.gr1 import build_game, formula_bdd
 
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
-    lf = _to_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
-    lt = _to_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
+    lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
+    lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
     if (game.rho_e & lf & bdd.var(from_mode) & lt) == bdd.false:
         raise SpecError(f"{spec.name}: the environment assumptions still rule out the sensor "
                         f"change {spec.modes[from_mode]!r} -> {spec.modes[to_mode]!r} of the "
