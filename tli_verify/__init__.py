@@ -45,7 +45,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.logic.spec import GR1Spec, load_spec
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
-    from tli_verify.project import Session, control_period, open_project
+    from tli_verify.project.period import control_period
+    from tli_verify.project.session import Session, open_project
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.tasks.project import resolve
@@ -70,9 +71,9 @@ _NAMES: dict[str, str] = {
     "Task": "tli_verify.tasks.task",
     "resolve": "tli_verify.tasks.project",
     # a project opened once: files found, read and settled once
-    "open_project": "tli_verify.project",
-    "Session": "tli_verify.project",
-    "control_period": "tli_verify.project",
+    "open_project": "tli_verify.project.session",
+    "Session": "tli_verify.project.session",
+    "control_period": "tli_verify.project.period",
     # demonstrations and learning (paper Sec. 5)
     "load_demos": "tli_verify.demos",
     "Demonstration": "tli_verify.demos",

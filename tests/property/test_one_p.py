@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import tempfile
-from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +26,7 @@ from tli_verify.certification.certificate import (
     write_certificate,
 )
 from tli_verify.certification.repair import repair_model
+from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError
 from tli_verify.model.serialize import load_model, save_model
 
@@ -72,7 +72,7 @@ def _deploy(doc: dict[str, Any], root: Path) -> tuple[np.ndarray, Path]:
         cdoc = issue_certificate(model, cert_path=cert)
     except CertificateError:
         repaired = root / "m.repaired.model.json"
-        save_model(repair_model(model, repaired, dt=Fraction(1, 1000)).model, repaired)
+        save_model(repair_model(model, repaired, dt=DEFAULT_DT).model, repaired)
         model = repaired
         cdoc = issue_certificate(model, cert_path=cert)
     write_certificate(cdoc, cert)

@@ -104,7 +104,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                       "0.03; 0 or 1e-6 to 100; recorded in the model's fit)")
     p.add_argument("--control-dt", type=_control_period, default=None, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
-                   "(default: the control period of the spec's task, else 0.001 s; 1e-6 to "
+                   "(default: the control period of the spec's task, else 0.01 s; 1e-6 to "
                    "1 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
@@ -132,7 +132,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
                    help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
                    "1/200; default: the control period of the task the model's spec names, "
-                   "else 0.001); the certificate also covers shorter periods")
+                   "else 1/100); the certificate also covers shorter periods")
     p.add_argument("--repair", type=output_path, default=None, metavar="NEW.model.json",
                    help="replace each P that does not certify by one found by an SDP (checked "
                    "exactly), write the new model there, and certify it")
@@ -161,8 +161,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("demos", nargs="+", type=Path, metavar="POSE.csv")
     p.add_argument("-o", "--output", type=output_path, required=True, metavar="OUT.json")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the mixture (default 0)")
-    p.add_argument("--control-dt", type=positive_float, default=1e-3, metavar="SECONDS",
-                   help="control period of the sampled-data constraint (default 0.001)")
+    p.add_argument("--control-dt", type=_control_period, default=None, metavar="SECONDS",
+                   help="control period of the sampled-data constraint (default 0.01 s, the "
+                   "one default; 1e-6 to 1 s)")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.set_defaults(handler=_learn_orientation)
 
