@@ -27,10 +27,10 @@ from tli_verify.io import canonical_json
 from tli_verify.verify.evidence import (
     CAMPAIGN_SEMANTICS,
     EVIDENCE_SCHEMA_VERSION,
-    _same_entry_point,
     check_evidence,
     evidence_digest,
 )
+from tli_verify.verify.evidence.check import _same_entry_point
 
 REPO = Path(__file__).resolve().parents[2]
 EVIDENCE = Path("certificates") / "scoop.campaign.json"
