@@ -50,14 +50,8 @@ def _rational(text: str) -> Fraction:
     return value
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0 or value >= 2**32:
-        raise argparse.ArgumentTypeError(f"must be in [0, 2^32), got {text!r}")
-    return value
+_seed = int_range(0, 2**32 - 1)
+"""A seed: 0 to 2^32 - 1."""
 
 
 def _rerun_examples(text: str) -> int:

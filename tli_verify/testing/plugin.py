@@ -41,8 +41,9 @@ Options
 
 from __future__ import annotations
 
+import argparse
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -71,24 +72,23 @@ _KEY = pytest.StashKey[_State]()
 
 
 # ------------------------------------------------------------------------------ options
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise pytest.UsageError(f"--tli-examples: expected an integer, got {text!r}") from None
-    if value < 1:
-        raise pytest.UsageError(f"--tli-examples: must be >= 1, got {value}")
-    return value
+def _usage(option: str, lo: int) -> Callable[[str], int]:
+    """``int_range(lo)`` of :mod:`tli_verify.arguments` (imported on use: the plugin stays
+    inert for a run that does not use it), its error a pytest usage error naming the option."""
+
+    def parse(text: str) -> int:
+        from tli_verify.arguments import int_range
+
+        try:
+            return int_range(lo)(text)
+        except argparse.ArgumentTypeError as exc:
+            raise pytest.UsageError(f"{option}: {exc}") from None
+
+    return parse
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise pytest.UsageError(f"--tli-seed: expected an integer, got {text!r}") from None
-    if value < 0:
-        raise pytest.UsageError(f"--tli-seed: must be >= 0, got {value}")
-    return value
+_count = _usage("--tli-examples", 1)
+_seed = _usage("--tli-seed", 0)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
