@@ -173,6 +173,52 @@ def _header(fields: list[str], where: str, sensor_names: Sequence[str] | None
             [dxs[i] for i in range(n)] if dxs else [], [c for c, _ in sensors], sensor_list)
 
 
+def _numeric_rows(rows: list[tuple[int, list[str]]], names: list[str], cols: list[int],
+                  where: str, *, nonfinite: str = "") -> FloatArray:
+    """The numeric columns ``cols`` of a demonstration's data rows, checked: at least
+    ``MIN_ROWS`` rows, each with the header's field count; each value a finite number, within
+    ``MAX_ABS_VALUE`` (the first column, the time, excepted); the time strictly increasing.
+
+    Returns
+    -------
+    ndarray, shape (len(rows), len(cols))
+
+    Raises
+    ------
+    DemoError
+        Naming the file, the line and the column.
+    """
+    if len(rows) < MIN_ROWS:
+        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
+                        f"{MIN_ROWS}")
+    values = np.empty((len(rows), len(cols)), dtype=np.float64)
+    for r, (lineno, fields) in enumerate(rows):
+        if len(fields) != len(names):
+            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
+                            f"{len(names)}")
+        for j, col in enumerate(cols):
+            raw = fields[col].strip()
+            try:
+                v = float(raw)
+            except ValueError:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: not a number "
+                                f"({raw!r})") from None
+            if not math.isfinite(v):
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
+                                f"finite (NaN/Inf){nonfinite}")
+            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is "
+                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
+            values[r, j] = v
+    t = values[:, 0]
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        r = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise DemoError(f"{where}: line {rows[r][0]}: t = {float(t[r])!r} does not increase "
+                        f"(previous row has t = {float(t[r - 1])!r})")
+    return values
+
+
 def load_demo(path: str | os.PathLike[str], *,
               sensor_names: Sequence[str] | None = None) -> Demonstration:
     """Read and validate one demonstration CSV (format in the module docstring).
@@ -218,30 +264,9 @@ def load_demo(path: str | os.PathLike[str], *,
     if len(rows) > MAX_DEMO_SAMPLES:
         raise DemoError(f"{where}: {len(rows):,} data rows, more than the limit of "
                         f"{MAX_DEMO_SAMPLES:,} (MAX_DEMO_SAMPLES)")
-    if len(rows) < MIN_ROWS:
-        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
-                        f"{MIN_ROWS}")
-    numeric = [t_col, *x_cols, *dx_cols]
-    values = np.empty((len(rows), len(numeric)), dtype=np.float64)
+    values = _numeric_rows(rows, names, [t_col, *x_cols, *dx_cols], where)
     sensors = np.zeros((len(rows), len(s_cols)), dtype=bool)
     for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != len(names):
-            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
-                            f"{len(names)}")
-        for j, col in enumerate(numeric):
-            raw = fields[col].strip()
-            try:
-                v = float(raw)
-            except ValueError:
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: not a number "
-                                f"({raw!r})") from None
-            if not math.isfinite(v):
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
-                                "finite (NaN/Inf)")
-            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is "
-                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
-            values[r, j] = v
         for j, col in enumerate(s_cols):
             raw = fields[col].strip()
             if raw not in ("0", "1"):
@@ -249,11 +274,6 @@ def load_demo(path: str | os.PathLike[str], *,
                                 "is not 0 or 1")
             sensors[r, j] = raw == "1"
     t = values[:, 0]
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        r = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise DemoError(f"{where}: line {rows[r][0]}: t = {float(t[r])!r} does not increase "
-                        f"(previous row has t = {float(t[r - 1])!r})")
     n = len(x_cols)
     x = values[:, 1:1 + n].copy()
     if dx_cols:
@@ -478,37 +498,11 @@ def load_pose_demo(path: str | os.PathLike[str]) -> PoseDemonstration:
     if len(rows) > MAX_DEMO_SAMPLES:
         raise DemoError(f"{where}: {len(rows):,} data rows, more than the limit of "
                         f"{MAX_DEMO_SAMPLES:,} (MAX_DEMO_SAMPLES)")
-    if len(rows) < MIN_ROWS:
-        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
-                        f"{MIN_ROWS}")
-    cols = [header.index(time_names[0]), *(i for _, i in xs), *q_cols]
-    values = np.empty((len(rows), len(cols)))
-    for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != len(header):
-            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
-                            f"{len(header)}")
-        for j, col in enumerate(cols):
-            raw = fields[col].strip()
-            try:
-                v = float(raw)
-            except ValueError:
-                raise DemoError(f"{where}: line {lineno}: column {header[col]!r}: not a number "
-                                f"({raw!r})") from None
-            if not math.isfinite(v):
-                raise DemoError(f"{where}: line {lineno}: column {header[col]!r}: {raw!r} is "
-                                "not finite (NaN/Inf): refused, a pose sample needs a full "
-                                "orientation")
-            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
-                raise DemoError(f"{where}: line {lineno}: column {header[col]!r}: {raw!r} is "
-                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
-            values[r, j] = v
+    values = _numeric_rows(rows, header, [header.index(time_names[0]), *(i for _, i in xs),
+                                          *q_cols], where,
+                           nonfinite=": refused, a pose sample needs a full orientation")
     lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
     t = values[:, 0]
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        r = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise DemoError(f"{where}: line {lines[r]}: t = {float(t[r])!r} does not increase "
-                        f"(previous row has t = {float(t[r - 1])!r})")
     n = len(xs)
     x = values[:, 1:1 + n].copy()
     q = values[:, 1 + n:][:, list(QUATERNION_CONVENTIONS[convention])]
