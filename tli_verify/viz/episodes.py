@@ -25,6 +25,7 @@ world.
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 from collections.abc import Mapping, Sequence
@@ -212,13 +213,29 @@ def _draw_cut(ax: Any, cut: Any, pair: Pair | None, lo: FloatArray, hi: FloatArr
     if others is None:
         seg = cut_trace(cut.normal, cut.point, pair[0], pair[1], lo, hi)
         return [] if seg is None else ax.plot(seg[:, 0], seg[:, 1], color="tab:blue", lw=1.5)
-    poly = cut_face_shadow(cut.normal, cut.point, pair[0], pair[1], lo, hi, others)
+    poly = _face_shadow(_key(cut.normal), _key(cut.point), pair, _key(lo), _key(hi),
+                        tuple((_key(a), _key(q)) for a, q in others))
     if poly is None:
         return []
     if len(poly) == 2:
         return list(ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.5, zorder=2.5))
     return list(ax.fill(poly[:, 0], poly[:, 1], facecolor=_FACE_FILL, edgecolor=_FACE_EDGE,
                         hatch="//", lw=0.8, zorder=2.4))
+
+
+def _key(v: npt.ArrayLike) -> tuple[float, ...]:
+    return tuple(float(x) for x in np.asarray(v, dtype=np.float64).ravel())
+
+
+@functools.lru_cache(maxsize=4096)
+def _face_shadow(normal: tuple[float, ...], point: tuple[float, ...], pair: Pair,
+                 lo: tuple[float, ...], hi: tuple[float, ...],
+                 others: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...]
+                 ) -> FloatArray | None:
+    """:func:`~tli_verify.viz.regions.cut_face_shadow`, computed once per cut, mode and plane
+    (the episodes of one picture and the frames of an animation share their cuts)."""
+    return cut_face_shadow(normal, point, pair[0], pair[1], lo, hi,
+                           [(np.array(a), np.array(q)) for a, q in others])
 
 
 def _segments(S: FloatArray, pair: Pair | None, modes: Sequence[str], pushes: set[int],
