@@ -12,7 +12,7 @@ in-mode state (gold circle) and failure state (red cross).
   over the steps, pushes, cuts and failures marked). The trajectory is coloured by its mode in
   every panel (:func:`mode_colors`); a cut is drawn, like the regions, as its shadow
   (:func:`~tli_verify.viz.regions.cut_face_shadow`: the projection of its face, the part of
-  its plane that bounds the mode's region; a line or a hatched polygon), and the legend says
+  its plane that bounds the mode's region; a line or a polygon's outline), and the legend says
   so;
 * ``n = 1``: one panel per episode, the state along ``x1`` against the step (upwards).
 
@@ -84,8 +84,7 @@ _PANEL_SIDE = 3.6
 """Side of an n-D panel (inches; 360 px at the pictures' 100 dpi)."""
 _STRIP_HEIGHT = 0.8
 _ND_DPI = 100
-_FACE_FILL = (0.12, 0.47, 0.71, 0.08)
-_FACE_EDGE = (0.12, 0.47, 0.71, 0.6)
+_FACE_EDGE = (0.12, 0.47, 0.71, 0.75)
 
 
 # ----------------------------------------------------------------------------- titles
@@ -206,7 +205,8 @@ def _draw_cut(ax: Any, cut: Any, pair: Pair | None, lo: FloatArray, hi: FloatArr
     regions, a shadow: the projection of the cut's *face*, the part of its plane that bounds
     the mode's region (within the workspace, on the inner side of the mode's ``others`` cuts;
     :func:`~tli_verify.viz.regions.cut_face_shadow`), as a line when it projects to one,
-    else a hatched polygon; nothing where the face is empty or covers the whole panel.
+    else the outline of its polygon (a face seen nearly face-on covers much of the panel: an
+    outline hides nothing); nothing where the face is empty or covers the whole panel.
     """
     if pair is None:
         return []
@@ -219,8 +219,8 @@ def _draw_cut(ax: Any, cut: Any, pair: Pair | None, lo: FloatArray, hi: FloatArr
         return []
     if len(poly) == 2:
         return list(ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.5, zorder=2.5))
-    return list(ax.fill(poly[:, 0], poly[:, 1], facecolor=_FACE_FILL, edgecolor=_FACE_EDGE,
-                        hatch="//", lw=0.8, zorder=2.4))
+    return list(ax.fill(poly[:, 0], poly[:, 1], fill=False, edgecolor=_FACE_EDGE, lw=1.0,
+                        zorder=2.4))
 
 
 def _key(v: npt.ArrayLike) -> tuple[float, ...]:
@@ -422,7 +422,7 @@ def _labels(ax: Any, task: TaskLike, pair: Pair | None) -> None:
 
 def _trajectory_handles(nominal: bool, colors: Mapping[str, Any] | None = None) -> list[Any]:
     """The legend of the trajectories; ``colors`` (n >= 3): one entry per mode, and a cut is
-    drawn as its shadow (a line or a hatched band), like the regions."""
+    drawn as the shadow of its face (a line or a polygon's outline), like the regions."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -435,8 +435,8 @@ def _trajectory_handles(nominal: bool, colors: Mapping[str, Any] | None = None) 
                for m, c in colors.items()]
         cut = [Line2D([], [], color="tab:blue", lw=1.5,
                       label="cut: shadow of its face (a line,"),
-               Patch(facecolor=_FACE_FILL, edgecolor=_FACE_EDGE, hatch="//",
-                     label="or a polygon; as the regions)")]
+               Patch(fill=False, edgecolor=_FACE_EDGE, lw=1.0,
+                     label="or a polygon's outline), as regions")]
     if nominal:
         out.append(Line2D([], [], color="0.55", lw=1.0, ls="--", label="nominal"))
     return [*out, Line2D([], [], color="tab:red", lw=1.2, ls="--", label="push"), *cut,
