@@ -46,6 +46,7 @@ __all__ = [
     "TaskLike",
     "as_task",
     "check_task",
+    "cut_face_shadow",
     "cut_trace",
     "exact_shadow",
     "legend_labels",
@@ -508,6 +509,100 @@ def cut_trace(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
     if not s1 - s0 > 1e-12 * size:
         return None
     return np.array([origin + s0 * d, origin + s1 * d], dtype=np.float64)
+
+
+def cut_face_shadow(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
+                    lo: npt.ArrayLike, hi: npt.ArrayLike,
+                    others: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]] = (),
+                    *, max_lps: int = 64) -> FloatArray | None:
+    """The shadow of a cut's *face* on the ``(x_i, x_j)`` plane: the projection of the part of
+    its plane that bounds the mode's region, ``F = {x in [lo, hi] : w . (x - p) = 0,
+    w_k . (x - p_k) <= 0 for the mode's other cuts}`` (n >= 3 pictures; exact, no sampling).
+
+    ``F`` is a polytope; its projection is the convex polygon found by support LPs: the four
+    axis directions, then the outward normal of every edge found so far until no LP moves an
+    edge (each LP confirms an edge or adds a vertex), as for the polytope regions
+    (:func:`exact_shadow`).
+
+    Parameters
+    ----------
+    normal, point : array_like, shape (n,)
+        The cut ``w``, ``p`` (the mode on the side ``w . (x - p) <= 0``).
+    i, j : int
+        The plane's coordinates.
+    lo, hi : array_like, shape (n,)
+        The workspace box.
+    others : sequence of (normal, point)
+        The mode's other cuts.
+    max_lps : int, optional
+        Most LPs; past them the polygon found so far is returned (inside the true one).
+
+    Returns
+    -------
+    ndarray, shape (2, 2) or (m, 2) with m >= 3, or None
+        A segment (the face projects to a line: its normal lies in the plane), the polygon in
+        counter-clockwise order, or None: the face is empty (another cut removes it), a point,
+        covers the whole panel, or an LP fails.
+    """
+    from scipy.optimize import linprog
+
+    w = np.asarray(normal, dtype=np.float64)
+    p = np.asarray(point, dtype=np.float64)
+    lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    rows = [np.asarray(a, dtype=np.float64) for a, _ in others]
+    A_ub = np.array(rows) if rows else None
+    b_ub = (np.array([float(np.asarray(a, dtype=np.float64) @ np.asarray(q, dtype=np.float64))
+                      for a, q in others]) if rows else None)
+    bounds = list(zip(lo_a.tolist(), hi_a.tolist(), strict=True))
+    span = float(max(hi_a[i] - lo_a[i], hi_a[j] - lo_a[j]))
+    tol = 1e-9 * span
+    used = 0
+
+    def support(d: FloatArray) -> FloatArray | None:
+        nonlocal used
+        used += 1
+        cost = np.zeros(w.size)
+        cost[i], cost[j] = -d[0], -d[1]
+        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=w[None, :], b_eq=[float(w @ p)],
+                      bounds=bounds, method="highs")
+        return None if res.status != 0 else np.array([res.x[i], res.x[j]])
+
+    hull: list[FloatArray] = []
+    for d in ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)):
+        y = support(np.array(d))
+        if y is None:
+            return None
+        if not any(float(np.max(np.abs(y - h))) <= tol for h in hull):
+            hull.append(y)
+    if len(hull) == 1:
+        return None
+    k = 0
+    while k < len(hull) and used < max_lps:  # edge hull[k] -> hull[k + 1]
+        P, Q = hull[k], hull[(k + 1) % len(hull)]
+        e = Q - P
+        out = np.array([e[1], -e[0]])  # outward for a counter-clockwise hull
+        norm = float(np.hypot(*out))
+        if norm <= tol:
+            k += 1
+            continue
+        y = support(out / norm)
+        if y is None:
+            return None
+        if float(out @ (y - P)) / norm > tol:
+            hull.insert(k + 1, y)
+        else:
+            k += 1
+    poly = np.array(hull, dtype=np.float64)
+    area = 0.5 * abs(float(np.dot(poly[:, 0], np.roll(poly[:, 1], -1))
+                           - np.dot(poly[:, 1], np.roll(poly[:, 0], -1))))
+    panel = float((hi_a[i] - lo_a[i]) * (hi_a[j] - lo_a[j]))
+    if area >= panel * (1.0 - 1e-9):
+        return None
+    if area <= 1e-9 * panel:  # a segment: its two farthest points
+        far = max(itertools.combinations(range(len(poly)), 2),
+                  key=lambda ab: float(np.linalg.norm(poly[ab[0]] - poly[ab[1]])))
+        return np.asarray(poly[list(far)], dtype=np.float64)
+    return poly
 
 
 # ----------------------------------------------------------------------------- exact shadows
