@@ -55,7 +55,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.tasks.taskfile import load_task
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
-    from tli_verify.verify.evidence import write_campaign_evidence
+    from tli_verify.verify.evidence.write import write_campaign_evidence
 
 _NAMES: dict[str, str] = {
     "__version__": "tli_verify._version",
@@ -92,7 +92,7 @@ _NAMES: dict[str, str] = {
     # campaigns and the gate
     "CampaignConfig": "tli_verify.verify.config",
     "run_campaign": "tli_verify.verify.campaign",
-    "write_campaign_evidence": "tli_verify.verify.evidence",
+    "write_campaign_evidence": "tli_verify.verify.evidence.write",
     "run_gate": "tli_verify.deploy.gate",
     "GateReport": "tli_verify.deploy.gate",
     # errors (each input error is also the builtin it means: ValueError, FileNotFoundError)

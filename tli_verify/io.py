@@ -463,6 +463,14 @@ def _shown_path(p: Path) -> Path:
         return p
 
 
+def package_file(*parts: str) -> Path:
+    """A file shipped inside the package (``package_file("deploy", "c", "tli_policy.c")``),
+    found through :func:`importlib.resources.files`, so it is found in a checkout and in an
+    installed wheel alike; the one place besides :func:`bundled_root` that locates package
+    files."""
+    return Path(str(resources.files("tli_verify").joinpath(*parts)))
+
+
 def bundled_root() -> Path:
     """The root of the bundled project (the folder holding its ``tasks/``, ``specs/``,
     ``demos/``, ``models/``, ``certificates/`` and ``sim/``), wherever ``tli`` runs from.

@@ -41,7 +41,7 @@ def project(tmp_path: Path) -> Path:
 def _forge(root: Path, *, nominal_too: bool, **settings: Any) -> None:
     """Move the zone, then make the evidence agree: the task's hash, the recorded settings,
     the digest (what anyone holding the files can recompute)."""
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
     from tli_verify.verify.evidence import evidence_digest, task_block
 
     task = root / "tasks" / "scoop.toml"

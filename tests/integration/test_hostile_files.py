@@ -597,7 +597,7 @@ def test_a_polytope_is_called_empty_only_when_it_is(
     """A box written as ``A x <= b`` with each row scaled (tiny or large coefficients, the
     same set): non-empty polytopes load, empty ones (upper below lower) are "empty" (before:
     rows of 1e-10 with b beyond the LP's tolerance were called empty)."""
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     hi = (lo[0] + side[0], lo[1] + side[1])
     if empty:

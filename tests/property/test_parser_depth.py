@@ -153,7 +153,7 @@ def test_a_loaded_task_formula_is_evaluated_without_recursion(
     evaluation that recursed per operand would fail here."""
     import sys
 
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     scoop = (Path(__file__).resolve().parents[2] / "tasks" / "scoop.toml").read_text()
     formula = f" {op} ".join(["yellow"] * (n + 1))

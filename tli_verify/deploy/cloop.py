@@ -18,7 +18,6 @@ import ctypes
 import os
 import shutil
 import subprocess
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import ExportError
+from tli_verify.io import package_file
 
 __all__ = ["CEvaluator", "CInTheLoop", "compile_evaluator", "in_the_loop"]
 
@@ -51,7 +51,7 @@ def compile_evaluator(out_dir: str | os.PathLike[str]) -> Path:
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         raise ExportError("the C evaluator needs a C compiler (cc or gcc) on PATH")
-    src = Path(str(resources.files("tli_verify").joinpath("deploy", "c", "tli_policy.c")))
+    src = package_file("deploy", "c", "tli_policy.c")
     lib = Path(out_dir) / "libtli_policy.so"
     proc = subprocess.run([cc, *CFLAGS, "-o", str(lib), str(src), "-lm"], capture_output=True,
                           text=True, check=False)
