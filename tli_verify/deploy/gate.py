@@ -49,6 +49,11 @@ from tli_verify.certification.certificate import CertCheck, check_certificate
 from tli_verify.errors import CertificateError, GateError, TliError, bad_input
 from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+from tli_verify.verify.evidence.rules import (
+    DEFAULT_RERUN_EXAMPLES,
+    DEFAULT_RERUN_TRIALS,
+    HANDOFF_RETEST,
+)
 
 if TYPE_CHECKING:
     from tli_verify.logic.check import SpecCheck
@@ -60,13 +65,6 @@ __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "
 CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
 """``(evidence check, model path, examples) -> (ok, one-line message)``: a re-run."""
 
-DEFAULT_RERUN_EXAMPLES = 50
-"""Examples the gate re-runs by default per deployed model with kinematic evidence (~4 s
-per model on one core): a hash proves the evidence's integrity, not its honesty, so the gate
-runs a sample of the campaign itself, on seeds it derives (:func:`rerun_seed`)."""
-DEFAULT_RERUN_TRIALS = 1
-"""Physical trials the gate re-runs by default per model with physical evidence (10-40 s each
-on one core)."""
 
 
 def rerun_seed(check: Any, model: Path, count: int) -> int:
@@ -308,9 +306,6 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     return items
 
 
-HANDOFF_RETEST = 100
-"""Fresh states per DS the gate draws (twice: drawn, then from the hand-offs) to re-test a
-*sampled* hand-off claim on its own seed (from the model file's SHA-256)."""
 
 
 def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:

@@ -15,21 +15,15 @@ from typing import Any
 from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.verify.evidence import PhysicalWorld
+from tli_verify.verify.evidence.rules import MIN_PHYSICS_TRIALS, REQUIRED_ROBOT
 
 __all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_ROBOT", "WORLD",
            "check_physics_block"]
 
-REQUIRED_ROBOT = "panda"
-"""The rig the Franka project's physical evidence must be made on: the arm, not the free tool."""
 
 WORLD = "franka-physics"
 """The ``world`` of the Franka's physical campaign evidence."""
 
-MIN_PHYSICS_TRIALS = 30
-"""Fewest perturbed physical trials a ``franka-physics`` campaign needs to count as evidence:
-the paper's robot experiment (30 perturbed trials, 30 successes). With 30 successes the
-failure probability per perturbed trial is below 10% at 95% confidence (rule of three): weaker
-than the kinematic campaigns' bound, and the gate's line says so."""
 
 
 def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
