@@ -76,6 +76,31 @@ def _init_worker() -> None:
         pass
 
 
+def _start_forkserver_without_ctrl_c() -> None:
+    """Start multiprocessing's fork server with SIGINT ignored, so that every worker forked
+    from it starts with SIGINT ignored (a worker restores the server's own SIGINT disposition
+    at birth: with Python's default, a Ctrl-C in the instant before :func:`_init_worker` ran
+    printed a KeyboardInterrupt traceback from the worker). SIGINT is blocked meanwhile in the
+    driver, so a Ctrl-C in that instant stays pending and is handled afterwards (Linux keeps a
+    blocked signal pending even while its action is to ignore it). A no-op outside the main
+    thread or when the server already runs."""
+    import signal
+    import threading
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
 class ProcessBackend:
     """Batches on local worker processes (:class:`~concurrent.futures.ProcessPoolExecutor`).
 
@@ -110,6 +135,8 @@ class ProcessBackend:
                 "(or use backend=\"serial\")")
 
         ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
+        if os.name != "nt":
+            _start_forkserver_without_ctrl_c()
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
                                    initializer=_init_worker)
 
