@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 
 import tli_verify as tli
+from tests.support.cli import interactive_signals
 from tli_verify.errors import InputError, OutputError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -145,7 +146,7 @@ def test_an_interrupted_tli_evidence_exits_130_and_keeps_the_evidence(
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
            "MKL_NUM_THREADS": "1"}
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, env=env)
+                            start_new_session=True, env=env, preexec_fn=interactive_signals)
     deadline = time.monotonic() + 120
     while _threads(proc.pid) < 2 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.1)  # the campaign's drawing thread has started: the campaign runs

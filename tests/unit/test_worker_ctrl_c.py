@@ -12,6 +12,8 @@ import sys
 
 import pytest
 
+from tests.support.cli import interactive_signals
+
 PROBE = """
 import signal
 from concurrent.futures import ProcessPoolExecutor
@@ -30,6 +32,7 @@ print(born is signal.SIG_IGN, signal.getsignal(signal.SIGINT) is signal.default_
 @pytest.mark.parametrize("fixed", [True, False])
 def test_a_worker_is_born_ignoring_ctrl_c_and_the_driver_keeps_its_handler(fixed: bool) -> None:
     out = subprocess.run([sys.executable, "-c", PROBE.format(fixed=fixed)], capture_output=True,
-                         text=True, timeout=120, check=True).stdout.split()
+                         text=True, timeout=120, check=True,
+                         preexec_fn=interactive_signals).stdout.split()
     # without the start-up step a worker is born with Python's KeyboardInterrupt handler
     assert out == [str(fixed), "True", "False"], out
