@@ -36,3 +36,43 @@ def test_a_worker_is_born_ignoring_ctrl_c_and_the_driver_keeps_its_handler(fixed
                          preexec_fn=interactive_signals).stdout.split()
     # without the start-up step a worker is born with Python's KeyboardInterrupt handler
     assert out == [str(fixed), "True", "False"], out
+
+
+HALF_BORN = """
+import signal, sys, time
+import multiprocessing.forkserver as fs
+import tli_verify.verify.backends as b
+
+real = fs.connect_to_new_process
+
+def connect_then_ctrl_c(fds):  # Ctrl-C in the instant between connecting and sending the data
+    out = real(fds)
+    signal.raise_signal(signal.SIGINT)
+    time.sleep(0.2)  # the interpreter runs a Python handler between bytecodes
+    return out
+
+fs.connect_to_new_process = connect_then_ctrl_c
+fs._forkserver.connect_to_new_process = connect_then_ctrl_c
+if __name__ == "__main__":
+    backend = b.ProcessBackend(workers=1)
+    try:
+        for _ in backend.map_unordered(abs, [-1, -2, -3]):
+            pass
+    except KeyboardInterrupt:
+        print("interrupted")
+    time.sleep(1.0)  # a half-born worker reports its EOFError meanwhile
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no fork server")
+def test_ctrl_c_while_a_worker_is_being_started_leaves_no_traceback(tmp_path) -> None:
+    """The flake of ``test_ctrl_c_before_any_run_finished_is_one_line`` made deterministic: a
+    SIGINT between the fork server's connect and the write of the worker's data used to leave
+    a worker that printed ``EOFError`` from ``spawn._main``; the Ctrl-C is now held until the
+    workers are started, and is still delivered (the campaign stops)."""
+    script = tmp_path / "half_born.py"
+    script.write_text(HALF_BORN)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120, check=False, preexec_fn=interactive_signals)
+    assert done.stdout.split() == ["interrupted"], (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr, done.stderr
