@@ -24,7 +24,7 @@ import os
 import re
 import stat
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -358,6 +358,42 @@ def check_nesting(text: str, *, where: str, error: type[TliError],
                             f"{limit} levels (limit MAX_NESTING)")
         elif tok in "]}":
             depth = max(depth - 1, 0)
+
+
+def parse_toml(text: str, *, where: str, error: type[TliError],
+               nested: Callable[[], str] | None = None) -> dict[str, Any]:
+    """Parse TOML text, turning every failure into one ``error`` naming the file: the one
+    place "read TOML and map its errors" lives (specs, labels, tasks).
+
+    Parameters
+    ----------
+    text : str
+        The TOML text.
+    where : str
+        The file as shown in messages (``path`` or ``path:line``).
+    error : type
+        Exception class (a :class:`tli_verify.errors.TliError`) to raise.
+    nested : callable, optional
+        Makes the whole message for nesting beyond the parser's recursion limit (a reader
+        that can find the line and knows its own limit says so); default: the file and
+        "arrays or tables nested too deeply".
+
+    Returns
+    -------
+    dict
+        The parsed document.
+    """
+    import tomllib
+
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib reads nested arrays recursively
+        message = nested() if nested is not None else f"{where}: arrays or tables nested too deeply"
+        raise error(message) from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise error(f"{where}: invalid TOML: {exc}") from None
 
 
 def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:

@@ -65,7 +65,6 @@ from __future__ import annotations
 
 import itertools
 import os
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -116,16 +115,11 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         Unreadable file, invalid TOML, no ``[modes]`` table, a mode name that is not an AP
         name or names a sensor, a label that is not propositional or uses an unknown sensor.
     """
-    from tli_verify.io import read_text
+    from tli_verify.io import parse_toml, read_text
 
     where = str(path)
     text = read_text(path, what="labels", error=SpecError)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
-    except RecursionError:
-        raise SpecError(f"{where}: arrays or tables nested too deeply") from None
+    data = parse_toml(text, where=where, error=SpecError)
     raw = data.get("modes")
     lines = _LineFinder(text)
     if not isinstance(raw, dict) or not raw:

@@ -45,14 +45,13 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import os
-import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tli_verify.errors import SpecError
-from tli_verify.io import read_text
+from tli_verify.io import parse_toml, read_text
 from tli_verify.logic.ltl import (
     MAX_FORMULA_DEPTH,
     Slot,
@@ -241,15 +240,9 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     where = path or "<spec>"
     if not text.strip():
         raise SpecError(f"{where}: empty spec file")
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
-    except RecursionError:  # tomllib reads nested arrays recursively
-        raise SpecError(f"{where}:{_deep_line(text)}: arrays or tables nested deeper than "
-                        f"the limit of {MAX_TOML_DEPTH} levels") from None
-    except ValueError as exc:  # an integer of more than 4300 digits
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
+    data = parse_toml(text, where=where, error=SpecError,
+                      nested=lambda: (f"{where}:{_deep_line(text)}: arrays or tables nested "
+                                      f"deeper than the limit of {MAX_TOML_DEPTH} levels"))
     deep = _too_deep(data)
     if deep is not None:
         raise SpecError(f"{where}: '{deep}': arrays or tables nested deeper than the limit of "

@@ -23,7 +23,6 @@ the gate's re-run::
 from __future__ import annotations
 
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
@@ -34,7 +33,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TaskError, bad_input
+from tli_verify.errors import TaskError, TliError, bad_input
+from tli_verify.io import parse_toml, read_text
 from tli_verify.snapshot import Snapshot
 
 if TYPE_CHECKING:
@@ -333,8 +333,8 @@ def locate(where: Path, *, given_spec_or_model: bool = False
 def _toml_kind(path: Path) -> str:
     """``"task"`` for a task file (a ``[state]`` table), else ``"spec"``."""
     try:
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
-    except (OSError, tomllib.TOMLDecodeError):
+        doc = parse_toml(read_text(path, what="spec or task", error=TaskError),
+                         where=str(path), error=TaskError)
+    except TliError:
         return "spec"  # the spec reader says what is wrong
     return "task" if "state" in doc else "spec"

@@ -79,7 +79,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
@@ -177,19 +176,12 @@ def parse_task(text: str, *, path: str | None = None,
     TaskError
         (exit 2) Naming the file and the field.
     """
-    from tli_verify.io import check_numbers, validate_schema
+    from tli_verify.io import check_numbers, parse_toml, validate_schema
 
     where = path or "<task>"
     if not text.strip():
         raise TaskError(f"{where}: empty task file")
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise TaskError(f"{where}: invalid TOML: {exc}") from None
-    except RecursionError:
-        raise TaskError(f"{where}: arrays or tables nested too deeply") from None
-    except ValueError as exc:  # an integer of more than 4300 digits
-        raise TaskError(f"{where}: invalid TOML: {exc}") from None
+    data = parse_toml(text, where=where, error=TaskError)
     check_numbers(data, where=where, error=TaskError)
     task = _build(data, where, text, path, entry_points)
     validate_schema(data, "task.schema.json", where=where, error=TaskError)

@@ -109,15 +109,16 @@ def task_content_sha256(path: str | os.PathLike[str]) -> str | None:
     """
     import hashlib
     import json
-    import tomllib
 
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.loads(fh.read().decode("utf-8-sig"))
+    from tli_verify.errors import TaskError, TliError
+    from tli_verify.io import parse_toml, read_text
+
+    try:  # the session's bytes of the file: the ones its hash and its parse saw
+        data = parse_toml(read_text(path, what="task", error=TaskError), where=str(path),
+                          error=TaskError)
         # sorted keys, one spelling per number (inf and nan too), dates as ISO text
         text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
                           allow_nan=True, default=str)
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, TypeError, ValueError,
-            RecursionError):
+    except (TliError, TypeError, ValueError):
         return None
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
