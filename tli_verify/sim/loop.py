@@ -53,6 +53,7 @@ import numpy.typing as npt
 from tli_verify.errors import InputError, TliError
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.setup import VARIANTS as RUNTIME_VARIANTS
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import (
     CONTROL_DT,
@@ -86,7 +87,10 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-VARIANTS = ("LTL-DS", "no-modulation", "no-replan")
+VARIANTS = tuple(v for v in RUNTIME_VARIANTS if v != "BC")
+"""The runtime's variants (:data:`tli_verify.runtime.setup.VARIANTS`) the robot runs: all but
+``BC``, whose per-mode networks are trained on the kinematic tasks only (the Franka project
+has no BC model to load)."""
 ROBOTS = ("panda", "free-tool")
 """The rigs: the Panda (default) and the free tool (the ladle on a free body, no arm)."""
 NOTIFY_AFTER = 1.5
