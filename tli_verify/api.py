@@ -53,8 +53,10 @@ from tli_verify.arguments import (
     check_path,
     check_type,
 )
+from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import (
     CertificateError,
+    DemoError,
     ModelError,
     SpecError,
     TaskError,
@@ -62,9 +64,25 @@ from tli_verify.errors import (
     bad_input,
     bad_type,
 )
+from tli_verify.io import atomic_write_text, canonical_json, check_plan
 from tli_verify.limits import MAX_SEED
+from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import IN_MEMORY, load_model, model_to_dict, relocate_model
+from tli_verify.model.serialize import save_model as _save
+from tli_verify.model.types import Model
 from tli_verify.project import control_period
+from tli_verify.project.session import run_policy
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
+from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
+from tli_verify.runtime.setup import make_policy as _make
 from tli_verify.snapshot import active
+from tli_verify.tasks.project import model_files, resolve, spec_inputs, spec_task
+from tli_verify.tasks.registry import find_task
+from tli_verify.tasks.task import Task
 
 if TYPE_CHECKING:
     from tli_verify.certification.certificate import CertCheck
@@ -93,13 +111,11 @@ def _in_snapshot(fn: F) -> F:
 
     return inner  # type: ignore[return-value]
 
-
 def _spec_path(spec: Any) -> Path | None:
     if spec is None:
         return None
     if isinstance(spec, str | os.PathLike):
         return check_path(spec, "spec", error=SpecError)
-    from tli_verify.logic.spec import GR1Spec
 
     if not isinstance(spec, GR1Spec):
         raise bad_type(SpecError, f"spec: expected a path or a GR1Spec, got "
@@ -110,12 +126,9 @@ def _spec_path(spec: Any) -> Path | None:
                         "and its certificate bind the spec file); use load_spec(path)")
     return Path(path)
 
-
 def _spec_inputs(spec: Path | None) -> list[Path]:
-    from tli_verify.tasks.project import spec_inputs
 
     return spec_inputs(spec)
-
 
 @_in_snapshot
 def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec | None = None,
@@ -152,10 +165,6 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
     -------
     Model
     """
-    from tli_verify.demos import Demonstration, demo_to_csv
-    from tli_verify.errors import DemoError
-    from tli_verify.io import atomic_write_text, check_plan
-    from tli_verify.model.learn import learn_model
 
     if isinstance(demos, str | bytes | os.PathLike) or not isinstance(demos, Sequence):
         raise bad_type(DemoError, f"demos: expected a sequence of demonstration files or "
@@ -186,7 +195,6 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
                             rate=rate, rate_budget=rate_budget, control_dt=dt,
                             clustering=clustering, lyapunov=lyapunov)
         if handoff and spec_path is not None:
-            from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 
             ctx = context_for_spec(spec_path)
             if ctx is not None:
@@ -195,11 +203,9 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
                                        seed=seed).model
         if out is not None:
             save_model(model, out)
-            from tli_verify.model.serialize import load_model
 
             return load_model(out)
         return _in_memory(model, paths, Path(tmp), spec_path)
-
 
 def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path | None
                ) -> Model:
@@ -210,8 +216,6 @@ def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path |
     import json
     from types import MappingProxyType
 
-    from tli_verify.model.serialize import IN_MEMORY
-
     source = json.loads(json.dumps(dict(model.source or {})))
     for i, (demo, p) in enumerate(zip(source.get("demos") or [], paths, strict=True)):
         demo["path"] = (f"{IN_MEMORY}demo_{i + 1}" if p.parent == tmp
@@ -219,7 +223,6 @@ def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path |
     return dataclasses.replace(
         model, path=None, source=MappingProxyType(source),
         spec=None if spec_path is None else str(spec_path.resolve()))
-
 
 @_in_snapshot
 def save_model(model: Model, path: PathLike) -> Model:
@@ -235,10 +238,6 @@ def save_model(model: Model, path: PathLike) -> Model:
     -------
     Model
     """
-    from tli_verify.io import check_plan
-    from tli_verify.model.serialize import IN_MEMORY, load_model, relocate_model
-    from tli_verify.model.serialize import save_model as _save
-    from tli_verify.model.types import Model
 
     check_type(model, "model", Model, "a Model (tli_verify.learn, load_model)",
                error=ModelError)
@@ -247,12 +246,10 @@ def save_model(model: Model, path: PathLike) -> Model:
     _save(relocate_model(model, target), target)
     return load_model(target)
 
-
 def _model_reads(model: Model, in_memory: str) -> list[Path]:
     """What a model object implies, for the read/write rule: its spec and the spec's task,
     the demonstrations it was learned from, and the certificate and evidence next to its
     file (not the file itself: saving a model over its own file rewrites it)."""
-    from tli_verify.tasks.project import model_files
 
     reads = _spec_inputs(model.spec_path)
     base = Path(model.path).parent if model.path else Path(".")
@@ -264,7 +261,6 @@ def _model_reads(model: Model, in_memory: str) -> list[Path]:
         files = model_files(model.path)
         reads += [files.certificate, files.evidence]
     return reads
-
 
 @dataclass(frozen=True, eq=False)
 class Certificate:
@@ -322,8 +318,6 @@ class Certificate:
         Certificate
             Re-issued for the files written.
         """
-        from tli_verify.io import check_plan
-        from tli_verify.model.serialize import load_model
 
         target = check_path(path, "path", error=CertificateError)
         mpath = Path(self.model_path)
@@ -336,7 +330,6 @@ class Certificate:
         else:
             check_plan(inputs=reads, outputs=[(target, "certificate")])
         return certify(mpath, dt=self.dt, out=target)
-
 
 @_in_snapshot
 def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
@@ -365,9 +358,6 @@ def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
         A DS does not certify with the model's own P (naming the mode and the condition).
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.io import check_plan
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import Model
 
     if not isinstance(model, Model):
         model = check_path(model, "model", error=ModelError)
@@ -393,7 +383,6 @@ def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
     elif tmp is not None:
         cpath = tmp / "model.cert.json"
     else:
-        from tli_verify.tasks.project import model_files
 
         cpath = model_files(mpath).certificate
     # the read/write rule, before any work: the certificate is none of the files it binds
@@ -409,7 +398,6 @@ def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
         weakref.finalize(cert, shutil.rmtree, tmp, True)
     return cert
 
-
 def _check_dt(dt: Any) -> Fraction:
     """``dt`` as a positive Fraction (``certify(dt=...)``)."""
     if isinstance(dt, bool) or not isinstance(dt, Fraction | str | int | float):
@@ -423,15 +411,11 @@ def _check_dt(dt: Any) -> Fraction:
         raise bad_argument(CertificateError, f"dt: the control period must be > 0, got {dt!r}")
     return value
 
-
 def _same_bytes(model: Any, path: Path) -> bool:
     """Whether the model object is the file's content (cuts learned in memory make it not)."""
-    from tli_verify.io import canonical_json
-    from tli_verify.model.serialize import model_to_dict, relocate_model
 
     return canonical_json(model_to_dict(relocate_model(model, path))) == \
         path.read_text(encoding="utf-8")
-
 
 @_in_snapshot
 def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLike,
@@ -461,12 +445,6 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
         The certificate does not cover the model (also a ValueError when the model was never
         saved).
     """
-    from tli_verify.logic.automaton import TaskAutomaton
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import Model
-    from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
-    from tli_verify.runtime.setup import make_policy as _make
-    from tli_verify.tasks.project import resolve
 
     variant = check_choice(variant, "variant", VARIANTS)
     cpath = certificate.path if isinstance(certificate, Certificate) else check_path(
@@ -474,7 +452,6 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
     if not isinstance(model, Model):
         model = check_path(model, "model", error=ModelError)
     if not isinstance(spec, TaskAutomaton | str | os.PathLike):
-        from tli_verify.logic.spec import GR1Spec
 
         check_type(spec, "spec", GR1Spec, "a path, a GR1Spec or a TaskAutomaton",
                    error=SpecError)
@@ -493,15 +470,12 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
     if isinstance(spec, TaskAutomaton):
         automaton = spec
     else:
-        from tli_verify.logic.check import synthesize
-        from tli_verify.logic.spec import GR1Spec, load_spec
 
         automaton = synthesize(spec if isinstance(spec, GR1Spec) else load_spec(spec_file))
     check_goal(automaton, resolved.goal, where=str(spec_file))
     setup = Setup(task=resolved.task, automaton=automaton, model=model,
                   certificate=str(cpath), goal=resolved.goal, spec=str(spec_file))
     return _make(setup, variant)
-
 
 @_in_snapshot
 def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
@@ -528,11 +502,6 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
     -------
     EpisodeResult
     """
-    from tli_verify.project.session import run_policy
-    from tli_verify.runtime.executive import LTLDSPolicy
-    from tli_verify.tasks.project import spec_task
-    from tli_verify.tasks.registry import find_task
-    from tli_verify.tasks.task import Task
 
     check_type(policy, "policy", LTLDSPolicy, "an LTLDSPolicy (make_policy)", error=TaskError)
     found: Task | None
@@ -544,7 +513,6 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
                            f"got {type(task).__name__}")
         found = find_task(task)
     else:
-        from tli_verify.logic.spec import load_spec
 
         spec = policy.model.spec_path
         found = spec_task(load_spec(spec), spec) if spec is not None else None

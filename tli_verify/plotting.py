@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from tli_verify.io import atomic_write_bytes
+
 __all__ = ["draw_mode_graph", "save_figure"]
 
 
@@ -28,14 +30,11 @@ def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int) -> None:
 
     import matplotlib.pyplot as plt
 
-    from tli_verify.io import atomic_write_bytes
-
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi)
     plt.close(fig)
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     atomic_write_bytes(path, buffer.getvalue())
-
 
 def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str | None = None
                     ) -> None:
@@ -57,7 +56,6 @@ def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, FancyArrowPatch
-
 
     modes = [m for m in automaton.modes
              if any(s.mode == m for s in automaton.states)] or sorted(

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify._version import __version__
 from tli_verify.certification.exact import (
     LyapunovCheck,
     certified_decay_rate,
@@ -47,7 +48,17 @@ from tli_verify.certification.exact import (
 )
 from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError, ModelError, bad_input, missing
-from tli_verify.io import atomic_write_text, canonical_json, same_file, sha256_file
+from tli_verify.io import (
+    atomic_write_text,
+    canonical_json,
+    read_json,
+    same_file,
+    sha256_file,
+    validate_schema,
+)
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
+from tli_verify.model.types import numeric_limits
 
 __all__ = [
     "CERT_KIND",
@@ -77,16 +88,13 @@ def certificate_digest(doc: Mapping[str, Any]) -> str:
     body = {k: v for k, v in doc.items() if k != "digest"}
     return hashlib.sha256(canonical_json(body).encode("utf-8")).hexdigest()
 
-
 def _relpath(target: Path, base_dir: Path) -> str:
     return Path(os.path.relpath(target.resolve(), base_dir.resolve())).as_posix()
-
 
 def _eigs(P: FloatArray, A: FloatArray) -> tuple[float, list[float]]:
     lam_p = float(np.linalg.eigvalsh(P).min())
     lam = [float(np.linalg.eigvalsh(a.T @ P + P @ a).max()) for a in A]
     return lam_p, lam
-
 
 def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any]:
     """The learning solver's record (informational; the exact check is the proof)."""
@@ -95,18 +103,15 @@ def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any]:
     return {"name": fit.get("solver"), "status": str(fit.get("status") or "unknown"),
             "eps": fit.get("eps")}
 
-
 def rational_text(q: Fraction) -> str:
     """``"p"`` or ``"p/q"``: the exact text of a rational in a certificate."""
     return str(q.numerator) if q.denominator == 1 else f"{q.numerator}/{q.denominator}"
-
 
 def _repair_hint(mpath: Path) -> str:
     stem = mpath.name.removesuffix(".json").removesuffix(".model")
     return (f"run 'tli certify {mpath} --repair {mpath.parent / (stem + '.repaired.model.json')}' "
             "to search a certifying P and write it into a new model (the runtime must use the "
             "certified P)")
-
 
 def certify_mode(key: str, mm: Any, *, dt: Fraction, where: str) -> dict[str, Any]:
     """Certify one DS with its own P, or raise naming the mode and what fails.
@@ -156,7 +161,6 @@ def certify_mode(key: str, mm: Any, *, dt: Fraction, where: str) -> dict[str, An
                   "decay_rate": True},
     }
 
-
 def issue_certificate(model_path: str | os.PathLike[str], *,
                       cert_path: str | os.PathLike[str],
                       dt: Fraction | str = DEFAULT_DT) -> dict[str, Any]:
@@ -184,9 +188,6 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     CertificateError
         A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
-    from tli_verify._version import __version__
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import numeric_limits
 
     try:
         dt_q = parse_rational(dt, what="dt")
@@ -201,7 +202,6 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     if model.spec_path is not None:
         if not model.spec_path.is_file():
             raise ModelError(f"{mpath}: spec: file {model.spec_path} not found")
-        from tli_verify.logic.spec import load_spec
 
         load_spec(model.spec_path)  # a certificate never binds a spec that does not load
         spec = {"path": _relpath(model.spec_path, base), "sha256": sha256_file(model.spec_path)}
@@ -221,11 +221,9 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     doc["digest"] = certificate_digest(doc)
     return doc
 
-
 def write_certificate(doc: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
     """Write a certificate document atomically (canonical JSON)."""
     atomic_write_text(path, canonical_json(dict(doc)))
-
 
 @dataclass(frozen=True, slots=True)
 class CertCheck:
@@ -256,10 +254,8 @@ class CertCheck:
         """True iff nothing failed."""
         return not self.problems
 
-
 def _close(a: float, b: float) -> bool:
     return abs(a - b) <= _REL_TOL * max(1.0, abs(a), abs(b))
-
 
 def check_certificate(cert_path: str | os.PathLike[str], *,
                       model_path: str | os.PathLike[str] | None = None) -> CertCheck:
@@ -282,8 +278,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     CertificateError
         Only when the certificate file cannot be read at all (exit 2).
     """
-    from tli_verify.io import read_json, validate_schema
-    from tli_verify.model.serialize import load_model
 
     cpath = Path(cert_path)
     if cpath.is_dir():
@@ -323,7 +317,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     except ModelError as exc:
         problems.append(f"model does not load: {exc}")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
-    from tli_verify.model.types import numeric_limits
 
     if doc["well_posed"]["limits"] != numeric_limits():
         problems.append(f"{cpath}: well_posed.limits differ from this tool's declared ranges "
@@ -352,9 +345,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
                           "components (exact)")
     return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed), dt_text)
 
-
-
-
 def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
                         passed: list[str]) -> list[str]:
     """The certificate's spec must be the very file the model names, unchanged."""
@@ -375,7 +365,6 @@ def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any,
                 "certification"]
     passed.append(f"spec {spec_path} is the model's and matches its SHA-256")
     return []
-
 
 def _check_mode(key: str, entry: Mapping[str, Any], mm: Any, dt: Fraction) -> list[str]:
     """Every discrepancy between one certified DS and the model, and the exact verdicts."""

@@ -17,7 +17,9 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from tli_verify.commands import float_range, int_range, output_path
+from tli_verify.commands import check_plan, float_range, int_range, output_path
+from tli_verify.errors import TliError
+from tli_verify.io import canonical_json
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED, MAX_WORKERS
 
 QUICK_TRIALS = 3
@@ -86,11 +88,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="output directory (default out/scoop)")
     c.set_defaults(handler=_scoop)
 
-
 def _missing(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
-
 
 class _Progress:
     """A progress bar on stderr (one line per 10% when stderr is not a terminal)."""
@@ -120,9 +120,7 @@ class _Progress:
                 self.stream.write(f"{self.label}: {done}/{total} trials, {elapsed:.0f}s\n")
         self.stream.flush()
 
-
 def _config(args: argparse.Namespace) -> Any:
-    from tli_verify.errors import TliError
     from tli_verify.experiments.single_mode import SingleModeConfig
 
     trials = args.trials if args.trials is not None else (QUICK_TRIALS if args.quick else 50)
@@ -140,12 +138,9 @@ def _config(args: argparse.Namespace) -> Any:
     cfg.validate()
     return cfg
 
-
 def _single_mode(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
     from tli_verify.experiments.single_mode import run
     from tli_verify.experiments.single_mode_report import summarize, write_outputs
-    from tli_verify.io import canonical_json
 
     cfg = _config(args)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
@@ -164,7 +159,6 @@ def _single_mode(args: argparse.Namespace) -> int:
         sys.stdout.write("wrote " + ", ".join(str(f) for f in files) + "\n")
     return 0
 
-
 def _table(summary: dict[str, Any]) -> str:
     noises = [str(p) for p in summary["config"]["noise_percent"]]
     lines = ["policy    " + "".join(f"{'noise ' + k + '%':>12}" for k in noises)]
@@ -175,9 +169,7 @@ def _table(summary: dict[str, Any]) -> str:
                  + ", ".join(f"{k}%: {cuts[k]['mean']:.1f}/{cuts[k]['max']:.0f}" for k in noises))
     return "\n".join(lines) + "\n"
 
-
 def _scoop_config(args: argparse.Namespace) -> Any:
-    from tli_verify.errors import TliError
     from tli_verify.experiments.scoop import ExperimentConfig
 
     q = args.quick
@@ -192,17 +184,13 @@ def _scoop_config(args: argparse.Namespace) -> Any:
                             steps=args.steps if args.steps is not None else (2000 if q else 3000),
                             seed=args.seed, lag=args.lag)
 
-
 def _scoop(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
-    from tli_verify.io import canonical_json
 
     cfg = _scoop_config(args)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise TliError(f"--workers must be >= 1, got {workers}")
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
-    from tli_verify.commands import check_plan
     from tli_verify.tasks.project import resolve
 
     bundled = resolve(task="scoop", lag=cfg.lag)  # the scoop study's files are its inputs
@@ -216,7 +204,6 @@ def _scoop(args: argparse.Namespace) -> int:
         sys.stdout.write(_scoop_table(summary))
         sys.stdout.write("wrote " + ", ".join(str(f) for f in files) + "\n")
     return 0
-
 
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
@@ -236,13 +223,11 @@ def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
     files = write_report(summary, out, fig7=fig7, fig7_png=png)
     return summary, files + ([png] if png is not None else [])
 
-
 def run_scoop(cfg: Any, *, workers: int, fig7_tries: int) -> dict[str, Any]:
     """:func:`tli_verify.experiments.scoop.run_all` (imported lazily)."""
     from tli_verify.experiments.scoop import run_all
 
     return run_all(cfg, workers=workers, fig7_tries=fig7_tries)
-
 
 def _scoop_table(summary: dict[str, Any]) -> str:
     lines = [f"{'variant':<15}{'success':>10}{'episodes':>10}{'success %':>11}"]
@@ -252,7 +237,6 @@ def _scoop_table(summary: dict[str, Any]) -> str:
     if summary.get("fig7"):
         lines.append("Fig. 7: " + summary["fig7"]["text"])
     return "\n".join(lines) + "\n"
-
 
 def demo_stage(out: Path) -> list[str]:
     """Run a quick single-mode study for ``make demo``; return one summary line per result."""

@@ -14,9 +14,30 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import float_range, int_range, output_path, positive_float
-from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
+from tli_verify.commands import check_plan, float_range, int_range, output_path, positive_float
+from tli_verify.demos import load_demo, load_pose_demo
+from tli_verify.ds.lyapunov import RATE_BUDGET
+from tli_verify.ds.quaternion import (
+    ORIENTATION_MODEL_KIND,
+    learn_quaternion_ds,
+    write_orientation_model,
+)
+from tli_verify.errors import (
+    CertificateError,
+    DemoError,
+    GateError,
+    ModelError,
+    TliError,
+    bad_input,
+)
+from tli_verify.io import bundled_dir, check_output_file, read_json
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import load_model, save_model
+from tli_verify.plotting import save_figure
 from tli_verify.project import control_period
+from tli_verify.runtime.handoff import context_for_spec, handoff_status, learn_handoffs
+from tli_verify.tasks.project import model_files, spec_task
 
 __all__ = ["demo_stage", "register"]
 
@@ -49,7 +70,6 @@ def _rational(text: str) -> Fraction:
         raise argparse.ArgumentTypeError(f"must be between 1e-06 and 1 s, got {text!r}")
     return value
 
-
 _seed = int_range(0, 2**32 - 1)
 """A seed: 0 to 2^32 - 1."""
 
@@ -66,10 +86,8 @@ def _rerun_examples(text: str) -> int:
                                          f"re-runs a sample), got {text!r}")
     return value
 
-
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
-
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``learn``, ``certify``, ``check-cert`` and ``gate``."""
@@ -185,20 +203,16 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "evaluator)")
     p.set_defaults(handler=_gate)
 
-
 def _task_file(spec: Path | None) -> Path | None:
     """The task file a spec names (an input the outputs must not overwrite), or None."""
     if spec is None:
         return None
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
 
     try:
         task = spec_task(load_spec(spec), spec)
     except TliError:
         return None
     return None if task is None or task.source.path is None else Path(task.source.path)
-
 
 def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
     """Refuse demonstrations whose state dimension differs from the spec's task (before any
@@ -207,10 +221,6 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
     demonstration loader."""
     if spec is None:
         return
-    from tli_verify.demos import load_demo
-    from tli_verify.errors import DemoError
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
 
     task = spec_task(load_spec(spec), spec)
     if task is None:
@@ -223,12 +233,7 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
                             f"{task.name!r} ({task.where}) has {task.dim} states: these "
                             "demonstrations are not of this task")
 
-
 def _learn(args: argparse.Namespace) -> int:
-    from tli_verify.commands import check_plan
-    from tli_verify.ds.lyapunov import RATE_BUDGET
-    from tli_verify.model.learn import learn_model
-    from tli_verify.model.serialize import save_model
 
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
@@ -241,7 +246,6 @@ def _learn(args: argparse.Namespace) -> int:
                         lyapunov="identity" if args.baseline else "p-qlf")
     handoff = None
     if not args.no_handoff and args.spec is not None:
-        from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 
         ctx = context_for_spec(args.spec)
         if ctx is not None:
@@ -294,20 +298,16 @@ def _learn(args: argparse.Namespace) -> int:
                          f"tli certify {args.output}\n")
     return 0
 
-
 def default_certificate_path(model: Path) -> Path:
     """Where the project layout puts a model's certificate
     (:func:`tli_verify.tasks.project.model_files`): ``ROOT/certificates/<name>.cert.json`` for
     ``ROOT/models/<name>.model.json``; ``<name>.cert.json`` next to a model outside any
     ``models/`` folder."""
-    from tli_verify.tasks.project import model_files
 
     return model_files(model).certificate
 
-
 def _kind(path: Path, error: type[TliError]) -> str | None:
     """The ``kind`` field of a JSON file (None when it has none); unreadable: ``error``."""
-    from tli_verify.io import read_json
 
     if path.is_dir():
         raise bad_input(error, f"{path}: is a directory, expected a JSON file")
@@ -315,11 +315,7 @@ def _kind(path: Path, error: type[TliError]) -> str | None:
     kind = doc.get("kind") if isinstance(doc, dict) else None
     return kind if isinstance(kind, str) else None
 
-
 def _learn_orientation(args: argparse.Namespace) -> int:
-    from tli_verify.demos import load_pose_demo
-    from tli_verify.ds.quaternion import learn_quaternion_ds, write_orientation_model
-    from tli_verify.io import check_output_file
 
     check_output_file(args.output, inputs=args.demos, what="orientation model")
     demos = [load_pose_demo(p) for p in args.demos]
@@ -345,13 +341,11 @@ def _learn_orientation(args: argparse.Namespace) -> int:
                          "-o CERT.json\n")
     return 0
 
-
 def _certify_orientation(args: argparse.Namespace) -> int:
     from tli_verify.certification.orientation import (
         issue_orientation_certificate,
         write_orientation_certificate,
     )
-    from tli_verify.io import check_output_file
 
     if args.repair is not None:
         raise bad_input(ModelError, f"{args.model}: --repair is not available for orientation "
@@ -377,7 +371,6 @@ def _certify_orientation(args: argparse.Namespace) -> int:
                          f"wrote {out}\n")
     return 0
 
-
 def _check_orientation_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.orientation import check_orientation_certificate
 
@@ -399,12 +392,8 @@ def _check_orientation_cert(args: argparse.Namespace) -> int:
         sys.stdout.write(f"{args.certificate}: valid (orientation DS re-checked exactly)\n")
     return 0
 
-
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.ds.quaternion import ORIENTATION_MODEL_KIND
-    from tli_verify.io import check_output_file
-    from tli_verify.model.serialize import load_model
 
     if _kind(args.model, ModelError) == ORIENTATION_MODEL_KIND:
         return _certify_orientation(args)
@@ -420,7 +409,6 @@ def _certify(args: argparse.Namespace) -> int:
     check_output_file(out, inputs=inputs, what="certificate")
     if args.repair is not None:
         from tli_verify.certification.repair import repair_model
-        from tli_verify.model.serialize import save_model
 
         result = repair_model(args.model, args.repair, dt=dt)
         save_model(result.model, args.repair)
@@ -452,7 +440,6 @@ def _certify(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {out}\n")
     return 0
 
-
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import check_certificate
     from tli_verify.certification.orientation import ORIENTATION_CERT_KIND
@@ -478,8 +465,6 @@ def _check_cert(args: argparse.Namespace) -> int:
             sys.stdout.write(f"FAIL  {item}\n")
     handoff_ok = True
     if check.ok and check.model_path:
-        from tli_verify.model.serialize import load_model
-        from tli_verify.runtime.handoff import handoff_status
 
         model = load_model(check.model_path)
         if model.spec_path is not None and model.spec_path.is_file():
@@ -498,7 +483,6 @@ def _check_cert(args: argparse.Namespace) -> int:
     if not args.json:
         sys.stdout.write(f"{check.path}: valid (re-checked exactly against {check.model_path})\n")
     return 0
-
 
 def _gate(args: argparse.Namespace) -> int:
     from tli_verify.deploy.gate import run_gate
@@ -522,7 +506,6 @@ def _gate(args: argparse.Namespace) -> int:
         sys.stdout.write(f"gate: pass ({summary})\n")
     return 0
 
-
 def demo_stage(out: Path) -> list[str]:
     """``tli demo``: learn the scooping model from the bundled demos, certify and re-check it.
 
@@ -534,9 +517,6 @@ def demo_stage(out: Path) -> list[str]:
         issue_certificate,
         write_certificate,
     )
-    from tli_verify.io import bundled_dir
-    from tli_verify.model.learn import learn_model
-    from tli_verify.model.serialize import save_model
 
     demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
     spec = bundled_dir("specs") / "scoop.toml"
@@ -560,7 +540,6 @@ def demo_stage(out: Path) -> list[str]:
         lines.append(f"motion: streamlines of every mode -> {target / 'scoop_modes.png'}")
     return lines
 
-
 def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
     """Streamlines of each mode's (modulated) DS with the demonstrations (2D models)."""
     import matplotlib
@@ -568,9 +547,6 @@ def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-
-    from tli_verify.demos import load_demo
-    from tli_verify.plotting import save_figure
 
     demos = [load_demo(p) for p in demo_paths]
     pts = np.concatenate([d.x for d in demos])

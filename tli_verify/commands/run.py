@@ -26,8 +26,13 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.commands.experiment import scoop_study
 from tli_verify.defaults import Stream, rng
+from tli_verify.errors import CertificateError, TliError
+from tli_verify.io import atomic_write_text, bundled_root, canonical_json, read_json
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
 
 __all__ = ["add_task_arguments", "demo_stage", "open_args", "parse_floats", "parse_perturb",
            "register"]
@@ -52,7 +57,6 @@ def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None
     p.add_argument("--lag", type=int_range(0, MAX_CAMPAIGN_STEPS), default=None,
                    help="sensor lag in control steps (default: the task's)")
 
-
 def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
     """The project session (:func:`tli_verify.project.open_project`) of the command's task
     options (``use_spec`` False: ``--spec`` is not the model's spec, e.g. the spec
@@ -61,7 +65,6 @@ def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
 
     return open_project(task=args.task, spec=args.spec if use_spec else None,
                         model=args.model, certificate=args.certificate, lag=args.lag)
-
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``tli run``."""
@@ -110,7 +113,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "atomically, nothing written if it does not certify")
     p.set_defaults(handler=_run)
 
-
 def parse_floats(text: str, n: int, what: str) -> list[float]:
     """``n`` comma-separated finite numbers (``--start``, a push's displacement).
 
@@ -121,8 +123,6 @@ def parse_floats(text: str, n: int, what: str) -> list[float]:
     """
     import math
 
-    from tli_verify.errors import TliError
-
     parts = text.split(",")
     try:
         vals = [float(v) for v in parts]
@@ -132,7 +132,6 @@ def parse_floats(text: str, n: int, what: str) -> list[float]:
         raise TliError(f"{what}: expected {n} comma-separated finite numbers (one per "
                        f"coordinate of the {n}-D state), got {text!r}")
     return vals
-
 
 def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None = None
                   ) -> dict[int, Any]:
@@ -146,7 +145,6 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
     """
     import numpy as np
 
-    from tli_verify.errors import TliError
     from tli_verify.runtime.episodes import random_perturbations
 
     out: dict[int, Any] = {}
@@ -181,12 +179,9 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
                        f"({MAX_PUSHES})")
     return out
 
-
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.runtime.episodes import (
         episode_json,
         mode_string,
@@ -214,8 +209,6 @@ def _run(args: argparse.Namespace) -> int:
     grown = None
     if start_spec is not None:
         from dataclasses import replace
-
-        from tli_verify.logic.check import synthesize
 
         grown = synthesize(start_spec)
         setup = replace(setup, automaton=grown)
@@ -307,21 +300,16 @@ def _run(args: argparse.Namespace) -> int:
             + f"wrote {', '.join(wrote)}\n")
     return 0 if res.success else 1
 
-
 def _certified_dt(policy: Any) -> str:
     """The control period the policy's certificate proves (a saved model is re-certified at
     it)."""
-    from tli_verify.errors import CertificateError
-    from tli_verify.io import read_json
 
     doc = read_json(policy.certificate, what="certificate", error=CertificateError)
     return str(doc["control_period"]["dt"])
 
-
 def _picture(task: Any, res: Any, nominal: Any, path: Path, variant: str, seed: int,
              notes: list[str]) -> Path | None:
     """The Fig. 7-style picture of the episode, or None (with a note) if it cannot be drawn."""
-    from tli_verify.errors import TliError
     from tli_verify.viz.episodes import plot_episodes
 
     try:
@@ -332,7 +320,6 @@ def _picture(task: Any, res: Any, nominal: Any, path: Path, variant: str, seed: 
         return None
     return path
 
-
 def _growth_start(setup: Any, spec: Path | None) -> Any:
     """The spec to grow from (``--spec``, default the model's): same inputs and ``[modes]``
     labels as the spec the model names (the DS were learned on those labels).
@@ -342,8 +329,6 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
     TliError
         (exit 2) A spec that does not load or labels the modes otherwise.
     """
-    from tli_verify.errors import TliError
-    from tli_verify.logic.spec import load_spec
 
     named_path = Path(setup.spec)
     named = load_spec(named_path)
@@ -356,16 +341,13 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
                        "labels)")
     return start
 
-
 def _write_grown(policy: Any, start: Any, path: Path) -> None:
     """Write the policy's current spec as TOML (atomically), with a provenance header."""
-    from tli_verify.io import atomic_write_text
 
     learned = " ".join(f"{a}->{b}" for a, b in policy.learned) or "none"
     header = (f"# Grown online by `tli run --learn-transitions` from {start.path}.\n"
               f"# Transitions learned in this run: {learned}.\n")
     atomic_write_text(path, header + policy.spec_toml)
-
 
 def _growth_line(res: Any) -> str:
     from tli_verify.runtime.events import TransitionLearned, TransitionRefused
@@ -380,17 +362,14 @@ def _growth_line(res: Any) -> str:
                          f"{e.reason})")
     return f"learned transitions: {', '.join(parts) if parts else 'none'}\n"
 
-
 def demo_stage(out: Path) -> list[str]:
     """``tli demo``: gate the shipped files, run a perturbed scoop episode with and without
     modulation (``out/run/``), and the quick scoop experiment (``out/scoop/``)."""
     import os
 
-    from tli_verify.commands.experiment import scoop_study
     from tli_verify.deploy.gate import run_gate
     from tli_verify.experiments.scoop import ExperimentConfig
     from tli_verify.experiments.scoop_task import scoop_setup
-    from tli_verify.io import atomic_write_text, bundled_root, canonical_json
     from tli_verify.runtime.episodes import episode_json, mode_string, random_start, run_variant
     from tli_verify.viz.episodes import plot_episodes
 

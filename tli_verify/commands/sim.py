@@ -21,9 +21,21 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import DEFAULT_PATH, chosen_path, float_range, int_range, output_path
+from tli_verify.commands import (
+    DEFAULT_PATH,
+    check_plan,
+    chosen_path,
+    float_range,
+    int_range,
+    output_path,
+)
+from tli_verify.errors import TliError
+from tli_verify.io import canonical_json
 from tli_verify.limits import MAX_WORKERS
 from tli_verify.sim import TRIAL_DURATION
+from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.render import Recorder, select_backend
+from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
 __all__ = ["register"]
 
@@ -101,7 +113,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "at least 30 perturbed LTL-DS trials, all passing")
     p.set_defaults(handler=_run)
 
-
 def robot_name(text: str) -> str:
     """``--robot``: ``panda`` or ``free-tool``; the old name ``hand`` is refused with a hint."""
     if text == "hand":
@@ -111,9 +122,7 @@ def robot_name(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text!r}: one of panda, free-tool")
     return text
 
-
 def _run(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
 
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
@@ -122,7 +131,6 @@ def _run(args: argparse.Namespace) -> int:
     if args.certificates is not None and not args.certificates.is_dir():
         raise TliError(f"--certificates {args.certificates}: not a directory")
     if args.video is not None:  # MuJoCo fixes its OpenGL backend on import (next lines)
-        from tli_verify.sim.render import select_backend
 
         select_backend()  # MUJOCO_GL: the user's, else egl, else osmesa; none: exit 2
     if args.evidence is not None and (args.no_perturb or args.no_modulation or args.no_replan):
@@ -152,9 +160,7 @@ def _run(args: argparse.Namespace) -> int:
 
         raise TliError(f"MuJoCo refused to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
                        f"{' '.join(str(exc).split())[:120]}") from None
-    from tli_verify.commands import check_plan
     from tli_verify.sim.loop import project_dir
-    from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
     # the project's files (task, spec, model, certificate, demonstrations) are inputs: never
     # written; its evidence may be replaced by new evidence only
@@ -165,7 +171,6 @@ def _run(args: argparse.Namespace) -> int:
         inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
     evidence = None
     if args.evidence is not None:  # before any work: never over an input or another output
-        from tli_verify.sim.franka_files import MODEL_NAME
 
         cert_dir = args.certificates if args.certificates is not None else \
             base / "certificates"
@@ -174,7 +179,6 @@ def _run(args: argparse.Namespace) -> int:
                outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot"),
                         (evidence, "campaign evidence")])
     check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
-    from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import run_physics_campaign
     from tli_verify.sim.loop import TrialResult, load_policy
     from tli_verify.sim.physics_config import PhysicsConfig
@@ -199,7 +203,6 @@ def _run(args: argparse.Namespace) -> int:
                          f"{evaluator.sha256}\n")
     recorder = None
     if args.video is not None:
-        from tli_verify.sim.render import Recorder
 
         recorder = Recorder()
     config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,

@@ -12,6 +12,11 @@ from typing import Any
 
 from tli_verify.commands import exit_code, output_path
 from tli_verify.errors import OutputError, TliError
+from tli_verify.io import atomic_write_text, bundled_dir, canonical_json
+from tli_verify.logic.check import check_spec, check_spec_file, synthesize
+from tli_verify.logic.foreign import import_spec_file
+from tli_verify.logic.infer import infer_spec_text, load_labels
+from tli_verify.logic.spec import load_spec, parse_spec
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -84,11 +89,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     infer.add_argument("--name", default=None, help="spec name (default: the output's stem)")
     infer.set_defaults(handler=_infer)
 
-
 def _usage(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
-
 
 def _explain(check: Any) -> list[str]:
     spec = check.spec
@@ -107,12 +110,10 @@ def _explain(check: Any) -> list[str]:
                      "(paper Asm. 3)")
     return lines
 
-
 def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
     """The spec's task against its assumptions (:mod:`tli_verify.tasks.fit`): a sensor change
     the task can produce under a push that the spec rules out, at most 3 named, and the count;
     nothing for a spec that names no task or a task whose sensors a plug-in computes."""
-    from tli_verify.logic.check import synthesize
     from tli_verify.tasks.fit import task_spec_mismatches
     from tli_verify.tasks.project import spec_task
 
@@ -130,9 +131,7 @@ def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
                    f"{task.source.path or task.name} --spec {path})")
     return out
 
-
 def _check(args: argparse.Namespace) -> int:
-    from tli_verify.logic.check import check_spec_file
 
     worst = 0
     for path in args.files:
@@ -176,10 +175,8 @@ def _check(args: argparse.Namespace) -> int:
             sys.stdout.write("\n".join(_explain(result)) + "\n")
     return worst
 
-
 def write_automaton(automaton: Any, out: Path) -> None:
     """Write ``automaton`` as JSON or DOT (by ``out``'s extension), atomically."""
-    from tli_verify.io import atomic_write_text, canonical_json
 
     if out.suffix == ".dot":
         atomic_write_text(out, automaton.to_dot())
@@ -188,11 +185,7 @@ def write_automaton(automaton: Any, out: Path) -> None:
     else:
         raise TliError(f"{out}: output must end in .json or .dot")
 
-
 def _automaton(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
 
     automaton = synthesize(load_spec(args.file))
     if args.output is not None:
@@ -215,11 +208,7 @@ def _automaton(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {args.output}\n")
     return 0
 
-
 def _import(args: argparse.Namespace) -> int:
-    from tli_verify.io import atomic_write_text
-    from tli_verify.logic.foreign import import_spec_file
-    from tli_verify.logic.spec import parse_spec
 
     if args.output is not None and args.output.suffix != ".toml":
         raise OutputError(f"{args.output}: output must end in .toml")
@@ -235,13 +224,8 @@ def _import(args: argparse.Namespace) -> int:
                      f"outputs, {len(spec.formulas())} formulas\n")
     return 0
 
-
 def _infer(args: argparse.Namespace) -> int:
     from tli_verify.demos import load_demos
-    from tli_verify.io import atomic_write_text
-    from tli_verify.logic.check import check_spec, synthesize
-    from tli_verify.logic.infer import infer_spec_text, load_labels
-    from tli_verify.logic.spec import parse_spec
 
     demos = load_demos(args.demos)
     labels = load_labels(args.modes, demos[0].sensor_names)
@@ -263,11 +247,8 @@ def _infer(args: argparse.Namespace) -> int:
         sys.stdout.write(f"  warning: {w}\n")
     return 0 if ok else 1
 
-
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
-    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs
-    from tli_verify.logic.check import check_spec_file, synthesize
 
     specs = sorted(bundled_dir("specs").glob("*.toml"))
     lines = [f"[spec] checking {len(specs)} specs in specs/"]

@@ -22,7 +22,15 @@ from typing import Any
 
 from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
+from tli_verify.commands.verify import keep_stronger
+from tli_verify.errors import CheckFailed, OutputError, TaskError, TliError
+from tli_verify.io import atomic_write_text, canonical_json
 from tli_verify.limits import MAX_WORKERS
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
+from tli_verify.tasks.scaffold import scaffold
+from tli_verify.verify.evidence import write_campaign_evidence
 
 __all__ = ["register"]
 
@@ -128,11 +136,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     "40, 0.5 to 600)")
     ev.set_defaults(handler=_evidence)
 
-
 def _usage(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
-
 
 # ------------------------------------------------------------------------------ task check
 def _summary(task: Any) -> dict[str, Any]:
@@ -151,9 +157,7 @@ def _summary(task: Any) -> dict[str, Any]:
         "spec": task.spec, "sha256": task.source.sha256 or task.source.source_sha256,
     }
 
-
 def _check(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
     from tli_verify.tasks.registry import find_task
 
     loaded = [find_task(t) for t in args.tasks]
@@ -161,7 +165,6 @@ def _check(args: argparse.Namespace) -> int:
         _read_once(task)
     spec = None
     if args.spec is not None:  # a spec that does not load is one error line before any output
-        from tli_verify.logic.spec import load_spec
 
         spec = load_spec(args.spec)
     if args.picture is not None:
@@ -190,7 +193,6 @@ def _check(args: argparse.Namespace) -> int:
         return _check_fit(loaded, spec, args.spec, as_json=args.json)
     return 0
 
-
 def _read_once(task: Any) -> None:
     """Read the task's sensors once, at its first nominal start (else the workspace's
     centre), two steps there (not a physics scene's sensors): a sensor plug-in's ``read()``
@@ -208,13 +210,9 @@ def _read_once(task: Any) -> None:
         x = (np.asarray(task.lo, dtype=float) + np.asarray(task.hi, dtype=float)) / 2
     task.sensors(np.stack([x, x]))
 
-
 def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:
     """``tli task check --spec``: inputs and sensors agree, and every sensor change the task
     can produce is one the spec's assumptions allow (:mod:`tli_verify.tasks.fit`)."""
-    from tli_verify.errors import CheckFailed, TaskError
-    from tli_verify.io import canonical_json
-    from tli_verify.logic.check import synthesize
     from tli_verify.tasks.fit import task_spec_mismatches
 
     bad = 0
@@ -244,7 +242,6 @@ def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -
                           "out by the spec's assumptions (above): a task/spec mismatch")
     return 0
 
-
 def _list(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import bundled_tasks, task_names
 
@@ -257,10 +254,8 @@ def _list(args: argparse.Namespace) -> int:
         sys.stdout.write(f"{name}\t{where}\n")
     return 0
 
-
 # ------------------------------------------------------------------------------ demos
 def _demos(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TaskError
     from tli_verify.tasks.demonstrator import write_demos
     from tli_verify.tasks.project import project_root
     from tli_verify.tasks.registry import find_task
@@ -291,13 +286,9 @@ def _demos(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {args.picture}\n")
     return 0
 
-
 # ------------------------------------------------------------------------------ init
 def _init(args: argparse.Namespace) -> int:
-    from tli_verify.errors import OutputError, TaskError
-    from tli_verify.io import atomic_write_text
     from tli_verify.tasks.formula import is_name
-    from tli_verify.tasks.scaffold import scaffold
 
     name = args.name
     if not is_name(name.replace("-", "_")) or len(name) > 64:
@@ -321,10 +312,8 @@ def _init(args: argparse.Namespace) -> int:
                      "--evidence, gate)\n")
     return 0
 
-
 # ------------------------------------------------------------------------------ evidence
 def _evidence(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
     from tli_verify.tasks.project import model_files, model_stem, resolve
 
     root: Path = args.directory
@@ -344,7 +333,6 @@ def _evidence(args: argparse.Namespace) -> int:
         physical = bool(getattr(resolved.task.sensor_model, "physics", False))
         plan.append((model, resolved, physical))
         if not physical:  # nor replaces stronger evidence (unless --force)
-            from tli_verify.commands.verify import keep_stronger
             from tli_verify.verify.config import resolve_config
 
             keep_stronger(model_files(model).evidence,
@@ -362,7 +350,6 @@ def _evidence(args: argparse.Namespace) -> int:
         status |= 0 if ok else 1
     return status
 
-
 def _config(args: argparse.Namespace, resolved: Any) -> Any:
     """The bisimulation campaign ``tli evidence`` runs for one model."""
     from tli_verify.verify.config import CampaignConfig
@@ -372,10 +359,8 @@ def _config(args: argparse.Namespace, resolved: Any) -> Any:
                           seed=args.seed, modulation=True, workers=args.workers,
                           backend=args.backend or "process", random_starts=args.random_starts)
 
-
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.verify.campaign import run_campaign
-    from tli_verify.verify.evidence import write_campaign_evidence
 
     config = _config(args, resolved)
     result = run_campaign(config, progress=sys.stderr.isatty())
@@ -388,9 +373,7 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
             f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
 
-
 def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-    from tli_verify.errors import TliError
 
     try:
         from tli_verify.sim.campaign import run_physics_campaign
@@ -399,7 +382,6 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     except ImportError as exc:  # pragma: no cover - the sim extra is missing
         raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
                        f"install 'tli-verify[sim]'): {exc}") from None
-    from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:

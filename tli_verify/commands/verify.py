@@ -12,7 +12,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
+from tli_verify.commands import DEFAULT_PATH, check_plan, chosen_path, int_range, output_path
+from tli_verify.commands.run import add_task_arguments
+from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_text, canonical_json
 from tli_verify.limits import (
     MAX_BATCH_SIZE,
     MAX_CAMPAIGN_STEPS,
@@ -20,6 +23,12 @@ from tli_verify.limits import (
     MAX_PUSHES,
     MAX_SEED,
     MAX_WORKERS,
+)
+from tli_verify.testing.junit import write_junit
+from tli_verify.verify.evidence import (
+    evidence_path_for,
+    weaker_than_recorded,
+    write_campaign_evidence,
 )
 
 __all__ = ["register", "write_report"]
@@ -34,7 +43,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "reachability deadline, automaton run, no looping), shrink the first counterexample "
         "and write a report (campaign.json, campaign.md, campaign.png, counterexample.json). "
         "Exit 0: no violation; 1: a violation.")
-    from tli_verify.commands.run import add_task_arguments
 
     add_task_arguments(p, what="campaign")
     p.add_argument("--examples", type=int_range(1, MAX_EXAMPLES), default=200,
@@ -89,10 +97,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     r.add_argument("--json", action="store_true")
     r.set_defaults(handler=_replay)
 
-
 def _verify(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
 
@@ -107,9 +112,7 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
-    from tli_verify.commands import check_plan
     from tli_verify.verify.config import resolve_config
-    from tli_verify.verify.evidence import evidence_path_for
 
     resolved, filled = resolve_config(cfg)  # before any work: the files, the task, their fit
     out: Path = args.out
@@ -140,12 +143,10 @@ def _verify(args: argparse.Namespace) -> int:
     files = write_report(result, report_dir)
     record["report"] = [str(f) for f in files]
     if args.evidence is not None and not result.partial:
-        from tli_verify.verify.evidence import write_campaign_evidence
 
         target, _ = write_campaign_evidence(result.config, result, path=evidence)
         record["evidence"] = str(target)
     if args.junit is not None and not result.partial:
-        from tli_verify.testing.junit import write_junit
 
         ce_path = report_dir / "counterexample.json"
         record["junit"] = str(write_junit(
@@ -169,7 +170,6 @@ def _verify(args: argparse.Namespace) -> int:
                          f"partial report written to {report_dir / 'campaign.md'}{kept}\n")
         return 130
     return 1 if result.counterexample is not None else 0
-
 
 def _summary(result: Any, files: list[Path]) -> str:
     c = result.config
@@ -197,7 +197,6 @@ def _summary(result: Any, files: list[Path]) -> str:
     lines.append("wrote " + ", ".join(str(f) for f in files))
     return "\n".join(lines) + "\n"
 
-
 def write_report(result: Any, out: Path) -> list[Path]:
     """``campaign.md``, ``campaign.png`` (outcomes per run, coverage) and, with a
     counterexample, ``counterexample.json`` + ``counterexample.png`` (Fig. 7 style: the
@@ -209,8 +208,6 @@ def write_report(result: Any, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.plotting import save_figure
     from tli_verify.verify.oracle import PRIORITY
 
@@ -320,11 +317,9 @@ def write_report(result: Any, out: Path) -> list[Path]:
     files.insert(0, md)
     return files
 
-
 def _cuts_table(result: Any) -> list[str]:
     """campaign.md's "Cuts per mode": the model's cuts (offline, with its hand-off claim) and
     the cuts the runs learned online."""
-    from tli_verify.errors import TliError
     from tli_verify.model.serialize import load_model
 
     online = result.cuts_by_mode()
@@ -359,7 +354,6 @@ def _cuts_table(result: Any) -> list[str]:
                    f"{int(o['runs'])} | {int(o['max_per_run'])} |")
     return [*out, ""]
 
-
 def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
     from dataclasses import replace
 
@@ -381,9 +375,7 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
                         + (" (left) vs LTL-DS (right)" if len(panels) > 1 else ""))
     return png
 
-
 def _replay(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
     from tli_verify.verify.cases import replay_case
 
     mod = None if args.modulation == "case" else args.modulation == "on"
@@ -411,8 +403,6 @@ def _replay(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{verdict.diagnosis}\n")
     return 1 if reproduced else 0
 
-
-
 def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     """Refuse (exit 2, before any work) to replace the evidence of a stronger campaign, unless
     ``force``; with ``force``, say on stderr what is being replaced.
@@ -422,8 +412,6 @@ def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     TliError
         The evidence at ``path`` records a stronger campaign than ``config``'s.
     """
-    from tli_verify.errors import TliError
-    from tli_verify.verify.evidence import weaker_than_recorded
 
     why = weaker_than_recorded(path, config)
     if why is None:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from tli_verify.errors import ExportError, bad_input
+from tli_verify.io import read_json, validate_schema
 
 __all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "check_artifact",
            "content_hash", "render_text", "text_path_for"]
@@ -36,10 +37,8 @@ def text_path_for(json_path: str | os.PathLike[str]) -> Path:
     p = Path(json_path)
     return p.with_suffix(".txt") if p.suffix == ".json" else p.with_name(p.name + ".txt")
 
-
 def _hex(text: str) -> str:
     return text.encode("utf-8").hex() or "-"
-
 
 def _mask(names: Sequence[str], order: Sequence[str]) -> int:
     index = {n: i for i, n in enumerate(order)}
@@ -48,10 +47,8 @@ def _mask(names: Sequence[str], order: Sequence[str]) -> int:
         out |= 1 << index[n]
     return out
 
-
 def _nums(values: Any) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=np.float64).ravel())
-
 
 def render_text(art: dict[str, Any]) -> str:
     """The text form's body (no ``sha256`` line) of an artifact's content.
@@ -122,11 +119,9 @@ def render_text(art: dict[str, Any]) -> str:
     lines.append("end")
     return "\n".join(lines) + "\n"
 
-
 def content_hash(art: dict[str, Any]) -> str:
     """SHA-256 (hex) of the text form's body: the artifact's ``content_sha256``."""
     return hashlib.sha256(render_text(art).encode("utf-8")).hexdigest()
-
 
 def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Load a JSON artifact and check it: schema and its own hash.
@@ -142,7 +137,6 @@ def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
         Unreadable, not the schema, or ``content_sha256`` is not the hash of its content
         (exit 2).
     """
-    from tli_verify.io import read_json, validate_schema
 
     data = read_json(path, what="policy artifact", error=ExportError)
     validate_schema(data, "policy.schema.json", where=str(path), error=ExportError)
@@ -155,5 +149,4 @@ def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise bad_input(ExportError, f"{path}: content_sha256 {data['content_sha256']} is not "
                         f"the hash of its content ({digest}): the file was edited")
     return dict(data)
-
 

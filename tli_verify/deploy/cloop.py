@@ -24,8 +24,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.deploy.export import check_artifact, text_path_for
 from tli_verify.errors import ExportError
-from tli_verify.io import package_file
+from tli_verify.io import package_file, sha256_file
+from tli_verify.runtime.events import CutAdded
 
 __all__ = ["CEvaluator", "CInTheLoop", "compile_evaluator", "in_the_loop"]
 
@@ -60,7 +62,6 @@ def compile_evaluator(out_dir: str | os.PathLike[str]) -> Path:
         raise ExportError(f"{src}: the C build failed: {first}")
     return lib
 
-
 class _Info(ctypes.Structure):
     _fields_ = [("state", ctypes.c_int), ("mode", ctypes.c_int), ("planned", ctypes.c_int),
                 ("ds", ctypes.c_int), ("flags", ctypes.c_uint), ("steps", ctypes.c_long),
@@ -69,10 +70,8 @@ class _Info(ctypes.Structure):
                 ("last_inside", ctypes.c_double * _MAX_DIM),
                 ("outside", ctypes.c_double * _MAX_DIM)]
 
-
 def _ptr(a: FloatArray) -> Any:
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-
 
 class CEvaluator:
     """One artifact loaded by the C evaluator.
@@ -160,7 +159,6 @@ class CEvaluator:
             raise ExportError(f"C evaluator: cut refused (status {code}): "
                               f"{err.value.decode(errors='replace')}")
 
-
 class CInTheLoop:
     """The C evaluator as a closed loop's executive, the Python executive as its supervisor.
 
@@ -223,7 +221,6 @@ class CInTheLoop:
     def step(self, x: npt.ArrayLike, sensors: Any, *, perturbed: bool = False) -> FloatArray:
         """One control step: the evaluator's velocity (the supervisor decides alongside and
         supplies the cuts)."""
-        from tli_verify.runtime.events import CutAdded
 
         sup = self.supervisor
         n_events = len(sup.events)
@@ -241,7 +238,6 @@ class CInTheLoop:
             self.max_rel_diff = max(self.max_rel_diff, diff)
         return v
 
-
 def in_the_loop(supervisor: Any, artifact_json: str | os.PathLike[str],
                 build_dir: str | os.PathLike[str]) -> CInTheLoop:
     """Check an artifact against the supervisor's model and wrap both.
@@ -252,8 +248,6 @@ def in_the_loop(supervisor: Any, artifact_json: str | os.PathLike[str],
         The artifact does not check, was not made from the supervisor's model file (SHA-256),
         or the C loader refuses its text form.
     """
-    from tli_verify.deploy.export import check_artifact, text_path_for
-    from tli_verify.io import sha256_file
 
     art = check_artifact(artifact_json)
     model_path = getattr(supervisor.model, "path", None)

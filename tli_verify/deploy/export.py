@@ -41,6 +41,13 @@ from typing import Any
 
 import numpy as np
 
+from tli_verify._version import __version__
+from tli_verify.boundary.modulation import (
+    BOUNDARY_TOL,
+    DEFAULT_BARRIER_RATE,
+    DEGENERATE_TOL,
+    GUARD_TOL,
+)
 from tli_verify.deploy.artifact import (
     FORMAT,
     MAX_C_BITS,
@@ -52,6 +59,11 @@ from tli_verify.deploy.artifact import (
     text_path_for,
 )
 from tli_verify.errors import ExportError, GateError, TliError, bad_input
+from tli_verify.io import atomic_write_text, canonical_json, check_plan, sha256_file
+from tli_verify.logic.automaton import plan_progress
+from tli_verify.project import open_project
+from tli_verify.runtime.coverage import plan_states
+from tli_verify.tasks.project import check_goal, model_files
 
 __all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "Exported", "build_artifact",
            "check_artifact", "content_hash", "export_policy", "render_text", "text_path_for",
@@ -80,18 +92,14 @@ class Exported:
     content_sha256: str
     artifact: dict[str, Any]
 
-
 def _hash_or_none(path: Path | None) -> dict[str, str] | None:
-    from tli_verify.io import sha256_file
 
     if path is None or not path.is_file():
         return None
     return {"file": path.name, "sha256": sha256_file(path)}
 
-
 def _floats(a: Any) -> list[Any]:
     return np.asarray(a, dtype=np.float64).tolist()
-
 
 def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequence[str],
                    sources: dict[str, Any], max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS
@@ -119,15 +127,6 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
     ExportError
         More than :data:`MAX_C_BITS` sensors or modes (exit 2).
     """
-    from tli_verify._version import __version__
-    from tli_verify.boundary.modulation import (
-        BOUNDARY_TOL,
-        DEFAULT_BARRIER_RATE,
-        DEGENERATE_TOL,
-        GUARD_TOL,
-    )
-    from tli_verify.logic.automaton import plan_progress
-    from tli_verify.runtime.coverage import plan_states
 
     aut, model = setup.automaton, setup.model
     plans = plan_states(aut, model, tuple(goal_modes), str(model.path))
@@ -182,7 +181,6 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
         "sources": sources,
     }
 
-
 def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                   rerun: int | None = None, max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS,
                   ) -> Exported:
@@ -212,9 +210,6 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
         Bad input (exit 2).
     """
     from tli_verify.deploy.gate import run_gate
-    from tli_verify.io import check_plan
-    from tli_verify.project import open_project
-    from tli_verify.tasks.project import check_goal, model_files
 
     if isinstance(max_online_cuts, bool) or not isinstance(max_online_cuts, int) or \
             not 0 <= max_online_cuts <= MAX_ONLINE_CUTS:
@@ -253,14 +248,12 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                          sources=sources, max_online_cuts=max_online_cuts)
     return write_artifact(art, out_json)
 
-
 def write_artifact(art: dict[str, Any], out: str | os.PathLike[str]) -> Exported:
     """Hash an artifact's content and write it (JSON) and its text form, atomically.
 
     The caller checked the paths (:func:`tli_verify.io.check_plan`); ``art`` is the content of
     :func:`build_artifact` (its ``content_sha256`` is set here).
     """
-    from tli_verify.io import atomic_write_text, canonical_json
 
     out_json = Path(out)
     out_text = text_path_for(out_json)

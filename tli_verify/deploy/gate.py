@@ -45,10 +45,28 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.arguments import check_int, check_path
 from tli_verify.certification.certificate import CertCheck, check_certificate
+from tli_verify.certification.orientation import (
+    ORIENTATION_CERT_KIND,
+    check_orientation_certificate,
+)
+from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
 from tli_verify.errors import CertificateError, GateError, TliError, bad_input
+from tli_verify.io import read_json, same_file, sha256_file
 from tli_verify.limits import MAX_EXAMPLES
+from tli_verify.logic.check import check_spec_file, synthesize
+from tli_verify.model.serialize import load_model
+from tli_verify.runtime.handoff import handoff_status
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+from tli_verify.tasks.project import check_goal, goal_of, resolve, spec_task
+from tli_verify.verify.evidence import (
+    EVIDENCE_SUFFIX,
+    check_evidence,
+    evidence_path_for,
+    settings_for_config,
+    settings_problems,
+)
 from tli_verify.verify.evidence.rules import (
     DEFAULT_RERUN_EXAMPLES,
     DEFAULT_RERUN_TRIALS,
@@ -81,12 +99,9 @@ def rerun_seed(check: Any, model: Path, count: int) -> int:
     """
     import hashlib
 
-    from tli_verify.io import sha256_file
-
     text = f"tli-verify gate re-run:{check.digest}:{sha256_file(model)}"
     value = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16)
     return value % (2**32 - max(int(count), 1))
-
 
 @dataclass(frozen=True, slots=True)
 class GateItem:
@@ -117,7 +132,6 @@ class GateItem:
         return {"kind": self.kind, "path": self.path, "check": self.check, "ok": self.ok,
                 "message": self.message}
 
-
 @dataclass(frozen=True, slots=True)
 class GateReport:
     """Everything the gate checked.
@@ -145,7 +159,6 @@ class GateReport:
         """Number of distinct files of one kind."""
         return len({i.path for i in self.items if i.kind == kind})
 
-
 def _files(directory: Path, pattern: str) -> list[Path]:
     """Every entry matching ``pattern`` that is not a directory (regular or not), and every
     symlinked directory (``rglob`` does not descend into them, so they are blocked, never
@@ -155,7 +168,6 @@ def _files(directory: Path, pattern: str) -> list[Path]:
     found = {p for p in directory.rglob(pattern) if not p.is_dir()}
     found |= {p for p in directory.rglob("*") if p.is_symlink() and p.is_dir()}
     return sorted(found)
-
 
 def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
     """A blocking item for a device, FIFO, socket or dangling link where a file must be."""
@@ -171,12 +183,9 @@ def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
     return GateItem(kind, shown, False, f"not a regular file ({what}): refused, never read",
                     "load")
 
-
 def _default_spec_checker() -> Callable[[Path], SpecCheck]:
-    from tli_verify.logic.check import check_spec_file
 
     return check_spec_file
-
 
 class _Specs:
     """Spec checks, each file checked once (keyed by resolved path)."""
@@ -199,7 +208,6 @@ class _Specs:
                 self._done[key] = TliError(f"{path}: too deeply nested to check")
         return self._done[key]
 
-
 def _spec_item(result: Any, shown: str) -> GateItem:
     if isinstance(result, TliError):
         return GateItem("spec", shown, False, f"does not load: {result}")
@@ -215,17 +223,11 @@ def _spec_item(result: Any, shown: str) -> GateItem:
     return GateItem("spec", shown, False, f"{verdict} but not well-separated: it may be won "
                     "vacuously (declare expect = \"not-well-separated\" if intended)")
 
-
 def _orientation_item(cert: Path, shown: str) -> GateItem | None:
     """The re-check of an orientation certificate (:mod:`tli_verify.certification.orientation`),
     or None when ``cert`` is not one. Orientation models are not deployed by the gate yet (no
     pose task or campaign); their certificates re-check exactly all the same, and a failing one
     blocks."""
-    from tli_verify.certification.orientation import (
-        ORIENTATION_CERT_KIND,
-        check_orientation_certificate,
-    )
-    from tli_verify.io import read_json
 
     try:
         doc = read_json(cert, what="certificate", error=CertificateError)
@@ -243,18 +245,15 @@ def _orientation_item(cert: Path, shown: str) -> GateItem | None:
                         f"{doc['model']['path']}")
     return GateItem("certificate", shown, False, "; ".join(check.failures))
 
-
 def _certificate_line(check: CertCheck) -> str:
     rate = f", sampled-data at dt = {check.dt}" if check.dt else ""
     return (f"re-checked exactly ({len(check.passed)} checks: digest, model and spec SHA-256, "
             f"P = the model's P, cuts, Lyapunov conditions{rate})")
 
-
 def _model_checks(model_path: Path, shown: Callable[[Path], str],
                   certified: dict[Path, list[tuple[Path, CertCheck]]],
                   specs: _Specs) -> list[GateItem]:
     """The per-model binding checks (certificate, spec, modes, dimension)."""
-    from tli_verify.model.serialize import load_model
 
     name = shown(model_path)
     try:
@@ -305,15 +304,10 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     items.append(_handoff_item(model, name, spec_path))
     return items
 
-
-
-
 def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
     """Which hand-off guarantees are proved (re-decided here) and which are tested (re-tested
     on the gate's own draw) (:func:`tli_verify.runtime.handoff.handoff_status`)."""
     import hashlib
-
-    from tli_verify.runtime.handoff import handoff_status
 
     seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + Path(str(model.path)).read_bytes()
                                          ).digest()[:4], "big") if model.path else 0
@@ -324,15 +318,11 @@ def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
                         "handoff")
     return GateItem("model", name, ok, "; ".join(lines), "handoff")
 
-
 def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
                shown: Callable[[Path], str], checks: list[CertCheck]) -> GateItem:
     """The task the spec names: it loads, fits the model (dimension) and the spec (sensors,
     goal), its goal is reachable, and the model's certificate covers its control period."""
     from fractions import Fraction
-
-    from tli_verify.logic.check import synthesize
-    from tli_verify.tasks.project import check_goal, goal_of, spec_task
 
     try:
         task = spec_task(spec, spec_path)
@@ -364,7 +354,6 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
                     f"{task.dim}-D, sensors {', '.join(task.sensor_names)}, goal "
                     f"{', '.join(modes)} reachable, dt {task.dt:g} s certified", "task")
 
-
 def _dimension_item(model: Any, name: str) -> GateItem:
     names = list(model.state_names)
     dupes = sorted({s for s in names if names.count(s) > 1})
@@ -383,10 +372,8 @@ def _dimension_item(model: Any, name: str) -> GateItem:
     return GateItem("model", name, True, f"n = {n} ({', '.join(names)}) in all "
                     f"{len(model.modes)} DS and their cuts", "dimension")
 
-
 def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
     """DS coverage of the task automaton, and no mode the spec lacks."""
-    from tli_verify.logic.check import synthesize
 
     try:
         automaton = synthesize(spec)
@@ -429,7 +416,6 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
                     f"automaton of {spec_shown} can run (and each transition out of "
                     "per-transition modes); no mode the spec lacks", "modes")
 
-
 def run_gate(root: str | os.PathLike[str] = ".", *,
              spec_checker: Callable[[Path], SpecCheck] | None = None, rerun: int | None = None,
              campaign_runner: CampaignRunner | None = None,
@@ -467,7 +453,6 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     GateError
         ``root`` is not a directory (exit 2).
     """
-    from tli_verify.arguments import check_int, check_path
 
     base = check_path(root, "root", error=GateError)
     if rerun is not None:
@@ -531,8 +516,6 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
                               "contents"))
     return GateReport(root=str(base), items=tuple(items))
 
-
-
 # --------------------------------------------------------------------------------------------
 # Deployed artifacts
 # --------------------------------------------------------------------------------------------
@@ -554,9 +537,6 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
     GateItem
         Kind ``artifact``; blocking on the first mismatch, naming it.
     """
-    from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
-    from tli_verify.io import read_json, same_file, sha256_file
-    from tli_verify.tasks.project import resolve
 
     name = shown(path)
 
@@ -630,7 +610,6 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
                  f"{shown(evidence)}, whose trials did not run it (re-export it, or run the "
                  f"campaign with it: tli sim franka --c-evaluator {name} --evidence)", "campaign")
 
-
 # --------------------------------------------------------------------------------------------
 # Campaign evidence
 # --------------------------------------------------------------------------------------------
@@ -640,7 +619,6 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                     rerun: int | None, runner: CampaignRunner | None) -> list[GateItem]:
     """One ``campaign`` line per deployed model (and a ``rerun`` line with ``rerun``), then
     one blocking ``evidence`` line per evidence file that binds no deployed model."""
-    from tli_verify.verify.evidence import EVIDENCE_SUFFIX, check_evidence, evidence_path_for
 
     items: list[GateItem] = []
     claimed: set[Path] = set()
@@ -698,7 +676,6 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
 
-
 def _evaluator_note(phys: dict[str, Any]) -> str:
     """``; the trials ran artifact <sha> in the C evaluator`` when the evidence says so."""
     ev = phys.get("evaluator")
@@ -708,17 +685,13 @@ def _evaluator_note(phys: dict[str, Any]) -> str:
             f"evaluator ({ev.get('steps')} steps, velocities within "
             f"{float(ev.get('max_rel_diff', 0.0)):.1e} of the runtime's)")
 
-
 def _unprefixed(problem: str, path: str) -> str:
     """A problem without the evidence path it starts with (the gate's line names it once)."""
     return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
 
-
 def _settings_problems(check: Any, model: Path) -> list[str]:
     """Recorded campaign settings no CLI command could have produced on the model's task
     (:func:`tli_verify.verify.evidence.settings_problems`)."""
-    from tli_verify.tasks.project import resolve
-    from tli_verify.verify.evidence import settings_problems
 
     try:
         task = resolve(model=model).task
@@ -726,12 +699,10 @@ def _settings_problems(check: Any, model: Path) -> list[str]:
         return [f"the model's task does not resolve: {exc}"]
     return settings_problems(dict(check.settings), task)
 
-
 def _partition(phys: dict[str, Any]) -> str:
     """How a physical campaign's trials were split, for the gate's line ("" for one chunk)."""
     chunks = phys.get("chunks") or ()
     return "" if len(chunks) <= 1 else f" in {len(chunks)} chunks of seeds (one executive each)"
-
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     """The gate's re-run: a short campaign on a seed the gate derives (:func:`rerun_seed`)
@@ -762,7 +733,6 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         from tli_verify.verify.config import CampaignConfig
     except ImportError as exc:
         return False, f"cannot re-run the campaign: {exc}"
-    from tli_verify.verify.evidence import settings_for_config
 
     settings = settings_for_config(dict(check.settings), CampaignConfig)
     # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool
@@ -827,7 +797,6 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"{what}: no run was decided: the re-run shows nothing"
     return True, f"{what}: 0 violations"
 
-
 def rerun_starts(nominal: Any, examples: int, seed: int
                  ) -> list[tuple[tuple[float, ...] | None, int, int]]:
     """How the gate's re-run splits its examples among its own starts: half (rounded up) on
@@ -856,7 +825,6 @@ def rerun_starts(nominal: Any, examples: int, seed: int
         if count:
             plan.append((start, count, (seed + 104_729 * (i + 1)) % (2**32 - count)))
     return [p for p in plan if p[1] > 0]
-
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials

@@ -45,7 +45,8 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
-from tli_verify.ds.gmm import GMM
+from tli_verify.ds.gmm import GMM, fit_em_bic, fit_pcgmm
+from tli_verify.ds.lyapunov import RATE_FACTOR, SOLVER, choose_rate, data_rate, estimate_p, fit_a
 from tli_verify.errors import ModelError
 
 __all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
@@ -202,7 +203,6 @@ class LPVDS:
         V = np.einsum("ni,ij,nj->n", Z, self.P, Z)
         return V[0] if single else V
 
-
 @dataclass(frozen=True, slots=True)
 class FitInfo:
     """How an LPV-DS was learned (stored in the model file's ``fit`` field).
@@ -260,7 +260,6 @@ class FitInfo:
     rate_rmse: float | None = None
     data_rate: float | None = None
     rate_within_budget: bool | None = None
-
 
 def learn_lpvds(
     X: npt.ArrayLike,
@@ -337,20 +336,10 @@ def learn_lpvds(
                          max_components=max_components)
     return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
 
-
 def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
            eps: float, rate: float | None, rate_budget: float | None,
            control_dt: float | None, clustering: str, lyapunov: str,
            max_components: int) -> tuple[LPVDS, FitInfo]:
-    from tli_verify.ds.gmm import fit_em_bic, fit_pcgmm
-    from tli_verify.ds.lyapunov import (
-        RATE_FACTOR,
-        SOLVER,
-        choose_rate,
-        data_rate,
-        estimate_p,
-        fit_a,
-    )
 
     start = time.perf_counter()
     Xa = np.asarray(X, dtype=np.float64)

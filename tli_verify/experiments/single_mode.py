@@ -43,10 +43,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.boundary.modulation import modulated
+from tli_verify.ds.bc import train_bc
+from tli_verify.ds.lpvds import learn_lpvds
 from tli_verify.errors import TliError
 from tli_verify.runtime.online import CutLearning
 from tli_verify.runtime.online import learn_cuts as _learn_cuts
 from tli_verify.runtime.rollout import EulerProtocol, Rollouts, rollout, rollout_protocol
+from tli_verify.tasks.generate import make_task
 
 __all__ = [
     "NOISE_PERCENT",
@@ -155,7 +159,6 @@ class SingleModeConfig:
             if not ok:
                 raise TliError(message)
 
-
 def _roll(
     config: SingleModeConfig,
     policy: Policy,
@@ -166,7 +169,6 @@ def _roll(
     record: bool = False,
 ) -> Rollouts:
     return rollout_protocol(policy, starts, contains, goal, _protocol(config), record=record)
-
 
 def sample_starts(
     states: npt.ArrayLike,
@@ -210,11 +212,9 @@ def sample_starts(
         todo[idx[ok]] = False
     return out
 
-
 def _protocol(config: SingleModeConfig) -> EulerProtocol:
     return EulerProtocol(dt=config.dt, steps=config.steps, speed_cap=config.speed_cap,
                          goal_tolerance=config.goal_tolerance)
-
 
 def learn_cuts(
     base: Policy,
@@ -257,7 +257,6 @@ def learn_cuts(
                        cut_constraints=config.cut_constraints, lyapunov=lyapunov,
                        record=record)
 
-
 @dataclass(frozen=True, slots=True)
 class TrialResult:
     """Numbers of one trial (one random mode); all keys of the dicts are strings.
@@ -299,13 +298,11 @@ class TrialResult:
     unsolved_cuts: int
     seconds: float
 
-
 def _trial_seeds(seed: int, trial: int) -> tuple[list[np.random.Generator], int, int]:
     ss = np.random.SeedSequence([seed, trial])
     rngs = [np.random.default_rng(s) for s in ss.spawn(4)]
     words = ss.generate_state(2)
     return rngs, int(words[0] % (2**31 - 1)), int(words[1] % (2**31 - 1))
-
 
 def run_trial(
     config: SingleModeConfig, trial: int, *, record: bool = False
@@ -325,9 +322,6 @@ def run_trial(
     result : TrialResult
     record : dict or None
     """
-    from tli_verify.ds.bc import train_bc
-    from tli_verify.ds.lpvds import learn_lpvds
-    from tli_verify.tasks.generate import make_task
 
     t0 = time.perf_counter()
     (task_rng, start_rng, cut_rng, held_rng), ds_seed, bc_seed = _trial_seeds(config.seed, trial)
@@ -375,7 +369,6 @@ def run_trial(
             curve[mod_name][key] = learned.curve
             unsolved += learned.unsolved
             if held is not None:
-                from tli_verify.boundary.modulation import modulated
 
                 h_nom = _roll(config, fn, held, contains, goal)
                 h_mod = _roll(config, modulated(fn, learned.cuts, goal, lyapunov=P,
@@ -396,7 +389,6 @@ def run_trial(
     )
     return result, rec
 
-
 def _init_worker() -> None:  # pragma: no cover - runs in worker processes
     try:
         from threadpoolctl import threadpool_limits
@@ -405,11 +397,9 @@ def _init_worker() -> None:  # pragma: no cover - runs in worker processes
     except ImportError:
         pass
 
-
 def _trial_job(args: tuple[SingleModeConfig, int, bool]) -> tuple[TrialResult, Any]:
     config, trial, record = args
     return run_trial(config, trial, record=record)
-
 
 def run(
     config: SingleModeConfig,

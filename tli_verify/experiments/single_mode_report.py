@@ -17,7 +17,9 @@ from tli_verify.experiments.single_mode import (
     SingleModeConfig,
     TrialResult,
 )
+from tli_verify.io import atomic_write_text, canonical_json
 from tli_verify.logic.escape import markdown_text, markdown_url
+from tli_verify.plotting import save_figure
 
 __all__ = ["markdown", "summarize", "write_outputs"]
 
@@ -29,7 +31,6 @@ def _stats(values: Sequence[float]) -> dict[str, float]:
     return {"mean": float(a.mean()), "median": float(np.median(a)),
             "q25": float(np.quantile(a, 0.25)), "q75": float(np.quantile(a, 0.75)),
             "min": float(a.min()), "max": float(a.max())}
-
 
 def summarize(
     trials: Sequence[TrialResult], config: SingleModeConfig, *, seconds: float | None = None,
@@ -100,10 +101,8 @@ def summarize(
         "per_trial": [asdict(t) for t in trials],
     }
 
-
 def _pct(x: float) -> str:
     return f"{100.0 * x:.1f}"
-
 
 def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
     """The Markdown report: table (mean [IQR]), paper numbers, cuts, held-out, shape checks."""
@@ -170,14 +169,11 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
         lines += ["", f"![{markdown_text(fig)}]({markdown_url(fig)})"]
     return "\n".join(lines) + "\n"
 
-
 def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.plotting import save_figure
 
     noises = list(record["noise"].keys())
     top = noises[-1]
@@ -235,14 +231,11 @@ def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
-
 def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.plotting import save_figure
 
     noises = [str(p) for p in summary["config"]["noise_percent"]]
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.4), sharey=True)
@@ -269,7 +262,6 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
-
 def write_outputs(
     summary: dict[str, Any], record: dict[str, Any] | None, out_dir: Path, *,
     figures: bool = True,
@@ -291,7 +283,6 @@ def write_outputs(
     list of Path
         The files written (JSON, Markdown, then figures).
     """
-    from tli_verify.io import atomic_write_text, canonical_json
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []

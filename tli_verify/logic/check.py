@@ -12,9 +12,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tli_verify.arguments import check_path
 from tli_verify.errors import SpecError, UnrealizableError, bad_type
 from tli_verify.logic.automaton import TaskAutomaton, extract_automaton
 from tli_verify.logic.diagnose import Diagnosis, diagnose
+from tli_verify.logic.foreign import FORMATS, import_spec_file
 from tli_verify.logic.gr1 import build_game, solve
 from tli_verify.logic.sanity import (
     Core,
@@ -100,17 +102,14 @@ class SpecCheck:
             "hints": [h.to_dict() for h in self.hints],
         }
 
-
 def _spec_arg(spec: Any) -> GR1Spec:
     """The ``spec`` argument of :func:`check_spec` and :func:`synthesize`: a GR1Spec, or a
     spec file (loaded as :func:`check_spec_file` would)."""
     if isinstance(spec, GR1Spec):
         return spec
     if isinstance(spec, str | os.PathLike) and not isinstance(spec, bool):
-        from tli_verify.arguments import check_path
 
         path = check_path(spec, "spec", error=SpecError)
-        from tli_verify.logic.foreign import FORMATS, import_spec_file
 
         if path.suffix in FORMATS:
             return parse_spec(import_spec_file(path), path=f"{path} (imported)",
@@ -118,7 +117,6 @@ def _spec_arg(spec: Any) -> GR1Spec:
         return load_spec(path)
     raise bad_type(SpecError, f"spec: expected a GR1Spec (load_spec) or a spec file, got "
                    f"{type(spec).__name__}")
-
 
 def check_spec(spec: GR1Spec | str | os.PathLike[str], *, core: bool = False,
                hints: bool = False) -> SpecCheck:
@@ -156,7 +154,6 @@ def check_spec(spec: GR1Spec | str | os.PathLike[str], *, core: bool = False,
                      warnings=tuple(warnings), seconds=time.perf_counter() - start,
                      well_separation=separation, core=the_core, hints=the_hints)
 
-
 def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: bool = False
                     ) -> SpecCheck:
     """Load and check a spec file (raises :class:`~tli_verify.errors.SpecError` on bad input).
@@ -164,14 +161,12 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
     A ``.spectra``, ``.structuredslugs`` or ``.slugsin`` file is read through
     :func:`~tli_verify.logic.foreign.import_spec_file` (in the tool's own, textbook reading
     of safety at time 0), as ``tli spec import`` would translate it."""
-    from tli_verify.logic.foreign import FORMATS, import_spec_file
 
     if Path(path).suffix in FORMATS:
         spec = parse_spec(import_spec_file(Path(path)), path=f"{path} (imported)",
                           default_name=Path(path).stem)
         return check_spec(spec, core=core, hints=hints)
     return check_spec(load_spec(path), core=core, hints=hints)
-
 
 def synthesize(spec: GR1Spec | str | os.PathLike[str]) -> TaskAutomaton:
     """The task automaton of a realizable spec (paper Sec. 4.2, "Task-Level Reactivity in

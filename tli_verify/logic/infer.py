@@ -70,9 +70,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.errors import DemoError, SpecError, UnrealizableError
+from tli_verify.io import parse_toml, read_text
 from tli_verify.logic.automaton import AssumptionViolation, AutomatonState, TaskAutomaton
+from tli_verify.logic.check import check_spec, synthesize
+from tli_verify.logic.gr1 import build_game, formula_bdd, new_manager
+from tli_verify.logic.labels import runs as _runs
+from tli_verify.logic.labels import spec_labeler
 from tli_verify.logic.ltl import atomic_propositions, is_ap_name, parse_formula
-from tli_verify.logic.spec import GR1Spec, SpecFormula, _LineFinder, _modes, parse_spec
+from tli_verify.logic.spec import GR1Spec, SpecFormula, SpecSide, _LineFinder, _modes, parse_spec
 
 __all__ = [
     "Regrowth",
@@ -115,7 +120,6 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         Unreadable file, invalid TOML, no ``[modes]`` table, a mode name that is not an AP
         name or names a sensor, a label that is not propositional or uses an unknown sensor.
     """
-    from tli_verify.io import parse_toml, read_text
 
     where = str(path)
     text = read_text(path, what="labels", error=SpecError)
@@ -145,7 +149,6 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         raise SpecError(f"{where}: no [modes] table")
     return table
 
-
 # --------------------------------------------------------------------------------------------
 # Inference
 
@@ -159,14 +162,11 @@ class _Observed:
     final: tuple[tuple[str, ...], ...]
     successors: dict[tuple[str, ...], tuple[tuple[str, ...], ...]]
 
-
 def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[str]
              ) -> _Observed:
     """Label every sample (:func:`~tli_verify.segmentation.spec_labeler`) and collect the
     runs of equal label groups. Unlike :func:`~tli_verify.segmentation.segment_demos` this
     needs no DS training data: a group seen for one sample is a valid observation."""
-    from tli_verify.logic.labels import runs as _runs
-    from tli_verify.logic.labels import spec_labeler
 
     # A minimal spec carrying the labels, for spec_labeler (label evaluation and messages).
     holder = GR1Spec(name="labels", inputs=tuple(sensors), outputs=tuple(labels),
@@ -211,12 +211,9 @@ def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[
                      successors={g: tuple(sorted(v, key=order.__getitem__))
                                  for g, v in succ.items()})
 
-
 def _empty_side() -> Any:
-    from tli_verify.logic.spec import SpecSide
 
     return SpecSide()
-
 
 def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
     """Demonstrated steps from each group to a final group (backward BFS)."""
@@ -233,15 +230,12 @@ def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
         frontier = nxt
     return dist
 
-
 def _label_bdds(labels: Mapping[str, str], sensors: Sequence[str]) -> tuple[Any, dict[str, Any]]:
-    from tli_verify.logic.gr1 import formula_bdd, new_manager
 
     bdd = new_manager()
     bdd.declare(*sensors)
     return bdd, {m: formula_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
                  for m, lab in labels.items()}
-
 
 def _class_formulas(groups: Sequence[tuple[str, ...]], labels: Mapping[str, str],
                     sensors: Sequence[str]) -> dict[tuple[str, ...], str]:
@@ -262,19 +256,16 @@ def _class_formulas(groups: Sequence[tuple[str, ...]], labels: Mapping[str, str]
         out[g] = " & ".join([f"({lab})" for lab in own] + [f"!({lab})" for lab in others])
     return out
 
-
 def _or(parts: Sequence[str]) -> str:
     if len(parts) == 1:
         return parts[0]
     return " | ".join(f"({p})" for p in parts)
-
 
 def _fresh_marker(taken: set[str]) -> str:
     for name in MARKER_NAMES:
         if name not in taken:
             return name
     raise SpecError("no free name for the perturbation marker output")  # pragma: no cover
-
 
 def infer_spec_text(demos: Sequence[Any], labels: Mapping[str, str], *,
                     name: str = "inferred", sources: Sequence[str] = ()) -> str:
@@ -370,25 +361,21 @@ def infer_spec_text(demos: Sequence[Any], labels: Mapping[str, str], *,
     ]
     return "\n".join(lines) + "\n"
 
-
 def _init_guarantee(modes: Sequence[str], marker: str) -> str:
     if len(modes) == 1:
         return f"{modes[0]} & !{marker}"
     return f"({' | '.join(modes)}) & !{marker}"
-
 
 def _marker_formula(marker: str, regress: Sequence[tuple[str, str]]) -> str:
     if not regress:
         return f"G(X {marker} <-> false)"
     return f"G(X {marker} <-> ({' | '.join(f'({m} & X {n})' for m, n in regress)}))"
 
-
 def infer_spec(demos: Sequence[Any], labels: Mapping[str, str], *, name: str = "inferred",
                sources: Sequence[str] = ()) -> GR1Spec:
     """The inferred spec as a :class:`GR1Spec` (parsed from :func:`infer_spec_text`)."""
     return parse_spec(infer_spec_text(demos, labels, name=name, sources=sources),
                       default_name=name)
-
 
 # --------------------------------------------------------------------------------------------
 # Writing specs
@@ -409,10 +396,8 @@ def _toml_str(s: str) -> str:
     out.append('"')
     return "".join(out)
 
-
 def _toml_list(items: Sequence[str]) -> str:
     return "[" + ", ".join(_toml_str(i) for i in items) + "]"
-
 
 def spec_to_toml(spec: GR1Spec) -> str:
     """The TOML text of ``spec`` (its file formulas; the ``[modes]`` constraints are re-added
@@ -441,7 +426,6 @@ def spec_to_toml(spec: GR1Spec) -> str:
             lines += side(title, formulas, key)
     return "\n".join(lines) + "\n"
 
-
 # --------------------------------------------------------------------------------------------
 # Online re-synthesis
 
@@ -451,12 +435,10 @@ def _ap(f: Any) -> str | None:
 
     return str(f.ap_name()) if f.kind() == spot.op_ap else None
 
-
 def _g_body(f: Any) -> Any | None:
     from tli_verify.logic.spot_import import spot
 
     return f[0] if f.kind() == spot.op_G else None
-
 
 def _marker_parts(body: Any, markers: set[str]) -> tuple[str, str] | None:
     """``(marker, rhs text)`` if ``body`` is ``X p <-> R`` (or ``!X p``: ``R`` false)."""
@@ -479,7 +461,6 @@ def _marker_parts(body: Any, markers: set[str]) -> tuple[str, str] | None:
     if body.kind() == spot.op_X and body[0].kind() == spot.op_Not and _ap(body[0][0]) in markers:
         return _ap(body[0][0]), "false"  # type: ignore[return-value]
     return None
-
 
 def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
                    perturbation: bool = True) -> GR1Spec:
@@ -515,8 +496,6 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     UnrealizableError
         The grown spec is unrealizable or not well-separated (the old spec is kept).
     """
-    from tli_verify.logic.check import check_spec
-    from tli_verify.logic.gr1 import formula_bdd
     from tli_verify.logic.spot_import import spot
 
     where = spec.path or spec.name
@@ -576,7 +555,6 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
                                 "the old spec is kept")
     return grown
 
-
 def _or_next(rhs: Any, extra: str) -> str:
     """``rhs | X extra`` as text; ``X(D | extra)`` when ``rhs`` is ``X D``, so that repeated
     growth keeps the formula flat (Spot's n-ary ``|``)."""
@@ -586,12 +564,9 @@ def _or_next(rhs: Any, extra: str) -> str:
         return f"X(({rhs[0]!s}) | ({extra}))"
     return f"(({rhs!s}) | X({extra}))"
 
-
 def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     """``spec`` with some file formulas' texts replaced, re-parsed (the checks run again)."""
     from dataclasses import replace as dc_replace
-
-    from tli_verify.logic.spec import SpecSide
 
     def side(s: SpecSide) -> SpecSide:
         def fix(fs: tuple[SpecFormula, ...]) -> tuple[SpecFormula, ...]:
@@ -603,11 +578,9 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     draft = dc_replace(spec, assume=side(spec.assume), guarantee=side(spec.guarantee))
     return parse_spec(spec_to_toml(draft), default_name=spec.name)
 
-
 def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     """Whether the game already has a move from ``from_mode`` (under its label) to
     ``to_mode`` (under its label) that both players' safety formulas allow."""
-    from tli_verify.logic.gr1 import build_game, formula_bdd
 
     game = build_game(spec)
     bdd = game.manager
@@ -617,11 +590,9 @@ def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
     return bool(move != bdd.false)
 
-
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
     """The grown assumptions let the sensors move from ``from_mode``'s label to
     ``to_mode``'s while the system runs ``from_mode``."""
-    from tli_verify.logic.gr1 import build_game, formula_bdd
 
     game = build_game(spec)
     bdd = game.manager
@@ -633,7 +604,6 @@ def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
                         f"change {spec.modes[from_mode]!r} -> {spec.modes[to_mode]!r} of the "
                         f"transition {from_mode} -> {to_mode}: no assumption of the form "
                         "G(C -> X(...)) covers it")
-
 
 def resume_state(automaton: TaskAutomaton, old: AutomatonState,
                  sensors: Mapping[str, bool] | Iterable[str]) -> int:
@@ -680,7 +650,6 @@ def resume_state(automaton: TaskAutomaton, old: AutomatonState,
     cands.sort(key=lambda s: (s.goal != old.goal, s.id))
     return cands[0].id
 
-
 @dataclass(frozen=True, slots=True)
 class Regrowth:
     """The result of :func:`regrow`.
@@ -699,13 +668,11 @@ class Regrowth:
     automaton: TaskAutomaton
     state: int
 
-
 def regrow(spec: GR1Spec, from_mode: str, to_mode: str, old: AutomatonState,
            sensors: Mapping[str, bool] | Iterable[str], *, perturbation: bool = True
            ) -> Regrowth:
     """:func:`add_transition`, re-synthesis and :func:`resume_state` in one call (for the
     executive's ``--learn-transitions``)."""
-    from tli_verify.logic.check import synthesize
 
     grown = add_transition(spec, from_mode, to_mode, perturbation=perturbation)
     automaton = synthesize(grown)

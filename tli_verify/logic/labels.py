@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 from tli_verify.errors import SpecError
+from tli_verify.logic.spec import label_holds
 
 __all__ = ["Labeler", "runs", "spec_labeler"]
 
@@ -42,7 +43,6 @@ def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, s
     SpecError
         If the spec has no ``[modes]`` table.
     """
-    from tli_verify.logic.spec import label_holds
 
     table = getattr(spec, "modes", None)
     path = getattr(spec, "path", None) or "<spec>"
@@ -60,7 +60,6 @@ def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, s
         return cache[key]
 
     return label, modes, MappingProxyType(labels)
-
 
 def runs(groups: list[tuple[str, ...]]) -> list[tuple[int, int]]:
     """Boundaries of maximal runs of equal groups."""

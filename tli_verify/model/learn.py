@@ -13,11 +13,16 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from tli_verify._version import __version__
 from tli_verify.defaults import DEFAULT_DT_FLOAT
-from tli_verify.ds.lpvds import Clustering, LyapunovKind
+from tli_verify.demos import load_demos
+from tli_verify.ds.lpvds import Clustering, LyapunovKind, learn_lpvds
 from tli_verify.errors import TliError
+from tli_verify.io import sha256_file
+from tli_verify.logic.spec import load_spec
 from tli_verify.model.serialize import relative_to_file
 from tli_verify.model.types import Model, ModeModel
+from tli_verify.segmentation import segment_demos, spec_labeler
 
 __all__ = [
     "learn_model",
@@ -33,7 +38,6 @@ def _rate_choice_record(info: Any) -> dict[str, float | bool]:
             "rate_reference_rmse": float(info.reference_rmse),
             "rate_rmse": float(info.rate_rmse), "data_rate": float(info.data_rate),
             "rate_within_budget": bool(info.rate_within_budget)}
-
 
 def learn_model(
     demo_paths: Sequence[str | os.PathLike[str]],
@@ -94,15 +98,9 @@ def learn_model(
     DemoError, SpecError, SolverError
         Bad demonstrations, a spec without modes, a solver status other than optimal.
     """
-    from tli_verify._version import __version__
-    from tli_verify.demos import load_demos
-    from tli_verify.ds.lpvds import learn_lpvds
-    from tli_verify.io import sha256_file
-    from tli_verify.segmentation import segment_demos, spec_labeler
 
     out_dir = Path(out_path).parent
     if spec_path is not None:
-        from tli_verify.logic.spec import load_spec
 
         spec = load_spec(spec_path)
         labeler, modes, labels = spec_labeler(spec)

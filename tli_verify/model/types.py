@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut
+from tli_verify.boundary.modulation import Modulator, check_control_period
 from tli_verify.ds.lpvds import LPVDS
 from tli_verify.errors import ModelError
 from tli_verify.io import (
@@ -76,7 +77,6 @@ def numeric_limits() -> dict[str, float]:
             "cov_min_eigenvalue": COV_MIN_EIGENVALUE, "cov_max_condition": COV_MAX_CONDITION,
             "prior_sum_tolerance": PRIOR_SUM_TOL}
 
-
 def check_range(value: Any, parts: list[str | int], where: str) -> None:
     """Every number under ``value`` is within ``MAX_ABS_VALUE`` (``MAX_ABS_COVARIANCE`` under a
     ``cov`` field); errors name the entry."""
@@ -99,7 +99,6 @@ def check_range(value: Any, parts: list[str | int], where: str) -> None:
         elif isinstance(v, dict):
             stack.extend((item, [*loc, k]) for k, item in v.items())
 
-
 def check_covariance(cov: FloatArray, where: str) -> None:
     """Symmetric positive definite, safely invertible: eigenvalues and condition bounded."""
     check_symmetric(cov, where)
@@ -115,7 +114,6 @@ def check_covariance(cov: FloatArray, where: str) -> None:
     if hi / lo > COV_MAX_CONDITION:
         raise ModelError(f"{where}: condition number {hi / lo:.3g} exceeds "
                          f"{COV_MAX_CONDITION:g} (COV_MAX_CONDITION): not safely invertible")
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ModeModel:
@@ -153,7 +151,6 @@ class ModeModel:
         ModelError
             A cut of the wrong dimension, or one that leaves ``x*`` outside.
         """
-        from tli_verify.boundary.modulation import Modulator
 
         object.__setattr__(self, "cuts", tuple(self.cuts))
         if self.fit is not None and not isinstance(self.fit, MappingProxyType):
@@ -187,7 +184,6 @@ class ModeModel:
         -------
         ndarray, same shape as ``X``
         """
-        from tli_verify.boundary.modulation import check_control_period
 
         check_control_period(dt)
         return self.modulate(X, self.ds.velocity(X), dt=dt)
@@ -223,7 +219,6 @@ class ModeModel:
         """A copy with the given cuts (validated, modulator rebuilt)."""
         return ModeModel(key=self.key, mode=self.mode, next_mode=self.next_mode, ds=self.ds,
                          cuts=tuple(cuts), fit=self.fit)
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Model:
@@ -395,7 +390,6 @@ class Model:
             modes[k] = mm.with_cuts((*mm.cuts, cut))
         return Model(state_names=self.state_names, modes=MappingProxyType(modes),
                      spec=self.spec, path=self.path, source=self.source)
-
 
 def check_symmetric(M: FloatArray, where: str) -> None:
     bad = np.argwhere(M != M.T)

@@ -23,6 +23,8 @@ from fractions import Fraction
 from pathlib import Path
 
 from tli_verify.defaults import DEFAULT_DT
+from tli_verify.logic.spec import load_spec
+from tli_verify.tasks.project import spec_task
 
 __all__ = ["control_period", "task_period"]
 
@@ -37,12 +39,9 @@ def task_period(spec: str | os.PathLike[str] | None) -> Fraction | None:
     """
     if spec is None:
         return None
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
 
     task = spec_task(load_spec(spec), Path(spec))
     return None if task is None else Fraction(repr(task.dt))
-
 
 def control_period(explicit: Fraction | float | None,
                    spec: str | os.PathLike[str] | None) -> Fraction:

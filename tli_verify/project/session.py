@@ -33,9 +33,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TaskError, TliError, bad_input
+from tli_verify.arguments import check_int, check_vector
+from tli_verify.defaults import Stream, rng
+from tli_verify.errors import TaskError, TliError, bad_input, bad_type
 from tli_verify.io import parse_toml, read_text
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
+from tli_verify.runtime.coverage import check_coverage
+from tli_verify.runtime.episodes import pusher, random_start
+from tli_verify.runtime.loop import run_episode
+from tli_verify.runtime.setup import Setup, make_policy
+from tli_verify.runtime.worlds import WorldSensors
 from tli_verify.snapshot import Snapshot
+from tli_verify.tasks.project import check_goal, project_root, resolve
 
 if TYPE_CHECKING:
     from tli_verify.certification.certificate import CertCheck
@@ -84,8 +96,6 @@ class Session:
         TaskError
             (exit 2) The goal is not reachable in the automaton.
         """
-        from tli_verify.logic.check import synthesize
-        from tli_verify.tasks.project import check_goal
 
         automaton = synthesize(self.spec)
         check_goal(automaton, self.files.goal, where=str(self.files.spec))
@@ -104,7 +114,6 @@ class Session:
     @property
     def setup(self) -> Setup:
         """What a closed-loop episode runs (:class:`~tli_verify.runtime.setup.Setup`)."""
-        from tli_verify.runtime.setup import Setup
 
         return Setup(task=self.task, automaton=self.automaton, model=self.model,
                      certificate=str(self.files.certificate), goal=self.goal,
@@ -123,7 +132,6 @@ class Session:
 
     def check_certificate_covers(self) -> Fraction:
         """Refuse a certificate that does not cover the model; return its control period."""
-        from tli_verify.runtime.coverage import check_coverage
 
         with self.snapshot.use():
             return check_coverage(self.model, self.files.certificate)
@@ -146,7 +154,6 @@ class Session:
         automaton : TaskAutomaton, optional
             Run another automaton of the same task (``tli run --learn-transitions``).
         """
-        from tli_verify.runtime.setup import make_policy
 
         setup = self.setup if automaton is None else replace(self.setup, automaton=automaton)
         with self.snapshot.use():
@@ -172,7 +179,6 @@ class Session:
                       model=str(files.model), certificate=str(files.certificate))
         with self.snapshot.use():
             return run_campaign(cfg)
-
 
 def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None = None,
                perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
@@ -204,13 +210,6 @@ def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None =
     InputError
         (a TaskError; also a ValueError or TypeError) Naming the argument.
     """
-    from tli_verify.arguments import check_int, check_vector
-    from tli_verify.defaults import Stream, rng
-    from tli_verify.errors import bad_type
-    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
-    from tli_verify.runtime.episodes import pusher, random_start
-    from tli_verify.runtime.loop import run_episode
-    from tli_verify.runtime.worlds import WorldSensors
 
     steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
     seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
@@ -232,7 +231,6 @@ def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None =
         table[t] = check_vector(d, f"perturbations[{t}]", task.dim, error=TaskError)
     return run_episode(policy.fork(), WorldSensors(task), x0, steps=steps,
                        perturb=pusher(task, table))
-
 
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,
                  spec: PathLike | None = None, model: PathLike | None = None,
@@ -261,9 +259,6 @@ def open_project(path: PathLike | None = None, *, task: PathLike | Task | None =
         :func:`tli_verify.runtime.setup.load_setup`: a missing file, a model that does not fit
         the task, an unreachable goal.
     """
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
-    from tli_verify.tasks.project import resolve
 
     snap = Snapshot()
     with snap.use():
@@ -279,7 +274,6 @@ def open_project(path: PathLike | None = None, *, task: PathLike | Task | None =
         files = resolve(task=task, spec=spec, model=model, certificate=certificate, lag=lag)
         return Session(files=files, spec=load_spec(files.spec), model=load_model(files.model),
                        snapshot=snap)
-
 
 _MARKERS = ("models", "specs", "tasks")
 """Folders that make a directory a project (``tli init`` writes them)."""
@@ -300,7 +294,6 @@ def locate(where: Path, *, given_spec_or_model: bool = False
         (exit 2) No such path; not in a project; several models, or no model and not exactly
         one spec.
     """
-    from tli_verify.tasks.project import project_root
 
     if where.is_file() and where.suffix == ".json":
         return "model", where, Path(os.path.abspath(project_root(where)))
@@ -328,7 +321,6 @@ def locate(where: Path, *, given_spec_or_model: bool = False
         return "spec", specs[0], root
     raise TaskError(f"{root}: no model in models/ and {len(specs)} specs in specs/: pass "
                     "model= or spec= (learn and certify a model first: tli learn, tli certify)")
-
 
 def _toml_kind(path: Path) -> str:
     """``"task"`` for a task file (a ``[state]`` table), else ``"spec"``."""

@@ -20,6 +20,7 @@ from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError, ModelError
 from tli_verify.io import same_file
 from tli_verify.logic.automaton import PlannedStep, TaskAutomaton
+from tli_verify.model.serialize import load_model
 from tli_verify.model.types import Model
 
 __all__ = [
@@ -53,13 +54,9 @@ def plan_states(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str
                              f"towards the modes it can move to ({towards})")
     return {st.state: st for st in steps}
 
-
-
-
 def _same_ds(a: Any, b: Any) -> bool:
     return all(np.array_equal(getattr(a, f), getattr(b, f))
                for f in ("attractor", "priors", "means", "covs", "A", "P"))
-
 
 def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fraction:
     """Check that ``certificate`` covers ``model``, as the gate does; return its ``dt``.
@@ -83,7 +80,6 @@ def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fractio
         (exit 2) the certificate file cannot be read.
     """
     from tli_verify.certification.certificate import check_certificate
-    from tli_verify.model.serialize import load_model
 
     check = check_certificate(certificate)
     if not check.ok:

@@ -23,8 +23,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.boundary.modulation import modulated
 from tli_verify.errors import TaskError, TliError
-from tli_verify.runtime.events import mode_sequence
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.runtime.events import event_to_json, mode_sequence
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.loop import EpisodeResult, batch_results, run_episode, run_episodes
 from tli_verify.runtime.setup import Setup, make_policy
@@ -59,7 +61,6 @@ def random_start(task: Task, automaton: Any, rng: np.random.Generator, *,
     TaskError
         (exit 2) No such state in ``tries`` draws.
     """
-    from tli_verify.logic.automaton import AssumptionViolation
 
     lo, hi = np.array(task.lo), np.array(task.hi)
     region = task.starts.region
@@ -79,7 +80,6 @@ def random_start(task: Task, automaton: Any, rng: np.random.Generator, *,
     raise TaskError(f"{task.where}: no start with an initial reading in {tries} uniform draws"
                     + (f" of region {region!r}" if region is not None else ""))
 
-
 def random_direction(rng: np.random.Generator, dim: int) -> FloatArray:
     """A uniform unit vector of ``R^dim``, shape (dim,): by angle in 2-D, a normalised normal
     draw otherwise (redrawn if it is near zero)."""
@@ -91,7 +91,6 @@ def random_direction(rng: np.random.Generator, dim: int) -> FloatArray:
         n = float(np.linalg.norm(v))
         if n > 1e-12:
             return np.asarray(v / n, dtype=np.float64)
-
 
 def random_perturbations(rng: np.random.Generator, count: int, task: Task, *, first: int = 1,
                          last: int = 700, max_magnitude: float | None = None
@@ -126,7 +125,6 @@ def random_perturbations(rng: np.random.Generator, count: int, task: Task, *, fi
         out[t] = rng.uniform(0.0, size) * d
     return out
 
-
 def pusher(task: Task, table: Mapping[int, npt.ArrayLike]
            ) -> Callable[[int, FloatArray], FloatArray | None]:
     """``push(t, x)``: the state after the perturbation of step ``t`` (clipped to the
@@ -141,7 +139,6 @@ def pusher(task: Task, table: Mapping[int, npt.ArrayLike]
 
     return push
 
-
 def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
                 perturbations: Mapping[int, npt.ArrayLike] | None = None, *,
                 steps: int = 3000, policy: LTLDSPolicy | None = None) -> EpisodeResult:
@@ -152,7 +149,6 @@ def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
     pol = policy if policy is not None else make_policy(setup, variant)
     return run_episode(pol, WorldSensors(setup.task), x0, steps=steps,
                        perturb=pusher(setup.task, perturbations or {}))
-
 
 def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
                       perturbations: Sequence[Mapping[int, npt.ArrayLike]], *,
@@ -177,14 +173,12 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
         return run_episodes(policies, sensors, X, steps=steps, perturb=perturb)
     return _run_bc(setup, policies, sensors, X, steps=steps, perturb=perturb)
 
-
 def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[WorldSensors],
             X: FloatArray, *, steps: int,
             perturb: Callable[[int, int, FloatArray], FloatArray | None]
             ) -> list[EpisodeResult]:
     """:func:`run_episodes` with the BC nets moving the state (modulated by the cuts the
     executive learns for the mode's region, :func:`tli_verify.boundary.modulation.modulated`)."""
-    from tli_verify.boundary.modulation import modulated
 
     if not setup.bc:
         raise TliError("the BC variant needs BC nets (Setup.bc)")
@@ -238,7 +232,6 @@ def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[Wor
         astates.append([-1 if p.state is None else p.state for p in policies])
     return batch_results(policies, hist, modes, astates, taken)
 
-
 def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:
     """Run-length form ``[[value, first_step], ...]`` of a per-step sequence."""
     out: list[list[Any]] = []
@@ -247,17 +240,14 @@ def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:
             out.append([v, t])
     return out
 
-
 def mode_string(res: EpisodeResult) -> str:
     """The modes an episode visited (:func:`tli_verify.runtime.events.mode_sequence`)."""
     return mode_sequence(res.modes)
-
 
 def episode_json(res: EpisodeResult, *, task: str, variant: str, seconds: float,
                  x0: FloatArray, perturbations: Mapping[int, npt.ArrayLike],
                  dt: float) -> dict[str, Any]:
     """The ``tli run --json`` record of one episode."""
-    from tli_verify.runtime.events import event_to_json
 
     return {
         "task": task,

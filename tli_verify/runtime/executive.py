@@ -67,6 +67,8 @@ from tli_verify.logic.automaton import (
     TaskAutomaton,
     plan_progress,
 )
+from tli_verify.logic.infer import spec_to_toml
+from tli_verify.logic.spec import parse_spec
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import check_coverage, plan_states
 from tli_verify.runtime.events import (
@@ -81,6 +83,7 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
+from tli_verify.runtime.growth import Refusal, learn_transition
 from tli_verify.runtime.online import online_cut
 
 if TYPE_CHECKING:
@@ -136,7 +139,6 @@ class _EntryRecord(list[FloatArray]):
         out[:m, :m] = self._d2
         out[:m, m] = ((self._points - self[m]) ** 2).sum(axis=-1)
         return out
-
 
 class LTLDSPolicy:
     """The LTL-DS executive: task automaton + modulated, certified DS per mode (paper eq. 6).
@@ -235,7 +237,6 @@ class LTLDSPolicy:
         self.learn_transitions = bool(learn_transitions)
         self._spec_text: str | None = None
         if spec is not None:
-            from tli_verify.logic.infer import spec_to_toml
 
             if tuple(spec.inputs) != tuple(automaton.inputs) or \
                     tuple(spec.mode_names) != tuple(automaton.modes):
@@ -339,7 +340,6 @@ class LTLDSPolicy:
     @property
     def spec(self) -> GR1Spec | None:
         """The current spec, parsed from :attr:`spec_toml` (None when built without one)."""
-        from tli_verify.logic.spec import parse_spec
 
         return None if self._spec_text is None else parse_spec(self._spec_text)
 
@@ -558,8 +558,6 @@ class LTLDSPolicy:
         """Learn the transition a reading the assumptions rule out shows
         (:func:`~tli_verify.runtime.growth.learn_transition`); the state of the grown automaton
         to carry on from, or None (refused, or nothing to learn: the caller resynchronizes)."""
-        from tli_verify.logic.infer import spec_to_toml
-        from tli_verify.runtime.growth import Refusal, learn_transition
 
         spec = self.spec
         if spec is None or self._state is None:  # pragma: no cover - checked in __init__
@@ -611,5 +609,4 @@ class LTLDSPolicy:
         self.events.append(CutAdded(t, mode, self.model.keys_of(mode), out.attempt.cut,
                                     len(self.model.region_cuts(mode)), out.attempt.fallback,
                                     out.attempt.shift))
-
 

@@ -25,6 +25,8 @@ from tli_verify.runtime.events import (
     mode_sequence,
 )
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.rollout import cap_speed
+from tli_verify.runtime.worlds import WorldSensors
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -54,7 +56,6 @@ class SensorModel(Protocol):
     def read(self, x: FloatArray) -> Mapping[str, bool]:  # pragma: no cover - protocol
         """The sensor reading at ``x`` (input name -> value)."""
         ...
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class EpisodeResult:
@@ -102,7 +103,6 @@ class EpisodeResult:
     def mode_sequence(self) -> str:
         """The modes visited, in order, repeats collapsed (``run.json``'s ``mode_sequence``)."""
         return mode_sequence(self.modes)
-
 
 Perturb = Callable[[int, FloatArray], "FloatArray | None"]
 Stop = Callable[[LTLDSPolicy], bool]
@@ -186,7 +186,6 @@ def run_episode(
                          automaton_states=tuple(astates), events=tuple(policy.events),
                          cuts_added=added, model=policy.model)
 
-
 def run_episodes(
     policies: Sequence[LTLDSPolicy],
     sensors: Sequence[SensorModel],
@@ -230,7 +229,6 @@ def run_episodes(
     if not (len(policies) == len(sensors) == N):
         raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
                        f"{len(sensors)}, {N}")
-    from tli_verify.runtime.worlds import WorldSensors
 
     for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
         sen.reset(X[i].copy())
@@ -295,7 +293,6 @@ def run_episodes(
         for mm, rows in mms:
             V[rows] = mm.modulate(X[rows], F[rows], dt=policies[rows[0]].dt)
         if np.isfinite(speed_cap):
-            from tli_verify.runtime.rollout import cap_speed
 
             cap_speed(V, speed_cap)
         X += dts * V  # held and finished episodes have V = 0
@@ -304,7 +301,6 @@ def run_episodes(
         hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
     return batch_results(policies, hist_x, hist_mode, hist_state,
                          np.array(taken, dtype=np.int64))
-
 
 def batch_results(policies: Sequence[LTLDSPolicy], hist_x: Sequence[FloatArray],
                   hist_mode: Sequence[Sequence[str]], hist_state: Sequence[Sequence[int]],

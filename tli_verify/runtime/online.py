@@ -24,7 +24,8 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_cut
-from tli_verify.errors import SolverError, TliError
+from tli_verify.boundary.modulation import modulated
+from tli_verify.errors import ModelError, SolverError, TliError
 from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
 
 __all__ = ["SHIFTS", "CutAttempt", "CutLearning", "OnlineCut", "cut_for_failure", "learn_cuts",
@@ -55,7 +56,6 @@ class CutAttempt:
     cut: Cut | None
     fallback: bool = False
     shift: float = 0.0
-
 
 def cut_for_failure(
     failure: InvarianceFailure,
@@ -111,7 +111,6 @@ def cut_for_failure(
         return CutAttempt(cut, fallback=True, shift=s)
     return CutAttempt(None)
 
-
 @dataclass(frozen=True, slots=True, eq=False)
 class CutLearning:
     """Outcome of iterative cut learning for one policy and start set.
@@ -141,7 +140,6 @@ class CutLearning:
     unsolved: int
     fallback: int
     converged: bool
-
 
 def learn_cuts(
     base: Policy,
@@ -188,7 +186,6 @@ def learn_cuts(
     -------
     CutLearning
     """
-    from tli_verify.boundary.modulation import modulated
 
     if cut_constraints not in ("entries", "paper"):
         raise TliError(f"cut constraints must be 'entries' or 'paper', got {cut_constraints!r}")
@@ -229,7 +226,6 @@ def learn_cuts(
                                unsolved=unsolved, fallback=fallback, converged=False)
         cuts.append(new)
 
-
 @dataclass(frozen=True, slots=True, eq=False)
 class OnlineCut:
     """The cut the executive learned for one invariance failure, or why none.
@@ -248,7 +244,6 @@ class OnlineCut:
     model: Any
     attempt: CutAttempt | None
     error: str | None
-
 
 def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
                entries: Sequence[npt.ArrayLike], *, margin: float) -> OnlineCut:
@@ -277,7 +272,6 @@ def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
     -------
     OnlineCut
     """
-    from tli_verify.errors import ModelError
 
     mm = model.modes[key]
     x_star = mm.ds.attractor

@@ -12,6 +12,8 @@ from fractions import Fraction
 from pathlib import Path
 
 from tli_verify.defaults import DEFAULT_DT
+from tli_verify.io import atomic_write_bytes
+from tli_verify.model.serialize import relocate_model, save_model
 from tli_verify.model.types import Model
 
 __all__ = ["save_certified"]
@@ -48,8 +50,6 @@ def save_certified(model: Model, model_path: str | os.PathLike[str],
         The model does not validate (nothing is written).
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.io import atomic_write_bytes
-    from tli_verify.model.serialize import relocate_model, save_model
 
     out = Path(model_path)
     cert = Path(cert_path)

@@ -29,6 +29,9 @@ import numpy.typing as npt
 
 from tli_verify.errors import TliError, bad_input
 from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
 from tli_verify.model.types import Model
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.tasks.project import check_goal
@@ -75,7 +78,6 @@ class Setup:
         """The same setup with another sensor lag."""
         return replace(self, task=self.task.with_lag(lag))
 
-
 def load_setup(resolved: Any) -> Setup:
     """Load what :func:`tli_verify.tasks.project.resolve` found.
 
@@ -84,16 +86,12 @@ def load_setup(resolved: Any) -> Setup:
     SpecError, ModelError, TaskError
         (exit 2) Unreadable files; an unreachable goal.
     """
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
 
     automaton = synthesize(load_spec(resolved.spec))
     check_goal(automaton, resolved.goal, where=str(resolved.spec))
     return Setup(task=resolved.task, automaton=automaton, model=load_model(resolved.model),
                  certificate=str(resolved.certificate), goal=resolved.goal,
                  spec=str(resolved.spec))
-
 
 class SequencePolicy(LTLDSPolicy):
     """The ``no-replan`` ablation: the demonstrated mode sequence, run open loop.
@@ -138,7 +136,6 @@ class SequencePolicy(LTLDSPolicy):
         mode = self._seq[self._idx]
         nxt = self._seq[self._idx + 1] if self._idx + 1 < len(self._seq) else None
         return self.model.key(mode, nxt)
-
 
 def make_policy(setup: Setup, variant: str, **kwargs: Any) -> LTLDSPolicy:
     """The executive of one variant, with the setup's goal and control period.

@@ -37,10 +37,11 @@ from typing import Any
 from tli_verify.errors import CampaignError
 from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import hash_files
-from tli_verify.sim.loop import TrialResult
+from tli_verify.sim.loop import TrialResult, load_policy, run_trial
 from tli_verify.sim.perturbations import draw
 from tli_verify.sim.physics_config import PhysicsConfig
 from tli_verify.sim.trial_oracle import VIOLATION_KINDS, TrialVerdict, check_trial
+from tli_verify.verify.backends import make_backend
 
 __all__ = [
     "PhysicsResult",
@@ -97,7 +98,6 @@ class PhysicsResult:
         """True iff every trial passed the oracle."""
         return all(v.ok for v in self.verdicts)
 
-
 @dataclass(frozen=True, slots=True)
 class _Chunk:
     """One batch of a physical campaign: the trials ``first .. first + count - 1`` (seeds
@@ -108,7 +108,6 @@ class _Chunk:
     first: int
     count: int
 
-
 Trials = tuple[tuple[TrialResult, TrialVerdict], ...]
 
 
@@ -117,7 +116,6 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
                frame: Callable[[Any], None] | None = None) -> Trials:
     """Run one chunk's trials with one executive (``policy``, default a fresh one behind the
     certificate); ``on_trial`` gets the campaign-wide trial index."""
-    from tli_verify.sim.loop import load_policy, run_trial
 
     config = chunk.config
     if policy is None:
@@ -137,11 +135,9 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
             on_trial(k, res, verdict)
     return tuple(out)
 
-
 def _chunk_task(chunk: _Chunk) -> Trials:
     """A chunk in a worker process (picklable: a fresh executive, no callbacks)."""
     return _run_chunk(chunk)
-
 
 def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
                          on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
@@ -191,8 +187,6 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     KeyboardInterrupt
         Ctrl-C: the pending chunks are cancelled and nothing is returned.
     """
-    from tli_verify.sim.loop import load_policy
-    from tli_verify.verify.backends import make_backend
 
     if config.backend != "serial" and (policy is not None or frame is not None):
         raise CampaignError(f"backend {config.backend!r}: an executive or video frames in "

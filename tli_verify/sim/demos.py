@@ -33,8 +33,10 @@ from tli_verify.defaults import rng as default_rng
 from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
-from tli_verify.sim.controller import Gains
+from tli_verify.sim.controller import Gains, ImpedanceController
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
+from tli_verify.sim.franka_sensors import make_sensors
+from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
 from tli_verify.sim.scene import (
     DEFAULT_PHYSICS,
     N_BEADS,
@@ -43,10 +45,14 @@ from tli_verify.sim.scene import (
     TRAY_HALF_THICKNESS,
     TRAY_RADIUS,
     PhysicsOptions,
+    add_ladle,
+    add_scene,
+    add_stand,
     build_mocap_scene,
     ladle_quat,
     reset_beads,
     scene_ids,
+    set_contact_options,
     soup_floor,
 )
 from tli_verify.sim.sensors import SENSOR_NAMES, Debounce, Reading, ScoopSensors
@@ -80,7 +86,6 @@ def _tray_height(y: float, pitch: float) -> float:
     front = y - TRAY_RADIUS * math.cos(pitch)
     return float(soup_floor(front) + 0.001 + TRAY_RADIUS * math.sin(pitch)
                  + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
-
 
 RECOVERY_STARTS = (
     (0.5, 0.10, 0.16, -0.7),
@@ -140,7 +145,6 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         w[1:7, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
     return w
 
-
 def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
     while still low (the beads roll against the back rim), then goes on from the lift."""
@@ -157,11 +161,9 @@ def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     tail[:, 0] += now + 2.3 - tail[0, 0]
     return np.vstack([head, tail])
 
-
 def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
     """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
     return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ScoopStep:
@@ -182,15 +184,12 @@ class ScoopStep:
     reading: Reading
     command: FloatArray
 
-
 def _sensors(kind: str, model: mujoco.MjModel, ids: Any, seed: int) -> Any:
     """The rig's r, s, t sensors (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
     if kind == "ideal":
         return ScoopSensors(model, ids)
-    from tli_verify.sim.franka_sensors import make_sensors
 
     return make_sensors(kind, model, ids, seed=seed)
-
 
 def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
@@ -201,7 +200,6 @@ def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     xmat = data.site_xmat[site].tolist()  # row-major: the front (column 0) is 0, 3, 6
     x, y, z = data.site_xpos[site].tolist()
     return np.array((x, y, z, math.atan2(-xmat[6], -xmat[3])))
-
 
 class MocapRig:
     """Phase 1: the ladle on a free hand body under Cartesian impedance, the scene, the sensors.
@@ -379,7 +377,6 @@ class MocapRig:
                                      interpolate(waypoints, (k + 1) * dt)))
         return out
 
-
 CONTROL_DT = 0.02
 """Control period (s) of the loop and of the recorded demonstrations: 10 physics steps."""
 POSITION_SCALE = 10.0
@@ -393,19 +390,16 @@ def to_ds(pose: npt.ArrayLike) -> FloatArray:
     p[..., :3] *= POSITION_SCALE
     return p
 
-
 def from_ds(z: npt.ArrayLike) -> FloatArray:
     """DS state -> tray pose (the inverse of :func:`to_ds`)."""
     p = np.array(z, dtype=np.float64)
     p[..., :3] /= POSITION_SCALE
     return p
 
-
 def from_ds_velocity(v: npt.ArrayLike) -> FloatArray:
     """DS velocity (dm/s, rad/s) -> tray velocity (m/s, rad/s): the same scaling as
     :func:`from_ds` (no offset)."""
     return from_ds(v)
-
 
 def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
                 start: npt.ArrayLike | None = None, in_bowl: int = N_BEADS) -> Demonstration:
@@ -466,7 +460,6 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
     return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,
                          sensor_names=SENSOR_NAMES, sensors=sensors)
 
-
 def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
                 max_tries: int = 20,
                 recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS,
@@ -521,7 +514,6 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
     return out
-
 
 PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=50.0,
                                      damping_ratio=1.0)
@@ -582,9 +574,6 @@ class PandaRig:
                  impedance: CartesianImpedance | None = None,
                  limits: FrankaLimits | None = None, sensors: str = "ideal",
                  physics: PhysicsOptions = DEFAULT_PHYSICS) -> None:
-        from tli_verify.sim.controller import ImpedanceController
-        from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
-        from tli_verify.sim.scene import add_ladle, add_scene, add_stand, set_contact_options
 
         if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
             raise TliError(f"timestep {timestep:g} s: one of "

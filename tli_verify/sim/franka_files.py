@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from tli_verify.errors import TliError
+from tli_verify.io import sha256_file
 
 __all__ = [
     "MODEL_NAME",
@@ -46,13 +47,11 @@ def project_files(root: str | os.PathLike[str],
             "certificate": (Path(certificates) if certificates is not None
                             else base / "certificates") / f"{MODEL_NAME}.cert.json"}
 
-
 def hash_files(root: str | os.PathLike[str],
                certificates: str | os.PathLike[str] | None = None
                ) -> tuple[tuple[str, str, str], ...]:
     """``(name, path, SHA-256)`` of the project's spec, model and certificate (the certificate
     may be missing: then the policy refuses to load)."""
-    from tli_verify.io import sha256_file
 
     return tuple((k, str(p), sha256_file(p) if p.is_file() else "")
                  for k, p in project_files(root, certificates).items())

@@ -50,10 +50,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import InputError, TliError
+from tli_verify.demos import load_demos
+from tli_verify.errors import CertificateError, InputError, TliError
+from tli_verify.io import atomic_write_bytes, bundled_dir
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.setup import VARIANTS as RUNTIME_VARIANTS
+from tli_verify.runtime.setup import load_setup, make_policy
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.demos import (
     CONTROL_DT,
@@ -69,6 +72,7 @@ from tli_verify.sim.render import Recorder
 from tli_verify.sim.retry import StallRetry
 from tli_verify.sim.scene import DEFAULT_PHYSICS, PhysicsOptions
 from tli_verify.sim.sensors import Debounce
+from tli_verify.tasks.project import resolve
 
 __all__ = [
     "VARIANTS",
@@ -118,17 +122,13 @@ def project_dir() -> Path:
     """The bundled Franka project: ``sim/franka`` with ``specs/``, ``models/``,
     ``certificates/`` and ``demos/franka/`` (outside the repository's deployed ``models/``:
     the gate requires campaign evidence this policy does not have yet, ``docs/howto/franka.md``)."""
-    from tli_verify.io import bundled_dir
 
     return bundled_dir("sim") / "franka"
 
-
 def bundled_demos() -> list[Any]:
     """The recorded Franka demonstrations (:func:`project_dir` ``/demos/franka``)."""
-    from tli_verify.demos import load_demos
 
     return load_demos(sorted((project_dir() / "demos" / "franka").glob("*.csv")))
-
 
 def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
     """Bounds of the target pose: the bundled demonstrations' box widened by ``margin``.
@@ -148,7 +148,6 @@ def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
     box_lo, box_hi = _demo_box()
     return box_lo - m, box_hi + m
 
-
 @functools.lru_cache(maxsize=1)
 def _demo_box() -> tuple[FloatArray, FloatArray]:
     """The bundled demonstrations' bounding box (read once per process: every trial needs it)."""
@@ -157,7 +156,6 @@ def _demo_box() -> tuple[FloatArray, FloatArray]:
     lo.setflags(write=False)
     hi.setflags(write=False)
     return lo, hi
-
 
 def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
                  hi: FloatArray) -> FloatArray:
@@ -186,13 +184,11 @@ def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
                                   np.asarray(lo, dtype=np.float64).tolist(),
                                   np.asarray(hi, dtype=np.float64).tolist()))
 
-
 def _feed_forward(target: list[float], v: list[float], lo: list[float],
                   hi: list[float]) -> list[float]:
     """:func:`feed_forward` on lists of floats (the loop's; the same comparisons)."""
     return [0.0 if (t >= h and a > 0.0) or (t <= low and a < 0.0) else a
             for t, a, low, h in zip(target, v, lo, hi, strict=True)]
-
 
 def _clip(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
     """``np.clip(x, lo, hi)`` of arrays, on floats, by numpy's rule: ``max(a, low)`` is ``a``
@@ -203,7 +199,6 @@ def _clip(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
         a = a if a > low or a != a else low
         out.append(a if a < h or a != a else h)
     return out
-
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
     """Seeded perturbations of one trial, drawn by the campaign strategies.
@@ -223,7 +218,6 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
     list of Perturbation
     """
     return draw(seed, pushes=pushes, tilts=tilts)
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class TrialResult:
@@ -303,7 +297,6 @@ class TrialResult:
             "limit_ratios": dict(self.limit_ratios), "perturbed_steps": self.perturbed_steps,
         }
 
-
 @dataclass(frozen=True, slots=True)
 class TraceStep:
     """One control period of a trial as the robot saw it (``run_trial(trace=...)``).
@@ -328,7 +321,6 @@ class TraceStep:
     measured: FloatArray
     perturbed: bool
 
-
 def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
                 certificates: str | os.PathLike[str] | None = None) -> LTLDSPolicy:
     """The executive of ``variant`` for the bundled Franka scoop model, behind its certificate.
@@ -349,9 +341,6 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         (exit 1) The certificate is missing, does not re-check, or does not cover the model
         (naming the certificate).
     """
-    from tli_verify.errors import CertificateError
-    from tli_verify.runtime.setup import load_setup, make_policy
-    from tli_verify.tasks.project import resolve
 
     if variant not in VARIANTS:
         raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
@@ -378,7 +367,6 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         raise TliError(f"{setup.task.where}: dt {setup.task.dt:g} s, but the Franka loop "
                        f"controls at {CONTROL_DT:g} s")
     return make_policy(setup, variant)
-
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
@@ -531,7 +519,6 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         stopped=stopped, limit_ratios={k: round(v, 4) for k, v in ratios.items()},
         perturbed_steps=perturbed_steps)
 
-
 def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
              physics: PhysicsOptions | None = None) -> Any:
     """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors`` and the
@@ -552,7 +539,6 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
     options = DEFAULT_PHYSICS if physics is None else physics
     return PandaRig(seed, sensors=sensors, physics=options) if robot == "panda" else \
         MocapRig(seed, sensors=sensors, physics=options)
-
 
 class ContactDetector:
     """``perturbed`` as the robot can know it: the estimated external wrench beyond a threshold.
@@ -602,7 +588,6 @@ class ContactDetector:
         """The evidence's record."""
         return {"force": self.force, "torque": self.torque, "hold": self.hold}
 
-
 def _beyond(w: FloatArray, i: int, limit: float) -> bool:
     """``np.linalg.norm(w[i:i + 3]) > limit``, the norm computed only near ``limit``."""
     a, b, c = w[i:i + 3].tolist()
@@ -612,7 +597,6 @@ def _beyond(w: FloatArray, i: int, limit: float) -> bool:
     if sq > lim2 * (1.0 + 1e-9):
         return True
     return float(np.linalg.norm(w[i:i + 3])) > limit
-
 
 # --- the perturbing hands, every physics step (kept apart from the control loop) ----------
 
@@ -658,7 +642,6 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
     rig.step(substeps, before=before)
     rig.push[:] = 0.0
 
-
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
                duration: float = TRIAL_DURATION, robot: str = "panda",
                retry: bool = True, sensors: str = "ideal",
@@ -687,7 +670,6 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
                       physics=physics).to_dict()
             for s in seeds]
 
-
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
               demos: list[Any] | None = None, title: str = "") -> None:
     """A Fig. 11-style picture: each mode's modulated DS flow in (y, z, pitch), with the cuts.
@@ -712,8 +694,6 @@ def plot_flow(model: Any, path: str | os.PathLike[str], *,
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.io import atomic_write_bytes
 
     colors = {"a": "tab:gray", "b": "tab:orange", "c": "tab:red", "d": "tab:green"}
     fig = plt.figure(figsize=(8, 6.5))

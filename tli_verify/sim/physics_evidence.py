@@ -19,10 +19,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from tli_verify.io import check_output_file
 from tli_verify.sim.campaign import PhysicsResult
 from tli_verify.sim.chunks import chunk_seeds
+from tli_verify.sim.demos import PANDA_IMPEDANCE
 from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.franka_limits import FrankaLimits
+from tli_verify.sim.loop import LEASH, ContactDetector
 from tli_verify.sim.physics_checks import WORLD
+from tli_verify.sim.physics_options import DEFAULT_PHYSICS
+from tli_verify.verify.evidence import EVIDENCE_SUFFIX, deployed_task_block, write_evidence
 
 __all__ = [
     "settings_from",
@@ -47,7 +53,6 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
                                  f"--duration {c.duration:g} --sensors {c.sensors}"
                                  + ("" if c.retry else " --no-retry")}
     return None
-
 
 def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] | None = None,
                            *, inputs: Sequence[str | os.PathLike[str]] = (),
@@ -80,14 +85,6 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         (exit 2) The path cannot be written or is one of the inputs.
     """
     import mujoco
-
-    from tli_verify.io import check_output_file
-    from tli_verify.sim.physics_options import DEFAULT_PHYSICS
-    from tli_verify.verify.evidence import (
-        EVIDENCE_SUFFIX,
-        deployed_task_block,
-        write_evidence,
-    )
 
     c = result.config
     target = Path(path) if path is not None else \
@@ -126,14 +123,10 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         expected={name: sha for name, _, sha in result.files if sha})
     return target, doc
 
-
 def controller_record(robot: str) -> dict[str, Any]:
     """The controller settings a physical campaign ran with (the evidence's
     ``physics.controller``): for the Panda the impedance, the limits, the torque-loop period and
     the perturbation detector; for the free tool its impedance law."""
-    from tli_verify.sim.demos import PANDA_IMPEDANCE
-    from tli_verify.sim.franka_limits import FrankaLimits
-    from tli_verify.sim.loop import LEASH, ContactDetector
 
     common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}
     if robot == "panda":
@@ -141,7 +134,6 @@ def controller_record(robot: str) -> dict[str, Any]:
                     limits=FrankaLimits().to_dict(), torque_period=0.002,
                     feed_forward=True)
     return dict(common, kind="free-body-impedance", stiffness_pos=2000.0, stiffness_rot=150.0)
-
 
 def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an

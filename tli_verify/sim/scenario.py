@@ -48,6 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_bytes
 from tli_verify.runtime.events import Replan
 from tli_verify.runtime.repeats import FailureCheck, check_repeats
 from tli_verify.sim.demos import POSITION_SCALE
@@ -90,7 +91,6 @@ class Scenario:
     retry: bool = False
     margin: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.3)
 
-
 POUR_SCENARIO = Scenario(name="pour-sweeps-past-the-bowl", seed=0, mode="d",
                          margin=(0.5, 1.5, 0.5, 0.3))
 """The regression scenario of the module doc."""
@@ -114,7 +114,6 @@ class Failure:
     to_mode: str
     target: FloatArray
     measured: FloatArray
-
 
 @dataclass(frozen=True, slots=True)
 class ScenarioRun:
@@ -163,7 +162,6 @@ class ScenarioRun:
         """Each invariance failure happened once (:attr:`repeats` is 0)."""
         return self.repeats == 0
 
-
 def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                  root: str | os.PathLike[str] | None = None) -> ScenarioRun:
     """Run ``scenario`` with a fresh executive of ``variant`` (no cuts carried in).
@@ -204,7 +202,6 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                        np.asarray(policy.model.modes[keys[0]].ds.attractor, dtype=np.float64),
                        checks)
 
-
 _AXES = (1, 2, 3)  # y, z, pitch of the DS state (x, y, z in dm, pitch in rad)
 
 
@@ -223,7 +220,6 @@ def _plane(ax: Any, normal: FloatArray, point: FloatArray, lo: FloatArray, hi: F
     grid = [np.empty_like(u)] * 3
     grid[i], grid[j], grid[k] = u, v, np.clip(w, lo[k], hi[k])
     ax.plot_surface(grid[0], grid[1], grid[2], **style)
-
 
 def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: float) -> None:
     """The tray's ``y`` over time against the rim; failures and cuts marked."""
@@ -251,7 +247,6 @@ def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: fl
     ax.set_ylabel("y (dm)")
     ax.legend(loc="lower right", fontsize=7)
 
-
 def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None:
     """Fig. 9-style panels, one per run: the pour in ``(y, z, pitch)``.
 
@@ -272,8 +267,6 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.io import atomic_write_bytes
 
     if not runs:
         raise TliError("plot_scenario: no runs to plot")

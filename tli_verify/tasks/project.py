@@ -36,7 +36,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tli_verify.errors import TaskError
+from tli_verify.errors import TaskError, TliError
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Goal, Task
 
@@ -71,7 +73,6 @@ def model_stem(model: str | os.PathLike[str]) -> str:
     """``scoop`` for ``models/scoop.model.json`` (also ``scoop.json``)."""
     return Path(model).name.removesuffix(".json").removesuffix(".model")
 
-
 def project_root(path: str | os.PathLike[str]) -> Path:
     """The project folder of a file: the parent of the nearest ancestor folder named
     ``tasks``, ``specs``, ``demos``, ``models`` or ``certificates``; else the file's folder."""
@@ -81,14 +82,12 @@ def project_root(path: str | os.PathLike[str]) -> Path:
             return _shown(parent.parent)
     return _shown(p.parent)
 
-
 def _shown(p: Path) -> Path:
     """Relative to the working directory when under it (messages read ``models/x``)."""
     try:
         return p.relative_to(Path.cwd())
     except ValueError:
         return p
-
 
 @dataclass(frozen=True, slots=True)
 class ModelFiles:
@@ -105,7 +104,6 @@ class ModelFiles:
     root: Path
     certificate: Path
     evidence: Path
-
 
 def model_files(model: str | os.PathLike[str]) -> ModelFiles:
     """The certificate and evidence paths of a model (module docstring).
@@ -130,7 +128,6 @@ def model_files(model: str | os.PathLike[str]) -> ModelFiles:
                               evidence=base / (stem + EVIDENCE_SUFFIX))
     return ModelFiles(root=mpath.parent, certificate=mpath.parent / (stem + CERTIFICATE_SUFFIX),
                       evidence=mpath.parent / (stem + EVIDENCE_SUFFIX))
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Resolved:
@@ -166,7 +163,6 @@ class Resolved:
             out.append(Path(self.task.source.path))
         return tuple(out)
 
-
 def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
     """The task a loaded spec names (its ``task`` key), or None.
 
@@ -185,7 +181,6 @@ def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
     except TaskError as exc:
         raise TaskError(f"{spec_path}: task = {ref!r}: {exc}") from None
 
-
 def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     """The files a spec implies: the spec itself and the task file it names (when that task
     is a file). What every writer that reads the spec must not overwrite (the read/write rule,
@@ -203,8 +198,6 @@ def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     """
     if spec is None:
         return []
-    from tli_verify.errors import TliError
-    from tli_verify.logic.spec import load_spec
 
     found = [Path(spec)]
     try:
@@ -214,7 +207,6 @@ def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     if task is not None and task.source.path is not None:
         found.append(Path(task.source.path))
     return found
-
 
 def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list[Path]:
     """The files a model file implies: itself, its spec (``spec``, or the one it names), the
@@ -231,7 +223,6 @@ def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list
     -------
     list of Path
     """
-    from tli_verify.errors import TliError
 
     found: list[Path] = []
     if model is not None:
@@ -239,14 +230,12 @@ def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list
         files = model_files(model)
         found += [files.certificate, files.evidence]
         if spec is None and Path(model).is_file():
-            from tli_verify.model.serialize import load_model
 
             try:
                 spec = load_model(model).spec_path
             except TliError:
                 spec = None
     return found + spec_inputs(spec)
-
 
 def resolve(*, task: str | os.PathLike[str] | Task | None = None,
             spec: str | os.PathLike[str] | None = None,
@@ -275,8 +264,6 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
         start from; a spec that is not the one the model names; a missing file; a model whose
         dimension, or a spec whose inputs, differ from the task's (:func:`check_fit`).
     """
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
 
     loaded: Task | None = None
     if isinstance(task, Task):
@@ -338,7 +325,6 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
     check_fit(resolved, spec_doc, model_doc if model_doc is not None else load_model(model_path))
     return resolved
 
-
 def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str, ...]:
     """The goal modes, checked: every mode the automaton can run reaches one of them.
 
@@ -371,14 +357,12 @@ def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str
                         "graph, so no episode from there can succeed")
     return modes
 
-
 def goal_of(spec: GR1Spec, task: Task) -> Goal:
     """The goal rule: the spec's ``[goal]``, else the task's ``[goal]`` (else, later, the
     automaton's sink modes: :func:`check_goal`)."""
     if spec.goal_modes is not None or spec.goal_sensors:
         return Goal(spec.goal_modes, spec.goal_sensors)
     return task.goal
-
 
 def check_fit(resolved: Resolved, spec: Any, model: Any) -> None:
     """Refuse a model, spec or goal that does not fit the task (before any work).

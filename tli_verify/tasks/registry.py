@@ -27,29 +27,28 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
+from tli_verify.arguments import check_path
 from tli_verify.errors import TaskError, TliError
+from tli_verify.io import bundled_dir
+from tli_verify.tasks.formula import is_name
 from tli_verify.tasks.plugins import (
     ENTRY_POINT_GROUP,
     _entry_points,
     entry_point,
     entry_point_source,
 )
-from tli_verify.tasks.task import Task
+from tli_verify.tasks.task import Task, TaskSource
 from tli_verify.tasks.taskfile import load_task
 
 __all__ = ["ENTRY_POINT_GROUP", "bundled_tasks", "entry_point", "entry_point_source",
            "find_task", "task_names"]
 
-
-
 def _bundled_dir() -> Path | None:
-    from tli_verify.io import bundled_dir
 
     try:
         return bundled_dir("tasks")
     except TliError:
         return None
-
 
 def bundled_tasks() -> dict[str, Path]:
     """The bundled task files by name (``tasks/*.toml`` shipped with tli-verify)."""
@@ -58,7 +57,6 @@ def bundled_tasks() -> dict[str, Path]:
         return {}
     return {p.stem: p for p in sorted(d.glob("*.toml"))}
 
-
 def task_names(project: str | os.PathLike[str] | None = None) -> list[str]:
     """Every task name ``find_task`` knows: the project's, the bundled ones, entry points."""
     names: set[str] = set(bundled_tasks()) | set(_entry_points())
@@ -66,11 +64,9 @@ def task_names(project: str | os.PathLike[str] | None = None) -> list[str]:
         names |= {p.stem for p in (Path(project) / "tasks").glob("*.toml")}
     return sorted(names)
 
-
 @lru_cache(maxsize=64)
 def _load_file(path: str, mtime_ns: int, size: int) -> Task:
     return load_task(path)
-
 
 def _from_file(path: Path) -> Task:
     try:
@@ -78,7 +74,6 @@ def _from_file(path: Path) -> Task:
     except OSError:
         return load_task(path)  # the reader says what is wrong
     return _load_file(str(path), st.st_mtime_ns, st.st_size)
-
 
 def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | None = None
               ) -> Task:
@@ -101,7 +96,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         (exit 2) An unknown name (the message lists the known ones), a file that does not
         load, an entry point that is not a task.
     """
-    from tli_verify.arguments import check_path
 
     check_path(ref, "task", error=TaskError)
     text = os.fspath(ref)
@@ -110,7 +104,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         if not p.is_file():
             raise TaskError(f"{p}: no such task file")
         return _from_file(p)
-    from tli_verify.tasks.formula import is_name
 
     if not is_name(text.replace("-", "_")):
         raise TaskError(f"--task {text!r}: neither a task file nor a task name")
@@ -140,8 +133,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
             raise TaskError(f"entry point {text!r} is not a task (it may be a sensor model: "
                             "name it from a task file's sensor_model)")
         from dataclasses import replace
-
-        from tli_verify.tasks.task import TaskSource
 
         if task.source.kind == "code":
             task = replace(task, source=TaskSource("entry-point", entry_point=text,

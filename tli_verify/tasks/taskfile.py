@@ -87,9 +87,13 @@ import numpy as np
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.errors import TaskError, TliError
+from tli_verify.io import check_numbers, parse_toml, read_text, validate_schema
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.logic.ltl import is_ap_name
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import parse_demonstrator
 from tli_verify.tasks.fields import number, vector
+from tli_verify.tasks.plugins import entry_point, entry_point_source
 from tli_verify.tasks.regions import Region, parse_region
 from tli_verify.tasks.sensing import (
     FormulaSensors,
@@ -129,7 +133,6 @@ def _keys(raw: Any, allowed: Sequence[str], where: str) -> Mapping[str, Any]:
         raise TaskError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(allowed)})")
     return raw
 
-
 def _text(raw: Any, where: str, *, limit: int = 200, one_line: bool = True) -> str:
     if not isinstance(raw, str) or len(raw) > limit or (one_line and any(
             ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0 for ch in raw)):
@@ -137,13 +140,11 @@ def _text(raw: Any, where: str, *, limit: int = 200, one_line: bool = True) -> s
                         f"most {limit} characters")
     return raw
 
-
 def _name(raw: Any, where: str) -> str:
     if not isinstance(raw, str) or not fml.is_name(raw) or len(raw) > 64:
         raise TaskError(f"{where}: {raw!r} is not a valid name (an identifier: letters, "
                         "digits and _, not true/false/prev, at most 64 characters)")
     return raw
-
 
 def load_task(path: str | os.PathLike[str], *,
               entry_points: Callable[[str], object] | None = None) -> Task:
@@ -161,11 +162,9 @@ def load_task(path: str | os.PathLike[str], *,
     TaskError
         (exit 2) Naming the file and the field of the first problem.
     """
-    from tli_verify.io import read_text
 
     text = read_text(path, what="task", error=TaskError)
     return parse_task(text, path=str(path), entry_points=entry_points)
-
 
 def parse_task(text: str, *, path: str | None = None,
                entry_points: Callable[[str], Any] | None = None) -> Task:
@@ -176,7 +175,6 @@ def parse_task(text: str, *, path: str | None = None,
     TaskError
         (exit 2) Naming the file and the field.
     """
-    from tli_verify.io import check_numbers, parse_toml, validate_schema
 
     where = path or "<task>"
     if not text.strip():
@@ -186,7 +184,6 @@ def parse_task(text: str, *, path: str | None = None,
     task = _build(data, where, text, path, entry_points)
     validate_schema(data, "task.schema.json", where=where, error=TaskError)
     return task
-
 
 def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
            entry_points: Callable[[str], Any] | None) -> Task:
@@ -257,14 +254,12 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
                 sensor_model=model, lag=int(lag), dt=dt, goal=goal, starts=starts,
                 perturbations=pert, demonstrator=demo, source=source, spec=spec)
 
-
 def _color(raw: Any, where: str) -> str:
     from matplotlib.colors import is_color_like
 
     if not isinstance(raw, str) or len(raw) > 40 or not is_color_like(raw):
         raise TaskError(f"{where}: {raw!r} is not a colour (e.g. \"#f7e27a\" or \"tab:blue\")")
     return raw
-
 
 def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -> Partition:
     if not isinstance(raw, dict):
@@ -314,7 +309,6 @@ def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -
         (layers if layer else cells).append(NamedRegion(rname, region, color, layer))
     return Partition(tuple(cells), background, bg_color, tuple(layers))
 
-
 def _latches(raw: Any, regions: set[str], where: str) -> tuple[Latch, ...]:
     if not isinstance(raw, dict):
         raise TaskError(f"{where}: [latches]: expected a table of latches")
@@ -347,10 +341,8 @@ def _latches(raw: Any, regions: set[str], where: str) -> tuple[Latch, ...]:
         out.append(Latch(lname, initial, parsed[0], parsed[1]))
     return tuple(out)
 
-
 def _sensor_formulas(raw: Any, regions: set[str], latches: tuple[Latch, ...], where: str
                      ) -> tuple[tuple[str, fml.Formula], ...]:
-    from tli_verify.logic.ltl import is_ap_name
 
     if not isinstance(raw, dict) or not raw:
         raise TaskError(f"{where}: [sensors]: expected a table sensor = formula (the spec's "
@@ -365,7 +357,6 @@ def _sensor_formulas(raw: Any, regions: set[str], latches: tuple[Latch, ...], wh
             raise TaskError(f"{at}: {sname!r} is not a valid sensor (spec input) name")
         out.append((sname, fml.parse(text, names=names, where=at)))
     return tuple(out)
-
 
 def _goal(raw: Any, sensors: Sequence[str], where: str) -> Goal:
     t = _keys(raw, ("modes", "sensors"), f"{where}: [goal]")
@@ -386,7 +377,6 @@ def _goal(raw: Any, sensors: Sequence[str], where: str) -> Goal:
         raise TaskError(f"{where}: goal.sensors: {unknown[0]!r} is not a sensor of the task "
                         f"({', '.join(sensors)})")
     return Goal(modes, tuple(gs))
-
 
 def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Partition,
             where: str) -> Starts:
@@ -418,9 +408,7 @@ def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Parti
         raise TaskError(f"{where}: starts.random: expected true or false, got {random!r}")
     return Starts(tuple(nominal), region, random)
 
-
 def _perturbations(raw: Any, where: str) -> PerturbationBounds:
-    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
 
     t = _keys(raw, ("max_magnitude", "window", "max_pushes"), f"{where}: [perturbations]")
     mag = t.get("max_magnitude")
@@ -432,11 +420,9 @@ def _perturbations(raw: Any, where: str) -> PerturbationBounds:
         max_pushes=int(number(t.get("max_pushes", 3), f"{where}: perturbations.max_pushes",
                               lo=0, hi=MAX_PUSHES, integer=True)))
 
-
 def _entry_sensor_model(name: str, where: str, source: TaskSource,
                         entry_points: Callable[[str], Any] | None, dim: int,
                         partition: Partition) -> tuple[SensorModel, TaskSource]:
-    from tli_verify.tasks.plugins import entry_point, entry_point_source
 
     resolve = entry_points or entry_point
     try:

@@ -21,6 +21,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from tli_verify.io import atomic_write_text
+
 __all__ = ["junit_xml", "write_junit"]
 
 _BAD_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
@@ -29,7 +31,6 @@ _BAD_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
 def _clean(text: object) -> str:
     """Text XML 1.0 can hold (control characters dropped)."""
     return _BAD_XML.sub("", str(text))
-
 
 def _properties(result: Any, counterexample: str | os.PathLike[str] | None
                 ) -> list[tuple[str, str]]:
@@ -55,7 +56,6 @@ def _properties(result: Any, counterexample: str | os.PathLike[str] | None
     if counterexample is not None:
         props.append(("counterexample", str(counterexample)))
     return props
-
 
 def junit_xml(result: Any, *, counterexample: str | os.PathLike[str] | None = None) -> str:
     """The JUnit XML text of a campaign.
@@ -120,12 +120,10 @@ def junit_xml(result: Any, *, counterexample: str | os.PathLike[str] | None = No
     return ('<?xml version="1.0" encoding="utf-8"?>\n'
             + ET.tostring(root, encoding="unicode") + "\n")
 
-
 def write_junit(result: Any, path: str | os.PathLike[str], *,
                 counterexample: str | os.PathLike[str] | None = None) -> Path:
     """Write :func:`junit_xml` to ``path`` atomically (:func:`tli_verify.io.atomic_write_text`;
     missing folders created)."""
-    from tli_verify.io import atomic_write_text
 
     p = Path(path)
     atomic_write_text(p, junit_xml(result, counterexample=counterexample))

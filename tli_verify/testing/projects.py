@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tli_verify.project import locate
+from tli_verify.tasks.project import project_root
 
 if TYPE_CHECKING:  # pragma: no cover - types only (the imports below are lazy)
     from tli_verify.tasks.project import Resolved
@@ -35,7 +36,6 @@ class Defaults:
 
     project: Path | None = None
     case_dir: Path | None = None
-
 
 DEFAULTS = Defaults()
 """The defaults :func:`project` and :func:`~tli_verify.testing.assert_satisfies` use."""
@@ -135,7 +135,6 @@ class Project:
         a dataclass: the task, the files, the settings)."""
         printer.text(repr(self))
 
-
 # ---------------------------------------------------------------------------------------------
 def project(path: PathLike | None = None, *, task: PathLike | None = None,
             spec: PathLike | None = None, model: PathLike | None = None,
@@ -201,14 +200,12 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     resolved, filled = resolve_config(cfg)
     sim = _absolute(sim_spec(filled))
     if root is None:
-        from tli_verify.tasks.project import project_root
 
         root = Path(os.path.abspath(project_root(sim.model)))
     out = Project(root=root, resolved=resolved, config=filled, sim=sim,
                   case_dir=None if case_dir is None else Path(os.path.abspath(case_dir)))
     load(out.sim)  # the automaton, the policy (its certificate checked), the oracle: now
     return out
-
 
 def default_root() -> Path:
     """Where :func:`project` without arguments looks: the plugin's ``--tli-project`` (ini
@@ -221,7 +218,6 @@ def default_root() -> Path:
     if roots:
         return Path(roots[-1])
     return Path.cwd()
-
 
 def default_project() -> Project:
     """The project of :func:`default_root` (the ``tli_project`` fixture's, and the one
@@ -244,7 +240,6 @@ def default_project() -> Project:
         _DEFAULT[key] = hit
     return hit
 
-
 _DEFAULT: dict[str, Project] = {}
 _TMP: list[Path] = []
 
@@ -258,17 +253,14 @@ def _tmp_case_dir() -> Path:
         _TMP.append(Path(tempfile.mkdtemp(prefix="tli-verify-cases-")))
     return _TMP[0]
 
-
 def _fs(p: PathLike | None) -> str | None:
     return None if p is None else os.fspath(p)
-
 
 def _rel(path: str, root: Path) -> str:
     try:
         return str(Path(path).relative_to(root))
     except ValueError:
         return str(path)
-
 
 def _absolute(sim: SimSpec) -> SimSpec:
     """The spec with absolute file paths (a test that changes directory keeps it working)."""

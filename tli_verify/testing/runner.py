@@ -22,6 +22,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.errors import CampaignError
+from tli_verify.io import atomic_write_text, canonical_json
+from tli_verify.limits import MAX_CAMPAIGN_STEPS
+
 if TYPE_CHECKING:  # pragma: no cover - types only
     from tli_verify.testing.projects import Project
     from tli_verify.verify.oracle import Verdict
@@ -41,8 +45,6 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
     """The step budget of a batch: the certified one (the last perturbation's step plus the
     worst-case deadline), unless given."""
     if budget is not None:
-        from tli_verify.errors import CampaignError
-        from tli_verify.limits import MAX_CAMPAIGN_STEPS
 
         top = max(MAX_CAMPAIGN_STEPS, int(proj.loaded.budget))
         if not isinstance(budget, int) or isinstance(budget, bool) or not 1 <= budget <= top:
@@ -51,7 +53,6 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
         return budget
     last = max((c.last_step for c in cases), default=0)
     return int(proj.loaded.oracle.budget(max(proj.window, last)))
-
 
 def check(project: Project, case: Case, *, budget: int | None = None) -> Verdict:
     """Simulate one case and return the oracle's verdict.
@@ -74,7 +75,6 @@ def check(project: Project, case: Case, *, budget: int | None = None) -> Verdict
     """
     return check_many(project, [case], budget=budget)[0]
 
-
 def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = None,
                batch_size: int = 100) -> list[Verdict]:
     """:func:`check` for many cases, simulated in vectorised batches of ``batch_size``.
@@ -93,7 +93,6 @@ def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = 
     list of Verdict
         In the order of ``cases``.
     """
-    from tli_verify.errors import CampaignError
     from tli_verify.verify.simulate import simulate
 
     if not isinstance(batch_size, int) or isinstance(batch_size, bool) or batch_size < 1:
@@ -106,7 +105,6 @@ def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = 
         sims = simulate(project.sim, batch, budget=_budget(project, batch, budget))
         out += oracle.check_many([trace for trace, _ in sims])
     return out
-
 
 # ------------------------------------------------------------------------------ asserting
 def failure_reasons(verdict: Verdict) -> list[str]:
@@ -127,7 +125,6 @@ def failure_reasons(verdict: Verdict) -> list[str]:
         reasons.append("the run did not reach a goal mode")
     assert bool(reasons) != verdict.satisfied  # one definition of passing
     return reasons
-
 
 def assert_satisfies(project: Project, case: Case, *, verdict: Verdict | None = None,
                      budget: int | None = None, case_dir: str | os.PathLike[str] | None = None,
@@ -198,7 +195,6 @@ def assert_satisfies(project: Project, case: Case, *, verdict: Verdict | None = 
     raise AssertionError(_message(project, case, v, reasons, saved, budget=budget,
                                   shrinking=in_hypothesis and not final))
 
-
 def _in_hypothesis() -> bool:
     import sys
 
@@ -207,7 +203,6 @@ def _in_hypothesis() -> bool:
     from hypothesis import currently_in_test_context
 
     return bool(currently_in_test_context())
-
 
 def _is_final() -> bool:
     """Hypothesis runs this example for the last time (the minimal failing case, or an
@@ -218,7 +213,6 @@ def _is_final() -> bool:
         return bool(getattr(current_build_context(), "is_final", True))
     except Exception:  # no build context: not shrinking
         return True
-
 
 def _message(proj: Project, case: Case, v: Verdict, reasons: list[str], saved: Path | None,
              *, budget: int | None, shrinking: bool) -> str:
@@ -245,7 +239,6 @@ def _message(proj: Project, case: Case, v: Verdict, reasons: list[str], saved: P
                      "(re-run it with tli_verify.testing.check(project, case))")
     return "\n".join(lines)
 
-
 # ------------------------------------------------------------------------------ cases
 def replay_command(path: str | os.PathLike[str]) -> str:
     """``tli replay PATH`` (relative to the working directory when under it, shell-quoted)."""
@@ -255,7 +248,6 @@ def replay_command(path: str | os.PathLike[str]) -> str:
     except ValueError:
         shown = str(p)
     return f"tli replay {shlex.quote(shown)}"
-
 
 def save_case(project: Project, case: Case, verdict: Verdict, *,
               case_dir: str | os.PathLike[str] | None = None, seed: int = 0) -> Path:
@@ -287,7 +279,6 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
     ValueError
         The verdict violates nothing.
     """
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.verify.cases import case_document
 
     doc = case_document(project.sim, case, verdict, seed=seed, shrunk=_in_hypothesis())
@@ -306,7 +297,6 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
     atomic_write_text(out, canonical_json(doc))
     return out
 
-
 def _relocate(doc: dict[str, Any], proj: Project, case_dir: Path) -> None:
     """Name the project's files relative to the case file's folder when both lie in the
     project (``tli replay`` looks there first)."""
@@ -322,7 +312,6 @@ def _relocate(doc: dict[str, Any], proj: Project, case_dir: Path) -> None:
         real = Path(os.path.realpath(paths.get(name, entry["path"])))
         if real.is_relative_to(root) and real.is_file():
             entry["path"] = os.path.relpath(real, real_dir)
-
 
 def _slug(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "task"

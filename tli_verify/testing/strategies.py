@@ -14,7 +14,13 @@ import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.errors import CampaignError
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.tasks.registry import find_task
+from tli_verify.testing.projects import Project, default_project
+from tli_verify.verify.simulate import start_regions
 from tli_verify.verify.strategies import LEVELS
+from tli_verify.verify.strategies import cases as _cases
 
 if TYPE_CHECKING:  # pragma: no cover - types only
     from hypothesis.strategies import SearchStrategy
@@ -34,7 +40,6 @@ this module (pytest's in-process runs drop the modules they imported)."""
 def is_tli_strategy(strategy: object) -> bool:
     """Whether ``strategy`` was built by :func:`cases`."""
     return getattr(strategy, MARK, False) is True
-
 
 def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None, *,
           max_pushes: int | None = None, window: int | None = None,
@@ -97,28 +102,19 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
     if project_or_task is None:
         from hypothesis import strategies as st
 
-        from tli_verify.testing.projects import default_project
-
         out: SearchStrategy[Case] = st.deferred(lambda: _build(default_project(), options))
     else:
         out = _build(project_or_task, options)
     setattr(out, MARK, True)
     return out
 
-
 def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
     import numpy as np
-
-    from tli_verify.errors import CampaignError
-    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
-    from tli_verify.testing.projects import Project
-    from tli_verify.verify.strategies import cases as _cases
 
     proj = source if isinstance(source, Project) else None
     if proj is not None:
         task = proj.task
     elif isinstance(source, str | os.PathLike):
-        from tli_verify.tasks.registry import find_task
 
         task = find_task(source)
     elif hasattr(source, "perturbations") and hasattr(source, "starts"):
@@ -149,7 +145,6 @@ def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
     regions: tuple[str, ...] | None = None
     if random_starts:
         if proj is not None:
-            from tli_verify.verify.simulate import start_regions
 
             regions = start_regions(task, proj.loaded.automaton)
         if task.starts.region is not None:

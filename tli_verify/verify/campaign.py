@@ -43,6 +43,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.arguments import check_type
+from tli_verify.errors import CampaignError
+from tli_verify.verify.backends import make_backend
 from tli_verify.verify.cases import bound_files, case_document
 from tli_verify.verify.config import CampaignConfig, resolve_config, sim_spec
 from tli_verify.verify.draws import chunk_seed, config_strategy, draw_chunks
@@ -176,7 +179,6 @@ class CampaignResult:
             "events": list(self.events),
         }
 
-
 # ------------------------------------------------------------------------------ setup
 
 
@@ -214,7 +216,6 @@ def _coverage(outcomes: Sequence[RunOutcome], automaton: Any) -> dict[str, Any]:
         "cut_faces": {"touched": touched, "total": total},
     }
 
-
 def run_campaign(config: CampaignConfig, *, progress: bool = False,
                  on_event: Callable[[str], None] | None = None) -> CampaignResult:
     """Run a campaign (module docstring).
@@ -239,9 +240,6 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     WorkerLost
         A batch's worker died more than twice.
     """
-    from tli_verify.arguments import check_type
-    from tli_verify.errors import CampaignError
-    from tli_verify.verify.backends import make_backend
 
     check_type(config, "config", CampaignConfig, "a CampaignConfig", error=CampaignError)
     t0 = time.perf_counter()

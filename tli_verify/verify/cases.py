@@ -17,7 +17,10 @@ from typing import Any
 import numpy as np
 
 from tli_verify.errors import CampaignError, TaskError, TliError
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.io import bundled_root, read_json, validate_schema
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_INPUT_BYTES, MAX_PUSHES
+from tli_verify.tasks.project import resolve
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.config import SimSpec, task_ref
 from tli_verify.verify.oracle import (
     Verdict,
@@ -48,7 +51,6 @@ CASE_VERSION = 2
 
 def _shown_path(path: str) -> str:
     """A file's path relative to the repository root when under it, else absolute."""
-    from tli_verify.io import bundled_root
 
     try:
         root = Path(os.path.realpath(bundled_root()))
@@ -57,7 +59,6 @@ def _shown_path(path: str) -> str:
     real = Path(os.path.realpath(path))
     return str(real.relative_to(root)) if root is not None and real.is_relative_to(root) \
         else str(real)
-
 
 def bound_files(spec: SimSpec) -> dict[str, dict[str, str]]:
     """The files of a run (paths relative to the repository root when under it) and the task
@@ -72,7 +73,6 @@ def bound_files(spec: SimSpec) -> dict[str, dict[str, str]]:
     else:
         out["task"] = {"entry_point": spec.task, "sha256": spec.task_sha256}
     return out
-
 
 _MAX_MESSAGE = 4000
 """Longest oracle message a case keeps (``expected.messages``, informational)."""
@@ -111,19 +111,16 @@ def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
                      "oracle_modes": verdict.oracle_modes[:200]},
     }
 
-
 def _located(case_path: Path, fp: Path) -> Path:
     """A file a case names: absolute, else relative to the case file's directory, else to the
     repository root (the bundled files' parent)."""
     if fp.is_absolute():
         return fp
-    from tli_verify.io import bundled_root
 
     candidates = [case_path.parent / fp]
     with contextlib.suppress(TliError):
         candidates.append(bundled_root() / fp)
     return next((c for c in candidates if c.is_file()), candidates[0])
-
 
 def _check_case_fields(doc: dict[str, Any], p: Path) -> None:
     """What the schema does not say of a case (after it validated): integers written as floats
@@ -168,7 +165,6 @@ def _check_case_fields(doc: dict[str, Any], p: Path) -> None:
         raise CampaignError(f"{p}: expected.violation: {expected['violation']!r} is not one of "
                             f"expected.violations ({', '.join(expected['violations'])})")
 
-
 def _hash_input(fp: Path, p: Path, field_: str) -> str:
     """SHA-256 of a file a case names, read like any input: at most ``MAX_INPUT_BYTES``.
 
@@ -178,8 +174,6 @@ def _hash_input(fp: Path, p: Path, field_: str) -> str:
         (exit 2) Unreadable or larger than the limit (``/proc/kcore`` would never end).
     """
     import hashlib
-
-    from tli_verify.limits import MAX_INPUT_BYTES
 
     try:
         with open(fp, "rb") as handle:
@@ -192,7 +186,6 @@ def _hash_input(fp: Path, p: Path, field_: str) -> str:
                             "bytes (MAX_INPUT_BYTES)")
     return hashlib.sha256(data).hexdigest()
 
-
 def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
     """The task a (validated) case names, and the field that names it.
 
@@ -201,7 +194,6 @@ def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
     CampaignError
         (exit 2) A missing task file, an unknown task or one that does not load.
     """
-    from tli_verify.tasks.registry import find_task
 
     if doc["version"] == 1:  # a bundled world by name
         field_, ref = "world", doc["world"]
@@ -218,7 +210,6 @@ def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
         return find_task(ref), field_
     except TliError as exc:
         raise CampaignError(f"{p}: {field_}: {exc}") from None
-
 
 def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Case]:
     """Read a case file; the files it names are resolved relative to it when not absolute (else
@@ -237,8 +228,6 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
         (exit 2) Unreadable, malformed, or naming missing files or files that do not fit; one
         line naming the case file and the field.
     """
-    from tli_verify.io import read_json, validate_schema
-    from tli_verify.tasks.project import resolve
 
     p = Path(path)
     if not p.is_file():
@@ -281,7 +270,6 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
                    modulation=doc["modulation"], max_cycles=mc,
                    window=max(window, case.last_step))
     return doc, spec, case
-
 
 def replay_case(path: str | os.PathLike[str], *, modulation: bool | None = None
                 ) -> tuple[dict[str, Any], Verdict, bool, list[str]]:

@@ -78,7 +78,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TliError
+from tli_verify.certification.reach import max_v_on_box
+from tli_verify.errors import CertificateError, TliError
+from tli_verify.io import read_json
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.runtime.events import mode_sequence
 
 __all__ = [
     "PRIORITY",
@@ -103,7 +107,6 @@ class ViolationKind(enum.Enum):
     REACHABILITY = "reachability"
     AUTOMATON = "automaton"
     LOOPING = "looping"
-
 
 PRIORITY: tuple[ViolationKind, ...] = (
     ViolationKind.AUTOMATON,
@@ -133,7 +136,6 @@ class Violation:
     step: int
     message: str
 
-
 @dataclass(frozen=True, slots=True)
 class CutRecord:
     """A cut the policy reported (``CutAdded``), as data.
@@ -156,7 +158,6 @@ class CutRecord:
         """``w . (x - p)`` for states ``X`` of shape (N, n) (> 0: outside), shape (N,)."""
         return np.asarray((X - np.asarray(self.point)) @ np.asarray(self.normal),
                           dtype=np.float64)
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Trace:
@@ -189,7 +190,6 @@ class Trace:
     def steps(self) -> int:
         """``T``: control steps taken."""
         return len(self.modes) - 1
-
 
 @dataclass(frozen=True, slots=True)
 class Verdict:
@@ -278,7 +278,6 @@ class Verdict:
         kinds = self.kinds
         return next((k for k in PRIORITY if k in kinds), None)
 
-
 @dataclass(frozen=True, slots=True)
 class _ModeParams:
     P: FloatArray
@@ -288,7 +287,6 @@ class _ModeParams:
     radius: float
     lam_min: float
     lam_max: float
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Oracle:
@@ -373,12 +371,10 @@ class Oracle:
         TliError
             (exit 2) The certificate lacks a DS the plan runs, or cannot be read.
         """
-        from tli_verify.errors import CertificateError
 
         if isinstance(certificate, Mapping):
             doc: Mapping[str, Any] = certificate
         else:
-            from tli_verify.io import read_json
 
             doc = read_json(certificate, what="certificate", error=CertificateError)
         run_modes = sorted({s.mode for s in automaton.states})
@@ -446,7 +442,6 @@ class Oracle:
             0 in a goal mode (of a goal without sensors; a goal with sensors, e.g. a cyclic
             task's release, counts its own DS too: the sensors read true where it converges).
         """
-        from tli_verify.certification.reach import max_v_on_box
 
         seq = self.path.get(mode, (mode,))
         total = 0.0
@@ -516,7 +511,6 @@ class Oracle:
         return self.check_many([trace])[0]
 
     def _check(self, tr: Trace, readings: list[frozenset[str]]) -> Verdict:
-        from tli_verify.logic.automaton import AssumptionViolation
 
         aut = self.automaton
         viol: list[Violation] = []
@@ -759,12 +753,9 @@ class Oracle:
                     "reading does not come where the DS rests")
         return f"Diagnosis: the run stays in mode {m} (region {region(end)})"
 
-
 def _runs(modes: Sequence[str]) -> str:
-    from tli_verify.runtime.events import mode_sequence
 
     return mode_sequence(modes)
-
 
 def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
     """``max_k lambda_max(P^{-1} (I + dt A_k)^T P (I + dt A_k))`` (module docstring)."""
@@ -777,7 +768,6 @@ def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
         w = sla.eigh(M.T @ P @ M, P, eigvals_only=True)
         worst = max(worst, float(np.max(w)))
     return worst * (1.0 + 1e-9)
-
 
 def cut_bound_message(*, learned: int, last_push: int, bound: int, modes: int) -> str:
     """The looping violation's message for too many cuts after the last perturbation: it says

@@ -20,8 +20,18 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import CampaignError, TliError
+from tli_verify.io import sha256_file
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
+from tli_verify.runtime.episodes import mode_string
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import run_episodes
+from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.tasks.project import check_goal, resolve
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.config import SimSpec, task_ref
 from tli_verify.verify.oracle import (
     CutRecord,
@@ -73,7 +83,6 @@ class RunOutcome:
     modes: str
     cuts_by_mode: tuple[tuple[str, int], ...] = ()
 
-
 class LoopWatchdog:
     """A stop predicate of the closed loop (:func:`~tli_verify.runtime.loop.run_episodes`):
     ends an episode whose looping verdict is already decided (not the policy's logic).
@@ -119,7 +128,6 @@ class LoopWatchdog:
             self._seen[i] = n
         return n - self._mark[i] > self._limit or self._cuts[i] > self._max_cuts
 
-
 @dataclass(frozen=True, slots=True, eq=False)
 class Loaded:
     """A loaded setup: world, automaton, certified model, base policy, oracle."""
@@ -133,7 +141,6 @@ class Loaded:
     budget: int
     limit: int
 
-
 def load_task(spec: SimSpec) -> Any:
     """The task of a :class:`SimSpec`, checked against the hash the driver bound.
 
@@ -142,7 +149,6 @@ def load_task(spec: SimSpec) -> Any:
     CampaignError
         (exit 2) The task changed since the campaign resolved it.
     """
-    from tli_verify.tasks.registry import find_task
 
     task = find_task(spec.task)
     _, sha = task_ref(task)
@@ -150,7 +156,6 @@ def load_task(spec: SimSpec) -> Any:
         raise CampaignError(f"{spec.task}: the task changed during the campaign (SHA-256 "
                             "differs)")
     return task.with_lag(spec.lag)
-
 
 @lru_cache(maxsize=4)
 def load(spec: SimSpec) -> Loaded:
@@ -162,8 +167,6 @@ def load(spec: SimSpec) -> Loaded:
         (exit 2) A file's SHA-256 differs from the driver's (the files changed under the
         campaign).
     """
-    from tli_verify.io import sha256_file
-    from tli_verify.tasks.project import check_goal, resolve
 
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
         if sha256_file(path) != want:
@@ -171,9 +174,6 @@ def load(spec: SimSpec) -> Loaded:
     task = load_task(spec)
     resolved = resolve(task=task, spec=spec.spec, model=spec.model,
                        certificate=spec.certificate)
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
 
     automaton = synthesize(load_spec(spec.spec))
     model = load_model(spec.model)
@@ -192,11 +192,9 @@ def load(spec: SimSpec) -> Loaded:
                   certificate=spec.certificate, policy=base, oracle=oracle,
                   budget=oracle.budget(spec.window), limit=limit)
 
-
 def start_regions(world: Any, automaton: Any) -> tuple[str, ...]:
     """The true regions whose first reading (from the initial latent state) is one the spec's
     initial assumption allows."""
-    from tli_verify.logic.automaton import AssumptionViolation
 
     out = []
     for name in world.region_names:
@@ -213,7 +211,6 @@ def start_regions(world: Any, automaton: Any) -> tuple[str, ...]:
         out.append(name)
     return tuple(out)
 
-
 def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
              ) -> list[tuple[Trace, Any]]:
     """Simulate cases in one vectorised batch; return each run's trace and episode result.
@@ -229,8 +226,6 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
     -------
     list of (Trace, EpisodeResult)
     """
-    from tli_verify.runtime.loop import run_episodes
-    from tli_verify.runtime.worlds import WorldSensors
 
     ld = load(spec)
     if not cases_:
@@ -273,7 +268,6 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
                           cuts=cuts, budget=ld.budget), res))
     return out
 
-
 def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunOutcome]:
     """A worker's task: simulate a batch and check every trace with the oracle.
 
@@ -287,22 +281,17 @@ def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunO
     """
     import threadpoolctl
 
-    from tli_verify.runtime.episodes import mode_string
-
     spec, items = job
     with threadpoolctl.threadpool_limits(1):
         sims = simulate(spec, [c for _, c in items])
         verdicts = load(spec).oracle.check_many([tr for tr, _ in sims])
     from collections import Counter
 
-    from tli_verify.runtime.events import CutAdded
-
     return [RunOutcome(index=i, verdict=v, steps=res.steps, cuts_added=res.cuts_added,
                        modes=mode_string(res),
                        cuts_by_mode=tuple(sorted(Counter(
                            e.mode for e in res.events if isinstance(e, CutAdded)).items())))
             for (i, _), (_, res), v in zip(items, sims, verdicts, strict=True)]
-
 
 def check_case(spec: SimSpec, case: Case) -> Verdict:
     """Simulate one case in this process and return the oracle's verdict."""

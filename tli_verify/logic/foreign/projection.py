@@ -17,6 +17,7 @@ from tli_verify.logic.foreign.tree import (
     Node,
     _Constraint,
 )
+from tli_verify.logic.gr1 import disjoint_cubes, formula_bdd, new_manager
 
 __all__: list[str] = []
 
@@ -43,7 +44,6 @@ def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_C
     :data:`_PROJECTION_CUBES` cubes). Conjuncts over
     environment variables only are kept as they are.
     """
-    from tli_verify.logic.gr1 import disjoint_cubes, formula_bdd, new_manager
     from tli_verify.logic.spot_import import spot
 
     sys_vars = {v.name for v in spec.variables if v.side == "sys"}
@@ -88,5 +88,4 @@ def _project_initial_assumptions(spec: ImportedSpec, tr: _Translator) -> list[_C
                 for cube in cubes])
     out.append(_Constraint("assume", "init", ("raw", text), first.line, first.where))
     return out
-
 

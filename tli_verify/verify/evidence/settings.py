@@ -7,6 +7,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.limits import MAX_BATCH_SIZE, MAX_CAMPAIGN_STEPS, MAX_EXAMPLES, MAX_PUSHES
+
 if TYPE_CHECKING:
     pass
 
@@ -36,7 +38,6 @@ def _settings(config: Any) -> dict[str, Any]:
             out[f.name] = value
     return out
 
-
 def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[str, Any]:
     """Recorded settings as keyword arguments of ``config_type`` (lists back to tuples; fields
     it does not have are dropped)."""
@@ -45,7 +46,6 @@ def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[s
     names = {f.name for f in dataclasses.fields(config_type)} - _CORE
     return {k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()
             if k in names}
-
 
 def settings_problems(settings: Mapping[str, Any], task: Any) -> list[str]:
     """What in a kinematic campaign's recorded settings no ``tli verify`` or ``tli evidence``
@@ -68,7 +68,6 @@ def settings_problems(settings: Mapping[str, Any], task: Any) -> list[str]:
     list of str
         One line per problem (empty: the settings are ones the CLI writes).
     """
-    from tli_verify.limits import MAX_BATCH_SIZE, MAX_CAMPAIGN_STEPS, MAX_EXAMPLES, MAX_PUSHES
     from tli_verify.verify.strategies import LEVELS
 
     out: list[str] = []

@@ -19,6 +19,9 @@ from tli_verify.io import (
 if TYPE_CHECKING:
     from tli_verify.verify.campaign import CampaignResult
     from tli_verify.verify.config import CampaignConfig
+from tli_verify._version import __version__
+from tli_verify.errors import OutputError
+from tli_verify.io import bundled_root, read_json, validate_schema
 from tli_verify.verify.evidence.common import (
     _BadInput,
     _file_entry,
@@ -107,8 +110,6 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
         range (the schema names it).
     """
-    from tli_verify._version import __version__
-    from tli_verify.io import validate_schema
 
     base = Path(evidence_path).parent
     by_kind = {str(k): int(v) for k, v in violations.items()}
@@ -146,7 +147,6 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
     return doc
 
-
 def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any]:
     """Build (:func:`build_evidence`) and write an evidence file atomically (canonical JSON).
 
@@ -174,7 +174,6 @@ def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any
     doc = build_evidence(evidence_path=path, **fields)
     atomic_write_text(path, canonical_json(doc))
     return doc
-
 
 def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
                             path: str | os.PathLike[str] | None = None
@@ -220,7 +219,6 @@ def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
     target = Path(path) if path is not None else evidence_path_for(model)
     task = _campaign_task(result)
     if getattr(result, "partial", False) and os.path.lexists(target):
-        from tli_verify.errors import OutputError
 
         raise OutputError(f"{target}: an interrupted (partial) campaign never replaces the "
                           "evidence there; rerun the campaign to the end")
@@ -243,7 +241,6 @@ def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
         settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
 
-
 def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | None:
     """Why a campaign of ``config`` (its task defaults filled in:
     :func:`~tli_verify.verify.config.resolve_config`) would be weaker than the passing
@@ -254,7 +251,6 @@ def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | Non
     Stronger: more examples; random starts where the new campaign starts at a nominal state;
     a longer perturbation window; more pushes per case; more perturbation levels.
     """
-    from tli_verify.io import read_json
 
     try:
         doc = read_json(Path(path), what="campaign evidence", error=EvidenceError)
@@ -279,7 +275,6 @@ def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | Non
         return None
     return "; ".join(why) or None
 
-
 def _campaign_config(config: Any, result: Any) -> Any:
     """The config the campaign ran (``result.config``, its task defaults filled in), checked
     against the one given (the same seed, examples and modulation)."""
@@ -293,7 +288,6 @@ def _campaign_config(config: Any, result: Any) -> Any:
                             "the config the result came from (result.config)")
     return used
 
-
 def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | None]]:
     """name -> (path, SHA-256 the campaign ran it at) from ``result.files`` (paths relative to
     the repository root or absolute), else from the config."""
@@ -304,7 +298,6 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
         if isinstance(entry, Mapping) and entry.get("path"):
             p = Path(str(entry["path"]))
             if not p.is_absolute():
-                from tli_verify.io import bundled_root
 
                 p = Path(os.path.realpath(bundled_root())) / p
             out[name] = (p, str(entry.get("sha256") or "") or None)
@@ -314,7 +307,6 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
             raise _BadInput(f"campaign evidence needs the campaign's {name} file; neither "
                             "the result nor the config names it")
     return out
-
 
 def _campaign_task(result: Any) -> Any:
     """The task a campaign ran on (``result.files["task"]``), checked against the SHA-256 it
@@ -328,7 +320,6 @@ def _campaign_task(result: Any) -> Any:
     if entry.get("path"):
         p = Path(str(entry["path"]))
         if not p.is_absolute():
-            from tli_verify.io import bundled_root
 
             p = Path(os.path.realpath(bundled_root())) / p
         task = find_task(p)
@@ -341,7 +332,6 @@ def _campaign_task(result: Any) -> Any:
                         "(SHA-256 differs): re-run the campaign")
     return task
 
-
 def _counts(violations: Any) -> dict[str, int]:
     """``{kind: count}`` from a mapping whose keys may be enum members."""
     out: dict[str, int] = {}
@@ -349,5 +339,4 @@ def _counts(violations: Any) -> dict[str, int]:
         name = getattr(k, "value", k)
         out[str(name)] = out.get(str(name), 0) + int(v)
     return out
-
 
