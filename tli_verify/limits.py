@@ -131,7 +131,7 @@ PRIOR_SUM_TOL = 1.0e-6
 
 MAX_CAMPAIGN_STEPS = 100_000
 """Largest perturbation window, perturbation step and sensor lag of a campaign or a case, in
-control steps (1,000 s at the scoop world's 10 ms): the run's step budget follows from them."""
+control steps (1,000 s at the scoop task's 10 ms): the run's step budget follows from them."""
 
 MAX_PUSHES = 100
 """Most perturbations in one case (paper Asm. 2: finitely many)."""

@@ -158,7 +158,7 @@ def _bundled(project_root: Path, name: str, tmp: Path) -> tuple[Any, Any]:
 def test_closed_loop_parity_bundled_tasks(lib: Any, repo: Path, tmp_path: Path,
                                           name: str) -> None:
     from tli_verify.runtime.setup import make_policy
-    from tli_verify.runtime.worlds import WorldSensors
+    from tli_verify.runtime.task_sensors import TaskSensors
 
     setup, ex = _bundled(repo, name, tmp_path)
     lo, hi = np.asarray(setup.task.lo), np.asarray(setup.task.hi)
@@ -169,7 +169,7 @@ def test_closed_loop_parity_bundled_tasks(lib: Any, repo: Path, tmp_path: Path,
         c = CPolicy(lib, ex.text_path)
         x0 = rng.uniform(lo, hi)
         span = float(np.max(hi - lo))
-        tr = run_side_by_side(pol, c, ex.artifact, WorldSensors(setup.task), x0, 1500, rng,
+        tr = run_side_by_side(pol, c, ex.artifact, TaskSensors(setup.task), x0, 1500, rng,
                               push_prob=0.01, push_scale=0.1 * span)
         _check_trace(tr)
         steps += len(tr.v_py)

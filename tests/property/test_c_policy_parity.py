@@ -78,7 +78,7 @@ def test_same_perturbations_scoop(setups: dict[str, Any], repo: Path,
                                   seq: list[tuple[int, float, int]],
                                   x0: tuple[float, float]) -> None:
     from tli_verify.runtime.setup import check_goal, load_setup, make_policy
-    from tli_verify.runtime.worlds import WorldSensors
+    from tli_verify.runtime.task_sensors import TaskSensors
     from tli_verify.tasks.project import resolve
 
     if "scoop" not in setups:
@@ -96,7 +96,7 @@ def test_same_perturbations_scoop(setups: dict[str, Any], repo: Path,
         plan.append((step, 4.0 * size * d / np.linalg.norm(d)))
     pol = make_policy(setup, "LTL-DS")
     c = CPolicy(setups["lib"], ex.text_path)
-    tr = run_side_by_side(pol, c, ex.artifact, WorldSensors(setup.task), np.array(x0), 400,
+    tr = run_side_by_side(pol, c, ex.artifact, TaskSensors(setup.task), np.array(x0), 400,
                           np.random.default_rng(0), pushes=plan)
     assert tr.modes_c == tr.modes_py and tr.keys_c == tr.keys_py
     assert tr.failures_c == tr.failures_py

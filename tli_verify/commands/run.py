@@ -1,6 +1,6 @@
 """``tli run``: one closed-loop LTL-DS episode on a task (paper eq. 6, Fig. 7).
 
-The task (``--task NAME|FILE``; ``--world`` is an alias), its spec, model and certificate are
+The task (``--task NAME|FILE``), its spec, model and certificate are
 found by the project rules (:func:`tli_verify.tasks.project.resolve`): a bundled task runs its
 shipped spec, certified model and certificate; ``--spec`` picks another spec of the task (its
 model by the project layout), ``--model`` another model (the spec it names, the certificate by
@@ -41,12 +41,24 @@ MAX_RUN_STEPS = MAX_CAMPAIGN_STEPS
 """Largest ``--steps`` of ``tli run`` (100,000 control steps: 1,000 s at 10 ms)."""
 
 
+class _FormerTaskOption(argparse.Action):
+    """``--world``: stores the task as ``--task`` does, with a note that it is the old name."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        print("note: --world is the former name of --task", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
 def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None:
-    """``--task`` (alias ``--world``), ``--spec``, ``--model``, ``--certificate``, ``--lag``:
-    the files of a closed-loop command, resolved by the project rules."""
-    p.add_argument("--task", "--world", dest="task", default=None, metavar="TASK",
+    """``--task``, ``--spec``, ``--model``, ``--certificate``, ``--lag``: the files of a
+    closed-loop command, resolved by the project rules. ``--world``, the option's former name,
+    is still accepted (not listed in ``--help``) and says so on stderr."""
+    p.add_argument("--task", dest="task", default=None, metavar="TASK",
                    help="task name (bundled: scoop, cooking, color-tracing, inspection; or a "
                    "project's tasks/NAME.toml) or task file; default: the task the spec names")
+    p.add_argument("--world", dest="task", default=None, action=_FormerTaskOption,
+                   help=argparse.SUPPRESS)
     p.add_argument("--spec", type=Path, default=None,
                    help="spec file (default: the model's, else the task's default spec)")
     p.add_argument("--model", type=Path, default=None,

@@ -369,7 +369,7 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
         (_, fixed), = simulate(replace(spec, modulation=True), [case])
         panels.append(("same case, LTL-DS", fixed))
     (_, nominal), = simulate(spec, [replace(case, pushes=())])
-    plot_episodes(ld.world, panels, png, nominal=nominal,
+    plot_episodes(ld.task, panels, png, nominal=nominal,
                   title=f"counterexample ({case_path.name}): "
                         f"{'LTL-DS' if spec.modulation else 'no modulation'}"
                         + (" (left) vs LTL-DS (right)" if len(panels) > 1 else ""))

@@ -330,7 +330,7 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
         return GateItem("model", name, False, f"its spec's task does not load: {exc}", "task")
     if task is None:
         return GateItem("model", name, False, f"its spec {shown(spec_path)} names no task "
-                        "(task = \"NAME\"): nothing says which world the policy runs in",
+                        "(task = \"NAME\"): nothing says which task the policy runs in",
                         "task")
     problems = []
     if task.dim != model.dim:

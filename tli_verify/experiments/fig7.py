@@ -81,9 +81,9 @@ def is_fig7_rescue(res: EpisodeResult) -> bool:
             and (fails[0].mode, fails[0].to_mode) == ("b", "a")
             and len(cuts) == 1 and cuts[0].mode == "b")
 
-def _rounded_perturbations(rng: np.random.Generator, count: int, world: Task, *,
+def _rounded_perturbations(rng: np.random.Generator, count: int, task: Task, *,
                            last: int) -> dict[int, FloatArray]:
-    table = random_perturbations(rng, count, world, last=last)
+    table = random_perturbations(rng, count, task, last=last)
     return {t: np.array([float(f"{v:.2f}") for v in d]) for t, d in table.items()}
 
 def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 3000,

@@ -27,9 +27,9 @@ environment part is made sound; these choices follow the sound ``specs/scoop.tom
   could jump to any labelled reading (``specs/scoop-unrealizable.toml``).
 * ``phi_g^e`` (environment fairness): for each mode ``m`` that is not a goal,
   ``GF(!m | P)`` with ``P`` the reading classes of ``m``'s *progress* successors (those closer to
-  the goal in the demonstrated mode graph): while in ``m`` the world eventually shows a reading
-  that lets the task progress, unless something else ends ``m`` first -- scoop's
-  ``GF(!a | r)``. Without it nothing forces the world ever to change.
+  the goal in the demonstrated mode graph): while in ``m`` the environment eventually shows a
+  reading that lets the task progress, unless something else ends ``m`` first -- scoop's
+  ``GF(!a | r)``. Without it nothing forces the environment ever to change.
 * ``phi_g^s`` (goal): ``GF(g1 | ... | p)`` with ``g1, ...`` the modes the demonstrations end in.
 
 The auxiliary output ``p`` (named ``p``, or the first of ``p_``, ``p0``, ``p1``, ... that names
@@ -40,7 +40,7 @@ every transition added online by :func:`add_transition` (by default; these are t
 perturbation caused, paper appendix F) and every demonstrated change into a mode no closer to a
 goal. Paper Asm. 2 (finitely many perturbations) makes ``FG !p -> GF goals`` hold, which is not
 GR(1); ``GF(goals | p)`` is its GR(1) form. Without the marker the first recovery edge
-(``b -> a``) would make the grown spec unrealizable: the world could then loop ``a, b, a, b``
+(``b -> a``) would make the grown spec unrealizable: the environment could then loop ``a, b, a, b``
 forever, meeting every fairness assumption, and ``GF d`` would be lost. With it, the scoop
 demonstrations grow to exactly the automaton of ``specs/scoop.toml`` (paper Fig. 3(a)).
 

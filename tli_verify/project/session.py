@@ -45,7 +45,7 @@ from tli_verify.runtime.coverage import check_coverage
 from tli_verify.runtime.episodes import pusher, random_start
 from tli_verify.runtime.loop import run_episode
 from tli_verify.runtime.setup import Setup, make_policy
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 from tli_verify.snapshot import Snapshot
 from tli_verify.tasks.project import check_goal, project_root, resolve
 
@@ -229,7 +229,7 @@ def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None =
     for step, d in (perturbations or {}).items():
         t = check_int(step, "perturbations (a step)", 0, steps - 1, error=TaskError)
         table[t] = check_vector(d, f"perturbations[{t}]", task.dim, error=TaskError)
-    return run_episode(policy.fork(), WorldSensors(task), x0, steps=steps,
+    return run_episode(policy.fork(), TaskSensors(task), x0, steps=steps,
                        perturb=pusher(task, table))
 
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,

@@ -11,8 +11,9 @@
   :func:`~tli_verify.runtime.loop.run_episodes`;
 * :func:`mode_runs`, :func:`mode_string`, :func:`episode_json` -- what an episode did.
 
-The policy only sees what the task's sensors read (:class:`~tli_verify.runtime.worlds.WorldSensors`)
-and is told when a perturbation happened (as a robot's controller notices a push).
+The policy only sees what the task's sensors read
+(:class:`~tli_verify.runtime.task_sensors.TaskSensors`) and is told when a perturbation happened
+(as a robot's controller notices a push).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from tli_verify.runtime.events import event_to_json, mode_sequence
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.loop import EpisodeResult, batch_results, run_episode, run_episodes
 from tli_verify.runtime.setup import Setup, make_policy
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 from tli_verify.tasks.task import Task
 
 __all__ = [
@@ -147,7 +148,7 @@ def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
         return run_variant_batch(setup, variant, np.atleast_2d(np.asarray(x0, float)),
                                  [dict(perturbations or {})], steps=steps, policy=policy)[0]
     pol = policy if policy is not None else make_policy(setup, variant)
-    return run_episode(pol, WorldSensors(setup.task), x0, steps=steps,
+    return run_episode(pol, TaskSensors(setup.task), x0, steps=steps,
                        perturb=pusher(setup.task, perturbations or {}))
 
 def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
@@ -163,7 +164,7 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
     base = policy if policy is not None else make_policy(setup, variant)
     policies = [base.fork() for _ in range(len(X))]
     memo: dict[Any, Any] = {}
-    sensors = [WorldSensors(setup.task, cache=memo) for _ in range(len(X))]
+    sensors = [TaskSensors(setup.task, cache=memo) for _ in range(len(X))]
     pushers = [pusher(setup.task, p) for p in perturbations]
 
     def perturb(i: int, t: int, x: FloatArray) -> FloatArray | None:
@@ -173,7 +174,7 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
         return run_episodes(policies, sensors, X, steps=steps, perturb=perturb)
     return _run_bc(setup, policies, sensors, X, steps=steps, perturb=perturb)
 
-def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[WorldSensors],
+def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[TaskSensors],
             X: FloatArray, *, steps: int,
             perturb: Callable[[int, int, FloatArray], FloatArray | None]
             ) -> list[EpisodeResult]:

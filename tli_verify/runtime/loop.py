@@ -4,7 +4,7 @@
   period, a speed cap, scheduled perturbations, and the stop predicate (the goal, or a
   caller's, e.g. the campaigns' looping watchdog);
 * :func:`run_episodes` -- many at once, the DS evaluated batched (same results per start);
-* :class:`EpisodeResult` -- what an episode did; :class:`SensorModel` -- what a world provides.
+* :class:`EpisodeResult` -- what an episode did; :class:`SensorModel` -- what a task provides.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from tli_verify.runtime.events import (
 )
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.rollout import cap_speed
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -43,7 +43,7 @@ __all__ = [
 
 
 class SensorModel(Protocol):
-    """What a world provides to the closed loop (worlds implement it, paper Sec. 3).
+    """What a task provides to the closed loop (tasks implement it, paper Sec. 3).
 
     ``reset(x0)`` starts an episode (a sensor may keep a history, e.g. a lag); ``read(x)``
     is called once per control step, in order, and returns the reading at ``x``.
@@ -240,11 +240,11 @@ def run_episodes(
     live = list(range(N))  # the active episodes
     taken = [0] * N
     # Fast path per episode (same results): a state checked for the whole batch at once and a
-    # reading as the set of true sensors (a WorldSensors whose names the automaton reads) for
+    # reading as the set of true sensors (a TaskSensors whose names the automaton reads) for
     # an executive whose decide() is LTLDSPolicy's own (a subclass may override it, e.g. the
     # no-replan ablation); anything else goes through decide(), which checks and raises as
     # run_episode does.
-    lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
+    lean = [isinstance(sen, TaskSensors) and set(sen.names) <= pol._inputs
             and type(pol).decide is LTLDSPolicy.decide
             and X.ndim == 2 and X.shape[1] == pol.model.dim
             for pol, sen in zip(policies, sensors, strict=True)]

@@ -1,7 +1,7 @@
 """What a closed-loop run needs, loaded once: the task, its automaton, the certified model.
 
 :func:`load_setup` turns the files the project resolver found
-(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task (the world), the
+(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task, the
 automaton synthesized from the spec, the model, its certificate and the goal. It refuses a goal
 the automaton cannot reach. :func:`make_policy` builds the executive of one of the policies
 compared in the paper (:data:`VARIANTS`):
@@ -49,7 +49,7 @@ class Setup:
     Attributes
     ----------
     task : Task
-        The world: sensors, true regions, workspace (its ``lag`` is the run's).
+        The task: sensors, true regions, workspace (its ``lag`` is the run's).
     automaton : TaskAutomaton
     model : Model
     certificate : str
@@ -68,11 +68,6 @@ class Setup:
     goal: Goal = field(default_factory=Goal)
     spec: str = ""
     bc: Mapping[str, Any] = field(default_factory=dict)
-
-    @property
-    def world(self) -> Task:
-        """The task (the name the episode runners use)."""
-        return self.task
 
     def with_lag(self, lag: int) -> Setup:
         """The same setup with another sensor lag."""

@@ -1,6 +1,6 @@
 """Physical perturbation campaigns of the Franka soup-scooping policy: run and judge the trials.
 
-The 2-D worlds are verified by bisimulation campaigns (:mod:`tli_verify.verify.campaign`); the
+The 2-D tasks are verified by bisimulation campaigns (:mod:`tli_verify.verify.campaign`); the
 Franka policy runs in MuJoCo, where a trial costs seconds, so its campaign is a few dozen
 perturbed physical trials (the paper's 30). :func:`run_physics_campaign` runs the seeded trials
 ``seed, seed + 1, ...`` of a :class:`~tli_verify.sim.physics_config.PhysicsConfig`, as ``tli sim

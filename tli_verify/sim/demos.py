@@ -471,7 +471,7 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     back), in a bowl already scooped from (``recovery_beads``), and show the whole task from
     there: a DS learned only from the nominal start
     turned the tray's front down too slowly and reached the soup tipped back, scooping
-    nothing (the color-tracing world's recovery demonstrations do the same for its dark
+    nothing (the color-tracing task's recovery demonstrations do the same for its dark
     modes). A take whose soup never reaches the target (the readings do not end at ``t``), or
     whose readings go back a mode on the way (soup lost), is discarded and the next seed is
     tried, as a teacher would redo it.

@@ -4,7 +4,7 @@
 
 1. ``REF`` names a file (it exists, or ends in ``.toml``): that task file;
 2. else ``REF`` is a name: ``tasks/REF.toml`` of the project given (the folder a spec or
-   model lives in), then the bundled ``tasks/REF.toml`` (the paper's worlds), then the entry
+   model lives in), then the bundled ``tasks/REF.toml`` (the paper's tasks), then the entry
    point ``REF`` of group ``tli_verify.tasks`` (a Python package's task);
 3. else an error listing the names known.
 

@@ -74,9 +74,9 @@ __all__ = [
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Task:
-    """A task: everything the closed loop, the campaigns and the pictures need about the world.
+    """A task: all the closed loop, the campaigns and the pictures need about the environment.
 
-    It is the world of the runtime, the campaigns and the oracle: the members below are what
+    It is what the runtime, the campaigns and the oracle run against: the members below are what
     they use (true regions, a vectorised sensor model with a lag, the workspace box).
 
     Attributes
@@ -227,7 +227,7 @@ class Task:
         """``count`` uniform random states of a true region (or layer), shape (count, n), by
         rejection: from the workspace box, or, for a region whose bounding box fills less than
         1/64 of it, from that box within the workspace (both are uniform in the region; the
-        first is the former worlds' stream of draws, which seeded anchors rely on).
+        first is the former Python tasks' stream of draws, which seeded anchors rely on).
 
         Raises
         ------

@@ -2,8 +2,8 @@
 
 A task file (TOML, schema ``tli_verify/schemas/task.schema.json``) declares everything the
 closed loop, the campaigns and the pictures need about a user's task, in any dimension ``n``;
-the spec (``specs/*.toml``) says what to do, the task says what the world is. The paper's four
-worlds ship as task files (``tasks/scoop.toml``, ``cooking.toml``, ``color-tracing.toml``,
+the spec (``specs/*.toml``) says what to do, the task says what the environment is. The paper's four
+tasks ship as task files (``tasks/scoop.toml``, ``cooking.toml``, ``color-tracing.toml``,
 ``inspection.toml``). The format::
 
     name = "drawer"
@@ -71,7 +71,7 @@ group ``tli_verify.tasks``, :mod:`tli_verify.tasks.registry`), for sensors physi
 References
 ----------
 Wang, Figueroa, Li, Shah, Shah, "Temporal Logic Imitation", CoRL 2022: Sec. 3 (modes as sets
-of states sharing a sensor reading, sigma = L(alpha)), Sec. 7 and the appendices (the worlds),
+of states sharing a sensor reading, sigma = L(alpha)), Sec. 7 and the appendices (the tasks),
 Asm. 2 (finitely many perturbations).
 """
 

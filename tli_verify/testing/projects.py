@@ -100,7 +100,7 @@ class Project:
 
     @property
     def loaded(self) -> Loaded:
-        """The loaded setup (world, automaton, model, policy, oracle; cached per process)."""
+        """The loaded setup (task, automaton, model, policy, oracle; cached per process)."""
         from tli_verify.verify.simulate import load
 
         return load(self.sim)

@@ -26,7 +26,7 @@ deadline (:meth:`~tli_verify.verify.oracle.Oracle.budget`); a run also ends at a
 a looping watchdog ends it once it has changed mode so often that the oracle's loop bound is
 exceeded (:class:`~.simulate.LoopWatchdog`).
 
-A counterexample is saved as a JSON case (:func:`case_document`): world, the files and their
+A counterexample is saved as a JSON case (:func:`case_document`): task, the files and their
 SHA-256, start, perturbation sequence, seed, expected violation; :func:`replay_case` replays it
 deterministically (``tli replay``).
 """
@@ -364,4 +364,4 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         partial=partial, outcomes=ordered, seconds=time.perf_counter() - t0,
         inconclusive=sum(1 for o in ordered if not o.verdict.conclusive),
         shrink_steps=shrink_steps, events=tuple(events),
-        files=bound_files(spec), task_name=ld.world.name)
+        files=bound_files(spec), task_name=ld.task.name)

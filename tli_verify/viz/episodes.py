@@ -20,7 +20,7 @@ in-mode state (gold circle) and failure state (red cross).
 coordinate pairs by default) and the mode strip with a cursor.
 
 The goal wording of the titles is a parameter (``goal_label``); nothing here names a bundled
-world.
+task.
 """
 
 from __future__ import annotations

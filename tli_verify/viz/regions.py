@@ -14,7 +14,7 @@
   be sampled is listed in the legend as ``"<name> (too small to draw)"``
   (:func:`legend_labels`), never dropped silently.
 
-Nothing here names a bundled world: axis labels are the task's ``state_names``. Matplotlib is
+Nothing here names a bundled task: axis labels are the task's ``state_names``. Matplotlib is
 imported lazily (the CLI stays fast to import); PNGs are written atomically by
 :func:`tli_verify.plotting.save_figure`. A picture that cannot be drawn raises
 :class:`~tli_verify.errors.TliError` with a one-line reason and writes nothing.
@@ -216,7 +216,7 @@ def as_task(obj: Any, *, state_names: Sequence[str] | None = None) -> TaskLike:
     """``obj`` as a :class:`TaskLike`, adding ``dim`` and ``state_names`` when it lacks them.
 
     For objects with ``lo``, ``hi``, ``region_names``, ``region_colors``, ``region_index`` and
-    ``sample_region`` but no ``dim`` / ``state_names`` (e.g. the 2-D worlds): ``dim`` is
+    ``sample_region`` but no ``dim`` / ``state_names`` (e.g. the 2-D tasks): ``dim`` is
     ``len(lo)`` and the state names are ``state_names`` or ``x1 .. xn``.
 
     Parameters
@@ -607,7 +607,7 @@ def exact_shapes(task: TaskLike, *, seed: int = 0, samples: int = 4000) -> tuple
     region holding it). The cell equals the shape when no such region overlaps it: checked on
     ``samples`` seeded uniform states of the shape (of its bounding box, kept where the shape
     holds them) -- every one must lie in the region's cell. Tasks without a ``partition``
-    (duck-typed worlds) have no shapes.
+    (duck-typed tasks) have no shapes.
     """
     partition = getattr(task, "partition", None)
     cells = getattr(partition, "cells", None)
@@ -848,7 +848,7 @@ def plot_task(task: TaskLike, path: str | os.PathLike[str], *, demos: Sequence[A
     """Draw a task's true regions (and demonstrations) to a PNG, in any dimension.
 
     ``n = 1``: the strip of regions along ``x1``, demonstrations as ``x(t)`` with time
-    (normalised) upwards. ``n = 2``: the exact partition as an image (as ``plot_world``).
+    (normalised) upwards. ``n = 2``: the exact partition as an image.
     ``n >= 3``: one panel per coordinate pair, each region drawn as its shadow (projection)
     from ``samples`` seeded uniform samples; a region that cannot be sampled appears in the
     legend as ``"<name> (too small to draw)"``.
