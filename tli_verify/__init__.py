@@ -152,5 +152,4 @@ __all__ = [
 ]
 
 
-
 __getattr__, __dir__ = lazy_namespace("tli_verify", _NAMES, globals(), __all__)

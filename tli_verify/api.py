@@ -86,14 +86,8 @@ from tli_verify.tasks.task import Task
 
 if TYPE_CHECKING:
     from tli_verify.certification.certificate import CertCheck
-    from tli_verify.demos import Demonstration
     from tli_verify.ds.lpvds import Clustering, LyapunovKind
-    from tli_verify.logic.automaton import TaskAutomaton
-    from tli_verify.logic.spec import GR1Spec
-    from tli_verify.model.types import Model
-    from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
-    from tli_verify.tasks.task import Task
 
 __all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
 
@@ -111,6 +105,7 @@ def _in_snapshot(fn: F) -> F:
 
     return inner  # type: ignore[return-value]
 
+
 def _spec_path(spec: Any) -> Path | None:
     if spec is None:
         return None
@@ -126,9 +121,11 @@ def _spec_path(spec: Any) -> Path | None:
                         "and its certificate bind the spec file); use load_spec(path)")
     return Path(path)
 
+
 def _spec_inputs(spec: Path | None) -> list[Path]:
 
     return spec_inputs(spec)
+
 
 @_in_snapshot
 def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec | None = None,
@@ -165,7 +162,6 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
     -------
     Model
     """
-
     if isinstance(demos, str | bytes | os.PathLike) or not isinstance(demos, Sequence):
         raise bad_type(DemoError, f"demos: expected a sequence of demonstration files or "
                        f"Demonstration objects, got {type(demos).__name__}")
@@ -207,6 +203,7 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
             return load_model(out)
         return _in_memory(model, paths, Path(tmp), spec_path)
 
+
 def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path | None
                ) -> Model:
     """A learned model that has no file: its spec path absolute, and the demonstrations that
@@ -224,6 +221,7 @@ def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path |
         model, path=None, source=MappingProxyType(source),
         spec=None if spec_path is None else str(spec_path.resolve()))
 
+
 @_in_snapshot
 def save_model(model: Model, path: PathLike) -> Model:
     """Write a model where you want it (relative paths inside rewritten for its folder);
@@ -238,7 +236,6 @@ def save_model(model: Model, path: PathLike) -> Model:
     -------
     Model
     """
-
     check_type(model, "model", Model, "a Model (tli_verify.learn, load_model)",
                error=ModelError)
     target = check_path(path, "path", error=ModelError)
@@ -246,11 +243,11 @@ def save_model(model: Model, path: PathLike) -> Model:
     _save(relocate_model(model, target), target)
     return load_model(target)
 
+
 def _model_reads(model: Model, in_memory: str) -> list[Path]:
     """What a model object implies, for the read/write rule: its spec and the spec's task,
     the demonstrations it was learned from, and the certificate and evidence next to its
     file (not the file itself: saving a model over its own file rewrites it)."""
-
     reads = _spec_inputs(model.spec_path)
     base = Path(model.path).parent if model.path else Path(".")
     for demo in (model.source or {}).get("demos") or ():
@@ -261,6 +258,7 @@ def _model_reads(model: Model, in_memory: str) -> list[Path]:
         files = model_files(model.path)
         reads += [files.certificate, files.evidence]
     return reads
+
 
 @dataclass(frozen=True, eq=False)
 class Certificate:
@@ -318,7 +316,6 @@ class Certificate:
         Certificate
             Re-issued for the files written.
         """
-
         target = check_path(path, "path", error=CertificateError)
         mpath = Path(self.model_path)
         current = load_model(mpath)
@@ -330,6 +327,7 @@ class Certificate:
         else:
             check_plan(inputs=reads, outputs=[(target, "certificate")])
         return certify(mpath, dt=self.dt, out=target)
+
 
 @_in_snapshot
 def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
@@ -398,6 +396,7 @@ def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
         weakref.finalize(cert, shutil.rmtree, tmp, True)
     return cert
 
+
 def _check_dt(dt: Any) -> Fraction:
     """``dt`` as a positive Fraction (``certify(dt=...)``)."""
     if isinstance(dt, bool) or not isinstance(dt, Fraction | str | int | float):
@@ -411,11 +410,12 @@ def _check_dt(dt: Any) -> Fraction:
         raise bad_argument(CertificateError, f"dt: the control period must be > 0, got {dt!r}")
     return value
 
+
 def _same_bytes(model: Any, path: Path) -> bool:
     """Whether the model object is the file's content (cuts learned in memory make it not)."""
-
     return canonical_json(model_to_dict(relocate_model(model, path))) == \
         path.read_text(encoding="utf-8")
+
 
 @_in_snapshot
 def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLike,
@@ -445,7 +445,6 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
         The certificate does not cover the model (also a ValueError when the model was never
         saved).
     """
-
     variant = check_choice(variant, "variant", VARIANTS)
     cpath = certificate.path if isinstance(certificate, Certificate) else check_path(
         certificate, "certificate", error=CertificateError)
@@ -477,6 +476,7 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
                   certificate=str(cpath), goal=resolved.goal, spec=str(spec_file))
     return _make(setup, variant)
 
+
 @_in_snapshot
 def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
         start: npt.ArrayLike | None = None,
@@ -502,7 +502,6 @@ def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
     -------
     EpisodeResult
     """
-
     check_type(policy, "policy", LTLDSPolicy, "an LTLDSPolicy (make_policy)", error=TaskError)
     found: Task | None
     if isinstance(task, Task):

@@ -99,6 +99,7 @@ class _Parser(argparse.ArgumentParser):
         sys.stderr.write(f"error: {self.prog}: {message}{_negative_hint(message, self._argv)}\n")
         raise SystemExit(2)
 
+
 def _negative_hint(message: str, argv: Sequence[str]) -> str:
     """argparse reads ``--start -0.9,0`` as two options: say how to pass such a value."""
     import re
@@ -113,6 +114,7 @@ def _negative_hint(message: str, argv: Sequence[str]) -> str:
             return (f" (a value that starts with '-' needs '=': {word}={nxt})")
     return ""
 
+
 class _Version(argparse.Action):
     """``--version``: the installed distribution's version, read only when asked."""
 
@@ -121,6 +123,7 @@ class _Version(argparse.Action):
 
         sys.stdout.write(f"tli-verify {__version__}\n")  # stdout, as argparse's "version"
         parser.exit()
+
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``tli`` parser with every registered subcommand."""
@@ -137,6 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
         importlib.import_module(name).register(sub)
     return parser
 
+
 def check_paths(args: argparse.Namespace) -> None:
     """Refuse bad output paths of a parsed command line before any work is done.
 
@@ -149,7 +153,6 @@ def check_paths(args: argparse.Namespace) -> None:
     OutputError
         (exit 2) Naming the output and what is wrong with it.
     """
-
     inputs: list[Path] = []
     for name, value in vars(args).items():
         for v in value if isinstance(value, list | tuple) else [value]:
@@ -173,8 +176,10 @@ def check_paths(args: argparse.Namespace) -> None:
         check_output_dir(out)
         check_report_dir(out)
 
+
 class _StdoutError(OutputError):
     """Standard output cannot be written (exit 2); raised by :class:`_Stream`."""
+
 
 class _Stream:
     """A stand-in for :data:`sys.stdout` or :data:`sys.stderr` (module doc).
@@ -216,6 +221,7 @@ class _Stream:
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)
 
+
 def _say(line: str) -> None:
     """Write one line to standard error; never fails (there is nowhere left to report)."""
     try:
@@ -224,6 +230,7 @@ def _say(line: str) -> None:
             sys.stderr.flush()
     except (OSError, ValueError):
         pass
+
 
 def _plug_closed_descriptors() -> None:
     """Reopen closed descriptors 0, 1 and 2 on ``/dev/null`` (no file may land on them)."""
@@ -239,6 +246,7 @@ def _plug_closed_descriptors() -> None:
             except OSError:  # pragma: no cover - no /dev/null: nothing better to do
                 pass
 
+
 def _lenient(stream: Any) -> Any:
     """Make ``stream`` print what its encoding cannot show as backslash escapes; return its
     former ``errors`` (``None`` if unchanged)."""
@@ -251,6 +259,7 @@ def _lenient(stream: Any) -> Any:
         return None
     return errors
 
+
 def _drop_stdout(stream: Any) -> None:
     """Point standard output's descriptor at ``/dev/null``: what is still buffered is dropped
     there, and the interpreter's final flush succeeds."""
@@ -261,11 +270,13 @@ def _drop_stdout(stream: Any) -> None:
         finally:
             os.close(null)
 
+
 def _flush_quietly(stream: Any) -> None:
     try:
         stream.flush()
     except Exception:
         _drop_stdout(stream)
+
 
 def _check_cwd() -> None:
     """Refuse a working directory that no longer exists (module doc).
@@ -288,8 +299,10 @@ def _check_cwd() -> None:
         raise TliError(f"the working directory {what} ({detail}); cd to an existing "
                        "directory and rerun") from None
 
+
 class _Terminated(KeyboardInterrupt):
     """SIGTERM, raised where Python was when it arrived (handled as Ctrl-C)."""
+
 
 @contextlib.contextmanager
 def _sigterm_interrupts() -> Iterator[None]:
@@ -313,6 +326,7 @@ def _sigterm_interrupts() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``tli`` and return its exit code (the environment set up first: module doc)."""
@@ -344,6 +358,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if former is not None:
                 with contextlib.suppress(Exception):
                     stream.reconfigure(errors=former)
+
 
 def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
     """Parse, check and run one command; its output flushed, its errors one line (main)."""
@@ -396,6 +411,7 @@ def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
     except Exception as exc:  # an internal bug: still one line unless --debug
         return _internal(exc, debug)
 
+
 def _internal(exc: BaseException, debug: bool) -> int:
     """An internal bug: one ``error:`` line unless ``--debug``, exit 70."""
     if debug:
@@ -404,6 +420,7 @@ def _internal(exc: BaseException, debug: bool) -> int:
          "rerun with --debug for a traceback")
     _flush_quietly(sys.stdout)
     return 70
+
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

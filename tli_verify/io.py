@@ -65,12 +65,14 @@ def _umask() -> int:
     os.umask(mask)
     return mask
 
+
 def _why(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 # --------------------------------------------------------------------------------------------
 # Outputs
 # --------------------------------------------------------------------------------------------
+
 
 def check_path_arg(path: Any, *, what: str, error: type[TliError] = OutputError) -> Path:
     """``path`` as a :class:`Path`, refused unless it is a ``str`` or ``os.PathLike`` whose
@@ -82,8 +84,8 @@ def check_path_arg(path: Any, *, what: str, error: type[TliError] = OutputError)
         Also a :class:`TypeError` for a path of another type (``None``, an int), a
         :class:`ValueError` for a component longer than ``MAX_NAME_BYTES`` or a NUL byte.
     """
-
     return check_path(path, f"the {what} path", error=error)
+
 
 def _existing_ancestor(p: Path) -> Path:
     """The nearest ancestor of ``p`` (absolute) that exists (``lstat``), or ``p`` itself."""
@@ -91,6 +93,7 @@ def _existing_ancestor(p: Path) -> Path:
     while not os.path.lexists(cur) and cur != cur.parent:
         cur = cur.parent
     return cur
+
 
 def same_file(a: PathLike, b: PathLike) -> bool:
     """Whether two paths name the same file: the same resolved path, or the same inode (a hard
@@ -102,6 +105,7 @@ def same_file(a: PathLike, b: PathLike) -> bool:
     except (OSError, RuntimeError):  # RuntimeError: a symlink loop
         return False
 
+
 def _check_dotdot(p: Path, shown: str, what: str) -> None:
     """Refuse ``..`` after a directory that does not exist yet (``out/new/../x``): creating the
     missing directories would change what the path names."""
@@ -111,6 +115,7 @@ def _check_dotdot(p: Path, shown: str, what: str) -> None:
             raise OutputError(f"{shown}: '..' after {cur}, which is not an existing directory; "
                               f"give the {what} path without it")
         cur = cur / part
+
 
 def _check_writable_dir(directory: Path, shown: str, what: str) -> None:
     """Refuse ``directory`` (the nearest existing ancestor of an output) unless we can write in it.
@@ -128,6 +133,7 @@ def _check_writable_dir(directory: Path, shown: str, what: str) -> None:
                           f"writable ({_why(exc)})") from None
     os.close(fd)
     Path(probe).unlink(missing_ok=True)
+
 
 def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
                       what: str = "output file") -> Path:
@@ -173,6 +179,7 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
     _check_writable_dir(_existing_ancestor(p.absolute().parent), shown, what)
     return p
 
+
 def check_plan(*, inputs: Iterable[PathLike | None],
                outputs: Iterable[tuple[PathLike | None, str]]) -> None:
     """The read/write rule of every command and every public function that writes: refuse,
@@ -205,6 +212,7 @@ def check_plan(*, inputs: Iterable[PathLike | None],
                                   "file; choose other output paths")
         written.append((p, what))
 
+
 def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
     """Refuse an output directory that cannot be created or written; before any work.
 
@@ -233,6 +241,7 @@ def check_output_dir(path: PathLike, *, what: str = "output directory") -> Path:
         raise OutputError(f"{p}: exists and is not a directory, expected the {what}")
     _check_writable_dir(_existing_ancestor(p.absolute()), str(path), what)
     return p
+
 
 def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (temp file + rename).
@@ -275,13 +284,16 @@ def atomic_write_bytes(path: PathLike, data: bytes) -> None:
         raise
     _remember(target, data)  # a snapshot in force sees what was written
 
+
 def atomic_write_text(path: PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_write_bytes`)."""
     atomic_write_bytes(path, text.encode("utf-8"))
 
+
 def canonical_json(obj: Any) -> str:
     """Deterministic JSON: sorted keys, two-space indent, trailing newline."""
     return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
+
 
 def sha256_file(path: PathLike) -> str:
     """Hex SHA-256 of a file's bytes.
@@ -309,6 +321,7 @@ def sha256_file(path: PathLike) -> str:
         for block in iter(lambda: handle.read(1 << 16), b""):
             digest.update(block)
     return digest.hexdigest()
+
 
 # --------------------------------------------------------------------------------------------
 # Inputs
@@ -345,6 +358,7 @@ def check_nesting(text: str, *, where: str, error: type[TliError],
         elif tok in "]}":
             depth = max(depth - 1, 0)
 
+
 def parse_toml(text: str, *, where: str, error: type[TliError],
                nested: Callable[[], str] | None = None) -> dict[str, Any]:
     """Parse TOML text, turning every failure into one ``error`` naming the file: the one
@@ -379,6 +393,7 @@ def parse_toml(text: str, *, where: str, error: type[TliError],
         raise error(message) from None
     except ValueError as exc:  # an integer of more than 4300 digits
         raise error(f"{where}: invalid TOML: {exc}") from None
+
 
 def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     """Read a UTF-8 text input file, turning every failure into ``error`` naming the file.
@@ -433,6 +448,7 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
         snap.keep(p, raw)
     return _decode(raw, p, what=what, error=error)
 
+
 def _decode(raw: bytes, p: Path, *, what: str, error: type[TliError]) -> str:
     """The text of an input file's bytes (:func:`read_text`'s checks after the read)."""
     if b"\x00" in raw:
@@ -448,6 +464,7 @@ def _decode(raw: bytes, p: Path, *, what: str, error: type[TliError]) -> str:
 # --------------------------------------------------------------------------------------------
 # Bundled files
 # --------------------------------------------------------------------------------------------
+
 
 BUNDLED_FOLDERS = ("tasks", "specs", "demos", "models", "certificates", "sim")
 """The top-level folders of the bundled project (``sim`` holds ``franka/`` and
@@ -472,6 +489,7 @@ def _bundled_root_abs() -> Path:
                    "reinstall it (a wheel ships the bundled project under tli_verify/data/, "
                    "a checkout has it at its top)")
 
+
 def _shown_path(p: Path) -> Path:
     """Relative to the working directory when under it, else absolute."""
     try:
@@ -479,12 +497,14 @@ def _shown_path(p: Path) -> Path:
     except (ValueError, OSError):
         return p
 
+
 def package_file(*parts: str) -> Path:
     """A file shipped inside the package (``package_file("deploy", "c", "tli_policy.c")``),
     found through :func:`importlib.resources.files`, so it is found in a checkout and in an
     installed wheel alike; the one place besides :func:`bundled_root` that locates package
     files."""
     return Path(str(resources.files("tli_verify").joinpath(*parts)))
+
 
 def bundled_root() -> Path:
     """The root of the bundled project (the folder holding its ``tasks/``, ``specs/``,
@@ -511,6 +531,7 @@ def bundled_root() -> Path:
         (exit 2) Neither place exists (a broken installation), saying where it looked.
     """
     return _shown_path(_bundled_root_abs())
+
 
 def bundled_dir(name: str) -> Path:
     """A directory of the bundled project (``"specs"``, ``"demos"``, ``"sim"``, ...):
@@ -547,6 +568,7 @@ def bundled_dir(name: str) -> Path:
 # JSON inputs: one reader, one schema validator (models, certificates, evidence, tasks)
 # --------------------------------------------------------------------------------------------
 
+
 def field_path(parts: Sequence[str | int]) -> str:
     """Format a JSON location like ``modes.a.components[2].cov`` (odd keys in ``["..."]``)."""
     out = ""
@@ -559,14 +581,17 @@ def field_path(parts: Sequence[str | int]) -> str:
             out += f"[{json.dumps(part)}]"
     return out or "(top level)"
 
+
 def _reject_constant(name: str) -> float:
     raise ValueError(f"{name} is not allowed (numbers must be finite)")
+
 
 def _finite_float(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):  # e.g. 1e400, which Python reads as inf
         raise ValueError(f"number {text} overflows a double (numbers must be finite)")
     return value
+
 
 def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     """A JSON object, refusing a repeated key (``json`` keeps the last one silently, so an
@@ -579,12 +604,14 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
         out[key] = value
     return out
 
+
 def _float_int(text: str) -> int:
     value = int(text)
     if abs(value) > _FLOAT_MAX:
         raise ValueError(f"integer {text[:20]}... is too large for a double (numbers must be "
                          "finite)")
     return value
+
 
 _FLOAT_MAX = int(float.fromhex("0x1.fffffffffffffp+1023"))
 
@@ -612,6 +639,7 @@ def check_numbers(data: Any, *, where: str, error: type[TliError]) -> None:
             raise error(f"{where}: {field_path(at) or 'value'}: an integer of {digits} digits "
                         "is too large for a double (numbers must be finite)")
 
+
 def parse_json(text: str) -> Any:
     """``json.loads`` as every reader of tli-verify does: no NaN or Infinity, no number that
     overflows a double, no duplicate key.
@@ -622,6 +650,7 @@ def parse_json(text: str) -> Any:
     """
     return json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float,
                       parse_int=_float_int, object_pairs_hook=_unique_keys)
+
 
 def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError]) -> Any:
     """Read a JSON file; errors name the file, line and column.
@@ -641,6 +670,7 @@ def read_json(path: str | os.PathLike[str], *, what: str, error: type[TliError])
     except RecursionError:  # not reached after read_text's nesting check; kept as a backstop
         raise error(f"{path}: invalid JSON: nested too deeply") from None
 
+
 @cache
 def _validator(name: str) -> Any:
     import jsonschema
@@ -649,6 +679,7 @@ def _validator(name: str) -> Any:
     cls = jsonschema.validators.validator_for(schema)
     cls.check_schema(schema)
     return cls(schema)
+
 
 def validate_schema(data: Any, schema: str, *, where: str, error: type[TliError]) -> None:
     """Validate ``data`` against ``tli_verify/schemas/<schema>``.

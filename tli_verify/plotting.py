@@ -36,6 +36,7 @@ def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     atomic_write_bytes(path, buffer.getvalue())
 
+
 def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str | None = None
                     ) -> None:
     """Draw the mode-level graph of a task automaton (like paper Fig. 3(a)) to a PNG.

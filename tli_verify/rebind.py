@@ -68,6 +68,7 @@ def reading_of(name: str, inputs: tuple[str, ...]) -> dict[str, bool] | None:
         values[ap] = not neg
     return values if set(values) == set(inputs) else None
 
+
 def rebind_model(learned: Model, spec_path: str | os.PathLike[str],
                  out_path: str | os.PathLike[str]) -> Model:
     """The learned DS, keyed by the modes of the spec at ``spec_path`` (module docstring).
@@ -99,7 +100,6 @@ def rebind_model(learned: Model, spec_path: str | os.PathLike[str],
         A mode the automaton runs has no demonstrated DS, or a transition out of it has none
         and there is no plain DS (paper Asm. 3).
     """
-
     if learned.spec is not None:
         raise ModelError(f"{learned.path}: learned with a spec ({learned.spec}); rebinding "
                          "needs a model learned without --spec (modes named by readings)")

@@ -161,7 +161,6 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
     assert len(fails) < sum(e["event"] == "InvarianceFailure" for e in first["events"])
 
 
-
 def test_world_is_the_former_name_of_task(tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     """One word for a task: ``--world`` is not in ``--help`` any more, still accepted with a

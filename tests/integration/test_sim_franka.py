@@ -16,7 +16,6 @@ from tli_verify.cli import main
 pytestmark = pytest.mark.sim
 
 
-
 def _project(tmp: Path) -> Path:
     """A copy of the Franka scoop spec, model and certificate; its certificates dir."""
     copy_franka_project(tmp)

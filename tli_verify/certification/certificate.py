@@ -88,13 +88,16 @@ def certificate_digest(doc: Mapping[str, Any]) -> str:
     body = {k: v for k, v in doc.items() if k != "digest"}
     return hashlib.sha256(canonical_json(body).encode("utf-8")).hexdigest()
 
+
 def _relpath(target: Path, base_dir: Path) -> str:
     return Path(os.path.relpath(target.resolve(), base_dir.resolve())).as_posix()
+
 
 def _eigs(P: FloatArray, A: FloatArray) -> tuple[float, list[float]]:
     lam_p = float(np.linalg.eigvalsh(P).min())
     lam = [float(np.linalg.eigvalsh(a.T @ P + P @ a).max()) for a in A]
     return lam_p, lam
+
 
 def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any]:
     """The learning solver's record (informational; the exact check is the proof)."""
@@ -103,15 +106,18 @@ def _solver_of_fit(fit: Mapping[str, Any] | None) -> dict[str, Any]:
     return {"name": fit.get("solver"), "status": str(fit.get("status") or "unknown"),
             "eps": fit.get("eps")}
 
+
 def rational_text(q: Fraction) -> str:
     """``"p"`` or ``"p/q"``: the exact text of a rational in a certificate."""
     return str(q.numerator) if q.denominator == 1 else f"{q.numerator}/{q.denominator}"
+
 
 def _repair_hint(mpath: Path) -> str:
     stem = mpath.name.removesuffix(".json").removesuffix(".model")
     return (f"run 'tli certify {mpath} --repair {mpath.parent / (stem + '.repaired.model.json')}' "
             "to search a certifying P and write it into a new model (the runtime must use the "
             "certified P)")
+
 
 def certify_mode(key: str, mm: Any, *, dt: Fraction, where: str) -> dict[str, Any]:
     """Certify one DS with its own P, or raise naming the mode and what fails.
@@ -161,6 +167,7 @@ def certify_mode(key: str, mm: Any, *, dt: Fraction, where: str) -> dict[str, An
                   "decay_rate": True},
     }
 
+
 def issue_certificate(model_path: str | os.PathLike[str], *,
                       cert_path: str | os.PathLike[str],
                       dt: Fraction | str = DEFAULT_DT) -> dict[str, Any]:
@@ -188,7 +195,6 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     CertificateError
         A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
-
     try:
         dt_q = parse_rational(dt, what="dt")
     except ValueError as exc:
@@ -221,9 +227,11 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     doc["digest"] = certificate_digest(doc)
     return doc
 
+
 def write_certificate(doc: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
     """Write a certificate document atomically (canonical JSON)."""
     atomic_write_text(path, canonical_json(dict(doc)))
+
 
 @dataclass(frozen=True, slots=True)
 class CertCheck:
@@ -254,8 +262,10 @@ class CertCheck:
         """True iff nothing failed."""
         return not self.problems
 
+
 def _close(a: float, b: float) -> bool:
     return abs(a - b) <= _REL_TOL * max(1.0, abs(a), abs(b))
+
 
 def check_certificate(cert_path: str | os.PathLike[str], *,
                       model_path: str | os.PathLike[str] | None = None) -> CertCheck:
@@ -278,7 +288,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     CertificateError
         Only when the certificate file cannot be read at all (exit 2).
     """
-
     cpath = Path(cert_path)
     if cpath.is_dir():
         raise bad_input(CertificateError,
@@ -345,6 +354,7 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
                           "components (exact)")
     return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed), dt_text)
 
+
 def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
                         passed: list[str]) -> list[str]:
     """The certificate's spec must be the very file the model names, unchanged."""
@@ -365,6 +375,7 @@ def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any,
                 "certification"]
     passed.append(f"spec {spec_path} is the model's and matches its SHA-256")
     return []
+
 
 def _check_mode(key: str, entry: Mapping[str, Any], mm: Any, dt: Fraction) -> list[str]:
     """Every discrepancy between one certified DS and the model, and the exact verdicts."""

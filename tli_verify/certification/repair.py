@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 
 __all__ = ["RepairResult", "repair_model"]
 
+
 @dataclass(frozen=True, slots=True)
 class RepairResult:
     """What :func:`repair_model` changed.
@@ -45,6 +46,7 @@ class RepairResult:
     model: Model
     repaired: tuple[str, ...]
     kept: tuple[str, ...]
+
 
 def repair_model(model_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
                  dt: Fraction) -> RepairResult:
@@ -70,7 +72,6 @@ def repair_model(model_path: str | os.PathLike[str], out_path: str | os.PathLike
         A DS has no common quadratic Lyapunov function, or the SDP's ``P`` fails the exact check
         (exit 1, naming the mode).
     """
-
     model = load_model(model_path)
     modes = dict(model.modes)
     repaired, kept = [], []

@@ -26,6 +26,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="output directory (default: out)")
     p.set_defaults(handler=_run)
 
+
 def _run(args: argparse.Namespace) -> int:
 
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler

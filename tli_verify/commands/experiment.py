@@ -88,9 +88,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="output directory (default out/scoop)")
     c.set_defaults(handler=_scoop)
 
+
 def _missing(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
+
 
 class _Progress:
     """A progress bar on stderr (one line per 10% when stderr is not a terminal)."""
@@ -120,6 +122,7 @@ class _Progress:
                 self.stream.write(f"{self.label}: {done}/{total} trials, {elapsed:.0f}s\n")
         self.stream.flush()
 
+
 def _config(args: argparse.Namespace) -> Any:
     from tli_verify.experiments.single_mode import SingleModeConfig
 
@@ -137,6 +140,7 @@ def _config(args: argparse.Namespace) -> Any:
     )
     cfg.validate()
     return cfg
+
 
 def _single_mode(args: argparse.Namespace) -> int:
     from tli_verify.experiments.single_mode import run
@@ -159,6 +163,7 @@ def _single_mode(args: argparse.Namespace) -> int:
         sys.stdout.write("wrote " + ", ".join(str(f) for f in files) + "\n")
     return 0
 
+
 def _table(summary: dict[str, Any]) -> str:
     noises = [str(p) for p in summary["config"]["noise_percent"]]
     lines = ["policy    " + "".join(f"{'noise ' + k + '%':>12}" for k in noises)]
@@ -168,6 +173,7 @@ def _table(summary: dict[str, Any]) -> str:
     lines.append("DS+mod cuts (mean/max): "
                  + ", ".join(f"{k}%: {cuts[k]['mean']:.1f}/{cuts[k]['max']:.0f}" for k in noises))
     return "\n".join(lines) + "\n"
+
 
 def _scoop_config(args: argparse.Namespace) -> Any:
     from tli_verify.experiments.scoop import ExperimentConfig
@@ -183,6 +189,7 @@ def _scoop_config(args: argparse.Namespace) -> Any:
     return ExperimentConfig(experiments=exps, episodes=eps, bc_epochs=60 if q else 300,
                             steps=args.steps if args.steps is not None else (2000 if q else 3000),
                             seed=args.seed, lag=args.lag)
+
 
 def _scoop(args: argparse.Namespace) -> int:
 
@@ -205,6 +212,7 @@ def _scoop(args: argparse.Namespace) -> int:
         sys.stdout.write("wrote " + ", ".join(str(f) for f in files) + "\n")
     return 0
 
+
 def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
                 ) -> tuple[dict[str, Any], list[Path]]:
     """Run the scoop experiment, write its report and figures; return the JSON summary."""
@@ -223,11 +231,13 @@ def scoop_study(cfg: Any, out: Path, *, workers: int, fig7_tries: int
     files = write_report(summary, out, fig7=fig7, fig7_png=png)
     return summary, files + ([png] if png is not None else [])
 
+
 def run_scoop(cfg: Any, *, workers: int, fig7_tries: int) -> dict[str, Any]:
     """:func:`tli_verify.experiments.scoop.run_all` (imported lazily)."""
     from tli_verify.experiments.scoop import run_all
 
     return run_all(cfg, workers=workers, fig7_tries=fig7_tries)
+
 
 def _scoop_table(summary: dict[str, Any]) -> str:
     lines = [f"{'variant':<15}{'success':>10}{'episodes':>10}{'success %':>11}"]
@@ -237,6 +247,7 @@ def _scoop_table(summary: dict[str, Any]) -> str:
     if summary.get("fig7"):
         lines.append("Fig. 7: " + summary["fig7"]["text"])
     return "\n".join(lines) + "\n"
+
 
 def demo_stage(out: Path) -> list[str]:
     """Run a quick single-mode study for ``make demo``; return one summary line per result."""

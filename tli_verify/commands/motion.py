@@ -70,6 +70,7 @@ def _rational(text: str) -> Fraction:
         raise argparse.ArgumentTypeError(f"must be between 1e-06 and 1 s, got {text!r}")
     return value
 
+
 _seed = int_range(0, 2**32 - 1)
 """A seed: 0 to 2^32 - 1."""
 
@@ -86,8 +87,10 @@ def _rerun_examples(text: str) -> int:
                                          f"re-runs a sample), got {text!r}")
     return value
 
+
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``learn``, ``certify``, ``check-cert`` and ``gate``."""
@@ -203,6 +206,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "evaluator)")
     p.set_defaults(handler=_gate)
 
+
 def _task_file(spec: Path | None) -> Path | None:
     """The task file a spec names (an input the outputs must not overwrite), or None."""
     if spec is None:
@@ -213,6 +217,7 @@ def _task_file(spec: Path | None) -> Path | None:
     except TliError:
         return None
     return None if task is None or task.source.path is None else Path(task.source.path)
+
 
 def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
     """Refuse demonstrations whose state dimension differs from the spec's task (before any
@@ -232,6 +237,7 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
             raise DemoError(f"{path}: {n} state column(s) (x0..x{n - 1}), but the spec's task "
                             f"{task.name!r} ({task.where}) has {task.dim} states: these "
                             "demonstrations are not of this task")
+
 
 def _learn(args: argparse.Namespace) -> int:
 
@@ -298,22 +304,23 @@ def _learn(args: argparse.Namespace) -> int:
                          f"tli certify {args.output}\n")
     return 0
 
+
 def default_certificate_path(model: Path) -> Path:
     """Where the project layout puts a model's certificate
     (:func:`tli_verify.tasks.project.model_files`): ``ROOT/certificates/<name>.cert.json`` for
     ``ROOT/models/<name>.model.json``; ``<name>.cert.json`` next to a model outside any
     ``models/`` folder."""
-
     return model_files(model).certificate
+
 
 def _kind(path: Path, error: type[TliError]) -> str | None:
     """The ``kind`` field of a JSON file (None when it has none); unreadable: ``error``."""
-
     if path.is_dir():
         raise bad_input(error, f"{path}: is a directory, expected a JSON file")
     doc = read_json(path, what="JSON file", error=error)
     kind = doc.get("kind") if isinstance(doc, dict) else None
     return kind if isinstance(kind, str) else None
+
 
 def _learn_orientation(args: argparse.Namespace) -> int:
 
@@ -340,6 +347,7 @@ def _learn_orientation(args: argparse.Namespace) -> int:
                          f"{info.seconds:.2f} s; certify it with: tli certify {args.output} "
                          "-o CERT.json\n")
     return 0
+
 
 def _certify_orientation(args: argparse.Namespace) -> int:
     from tli_verify.certification.orientation import (
@@ -371,6 +379,7 @@ def _certify_orientation(args: argparse.Namespace) -> int:
                          f"wrote {out}\n")
     return 0
 
+
 def _check_orientation_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.orientation import check_orientation_certificate
 
@@ -391,6 +400,7 @@ def _check_orientation_cert(args: argparse.Namespace) -> int:
     if not args.json:
         sys.stdout.write(f"{args.certificate}: valid (orientation DS re-checked exactly)\n")
     return 0
+
 
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import issue_certificate, write_certificate
@@ -440,6 +450,7 @@ def _certify(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {out}\n")
     return 0
 
+
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import check_certificate
     from tli_verify.certification.orientation import ORIENTATION_CERT_KIND
@@ -484,6 +495,7 @@ def _check_cert(args: argparse.Namespace) -> int:
         sys.stdout.write(f"{check.path}: valid (re-checked exactly against {check.model_path})\n")
     return 0
 
+
 def _gate(args: argparse.Namespace) -> int:
     from tli_verify.deploy.gate import run_gate
 
@@ -505,6 +517,7 @@ def _gate(args: argparse.Namespace) -> int:
     if not args.json:
         sys.stdout.write(f"gate: pass ({summary})\n")
     return 0
+
 
 def demo_stage(out: Path) -> list[str]:
     """``tli demo``: learn the scooping model from the bundled demos, certify and re-check it.
@@ -539,6 +552,7 @@ def demo_stage(out: Path) -> list[str]:
         _plot_model(model, demos, target / "scoop_modes.png")
         lines.append(f"motion: streamlines of every mode -> {target / 'scoop_modes.png'}")
     return lines
+
 
 def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
     """Streamlines of each mode's (modulated) DS with the demonstrations (2D models)."""

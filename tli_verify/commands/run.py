@@ -69,6 +69,7 @@ def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None
     p.add_argument("--lag", type=int_range(0, MAX_CAMPAIGN_STEPS), default=None,
                    help="sensor lag in control steps (default: the task's)")
 
+
 def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
     """The project session (:func:`tli_verify.project.open_project`) of the command's task
     options (``use_spec`` False: ``--spec`` is not the model's spec, e.g. the spec
@@ -77,6 +78,7 @@ def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
 
     return open_project(task=args.task, spec=args.spec if use_spec else None,
                         model=args.model, certificate=args.certificate, lag=args.lag)
+
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
     """Register ``tli run``."""
@@ -125,6 +127,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "atomically, nothing written if it does not certify")
     p.set_defaults(handler=_run)
 
+
 def parse_floats(text: str, n: int, what: str) -> list[float]:
     """``n`` comma-separated finite numbers (``--start``, a push's displacement).
 
@@ -144,6 +147,7 @@ def parse_floats(text: str, n: int, what: str) -> list[float]:
         raise TliError(f"{what}: expected {n} comma-separated finite numbers (one per "
                        f"coordinate of the {n}-D state), got {text!r}")
     return vals
+
 
 def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None = None
                   ) -> dict[int, Any]:
@@ -190,6 +194,7 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
         raise TliError(f"--perturb: {len(out)} perturbations, more than MAX_PUSHES "
                        f"({MAX_PUSHES})")
     return out
+
 
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
@@ -312,12 +317,13 @@ def _run(args: argparse.Namespace) -> int:
             + f"wrote {', '.join(wrote)}\n")
     return 0 if res.success else 1
 
+
 def _certified_dt(policy: Any) -> str:
     """The control period the policy's certificate proves (a saved model is re-certified at
     it)."""
-
     doc = read_json(policy.certificate, what="certificate", error=CertificateError)
     return str(doc["control_period"]["dt"])
+
 
 def _picture(task: Any, res: Any, nominal: Any, path: Path, variant: str, seed: int,
              notes: list[str]) -> Path | None:
@@ -332,6 +338,7 @@ def _picture(task: Any, res: Any, nominal: Any, path: Path, variant: str, seed: 
         return None
     return path
 
+
 def _growth_start(setup: Any, spec: Path | None) -> Any:
     """The spec to grow from (``--spec``, default the model's): same inputs and ``[modes]``
     labels as the spec the model names (the DS were learned on those labels).
@@ -341,7 +348,6 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
     TliError
         (exit 2) A spec that does not load or labels the modes otherwise.
     """
-
     named_path = Path(setup.spec)
     named = load_spec(named_path)
     if spec is None:
@@ -353,13 +359,14 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
                        "labels)")
     return start
 
+
 def _write_grown(policy: Any, start: Any, path: Path) -> None:
     """Write the policy's current spec as TOML (atomically), with a provenance header."""
-
     learned = " ".join(f"{a}->{b}" for a, b in policy.learned) or "none"
     header = (f"# Grown online by `tli run --learn-transitions` from {start.path}.\n"
               f"# Transitions learned in this run: {learned}.\n")
     atomic_write_text(path, header + policy.spec_toml)
+
 
 def _growth_line(res: Any) -> str:
     from tli_verify.runtime.events import TransitionLearned, TransitionRefused
@@ -373,6 +380,7 @@ def _growth_line(res: Any) -> str:
             parts.append(f"refused {e.from_mode}->{e.to_mode or '?'} (step {e.step}: "
                          f"{e.reason})")
     return f"learned transitions: {', '.join(parts) if parts else 'none'}\n"
+
 
 def demo_stage(out: Path) -> list[str]:
     """``tli demo``: gate the shipped files, run a perturbed scoop episode with and without

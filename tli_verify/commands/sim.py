@@ -113,6 +113,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "at least 30 perturbed LTL-DS trials, all passing")
     p.set_defaults(handler=_run)
 
+
 def robot_name(text: str) -> str:
     """``--robot``: ``panda`` or ``free-tool``; the old name ``hand`` is refused with a hint."""
     if text == "hand":
@@ -121,6 +122,7 @@ def robot_name(text: str) -> str:
     if text not in ("panda", "free-tool"):
         raise argparse.ArgumentTypeError(f"{text!r}: one of panda, free-tool")
     return text
+
 
 def _run(args: argparse.Namespace) -> int:
 

@@ -89,9 +89,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     infer.add_argument("--name", default=None, help="spec name (default: the output's stem)")
     infer.set_defaults(handler=_infer)
 
+
 def _usage(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
+
 
 def _explain(check: Any) -> list[str]:
     spec = check.spec
@@ -109,6 +111,7 @@ def _explain(check: Any) -> list[str]:
                      "mode only where its label holds, sensors always show a mode label "
                      "(paper Asm. 3)")
     return lines
+
 
 def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
     """The spec's task against its assumptions (:mod:`tli_verify.tasks.fit`): a sensor change
@@ -130,6 +133,7 @@ def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
         out.append(f"task {task.name!r}: {len(found) - 3} more such change(s) (tli task check "
                    f"{task.source.path or task.name} --spec {path})")
     return out
+
 
 def _check(args: argparse.Namespace) -> int:
 
@@ -175,15 +179,16 @@ def _check(args: argparse.Namespace) -> int:
             sys.stdout.write("\n".join(_explain(result)) + "\n")
     return worst
 
+
 def write_automaton(automaton: Any, out: Path) -> None:
     """Write ``automaton`` as JSON or DOT (by ``out``'s extension), atomically."""
-
     if out.suffix == ".dot":
         atomic_write_text(out, automaton.to_dot())
     elif out.suffix == ".json":
         atomic_write_text(out, canonical_json(automaton.to_dict()))
     else:
         raise TliError(f"{out}: output must end in .json or .dot")
+
 
 def _automaton(args: argparse.Namespace) -> int:
 
@@ -208,6 +213,7 @@ def _automaton(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {args.output}\n")
     return 0
 
+
 def _import(args: argparse.Namespace) -> int:
 
     if args.output is not None and args.output.suffix != ".toml":
@@ -223,6 +229,7 @@ def _import(args: argparse.Namespace) -> int:
     sys.stdout.write(f"wrote {args.output}: {len(spec.inputs)} inputs, {len(spec.outputs)} "
                      f"outputs, {len(spec.formulas())} formulas\n")
     return 0
+
 
 def _infer(args: argparse.Namespace) -> int:
     from tli_verify.demos import load_demos
@@ -247,9 +254,9 @@ def _infer(args: argparse.Namespace) -> int:
         sys.stdout.write(f"  warning: {w}\n")
     return 0 if ok else 1
 
+
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
-
     specs = sorted(bundled_dir("specs").glob("*.toml"))
     lines = [f"[spec] checking {len(specs)} specs in specs/"]
     adir = out / "automata"

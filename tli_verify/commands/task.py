@@ -136,9 +136,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                     "40, 0.5 to 600)")
     ev.set_defaults(handler=_evidence)
 
+
 def _usage(parser: argparse.ArgumentParser) -> int:
     parser.print_help(sys.stderr)
     return 2
+
 
 # ------------------------------------------------------------------------------ task check
 def _summary(task: Any) -> dict[str, Any]:
@@ -156,6 +158,7 @@ def _summary(task: Any) -> dict[str, Any]:
                                "scripts": len(task.demonstrator.scripts)}),
         "spec": task.spec, "sha256": task.source.sha256 or task.source.source_sha256,
     }
+
 
 def _check(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
@@ -193,6 +196,7 @@ def _check(args: argparse.Namespace) -> int:
         return _check_fit(loaded, spec, args.spec, as_json=args.json)
     return 0
 
+
 def _read_once(task: Any) -> None:
     """Read the task's sensors once, at its first nominal start (else the workspace's
     centre), two steps there (not a physics scene's sensors): a sensor plug-in's ``read()``
@@ -209,6 +213,7 @@ def _read_once(task: Any) -> None:
     else:
         x = (np.asarray(task.lo, dtype=float) + np.asarray(task.hi, dtype=float)) / 2
     task.sensors(np.stack([x, x]))
+
 
 def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:
     """``tli task check --spec``: inputs and sensors agree, and every sensor change the task
@@ -242,6 +247,7 @@ def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -
                           "out by the spec's assumptions (above): a task/spec mismatch")
     return 0
 
+
 def _list(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import bundled_tasks, task_names
 
@@ -253,6 +259,7 @@ def _list(args: argparse.Namespace) -> int:
                  or "entry point")
         sys.stdout.write(f"{name}\t{where}\n")
     return 0
+
 
 # ------------------------------------------------------------------------------ demos
 def _demos(args: argparse.Namespace) -> int:
@@ -286,6 +293,7 @@ def _demos(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {args.picture}\n")
     return 0
 
+
 # ------------------------------------------------------------------------------ init
 def _init(args: argparse.Namespace) -> int:
     from tli_verify.tasks.formula import is_name
@@ -311,6 +319,7 @@ def _init(args: argparse.Namespace) -> int:
     sys.stdout.write(f"next: see {root / 'README.md'} (tli demos, learn, certify, verify "
                      "--evidence, gate)\n")
     return 0
+
 
 # ------------------------------------------------------------------------------ evidence
 def _evidence(args: argparse.Namespace) -> int:
@@ -350,6 +359,7 @@ def _evidence(args: argparse.Namespace) -> int:
         status |= 0 if ok else 1
     return status
 
+
 def _config(args: argparse.Namespace, resolved: Any) -> Any:
     """The bisimulation campaign ``tli evidence`` runs for one model."""
     from tli_verify.verify.config import CampaignConfig
@@ -358,6 +368,7 @@ def _config(args: argparse.Namespace, resolved: Any) -> Any:
                           certificate=str(resolved.certificate), examples=args.examples,
                           seed=args.seed, modulation=True, workers=args.workers,
                           backend=args.backend or "process", random_starts=args.random_starts)
+
 
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.verify.campaign import run_campaign
@@ -372,6 +383,7 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
             f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
             f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
+
 
 def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
 

@@ -97,6 +97,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     r.add_argument("--json", action="store_true")
     r.set_defaults(handler=_replay)
 
+
 def _verify(args: argparse.Namespace) -> int:
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
@@ -171,6 +172,7 @@ def _verify(args: argparse.Namespace) -> int:
         return 130
     return 1 if result.counterexample is not None else 0
 
+
 def _summary(result: Any, files: list[Path]) -> str:
     c = result.config
     bad = {k: n for k, n in result.violations.items() if n}
@@ -196,6 +198,7 @@ def _summary(result: Any, files: list[Path]) -> str:
                      f"{ce['expected']['oracle_modes'][:40]})")
     lines.append("wrote " + ", ".join(str(f) for f in files))
     return "\n".join(lines) + "\n"
+
 
 def write_report(result: Any, out: Path) -> list[Path]:
     """``campaign.md``, ``campaign.png`` (outcomes per run, coverage) and, with a
@@ -317,6 +320,7 @@ def write_report(result: Any, out: Path) -> list[Path]:
     files.insert(0, md)
     return files
 
+
 def _cuts_table(result: Any) -> list[str]:
     """campaign.md's "Cuts per mode": the model's cuts (offline, with its hand-off claim) and
     the cuts the runs learned online."""
@@ -354,6 +358,7 @@ def _cuts_table(result: Any) -> list[str]:
                    f"{int(o['runs'])} | {int(o['max_per_run'])} |")
     return [*out, ""]
 
+
 def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
     from dataclasses import replace
 
@@ -374,6 +379,7 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
                         f"{'LTL-DS' if spec.modulation else 'no modulation'}"
                         + (" (left) vs LTL-DS (right)" if len(panels) > 1 else ""))
     return png
+
 
 def _replay(args: argparse.Namespace) -> int:
     from tli_verify.verify.cases import replay_case
@@ -403,6 +409,7 @@ def _replay(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{verdict.diagnosis}\n")
     return 1 if reproduced else 0
 
+
 def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     """Refuse (exit 2, before any work) to replace the evidence of a stronger campaign, unless
     ``force``; with ``force``, say on stderr what is being replaced.
@@ -412,7 +419,6 @@ def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     TliError
         The evidence at ``path`` records a stronger campaign than ``config``'s.
     """
-
     why = weaker_than_recorded(path, config)
     if why is None:
         return

@@ -31,14 +31,17 @@ TEXT_MAGIC = "tli-policy-text"
 MAX_C_BITS = 64
 """Most sensors and most modes the C evaluator takes (one 64-bit mask each)."""
 
+
 def text_path_for(json_path: str | os.PathLike[str]) -> Path:
     """``policy.tli.txt`` next to ``policy.tli.json`` (``.json`` replaced, else ``.txt``
     appended)."""
     p = Path(json_path)
     return p.with_suffix(".txt") if p.suffix == ".json" else p.with_name(p.name + ".txt")
 
+
 def _hex(text: str) -> str:
     return text.encode("utf-8").hex() or "-"
+
 
 def _mask(names: Sequence[str], order: Sequence[str]) -> int:
     index = {n: i for i, n in enumerate(order)}
@@ -47,8 +50,10 @@ def _mask(names: Sequence[str], order: Sequence[str]) -> int:
         out |= 1 << index[n]
     return out
 
+
 def _nums(values: Any) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=np.float64).ravel())
+
 
 def render_text(art: dict[str, Any]) -> str:
     """The text form's body (no ``sha256`` line) of an artifact's content.
@@ -119,9 +124,11 @@ def render_text(art: dict[str, Any]) -> str:
     lines.append("end")
     return "\n".join(lines) + "\n"
 
+
 def content_hash(art: dict[str, Any]) -> str:
     """SHA-256 (hex) of the text form's body: the artifact's ``content_sha256``."""
     return hashlib.sha256(render_text(art).encode("utf-8")).hexdigest()
+
 
 def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Load a JSON artifact and check it: schema and its own hash.
@@ -137,7 +144,6 @@ def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
         Unreadable, not the schema, or ``content_sha256`` is not the hash of its content
         (exit 2).
     """
-
     data = read_json(path, what="policy artifact", error=ExportError)
     validate_schema(data, "policy.schema.json", where=str(path), error=ExportError)
     body = {k: v for k, v in data.items() if k != "content_sha256"}

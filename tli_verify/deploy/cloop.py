@@ -62,6 +62,7 @@ def compile_evaluator(out_dir: str | os.PathLike[str]) -> Path:
         raise ExportError(f"{src}: the C build failed: {first}")
     return lib
 
+
 class _Info(ctypes.Structure):
     _fields_ = [("state", ctypes.c_int), ("mode", ctypes.c_int), ("planned", ctypes.c_int),
                 ("ds", ctypes.c_int), ("flags", ctypes.c_uint), ("steps", ctypes.c_long),
@@ -70,8 +71,10 @@ class _Info(ctypes.Structure):
                 ("last_inside", ctypes.c_double * _MAX_DIM),
                 ("outside", ctypes.c_double * _MAX_DIM)]
 
+
 def _ptr(a: FloatArray) -> Any:
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
 
 class CEvaluator:
     """One artifact loaded by the C evaluator.
@@ -159,6 +162,7 @@ class CEvaluator:
             raise ExportError(f"C evaluator: cut refused (status {code}): "
                               f"{err.value.decode(errors='replace')}")
 
+
 class CInTheLoop:
     """The C evaluator as a closed loop's executive, the Python executive as its supervisor.
 
@@ -221,7 +225,6 @@ class CInTheLoop:
     def step(self, x: npt.ArrayLike, sensors: Any, *, perturbed: bool = False) -> FloatArray:
         """One control step: the evaluator's velocity (the supervisor decides alongside and
         supplies the cuts)."""
-
         sup = self.supervisor
         n_events = len(sup.events)
         key = sup.decide(x, sensors, perturbed=perturbed)
@@ -238,6 +241,7 @@ class CInTheLoop:
             self.max_rel_diff = max(self.max_rel_diff, diff)
         return v
 
+
 def in_the_loop(supervisor: Any, artifact_json: str | os.PathLike[str],
                 build_dir: str | os.PathLike[str]) -> CInTheLoop:
     """Check an artifact against the supervisor's model and wrap both.
@@ -248,7 +252,6 @@ def in_the_loop(supervisor: Any, artifact_json: str | os.PathLike[str],
         The artifact does not check, was not made from the supervisor's model file (SHA-256),
         or the C loader refuses its text form.
     """
-
     art = check_artifact(artifact_json)
     model_path = getattr(supervisor.model, "path", None)
     src = art["sources"].get("model")

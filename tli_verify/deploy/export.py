@@ -92,14 +92,17 @@ class Exported:
     content_sha256: str
     artifact: dict[str, Any]
 
+
 def _hash_or_none(path: Path | None) -> dict[str, str] | None:
 
     if path is None or not path.is_file():
         return None
     return {"file": path.name, "sha256": sha256_file(path)}
 
+
 def _floats(a: Any) -> list[Any]:
     return np.asarray(a, dtype=np.float64).tolist()
+
 
 def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequence[str],
                    sources: dict[str, Any], max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS
@@ -127,7 +130,6 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
     ExportError
         More than :data:`MAX_C_BITS` sensors or modes (exit 2).
     """
-
     aut, model = setup.automaton, setup.model
     plans = plan_states(aut, model, tuple(goal_modes), str(model.path))
     progress = plan_progress(plans.values())
@@ -180,6 +182,7 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
                        "max_online_cuts": int(max_online_cuts)},
         "sources": sources,
     }
+
 
 def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                   rerun: int | None = None, max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS,
@@ -248,13 +251,13 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                          sources=sources, max_online_cuts=max_online_cuts)
     return write_artifact(art, out_json)
 
+
 def write_artifact(art: dict[str, Any], out: str | os.PathLike[str]) -> Exported:
     """Hash an artifact's content and write it (JSON) and its text form, atomically.
 
     The caller checked the paths (:func:`tli_verify.io.check_plan`); ``art`` is the content of
     :func:`build_artifact` (its ``content_sha256`` is set here).
     """
-
     out_json = Path(out)
     out_text = text_path_for(out_json)
     art = {k: v for k, v in art.items() if k != "content_sha256"}

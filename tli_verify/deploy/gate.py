@@ -84,7 +84,6 @@ CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
 """``(evidence check, model path, examples) -> (ok, one-line message)``: a re-run."""
 
 
-
 def rerun_seed(check: Any, model: Path, count: int) -> int:
     """The seed of the gate's re-run: derived from the evidence's digest and the model's
     SHA-256, so it is not the evidence's seed and evidence cannot be tuned to it; the same files
@@ -102,6 +101,7 @@ def rerun_seed(check: Any, model: Path, count: int) -> int:
     text = f"tli-verify gate re-run:{check.digest}:{sha256_file(model)}"
     value = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16)
     return value % (2**32 - max(int(count), 1))
+
 
 @dataclass(frozen=True, slots=True)
 class GateItem:
@@ -132,6 +132,7 @@ class GateItem:
         return {"kind": self.kind, "path": self.path, "check": self.check, "ok": self.ok,
                 "message": self.message}
 
+
 @dataclass(frozen=True, slots=True)
 class GateReport:
     """Everything the gate checked.
@@ -159,6 +160,7 @@ class GateReport:
         """Number of distinct files of one kind."""
         return len({i.path for i in self.items if i.kind == kind})
 
+
 def _files(directory: Path, pattern: str) -> list[Path]:
     """Every entry matching ``pattern`` that is not a directory (regular or not), and every
     symlinked directory (``rglob`` does not descend into them, so they are blocked, never
@@ -168,6 +170,7 @@ def _files(directory: Path, pattern: str) -> list[Path]:
     found = {p for p in directory.rglob(pattern) if not p.is_dir()}
     found |= {p for p in directory.rglob("*") if p.is_symlink() and p.is_dir()}
     return sorted(found)
+
 
 def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
     """A blocking item for a device, FIFO, socket or dangling link where a file must be."""
@@ -183,9 +186,11 @@ def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
     return GateItem(kind, shown, False, f"not a regular file ({what}): refused, never read",
                     "load")
 
+
 def _default_spec_checker() -> Callable[[Path], SpecCheck]:
 
     return check_spec_file
+
 
 class _Specs:
     """Spec checks, each file checked once (keyed by resolved path)."""
@@ -208,6 +213,7 @@ class _Specs:
                 self._done[key] = TliError(f"{path}: too deeply nested to check")
         return self._done[key]
 
+
 def _spec_item(result: Any, shown: str) -> GateItem:
     if isinstance(result, TliError):
         return GateItem("spec", shown, False, f"does not load: {result}")
@@ -223,12 +229,12 @@ def _spec_item(result: Any, shown: str) -> GateItem:
     return GateItem("spec", shown, False, f"{verdict} but not well-separated: it may be won "
                     "vacuously (declare expect = \"not-well-separated\" if intended)")
 
+
 def _orientation_item(cert: Path, shown: str) -> GateItem | None:
     """The re-check of an orientation certificate (:mod:`tli_verify.certification.orientation`),
     or None when ``cert`` is not one. Orientation models are not deployed by the gate yet (no
     pose task or campaign); their certificates re-check exactly all the same, and a failing one
     blocks."""
-
     try:
         doc = read_json(cert, what="certificate", error=CertificateError)
     except (TliError, RecursionError):
@@ -245,16 +251,17 @@ def _orientation_item(cert: Path, shown: str) -> GateItem | None:
                         f"{doc['model']['path']}")
     return GateItem("certificate", shown, False, "; ".join(check.failures))
 
+
 def _certificate_line(check: CertCheck) -> str:
     rate = f", sampled-data at dt = {check.dt}" if check.dt else ""
     return (f"re-checked exactly ({len(check.passed)} checks: digest, model and spec SHA-256, "
             f"P = the model's P, cuts, Lyapunov conditions{rate})")
 
+
 def _model_checks(model_path: Path, shown: Callable[[Path], str],
                   certified: dict[Path, list[tuple[Path, CertCheck]]],
                   specs: _Specs) -> list[GateItem]:
     """The per-model binding checks (certificate, spec, modes, dimension)."""
-
     name = shown(model_path)
     try:
         model = load_model(model_path)
@@ -304,6 +311,7 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     items.append(_handoff_item(model, name, spec_path))
     return items
 
+
 def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
     """Which hand-off guarantees are proved (re-decided here) and which are tested (re-tested
     on the gate's own draw) (:func:`tli_verify.runtime.handoff.handoff_status`)."""
@@ -317,6 +325,7 @@ def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
         return GateItem("model", name, False, f"hand-off record does not re-check: {exc}",
                         "handoff")
     return GateItem("model", name, ok, "; ".join(lines), "handoff")
+
 
 def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
                shown: Callable[[Path], str], checks: list[CertCheck]) -> GateItem:
@@ -354,6 +363,7 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
                     f"{task.dim}-D, sensors {', '.join(task.sensor_names)}, goal "
                     f"{', '.join(modes)} reachable, dt {task.dt:g} s certified", "task")
 
+
 def _dimension_item(model: Any, name: str) -> GateItem:
     names = list(model.state_names)
     dupes = sorted({s for s in names if names.count(s) > 1})
@@ -372,9 +382,9 @@ def _dimension_item(model: Any, name: str) -> GateItem:
     return GateItem("model", name, True, f"n = {n} ({', '.join(names)}) in all "
                     f"{len(model.modes)} DS and their cuts", "dimension")
 
+
 def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
     """DS coverage of the task automaton, and no mode the spec lacks."""
-
     try:
         automaton = synthesize(spec)
     except TliError as exc:
@@ -416,6 +426,7 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
                     f"automaton of {spec_shown} can run (and each transition out of "
                     "per-transition modes); no mode the spec lacks", "modes")
 
+
 def run_gate(root: str | os.PathLike[str] = ".", *,
              spec_checker: Callable[[Path], SpecCheck] | None = None, rerun: int | None = None,
              campaign_runner: CampaignRunner | None = None,
@@ -453,7 +464,6 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     GateError
         ``root`` is not a directory (exit 2).
     """
-
     base = check_path(root, "root", error=GateError)
     if rerun is not None:
         rerun = check_int(rerun, "rerun", 0, MAX_EXAMPLES, error=GateError)
@@ -520,6 +530,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
 # Deployed artifacts
 # --------------------------------------------------------------------------------------------
 
+
 def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
                   shown: Callable[[Path], str]) -> GateItem:
     """Check an exported policy (``tli export``) against what the gate passed.
@@ -537,7 +548,6 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
     GateItem
         Kind ``artifact``; blocking on the first mismatch, naming it.
     """
-
     name = shown(path)
 
     def block(why: str, check: str) -> GateItem:
@@ -614,12 +624,12 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
 # Campaign evidence
 # --------------------------------------------------------------------------------------------
 
+
 def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str],
                     certified: dict[Path, list[tuple[Path, CertCheck]]], *,
                     rerun: int | None, runner: CampaignRunner | None) -> list[GateItem]:
     """One ``campaign`` line per deployed model (and a ``rerun`` line with ``rerun``), then
     one blocking ``evidence`` line per evidence file that binds no deployed model."""
-
     items: list[GateItem] = []
     claimed: set[Path] = set()
     for model in models:
@@ -676,6 +686,7 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                                   "certificates/<name>.campaign.json)", "campaign"))
     return items
 
+
 def _evaluator_note(phys: dict[str, Any]) -> str:
     """``; the trials ran artifact <sha> in the C evaluator`` when the evidence says so."""
     ev = phys.get("evaluator")
@@ -685,24 +696,27 @@ def _evaluator_note(phys: dict[str, Any]) -> str:
             f"evaluator ({ev.get('steps')} steps, velocities within "
             f"{float(ev.get('max_rel_diff', 0.0)):.1e} of the runtime's)")
 
+
 def _unprefixed(problem: str, path: str) -> str:
     """A problem without the evidence path it starts with (the gate's line names it once)."""
     return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
 
+
 def _settings_problems(check: Any, model: Path) -> list[str]:
     """Recorded campaign settings no CLI command could have produced on the model's task
     (:func:`tli_verify.verify.evidence.settings_problems`)."""
-
     try:
         task = resolve(model=model).task
     except TliError as exc:
         return [f"the model's task does not resolve: {exc}"]
     return settings_problems(dict(check.settings), task)
 
+
 def _partition(phys: dict[str, Any]) -> str:
     """How a physical campaign's trials were split, for the gate's line ("" for one chunk)."""
     chunks = phys.get("chunks") or ()
     return "" if len(chunks) <= 1 else f" in {len(chunks)} chunks of seeds (one executive each)"
+
 
 def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     """The gate's re-run: a short campaign on a seed the gate derives (:func:`rerun_seed`)
@@ -797,6 +811,7 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         return False, f"{what}: no run was decided: the re-run shows nothing"
     return True, f"{what}: 0 violations"
 
+
 def rerun_starts(nominal: Any, examples: int, seed: int
                  ) -> list[tuple[tuple[float, ...] | None, int, int]]:
     """How the gate's re-run splits its examples among its own starts: half (rounded up) on
@@ -825,6 +840,7 @@ def rerun_starts(nominal: Any, examples: int, seed: int
         if count:
             plan.append((start, count, (seed + 104_729 * (i + 1)) % (2**32 - count)))
     return [p for p in plan if p[1] > 0]
+
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     """``tli gate --rerun N`` on a physical campaign's evidence: ``N`` perturbed MuJoCo trials

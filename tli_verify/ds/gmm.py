@@ -202,7 +202,6 @@ class GMM:
         p /= p.sum(axis=1, keepdims=True)
         return p
 
-
     def posterior_one(self, x: Sequence[float]) -> list[float]:
         """:meth:`posterior` of one state, in plain Python (no array overhead).
 

@@ -203,6 +203,7 @@ class LPVDS:
         V = np.einsum("ni,ij,nj->n", Z, self.P, Z)
         return V[0] if single else V
 
+
 @dataclass(frozen=True, slots=True)
 class FitInfo:
     """How an LPV-DS was learned (stored in the model file's ``fit`` field).
@@ -260,6 +261,7 @@ class FitInfo:
     rate_rmse: float | None = None
     data_rate: float | None = None
     rate_within_budget: bool | None = None
+
 
 def learn_lpvds(
     X: npt.ArrayLike,
@@ -335,6 +337,7 @@ def learn_lpvds(
                          clustering=clustering, lyapunov=lyapunov,
                          max_components=max_components)
     return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
+
 
 def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
            eps: float, rate: float | None, rate_budget: float | None,

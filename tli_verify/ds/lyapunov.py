@@ -108,7 +108,6 @@ guarantees it whatever ``eps`` (the ``eps I`` margin alone covers it only for
 ``~1e-9`` constraint tolerance."""
 
 
-
 def data_rate(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike) -> float:
     """The demonstrations' own time scale: ``mean_i |xdot_i| / mean_i |x_i - x*|`` (1/time).
 

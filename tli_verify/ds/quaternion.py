@@ -98,8 +98,10 @@ def quat_multiply(p: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
                      w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
                      w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
 
+
 def _conjugate(q: FloatArray) -> FloatArray:
     return q * np.array([1.0, -1.0, -1.0, -1.0])
+
 
 def canonical_hemisphere(Q: npt.ArrayLike, reference: npt.ArrayLike) -> FloatArray:
     """Each quaternion with the sign that puts it in the hemisphere of ``reference``
@@ -118,6 +120,7 @@ def canonical_hemisphere(Q: npt.ArrayLike, reference: npt.ArrayLike) -> FloatArr
     ref = np.asarray(reference, dtype=np.float64)
     sign = np.where(Qa @ ref < 0.0, -1.0, 1.0)
     return np.asarray(Qa * (sign[..., None] if Qa.ndim > 1 else sign), dtype=np.float64)
+
 
 def quat_log(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     """Tangent coordinates ``xi = log_{q*}(q)``: the rotation vector of ``q*^{-1} (x) q``.
@@ -146,6 +149,7 @@ def quat_log(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     xi = e[:, 1:] * ratio[:, None]
     return xi[0] if single else xi
 
+
 def quat_exp(Xi: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     """The inverse of :func:`quat_log`: ``q = q* (x) (cos(|xi|/2), sin(|xi|/2) xi/|xi|)``.
 
@@ -172,6 +176,7 @@ def quat_exp(Xi: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return q[0] if single else q
 
+
 def rotation_angle(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     """Rotation angle (radians, in ``[0, pi]``) between each ``q`` and ``q*``.
 
@@ -186,6 +191,7 @@ def rotation_angle(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     """
     xi = quat_log(Q, attractor)
     return np.asarray(np.linalg.norm(xi, axis=-1))
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class QuaternionDS:
@@ -296,6 +302,7 @@ class QuaternionDS:
         except (TypeError, ValueError) as exc:
             raise ModelError(f"{where}: malformed orientation DS: {exc}") from None
 
+
 def tangent_data(times: Sequence[npt.ArrayLike], quaternions: Sequence[npt.ArrayLike],
                  attractor: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Tangent coordinates and their time derivatives of every demonstration.
@@ -330,6 +337,7 @@ def tangent_data(times: Sequence[npt.ArrayLike], quaternions: Sequence[npt.Array
         dxs.append(np.gradient(xi, np.asarray(t, dtype=np.float64), axis=0, edge_order=2))
     return np.concatenate(xs), np.concatenate(dxs)
 
+
 def learn_quaternion_ds(
     times: Sequence[npt.ArrayLike],
     quaternions: Sequence[npt.ArrayLike],
@@ -363,7 +371,6 @@ def learn_quaternion_ds(
     info : FitInfo
         Of the tangent-space LPV-DS.
     """
-
     if attractor is None:
         ends = np.array([np.asarray(Q, dtype=np.float64)[-1] for Q in quaternions])
         ends = canonical_hemisphere(ends, ends[0])
@@ -380,6 +387,7 @@ def learn_quaternion_ds(
     tangent, info = learn_lpvds(Xi, dXi, np.zeros(3), seed=seed, rate_budget=rate_budget,
                                 control_dt=control_dt, max_components=max_components)
     return QuaternionDS(attractor=q_star, tangent=tangent), info
+
 
 def write_orientation_model(ds: QuaternionDS, path: str | os.PathLike[str], *,
                             fit: FitInfo | None = None) -> None:
@@ -403,6 +411,7 @@ def write_orientation_model(ds: QuaternionDS, path: str | os.PathLike[str], *,
         doc["fit"] = dataclasses.asdict(fit)
     atomic_write_text(path, canonical_json(doc))
 
+
 def load_orientation_model(path: str | os.PathLike[str]) -> QuaternionDS:
     """Read an orientation model file (:func:`write_orientation_model`).
 
@@ -411,7 +420,6 @@ def load_orientation_model(path: str | os.PathLike[str]) -> QuaternionDS:
     ModelError
         Unreadable, not JSON, another kind of file, or malformed parameters (naming the file).
     """
-
     doc = read_json(path, what="orientation model", error=ModelError)
     if not isinstance(doc, dict) or doc.get("kind") != ORIENTATION_MODEL_KIND:
         raise ModelError(f"{path}: not an orientation model (kind must be "

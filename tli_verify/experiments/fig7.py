@@ -62,6 +62,7 @@ def b_to_a_failures(res: EpisodeResult) -> int:
     return sum(1 for e in res.events
                if isinstance(e, InvarianceFailure) and (e.mode, e.to_mode) == ("b", "a"))
 
+
 def is_fig7_loop(res: EpisodeResult, budget: int, *,
                  min_rounds: int = FIG7_MIN_ROUNDS) -> bool:
     """Fig. 7's top row: no ``d`` within the whole step budget, at least ``min_rounds``
@@ -72,6 +73,7 @@ def is_fig7_loop(res: EpisodeResult, budget: int, *,
             and b_to_a_failures(res) >= min_rounds
             and len(tail) == 2 * min_rounds and set(tail) == {"a", "b"})
 
+
 def is_fig7_rescue(res: EpisodeResult) -> bool:
     """Fig. 7's LTL-DS rows: ``d`` reached after exactly one invariance failure, ``b -> a``,
     and the one cut it produced (for mode b)."""
@@ -81,10 +83,12 @@ def is_fig7_rescue(res: EpisodeResult) -> bool:
             and (fails[0].mode, fails[0].to_mode) == ("b", "a")
             and len(cuts) == 1 and cuts[0].mode == "b")
 
+
 def _rounded_perturbations(rng: np.random.Generator, count: int, task: Task, *,
                            last: int) -> dict[int, FloatArray]:
     table = random_perturbations(rng, count, task, last=last)
     return {t: np.array([float(f"{v:.2f}") for v in d]) for t, d in table.items()}
+
 
 def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 3000,
               start: npt.ArrayLike | None = None, perturbations: int = 1,
@@ -132,6 +136,7 @@ def find_loop(setup: Setup, *, seed: int = 0, tries: int = 200, steps: int = 300
                     "ltl_ds": r}
     return None
 
+
 def fig7_search(seed: int, tries: int, steps: int, lag: int = 0) -> dict[str, Any]:
     """The Fig. 7 search on the shipped model (:func:`find_loop`), in two stages.
 
@@ -163,6 +168,7 @@ def fig7_search(seed: int, tries: int, steps: int, lag: int = 0) -> dict[str, An
                     "failures) until its step budget ran out while LTL-DS reached d after "
                     "exactly one cut (" + "; ".join(tried) + ")."}
 
+
 def _replay_args(f: Mapping[str, Any]) -> str:
     """The ``tli run`` arguments that replay a Fig. 7 case (start, perturbations)."""
     x0 = ",".join(repr(float(v)) for v in f["start"])
@@ -170,6 +176,7 @@ def _replay_args(f: Mapping[str, Any]) -> str:
     for t, d in sorted(f["perturbations"].items()):
         parts.append(f"--perturb {int(t)}:" + ",".join(repr(float(v)) for v in d))
     return " ".join(parts)
+
 
 def _fig7_text(f: Mapping[str, Any], lag: int, stage: str, tries: int) -> str:
     p, r = f["no_modulation"], f["ltl_ds"]
@@ -184,6 +191,7 @@ def _fig7_text(f: Mapping[str, Any], lag: int, stage: str, tries: int) -> str:
             f"step {r.steps}. Replay: tli run --task scoop {_replay_args(f)} "
             "[--no-modulation].")
 
+
 def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
     """The JSON-ready Fig. 7 field of ``tli experiment scoop`` (from :func:`fig7_search`).
 
@@ -192,7 +200,6 @@ def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
     (mode sequence and run-length trace, ``b -> a`` failures, budget exhausted) and LTL-DS's
     (trace, its invariance failure and the cut it added).
     """
-
     out: dict[str, Any] = {"text": search["text"], "lag": search["lag"],
                            "found": search["found"] is not None, "seed": search["seed"],
                            "tries": search["tries"], "stage": search["stage"]}

@@ -43,7 +43,6 @@ def plot_fig7(task: Task, search: Mapping[str, Any],
     TliError
         The search found no case.
     """
-
     f = search["found"]
     if f is None:
         raise TliError("no Fig. 7 case to draw (the search found none)")

@@ -40,8 +40,8 @@ __all__ = [
 def scoop_setup(*, lag: int = 0) -> Setup:
     """The bundled scoop task, spec, model and certificate (the project session of task
     ``scoop``: :func:`~tli_verify.project.open_project`)."""
-
     return open_project(task="scoop", lag=lag).setup
+
 
 def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
                 lag: int = 0, bc_epochs: int = 0) -> Setup:

@@ -159,6 +159,7 @@ class SingleModeConfig:
             if not ok:
                 raise TliError(message)
 
+
 def _roll(
     config: SingleModeConfig,
     policy: Policy,
@@ -169,6 +170,7 @@ def _roll(
     record: bool = False,
 ) -> Rollouts:
     return rollout_protocol(policy, starts, contains, goal, _protocol(config), record=record)
+
 
 def sample_starts(
     states: npt.ArrayLike,
@@ -212,9 +214,11 @@ def sample_starts(
         todo[idx[ok]] = False
     return out
 
+
 def _protocol(config: SingleModeConfig) -> EulerProtocol:
     return EulerProtocol(dt=config.dt, steps=config.steps, speed_cap=config.speed_cap,
                          goal_tolerance=config.goal_tolerance)
+
 
 def learn_cuts(
     base: Policy,
@@ -257,6 +261,7 @@ def learn_cuts(
                        cut_constraints=config.cut_constraints, lyapunov=lyapunov,
                        record=record)
 
+
 @dataclass(frozen=True, slots=True)
 class TrialResult:
     """Numbers of one trial (one random mode); all keys of the dicts are strings.
@@ -298,11 +303,13 @@ class TrialResult:
     unsolved_cuts: int
     seconds: float
 
+
 def _trial_seeds(seed: int, trial: int) -> tuple[list[np.random.Generator], int, int]:
     ss = np.random.SeedSequence([seed, trial])
     rngs = [np.random.default_rng(s) for s in ss.spawn(4)]
     words = ss.generate_state(2)
     return rngs, int(words[0] % (2**31 - 1)), int(words[1] % (2**31 - 1))
+
 
 def run_trial(
     config: SingleModeConfig, trial: int, *, record: bool = False
@@ -322,7 +329,6 @@ def run_trial(
     result : TrialResult
     record : dict or None
     """
-
     t0 = time.perf_counter()
     (task_rng, start_rng, cut_rng, held_rng), ds_seed, bc_seed = _trial_seeds(config.seed, trial)
     task = make_task(task_rng, workspace=config.workspace)
@@ -389,6 +395,7 @@ def run_trial(
     )
     return result, rec
 
+
 def _init_worker() -> None:  # pragma: no cover - runs in worker processes
     try:
         from threadpoolctl import threadpool_limits
@@ -397,9 +404,11 @@ def _init_worker() -> None:  # pragma: no cover - runs in worker processes
     except ImportError:
         pass
 
+
 def _trial_job(args: tuple[SingleModeConfig, int, bool]) -> tuple[TrialResult, Any]:
     config, trial, record = args
     return run_trial(config, trial, record=record)
+
 
 def run(
     config: SingleModeConfig,

@@ -32,6 +32,7 @@ def _stats(values: Sequence[float]) -> dict[str, float]:
             "q25": float(np.quantile(a, 0.25)), "q75": float(np.quantile(a, 0.75)),
             "min": float(a.min()), "max": float(a.max())}
 
+
 def summarize(
     trials: Sequence[TrialResult], config: SingleModeConfig, *, seconds: float | None = None,
     workers: int | None = None,
@@ -101,8 +102,10 @@ def summarize(
         "per_trial": [asdict(t) for t in trials],
     }
 
+
 def _pct(x: float) -> str:
     return f"{100.0 * x:.1f}"
+
 
 def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
     """The Markdown report: table (mean [IQR]), paper numbers, cuts, held-out, shape checks."""
@@ -169,6 +172,7 @@ def markdown(summary: dict[str, Any], *, figures: Sequence[str] = ()) -> str:
         lines += ["", f"![{markdown_text(fig)}]({markdown_url(fig)})"]
     return "\n".join(lines) + "\n"
 
+
 def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     import matplotlib
 
@@ -231,6 +235,7 @@ def _plot_rollouts(record: dict[str, Any], path: Path) -> None:
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
+
 def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     import matplotlib
 
@@ -262,6 +267,7 @@ def _plot_curve(summary: dict[str, Any], path: Path) -> None:
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
+
 def write_outputs(
     summary: dict[str, Any], record: dict[str, Any] | None, out_dir: Path, *,
     figures: bool = True,
@@ -283,7 +289,6 @@ def write_outputs(
     list of Path
         The files written (JSON, Markdown, then figures).
     """
-
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     figs: list[str] = []

@@ -102,6 +102,7 @@ class SpecCheck:
             "hints": [h.to_dict() for h in self.hints],
         }
 
+
 def _spec_arg(spec: Any) -> GR1Spec:
     """The ``spec`` argument of :func:`check_spec` and :func:`synthesize`: a GR1Spec, or a
     spec file (loaded as :func:`check_spec_file` would)."""
@@ -117,6 +118,7 @@ def _spec_arg(spec: Any) -> GR1Spec:
         return load_spec(path)
     raise bad_type(SpecError, f"spec: expected a GR1Spec (load_spec) or a spec file, got "
                    f"{type(spec).__name__}")
+
 
 def check_spec(spec: GR1Spec | str | os.PathLike[str], *, core: bool = False,
                hints: bool = False) -> SpecCheck:
@@ -154,6 +156,7 @@ def check_spec(spec: GR1Spec | str | os.PathLike[str], *, core: bool = False,
                      warnings=tuple(warnings), seconds=time.perf_counter() - start,
                      well_separation=separation, core=the_core, hints=the_hints)
 
+
 def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: bool = False
                     ) -> SpecCheck:
     """Load and check a spec file (raises :class:`~tli_verify.errors.SpecError` on bad input).
@@ -161,12 +164,12 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
     A ``.spectra``, ``.structuredslugs`` or ``.slugsin`` file is read through
     :func:`~tli_verify.logic.foreign.import_spec_file` (in the tool's own, textbook reading
     of safety at time 0), as ``tli spec import`` would translate it."""
-
     if Path(path).suffix in FORMATS:
         spec = parse_spec(import_spec_file(Path(path)), path=f"{path} (imported)",
                           default_name=Path(path).stem)
         return check_spec(spec, core=core, hints=hints)
     return check_spec(load_spec(path), core=core, hints=hints)
+
 
 def synthesize(spec: GR1Spec | str | os.PathLike[str]) -> TaskAutomaton:
     """The task automaton of a realizable spec (paper Sec. 4.2, "Task-Level Reactivity in

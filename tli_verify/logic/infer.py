@@ -120,7 +120,6 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         Unreadable file, invalid TOML, no ``[modes]`` table, a mode name that is not an AP
         name or names a sensor, a label that is not propositional or uses an unknown sensor.
     """
-
     where = str(path)
     text = read_text(path, what="labels", error=SpecError)
     data = parse_toml(text, where=where, error=SpecError)
@@ -162,12 +161,12 @@ class _Observed:
     final: tuple[tuple[str, ...], ...]
     successors: dict[tuple[str, ...], tuple[tuple[str, ...], ...]]
 
+
 def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[str]
              ) -> _Observed:
     """Label every sample (:func:`~tli_verify.segmentation.spec_labeler`) and collect the
     runs of equal label groups. Unlike :func:`~tli_verify.segmentation.segment_demos` this
     needs no DS training data: a group seen for one sample is a valid observation."""
-
     # A minimal spec carrying the labels, for spec_labeler (label evaluation and messages).
     holder = GR1Spec(name="labels", inputs=tuple(sensors), outputs=tuple(labels),
                      modes=dict(labels), assume=_empty_side(), guarantee=_empty_side())
@@ -211,9 +210,11 @@ def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[
                      successors={g: tuple(sorted(v, key=order.__getitem__))
                                  for g, v in succ.items()})
 
+
 def _empty_side() -> Any:
 
     return SpecSide()
+
 
 def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
     """Demonstrated steps from each group to a final group (backward BFS)."""
@@ -230,12 +231,14 @@ def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
         frontier = nxt
     return dist
 
+
 def _label_bdds(labels: Mapping[str, str], sensors: Sequence[str]) -> tuple[Any, dict[str, Any]]:
 
     bdd = new_manager()
     bdd.declare(*sensors)
     return bdd, {m: formula_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
                  for m, lab in labels.items()}
+
 
 def _class_formulas(groups: Sequence[tuple[str, ...]], labels: Mapping[str, str],
                     sensors: Sequence[str]) -> dict[tuple[str, ...], str]:
@@ -256,16 +259,19 @@ def _class_formulas(groups: Sequence[tuple[str, ...]], labels: Mapping[str, str]
         out[g] = " & ".join([f"({lab})" for lab in own] + [f"!({lab})" for lab in others])
     return out
 
+
 def _or(parts: Sequence[str]) -> str:
     if len(parts) == 1:
         return parts[0]
     return " | ".join(f"({p})" for p in parts)
+
 
 def _fresh_marker(taken: set[str]) -> str:
     for name in MARKER_NAMES:
         if name not in taken:
             return name
     raise SpecError("no free name for the perturbation marker output")  # pragma: no cover
+
 
 def infer_spec_text(demos: Sequence[Any], labels: Mapping[str, str], *,
                     name: str = "inferred", sources: Sequence[str] = ()) -> str:
@@ -361,15 +367,18 @@ def infer_spec_text(demos: Sequence[Any], labels: Mapping[str, str], *,
     ]
     return "\n".join(lines) + "\n"
 
+
 def _init_guarantee(modes: Sequence[str], marker: str) -> str:
     if len(modes) == 1:
         return f"{modes[0]} & !{marker}"
     return f"({' | '.join(modes)}) & !{marker}"
 
+
 def _marker_formula(marker: str, regress: Sequence[tuple[str, str]]) -> str:
     if not regress:
         return f"G(X {marker} <-> false)"
     return f"G(X {marker} <-> ({' | '.join(f'({m} & X {n})' for m, n in regress)}))"
+
 
 def infer_spec(demos: Sequence[Any], labels: Mapping[str, str], *, name: str = "inferred",
                sources: Sequence[str] = ()) -> GR1Spec:
@@ -396,8 +405,10 @@ def _toml_str(s: str) -> str:
     out.append('"')
     return "".join(out)
 
+
 def _toml_list(items: Sequence[str]) -> str:
     return "[" + ", ".join(_toml_str(i) for i in items) + "]"
+
 
 def spec_to_toml(spec: GR1Spec) -> str:
     """The TOML text of ``spec`` (its file formulas; the ``[modes]`` constraints are re-added
@@ -435,10 +446,12 @@ def _ap(f: Any) -> str | None:
 
     return str(f.ap_name()) if f.kind() == spot.op_ap else None
 
+
 def _g_body(f: Any) -> Any | None:
     from tli_verify.logic.spot_import import spot
 
     return f[0] if f.kind() == spot.op_G else None
+
 
 def _marker_parts(body: Any, markers: set[str]) -> tuple[str, str] | None:
     """``(marker, rhs text)`` if ``body`` is ``X p <-> R`` (or ``!X p``: ``R`` false)."""
@@ -461,6 +474,7 @@ def _marker_parts(body: Any, markers: set[str]) -> tuple[str, str] | None:
     if body.kind() == spot.op_X and body[0].kind() == spot.op_Not and _ap(body[0][0]) in markers:
         return _ap(body[0][0]), "false"  # type: ignore[return-value]
     return None
+
 
 def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
                    perturbation: bool = True) -> GR1Spec:
@@ -555,6 +569,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
                                 "the old spec is kept")
     return grown
 
+
 def _or_next(rhs: Any, extra: str) -> str:
     """``rhs | X extra`` as text; ``X(D | extra)`` when ``rhs`` is ``X D``, so that repeated
     growth keeps the formula flat (Spot's n-ary ``|``)."""
@@ -563,6 +578,7 @@ def _or_next(rhs: Any, extra: str) -> str:
     if rhs.kind() == spot.op_X:
         return f"X(({rhs[0]!s}) | ({extra}))"
     return f"(({rhs!s}) | X({extra}))"
+
 
 def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     """``spec`` with some file formulas' texts replaced, re-parsed (the checks run again)."""
@@ -578,10 +594,10 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     draft = dc_replace(spec, assume=side(spec.assume), guarantee=side(spec.guarantee))
     return parse_spec(spec_to_toml(draft), default_name=spec.name)
 
+
 def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     """Whether the game already has a move from ``from_mode`` (under its label) to
     ``to_mode`` (under its label) that both players' safety formulas allow."""
-
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
@@ -590,10 +606,10 @@ def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
     return bool(move != bdd.false)
 
+
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
     """The grown assumptions let the sensors move from ``from_mode``'s label to
     ``to_mode``'s while the system runs ``from_mode``."""
-
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
@@ -604,6 +620,7 @@ def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
                         f"change {spec.modes[from_mode]!r} -> {spec.modes[to_mode]!r} of the "
                         f"transition {from_mode} -> {to_mode}: no assumption of the form "
                         "G(C -> X(...)) covers it")
+
 
 def resume_state(automaton: TaskAutomaton, old: AutomatonState,
                  sensors: Mapping[str, bool] | Iterable[str]) -> int:
@@ -650,6 +667,7 @@ def resume_state(automaton: TaskAutomaton, old: AutomatonState,
     cands.sort(key=lambda s: (s.goal != old.goal, s.id))
     return cands[0].id
 
+
 @dataclass(frozen=True, slots=True)
 class Regrowth:
     """The result of :func:`regrow`.
@@ -668,12 +686,12 @@ class Regrowth:
     automaton: TaskAutomaton
     state: int
 
+
 def regrow(spec: GR1Spec, from_mode: str, to_mode: str, old: AutomatonState,
            sensors: Mapping[str, bool] | Iterable[str], *, perturbation: bool = True
            ) -> Regrowth:
     """:func:`add_transition`, re-synthesis and :func:`resume_state` in one call (for the
     executive's ``--learn-transitions``)."""
-
     grown = add_transition(spec, from_mode, to_mode, perturbation=perturbation)
     automaton = synthesize(grown)
     return Regrowth(spec=grown, automaton=automaton,

@@ -43,7 +43,6 @@ def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, s
     SpecError
         If the spec has no ``[modes]`` table.
     """
-
     table = getattr(spec, "modes", None)
     path = getattr(spec, "path", None) or "<spec>"
     if not table:
@@ -60,6 +59,7 @@ def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, s
         return cache[key]
 
     return label, modes, MappingProxyType(labels)
+
 
 def runs(groups: list[tuple[str, ...]]) -> list[tuple[int, int]]:
     """Boundaries of maximal runs of equal groups."""

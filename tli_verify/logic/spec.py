@@ -124,6 +124,7 @@ class SpecFormula:
         tag = self.label if self.origin == "file" else f"{self.label} (added from [modes])"
         return f"{loc} {tag}"
 
+
 @dataclass(frozen=True, slots=True)
 class SpecSide:
     """One side of the GR(1) formula: ``phi^e`` (assume) or ``phi^s`` (guarantee)."""
@@ -135,6 +136,7 @@ class SpecSide:
     def all(self) -> tuple[SpecFormula, ...]:
         """Every formula of this side."""
         return self.init + self.safety + self.liveness
+
 
 @dataclass(frozen=True, slots=True)
 class GR1Spec:
@@ -205,6 +207,7 @@ class GR1Spec:
         """The formulas the tool added from the ``[modes]`` table."""
         return tuple(f for f in self.formulas() if f.origin == "modes")
 
+
 def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     """Load and validate a spec file.
 
@@ -222,7 +225,6 @@ def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     SpecError
         Naming the file, line and field of the first problem.
     """
-
     text = read_text(path, what="spec", error=SpecError)
     snap = current()
     if snap is None:
@@ -230,6 +232,7 @@ def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
     spec = snap.parse("spec", path,
                       lambda: parse_spec(text, path=str(path), default_name=Path(path).stem))
     return spec if spec.path == str(path) else dataclasses.replace(spec, path=str(path))
+
 
 def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec") -> GR1Spec:
     """Parse the TOML text of a spec (see the module docstring for the format)."""
@@ -303,6 +306,7 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
         semantics=semantics,
     )
 
+
 def _goal(raw: Any, inputs: tuple[str, ...], outputs: tuple[str, ...],
           modes: dict[str, str] | None, where: str, lines: _LineFinder
           ) -> tuple[tuple[str, ...] | None, tuple[str, ...]]:
@@ -333,6 +337,7 @@ def _goal(raw: Any, inputs: tuple[str, ...], outputs: tuple[str, ...],
                             f"({', '.join(inputs)})")
     return (None if gm is None else tuple(gm)), tuple(gs)
 
+
 def _too_deep(data: Any) -> str | None:
     """The top-level key of a value nested deeper than ``MAX_TOML_DEPTH`` (no recursion)."""
     stack: list[tuple[str, Any, int]] = [(str(k), v, 1) for k, v in data.items()]
@@ -346,6 +351,7 @@ def _too_deep(data: Any) -> str | None:
             stack.extend((key, v, depth + 1) for v in value)
     return None
 
+
 def _deep_line(text: str) -> int:
     """Best-effort line where bracket nesting first exceeds ``MAX_TOML_DEPTH``."""
     depth = 0
@@ -355,6 +361,7 @@ def _deep_line(text: str) -> int:
             if depth > MAX_TOML_DEPTH:
                 return number
     return 1
+
 
 def label_holds(spec: GR1Spec, mode: str, sensors: Mapping[str, bool]) -> bool:
     """Whether mode ``mode``'s sensor label holds for the reading ``sensors``.
@@ -374,6 +381,7 @@ def label_holds(spec: GR1Spec, mode: str, sensors: Mapping[str, bool]) -> bool:
     if missing:
         raise SpecError(f"sensor reading lacks input {missing[0]!r}")
     return _eval_bool(parse_formula(spec.modes[mode], where=f"modes.{mode}"), sensors)
+
 
 def _eval_bool(f: Any, values: Mapping[str, bool]) -> bool:
     from tli_verify.logic.spot_import import spot
@@ -399,6 +407,7 @@ def _eval_bool(f: Any, values: Mapping[str, bool]) -> bool:
     if kind == spot.op_Xor:
         return args[0] != args[1]
     raise SpecError(f"{f}: not a propositional formula")
+
 
 class _LineFinder:
     """Best-effort line numbers for values in a TOML text (tomllib keeps none)."""
@@ -437,6 +446,7 @@ class _LineFinder:
                 return bisect.bisect_right(self._starts, pos)
         return None
 
+
 def _ap_list(data: Mapping[str, Any], key: str, where: str, lines: _LineFinder
              ) -> tuple[str, ...]:
     raw = data.get(key, [])
@@ -453,6 +463,7 @@ def _ap_list(data: Mapping[str, Any], key: str, where: str, lines: _LineFinder
             raise SpecError(f"{loc}: '{key}': {name!r} listed twice")
         seen.add(name)
     return tuple(raw)
+
 
 def _modes(raw: Any, inputs: tuple[str, ...], outputs: tuple[str, ...], where: str,
            lines: _LineFinder) -> dict[str, str] | None:
@@ -480,6 +491,7 @@ def _modes(raw: Any, inputs: tuple[str, ...], outputs: tuple[str, ...], where: s
         modes[mode] = str(f)
     return modes
 
+
 def _as_list(raw: Any, loc: str, *, allow_str: bool) -> list[str]:
     if isinstance(raw, str) and allow_str:
         return [raw]
@@ -487,6 +499,7 @@ def _as_list(raw: Any, loc: str, *, allow_str: bool) -> list[str]:
         return list(raw)
     what = "a formula string or a list of them" if allow_str else "a list of formula strings"
     raise SpecError(f"{loc}: must be {what}")
+
 
 def _side(raw: Any, side: str, inputs: tuple[str, ...], outputs: tuple[str, ...], where: str,
           lines: _LineFinder, memo: dict[int, tuple[int, int, Any]] | None = None
@@ -524,6 +537,7 @@ def _side(raw: Any, side: str, inputs: tuple[str, ...], outputs: tuple[str, ...]
         parts[key] = tuple(formulas)
     return SpecSide(init=parts["init"], safety=parts["safety"], liveness=parts["liveness"])
 
+
 def _check_assumption_vars(f: Any, outputs: tuple[str, ...], slot: Slot, tag: str) -> None:
     """Assumptions may not constrain the system's initial or next values."""
     from tli_verify.logic.spot_import import spot
@@ -549,6 +563,7 @@ def _check_assumption_vars(f: Any, outputs: tuple[str, ...], slot: Slot, tag: st
 
     visit(f, False)
 
+
 def _exactly_one(names: Iterable[str]) -> str:
     names = list(names)
     if len(names) == 1:
@@ -557,6 +572,7 @@ def _exactly_one(names: Iterable[str]) -> str:
     for n in names:
         terms.append(" & ".join(n if m == n else f"!{m}" for m in names))
     return " | ".join(f"({t})" for t in terms)
+
 
 def _add_mode_constraints(modes: dict[str, str], outputs: tuple[str, ...], assume: SpecSide,
                           guarantee: SpecSide) -> tuple[SpecSide, SpecSide]:

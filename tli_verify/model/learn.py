@@ -39,6 +39,7 @@ def _rate_choice_record(info: Any) -> dict[str, float | bool]:
             "rate_rmse": float(info.rate_rmse), "data_rate": float(info.data_rate),
             "rate_within_budget": bool(info.rate_within_budget)}
 
+
 def learn_model(
     demo_paths: Sequence[str | os.PathLike[str]],
     *,
@@ -98,7 +99,6 @@ def learn_model(
     DemoError, SpecError, SolverError
         Bad demonstrations, a spec without modes, a solver status other than optimal.
     """
-
     out_dir = Path(out_path).parent
     if spec_path is not None:
 

@@ -65,6 +65,7 @@ def _matrix(value: Any, shape: tuple[int, ...], where: str) -> FloatArray:
                          f"{'x'.join(str(s) for s in arr.shape) or 'a scalar'}")
     return np.array(value, dtype=np.float64)
 
+
 def model_from_dict(data: Any, *, where: str = "model", path: str | None = None) -> Model:
     """Validate a parsed model document (schema, then semantics) and build the model.
 
@@ -134,6 +135,7 @@ def model_from_dict(data: Any, *, where: str = "model", path: str | None = None)
     return Model(state_names=names, modes=MappingProxyType(modes), spec=data.get("spec"),
                  path=path, source=MappingProxyType(dict(source)) if source else None)
 
+
 def load_model(path: str | os.PathLike[str]) -> Model:
     """Load and validate a model file (public API: ``tli_verify.load_model``).
 
@@ -152,16 +154,17 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         Naming the file and the JSON field, e.g.
         ``models/x.json: modes.a.components[2].cov: not symmetric positive definite``.
     """
-
     snap = current()
     if snap is None:
         return _load_model(path)
     model = snap.parse("model", path, lambda: _load_model(path))
     return model if model.path == str(path) else dataclasses.replace(model, path=str(path))
 
+
 def _load_model(path: str | os.PathLike[str]) -> Model:
     data = read_json(path, what="model", error=ModelError)
     return model_from_dict(data, where=str(path), path=str(path))
+
 
 def _mode_to_dict(m: ModeModel) -> dict[str, Any]:
     ds = m.ds
@@ -181,6 +184,7 @@ def _mode_to_dict(m: ModeModel) -> dict[str, Any]:
         entry["fit"] = dict(m.fit)
     return entry
 
+
 def model_to_dict(model: Model) -> dict[str, Any]:
     """The JSON document of a model (inverse of :func:`model_from_dict`)."""
     doc: dict[str, Any] = {
@@ -193,15 +197,18 @@ def model_to_dict(model: Model) -> dict[str, Any]:
         doc["source"] = json.loads(json.dumps(dict(model.source)))
     return doc
 
+
 def save_model(model: Model, path: str | os.PathLike[str]) -> None:
     """Write a model file atomically (canonical JSON, exact float round-trip)."""
     doc = model_to_dict(model)
     model_from_dict(doc, where=str(path))  # never write a file we would refuse to load
     atomic_write_text(path, canonical_json(doc))
 
+
 def relative_to_file(target: str | os.PathLike[str], base_dir: Path) -> str:
     """``target`` relative to ``base_dir`` (POSIX separators), for portable files."""
     return Path(os.path.relpath(Path(target).resolve(), base_dir.resolve())).as_posix()
+
 
 def relocate_model(model: Model, out_path: str | os.PathLike[str], *,
                    modes: Mapping[str, ModeModel] | None = None) -> Model:

@@ -77,6 +77,7 @@ def numeric_limits() -> dict[str, float]:
             "cov_min_eigenvalue": COV_MIN_EIGENVALUE, "cov_max_condition": COV_MAX_CONDITION,
             "prior_sum_tolerance": PRIOR_SUM_TOL}
 
+
 def check_range(value: Any, parts: list[str | int], where: str) -> None:
     """Every number under ``value`` is within ``MAX_ABS_VALUE`` (``MAX_ABS_COVARIANCE`` under a
     ``cov`` field); errors name the entry."""
@@ -99,6 +100,7 @@ def check_range(value: Any, parts: list[str | int], where: str) -> None:
         elif isinstance(v, dict):
             stack.extend((item, [*loc, k]) for k, item in v.items())
 
+
 def check_covariance(cov: FloatArray, where: str) -> None:
     """Symmetric positive definite, safely invertible: eigenvalues and condition bounded."""
     check_symmetric(cov, where)
@@ -114,6 +116,7 @@ def check_covariance(cov: FloatArray, where: str) -> None:
     if hi / lo > COV_MAX_CONDITION:
         raise ModelError(f"{where}: condition number {hi / lo:.3g} exceeds "
                          f"{COV_MAX_CONDITION:g} (COV_MAX_CONDITION): not safely invertible")
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ModeModel:
@@ -151,7 +154,6 @@ class ModeModel:
         ModelError
             A cut of the wrong dimension, or one that leaves ``x*`` outside.
         """
-
         object.__setattr__(self, "cuts", tuple(self.cuts))
         if self.fit is not None and not isinstance(self.fit, MappingProxyType):
             object.__setattr__(self, "fit", MappingProxyType(dict(self.fit)))
@@ -184,7 +186,6 @@ class ModeModel:
         -------
         ndarray, same shape as ``X``
         """
-
         check_control_period(dt)
         return self.modulate(X, self.ds.velocity(X), dt=dt)
 
@@ -219,6 +220,7 @@ class ModeModel:
         """A copy with the given cuts (validated, modulator rebuilt)."""
         return ModeModel(key=self.key, mode=self.mode, next_mode=self.next_mode, ds=self.ds,
                          cuts=tuple(cuts), fit=self.fit)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Model:
@@ -390,6 +392,7 @@ class Model:
             modes[k] = mm.with_cuts((*mm.cuts, cut))
         return Model(state_names=self.state_names, modes=MappingProxyType(modes),
                      spec=self.spec, path=self.path, source=self.source)
+
 
 def check_symmetric(M: FloatArray, where: str) -> None:
     bad = np.argwhere(M != M.T)

@@ -43,6 +43,7 @@ def task_period(spec: str | os.PathLike[str] | None) -> Fraction | None:
     task = spec_task(load_spec(spec), Path(spec))
     return None if task is None else Fraction(repr(task.dt))
 
+
 def control_period(explicit: Fraction | float | None,
                    spec: str | os.PathLike[str] | None) -> Fraction:
     """Settle the control period: the explicit one, else the spec's task's, else the default.

@@ -56,7 +56,6 @@ if TYPE_CHECKING:
     from tli_verify.model.types import Model
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
-    from tli_verify.runtime.setup import Setup
     from tli_verify.tasks.project import Resolved
     from tli_verify.tasks.task import Goal, Task
     from tli_verify.verify.campaign import CampaignResult
@@ -96,7 +95,6 @@ class Session:
         TaskError
             (exit 2) The goal is not reachable in the automaton.
         """
-
         automaton = synthesize(self.spec)
         check_goal(automaton, self.files.goal, where=str(self.files.spec))
         return automaton
@@ -114,7 +112,6 @@ class Session:
     @property
     def setup(self) -> Setup:
         """What a closed-loop episode runs (:class:`~tli_verify.runtime.setup.Setup`)."""
-
         return Setup(task=self.task, automaton=self.automaton, model=self.model,
                      certificate=str(self.files.certificate), goal=self.goal,
                      spec=str(self.files.spec))
@@ -132,7 +129,6 @@ class Session:
 
     def check_certificate_covers(self) -> Fraction:
         """Refuse a certificate that does not cover the model; return its control period."""
-
         with self.snapshot.use():
             return check_coverage(self.model, self.files.certificate)
 
@@ -154,7 +150,6 @@ class Session:
         automaton : TaskAutomaton, optional
             Run another automaton of the same task (``tli run --learn-transitions``).
         """
-
         setup = self.setup if automaton is None else replace(self.setup, automaton=automaton)
         with self.snapshot.use():
             return make_policy(setup, variant)
@@ -179,6 +174,7 @@ class Session:
                       model=str(files.model), certificate=str(files.certificate))
         with self.snapshot.use():
             return run_campaign(cfg)
+
 
 def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None = None,
                perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
@@ -210,7 +206,6 @@ def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None =
     InputError
         (a TaskError; also a ValueError or TypeError) Naming the argument.
     """
-
     steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
     seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
     if start is not None:
@@ -231,6 +226,7 @@ def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None =
         table[t] = check_vector(d, f"perturbations[{t}]", task.dim, error=TaskError)
     return run_episode(policy.fork(), TaskSensors(task), x0, steps=steps,
                        perturb=pusher(task, table))
+
 
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,
                  spec: PathLike | None = None, model: PathLike | None = None,
@@ -259,7 +255,6 @@ def open_project(path: PathLike | None = None, *, task: PathLike | Task | None =
         :func:`tli_verify.runtime.setup.load_setup`: a missing file, a model that does not fit
         the task, an unreachable goal.
     """
-
     snap = Snapshot()
     with snap.use():
         if path is not None:
@@ -274,6 +269,7 @@ def open_project(path: PathLike | None = None, *, task: PathLike | Task | None =
         files = resolve(task=task, spec=spec, model=model, certificate=certificate, lag=lag)
         return Session(files=files, spec=load_spec(files.spec), model=load_model(files.model),
                        snapshot=snap)
+
 
 _MARKERS = ("models", "specs", "tasks")
 """Folders that make a directory a project (``tli init`` writes them)."""
@@ -294,7 +290,6 @@ def locate(where: Path, *, given_spec_or_model: bool = False
         (exit 2) No such path; not in a project; several models, or no model and not exactly
         one spec.
     """
-
     if where.is_file() and where.suffix == ".json":
         return "model", where, Path(os.path.abspath(project_root(where)))
     if where.is_file() and where.suffix == ".toml":
@@ -321,6 +316,7 @@ def locate(where: Path, *, given_spec_or_model: bool = False
         return "spec", specs[0], root
     raise TaskError(f"{root}: no model in models/ and {len(specs)} specs in specs/: pass "
                     "model= or spec= (learn and certify a model first: tli learn, tli certify)")
+
 
 def _toml_kind(path: Path) -> str:
     """``"task"`` for a task file (a ``[state]`` table), else ``"spec"``."""

@@ -54,9 +54,11 @@ def plan_states(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str
                              f"towards the modes it can move to ({towards})")
     return {st.state: st for st in steps}
 
+
 def _same_ds(a: Any, b: Any) -> bool:
     return all(np.array_equal(getattr(a, f), getattr(b, f))
                for f in ("attractor", "priors", "means", "covs", "A", "P"))
+
 
 def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fraction:
     """Check that ``certificate`` covers ``model``, as the gate does; return its ``dt``.

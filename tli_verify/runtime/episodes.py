@@ -62,7 +62,6 @@ def random_start(task: Task, automaton: Any, rng: np.random.Generator, *,
     TaskError
         (exit 2) No such state in ``tries`` draws.
     """
-
     lo, hi = np.array(task.lo), np.array(task.hi)
     region = task.starts.region
     if region is not None:
@@ -81,6 +80,7 @@ def random_start(task: Task, automaton: Any, rng: np.random.Generator, *,
     raise TaskError(f"{task.where}: no start with an initial reading in {tries} uniform draws"
                     + (f" of region {region!r}" if region is not None else ""))
 
+
 def random_direction(rng: np.random.Generator, dim: int) -> FloatArray:
     """A uniform unit vector of ``R^dim``, shape (dim,): by angle in 2-D, a normalised normal
     draw otherwise (redrawn if it is near zero)."""
@@ -92,6 +92,7 @@ def random_direction(rng: np.random.Generator, dim: int) -> FloatArray:
         n = float(np.linalg.norm(v))
         if n > 1e-12:
             return np.asarray(v / n, dtype=np.float64)
+
 
 def random_perturbations(rng: np.random.Generator, count: int, task: Task, *, first: int = 1,
                          last: int = 700, max_magnitude: float | None = None
@@ -126,6 +127,7 @@ def random_perturbations(rng: np.random.Generator, count: int, task: Task, *, fi
         out[t] = rng.uniform(0.0, size) * d
     return out
 
+
 def pusher(task: Task, table: Mapping[int, npt.ArrayLike]
            ) -> Callable[[int, FloatArray], FloatArray | None]:
     """``push(t, x)``: the state after the perturbation of step ``t`` (clipped to the
@@ -140,6 +142,7 @@ def pusher(task: Task, table: Mapping[int, npt.ArrayLike]
 
     return push
 
+
 def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
                 perturbations: Mapping[int, npt.ArrayLike] | None = None, *,
                 steps: int = 3000, policy: LTLDSPolicy | None = None) -> EpisodeResult:
@@ -150,6 +153,7 @@ def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
     pol = policy if policy is not None else make_policy(setup, variant)
     return run_episode(pol, TaskSensors(setup.task), x0, steps=steps,
                        perturb=pusher(setup.task, perturbations or {}))
+
 
 def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
                       perturbations: Sequence[Mapping[int, npt.ArrayLike]], *,
@@ -174,13 +178,13 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
         return run_episodes(policies, sensors, X, steps=steps, perturb=perturb)
     return _run_bc(setup, policies, sensors, X, steps=steps, perturb=perturb)
 
+
 def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[TaskSensors],
             X: FloatArray, *, steps: int,
             perturb: Callable[[int, int, FloatArray], FloatArray | None]
             ) -> list[EpisodeResult]:
     """:func:`run_episodes` with the BC nets moving the state (modulated by the cuts the
     executive learns for the mode's region, :func:`tli_verify.boundary.modulation.modulated`)."""
-
     if not setup.bc:
         raise TliError("the BC variant needs BC nets (Setup.bc)")
     X = X.copy()
@@ -233,6 +237,7 @@ def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[Tas
         astates.append([-1 if p.state is None else p.state for p in policies])
     return batch_results(policies, hist, modes, astates, taken)
 
+
 def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:
     """Run-length form ``[[value, first_step], ...]`` of a per-step sequence."""
     out: list[list[Any]] = []
@@ -241,15 +246,16 @@ def mode_runs(seq: Sequence[Any]) -> list[list[Any]]:
             out.append([v, t])
     return out
 
+
 def mode_string(res: EpisodeResult) -> str:
     """The modes an episode visited (:func:`tli_verify.runtime.events.mode_sequence`)."""
     return mode_sequence(res.modes)
+
 
 def episode_json(res: EpisodeResult, *, task: str, variant: str, seconds: float,
                  x0: FloatArray, perturbations: Mapping[int, npt.ArrayLike],
                  dt: float) -> dict[str, Any]:
     """The ``tli run --json`` record of one episode."""
-
     return {
         "task": task,
         "variant": variant,

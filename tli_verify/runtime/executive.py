@@ -140,6 +140,7 @@ class _EntryRecord(list[FloatArray]):
         out[:m, m] = ((self._points - self[m]) ** 2).sum(axis=-1)
         return out
 
+
 class LTLDSPolicy:
     """The LTL-DS executive: task automaton + modulated, certified DS per mode (paper eq. 6).
 
@@ -340,7 +341,6 @@ class LTLDSPolicy:
     @property
     def spec(self) -> GR1Spec | None:
         """The current spec, parsed from :attr:`spec_toml` (None when built without one)."""
-
         return None if self._spec_text is None else parse_spec(self._spec_text)
 
     # ---------------------------------------------------------------- planning
@@ -558,7 +558,6 @@ class LTLDSPolicy:
         """Learn the transition a reading the assumptions rule out shows
         (:func:`~tli_verify.runtime.growth.learn_transition`); the state of the grown automaton
         to carry on from, or None (refused, or nothing to learn: the caller resynchronizes)."""
-
         spec = self.spec
         if spec is None or self._state is None:  # pragma: no cover - checked in __init__
             return None

@@ -49,6 +49,7 @@ class Growth:
     state: int
     to_mode: str
 
+
 @dataclass(frozen=True, slots=True)
 class Refusal:
     """Nothing learned from a reading.
@@ -64,6 +65,7 @@ class Refusal:
 
     to_mode: str | None
     reason: str | None
+
 
 def learn_transition(spec: GR1Spec, automaton: TaskAutomaton, state: int, from_mode: str,
                      reading: frozenset[str], model: Model,
@@ -90,7 +92,6 @@ def learn_transition(spec: GR1Spec, automaton: TaskAutomaton, state: int, from_m
     -------
     Growth or Refusal
     """
-
     values = {i: i in reading for i in spec.inputs}
     holds = [m for m in spec.mode_names if label_holds(spec, m, values)]
     if len(holds) != 1:

@@ -149,6 +149,7 @@ class Exit:
                 "entry": list(self.entry), "last_inside": list(self.last_inside),
                 "outside": list(self.outside), "crossed": self.crossed, "kind": self.kind}
 
+
 @dataclass(frozen=True, slots=True)
 class HandoffClaim:
     """What is established about one DS key: invariance of its mode and the hand-off.
@@ -227,6 +228,7 @@ class HandoffClaim:
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"{where}: source.handoff: malformed claim ({exc})") from None
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class HandoffReport:
     """The outcome of :func:`learn_handoffs`.
@@ -259,6 +261,7 @@ class HandoffReport:
         return {"version": HANDOFF_VERSION, "seed": self.seed, "samples": self.samples,
                 "claims": [c.to_dict() for c in self.claims],
                 "exits": [e.to_dict() for e in self.exits[:20]]}
+
 
 # ------------------------------------------------------------------------------ geometry
 def _support(prim: Primitive, y: FloatArray) -> tuple[FloatArray, FloatArray] | None:
@@ -301,6 +304,7 @@ def _support(prim: Primitive, y: FloatArray) -> tuple[FloatArray, FloatArray] | 
         return g / gn, prim.center + off / math.sqrt(q)
     return None  # pragma: no cover - every Primitive is one of the four
 
+
 def _crossing(prim: Primitive, a: FloatArray, b: FloatArray) -> FloatArray:
     """The point where the segment ``a -> b`` crosses ``prim``'s boundary (bisection; the
     membership of ``a`` and ``b`` differ)."""
@@ -313,6 +317,7 @@ def _crossing(prim: Primitive, a: FloatArray, b: FloatArray) -> FloatArray:
         else:
             hi = mid
     return a + hi * (b - a)
+
 
 def _leaves(task: Task) -> list[tuple[str, Primitive]]:
     """Every convex shape that decides a state's reading, and the workspace box (a bound:
@@ -327,6 +332,7 @@ def _leaves(task: Task) -> list[tuple[str, Primitive]]:
                 seen.append(leaf)
                 out.append((nr.name, leaf))
     return out
+
 
 def _face_cut(task: Task, attractors: Sequence[FloatArray], last: FloatArray,
               out: FloatArray, existing: Sequence[Cut]) -> tuple[Cut, str] | None:
@@ -361,11 +367,13 @@ def _face_cut(task: Task, attractors: Sequence[FloatArray], last: FloatArray,
     cands.sort(key=lambda c: (c[0], c[1]))
     return cands[0][2], cands[0][3]
 
+
 def _crossed_name(task: Task, last: FloatArray, out: FloatArray) -> str:
     for name, leaf in _leaves(task):
         if bool(leaf.contains_one(last.tolist())) != bool(leaf.contains_one(out.tolist())):
             return name
     return ""
+
 
 # ------------------------------------------------------------------------------ the plan
 @dataclass(frozen=True, slots=True)
@@ -377,6 +385,7 @@ class _Key:
     allowed: frozenset[str]
     goal: bool = False
     region: tuple[str, ...] = ()
+
 
 def _plan(task: Task, automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str] | None
           ) -> tuple[list[_Key], dict[frozenset[str], frozenset[str]]]:
@@ -404,15 +413,18 @@ def _plan(task: Task, automaton: TaskAutomaton, model: Model, goal_modes: Sequen
                             st.mode in goals, _region_names(task, readings))
     return list(keys.values()), {r: frozenset(m) for r, m in by_reading.items()}
 
+
 # ------------------------------------------------------------------------------ simulation
 def _code(reading: frozenset[str], names: Sequence[str]) -> int:
     return sum(1 << i for i, n in enumerate(names) if n in reading)
+
 
 def _valuations(L: int) -> npt.NDArray[np.bool_]:
     if L > _MAX_LATCHES:
         raise TliError(f"offline boundaries: {L} latches (at most {_MAX_LATCHES})")
     return np.array([[(v >> j) & 1 == 1 for j in range(L)] for v in range(2 ** L)],
                     dtype=bool).reshape(2 ** L, L)
+
 
 def _draw(task: Task, k: _Key, count: int, rng: np.random.Generator
           ) -> tuple[FloatArray, BoolArray]:
@@ -439,18 +451,19 @@ def _draw(task: Task, k: _Key, count: int, rng: np.random.Generator
         return np.zeros((0, lo.size)), np.zeros((0, len(task.latent_names)), dtype=bool)
     return np.concatenate(xs)[:count], np.concatenate(ls)[:count]
 
+
 @dataclass(slots=True)
 class _Outcome:
     exits: list[Exit]
     handed: list[tuple[str, FloatArray, BoolArray]]  # (mode entered, state, latch)
     rests: int
 
+
 def _assumed(automaton: TaskAutomaton, mode: str, old: frozenset[str], new: frozenset[str]
              ) -> bool:
     """Whether the spec's assumptions allow the sensor change ``old -> new`` from a state of
     ``mode`` read ``old`` (else the exit is the task's, not the policy's: a task/spec
     mismatch the executive reports as an assumption violation and never cuts)."""
-
     for s in automaton.states:
         if s.mode == mode and frozenset(s.inputs) == old:
             try:
@@ -459,6 +472,7 @@ def _assumed(automaton: TaskAutomaton, mode: str, old: frozenset[str], new: froz
                 continue
             return True
     return False
+
 
 def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
               is_entry: BoolArray, by_reading: Mapping[frozenset[str], frozenset[str]], *,
@@ -509,6 +523,7 @@ def _simulate(task: Task, model: Model, k: _Key, X0: FloatArray, L0: BoolArray,
         active = active[~done]
     return _Outcome(exits, handed, 0 if k.goal else int(active.size))
 
+
 def _horizon(model: Model, key: str, dt: float) -> int:
     """Steps to simulate: 1.5 times the time the DS's own rate (the smallest decay of
     ``A_k^T P + P A_k`` relative to ``P``, floats) takes to bring ``V`` down by the condition
@@ -524,6 +539,7 @@ def _horizon(model: Model, key: str, dt: float) -> int:
     eig = np.linalg.eigvalsh(P)
     t = math.log(float(eig[-1] / eig[0]) * 1e4) / max(rate, 1e-6)
     return int(min(max(200.0, 1.5 * t / dt + 50.0), 20000.0))
+
 
 # ------------------------------------------------------------------------------ learning
 def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: float,
@@ -665,6 +681,7 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
     return HandoffReport(model=model, claims=report.claims, exits=report.exits,
                          seed=report.seed, samples=report.samples, history=report.history)
 
+
 def _flat(task: Task, k: _Key) -> bool:
     """Whether every boundary of the key's mode is flat (its cells, and the cells listed before
     them, are boxes and polytopes; for the background, every cell). On a curved boundary the
@@ -677,6 +694,7 @@ def _flat(task: Task, k: _Key) -> bool:
         else max(names.index(n) for n in mine) + 1
     return all(isinstance(leaf, Box | Polytope)
                for c in (*cells[:upto], *task.partition.layers) for leaf in c.region.leaves())
+
 
 def _to_boundary(task: Task, k: _Key, X: FloatArray, lat: BoolArray,
                  rng: np.random.Generator) -> FloatArray:
@@ -709,6 +727,7 @@ def _to_boundary(task: Task, k: _Key, X: FloatArray, lat: BoolArray,
     t = np.where(far, 0.0, lo)  # a ray that never leaves: keep the state
     return np.asarray(X + t[:, None] * d)
 
+
 def _starts(task: Task, k: _Key, samples: int, rng: np.random.Generator,
             entries: Sequence[tuple[FloatArray, BoolArray]]
             ) -> tuple[FloatArray, BoolArray, BoolArray]:
@@ -728,6 +747,7 @@ def _starts(task: Task, k: _Key, samples: int, rng: np.random.Generator,
         flags = np.concatenate([np.zeros(len(X), dtype=bool), np.ones(n_entry, dtype=bool)])
         return np.vstack([X, EX]), np.vstack([lat, EL]), flags
     return X, lat, np.zeros(len(X), dtype=bool)
+
 
 def _cut_round(task: Task, model: Model, k: _Key, exits: Sequence[Exit], starts: FloatArray,
                margin: float) -> tuple[Model, int, int, str]:
@@ -774,6 +794,7 @@ def _cut_round(task: Task, model: Model, k: _Key, exits: Sequence[Exit], starts:
         added += 1
     return model, added, faces, why
 
+
 def _region_names(task: Task, readings: frozenset[frozenset[str]]) -> tuple[str, ...]:
     """The cells where a mode's label (one of ``readings``) can hold, under some latch
     valuation (computed once per DS key, by :func:`_plan`)."""
@@ -792,11 +813,13 @@ def _region_names(task: Task, readings: frozenset[frozenset[str]]) -> tuple[str,
             out.append(nr_name)
     return tuple(out)
 
+
 def _cell_points(task: Task, name: str) -> FloatArray | None:
     try:
         return task.sample_region(name, 8, np.random.default_rng(0))
     except TliError:
         return None
+
 
 # ------------------------------------------------------------------------------ proof
 def _as_polytope(prim: Primitive) -> tuple[FloatArray, FloatArray] | None:
@@ -820,6 +843,7 @@ def _as_polytope(prim: Primitive) -> tuple[FloatArray, FloatArray] | None:
         return np.array(rows).reshape(len(rows), n), np.array(rhs)
     return None
 
+
 def _lp_max(c: FloatArray, A: FloatArray, b: FloatArray) -> float | None:
     """max c.x over {A x <= b}; None if infeasible, inf if unbounded."""
     from scipy.optimize import linprog
@@ -833,11 +857,11 @@ def _lp_max(c: FloatArray, A: FloatArray, b: FloatArray) -> float | None:
         return math.inf  # undecided: treated as "not contained"
     return float(-res.fun)
 
+
 def _prove(task: Task, model: Model, k: _Key,
            by_reading: Mapping[frozenset[str], frozenset[str]]) -> tuple[bool, str]:
     """(E1)-(E2) decided exactly for a mode that is one box or polytope cell (module
     docstring, step 4); returns (proved, why not)."""
-
     if task.partition.layers or not isinstance(task.sensor_model, FormulaSensors):
         return False, "the task has layers or a sensor plug-in (not decided exactly)"
     cells = task.partition.cells
@@ -922,6 +946,7 @@ def _prove(task: Task, model: Model, k: _Key,
                            "in one cell of an allowed mode within the cuts (E2 not shown)")
     return True, ""
 
+
 def _convex_cell(task: Task, k: _Key) -> tuple[int, FloatArray, FloatArray] | None:
     """The mode's region as ``(cell index, A, b)`` when it is one box or polytope cell."""
     region = k.region
@@ -932,6 +957,7 @@ def _convex_cell(task: Task, k: _Key) -> tuple[int, FloatArray, FloatArray] | No
     shape = task.partition.cells[idx].region
     poly = _as_polytope(shape) if isinstance(shape, Box | Polytope) else None
     return None if poly is None else (idx, poly[0], poly[1])
+
 
 def _facet_cuts(task: Task, model: Model, k: _Key) -> tuple[Model, int]:
     """Every facet of a convex cell mode that keeps all the mode's attractors strictly inside
@@ -968,6 +994,7 @@ def _facet_cuts(task: Task, model: Model, k: _Key) -> tuple[Model, int]:
         added += 1
     return model, added
 
+
 def _interior_meet(A: FloatArray, b: FloatArray, *, flat: bool = False) -> bool:
     """Whether ``{A x <= b}`` has interior (a Chebyshev ball of positive radius); with
     ``flat``, whether it is non-empty at all (a facet is flat)."""
@@ -985,6 +1012,7 @@ def _interior_meet(A: FloatArray, b: FloatArray, *, flat: bool = False) -> bool:
                   bounds=[(None, None)] * n + [(0, 1e6)], method="highs")
     return bool(res.status == 0 and -res.fun > 1e-9)
 
+
 def _lp_feasible_meet(A: FloatArray, b: FloatArray, region: Any) -> bool:
     """Conservative: a non-polytope cell may meet the facet (True unless its bounding box
     misses the facet's)."""
@@ -1000,6 +1028,7 @@ def _lp_feasible_meet(A: FloatArray, b: FloatArray, region: Any) -> bool:
         if top < float(rlo[i]) or -bot > float(rhi[i]):
             return False
     return True
+
 
 def _handoff_readings(task: Task, source: str, target: str, k: _Key) -> list[frozenset[str]]:
     """The readings of a step from cell ``source`` into cell ``target``, for every latch
@@ -1022,6 +1051,7 @@ def _handoff_readings(task: Task, source: str, target: str, k: _Key) -> list[fro
     nxt, _ = task.read(A[keep], B, lat[keep])
     return [frozenset(n for n, v in zip(names, row, strict=True) if v)
             for row in nxt.tolist()]
+
 
 # ------------------------------------------------------------------------------ re-check
 def recheck_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *,
@@ -1066,6 +1096,7 @@ def recheck_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *,
                     f"{claim.key}: claimed proved, re-check fails: {why}"))
     return out
 
+
 # ------------------------------------------------------------------------------ entry points
 @dataclass(frozen=True, slots=True, eq=False)
 class HandoffContext:
@@ -1076,11 +1107,11 @@ class HandoffContext:
     automaton: TaskAutomaton
     goal_modes: tuple[str, ...]
 
+
 def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
     """The task the spec names (None: it names none, or its sensors are computed by physics:
     boundaries are learned online there), its automaton and its goal (the spec's, else the
     task's, else the sink modes; checked reachable)."""
-
     spec = load_spec(spec_path)
     task = spec_task(spec, spec_path)
     if task is None or bool(getattr(task.sensor_model, "physics", False)):
@@ -1090,6 +1121,7 @@ def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
             if spec.goal_modes is not None or spec.goal_sensors else task.goal)
     modes = check_goal(automaton, goal, where=str(spec_path))
     return HandoffContext(task=task, automaton=automaton, goal_modes=tuple(modes))
+
 
 def retest_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: float,
                     goal_modes: Sequence[str] | None = None, samples: int = 200,
@@ -1110,6 +1142,7 @@ def retest_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: f
             for mode, x, la in res.handed:
                 entries.setdefault(mode, []).append((x, la))
     return out
+
 
 def handoff_status(model: Model, spec_path: str | Any, *, retest: int = 0,
                    seed: int = 0) -> tuple[bool, list[str]]:

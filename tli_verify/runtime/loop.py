@@ -57,6 +57,7 @@ class SensorModel(Protocol):
         """The sensor reading at ``x`` (input name -> value)."""
         ...
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class EpisodeResult:
     """One closed-loop episode (what :func:`tli_verify.run` returns; ``tli run`` writes the
@@ -103,6 +104,7 @@ class EpisodeResult:
     def mode_sequence(self) -> str:
         """The modes visited, in order, repeats collapsed (``run.json``'s ``mode_sequence``)."""
         return mode_sequence(self.modes)
+
 
 Perturb = Callable[[int, FloatArray], "FloatArray | None"]
 Stop = Callable[[LTLDSPolicy], bool]
@@ -185,6 +187,7 @@ def run_episode(
                          states=np.array(states), modes=tuple(modes),
                          automaton_states=tuple(astates), events=tuple(policy.events),
                          cuts_added=added, model=policy.model)
+
 
 def run_episodes(
     policies: Sequence[LTLDSPolicy],
@@ -301,6 +304,7 @@ def run_episodes(
         hist_state.append([-1 if pol.state is None else pol.state for pol in policies])
     return batch_results(policies, hist_x, hist_mode, hist_state,
                          np.array(taken, dtype=np.int64))
+
 
 def batch_results(policies: Sequence[LTLDSPolicy], hist_x: Sequence[FloatArray],
                   hist_mode: Sequence[Sequence[str]], hist_state: Sequence[Sequence[int]],

@@ -57,6 +57,7 @@ class CutAttempt:
     fallback: bool = False
     shift: float = 0.0
 
+
 def cut_for_failure(
     failure: InvarianceFailure,
     attractor: npt.ArrayLike,
@@ -111,6 +112,7 @@ def cut_for_failure(
         return CutAttempt(cut, fallback=True, shift=s)
     return CutAttempt(None)
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class CutLearning:
     """Outcome of iterative cut learning for one policy and start set.
@@ -140,6 +142,7 @@ class CutLearning:
     unsolved: int
     fallback: int
     converged: bool
+
 
 def learn_cuts(
     base: Policy,
@@ -186,7 +189,6 @@ def learn_cuts(
     -------
     CutLearning
     """
-
     if cut_constraints not in ("entries", "paper"):
         raise TliError(f"cut constraints must be 'entries' or 'paper', got {cut_constraints!r}")
     cuts: list[Cut] = []
@@ -226,6 +228,7 @@ def learn_cuts(
                                unsolved=unsolved, fallback=fallback, converged=False)
         cuts.append(new)
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class OnlineCut:
     """The cut the executive learned for one invariance failure, or why none.
@@ -244,6 +247,7 @@ class OnlineCut:
     model: Any
     attempt: CutAttempt | None
     error: str | None
+
 
 def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
                entries: Sequence[npt.ArrayLike], *, margin: float) -> OnlineCut:
@@ -272,7 +276,6 @@ def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
     -------
     OnlineCut
     """
-
     mm = model.modes[key]
     x_star = mm.ds.attractor
     last = np.asarray(failure.last_inside, dtype=np.float64)

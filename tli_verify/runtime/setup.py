@@ -73,6 +73,7 @@ class Setup:
         """The same setup with another sensor lag."""
         return replace(self, task=self.task.with_lag(lag))
 
+
 def load_setup(resolved: Any) -> Setup:
     """Load what :func:`tli_verify.tasks.project.resolve` found.
 
@@ -81,12 +82,12 @@ def load_setup(resolved: Any) -> Setup:
     SpecError, ModelError, TaskError
         (exit 2) Unreadable files; an unreachable goal.
     """
-
     automaton = synthesize(load_spec(resolved.spec))
     check_goal(automaton, resolved.goal, where=str(resolved.spec))
     return Setup(task=resolved.task, automaton=automaton, model=load_model(resolved.model),
                  certificate=str(resolved.certificate), goal=resolved.goal,
                  spec=str(resolved.spec))
+
 
 class SequencePolicy(LTLDSPolicy):
     """The ``no-replan`` ablation: the demonstrated mode sequence, run open loop.
@@ -131,6 +132,7 @@ class SequencePolicy(LTLDSPolicy):
         mode = self._seq[self._idx]
         nxt = self._seq[self._idx + 1] if self._idx + 1 < len(self._seq) else None
         return self.model.key(mode, nxt)
+
 
 def make_policy(setup: Setup, variant: str, **kwargs: Any) -> LTLDSPolicy:
     """The executive of one variant, with the setup's goal and control period.

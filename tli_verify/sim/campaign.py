@@ -98,6 +98,7 @@ class PhysicsResult:
         """True iff every trial passed the oracle."""
         return all(v.ok for v in self.verdicts)
 
+
 @dataclass(frozen=True, slots=True)
 class _Chunk:
     """One batch of a physical campaign: the trials ``first .. first + count - 1`` (seeds
@@ -108,6 +109,7 @@ class _Chunk:
     first: int
     count: int
 
+
 Trials = tuple[tuple[TrialResult, TrialVerdict], ...]
 
 
@@ -116,7 +118,6 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
                frame: Callable[[Any], None] | None = None) -> Trials:
     """Run one chunk's trials with one executive (``policy``, default a fresh one behind the
     certificate); ``on_trial`` gets the campaign-wide trial index."""
-
     config = chunk.config
     if policy is None:
         policy = load_policy(config.variant, root=config.root, certificates=config.cert_dir)
@@ -135,9 +136,11 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
             on_trial(k, res, verdict)
     return tuple(out)
 
+
 def _chunk_task(chunk: _Chunk) -> Trials:
     """A chunk in a worker process (picklable: a fresh executive, no callbacks)."""
     return _run_chunk(chunk)
+
 
 def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
                          on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
@@ -187,7 +190,6 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     KeyboardInterrupt
         Ctrl-C: the pending chunks are cancelled and nothing is returned.
     """
-
     if config.backend != "serial" and (policy is not None or frame is not None):
         raise CampaignError(f"backend {config.backend!r}: an executive or video frames in "
                             "this process need the serial backend")

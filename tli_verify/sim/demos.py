@@ -87,6 +87,7 @@ def _tray_height(y: float, pitch: float) -> float:
     return float(soup_floor(front) + 0.001 + TRAY_RADIUS * math.sin(pitch)
                  + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
 
+
 RECOVERY_STARTS = (
     (0.5, 0.10, 0.16, -0.7),
     (0.5, -0.02, 0.19, -0.5),
@@ -145,6 +146,7 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         w[1:7, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
     return w
 
+
 def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
     while still low (the beads roll against the back rim), then goes on from the lift."""
@@ -161,9 +163,11 @@ def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
     tail[:, 0] += now + 2.3 - tail[0, 0]
     return np.vstack([head, tail])
 
+
 def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
     """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
     return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class ScoopStep:
@@ -184,12 +188,14 @@ class ScoopStep:
     reading: Reading
     command: FloatArray
 
+
 def _sensors(kind: str, model: mujoco.MjModel, ids: Any, seed: int) -> Any:
     """The rig's r, s, t sensors (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
     if kind == "ideal":
         return ScoopSensors(model, ids)
 
     return make_sensors(kind, model, ids, seed=seed)
+
 
 def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
@@ -200,6 +206,7 @@ def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
     xmat = data.site_xmat[site].tolist()  # row-major: the front (column 0) is 0, 3, 6
     x, y, z = data.site_xpos[site].tolist()
     return np.array((x, y, z, math.atan2(-xmat[6], -xmat[3])))
+
 
 class MocapRig:
     """Phase 1: the ladle on a free hand body under Cartesian impedance, the scene, the sensors.
@@ -377,6 +384,7 @@ class MocapRig:
                                      interpolate(waypoints, (k + 1) * dt)))
         return out
 
+
 CONTROL_DT = 0.02
 """Control period (s) of the loop and of the recorded demonstrations: 10 physics steps."""
 POSITION_SCALE = 10.0
@@ -390,16 +398,19 @@ def to_ds(pose: npt.ArrayLike) -> FloatArray:
     p[..., :3] *= POSITION_SCALE
     return p
 
+
 def from_ds(z: npt.ArrayLike) -> FloatArray:
     """DS state -> tray pose (the inverse of :func:`to_ds`)."""
     p = np.array(z, dtype=np.float64)
     p[..., :3] /= POSITION_SCALE
     return p
 
+
 def from_ds_velocity(v: npt.ArrayLike) -> FloatArray:
     """DS velocity (dm/s, rad/s) -> tray velocity (m/s, rad/s): the same scaling as
     :func:`from_ds` (no offset)."""
     return from_ds(v)
+
 
 def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
                 start: npt.ArrayLike | None = None, in_bowl: int = N_BEADS) -> Demonstration:
@@ -460,6 +471,7 @@ def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
     return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,
                          sensor_names=SENSOR_NAMES, sensors=sensors)
 
+
 def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
                 max_tries: int = 20,
                 recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS,
@@ -514,6 +526,7 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
     return out
+
 
 PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=50.0,
                                      damping_ratio=1.0)

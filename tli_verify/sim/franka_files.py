@@ -47,11 +47,11 @@ def project_files(root: str | os.PathLike[str],
             "certificate": (Path(certificates) if certificates is not None
                             else base / "certificates") / f"{MODEL_NAME}.cert.json"}
 
+
 def hash_files(root: str | os.PathLike[str],
                certificates: str | os.PathLike[str] | None = None
                ) -> tuple[tuple[str, str, str], ...]:
     """``(name, path, SHA-256)`` of the project's spec, model and certificate (the certificate
     may be missing: then the policy refuses to load)."""
-
     return tuple((k, str(p), sha256_file(p) if p.is_file() else "")
                  for k, p in project_files(root, certificates).items())

@@ -122,13 +122,13 @@ def project_dir() -> Path:
     """The bundled Franka project: ``sim/franka`` with ``specs/``, ``models/``,
     ``certificates/`` and ``demos/franka/`` (outside the repository's deployed ``models/``:
     the gate requires campaign evidence this policy does not have yet, ``docs/howto/franka.md``)."""
-
     return bundled_dir("sim") / "franka"
+
 
 def bundled_demos() -> list[Any]:
     """The recorded Franka demonstrations (:func:`project_dir` ``/demos/franka``)."""
-
     return load_demos(sorted((project_dir() / "demos" / "franka").glob("*.csv")))
+
 
 def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
     """Bounds of the target pose: the bundled demonstrations' box widened by ``margin``.
@@ -148,6 +148,7 @@ def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
     box_lo, box_hi = _demo_box()
     return box_lo - m, box_hi + m
 
+
 @functools.lru_cache(maxsize=1)
 def _demo_box() -> tuple[FloatArray, FloatArray]:
     """The bundled demonstrations' bounding box (read once per process: every trial needs it)."""
@@ -156,6 +157,7 @@ def _demo_box() -> tuple[FloatArray, FloatArray]:
     lo.setflags(write=False)
     hi.setflags(write=False)
     return lo, hi
+
 
 def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
                  hi: FloatArray) -> FloatArray:
@@ -184,11 +186,13 @@ def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
                                   np.asarray(lo, dtype=np.float64).tolist(),
                                   np.asarray(hi, dtype=np.float64).tolist()))
 
+
 def _feed_forward(target: list[float], v: list[float], lo: list[float],
                   hi: list[float]) -> list[float]:
     """:func:`feed_forward` on lists of floats (the loop's; the same comparisons)."""
     return [0.0 if (t >= h and a > 0.0) or (t <= low and a < 0.0) else a
             for t, a, low, h in zip(target, v, lo, hi, strict=True)]
+
 
 def _clip(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
     """``np.clip(x, lo, hi)`` of arrays, on floats, by numpy's rule: ``max(a, low)`` is ``a``
@@ -199,6 +203,7 @@ def _clip(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
         a = a if a > low or a != a else low
         out.append(a if a < h or a != a else h)
     return out
+
 
 def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
     """Seeded perturbations of one trial, drawn by the campaign strategies.
@@ -218,6 +223,7 @@ def draw_perturbations(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Pe
     list of Perturbation
     """
     return draw(seed, pushes=pushes, tilts=tilts)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class TrialResult:
@@ -297,6 +303,7 @@ class TrialResult:
             "limit_ratios": dict(self.limit_ratios), "perturbed_steps": self.perturbed_steps,
         }
 
+
 @dataclass(frozen=True, slots=True)
 class TraceStep:
     """One control period of a trial as the robot saw it (``run_trial(trace=...)``).
@@ -321,6 +328,7 @@ class TraceStep:
     measured: FloatArray
     perturbed: bool
 
+
 def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
                 certificates: str | os.PathLike[str] | None = None) -> LTLDSPolicy:
     """The executive of ``variant`` for the bundled Franka scoop model, behind its certificate.
@@ -341,7 +349,6 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         (exit 1) The certificate is missing, does not re-check, or does not cover the model
         (naming the certificate).
     """
-
     if variant not in VARIANTS:
         raise TliError(f"unknown variant {variant!r} (one of {', '.join(VARIANTS)})")
     if root is not None:
@@ -367,6 +374,7 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         raise TliError(f"{setup.task.where}: dt {setup.task.dt:g} s, but the Franka loop "
                        f"controls at {CONTROL_DT:g} s")
     return make_policy(setup, variant)
+
 
 def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               perturbations: list[Perturbation] | None = None, duration: float = TRIAL_DURATION,
@@ -519,6 +527,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         stopped=stopped, limit_ratios={k: round(v, 4) for k, v in ratios.items()},
         perturbed_steps=perturbed_steps)
 
+
 def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
              physics: PhysicsOptions | None = None) -> Any:
     """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors`` and the
@@ -539,6 +548,7 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
     options = DEFAULT_PHYSICS if physics is None else physics
     return PandaRig(seed, sensors=sensors, physics=options) if robot == "panda" else \
         MocapRig(seed, sensors=sensors, physics=options)
+
 
 class ContactDetector:
     """``perturbed`` as the robot can know it: the estimated external wrench beyond a threshold.
@@ -588,6 +598,7 @@ class ContactDetector:
         """The evidence's record."""
         return {"force": self.force, "torque": self.torque, "hold": self.hold}
 
+
 def _beyond(w: FloatArray, i: int, limit: float) -> bool:
     """``np.linalg.norm(w[i:i + 3]) > limit``, the norm computed only near ``limit``."""
     a, b, c = w[i:i + 3].tolist()
@@ -599,6 +610,7 @@ def _beyond(w: FloatArray, i: int, limit: float) -> bool:
     return float(np.linalg.norm(w[i:i + 3])) > limit
 
 # --- the perturbing hands, every physics step (kept apart from the control loop) ----------
+
 
 def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand | None],
                      applied: list[float]) -> None:
@@ -642,6 +654,7 @@ def _step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand |
     rig.step(substeps, before=before)
     rig.push[:] = 0.0
 
+
 def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = True,
                duration: float = TRIAL_DURATION, robot: str = "panda",
                retry: bool = True, sensors: str = "ideal",
@@ -669,6 +682,7 @@ def run_trials(seeds: list[int], variant: str = "LTL-DS", *, perturb: bool = Tru
                       duration=duration, robot=robot, retry=retry, sensors=sensors,
                       physics=physics).to_dict()
             for s in seeds]
+
 
 def plot_flow(model: Any, path: str | os.PathLike[str], *,
               demos: list[Any] | None = None, title: str = "") -> None:

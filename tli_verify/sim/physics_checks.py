@@ -25,7 +25,6 @@ WORLD = "franka-physics"
 """The ``world`` of the Franka's physical campaign evidence."""
 
 
-
 def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -> list[str]:
     """A physical campaign's block: consistent with the campaign, every trial delivered, made
     on the Panda (:data:`REQUIRED_ROBOT`), in the scene's current solver settings

@@ -36,8 +36,6 @@ MAX_WORKERS = 256
 """Most chunks (workers) of a physical campaign, as for the 2-D campaigns."""
 
 
-
-
 @dataclass(frozen=True, slots=True)
 class PhysicsConfig:
     """A physical campaign: seeded perturbed trials of the Franka policy.

@@ -54,6 +54,7 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
                                  + ("" if c.retry else " --no-retry")}
     return None
 
+
 def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] | None = None,
                            *, inputs: Sequence[str | os.PathLike[str]] = (),
                            evaluator: dict[str, Any] | None = None
@@ -123,17 +124,18 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         expected={name: sha for name, _, sha in result.files if sha})
     return target, doc
 
+
 def controller_record(robot: str) -> dict[str, Any]:
     """The controller settings a physical campaign ran with (the evidence's
     ``physics.controller``): for the Panda the impedance, the limits, the torque-loop period and
     the perturbation detector; for the free tool its impedance law."""
-
     common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}
     if robot == "panda":
         return dict(common, kind="cartesian-impedance", impedance=PANDA_IMPEDANCE.to_dict(),
                     limits=FrankaLimits().to_dict(), torque_period=0.002,
                     feed_forward=True)
     return dict(common, kind="free-body-impedance", stiffness_pos=2000.0, stiffness_rot=150.0)
+
 
 def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     """:class:`~tli_verify.sim.physics_config.PhysicsConfig` keyword arguments from an

@@ -83,6 +83,7 @@ class View:
     azimuth: float
     elevation: float
 
+
 PANDA_VIEW = View((0.35, 0.0, 0.28), 1.5, 165.0, -24.0)
 """The Panda rig's camera: from beyond the table's far edge (+x), 15 degrees towards the soup
 bowl (-y), facing the robot: the whole arm (also stretched out over the target bowl), its base
@@ -106,6 +107,7 @@ def view_for(model: Any) -> View:
 
     has_arm = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BASE_BODY) >= 0
     return PANDA_VIEW if has_arm else TOOL_VIEW
+
 
 _PROBE = """\
 import mujoco
@@ -138,10 +140,12 @@ class Probe:
     ok: bool
     detail: str = ""
 
+
 def _shorten(text: str, limit: int = 90) -> str:
     lines = [ln.strip() for ln in text.strip().splitlines() if ln.strip()]
     last = lines[-1] if lines else "no output"
     return last if len(last) <= limit else last[:limit - 3] + "..."
+
 
 def probe_backend(backend: str, *, timeout: float = PROBE_TIMEOUT) -> Probe:
     """Whether MuJoCo renders with ``MUJOCO_GL=backend`` here, tried in a fresh interpreter.
@@ -172,6 +176,7 @@ def probe_backend(backend: str, *, timeout: float = PROBE_TIMEOUT) -> Probe:
     if lib is not None and ctypes.util.find_library(lib) is None:
         detail = f"lib{lib} not found ({detail})"
     return Probe(backend, False, detail)
+
 
 def choose_backend(env: Mapping[str, str],
                    probe: Callable[[str], Probe] | None = None) -> str:
@@ -213,6 +218,7 @@ def choose_backend(env: Mapping[str, str],
         failed.append(f"MUJOCO_GL={backend}: {res.detail}")
     raise TliError(f"--video: no headless OpenGL context ({'; '.join(failed)}); {INSTALL_HINT}")
 
+
 def backend_in_effect() -> str | None:
     """The OpenGL backend of the MuJoCo already imported in this process (``"egl"``,
     ``"osmesa"``, ``"glfw"``, ...), or ``None`` when MuJoCo is not imported (or has no
@@ -222,6 +228,7 @@ def backend_in_effect() -> str | None:
     if ctx is None:
         return None
     return str(ctx.__module__).rsplit(".", 1)[-1]
+
 
 def select_backend() -> str:
     """Choose the OpenGL backend (:func:`choose_backend`) and set ``MUJOCO_GL`` to it.
@@ -245,6 +252,7 @@ def select_backend() -> str:
     backend = choose_backend(os.environ)
     os.environ["MUJOCO_GL"] = backend
     return backend
+
 
 class Recorder:
     """Headless frames of a trial, streamed to a short MP4 (``--video``).
@@ -403,7 +411,6 @@ class Recorder:
         OutputError
             (exit 2) ``path`` cannot be written (nothing is left behind).
         """
-
         try:
             if self._writer is None or self._tmp is None or not self.count:
                 raise TliError(f"--video {path}: no frames were rendered")

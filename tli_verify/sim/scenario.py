@@ -91,6 +91,7 @@ class Scenario:
     retry: bool = False
     margin: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.3)
 
+
 POUR_SCENARIO = Scenario(name="pour-sweeps-past-the-bowl", seed=0, mode="d",
                          margin=(0.5, 1.5, 0.5, 0.3))
 """The regression scenario of the module doc."""
@@ -114,6 +115,7 @@ class Failure:
     to_mode: str
     target: FloatArray
     measured: FloatArray
+
 
 @dataclass(frozen=True, slots=True)
 class ScenarioRun:
@@ -162,6 +164,7 @@ class ScenarioRun:
         """Each invariance failure happened once (:attr:`repeats` is 0)."""
         return self.repeats == 0
 
+
 def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                  root: str | os.PathLike[str] | None = None) -> ScenarioRun:
     """Run ``scenario`` with a fresh executive of ``variant`` (no cuts carried in).
@@ -202,6 +205,7 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                        np.asarray(policy.model.modes[keys[0]].ds.attractor, dtype=np.float64),
                        checks)
 
+
 _AXES = (1, 2, 3)  # y, z, pitch of the DS state (x, y, z in dm, pitch in rad)
 
 
@@ -220,6 +224,7 @@ def _plane(ax: Any, normal: FloatArray, point: FloatArray, lo: FloatArray, hi: F
     grid = [np.empty_like(u)] * 3
     grid[i], grid[j], grid[k] = u, v, np.clip(w, lo[k], hi[k])
     ax.plot_surface(grid[0], grid[1], grid[2], **style)
+
 
 def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: float) -> None:
     """The tray's ``y`` over time against the rim; failures and cuts marked."""
@@ -246,6 +251,7 @@ def _time_panel(ax: Any, run: ScenarioRun, steps: tuple[TraceStep, ...], rim: fl
     ax.set_xlabel("time (s)")
     ax.set_ylabel("y (dm)")
     ax.legend(loc="lower right", fontsize=7)
+
 
 def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None:
     """Fig. 9-style panels, one per run: the pour in ``(y, z, pitch)``.

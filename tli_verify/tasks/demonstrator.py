@@ -55,6 +55,7 @@ class Task(Protocol):
     def sensors(self, X: npt.ArrayLike, latent: npt.ArrayLike | None = None
                 ) -> npt.NDArray[np.bool_]: ...
 
+
 __all__ = ["Demonstrator", "Script", "min_jerk_path", "write_demos"]
 
 FloatArray = npt.NDArray[np.float64]

@@ -107,6 +107,7 @@ class ConvexMode(Polytope):
                 return np.concatenate(out)[:count]
         raise ModelError(f"cannot sample {count} states with margin {min_margin} in the mode")
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Demo:
     """One demonstration: states and velocities, each shape (T, 2), ending at ``x*``."""
@@ -114,16 +115,17 @@ class Demo:
     X: FloatArray
     Xdot: FloatArray
 
+
 def polygon_task(mode: ConvexMode, workspace: float, *, name: str = "single-mode") -> Task:
     """The task of one convex mode: the polygon is region ``mode`` of the square workspace
     ``[0, workspace]^2`` (the rest is ``outside``), read by the one sensor ``inside``."""
-
     partition = Partition((NamedRegion("mode", mode, "#9ed99b"),), "outside", "#ffffff")
     sensors = FormulaSensors(partition, (("inside", formula.parse(
         "mode", names={"mode", "outside"}, where=f"{name}: sensors.inside")),))
     return Task(name=name, description="a random convex mode (paper Sec. 7.1)",
                 state_names=("x0", "x1"), lo=(0.0, 0.0), hi=(float(workspace),) * 2,
                 partition=partition, sensor_model=sensors)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class SingleModeTask:
@@ -159,6 +161,7 @@ class SingleModeTask:
         """All demonstrated velocities, shape (sum T, 2)."""
         return np.concatenate([d.Xdot for d in self.demos])
 
+
 def random_convex_mode(rng: np.random.Generator, *, workspace: float = 20.0) -> ConvexMode:
     """A random convex polygon of 5-8 vertices in ``[0, workspace]^2``.
 
@@ -179,10 +182,12 @@ def random_convex_mode(rng: np.random.Generator, *, workspace: float = 20.0) -> 
             return ConvexMode.from_vertices(V)
     raise ModelError("could not draw a convex mode")  # pragma: no cover - vanishingly rare
 
+
 def _min_jerk(tau: FloatArray) -> tuple[FloatArray, FloatArray]:
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
     ds = 30 * tau**2 - 60 * tau**3 + 30 * tau**4
     return s, ds
+
 
 def make_task(
     rng: np.random.Generator,

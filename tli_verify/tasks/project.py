@@ -73,6 +73,7 @@ def model_stem(model: str | os.PathLike[str]) -> str:
     """``scoop`` for ``models/scoop.model.json`` (also ``scoop.json``)."""
     return Path(model).name.removesuffix(".json").removesuffix(".model")
 
+
 def project_root(path: str | os.PathLike[str]) -> Path:
     """The project folder of a file: the parent of the nearest ancestor folder named
     ``tasks``, ``specs``, ``demos``, ``models`` or ``certificates``; else the file's folder."""
@@ -82,12 +83,14 @@ def project_root(path: str | os.PathLike[str]) -> Path:
             return _shown(parent.parent)
     return _shown(p.parent)
 
+
 def _shown(p: Path) -> Path:
     """Relative to the working directory when under it (messages read ``models/x``)."""
     try:
         return p.relative_to(Path.cwd())
     except ValueError:
         return p
+
 
 @dataclass(frozen=True, slots=True)
 class ModelFiles:
@@ -104,6 +107,7 @@ class ModelFiles:
     root: Path
     certificate: Path
     evidence: Path
+
 
 def model_files(model: str | os.PathLike[str]) -> ModelFiles:
     """The certificate and evidence paths of a model (module docstring).
@@ -128,6 +132,7 @@ def model_files(model: str | os.PathLike[str]) -> ModelFiles:
                               evidence=base / (stem + EVIDENCE_SUFFIX))
     return ModelFiles(root=mpath.parent, certificate=mpath.parent / (stem + CERTIFICATE_SUFFIX),
                       evidence=mpath.parent / (stem + EVIDENCE_SUFFIX))
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Resolved:
@@ -163,6 +168,7 @@ class Resolved:
             out.append(Path(self.task.source.path))
         return tuple(out)
 
+
 def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
     """The task a loaded spec names (its ``task`` key), or None.
 
@@ -180,6 +186,7 @@ def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
         return find_task(ref, project=project_root(spec_path))
     except TaskError as exc:
         raise TaskError(f"{spec_path}: task = {ref!r}: {exc}") from None
+
 
 def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     """The files a spec implies: the spec itself and the task file it names (when that task
@@ -208,6 +215,7 @@ def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
         found.append(Path(task.source.path))
     return found
 
+
 def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list[Path]:
     """The files a model file implies: itself, its spec (``spec``, or the one it names), the
     spec's task file, and the certificate and evidence the project layout puts next to it.
@@ -223,7 +231,6 @@ def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list
     -------
     list of Path
     """
-
     found: list[Path] = []
     if model is not None:
         found.append(Path(model))
@@ -236,6 +243,7 @@ def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list
             except TliError:
                 spec = None
     return found + spec_inputs(spec)
+
 
 def resolve(*, task: str | os.PathLike[str] | Task | None = None,
             spec: str | os.PathLike[str] | None = None,
@@ -264,7 +272,6 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
         start from; a spec that is not the one the model names; a missing file; a model whose
         dimension, or a spec whose inputs, differ from the task's (:func:`check_fit`).
     """
-
     loaded: Task | None = None
     if isinstance(task, Task):
         loaded = task
@@ -325,6 +332,7 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
     check_fit(resolved, spec_doc, model_doc if model_doc is not None else load_model(model_path))
     return resolved
 
+
 def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str, ...]:
     """The goal modes, checked: every mode the automaton can run reaches one of them.
 
@@ -357,12 +365,14 @@ def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str
                         "graph, so no episode from there can succeed")
     return modes
 
+
 def goal_of(spec: GR1Spec, task: Task) -> Goal:
     """The goal rule: the spec's ``[goal]``, else the task's ``[goal]`` (else, later, the
     automaton's sink modes: :func:`check_goal`)."""
     if spec.goal_modes is not None or spec.goal_sensors:
         return Goal(spec.goal_modes, spec.goal_sensors)
     return task.goal
+
 
 def check_fit(resolved: Resolved, spec: Any, model: Any) -> None:
     """Refuse a model, spec or goal that does not fit the task (before any work).

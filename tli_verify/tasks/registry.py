@@ -43,12 +43,14 @@ from tli_verify.tasks.taskfile import load_task
 __all__ = ["ENTRY_POINT_GROUP", "bundled_tasks", "entry_point", "entry_point_source",
            "find_task", "task_names"]
 
+
 def _bundled_dir() -> Path | None:
 
     try:
         return bundled_dir("tasks")
     except TliError:
         return None
+
 
 def bundled_tasks() -> dict[str, Path]:
     """The bundled task files by name (``tasks/*.toml`` shipped with tli-verify)."""
@@ -57,6 +59,7 @@ def bundled_tasks() -> dict[str, Path]:
         return {}
     return {p.stem: p for p in sorted(d.glob("*.toml"))}
 
+
 def task_names(project: str | os.PathLike[str] | None = None) -> list[str]:
     """Every task name ``find_task`` knows: the project's, the bundled ones, entry points."""
     names: set[str] = set(bundled_tasks()) | set(_entry_points())
@@ -64,9 +67,11 @@ def task_names(project: str | os.PathLike[str] | None = None) -> list[str]:
         names |= {p.stem for p in (Path(project) / "tasks").glob("*.toml")}
     return sorted(names)
 
+
 @lru_cache(maxsize=64)
 def _load_file(path: str, mtime_ns: int, size: int) -> Task:
     return load_task(path)
+
 
 def _from_file(path: Path) -> Task:
     try:
@@ -74,6 +79,7 @@ def _from_file(path: Path) -> Task:
     except OSError:
         return load_task(path)  # the reader says what is wrong
     return _load_file(str(path), st.st_mtime_ns, st.st_size)
+
 
 def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | None = None
               ) -> Task:
@@ -96,7 +102,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         (exit 2) An unknown name (the message lists the known ones), a file that does not
         load, an entry point that is not a task.
     """
-
     check_path(ref, "task", error=TaskError)
     text = os.fspath(ref)
     p = Path(text)

@@ -24,6 +24,7 @@ __all__ = [
     "SensorModel",
 ]
 
+
 @runtime_checkable
 class SensorModel(Protocol):
     """What computes a task's sensor readings (the spec's inputs) from its states.

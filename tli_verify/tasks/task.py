@@ -72,6 +72,7 @@ __all__ = [
     "vector",
 ]
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Task:
     """A task: all the closed loop, the campaigns and the pictures need about the environment.

@@ -125,6 +125,7 @@ __all__ = [
     "parse_task",
 ]
 
+
 def _keys(raw: Any, allowed: Sequence[str], where: str) -> Mapping[str, Any]:
     if not isinstance(raw, dict):
         raise TaskError(f"{where}: expected a table")
@@ -133,6 +134,7 @@ def _keys(raw: Any, allowed: Sequence[str], where: str) -> Mapping[str, Any]:
         raise TaskError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(allowed)})")
     return raw
 
+
 def _text(raw: Any, where: str, *, limit: int = 200, one_line: bool = True) -> str:
     if not isinstance(raw, str) or len(raw) > limit or (one_line and any(
             ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0 for ch in raw)):
@@ -140,11 +142,13 @@ def _text(raw: Any, where: str, *, limit: int = 200, one_line: bool = True) -> s
                         f"most {limit} characters")
     return raw
 
+
 def _name(raw: Any, where: str) -> str:
     if not isinstance(raw, str) or not fml.is_name(raw) or len(raw) > 64:
         raise TaskError(f"{where}: {raw!r} is not a valid name (an identifier: letters, "
                         "digits and _, not true/false/prev, at most 64 characters)")
     return raw
+
 
 def load_task(path: str | os.PathLike[str], *,
               entry_points: Callable[[str], object] | None = None) -> Task:
@@ -162,9 +166,9 @@ def load_task(path: str | os.PathLike[str], *,
     TaskError
         (exit 2) Naming the file and the field of the first problem.
     """
-
     text = read_text(path, what="task", error=TaskError)
     return parse_task(text, path=str(path), entry_points=entry_points)
+
 
 def parse_task(text: str, *, path: str | None = None,
                entry_points: Callable[[str], Any] | None = None) -> Task:
@@ -175,7 +179,6 @@ def parse_task(text: str, *, path: str | None = None,
     TaskError
         (exit 2) Naming the file and the field.
     """
-
     where = path or "<task>"
     if not text.strip():
         raise TaskError(f"{where}: empty task file")
@@ -184,6 +187,7 @@ def parse_task(text: str, *, path: str | None = None,
     task = _build(data, where, text, path, entry_points)
     validate_schema(data, "task.schema.json", where=where, error=TaskError)
     return task
+
 
 def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
            entry_points: Callable[[str], Any] | None) -> Task:
@@ -254,12 +258,14 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
                 sensor_model=model, lag=int(lag), dt=dt, goal=goal, starts=starts,
                 perturbations=pert, demonstrator=demo, source=source, spec=spec)
 
+
 def _color(raw: Any, where: str) -> str:
     from matplotlib.colors import is_color_like
 
     if not isinstance(raw, str) or len(raw) > 40 or not is_color_like(raw):
         raise TaskError(f"{where}: {raw!r} is not a colour (e.g. \"#f7e27a\" or \"tab:blue\")")
     return raw
+
 
 def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -> Partition:
     if not isinstance(raw, dict):
@@ -309,6 +315,7 @@ def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -
         (layers if layer else cells).append(NamedRegion(rname, region, color, layer))
     return Partition(tuple(cells), background, bg_color, tuple(layers))
 
+
 def _latches(raw: Any, regions: set[str], where: str) -> tuple[Latch, ...]:
     if not isinstance(raw, dict):
         raise TaskError(f"{where}: [latches]: expected a table of latches")
@@ -341,6 +348,7 @@ def _latches(raw: Any, regions: set[str], where: str) -> tuple[Latch, ...]:
         out.append(Latch(lname, initial, parsed[0], parsed[1]))
     return tuple(out)
 
+
 def _sensor_formulas(raw: Any, regions: set[str], latches: tuple[Latch, ...], where: str
                      ) -> tuple[tuple[str, fml.Formula], ...]:
 
@@ -357,6 +365,7 @@ def _sensor_formulas(raw: Any, regions: set[str], latches: tuple[Latch, ...], wh
             raise TaskError(f"{at}: {sname!r} is not a valid sensor (spec input) name")
         out.append((sname, fml.parse(text, names=names, where=at)))
     return tuple(out)
+
 
 def _goal(raw: Any, sensors: Sequence[str], where: str) -> Goal:
     t = _keys(raw, ("modes", "sensors"), f"{where}: [goal]")
@@ -377,6 +386,7 @@ def _goal(raw: Any, sensors: Sequence[str], where: str) -> Goal:
         raise TaskError(f"{where}: goal.sensors: {unknown[0]!r} is not a sensor of the task "
                         f"({', '.join(sensors)})")
     return Goal(modes, tuple(gs))
+
 
 def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Partition,
             where: str) -> Starts:
@@ -408,6 +418,7 @@ def _starts(raw: Any, dim: int, lo: FloatArray, hi: FloatArray, partition: Parti
         raise TaskError(f"{where}: starts.random: expected true or false, got {random!r}")
     return Starts(tuple(nominal), region, random)
 
+
 def _perturbations(raw: Any, where: str) -> PerturbationBounds:
 
     t = _keys(raw, ("max_magnitude", "window", "max_pushes"), f"{where}: [perturbations]")
@@ -419,6 +430,7 @@ def _perturbations(raw: Any, where: str) -> PerturbationBounds:
                           hi=MAX_CAMPAIGN_STEPS, integer=True)),
         max_pushes=int(number(t.get("max_pushes", 3), f"{where}: perturbations.max_pushes",
                               lo=0, hi=MAX_PUSHES, integer=True)))
+
 
 def _entry_sensor_model(name: str, where: str, source: TaskSource,
                         entry_points: Callable[[str], Any] | None, dim: int,

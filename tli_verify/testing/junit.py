@@ -32,6 +32,7 @@ def _clean(text: object) -> str:
     """Text XML 1.0 can hold (control characters dropped)."""
     return _BAD_XML.sub("", str(text))
 
+
 def _properties(result: Any, counterexample: str | os.PathLike[str] | None
                 ) -> list[tuple[str, str]]:
     c = result.config
@@ -56,6 +57,7 @@ def _properties(result: Any, counterexample: str | os.PathLike[str] | None
     if counterexample is not None:
         props.append(("counterexample", str(counterexample)))
     return props
+
 
 def junit_xml(result: Any, *, counterexample: str | os.PathLike[str] | None = None) -> str:
     """The JUnit XML text of a campaign.
@@ -120,11 +122,11 @@ def junit_xml(result: Any, *, counterexample: str | os.PathLike[str] | None = No
     return ('<?xml version="1.0" encoding="utf-8"?>\n'
             + ET.tostring(root, encoding="unicode") + "\n")
 
+
 def write_junit(result: Any, path: str | os.PathLike[str], *,
                 counterexample: str | os.PathLike[str] | None = None) -> Path:
     """Write :func:`junit_xml` to ``path`` atomically (:func:`tli_verify.io.atomic_write_text`;
     missing folders created)."""
-
     p = Path(path)
     atomic_write_text(p, junit_xml(result, counterexample=counterexample))
     return p

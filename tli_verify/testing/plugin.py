@@ -71,6 +71,7 @@ class _State:
     saved: tuple[Path | None, Path | None] = (None, None)
     touched: bool = False
 
+
 _KEY = pytest.StashKey[_State]()
 
 
@@ -87,6 +88,7 @@ def _usage(option: str, lo: int) -> Callable[[str], int]:
             raise pytest.UsageError(f"{option}: {exc}") from None
 
     return parse
+
 
 _count = _usage("--tli-examples", 1)
 _seed = _usage("--tli-seed", 0)
@@ -116,11 +118,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addini("tli_examples", "tli-verify: hypothesis max_examples of tests drawing "
                   "tli_verify.testing.cases", type="string", default="")
 
+
 def _ini_path(config: pytest.Config, value: str) -> Path | None:
     if not value:
         return None
     base = config.inipath.parent if config.inipath is not None else config.rootpath
     return Path(os.path.abspath(base / value))
+
 
 def _state(config: pytest.Config) -> _State:
     opt = config.option
@@ -144,6 +148,7 @@ def _state(config: pytest.Config) -> _State:
             raise pytest.UsageError(f"--tli-cases {d}: no such directory")
     st.cases = dirs
     return st
+
 
 ROOTS: list[Path] = []
 """The rootdirs of the pytest sessions running in this process (innermost last): where
@@ -177,6 +182,7 @@ def pytest_configure(config: pytest.Config) -> None:
                            or r == f):
                     config.args.append(str(f))
 
+
 def pytest_unconfigure(config: pytest.Config) -> None:
     """Restore the process defaults (a pytest run inside a process leaves none behind)."""
     st = config.stash.get(_KEY, None)
@@ -189,6 +195,7 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     from tli_verify.testing.projects import DEFAULTS
 
     DEFAULTS.project, DEFAULTS.case_dir = st.saved
+
 
 def pytest_report_header(config: pytest.Config) -> list[str] | None:
     """One header line naming what the plugin was asked to do (none when inactive)."""
@@ -208,6 +215,7 @@ def pytest_report_header(config: pytest.Config) -> list[str] | None:
         parts.append(f"case dir {st.case_dir}")
     return [f"tli-verify: {'; '.join(parts)}"] if parts else None
 
+
 # ------------------------------------------------------------------------------ fixtures
 @pytest.fixture(scope="session")
 def tli_project() -> Project:
@@ -218,11 +226,13 @@ def tli_project() -> Project:
 
     return default_project()
 
+
 @pytest.fixture(scope="session")
 def tli_case_dir(tli_project: Project) -> Path:
     """Where failing cases are saved (``--tli-case-dir``, else the project's
     ``tests/regressions/``, else a temporary directory)."""
     return tli_project.regression_dir
+
 
 # ------------------------------------------------------------------------------ settings
 _MARK = "_tli_verify_cases"  # tli_verify.testing.strategies.MARK (not imported: inert)
@@ -239,6 +249,7 @@ def _ours(item: pytest.Item) -> bool:
     given = getattr(getattr(fn, "hypothesis", None), "_given_kwargs", None)
     return isinstance(given, dict) and any(getattr(s, _MARK, False) is True
                                            for s in given.values())
+
 
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,
                                    items: list[pytest.Item]) -> None:
@@ -282,6 +293,7 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
         if changes:
             fn._hypothesis_internal_use_settings = settings(current, **changes)
 
+
 # ------------------------------------------------------------------------------ cases
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:
     """A ``*.json`` file directly in a ``--tli-cases`` directory: a regression case."""
@@ -295,8 +307,10 @@ def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Col
         return None
     return CaseFile.from_parent(parent, path=file_path)
 
+
 class CaseFailure(Exception):
     """A regression case that does not replay as its rules say (module docstring)."""
+
 
 class CaseFile(pytest.File):
     """A case file (``tli verify``'s counterexample.json, or one
@@ -305,6 +319,7 @@ class CaseFile(pytest.File):
     def collect(self) -> Iterator[pytest.Item]:
         """One item: ``replay``."""
         yield CaseItem.from_parent(self, name="replay")
+
 
 class CaseItem(pytest.Item):
     """Replays a case file by the regression rules (module docstring)."""

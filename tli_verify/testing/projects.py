@@ -37,6 +37,7 @@ class Defaults:
     project: Path | None = None
     case_dir: Path | None = None
 
+
 DEFAULTS = Defaults()
 """The defaults :func:`project` and :func:`~tli_verify.testing.assert_satisfies` use."""
 
@@ -135,6 +136,7 @@ class Project:
         a dataclass: the task, the files, the settings)."""
         printer.text(repr(self))
 
+
 # ---------------------------------------------------------------------------------------------
 def project(path: PathLike | None = None, *, task: PathLike | None = None,
             spec: PathLike | None = None, model: PathLike | None = None,
@@ -207,6 +209,7 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     load(out.sim)  # the automaton, the policy (its certificate checked), the oracle: now
     return out
 
+
 def default_root() -> Path:
     """Where :func:`project` without arguments looks: the plugin's ``--tli-project`` (ini
     ``tli_project``), else the rootdir of the running pytest session, else the working
@@ -218,6 +221,7 @@ def default_root() -> Path:
     if roots:
         return Path(roots[-1])
     return Path.cwd()
+
 
 def default_project() -> Project:
     """The project of :func:`default_root` (the ``tli_project`` fixture's, and the one
@@ -240,6 +244,7 @@ def default_project() -> Project:
         _DEFAULT[key] = hit
     return hit
 
+
 _DEFAULT: dict[str, Project] = {}
 _TMP: list[Path] = []
 
@@ -253,14 +258,17 @@ def _tmp_case_dir() -> Path:
         _TMP.append(Path(tempfile.mkdtemp(prefix="tli-verify-cases-")))
     return _TMP[0]
 
+
 def _fs(p: PathLike | None) -> str | None:
     return None if p is None else os.fspath(p)
+
 
 def _rel(path: str, root: Path) -> str:
     try:
         return str(Path(path).relative_to(root))
     except ValueError:
         return str(path)
+
 
 def _absolute(sim: SimSpec) -> SimSpec:
     """The spec with absolute file paths (a test that changes directory keeps it working)."""

@@ -54,6 +54,7 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
     last = max((c.last_step for c in cases), default=0)
     return int(proj.loaded.oracle.budget(max(proj.window, last)))
 
+
 def check(project: Project, case: Case, *, budget: int | None = None) -> Verdict:
     """Simulate one case and return the oracle's verdict.
 
@@ -74,6 +75,7 @@ def check(project: Project, case: Case, *, budget: int | None = None) -> Verdict
     Verdict
     """
     return check_many(project, [case], budget=budget)[0]
+
 
 def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = None,
                batch_size: int = 100) -> list[Verdict]:
@@ -106,6 +108,7 @@ def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = 
         out += oracle.check_many([trace for trace, _ in sims])
     return out
 
+
 # ------------------------------------------------------------------------------ asserting
 def failure_reasons(verdict: Verdict) -> list[str]:
     """Why a verdict does not pass :func:`assert_satisfies` (empty: it passes): each
@@ -125,6 +128,7 @@ def failure_reasons(verdict: Verdict) -> list[str]:
         reasons.append("the run did not reach a goal mode")
     assert bool(reasons) != verdict.satisfied  # one definition of passing
     return reasons
+
 
 def assert_satisfies(project: Project, case: Case, *, verdict: Verdict | None = None,
                      budget: int | None = None, case_dir: str | os.PathLike[str] | None = None,
@@ -195,6 +199,7 @@ def assert_satisfies(project: Project, case: Case, *, verdict: Verdict | None = 
     raise AssertionError(_message(project, case, v, reasons, saved, budget=budget,
                                   shrinking=in_hypothesis and not final))
 
+
 def _in_hypothesis() -> bool:
     import sys
 
@@ -203,6 +208,7 @@ def _in_hypothesis() -> bool:
     from hypothesis import currently_in_test_context
 
     return bool(currently_in_test_context())
+
 
 def _is_final() -> bool:
     """Hypothesis runs this example for the last time (the minimal failing case, or an
@@ -213,6 +219,7 @@ def _is_final() -> bool:
         return bool(getattr(current_build_context(), "is_final", True))
     except Exception:  # no build context: not shrinking
         return True
+
 
 def _message(proj: Project, case: Case, v: Verdict, reasons: list[str], saved: Path | None,
              *, budget: int | None, shrinking: bool) -> str:
@@ -239,6 +246,7 @@ def _message(proj: Project, case: Case, v: Verdict, reasons: list[str], saved: P
                      "(re-run it with tli_verify.testing.check(project, case))")
     return "\n".join(lines)
 
+
 # ------------------------------------------------------------------------------ cases
 def replay_command(path: str | os.PathLike[str]) -> str:
     """``tli replay PATH`` (relative to the working directory when under it, shell-quoted)."""
@@ -248,6 +256,7 @@ def replay_command(path: str | os.PathLike[str]) -> str:
     except ValueError:
         shown = str(p)
     return f"tli replay {shlex.quote(shown)}"
+
 
 def save_case(project: Project, case: Case, verdict: Verdict, *,
               case_dir: str | os.PathLike[str] | None = None, seed: int = 0) -> Path:
@@ -297,6 +306,7 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
     atomic_write_text(out, canonical_json(doc))
     return out
 
+
 def _relocate(doc: dict[str, Any], proj: Project, case_dir: Path) -> None:
     """Name the project's files relative to the case file's folder when both lie in the
     project (``tli replay`` looks there first)."""
@@ -312,6 +322,7 @@ def _relocate(doc: dict[str, Any], proj: Project, case_dir: Path) -> None:
         real = Path(os.path.realpath(paths.get(name, entry["path"])))
         if real.is_relative_to(root) and real.is_file():
             entry["path"] = os.path.relpath(real, real_dir)
+
 
 def _slug(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "task"

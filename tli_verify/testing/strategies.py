@@ -25,7 +25,6 @@ from tli_verify.verify.strategies import cases as _cases
 if TYPE_CHECKING:  # pragma: no cover - types only
     from hypothesis.strategies import SearchStrategy
 
-    from tli_verify.testing.projects import Project
     from tli_verify.verify.strategies import Case
 
 __all__ = ["MARK", "cases", "is_tli_strategy"]
@@ -40,6 +39,7 @@ this module (pytest's in-process runs drop the modules they imported)."""
 def is_tli_strategy(strategy: object) -> bool:
     """Whether ``strategy`` was built by :func:`cases`."""
     return getattr(strategy, MARK, False) is True
+
 
 def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None, *,
           max_pushes: int | None = None, window: int | None = None,
@@ -107,6 +107,7 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
         out = _build(project_or_task, options)
     setattr(out, MARK, True)
     return out
+
 
 def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
     import numpy as np

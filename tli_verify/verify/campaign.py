@@ -216,6 +216,7 @@ def _coverage(outcomes: Sequence[RunOutcome], automaton: Any) -> dict[str, Any]:
         "cut_faces": {"touched": touched, "total": total},
     }
 
+
 def run_campaign(config: CampaignConfig, *, progress: bool = False,
                  on_event: Callable[[str], None] | None = None) -> CampaignResult:
     """Run a campaign (module docstring).
@@ -240,7 +241,6 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     WorkerLost
         A batch's worker died more than twice.
     """
-
     check_type(config, "config", CampaignConfig, "a CampaignConfig", error=CampaignError)
     t0 = time.perf_counter()
     events: list[str] = []

@@ -51,7 +51,6 @@ CASE_VERSION = 2
 
 def _shown_path(path: str) -> str:
     """A file's path relative to the repository root when under it, else absolute."""
-
     try:
         root = Path(os.path.realpath(bundled_root()))
     except TliError:
@@ -59,6 +58,7 @@ def _shown_path(path: str) -> str:
     real = Path(os.path.realpath(path))
     return str(real.relative_to(root)) if root is not None and real.is_relative_to(root) \
         else str(real)
+
 
 def bound_files(spec: SimSpec) -> dict[str, dict[str, str]]:
     """The files of a run (paths relative to the repository root when under it) and the task
@@ -73,6 +73,7 @@ def bound_files(spec: SimSpec) -> dict[str, dict[str, str]]:
     else:
         out["task"] = {"entry_point": spec.task, "sha256": spec.task_sha256}
     return out
+
 
 _MAX_MESSAGE = 4000
 """Longest oracle message a case keeps (``expected.messages``, informational)."""
@@ -111,6 +112,7 @@ def case_document(spec: SimSpec, case: Case, verdict: Verdict, *, seed: int,
                      "oracle_modes": verdict.oracle_modes[:200]},
     }
 
+
 def _located(case_path: Path, fp: Path) -> Path:
     """A file a case names: absolute, else relative to the case file's directory, else to the
     repository root (the bundled files' parent)."""
@@ -121,6 +123,7 @@ def _located(case_path: Path, fp: Path) -> Path:
     with contextlib.suppress(TliError):
         candidates.append(bundled_root() / fp)
     return next((c for c in candidates if c.is_file()), candidates[0])
+
 
 def _check_case_fields(doc: dict[str, Any], p: Path) -> None:
     """What the schema does not say of a case (after it validated): integers written as floats
@@ -165,6 +168,7 @@ def _check_case_fields(doc: dict[str, Any], p: Path) -> None:
         raise CampaignError(f"{p}: expected.violation: {expected['violation']!r} is not one of "
                             f"expected.violations ({', '.join(expected['violations'])})")
 
+
 def _hash_input(fp: Path, p: Path, field_: str) -> str:
     """SHA-256 of a file a case names, read like any input: at most ``MAX_INPUT_BYTES``.
 
@@ -186,6 +190,7 @@ def _hash_input(fp: Path, p: Path, field_: str) -> str:
                             "bytes (MAX_INPUT_BYTES)")
     return hashlib.sha256(data).hexdigest()
 
+
 def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
     """The task a (validated) case names, and the field that names it.
 
@@ -194,7 +199,6 @@ def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
     CampaignError
         (exit 2) A missing task file, an unknown task or one that does not load.
     """
-
     if doc["version"] == 1:  # a bundled world by name
         field_, ref = "world", doc["world"]
     else:
@@ -210,6 +214,7 @@ def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
         return find_task(ref), field_
     except TliError as exc:
         raise CampaignError(f"{p}: {field_}: {exc}") from None
+
 
 def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Case]:
     """Read a case file; the files it names are resolved relative to it when not absolute (else
@@ -228,7 +233,6 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
         (exit 2) Unreadable, malformed, or naming missing files or files that do not fit; one
         line naming the case file and the field.
     """
-
     p = Path(path)
     if not p.is_file():
         raise CampaignError(f"{p}: no such case file")
@@ -270,6 +274,7 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
                    modulation=doc["modulation"], max_cycles=mc,
                    window=max(window, case.last_step))
     return doc, spec, case
+
 
 def replay_case(path: str | os.PathLike[str], *, modulation: bool | None = None
                 ) -> tuple[dict[str, Any], Verdict, bool, list[str]]:

@@ -146,6 +146,7 @@ class CampaignConfig:
             if v is not None and not isinstance(v, str):
                 raise CampaignError(f"{name}: expected a path or name, got {v!r}")
 
+
 @dataclass(frozen=True, slots=True)
 class SimSpec:
     """What a worker needs to rebuild the setup (files by path and SHA-256; picklable).
@@ -166,6 +167,7 @@ class SimSpec:
     max_cycles: int | None
     window: int
 
+
 def task_ref(task: Any) -> tuple[str, str]:
     """How a worker finds a task again, and what binds it: ``(task file path, its SHA-256)``,
     or ``(entry point name, its source SHA-256)``.
@@ -183,6 +185,7 @@ def task_ref(task: Any) -> tuple[str, str]:
     raise CampaignError(f"task {task.name!r} was built in memory: campaigns need a task file "
                         "or an entry-point task")
 
+
 def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
     """The config's files by the project rules, and the config with the task's defaults
     filled in (window, max_pushes, lag, start or random starts).
@@ -193,7 +196,6 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
         (exit 2) Missing files, a model or spec that does not fit the task, a start outside
         the workspace or of the wrong dimension.
     """
-
     resolved = resolve(task=cfg.task, spec=cfg.spec, model=cfg.model,
                        certificate=cfg.certificate, lag=cfg.lag)
     task = resolved.task
@@ -220,6 +222,7 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
                      start=None if random_starts else tuple(float(v) for v in start or ()))
     return resolved, filled
 
+
 def sim_spec(cfg: CampaignConfig) -> SimSpec:
     """Resolve the files of a config (its task defaults filled in) and hash them.
 
@@ -228,7 +231,6 @@ def sim_spec(cfg: CampaignConfig) -> SimSpec:
     CampaignError, TaskError
         (exit 2) Unknown task, missing files, files that do not fit.
     """
-
     resolved, filled = resolve_config(cfg)
     ref, sha = task_ref(resolved.task)
     assert filled.window is not None

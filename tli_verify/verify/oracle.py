@@ -109,6 +109,7 @@ class ViolationKind(enum.Enum):
     AUTOMATON = "automaton"
     LOOPING = "looping"
 
+
 PRIORITY: tuple[ViolationKind, ...] = (
     ViolationKind.AUTOMATON,
     ViolationKind.REPEATED_EXIT,
@@ -137,6 +138,7 @@ class Violation:
     step: int
     message: str
 
+
 @dataclass(frozen=True, slots=True)
 class CutRecord:
     """A cut the policy reported (``CutAdded``), as data.
@@ -159,6 +161,7 @@ class CutRecord:
         """``w . (x - p)`` for states ``X`` of shape (N, n) (> 0: outside), shape (N,)."""
         return np.asarray((X - np.asarray(self.point)) @ np.asarray(self.normal),
                           dtype=np.float64)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Trace:
@@ -191,6 +194,7 @@ class Trace:
     def steps(self) -> int:
         """``T``: control steps taken."""
         return len(self.modes) - 1
+
 
 @dataclass(frozen=True, slots=True)
 class Verdict:
@@ -279,6 +283,7 @@ class Verdict:
         kinds = self.kinds
         return next((k for k in PRIORITY if k in kinds), None)
 
+
 @dataclass(frozen=True, slots=True)
 class _ModeParams:
     P: FloatArray
@@ -288,6 +293,7 @@ class _ModeParams:
     radius: float
     lam_min: float
     lam_max: float
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Oracle:
@@ -372,7 +378,6 @@ class Oracle:
         TliError
             (exit 2) The certificate lacks a DS the plan runs, or cannot be read.
         """
-
         if isinstance(certificate, Mapping):
             doc: Mapping[str, Any] = certificate
         else:
@@ -443,7 +448,6 @@ class Oracle:
             0 in a goal mode (of a goal without sensors; a goal with sensors, e.g. a cyclic
             task's release, counts its own DS too: the sensors read true where it converges).
         """
-
         seq = self.path.get(mode, (mode,))
         total = 0.0
         v = 0.0
@@ -754,9 +758,11 @@ class Oracle:
                     "reading does not come where the DS rests")
         return f"Diagnosis: the run stays in mode {m} (region {region(end)})"
 
+
 def _runs(modes: Sequence[str]) -> str:
 
     return mode_sequence(modes)
+
 
 def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
     """``max_k lambda_max(P^{-1} (I + dt A_k)^T P (I + dt A_k))`` (module docstring)."""
@@ -769,6 +775,7 @@ def _sampled_rate(P: FloatArray, A: FloatArray, dt: float) -> float:
         w = sla.eigh(M.T @ P @ M, P, eigvals_only=True)
         worst = max(worst, float(np.max(w)))
     return worst * (1.0 + 1e-9)
+
 
 def cut_bound_message(*, learned: int, last_push: int, bound: int, modes: int) -> str:
     """The looping violation's message for too many cuts after the last perturbation: it says

@@ -84,6 +84,7 @@ class RunOutcome:
     modes: str
     cuts_by_mode: tuple[tuple[str, int], ...] = ()
 
+
 class LoopWatchdog:
     """A stop predicate of the closed loop (:func:`~tli_verify.runtime.loop.run_episodes`):
     ends an episode whose looping verdict is already decided (not the policy's logic).
@@ -129,6 +130,7 @@ class LoopWatchdog:
             self._seen[i] = n
         return n - self._mark[i] > self._limit or self._cuts[i] > self._max_cuts
 
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Loaded:
     """A loaded setup: task, automaton, certified model, base policy, oracle."""
@@ -142,6 +144,7 @@ class Loaded:
     budget: int
     limit: int
 
+
 def load_task(spec: SimSpec) -> Any:
     """The task of a :class:`SimSpec`, checked against the hash the driver bound.
 
@@ -150,13 +153,13 @@ def load_task(spec: SimSpec) -> Any:
     CampaignError
         (exit 2) The task changed since the campaign resolved it.
     """
-
     task = find_task(spec.task)
     _, sha = task_ref(task)
     if sha != spec.task_sha256:
         raise CampaignError(f"{spec.task}: the task changed during the campaign (SHA-256 "
                             "differs)")
     return task.with_lag(spec.lag)
+
 
 @lru_cache(maxsize=4)
 def load(spec: SimSpec) -> Loaded:
@@ -168,7 +171,6 @@ def load(spec: SimSpec) -> Loaded:
         (exit 2) A file's SHA-256 differs from the driver's (the files changed under the
         campaign).
     """
-
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
         if sha256_file(path) != want:
             raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
@@ -193,10 +195,10 @@ def load(spec: SimSpec) -> Loaded:
                   certificate=spec.certificate, policy=base, oracle=oracle,
                   budget=oracle.budget(spec.window), limit=limit)
 
+
 def start_regions(task: Task, automaton: Any) -> tuple[str, ...]:
     """The true regions whose first reading (from the initial latent state) is one the spec's
     initial assumption allows."""
-
     out = []
     for name in task.region_names:
         try:
@@ -211,6 +213,7 @@ def start_regions(task: Task, automaton: Any) -> tuple[str, ...]:
             continue
         out.append(name)
     return tuple(out)
+
 
 def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
              ) -> list[tuple[Trace, Any]]:
@@ -227,7 +230,6 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
     -------
     list of (Trace, EpisodeResult)
     """
-
     ld = load(spec)
     if not cases_:
         return []
@@ -269,6 +271,7 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
                           cuts=cuts, budget=ld.budget), res))
     return out
 
+
 def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunOutcome]:
     """A worker's task: simulate a batch and check every trace with the oracle.
 
@@ -293,6 +296,7 @@ def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunO
                        cuts_by_mode=tuple(sorted(Counter(
                            e.mode for e in res.events if isinstance(e, CutAdded)).items())))
             for (i, _), (_, res), v in zip(items, sims, verdicts, strict=True)]
+
 
 def check_case(spec: SimSpec, case: Case) -> Verdict:
     """Simulate one case in this process and return the oracle's verdict."""

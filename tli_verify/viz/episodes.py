@@ -102,6 +102,7 @@ def episode_title(res: EpisodeResult, *, label: str = "", goal_label: str = "the
     cuts = f"{res.cuts_added} cut{'' if res.cuts_added == 1 else 's'}"
     return f"{label + ': ' if label else ''}{seq} ({verdict}, {cuts})"
 
+
 def zoom_colors(modes: Sequence[str], mode_colors: Mapping[str, Any] | None = None
                 ) -> dict[str, tuple[Any, str]]:
     """Colours of the modes in the zoom panel: ``{mode: (colour, name for the title)}``.
@@ -121,6 +122,7 @@ def zoom_colors(modes: Sequence[str], mode_colors: Mapping[str, Any] | None = No
             out[m] = _ZOOM_PALETTE[k % len(_ZOOM_PALETTE)]
             k += 1
     return out
+
 
 def mode_colors(modes: Sequence[str], given: Mapping[str, Any] | None = None
                 ) -> dict[str, str]:
@@ -152,6 +154,7 @@ def mode_colors(modes: Sequence[str], given: Mapping[str, Any] | None = None
             k += 1
     return out
 
+
 # ----------------------------------------------------------------------------- checks
 def _check_episode(task: TaskLike, res: EpisodeResult, label: str) -> FloatArray:
     S = np.asarray(res.states, dtype=np.float64)
@@ -164,18 +167,22 @@ def _check_episode(task: TaskLike, res: EpisodeResult, label: str) -> FloatArray
                        f"{len(S)} states")
     return S
 
+
 def _final_cuts(res: EpisodeResult) -> list[Any]:
     return [c for cs in _mode_cuts(res).values() for c in cs]
+
 
 def _mode_cuts(res: EpisodeResult) -> dict[str, list[Any]]:
     """The cuts of each mode's region in the episode's final model."""
     modes = sorted({mm.mode for mm in res.model.modes.values()})
     return {m: list(res.model.region_cuts(m)) for m in modes}
 
+
 def _faces(cuts: Mapping[str, Sequence[Any]]) -> list[tuple[Any, Others]]:
     """Each cut with the other cuts of its mode (its face: :func:`_draw_cut`)."""
     return [(c, tuple((o.normal, o.point) for q, o in enumerate(cs) if q != k))
             for cs in cuts.values() for k, c in enumerate(cs)]
+
 
 # ----------------------------------------------------------------------------- drawing
 def _xy(S: FloatArray, pair: Pair | None, t0: int = 0) -> tuple[FloatArray, FloatArray]:
@@ -184,11 +191,13 @@ def _xy(S: FloatArray, pair: Pair | None, t0: int = 0) -> tuple[FloatArray, Floa
         return S[:, 0], np.arange(t0, t0 + len(S), dtype=np.float64)
     return S[:, pair[0]], S[:, pair[1]]
 
+
 def _pt(x: npt.ArrayLike, pair: Pair | None, t: int) -> tuple[float, float]:
     v = np.asarray(x, dtype=np.float64)
     if pair is None:
         return float(v[0]), float(t)
     return float(v[pair[0]]), float(v[pair[1]])
+
 
 def _draw_cut(ax: Any, cut: Any, pair: Pair | None, lo: FloatArray, hi: FloatArray, *,
               others: Others | None = None) -> list[Any]:
@@ -215,8 +224,10 @@ def _draw_cut(ax: Any, cut: Any, pair: Pair | None, lo: FloatArray, hi: FloatArr
     return list(ax.fill(poly[:, 0], poly[:, 1], fill=False, edgecolor=_FACE_EDGE, lw=1.0,
                         zorder=2.4))
 
+
 def _key(v: npt.ArrayLike) -> tuple[float, ...]:
     return tuple(float(x) for x in np.asarray(v, dtype=np.float64).ravel())
+
 
 @functools.lru_cache(maxsize=4096)
 def _face_shadow(normal: tuple[float, ...], point: tuple[float, ...], pair: Pair,
@@ -227,6 +238,7 @@ def _face_shadow(normal: tuple[float, ...], point: tuple[float, ...], pair: Pair
     (the episodes of one picture and the frames of an animation share their cuts)."""
     return cut_face_shadow(normal, point, pair[0], pair[1], lo, hi,
                            [(np.array(a), np.array(q)) for a, q in others])
+
 
 def _segments(S: FloatArray, pair: Pair | None, modes: Sequence[str], pushes: set[int],
               t0: int = 0) -> tuple[FloatArray, list[str], FloatArray]:
@@ -254,6 +266,7 @@ def _segments(S: FloatArray, pair: Pair | None, modes: Sequence[str], pushes: se
     order = sorted(range(len(move_modes)), key=lambda k: -count[move_modes[k]])  # stable
     return moves[order], [move_modes[k] for k in order], seg[is_jump]
 
+
 def _limits(ax: Any, bg: _Background, pair: Pair | None, steps: int) -> None:
     lo, hi = bg.lo, bg.hi
     if pair is None:
@@ -265,6 +278,7 @@ def _limits(ax: Any, bg: _Background, pair: Pair | None, steps: int) -> None:
     ax.set_ylim(lo[j], hi[j])
     ratio = (hi[j] - lo[j]) / (hi[i] - lo[i])
     ax.set_aspect("equal" if 0.25 <= ratio <= 4.0 else "auto")
+
 
 def _draw_episode(ax: Any, bg: _Background, res: EpisodeResult, S: FloatArray,
                   pair: Pair | None, nominal: EpisodeResult | None,
@@ -315,6 +329,7 @@ def _draw_episode(ax: Any, bg: _Background, res: EpisodeResult, S: FloatArray,
             ax.plot(*_pt(e.outside, pair, e.step), "x", color="tab:red", ms=7, mew=2, zorder=5)
     _limits(ax, bg, pair, steps)
 
+
 def _mode_runs(modes: Sequence[str]) -> list[tuple[str, int, int]]:
     """``[(mode, first step, last step + 1), ...]`` of a mode trace."""
     runs: list[tuple[str, int, int]] = []
@@ -324,6 +339,7 @@ def _mode_runs(modes: Sequence[str]) -> list[tuple[str, int, int]]:
         else:
             runs.append((m, t, t + 1))
     return runs
+
 
 def _mode_strip(ax: Any, res: EpisodeResult, colors: Mapping[str, Any]) -> None:
     """The mode over time: one bar per run of a mode (labelled where it is wide enough), the
@@ -348,6 +364,7 @@ def _mode_strip(ax: Any, res: EpisodeResult, colors: Mapping[str, Any]) -> None:
     ax.set_ylabel("mode", fontsize=8)
     ax.set_xlabel("step", fontsize=8)
     ax.tick_params(labelsize=7)
+
 
 def _zoom_panel(ax: Any, bg: _Background, res: EpisodeResult, S_all: FloatArray,
                 pair: Pair | None, mode_colors: Mapping[str, Any] | None) -> None:
@@ -395,6 +412,7 @@ def _zoom_panel(ax: Any, bg: _Background, res: EpisodeResult, S_all: FloatArray,
                   title="mode", title_fontsize=7, framealpha=0.8)
     _labels(ax, bg.task, pair)
 
+
 def _labels(ax: Any, task: TaskLike, pair: Pair | None) -> None:
     if pair is None:
         ax.set_xlabel(task.state_names[0], fontsize=8)
@@ -402,6 +420,7 @@ def _labels(ax: Any, task: TaskLike, pair: Pair | None) -> None:
     else:
         ax.set_xlabel(task.state_names[pair[0]], fontsize=8)
         ax.set_ylabel(task.state_names[pair[1]], fontsize=8)
+
 
 def _trajectory_handles(nominal: bool, colors: Mapping[str, Any] | None = None) -> list[Any]:
     """The legend of the trajectories; ``colors`` (n >= 3): one entry per mode, and a cut is
@@ -425,6 +444,7 @@ def _trajectory_handles(nominal: bool, colors: Mapping[str, Any] | None = None) 
     return [*out, Line2D([], [], color="tab:red", lw=1.2, ls="--", label="push"), *cut,
             Line2D([], [], ls="none", marker="o", mfc="gold", mec="k", label="last in-mode"),
             Line2D([], [], ls="none", marker="x", color="tab:red", mew=2, label="failure")]
+
 
 def plot_episodes(task: TaskLike, panels: Sequence[tuple[str, EpisodeResult]],
                   path: str | os.PathLike[str], *, nominal: EpisodeResult | None = None,
@@ -503,6 +523,7 @@ def plot_episodes(task: TaskLike, panels: Sequence[tuple[str, EpisodeResult]],
     save_figure(fig, path, dpi=90 if flat_row else _ND_DPI)
     return Picture(path=Path(path), panels=drawn, pairs=chosen, legend=bg.legend)
 
+
 def _flat_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeResult]],
                  states: Sequence[FloatArray], pair: Pair | None, *,
                  nominal: EpisodeResult | None, zoom_first: bool, goal_label: str,
@@ -524,6 +545,7 @@ def _flat_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeR
         plt.close(fig)
         raise
     return fig, ncols
+
 
 def _grid_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeResult]],
                  states: Sequence[FloatArray], chosen: Sequence[Pair], *,
@@ -566,6 +588,7 @@ def _grid_figure(plt: Any, bg: _Background, panels: Sequence[tuple[str, EpisodeR
         raise
     return fig, drawn
 
+
 def _colors_of(results: Sequence[EpisodeResult], nominal: EpisodeResult | None,
                given: Mapping[str, Any] | None) -> dict[str, str]:
     """The mode colours of a picture: every mode of its episodes (and the nominal run), in
@@ -576,6 +599,7 @@ def _colors_of(results: Sequence[EpisodeResult], nominal: EpisodeResult | None,
     for r in results:
         seen += sorted({mm.mode for mm in r.model.modes.values()})
     return mode_colors(seen, given)
+
 
 # ----------------------------------------------------------------------------- animation
 def animate_episode(task: TaskLike, res: EpisodeResult, path: str | os.PathLike[str], *,

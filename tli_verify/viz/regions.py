@@ -126,6 +126,7 @@ class TaskLike(Protocol):
         sample."""
         ...
 
+
 @dataclass(frozen=True, slots=True)
 class Picture:
     """What a picture function drew.
@@ -146,6 +147,7 @@ class Picture:
     panels: int
     pairs: tuple[Pair, ...]
     legend: tuple[str, ...]
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class RegionShadow:
@@ -176,6 +178,7 @@ class RegionShadow:
     def drawable(self) -> bool:
         """Whether the region has samples to draw."""
         return self.points is not None
+
 
 # ----------------------------------------------------------------------------- checks
 @dataclass(frozen=True, slots=True, eq=False)
@@ -212,6 +215,7 @@ class _TaskView:
     def sample_region(self, name: str, count: int, rng: np.random.Generator) -> npt.ArrayLike:
         return np.asarray(self.base.sample_region(name, count, rng))
 
+
 def as_task(obj: Any, *, state_names: Sequence[str] | None = None) -> TaskLike:
     """``obj`` as a :class:`TaskLike`, adding ``dim`` and ``state_names`` when it lacks them.
 
@@ -237,10 +241,12 @@ def as_task(obj: Any, *, state_names: Sequence[str] | None = None) -> TaskLike:
                      state_names=names if names is not None
                      else tuple(f"x{k + 1}" for k in range(n)))
 
+
 def _box(task: TaskLike) -> tuple[FloatArray, FloatArray]:
     lo = np.asarray(task.lo, dtype=np.float64).reshape(-1)
     hi = np.asarray(task.hi, dtype=np.float64).reshape(-1)
     return lo, hi
+
 
 def check_task(task: TaskLike) -> None:
     """Check that a task can be drawn (its attributes agree with each other).
@@ -275,6 +281,7 @@ def check_task(task: TaskLike) -> None:
         raise TliError(f"{name}: cannot draw: {len(task.region_colors)} region colours for "
                        f"{len(task.region_names)} regions")
 
+
 def _region_index(task: TaskLike, X: FloatArray) -> IntArray:
     """``task.region_index(X)`` checked: shape (N,), integers indexing ``region_names``."""
     idx = np.asarray(task.region_index(X))
@@ -286,6 +293,7 @@ def _region_index(task: TaskLike, X: FloatArray) -> IntArray:
         raise TliError(f"{task.name}: cannot draw: region_index returned values outside "
                        f"0..{len(task.region_names) - 1}")
     return idx.astype(np.int64)
+
 
 def pairs_for(dim: int, pairs: Sequence[Sequence[int]] | None = None) -> tuple[Pair, ...]:
     """The coordinate pairs (panels) of an ``n``-D picture.
@@ -335,6 +343,7 @@ def pairs_for(dim: int, pairs: Sequence[Sequence[int]] | None = None) -> tuple[P
     if len(out) > MAX_PAIRS:
         raise TliError(f"{len(out)} coordinate pairs: at most {MAX_PAIRS} panels per picture")
     return tuple(out)
+
 
 # ----------------------------------------------------------------------------- shadows
 def region_shadows(task: TaskLike, *, samples: int = DEFAULT_SAMPLES, seed: int = 0
@@ -404,9 +413,11 @@ def region_shadows(task: TaskLike, *, samples: int = DEFAULT_SAMPLES, seed: int 
                        f"({out[0].name}: {out[0].reason})")
     return tuple(out)
 
+
 def legend_labels(shadows: Sequence[RegionShadow]) -> tuple[str, ...]:
     """The region legend: the names, ``"<name> (too small to draw)"`` for an unsampled one."""
     return tuple(s.name if s.drawable else f"{s.name} {TOO_SMALL}" for s in shadows)
+
 
 def shadow_mask(points: npt.ArrayLike, i: int, j: int, lo: npt.ArrayLike, hi: npt.ArrayLike
                 ) -> BoolArray:
@@ -447,6 +458,7 @@ def shadow_mask(points: npt.ArrayLike, i: int, j: int, lo: npt.ArrayLike, hi: np
     room = sum(valid[1 + di:1 + di + b0, 1 + dj:1 + dj + b1]
                for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != (0, 0))
     return np.asarray(mask | (near >= 0.6 * np.asarray(room)), dtype=bool)
+
 
 def cut_trace(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
               lo: npt.ArrayLike, hi: npt.ArrayLike) -> FloatArray | None:
@@ -498,6 +510,7 @@ def cut_trace(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
     if not s1 - s0 > 1e-12 * size:
         return None
     return np.array([origin + s0 * d, origin + s1 * d], dtype=np.float64)
+
 
 def cut_face_shadow(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
                     lo: npt.ArrayLike, hi: npt.ArrayLike,
@@ -592,6 +605,7 @@ def cut_face_shadow(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
         return np.asarray(poly[list(far)], dtype=np.float64)
     return poly
 
+
 # ----------------------------------------------------------------------------- exact shadows
 _PRIMITIVES = ("Box", "Ball", "Ellipsoid", "Polytope")
 _ELLIPSE_POINTS = 181
@@ -638,6 +652,7 @@ def exact_shapes(task: TaskLike, *, seed: int = 0, samples: int = 4000) -> tuple
         ok = len(X) > 0 and bool(np.all(_region_index(task, X) == k))
         out.append(shape if ok else None)
     return tuple(out)
+
 
 def exact_shadow(shape: Any, i: int, j: int, lo: npt.ArrayLike, hi: npt.ArrayLike
                  ) -> FloatArray | None:
@@ -698,11 +713,13 @@ def exact_shadow(shape: Any, i: int, j: int, lo: npt.ArrayLike, hi: npt.ArrayLik
         return np.asarray(P[order], dtype=np.float64)
     return None
 
+
 # ----------------------------------------------------------------------------- drawing
 def _aspect(lo: FloatArray, hi: FloatArray, i: int, j: int) -> str:
     """``"equal"`` unless the pair's ranges differ by more than 4x (then ``"auto"``)."""
     ratio = (hi[j] - lo[j]) / (hi[i] - lo[i])
     return "equal" if 0.25 <= ratio <= 4.0 else "auto"
+
 
 def _blur(F: FloatArray) -> FloatArray:
     """A 3 x 3 binomial blur (edges repeated), to round the shadows' staircase edges."""
@@ -712,11 +729,13 @@ def _blur(F: FloatArray) -> FloatArray:
         F = 0.25 * lo + 0.5 * mid + 0.25 * hi
     return F
 
+
 def _darker(color: str) -> tuple[float, float, float]:
     from matplotlib.colors import to_rgb
 
     r, g, b = to_rgb(color)
     return (0.6 * r, 0.6 * g, 0.6 * b)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class _Background:
@@ -808,6 +827,7 @@ class _Background:
             ax.contour(xs, ys, field, levels=[0.5], colors=[_darker(s.color)],
                        linewidths=0.7, zorder=0.6)
 
+
 def _background(task: TaskLike, *, resolution: int = 300, samples: int = DEFAULT_SAMPLES,
                 seed: int = 0) -> _Background:
     """The regions of a checked task, ready to draw in any panel."""
@@ -827,9 +847,11 @@ def _background(task: TaskLike, *, resolution: int = 300, samples: int = DEFAULT
     return _Background(task, lo, hi, None, region_shadows(task, samples=samples, seed=seed),
                        exact_shapes(task, seed=seed))
 
+
 def _grid_shape(count: int, max_cols: int = 3) -> tuple[int, int]:
     ncols = max(1, min(max_cols, count))
     return math.ceil(count / ncols), ncols
+
 
 def _check_demos(task: TaskLike, demos: Sequence[Any]) -> list[FloatArray]:
     out = []
@@ -840,6 +862,7 @@ def _check_demos(task: TaskLike, demos: Sequence[Any]) -> list[FloatArray]:
                            f"{x.shape}, expected (T, {task.dim})")
         out.append(x)
     return out
+
 
 def plot_task(task: TaskLike, path: str | os.PathLike[str], *, demos: Sequence[Any] = (),
               title: str | None = None, resolution: int = 400,

@@ -87,6 +87,7 @@ from tli_verify.logic.foreign.tree import (
 
 __all__ = ["FORMATS", "ImportedSpec", "import_spec_file", "import_spec_text"]
 
+
 def import_spec_file(path: str | Path, *, semantics: str | None = "textbook") -> str:
     """Read a Spectra, structured slugs or slugsin file and return our TOML spec text.
 

@@ -19,6 +19,7 @@ from tli_verify.logic.foreign.tree import (
 
 __all__: list[str] = []
 
+
 def _primed_justice(spec: ImportedSpec) -> None:
     """A liveness goal that reads next values, ``GF phi(v, v')`` (a goal over steps, as
     Spectra and slugs allow), becomes ``GF j`` with a fresh system variable ``j``: false at

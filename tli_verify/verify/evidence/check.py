@@ -140,8 +140,10 @@ class EvidenceCheck:
         """True iff nothing failed."""
         return not self.problems
 
+
 def _short(sha: str) -> str:
     return f"{sha[:12]}..."
+
 
 def check_evidence(path: str | os.PathLike[str], *,
                    model_path: str | os.PathLike[str] | None = None,
@@ -172,7 +174,6 @@ def check_evidence(path: str | os.PathLike[str], *,
     EvidenceCheck
         Every problem found (not just the first); never raises for a bad file.
     """
-
     epath = Path(path)
     shown = str(epath)
     if epath.is_symlink():
@@ -236,6 +237,7 @@ def check_evidence(path: str | os.PathLike[str], *,
                                               if k in keep)),
                          digest=str(doc["digest"]))
 
+
 def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str],
                           worlds: Mapping[str, PhysicalWorld]) -> list[str]:
     """The campaign semantics are this tool's (:data:`CAMPAIGN_SEMANTICS`; the tool version
@@ -261,6 +263,7 @@ def _check_tool_and_world(doc: Mapping[str, Any], shown: str, passed: list[str],
                    f"ran on ({doc['task']['name']!r}): the evidence was edited")
     return out
 
+
 def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[str, Any]:
     """The ``task`` block evidence for a deployed model must carry: the task its spec names,
     as the project resolver finds it (:func:`tli_verify.tasks.project.resolve`).
@@ -282,6 +285,7 @@ def deployed_task_block(model_path: str | os.PathLike[str], base: Path) -> dict[
                             "evidence can be bound to the deployed task")
     return task_block(task, base)
 
+
 def _physics_task(model_path: Path) -> bool:
     """Whether the deployed spec's task computes its sensors in a simulator."""
     from tli_verify.model.serialize import load_model
@@ -290,6 +294,7 @@ def _physics_task(model_path: Path) -> bool:
     spec = load_model(model_path).spec_path
     task = None if spec is None else spec_task(load_spec(spec), spec)
     return bool(getattr(getattr(task, "sensor_model", None), "physics", False))
+
 
 def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
                 passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
@@ -334,17 +339,18 @@ def _check_task(doc: Mapping[str, Any], shown: str, mpath: Path, base: Path,
         passed.append(f"task {want['name']!r} is the deployed spec's and matches its SHA-256")
     return []
 
+
 def _same_entry_point(got: Any, want: Mapping[str, Any]) -> bool:
     """The entry point the campaign ran is the deployed one: same name, distribution, source
     and version. The version of tli-verify's own entry points is not compared (it is the tool
     version: :data:`CAMPAIGN_SEMANTICS` binds what tli-verify's code means); a third-party
     distribution's version is (its module's dependencies may have changed)."""
-
     if not isinstance(got, Mapping):
         return False
     ignore = {"version"} if want.get("distribution") == DISTRIBUTION else set()
     keys = (set(got) | set(want)) - ignore
     return all(got.get(k) == want.get(k) for k in keys)
+
 
 def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping[str, Path],
                  seen: Mapping[str, Path], passed: list[str]) -> list[str]:
@@ -402,6 +408,7 @@ def _check_files(doc: Mapping[str, Any], shown: str, mpath: Path, named: Mapping
         passed.append(f"certificate {seen['certificate']} matches its SHA-256 and covers the "
                       "model")
     return out
+
 
 def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                     passed: list[str], worlds: Mapping[str, PhysicalWorld]) -> list[str]:
@@ -461,12 +468,14 @@ def _check_campaign(doc: Mapping[str, Any], shown: str, min_examples: int,
                       f"{camp['seed']}), modulation on, 0 violations")
     return out
 
+
 """The ``--backend`` choices of ``tli verify``, ``tli evidence`` and ``tli sim franka``."""
+
+
 def _check_run_settings(camp: Mapping[str, Any], shown: str) -> list[str]:
     """How the campaign ran (``campaign.backend``, ``campaign.workers``; kinematic and physical
     alike), validated with the command line's choices and range, like every other recorded
     setting: the schema alone admits any short string and up to 100,000 workers."""
-
     out = []
     backend, workers = camp.get("backend"), camp.get("workers")
     if backend is not None and backend not in BACKENDS:
@@ -477,6 +486,7 @@ def _check_run_settings(camp: Mapping[str, Any], shown: str) -> list[str]:
         out.append(f"{shown}: campaign.workers {workers!r}: not an integer in [1, "
                    f"{MAX_WORKERS}] (what --workers takes)")
     return out
+
 
 def _check_settings(camp: Mapping[str, Any], settings: Mapping[str, Any], shown: str
                     ) -> list[str]:
@@ -500,6 +510,7 @@ def _check_settings(camp: Mapping[str, Any], settings: Mapping[str, Any], shown:
         return [f"{shown}: campaign.settings: {exc} (recorded settings are validated with the "
                 "command line's limits)"]
     return []
+
 
 def _check_physics(doc: Mapping[str, Any], shown: str, passed: list[str],
                    worlds: Mapping[str, PhysicalWorld]) -> list[str]:

@@ -29,19 +29,23 @@ __all__ = [
     "task_content_sha256",
 ]
 
+
 class _BadInput(EvidenceError, ValueError):
     """Evidence that cannot be built from what was given (bad input, not a verdict)."""
+
 
 def evidence_digest(doc: Mapping[str, Any]) -> str:
     """SHA-256 of the canonical JSON of an evidence document without its ``digest`` field."""
     body = {k: v for k, v in doc.items() if k != "digest"}
     return hashlib.sha256(canonical_json(body).encode("utf-8")).hexdigest()
 
+
 def model_stem(model_path: str | os.PathLike[str]) -> str:
     """``scoop`` for ``models/scoop.model.json`` (:func:`tli_verify.tasks.project.model_stem`)."""
     from tli_verify.tasks.project import model_stem as stem
 
     return stem(model_path)
+
 
 def evidence_path_for(model_path: str | os.PathLike[str]) -> Path:
     """Where a model's campaign evidence lives: the project rule
@@ -61,13 +65,16 @@ def evidence_path_for(model_path: str | os.PathLike[str]) -> Path:
 
     return model_files(model_path).evidence
 
+
 def _relpath(target: Path, base_dir: Path) -> str:
     return Path(os.path.relpath(target.resolve(), base_dir.resolve())).as_posix()
+
 
 def _file_entry(path: Path, base: Path, what: str) -> dict[str, str]:
     if not path.is_file():
         raise missing(EvidenceError, f"{path}: {what} file not found", path)
     return {"path": _relpath(path, base), "sha256": sha256_file(path)}
+
 
 def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
     """The evidence's ``task`` block of a task (paths relative to ``base``).
@@ -94,6 +101,7 @@ def task_block(task: Any, base: str | os.PathLike[str]) -> dict[str, Any]:
         out["entry_point"] = {"name": src.entry_point, "distribution": src.distribution,
                               "version": src.version, "source_sha256": src.source_sha256}
     return out
+
 
 def task_content_sha256(path: str | os.PathLike[str]) -> str | None:
     """SHA-256 of a task file's content: the parsed TOML as canonical JSON (comments, blank

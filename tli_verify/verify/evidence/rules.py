@@ -36,6 +36,8 @@ EVIDENCE_SUFFIX = ".campaign.json"
 MIN_EVIDENCE_EXAMPLES = 500
 MIN_WINDOW = 100
 MIN_MAX_PUSHES = 2
+
+
 @dataclass(frozen=True, slots=True)
 class PhysicalWorld:
     """A kind of physical campaign the evidence check accepts; its checks live with its

@@ -19,6 +19,8 @@ __all__ = [
 
 _CORE = frozenset({"task", "spec", "model", "certificate", "examples", "seed", "modulation",
                    "workers", "backend", "scheduler"})
+
+
 def _settings(config: Any) -> dict[str, Any]:
     """The config's other fields with JSON values (tuples as lists), for a faithful re-run."""
     import dataclasses
@@ -38,6 +40,7 @@ def _settings(config: Any) -> dict[str, Any]:
             out[f.name] = value
     return out
 
+
 def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[str, Any]:
     """Recorded settings as keyword arguments of ``config_type`` (lists back to tuples; fields
     it does not have are dropped)."""
@@ -46,6 +49,7 @@ def settings_for_config(settings: Mapping[str, Any], config_type: Any) -> dict[s
     names = {f.name for f in dataclasses.fields(config_type)} - _CORE
     return {k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()
             if k in names}
+
 
 def settings_problems(settings: Mapping[str, Any], task: Any) -> list[str]:
     """What in a kinematic campaign's recorded settings no ``tli verify`` or ``tli evidence``

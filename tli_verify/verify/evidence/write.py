@@ -45,6 +45,7 @@ __all__ = [
     "write_evidence",
 ]
 
+
 def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
                    task: Mapping[str, Any],
                    spec: str | os.PathLike[str], model: str | os.PathLike[str],
@@ -110,7 +111,6 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
         (exit 2) A file is missing or changed since the campaign ran it, or a field is out of
         range (the schema names it).
     """
-
     base = Path(evidence_path).parent
     by_kind = {str(k): int(v) for k, v in violations.items()}
     doc: dict[str, Any] = {
@@ -147,6 +147,7 @@ def build_evidence(*, evidence_path: str | os.PathLike[str], world: str,
     validate_schema(doc, "campaign.schema.json", where=str(evidence_path), error=_BadInput)
     return doc
 
+
 def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any]:
     """Build (:func:`build_evidence`) and write an evidence file atomically (canonical JSON).
 
@@ -174,6 +175,7 @@ def write_evidence(path: str | os.PathLike[str], **fields: Any) -> dict[str, Any
     doc = build_evidence(evidence_path=path, **fields)
     atomic_write_text(path, canonical_json(doc))
     return doc
+
 
 def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
                             path: str | os.PathLike[str] | None = None
@@ -241,6 +243,7 @@ def write_campaign_evidence(config: CampaignConfig, result: CampaignResult, *,
         settings=_settings(config), expected={k: h for k, (_, h) in files.items() if h is not None})
     return target, doc
 
+
 def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | None:
     """Why a campaign of ``config`` (its task defaults filled in:
     :func:`~tli_verify.verify.config.resolve_config`) would be weaker than the passing
@@ -251,7 +254,6 @@ def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | Non
     Stronger: more examples; random starts where the new campaign starts at a nominal state;
     a longer perturbation window; more pushes per case; more perturbation levels.
     """
-
     try:
         doc = read_json(Path(path), what="campaign evidence", error=EvidenceError)
         camp, viol = doc["campaign"], doc["violations"]
@@ -275,6 +277,7 @@ def weaker_than_recorded(path: str | os.PathLike[str], config: Any) -> str | Non
         return None
     return "; ".join(why) or None
 
+
 def _campaign_config(config: Any, result: Any) -> Any:
     """The config the campaign ran (``result.config``, its task defaults filled in), checked
     against the one given (the same seed, examples and modulation)."""
@@ -287,6 +290,7 @@ def _campaign_config(config: Any, result: Any) -> Any:
             raise _BadInput(f"config.{name} is {given!r}, the campaign ran with {ran!r}: pass "
                             "the config the result came from (result.config)")
     return used
+
 
 def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | None]]:
     """name -> (path, SHA-256 the campaign ran it at) from ``result.files`` (paths relative to
@@ -307,6 +311,7 @@ def _campaign_files(config: Any, result: Any) -> dict[str, tuple[Path, str | Non
             raise _BadInput(f"campaign evidence needs the campaign's {name} file; neither "
                             "the result nor the config names it")
     return out
+
 
 def _campaign_task(result: Any) -> Any:
     """The task a campaign ran on (``result.files["task"]``), checked against the SHA-256 it
@@ -331,6 +336,7 @@ def _campaign_task(result: Any) -> Any:
         raise _BadInput(f"{task.where}: the task changed since the campaign ran it "
                         "(SHA-256 differs): re-run the campaign")
     return task
+
 
 def _counts(violations: Any) -> dict[str, int]:
     """``{kind: count}`` from a mapping whose keys may be enum members."""
