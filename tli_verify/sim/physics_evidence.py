@@ -22,12 +22,13 @@ from typing import Any
 from tli_verify.io import check_output_file
 from tli_verify.sim.campaign import PhysicsResult
 from tli_verify.sim.chunks import chunk_seeds
+from tli_verify.sim.contact import ContactDetector
 from tli_verify.sim.demos import PANDA_IMPEDANCE
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.franka_limits import FrankaLimits
-from tli_verify.sim.loop import LEASH, ContactDetector
 from tli_verify.sim.physics_checks import WORLD
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS
+from tli_verify.sim.target import LEASH
 from tli_verify.verify.evidence import EVIDENCE_SUFFIX, deployed_task_block, write_evidence
 
 __all__ = [

@@ -3,7 +3,7 @@
 The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of the bundled Franka
 policy, bead seed 0, no perturbation, no stall retry, in a cell that gives the arm room beyond
 the target bowl (the target may leave the demonstrations' box by 1.5 dm in ``y`` instead of the
-default 0.5 dm, :data:`~tli_verify.sim.loop.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
+default 0.5 dm, :data:`~tli_verify.sim.target.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
 the target bowl with soup to deliver) enters ``t`` on the near side of the bowl, and the
 certified pour DS, integrated from there, sweeps the tray about 7 cm past the bowl's rim before
 it turns back to its attractor over the bowl's centre: ``t`` turns off with soup still on the
@@ -52,7 +52,8 @@ from tli_verify.io import atomic_write_bytes
 from tli_verify.runtime.events import Replan
 from tli_verify.runtime.repeats import FailureCheck, check_repeats
 from tli_verify.sim.demos import POSITION_SCALE
-from tli_verify.sim.loop import TraceStep, TrialResult, load_policy, run_trial
+from tli_verify.sim.franka_files import load_policy
+from tli_verify.sim.loop import TraceStep, TrialResult, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
 
 __all__ = ["POUR_SCENARIO", "Failure", "Scenario", "ScenarioRun", "plot_scenario",
@@ -80,7 +81,7 @@ class Scenario:
         The stall retry (off: nothing but the policy acts).
     margin : tuple of float, length 4
         How far the target may leave the demonstrations' box (dm, dm, dm, rad:
-        :func:`~tli_verify.sim.loop.workspace`).
+        :func:`~tli_verify.sim.target.workspace`).
     """
 
     name: str
@@ -173,10 +174,11 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
     ----------
     variant : str
         ``"LTL-DS"``, ``"no-modulation"`` or ``"no-replan"``
-        (:data:`~tli_verify.sim.loop.VARIANTS`).
+        (:data:`~tli_verify.sim.franka_files.VARIANTS`).
     scenario : Scenario, optional
     root : path-like, optional
-        A Franka project (default: the bundled one), as :func:`~tli_verify.sim.loop.load_policy`.
+        A Franka project (default: the bundled one), as
+        :func:`~tli_verify.sim.franka_files.load_policy`.
 
     Returns
     -------
