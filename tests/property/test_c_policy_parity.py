@@ -20,21 +20,31 @@ from tli_verify.deploy.export import build_artifact, write_artifact
 from tli_verify.runtime.executive import LTLDSPolicy
 
 REL = 1e-12
+CAPACITY = 60
+"""Online cuts the written task's artifacts hold."""
 NO_SOURCES: dict[str, Any] = {k: None for k in ("spec", "model", "certificate", "task",
                                                  "evidence")}
 
 pytestmark = pytest.mark.skipif(compiler() is None, reason="no system C compiler (cc/gcc)")
 
 
+class _Setups(dict[str, Any]):
+    """The module's built setups, with a short repr: hypothesis prints a failing example's
+    arguments, and the full models made a 95 kB repr (a warning that hid the failure)."""
+
+    def __repr__(self) -> str:
+        return f"<setups {sorted(self)}>"
+
+
 @pytest.fixture(scope="module")
 def setups(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     lib = library(build(tmp_path_factory.mktemp("cbuild")))
-    out: dict[str, Any] = {"lib": lib}
+    out: dict[str, Any] = _Setups(lib=lib)
     for n in (2, 3, 4):
         root = tmp_path_factory.mktemp(f"nd{n}")
         nd = write_nd(root, n, K=3, seed=10 + n)
         art = build_artifact(nd.setup, goal_modes=("d",), goal_inputs=(), sources=NO_SOURCES,
-                             max_online_cuts=60)
+                             max_online_cuts=CAPACITY)
         nd.exported = write_artifact(art, root / "nd.tli.json")
         out[str(n)] = nd
     return out
@@ -60,7 +70,10 @@ def test_same_perturbations_same_policy(setups: dict[str, Any], n: int, start: f
     x0 = np.r_[start, np.zeros(n - 1)]
     tr = run_side_by_side(pol, c, nd.exported.artifact, NDSensors(n), x0, 350,
                           np.random.default_rng(0), pushes=plan)
-    assert tr.refused == 0
+    # the C side's storage holds CAPACITY online cuts and refuses the next one (its documented
+    # contract; lock step ends there): never earlier. Sliding along a face of the tube, online
+    # cuts alone can exceed it (test_online_cuts_alone_chatter_along_a_face)
+    assert tr.refused == 0 or tr.cuts_added == CAPACITY
     assert tr.modes_c == tr.modes_py and tr.keys_c == tr.keys_py
     assert tr.failures_c == tr.failures_py
     for a, b, cut in zip(tr.v_py, tr.v_c, tr.cut_steps, strict=True):
