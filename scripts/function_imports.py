@@ -7,7 +7,9 @@ An import of a ``tli_verify`` module inside a function is kept only when it has 
   CLI): the lazy import keeps start-up fast;
 - ``cycle``: the imported module imports the importing one (at its top, or through others):
   a top-level import would be circular;
-- ``lazy``: a package ``__init__`` that exposes its submodules on first use.
+- ``lazy``: a package ``__init__`` that exposes its submodules on first use;
+- ``inert``: the pytest plugin, loaded by every pytest run in an environment with tli-verify
+  installed, imports nothing of ours until a run uses it (tested).
 
 Every other one can move to the top. What each module loads is measured, not guessed: each
 module is imported in a fresh interpreter and ``sys.modules`` read.
@@ -124,6 +126,8 @@ def reason(imp: FunctionImport, load: dict[str, list[str]]) -> str | None:
     """Why ``imp`` stays in its function, or None if it can move to the top."""
     if imp.path.name == "__init__.py":
         return "lazy: the package exposes its submodules on first use"
+    if imp.module == "tli_verify.testing.plugin":
+        return "inert: the pytest plugin loads nothing of ours until a run uses it"
     if imp.guarded:
         return "guarded: inside a try (its failure is handled) or the only statement of a block"
     target = imp.target

@@ -50,10 +50,6 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from tli_verify.arguments import int_range
-from tli_verify.errors import CampaignError, TliError
-from tli_verify.io import read_json
-
 if TYPE_CHECKING:  # pragma: no cover - types only
     from tli_verify.testing.projects import Project
 
@@ -81,6 +77,7 @@ def _usage(option: str, lo: int) -> Callable[[str], int]:
     inert for a run that does not use it), its error a pytest usage error naming the option."""
 
     def parse(text: str) -> int:
+        from tli_verify.arguments import int_range
 
         try:
             return int_range(lo)(text)
@@ -326,6 +323,8 @@ class CaseItem(pytest.Item):
 
     def runtest(self) -> None:
         """Replay the case (and, for a no-modulation case, the same case under LTL-DS)."""
+        from tli_verify.errors import CampaignError, TliError
+        from tli_verify.io import read_json
         from tli_verify.verify.cases import replay_case
 
         path = self.path
