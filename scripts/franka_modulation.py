@@ -18,7 +18,7 @@ import sys
 def main(argv: list[str] | None = None) -> int:
     from tli_verify.errors import TliError
     from tli_verify.io import check_output_file
-    from tli_verify.sim.franka_files import project_dir
+    from tli_verify.sim.franka_project import project_dir
     from tli_verify.sim.scenario import POUR_SCENARIO, plot_scenario, run_scenario
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

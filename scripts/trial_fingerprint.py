@@ -32,7 +32,7 @@ def dump(out: str, seeds: list[int], *, awake: bool = False) -> None:
     import mujoco
 
     import tli_verify
-    from tli_verify.sim.franka_files import load_policy
+    from tli_verify.sim.franka_project import load_policy
     from tli_verify.sim.loop import TraceStep, run_trial
     from tli_verify.sim.scene import PhysicsOptions
 

@@ -73,7 +73,7 @@ def test_a_retrained_model_is_refused(tmp_path: Path,
 
 def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     """The control for the tamper test: a byte-identical copy passes the check."""
-    from tli_verify.sim.franka_files import load_policy
+    from tli_verify.sim.franka_project import load_policy
 
     certs = _project(tmp_path)
     policy = load_policy("LTL-DS", certificates=certs)

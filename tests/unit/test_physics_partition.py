@@ -19,7 +19,7 @@ from tests.support.cli import run
 from tli_verify.errors import CampaignError
 from tli_verify.io import bundled_dir
 from tli_verify.sim import campaign as campaign_module
-from tli_verify.sim import franka_files
+from tli_verify.sim import franka_project
 from tli_verify.sim.campaign import PhysicsResult, run_physics_campaign
 from tli_verify.sim.loop import TrialResult
 from tli_verify.sim.physics_checks import check_physics_block
@@ -56,7 +56,7 @@ def fake_trial(policy: Executive, seed: int, **_: Any) -> TrialResult:
 def stated(monkeypatch: pytest.MonkeyPatch) -> None:
     """Trials stated, not simulated; a fresh executive per ``load_policy``."""
     Executive.made = 0
-    for where in (campaign_module, franka_files):  # the campaign's and tli sim's
+    for where in (campaign_module, franka_project):  # the campaign's and tli sim's
         monkeypatch.setattr(where, "load_policy", lambda *a, **k: Executive())
     monkeypatch.setattr(campaign_module, "run_trial", fake_trial)
     monkeypatch.setattr(campaign_module, "check_trial",

@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tli_verify.model.serialize import load_model
-from tli_verify.sim.franka_files import project_dir
+from tli_verify.sim.franka_project import project_dir
 from tli_verify.sim.retry import StallRetry
 
 DT = 0.02

@@ -162,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
 
         raise TliError(f"MuJoCo refused to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
                        f"{' '.join(str(exc).split())[:120]}") from None
-    from tli_verify.sim.franka_files import project_dir
+    from tli_verify.sim.franka_project import project_dir
 
     # the project's files (task, spec, model, certificate, demonstrations) are inputs: never
     # written; its evidence may be replaced by new evidence only
@@ -182,7 +182,7 @@ def _run(args: argparse.Namespace) -> int:
                         (evidence, "campaign evidence")])
     check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
     from tli_verify.sim.campaign import run_physics_campaign
-    from tli_verify.sim.franka_files import load_policy
+    from tli_verify.sim.franka_project import load_policy
     from tli_verify.sim.loop import TrialResult
     from tli_verify.sim.physics_config import PhysicsConfig
     from tli_verify.sim.physics_evidence import write_physics_evidence
@@ -261,7 +261,7 @@ def _run(args: argparse.Namespace) -> int:
         summary["video"] = str(args.video)
     if args.fig9 is not None and policy is not None:  # serial and one executive (above)
         from tli_verify.sim.flow_plot import plot_flow
-        from tli_verify.sim.franka_files import bundled_demos
+        from tli_verify.sim.franka_project import bundled_demos
 
         demos = bundled_demos()
         plot_flow(policy.model, args.fig9, demos=demos,

@@ -36,7 +36,8 @@ from typing import Any
 
 from tli_verify.errors import CampaignError
 from tli_verify.sim.chunks import chunk_seeds
-from tli_verify.sim.franka_files import hash_files, load_policy
+from tli_verify.sim.franka_files import hash_files
+from tli_verify.sim.franka_project import load_policy
 from tli_verify.sim.loop import TrialResult, run_trial
 from tli_verify.sim.perturbations import draw
 from tli_verify.sim.physics_config import PhysicsConfig
@@ -159,7 +160,7 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     config : PhysicsConfig
     policy : LTLDSPolicy, optional
         The executive of the first chunk, already loaded behind the certificate (default:
-        :func:`tli_verify.sim.franka_files.load_policy` of ``config.variant`` for
+        :func:`tli_verify.sim.franka_project.load_policy` of ``config.variant`` for
         ``config.root``, as for every other chunk); serial backend only.
     on_trial : callable, optional
         ``(k, result, verdict)`` with ``k`` the trial's index in the campaign: after each trial
@@ -181,7 +182,7 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     ------
     CertificateError
         (exit 1) The certificate is missing, does not re-check, or does not cover the model
-        (:func:`tli_verify.sim.franka_files.load_policy`): nothing moves.
+        (:func:`tli_verify.sim.franka_project.load_policy`): nothing moves.
     CampaignError
         (exit 2) ``policy`` or ``frame`` on a backend other than serial; an unusable backend
         (:func:`tli_verify.verify.backends.make_backend`).

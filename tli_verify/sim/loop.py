@@ -60,7 +60,7 @@ from tli_verify.sim.demos import (
     from_ds_velocity,
     to_ds,
 )
-from tli_verify.sim.franka_files import load_policy
+from tli_verify.sim.franka_project import load_policy
 from tli_verify.sim.franka_sensors import SENSOR_KINDS
 from tli_verify.sim.perturbations import PersonHand, Perturbation, draw, step_with_hands
 from tli_verify.sim.retry import StallRetry

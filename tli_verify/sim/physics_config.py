@@ -19,7 +19,8 @@ from typing import Any
 
 from tli_verify.errors import CampaignError, TliError
 from tli_verify.sim import TRIAL_DURATION
-from tli_verify.sim.franka_files import MODEL_NAME, VARIANTS
+from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.franka_project import VARIANTS
 from tli_verify.sim.loop import ROBOTS, SENSOR_KINDS
 
 __all__ = [

@@ -52,7 +52,7 @@ from tli_verify.io import atomic_write_bytes
 from tli_verify.runtime.events import Replan
 from tli_verify.runtime.repeats import FailureCheck, check_repeats
 from tli_verify.sim.demos import POSITION_SCALE
-from tli_verify.sim.franka_files import load_policy
+from tli_verify.sim.franka_project import load_policy
 from tli_verify.sim.loop import TraceStep, TrialResult, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
 
@@ -174,11 +174,11 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
     ----------
     variant : str
         ``"LTL-DS"``, ``"no-modulation"`` or ``"no-replan"``
-        (:data:`~tli_verify.sim.franka_files.VARIANTS`).
+        (:data:`~tli_verify.sim.franka_project.VARIANTS`).
     scenario : Scenario, optional
     root : path-like, optional
         A Franka project (default: the bundled one), as
-        :func:`~tli_verify.sim.franka_files.load_policy`.
+        :func:`~tli_verify.sim.franka_project.load_policy`.
 
     Returns
     -------

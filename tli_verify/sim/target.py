@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
-from tli_verify.sim.franka_files import bundled_demos
+from tli_verify.sim.franka_project import bundled_demos
 
 __all__ = ["LEASH", "MARGIN", "SPEED_CAP", "clip_floats", "feed_forward", "feed_forward_floats",
            "workspace"]
