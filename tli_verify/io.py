@@ -415,13 +415,21 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     str
         The text, without a leading byte-order mark.
     """
+    raw = read_bytes(path, what=what, error=error)
+    return _decode(raw, Path(path), what=what, error=error)
+
+
+def read_bytes(path: PathLike, *, what: str, error: type[TliError]) -> bytes:
+    """Read an input file's bytes (:func:`read_text`'s rules, no decoding): inside a snapshot
+    (:mod:`tli_verify.snapshot`) the bytes the session keeps for it -- the ones its hash and
+    its parse saw -- read once."""
     if isinstance(path, str) and path == "":
         raise error(f"empty path given for the {what} file")
     p = check_path_arg(path, what=f"{what} file", error=error)
     snap = _snapshot()
     kept = snap.kept(p) if snap is not None else None
     if kept is not None:  # read once in this session: the same bytes again
-        return _decode(kept.data, p, what=what, error=error)
+        return kept.data
     try:
         st = p.stat()
     except FileNotFoundError as exc:
@@ -446,7 +454,7 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
                     "(MAX_INPUT_BYTES)")
     if snap is not None:
         snap.keep(p, raw)
-    return _decode(raw, p, what=what, error=error)
+    return raw
 
 
 def _decode(raw: bytes, p: Path, *, what: str, error: type[TliError]) -> str:

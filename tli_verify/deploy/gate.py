@@ -52,8 +52,8 @@ from tli_verify.certification.orientation import (
     check_orientation_certificate,
 )
 from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
-from tli_verify.errors import CertificateError, GateError, TliError, bad_input
-from tli_verify.io import read_json, same_file, sha256_file
+from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
+from tli_verify.io import read_bytes, read_json, same_file, sha256_file
 from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.model.serialize import load_model
@@ -317,8 +317,10 @@ def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
     on the gate's own draw) (:func:`tli_verify.runtime.handoff.handoff_status`)."""
     import hashlib
 
-    seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + Path(str(model.path)).read_bytes()
-                                         ).digest()[:4], "big") if model.path else 0
+    # the model's bytes as the session read them (the ones its certificate check hashed)
+    data = read_bytes(str(model.path), what="model", error=ModelError) if model.path else b""
+    seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + data).digest()[:4], "big") \
+        if model.path else 0
     try:
         ok, lines = handoff_status(model, spec_path, retest=HANDOFF_RETEST, seed=seed)
     except TliError as exc:
