@@ -44,6 +44,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check tli_verify tests benchmarks scripts
 	$(VENV)/bin/mypy
 	$(VENV)/bin/lint-imports
+	$(PY) scripts/function_imports.py --check
 
 test: $(STAMP) lint
 	$(PY) -m pytest -m "not slow" -n $(JOBS) -q

@@ -162,7 +162,8 @@ def _physics(name: str) -> Any:
 def _trial(robot: str, probe: _Probe, physics: Any = None) -> tuple[Any, float]:
     """One nominal LTL-DS trial with a fresh executive; its result and CPU seconds (the
     rig's construction excluded)."""
-    from tli_verify.sim.loop import load_policy, run_trial
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import run_trial
 
     policy = load_policy("LTL-DS")  # fresh: cuts learned in an earlier run would change it
     with _probed(probe):

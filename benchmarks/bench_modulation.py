@@ -168,7 +168,8 @@ def main(out_dir: Path) -> str:
     trials = int(os.environ.get("TLI_BENCH_PROTOCOL_TRIALS", "50"))
     protocol = ""
     if trials > 0:
-        from tli_verify.experiments.single_mode import SingleModeConfig, run, summarize
+        from tli_verify.experiments.single_mode import SingleModeConfig, run
+        from tli_verify.experiments.single_mode_report import summarize
 
         cfg = SingleModeConfig(trials=trials)
         t0 = time.perf_counter()

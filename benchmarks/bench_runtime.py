@@ -71,8 +71,6 @@ def _model_with_cuts(seed: int = 0, m: int = 10) -> Model:
     return model
 
 
-
-
 class _Chain:
     def reset(self, x0: np.ndarray) -> None:
         pass

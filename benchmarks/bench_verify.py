@@ -57,13 +57,13 @@ def _random_sampling(seed: int) -> tuple[int | None, int | None]:
     from tli_verify.verify.strategies import Case, Push
 
     spec = sim_spec(CampaignConfig(task="scoop", modulation=False))
-    world = load(spec).world
+    task = load(spec).task
     rng = np.random.default_rng([seed, 12])
     items = []
     for i in range(BUDGET):
-        table = random_perturbations(rng, int(rng.integers(1, 4)), world)
+        table = random_perturbations(rng, int(rng.integers(1, 4)), task)
         pushes = tuple(Push(t, tuple(float(v) for v in d)) for t, d in sorted(table.items()))
-        items.append((i, Case(world.starts.nominal[0], pushes)))
+        items.append((i, Case(task.starts.nominal[0], pushes)))
     outs: list[RunOutcome] = []
     for k in range(0, BUDGET, 100):
         outs += simulate_batch((spec, items[k:k + 100]))

@@ -222,7 +222,8 @@ def _run(args: argparse.Namespace) -> int:
 
     from tli_verify.io import atomic_write_bytes
     from tli_verify.sim import TRIAL_DURATION
-    from tli_verify.sim.loop import load_policy, run_trial
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import run_trial
 
     policy = load_policy("LTL-DS")
     rec = Recorder()

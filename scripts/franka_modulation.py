@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from tli_verify.errors import TliError
     from tli_verify.io import check_output_file
-    from tli_verify.sim.loop import project_dir
+    from tli_verify.sim.franka_project import project_dir
     from tli_verify.sim.scenario import (
         PASSIVE_POUR_SCENARIO,
         POUR_SCENARIO,

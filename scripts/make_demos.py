@@ -2,7 +2,7 @@
 
 Usage: ``.venv/bin/python scripts/make_demos.py [--task scoop|cooking|color-tracing|inspection|all]
 [--seed 0] [--n N] [--out demos] [--img docs/img]``: for each bundled task, the same as
-``tli demos TASK --out demos --seed 0 --picture docs/img/worlds_TASK.png``. The scoop and
+``tli demos TASK --out demos --seed 0 --picture docs/img/task_TASK.png``. The scoop and
 inspection demonstrators reproduce the shipped CSVs bit for bit; cooking's detour script and the
 color-tracing scripts draw other noise than the recorded files (see the task files). Then
 relearn and recertify, e.g. for scoop::
@@ -30,14 +30,14 @@ def main(argv: list[str] | None = None) -> int:
                         "(default: the task's own)")
     parser.add_argument("--out", type=Path, default=Path("demos"))
     parser.add_argument("--img", type=Path, default=Path("docs/img"),
-                        help="where worlds_<name>.png goes ('-': no picture)")
+                        help="where task_<name>.png goes ('-': no picture)")
     args = parser.parse_args(argv)
     for name in names if args.task == "all" else [args.task]:
         cmd = ["demos", name, "--out", str(args.out), "--seed", str(args.seed)]
         if args.n is not None:
             cmd += ["--count", str(args.n)]
         if str(args.img) != "-":
-            cmd += ["--picture", str(args.img / f"worlds_{name}.png")]
+            cmd += ["--picture", str(args.img / f"task_{name}.png")]
         code = tli(cmd)
         if code:
             return code

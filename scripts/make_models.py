@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     import os
 
     parser = argparse.ArgumentParser(prog="make_models.py")
-    parser.add_argument("--task", "--world", dest="world", choices=[*SHARED, *WITH_SPEC, "all"],
+    parser.add_argument("--task", choices=[*SHARED, *WITH_SPEC, "all"],
                         default="all")
     parser.add_argument("--check", type=int, default=0, metavar="N",
                         help="instead of learning: run N seeded perturbed episodes per bundled "
@@ -211,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.recovery:
         recovery_entries()
         return 0
-    names = [*SHARED, *WITH_SPEC] if args.world == "all" else [args.world]
+    names = [*SHARED, *WITH_SPEC] if args.task == "all" else [args.task]
     for world in names:
         if args.check > 0:
             check(world, args.check, args.perturbations)

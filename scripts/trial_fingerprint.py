@@ -36,7 +36,8 @@ def dump(out: str, seeds: list[int], *, awake: bool = False,
     import mujoco
 
     import tli_verify
-    from tli_verify.sim.loop import TraceStep, load_policy, run_trial
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import TraceStep, run_trial
     from tli_verify.sim.scene import PhysicsOptions
 
     print(f"tli_verify from {tli_verify.__file__}", file=sys.stderr)

@@ -30,9 +30,12 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.deploy.gate import GateReport, run_gate
     from tli_verify.errors import (
         CertificateError,
+        CheckFailed,
         DemoError,
         GateError,
+        InputError,
         ModelError,
+        OutputError,
         SpecError,
         TaskError,
         TliError,
@@ -42,14 +45,17 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from tli_verify.logic.spec import GR1Spec, load_spec
     from tli_verify.model.serialize import load_model
     from tli_verify.model.types import Model
+    from tli_verify.project.period import control_period
+    from tli_verify.project.session import Session, open_project
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.tasks.project import resolve
     from tli_verify.tasks.registry import find_task
-    from tli_verify.tasks.task import Task, load_task
+    from tli_verify.tasks.task import Task
+    from tli_verify.tasks.taskfile import load_task
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
-    from tli_verify.verify.evidence import write_campaign_evidence
+    from tli_verify.verify.evidence.write import write_campaign_evidence
 
 _NAMES: dict[str, str] = {
     "__version__": "tli_verify._version",
@@ -60,10 +66,14 @@ _NAMES: dict[str, str] = {
     "synthesize": "tli_verify.logic.check",
     "TaskAutomaton": "tli_verify.logic.automaton",
     # tasks as data
-    "load_task": "tli_verify.tasks.task",
+    "load_task": "tli_verify.tasks.taskfile",
     "find_task": "tli_verify.tasks.registry",
     "Task": "tli_verify.tasks.task",
     "resolve": "tli_verify.tasks.project",
+    # a project opened once: files found, read and settled once
+    "open_project": "tli_verify.project.session",
+    "Session": "tli_verify.project.session",
+    "control_period": "tli_verify.project.period",
     # demonstrations and learning (paper Sec. 5)
     "load_demos": "tli_verify.demos",
     "Demonstration": "tli_verify.demos",
@@ -82,7 +92,7 @@ _NAMES: dict[str, str] = {
     # campaigns and the gate
     "CampaignConfig": "tli_verify.verify.config",
     "run_campaign": "tli_verify.verify.campaign",
-    "write_campaign_evidence": "tli_verify.verify.evidence",
+    "write_campaign_evidence": "tli_verify.verify.evidence.write",
     "run_gate": "tli_verify.deploy.gate",
     "GateReport": "tli_verify.deploy.gate",
     # errors (each input error is also the builtin it means: ValueError, FileNotFoundError)
@@ -93,21 +103,28 @@ _NAMES: dict[str, str] = {
     "ModelError": "tli_verify.errors",
     "CertificateError": "tli_verify.errors",
     "GateError": "tli_verify.errors",
+    "InputError": "tli_verify.errors",
+    "OutputError": "tli_verify.errors",
+    "CheckFailed": "tli_verify.errors",
 }
 
 __all__ = [
     "CampaignConfig",
     "Certificate",
     "CertificateError",
+    "CheckFailed",
     "DemoError",
     "Demonstration",
     "EpisodeResult",
     "GR1Spec",
     "GateError",
     "GateReport",
+    "InputError",
     "LTLDSPolicy",
     "Model",
     "ModelError",
+    "OutputError",
+    "Session",
     "SpecError",
     "Task",
     "TaskAutomaton",
@@ -116,6 +133,7 @@ __all__ = [
     "__version__",
     "certify",
     "check_spec",
+    "control_period",
     "find_task",
     "learn",
     "load_demos",
@@ -123,6 +141,7 @@ __all__ = [
     "load_spec",
     "load_task",
     "make_policy",
+    "open_project",
     "resolve",
     "run",
     "run_campaign",
@@ -131,7 +150,6 @@ __all__ = [
     "synthesize",
     "write_campaign_evidence",
 ]
-
 
 
 __getattr__, __dir__ = lazy_namespace("tli_verify", _NAMES, globals(), __all__)

@@ -36,13 +36,14 @@ conditions a certificate proves), eq. 6 (the executive), Sec. 4.4 (campaigns).
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy.typing as npt
 
@@ -51,10 +52,11 @@ from tli_verify.arguments import (
     check_int,
     check_path,
     check_type,
-    check_vector,
 )
+from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import (
     CertificateError,
+    DemoError,
     ModelError,
     SpecError,
     TaskError,
@@ -62,11 +64,46 @@ from tli_verify.errors import (
     bad_input,
     bad_type,
 )
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.io import atomic_write_text, canonical_json, check_plan
+from tli_verify.limits import MAX_SEED
+from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import GR1Spec, load_spec
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import IN_MEMORY, load_model, model_to_dict, relocate_model
+from tli_verify.model.serialize import save_model as _save
+from tli_verify.model.types import Model
+from tli_verify.project import control_period
+from tli_verify.project.session import run_policy
+from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
+from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
+from tli_verify.runtime.setup import make_policy as _make
+from tli_verify.snapshot import active
+from tli_verify.tasks.project import model_files, resolve, spec_inputs, spec_task
+from tli_verify.tasks.registry import find_task
+from tli_verify.tasks.task import Task
+
+if TYPE_CHECKING:
+    from tli_verify.certification.certificate import CertCheck
+    from tli_verify.ds.lpvds import Clustering, LyapunovKind
+    from tli_verify.runtime.loop import EpisodeResult
 
 __all__ = ["Certificate", "certify", "learn", "make_policy", "run", "save_model"]
 
 PathLike = str | os.PathLike[str]
+F = TypeVar("F", bound=Callable[..., object])
+
+
+def _in_snapshot(fn: F) -> F:
+    """Run a public function inside a snapshot (:mod:`tli_verify.snapshot`): each file it
+    reads is read once, and hashed and parsed from the same bytes."""
+    @functools.wraps(fn)
+    def inner(*args: object, **kwargs: object) -> object:
+        with active():
+            return fn(*args, **kwargs)
+
+    return inner  # type: ignore[return-value]
 
 
 def _spec_path(spec: Any) -> Path | None:
@@ -74,7 +111,6 @@ def _spec_path(spec: Any) -> Path | None:
         return None
     if isinstance(spec, str | os.PathLike):
         return check_path(spec, "spec", error=SpecError)
-    from tli_verify.logic.spec import GR1Spec
 
     if not isinstance(spec, GR1Spec):
         raise bad_type(SpecError, f"spec: expected a path or a GR1Spec, got "
@@ -87,14 +123,16 @@ def _spec_path(spec: Any) -> Path | None:
 
 
 def _spec_inputs(spec: Path | None) -> list[Path]:
-    from tli_verify.tasks.project import spec_inputs
 
     return spec_inputs(spec)
 
 
-def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
-          out: PathLike | None = None, handoff: bool = True, handoff_samples: int = 1000,
-          **options: Any) -> Any:
+@_in_snapshot
+def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec | None = None,
+          seed: int = 0, out: PathLike | None = None, handoff: bool = True,
+          handoff_samples: int = 1000, eps: float = 1e-3, rate: float | None = None,
+          rate_budget: float | None = 0.03, control_dt: float | Fraction | None = None,
+          clustering: Clustering = "pc-gmm", lyapunov: LyapunovKind = "p-qlf") -> Model:
     """Learn a certified-stable LPV-DS per mode from demonstrations (``tli learn``).
 
     Parameters
@@ -113,19 +151,17 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
         :func:`tli_verify.runtime.handoff.learn_handoffs`, docs/explanation/handoff).
     handoff_samples : int, optional
         States drawn per DS in each round of that step.
-    **options
-        More keyword arguments of :func:`tli_verify.model.learn.learn_model` (``eps``, ``rate``,
-        ``control_dt``, ``clustering``, ``lyapunov``).
+    eps, rate, rate_budget, clustering, lyapunov : optional
+        As :func:`tli_verify.model.learn.learn_model` (``tli learn --eps --rate --rate-budget
+        --baseline``).
+    control_dt : float or Fraction, optional
+        The period of the sampled-data constraint (default: the spec's task's, else
+        :data:`~tli_verify.defaults.DEFAULT_DT`: :func:`tli_verify.project.control_period`).
 
     Returns
     -------
     Model
     """
-    from tli_verify.demos import Demonstration, demo_to_csv
-    from tli_verify.errors import DemoError
-    from tli_verify.io import atomic_write_text, check_plan
-    from tli_verify.model.learn import learn_model
-
     if isinstance(demos, str | bytes | os.PathLike) or not isinstance(demos, Sequence):
         raise bad_type(DemoError, f"demos: expected a sequence of demonstration files or "
                        f"Demonstration objects, got {type(demos).__name__}")
@@ -150,39 +186,32 @@ def learn(demos: Sequence[Any], *, spec: Any = None, seed: int = 0,
             else:
                 paths.append(d)
         target = Path(out) if out is not None else Path(tmp) / "model.json"
-        if options.get("control_dt") is None:  # the period the task runs at
-            options.pop("control_dt", None)
-            task_dt = _task_dt(spec_path) if spec_path is not None else None
-            if task_dt is not None:
-                options["control_dt"] = task_dt
-        model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, **options)
+        dt = float(control_period(control_dt, spec_path))
+        model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, eps=eps,
+                            rate=rate, rate_budget=rate_budget, control_dt=dt,
+                            clustering=clustering, lyapunov=lyapunov)
         if handoff and spec_path is not None:
-            from tli_verify.defaults import DEFAULT_DT_FLOAT
-            from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 
             ctx = context_for_spec(spec_path)
             if ctx is not None:
-                dt = float(options.get("control_dt") or DEFAULT_DT_FLOAT)
                 model = learn_handoffs(ctx.task, ctx.automaton, model, dt=dt,
                                        goal_modes=ctx.goal_modes, samples=handoff_samples,
                                        seed=seed).model
         if out is not None:
             save_model(model, out)
-            from tli_verify.model.serialize import load_model
 
             return load_model(out)
         return _in_memory(model, paths, Path(tmp), spec_path)
 
 
-def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | None) -> Any:
+def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path | None
+               ) -> Model:
     """A learned model that has no file: its spec path absolute, and the demonstrations that
     were objects recorded as ``in-memory:demo_<i>`` (their SHA-256 kept), so nothing points
     into the deleted temporary folder."""
     import dataclasses
     import json
     from types import MappingProxyType
-
-    from tli_verify.model.serialize import IN_MEMORY
 
     source = json.loads(json.dumps(dict(model.source or {})))
     for i, (demo, p) in enumerate(zip(source.get("demos") or [], paths, strict=True)):
@@ -193,7 +222,8 @@ def _in_memory(model: Any, paths: Sequence[Path], tmp: Path, spec_path: Path | N
         spec=None if spec_path is None else str(spec_path.resolve()))
 
 
-def save_model(model: Any, path: PathLike) -> Any:
+@_in_snapshot
+def save_model(model: Model, path: PathLike) -> Model:
     """Write a model where you want it (relative paths inside rewritten for its folder);
     return the model as loaded from there (its ``path`` set).
 
@@ -206,11 +236,6 @@ def save_model(model: Any, path: PathLike) -> Any:
     -------
     Model
     """
-    from tli_verify.io import check_plan
-    from tli_verify.model.serialize import IN_MEMORY, load_model, relocate_model
-    from tli_verify.model.serialize import save_model as _save
-    from tli_verify.model.types import Model
-
     check_type(model, "model", Model, "a Model (tli_verify.learn, load_model)",
                error=ModelError)
     target = check_path(path, "path", error=ModelError)
@@ -219,12 +244,10 @@ def save_model(model: Any, path: PathLike) -> Any:
     return load_model(target)
 
 
-def _model_reads(model: Any, in_memory: str) -> list[Path]:
+def _model_reads(model: Model, in_memory: str) -> list[Path]:
     """What a model object implies, for the read/write rule: its spec and the spec's task,
     the demonstrations it was learned from, and the certificate and evidence next to its
     file (not the file itself: saving a model over its own file rewrites it)."""
-    from tli_verify.tasks.project import model_files
-
     reads = _spec_inputs(model.spec_path)
     base = Path(model.path).parent if model.path else Path(".")
     for demo in (model.source or {}).get("demos") or ():
@@ -235,14 +258,6 @@ def _model_reads(model: Any, in_memory: str) -> list[Path]:
         files = model_files(model.path)
         reads += [files.certificate, files.evidence]
     return reads
-
-
-def _task_dt(spec_path: Path) -> float | None:
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
-
-    task = spec_task(load_spec(spec_path), spec_path)
-    return None if task is None else task.dt
 
 
 @dataclass(frozen=True, eq=False)
@@ -262,7 +277,7 @@ class Certificate:
     doc: dict[str, Any]
     path: Path
     model_path: Path
-    _tmp: Any = field(default=None, repr=False)
+    _tmp: Path | None = field(default=None, repr=False)
 
     @property
     def dt(self) -> Fraction:
@@ -275,7 +290,7 @@ class Certificate:
         check_certificate`: digest, hashes, P, the Lyapunov and sampled-data conditions)."""
         return bool(self.check().ok)
 
-    def check(self) -> Any:
+    def check(self) -> CertCheck:
         """The exact re-check (a :class:`~tli_verify.certification.certificate.CertCheck`)."""
         from tli_verify.certification.certificate import check_certificate
 
@@ -301,9 +316,6 @@ class Certificate:
         Certificate
             Re-issued for the files written.
         """
-        from tli_verify.io import check_plan
-        from tli_verify.model.serialize import load_model
-
         target = check_path(path, "path", error=CertificateError)
         mpath = Path(self.model_path)
         current = load_model(mpath)
@@ -317,7 +329,8 @@ class Certificate:
         return certify(mpath, dt=self.dt, out=target)
 
 
-def certify(model: Any, *, dt: Fraction | str | None = None,
+@_in_snapshot
+def certify(model: Model | PathLike, *, dt: Fraction | str | None = None,
             out: PathLike | None = None) -> Certificate:
     """Prove a model's Lyapunov conditions exactly and issue its certificate (``tli certify``).
 
@@ -327,7 +340,8 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
         A model object (saved or not) or a model file.
     dt : Fraction or str, optional
         The control period the sampled-data conditions hold at (default: the control period
-        of the task the model's spec names, else 1/1000 s).
+        of the task the model's spec names, else 1/100 s: :func:`tli_verify.project.
+        control_period`).
     out : path-like, optional
         Write the certificate there (default: kept with the model: a temporary file for an
         unsaved model).
@@ -342,10 +356,6 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
         A DS does not certify with the model's own P (naming the mode and the condition).
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.defaults import DEFAULT_DT
-    from tli_verify.io import check_plan
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import Model
 
     if not isinstance(model, Model):
         model = check_path(model, "model", error=ModelError)
@@ -365,16 +375,12 @@ def certify(model: Any, *, dt: Fraction | str | None = None,
             save_model(model, mpath)
     else:
         mpath = Path(model)
-    if dt is None:
-        spec = load_model(mpath).spec_path
-        task_dt = _task_dt(spec) if spec is not None else None
-        dt = Fraction(repr(task_dt)) if task_dt is not None else DEFAULT_DT
+    dt = control_period(dt, load_model(mpath).spec_path)
     if out is not None:
         cpath = Path(out)
     elif tmp is not None:
         cpath = tmp / "model.cert.json"
     else:
-        from tli_verify.tasks.project import model_files
 
         cpath = model_files(mpath).certificate
     # the read/write rule, before any work: the certificate is none of the files it binds
@@ -407,15 +413,14 @@ def _check_dt(dt: Any) -> Fraction:
 
 def _same_bytes(model: Any, path: Path) -> bool:
     """Whether the model object is the file's content (cuts learned in memory make it not)."""
-    from tli_verify.io import canonical_json
-    from tli_verify.model.serialize import model_to_dict, relocate_model
-
     return canonical_json(model_to_dict(relocate_model(model, path))) == \
         path.read_text(encoding="utf-8")
 
 
-def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
-                variant: str = "LTL-DS") -> Any:
+@_in_snapshot
+def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLike,
+                certificate: Certificate | PathLike, *, task: Task | PathLike | None = None,
+                variant: str = "LTL-DS") -> LTLDSPolicy:
     """The certified LTL-DS executive (paper eq. 6) of a spec, model and certificate.
 
     Parameters
@@ -440,20 +445,12 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
         The certificate does not cover the model (also a ValueError when the model was never
         saved).
     """
-    from tli_verify.logic.automaton import TaskAutomaton
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import Model
-    from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
-    from tli_verify.runtime.setup import make_policy as _make
-    from tli_verify.tasks.project import resolve
-
     variant = check_choice(variant, "variant", VARIANTS)
     cpath = certificate.path if isinstance(certificate, Certificate) else check_path(
         certificate, "certificate", error=CertificateError)
     if not isinstance(model, Model):
         model = check_path(model, "model", error=ModelError)
     if not isinstance(spec, TaskAutomaton | str | os.PathLike):
-        from tli_verify.logic.spec import GR1Spec
 
         check_type(spec, "spec", GR1Spec, "a path, a GR1Spec or a TaskAutomaton",
                    error=SpecError)
@@ -472,8 +469,6 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
     if isinstance(spec, TaskAutomaton):
         automaton = spec
     else:
-        from tli_verify.logic.check import synthesize
-        from tli_verify.logic.spec import GR1Spec, load_spec
 
         automaton = synthesize(spec if isinstance(spec, GR1Spec) else load_spec(spec_file))
     check_goal(automaton, resolved.goal, where=str(spec_file))
@@ -482,8 +477,11 @@ def make_policy(spec: Any, model: Any, certificate: Any, *, task: Any = None,
     return _make(setup, variant)
 
 
-def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
-        perturbations: Any = None, steps: int = 3000, seed: int = 0) -> Any:
+@_in_snapshot
+def run(policy: LTLDSPolicy, *, task: Task | PathLike | None = None,
+        start: npt.ArrayLike | None = None,
+        perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
+        seed: int = 0) -> EpisodeResult:
     """One closed-loop episode of a policy on its task (``tli run``).
 
     Parameters
@@ -493,7 +491,8 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
     task : Task, path-like or str, optional
         Default: the task of the policy's spec.
     start : array_like, shape (n,), optional
-        Default: a seeded random state whose reading is an initial one of the spec.
+        Default: the task's first nominal start, else a seeded random state whose reading is
+        an initial one of the spec (as ``tli run``).
     perturbations : mapping of int to array_like, optional
         ``{step: displacement}`` (each shape (n,)).
     steps : int, optional
@@ -503,57 +502,20 @@ def run(policy: Any, *, task: Any = None, start: npt.ArrayLike | None = None,
     -------
     EpisodeResult
     """
-    from tli_verify.defaults import Stream, rng
-    from tli_verify.runtime.episodes import pusher, random_start
-    from tli_verify.runtime.executive import LTLDSPolicy
-    from tli_verify.runtime.loop import run_episode
-    from tli_verify.runtime.worlds import WorldSensors
-    from tli_verify.tasks.project import spec_task
-    from tli_verify.tasks.registry import find_task
-    from tli_verify.tasks.task import Task
-
     check_type(policy, "policy", LTLDSPolicy, "an LTLDSPolicy (make_policy)", error=TaskError)
-    steps = check_int(steps, "steps", 1, MAX_CAMPAIGN_STEPS, error=TaskError)
-    seed = check_int(seed, "seed", 0, MAX_SEED, error=TaskError)
+    found: Task | None
     if isinstance(task, Task):
-        world = task
+        found = task
     elif task is not None:
         if not isinstance(task, str | os.PathLike):
             raise bad_type(TaskError, f"task: expected a Task, a task name or a task file, "
                            f"got {type(task).__name__}")
-        world = find_task(task)
+        found = find_task(task)
     else:
-        from tli_verify.logic.spec import load_spec
 
         spec = policy.model.spec_path
         found = spec_task(load_spec(spec), spec) if spec is not None else None
         if found is None:
             raise bad_input(TaskError, "run: the policy's spec names no task: pass task=...")
-        world = found
-    if start is not None:
-        x0 = check_vector(start, "start", world.dim, error=TaskError)
-        if not bool(world.in_workspace(x0[None])[0]):
-            raise bad_input(TaskError, f"start: {x0.tolist()} lies outside the workspace of "
-                            f"task {world.name!r}")
-    else:
-        x0 = random_start(world, policy.automaton, rng(seed, Stream.START))
-    table = _perturbations(perturbations, world.dim, steps)
-    return run_episode(policy.fork(), WorldSensors(world), x0, steps=steps,
-                       perturb=pusher(world, table))
-
-
-def _perturbations(perturbations: Any, dim: int, steps: int) -> dict[int, Any]:
-    """``run(perturbations=...)`` checked: steps in ``[0, steps)``, displacements of shape
-    ``(dim,)`` and finite."""
-    from collections.abc import Mapping
-
-    if perturbations is None:
-        return {}
-    if not isinstance(perturbations, Mapping):
-        raise bad_type(TaskError, f"perturbations: expected a mapping step -> displacement, "
-                       f"got {type(perturbations).__name__}")
-    table: dict[int, Any] = {}
-    for step, d in perturbations.items():
-        t = check_int(step, "perturbations (a step)", 0, steps - 1, error=TaskError)
-        table[t] = check_vector(d, f"perturbations[{t}]", dim, error=TaskError)
-    return table
+    return run_policy(policy, found, start=start, perturbations=perturbations, steps=steps,
+                      seed=seed)

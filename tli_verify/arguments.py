@@ -10,10 +10,11 @@ string where numbers are), a :class:`ValueError` for one of the right type outsi
 
 from __future__ import annotations
 
+import argparse
 import math
 import numbers
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from tli_verify.errors import InputError, TliError, bad_argument, bad_type
 from tli_verify.limits import MAX_NAME_BYTES
 
 __all__ = ["check_choice", "check_float", "check_int", "check_path", "check_type",
-           "check_vector"]
+           "check_vector", "float_range", "int_range", "positive_float"]
 
 
 def check_path(value: Any, name: str, *, error: type[TliError] = InputError) -> Path:
@@ -165,3 +166,73 @@ def check_type(value: Any, name: str, expected: type | tuple[type, ...], what: s
 def _short(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+# ------------------------------------------------------------------ command-line validators
+# argparse ``type`` functions (the CLI's and the pytest plugin's options): a bad value is an
+# ``ArgumentTypeError``, which the CLI turns into one ``error:`` line naming the option.
+
+def int_range(lo: int, hi: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in ``[lo, hi]`` (``hi`` None: no upper bound).
+
+    A bad value is an ``ArgumentTypeError``, which the CLI turns into one ``error:`` line
+    naming the option, exit 2.
+    """
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if hi is not None and not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be between {lo} and {hi}, got {value}")
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"must be >= {lo}, got {value}")
+        return value
+
+    return parse
+
+
+def positive_float(text: str) -> float:
+    """An argparse ``type``: a finite number > 0 (``inf``, ``nan`` and 0 refused, naming why)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
+def float_range(lo: float, hi: float, unit: str = "", *, zero: bool = False
+                ) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in ``[lo, hi]`` (``zero``: exactly 0 too), its
+    unit named in the message. Every float option has such physical bounds
+    (:doc:`/reference/limits`), so a subnormal period or an overflowing margin is refused
+    before any work.
+    """
+    import math
+
+    units = f" {unit}" if unit else ""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+        if zero and value == 0:
+            return 0.0
+        if not lo <= value <= hi:
+            either = "0 or " if zero else ""
+            raise argparse.ArgumentTypeError(f"must be {either}between {lo:g} and {hi:g}"
+                                             f"{units}, got {text!r}")
+        return value
+
+    parse.bounds = (lo, hi, zero)  # type: ignore[attr-defined]
+    return parse

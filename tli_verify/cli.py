@@ -56,8 +56,12 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, ClassVar
 
-from tli_verify.commands import exit_code
+from tli_verify._version import __version__
+from tli_verify.arguments import check_path
+from tli_verify.commands import check_report_dir, exit_code
 from tli_verify.errors import OutputError, TliError
+from tli_verify.io import check_output_dir, check_output_file
+from tli_verify.snapshot import active as snapshot_active
 
 __all__ = ["build_parser", "check_paths", "exit_code", "main"]
 
@@ -70,6 +74,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tli_verify.commands.verify",
     "tli_verify.commands.sim",
     "tli_verify.commands.task",
+    "tli_verify.commands.deploy",
 )
 
 
@@ -115,7 +120,6 @@ class _Version(argparse.Action):
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: Any, option_string: str | None = None) -> None:
-        from tli_verify._version import __version__
 
         sys.stdout.write(f"tli-verify {__version__}\n")  # stdout, as argparse's "version"
         parser.exit()
@@ -149,9 +153,6 @@ def check_paths(args: argparse.Namespace) -> None:
     OutputError
         (exit 2) Naming the output and what is wrong with it.
     """
-    from tli_verify.arguments import check_path
-    from tli_verify.io import check_output_dir, check_output_file
-
     inputs: list[Path] = []
     for name, value in vars(args).items():
         for v in value if isinstance(value, list | tuple) else [value]:
@@ -171,7 +172,6 @@ def check_paths(args: argparse.Namespace) -> None:
             inputs.append(output)
     out = getattr(args, "out", None)
     if isinstance(out, Path):
-        from tli_verify.commands import check_report_dir
 
         check_output_dir(out)
         check_report_dir(out)
@@ -376,7 +376,8 @@ def _dispatch(argv: Sequence[str] | None, out: Any) -> int:
             else:
                 _check_cwd()
                 check_paths(args)
-                code = int(handler(args))
+                with snapshot_active():  # each file read once, hashed and parsed from those bytes
+                    code = int(handler(args))
         except SystemExit:  # argparse: --help, --version, usage errors
             sys.stdout.flush()  # raises _StdoutError if it cannot be written
             raise

@@ -1,9 +1,11 @@
 """Named defaults shared across the toolkit, in one place.
 
 Control period
-    :data:`DEFAULT_DT` -- the control period a certificate proves, and the learner's
-    sampled-data constraint imposes, when the task names none: 1/1000 s, a Franka's 1 kHz
-    torque loop. A task's own ``dt`` (its file) always wins (``tli certify``, ``tli learn``).
+    :data:`DEFAULT_DT` -- the one default control period: of a task file without ``dt``, and
+    the period a certificate proves and the learner's sampled-data constraint imposes when no
+    task names one: 1/100 s. A certificate at ``dt`` covers every faster loop (a 1 kHz torque
+    loop included); the rule that settles the period, and its proof, are in
+    :mod:`tli_verify.project.period`.
 
 Random streams
     Everything random takes a seed; one seed feeds several independent streams, each drawn
@@ -19,8 +21,8 @@ from typing import Any
 
 __all__ = ["DEFAULT_DT", "DEFAULT_DT_FLOAT", "Stream", "rng"]
 
-DEFAULT_DT = Fraction(1, 1000)
-"""Default certified control period (s), exact."""
+DEFAULT_DT = Fraction(1, 100)
+"""The default control period (s), exact."""
 DEFAULT_DT_FLOAT = float(DEFAULT_DT)
 """The same, as the float the learner and the runtime use."""
 

@@ -42,9 +42,11 @@ from tli_verify.limits import MAX_ABS_VALUE, MAX_DEMO_SAMPLES, MAX_STATE_DIM
 
 __all__ = [
     "Demonstration",
+    "PoseDemonstration",
     "demo_to_csv",
     "load_demo",
     "load_demos",
+    "load_pose_demo",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -171,6 +173,52 @@ def _header(fields: list[str], where: str, sensor_names: Sequence[str] | None
             [dxs[i] for i in range(n)] if dxs else [], [c for c, _ in sensors], sensor_list)
 
 
+def _numeric_rows(rows: list[tuple[int, list[str]]], names: list[str], cols: list[int],
+                  where: str, *, nonfinite: str = "") -> FloatArray:
+    """The numeric columns ``cols`` of a demonstration's data rows, checked: at least
+    ``MIN_ROWS`` rows, each with the header's field count; each value a finite number, within
+    ``MAX_ABS_VALUE`` (the first column, the time, excepted); the time strictly increasing.
+
+    Returns
+    -------
+    ndarray, shape (len(rows), len(cols))
+
+    Raises
+    ------
+    DemoError
+        Naming the file, the line and the column.
+    """
+    if len(rows) < MIN_ROWS:
+        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
+                        f"{MIN_ROWS}")
+    values = np.empty((len(rows), len(cols)), dtype=np.float64)
+    for r, (lineno, fields) in enumerate(rows):
+        if len(fields) != len(names):
+            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
+                            f"{len(names)}")
+        for j, col in enumerate(cols):
+            raw = fields[col].strip()
+            try:
+                v = float(raw)
+            except ValueError:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: not a number "
+                                f"({raw!r})") from None
+            if not math.isfinite(v):
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
+                                f"finite (NaN/Inf){nonfinite}")
+            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
+                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is "
+                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
+            values[r, j] = v
+    t = values[:, 0]
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        r = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise DemoError(f"{where}: line {rows[r][0]}: t = {float(t[r])!r} does not increase "
+                        f"(previous row has t = {float(t[r - 1])!r})")
+    return values
+
+
 def load_demo(path: str | os.PathLike[str], *,
               sensor_names: Sequence[str] | None = None) -> Demonstration:
     """Read and validate one demonstration CSV (format in the module docstring).
@@ -216,30 +264,9 @@ def load_demo(path: str | os.PathLike[str], *,
     if len(rows) > MAX_DEMO_SAMPLES:
         raise DemoError(f"{where}: {len(rows):,} data rows, more than the limit of "
                         f"{MAX_DEMO_SAMPLES:,} (MAX_DEMO_SAMPLES)")
-    if len(rows) < MIN_ROWS:
-        raise DemoError(f"{where}: {len(rows)} data row(s), a demonstration needs at least "
-                        f"{MIN_ROWS}")
-    numeric = [t_col, *x_cols, *dx_cols]
-    values = np.empty((len(rows), len(numeric)), dtype=np.float64)
+    values = _numeric_rows(rows, names, [t_col, *x_cols, *dx_cols], where)
     sensors = np.zeros((len(rows), len(s_cols)), dtype=bool)
     for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != len(names):
-            raise DemoError(f"{where}: line {lineno}: {len(fields)} fields, the header has "
-                            f"{len(names)}")
-        for j, col in enumerate(numeric):
-            raw = fields[col].strip()
-            try:
-                v = float(raw)
-            except ValueError:
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: not a number "
-                                f"({raw!r})") from None
-            if not math.isfinite(v):
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is not "
-                                "finite (NaN/Inf)")
-            if j > 0 and not abs(v) <= MAX_ABS_VALUE:
-                raise DemoError(f"{where}: line {lineno}: column {names[col]!r}: {raw!r} is "
-                                f"outside the range |v| <= {MAX_ABS_VALUE:g} (MAX_ABS_VALUE)")
-            values[r, j] = v
         for j, col in enumerate(s_cols):
             raw = fields[col].strip()
             if raw not in ("0", "1"):
@@ -247,11 +274,6 @@ def load_demo(path: str | os.PathLike[str], *,
                                 "is not 0 or 1")
             sensors[r, j] = raw == "1"
     t = values[:, 0]
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        r = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise DemoError(f"{where}: line {rows[r][0]}: t = {float(t[r])!r} does not increase "
-                        f"(previous row has t = {float(t[r - 1])!r})")
     n = len(x_cols)
     x = values[:, 1:1 + n].copy()
     if dx_cols:
@@ -338,3 +360,172 @@ def demo_to_csv(demo: Demonstration, *, velocities: bool = True) -> str:
         row += ["1" if v else "0" for v in demo.sensors[i]]
         out.write(",".join(row) + "\n")
     return out.getvalue()
+
+
+# --------------------------------------------------------------------------------------------
+# Pose demonstrations: position and a unit quaternion per sample (issue 35)
+# --------------------------------------------------------------------------------------------
+
+_QUAT_DIRECTIVE = re.compile(r"^#\s*quaternion\s*:\s*(\S+)\s*$", re.IGNORECASE)
+QUATERNION_CONVENTIONS = {"scalar-first": (0, 1, 2, 3), "wxyz": (0, 1, 2, 3),
+                          "scalar-last": (3, 0, 1, 2), "xyzw": (3, 0, 1, 2)}
+"""Declared conventions: the file's ``q0..q3`` order, as indices giving (w, x, y, z)."""
+UNIT_TOLERANCE = 1e-6
+"""A quaternion whose norm differs from 1 by more than this is normalised (with a note)."""
+MIN_QUAT_NORM = 1e-3
+"""Below this norm a quaternion carries no orientation: refused."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PoseDemonstration:
+    """One validated pose demonstration.
+
+    Attributes
+    ----------
+    path : str
+        Where it came from.
+    t : ndarray, shape (T,)
+        Strictly increasing time stamps.
+    x : ndarray, shape (T, n)
+        Positions.
+    q : ndarray, shape (T, 4)
+        Unit quaternions, scalar-first ``(w, x, y, z)`` whatever the file declared, signs
+        made continuous along the demonstration (no hemisphere flips between samples).
+    convention : str
+        The convention the file declared (``"scalar-first"`` or ``"scalar-last"``).
+    notes : tuple of str
+        What cleaning changed (normalised quaternions, sign flips fixed), one line each.
+    lines : ndarray of int, shape (T,)
+        File line of each sample.
+    """
+
+    path: str
+    t: FloatArray
+    x: FloatArray
+    q: FloatArray
+    convention: str
+    notes: tuple[str, ...]
+    lines: npt.NDArray[np.int64]
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples T."""
+        return int(self.t.size)
+
+
+def load_pose_demo(path: str | os.PathLike[str]) -> PoseDemonstration:
+    """Read, validate and clean one pose demonstration CSV.
+
+    Format::
+
+        # quaternion: scalar-first        (or scalar-last; also wxyz / xyzw)
+        time,x0,x1,x2,q0,q1,q2,q3
+        0.0,0.41,0.02,0.30,1.0,0.0,0.0,0.0
+        ...
+
+    The ``# quaternion:`` comment must come before the header and declares the order of
+    ``q0..q3``: scalar-first ``(w, x, y, z)`` or scalar-last ``(x, y, z, w)``. Positions
+    ``x0..x{n-1}`` as in :func:`load_demo` (``t`` may be called ``time``). Cleaning, each
+    reported in :attr:`PoseDemonstration.notes`: a quaternion whose norm is off 1 by more
+    than :data:`UNIT_TOLERANCE` is normalised; a sample whose quaternion has the opposite sign
+    of the previous one (a hemisphere flip: same rotation, ``<q_i, q_{i-1}> < 0``) is negated.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    PoseDemonstration
+
+    Raises
+    ------
+    DemoError
+        Naming the file and line (and column): no or unknown convention declared, bad header,
+        a non-numeric, NaN or Inf value, a quaternion of norm below :data:`MIN_QUAT_NORM`,
+        non-increasing time, fewer than 3 rows.
+    """
+    where = str(path)
+    text = read_text(path, what="pose demonstration", error=DemoError)
+    convention: str | None = None
+    header: list[str] | None = None
+    rows: list[tuple[int, list[str]]] = []
+    for lineno, line in enumerate(io.StringIO(text), start=1):
+        stripped = line.strip().lstrip("\ufeff")
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            m = _QUAT_DIRECTIVE.match(stripped)
+            if m and header is None:
+                name = m.group(1).lower()
+                if name not in QUATERNION_CONVENTIONS:
+                    raise DemoError(f"{where}: line {lineno}: unknown quaternion convention "
+                                    f"{m.group(1)!r} (scalar-first, scalar-last, wxyz or xyzw)")
+                convention = {"wxyz": "scalar-first", "xyzw": "scalar-last"}.get(name, name)
+            continue
+        try:
+            fields = next(csv.reader([stripped]))
+        except csv.Error as exc:
+            raise DemoError(f"{where}: line {lineno}: malformed CSV: {exc}") from None
+        if header is None:
+            header = [f.strip() for f in fields]
+        else:
+            rows.append((lineno, fields))
+    if header is None:
+        raise DemoError(f"{where}: empty file (expected '# quaternion: scalar-first' and a "
+                        "header row time,x0,...,q0,q1,q2,q3)")
+    if convention is None:
+        raise DemoError(f"{where}: no quaternion convention declared: add the line "
+                        "'# quaternion: scalar-first' (or scalar-last) before the header")
+    time_names = [h for h in header if h in ("t", "time")]
+    if len(time_names) != 1:
+        raise DemoError(f"{where}: header needs exactly one time column 't' or 'time', "
+                        f"got {header}")
+    xs = sorted((int(m.group(1)), i) for i, h in enumerate(header) if (m := _STATE.match(h)))
+    if not xs or [k for k, _ in xs] != list(range(len(xs))):
+        raise DemoError(f"{where}: header needs position columns x0..x(n-1), got {header}")
+    if len(xs) > MAX_STATE_DIM:
+        raise DemoError(f"{where}: {len(xs)} position columns, more than {MAX_STATE_DIM}")
+    q_cols = []
+    for k in range(4):
+        if f"q{k}" not in header:
+            raise DemoError(f"{where}: header has no quaternion column 'q{k}' (q0..q3 needed)")
+        q_cols.append(header.index(f"q{k}"))
+    known = {header.index(time_names[0]), *(i for _, i in xs), *q_cols}
+    extra = [h for i, h in enumerate(header) if i not in known]
+    if extra:
+        raise DemoError(f"{where}: unknown column(s) {extra} in a pose demonstration")
+    if len(rows) > MAX_DEMO_SAMPLES:
+        raise DemoError(f"{where}: {len(rows):,} data rows, more than the limit of "
+                        f"{MAX_DEMO_SAMPLES:,} (MAX_DEMO_SAMPLES)")
+    values = _numeric_rows(rows, header, [header.index(time_names[0]), *(i for _, i in xs),
+                                          *q_cols], where,
+                           nonfinite=": refused, a pose sample needs a full orientation")
+    lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
+    t = values[:, 0]
+    n = len(xs)
+    x = values[:, 1:1 + n].copy()
+    q = values[:, 1 + n:][:, list(QUATERNION_CONVENTIONS[convention])]
+    notes: list[str] = []
+    norms = np.linalg.norm(q, axis=1)
+    tiny = np.flatnonzero(norms < MIN_QUAT_NORM)
+    if tiny.size:
+        r = int(tiny[0])
+        raise DemoError(f"{where}: line {lines[r]}: quaternion norm {float(norms[r]):.3g} is "
+                        "(nearly) zero: no orientation; refused")
+    off = np.flatnonzero(np.abs(norms - 1.0) > UNIT_TOLERANCE)
+    if off.size:
+        notes.append(f"{where}: {off.size} quaternion(s) not of unit norm (norms "
+                     f"{float(norms[off].min()):.6g}..{float(norms[off].max()):.6g}, first at "
+                     f"line {lines[int(off[0])]}) normalised")
+    q = q / norms[:, None]
+    turn = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0.0  # sign flips between neighbours
+    flips = (np.flatnonzero(turn) + 1).tolist()
+    q = q * np.concatenate([[1.0], np.cumprod(np.where(turn, -1.0, 1.0))])[:, None]
+    if flips:
+        notes.append(f"{where}: {len(flips)} hemisphere flip(s) fixed (q and -q are the same "
+                     f"rotation; first at line {lines[flips[0]]}): signs made continuous")
+    for arr in (t, x, q, lines):
+        arr.setflags(write=False)
+    return PoseDemonstration(path=where, t=t, x=x, q=q, convention=convention,
+                             notes=tuple(notes), lines=lines)

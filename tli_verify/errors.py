@@ -19,12 +19,14 @@ from __future__ import annotations
 import errno
 
 __all__ = [
+    "MAX_MESSAGE_CHARS",
     "AssetError",
     "CampaignError",
     "CertificateError",
     "CheckFailed",
     "DemoError",
     "EvidenceError",
+    "ExportError",
     "GateError",
     "InputError",
     "ModelError",
@@ -39,7 +41,15 @@ __all__ = [
     "bad_input",
     "bad_type",
     "missing",
+    "one_line",
 ]
+
+
+MAX_MESSAGE_CHARS = 1000
+"""Longest error message (:class:`~tli_verify.errors.TliError`), hence ``error:`` line, in
+characters: a longer one keeps its start (the file, line and field) and its end (the reason)
+and says how many characters of the middle were cut. Messages quote names and formulas from
+their input, which may be megabytes long."""
 
 
 class TliError(Exception):
@@ -49,13 +59,27 @@ class TliError(Exception):
     ----------
     message : str
         One line that names the file, line or field at fault (whitespace runs are folded, so
-        the message stays one line).
+        the message stays one line; beyond :data:`MAX_MESSAGE_CHARS` its
+        middle is cut, so a formula or name quoted from a multi-megabyte input never makes a
+        multi-megabyte line, and the file named at its start and the reason at its end stay).
     """
 
     def __init__(self, message: str) -> None:
-        super().__init__(" ".join(str(message).split()))
+        super().__init__(one_line(str(message)))
 
     __str__ = BaseException.__str__  # not OSError's "[Errno 2] ..." for :func:`missing`
+
+
+def one_line(message: str) -> str:
+    """``message`` with its whitespace runs folded to one space and, when longer than
+    :data:`MAX_MESSAGE_CHARS`, its middle replaced by a note of how many
+    characters were cut (the start, which names the file, and the end, which says why, stay)."""
+    text = " ".join(message.split())
+    if len(text) <= MAX_MESSAGE_CHARS:
+        return text
+    keep = MAX_MESSAGE_CHARS - 40
+    head, tail = text[:keep * 2 // 3], text[len(text) - keep // 3:]
+    return f"{head} ... [{len(text) - len(head) - len(tail):,} characters cut] ... {tail}"
 
 
 class InputError(TliError, ValueError):
@@ -107,6 +131,12 @@ class EvidenceError(CheckFailed):
 
 class GateError(CheckFailed):
     """The deployment gate blocks: something is uncertified or tampered with."""
+
+
+class ExportError(InputError):
+    """A policy artifact (``tli export``) cannot be built or does not check: malformed, edited
+    (its ``content_sha256`` is not the hash of its content), or beyond the C evaluator's
+    limits."""
 
 
 class AssetError(InputError):

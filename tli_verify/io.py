@@ -24,14 +24,17 @@ import os
 import re
 import stat
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from tli_verify.arguments import check_path
 from tli_verify.errors import OutputError, TliError, missing
 from tli_verify.limits import MAX_INPUT_BYTES, MAX_NESTING
+from tli_verify.snapshot import current as _snapshot
+from tli_verify.snapshot import remember as _remember
 
 __all__ = [
     "BUNDLED_FOLDERS",
@@ -66,10 +69,10 @@ def _umask() -> int:
 def _why(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
-
 # --------------------------------------------------------------------------------------------
 # Outputs
 # --------------------------------------------------------------------------------------------
+
 
 def check_path_arg(path: Any, *, what: str, error: type[TliError] = OutputError) -> Path:
     """``path`` as a :class:`Path`, refused unless it is a ``str`` or ``os.PathLike`` whose
@@ -81,8 +84,6 @@ def check_path_arg(path: Any, *, what: str, error: type[TliError] = OutputError)
         Also a :class:`TypeError` for a path of another type (``None``, an int), a
         :class:`ValueError` for a component longer than ``MAX_NAME_BYTES`` or a NUL byte.
     """
-    from tli_verify.arguments import check_path
-
     return check_path(path, f"the {what} path", error=error)
 
 
@@ -94,11 +95,13 @@ def _existing_ancestor(p: Path) -> Path:
     return cur
 
 
-def _same_file(a: Path, b: Path) -> bool:
+def same_file(a: PathLike, b: PathLike) -> bool:
+    """Whether two paths name the same file: the same resolved path, or the same inode (a hard
+    link); False when either cannot be resolved or does not exist."""
     try:
-        if a.resolve() == b.resolve():
+        if Path(a).resolve() == Path(b).resolve():
             return True
-        return a.exists() and b.exists() and os.path.samefile(a, b)
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
     except (OSError, RuntimeError):  # RuntimeError: a symlink loop
         return False
 
@@ -163,7 +166,7 @@ def check_output_file(path: PathLike, *, inputs: Iterable[PathLike] = (),
     shown = str(path)
     _check_dotdot(p, shown, what)
     for src in inputs:
-        if _same_file(p, Path(src)):
+        if same_file(p, Path(src)):
             raise OutputError(f"{shown}: the {what} would overwrite the input file {src}; "
                               "choose another output path")
     if p.is_dir() or p.name in ("", ".", ".."):
@@ -279,6 +282,7 @@ def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    _remember(target, data)  # a snapshot in force sees what was written
 
 
 def atomic_write_text(path: PathLike, text: str) -> None:
@@ -292,7 +296,26 @@ def canonical_json(obj: Any) -> str:
 
 
 def sha256_file(path: PathLike) -> str:
-    """Hex SHA-256 of a file's bytes."""
+    """Hex SHA-256 of a file's bytes.
+
+    Inside a snapshot (:mod:`tli_verify.snapshot`) the hash is of the bytes the snapshot
+    keeps for the file -- the very bytes a parser of the same session uses; a regular file
+    within the input limit not yet kept is read once and kept.
+    """
+    snap = _snapshot()
+    if snap is not None:
+        kept = snap.kept(path)
+        if kept is not None:
+            return kept.sha256
+        try:
+            st = os.stat(path)
+        except OSError:
+            st = None
+        if st is not None and stat.S_ISREG(st.st_mode) and st.st_size <= MAX_INPUT_BYTES:
+            with open(path, "rb") as handle:
+                data = handle.read(MAX_INPUT_BYTES + 1)
+            if len(data) <= MAX_INPUT_BYTES:
+                return snap.keep(path, data).sha256
     digest = hashlib.sha256()
     with open(path, "rb") as handle:
         for block in iter(lambda: handle.read(1 << 16), b""):
@@ -336,6 +359,42 @@ def check_nesting(text: str, *, where: str, error: type[TliError],
             depth = max(depth - 1, 0)
 
 
+def parse_toml(text: str, *, where: str, error: type[TliError],
+               nested: Callable[[], str] | None = None) -> dict[str, Any]:
+    """Parse TOML text, turning every failure into one ``error`` naming the file: the one
+    place "read TOML and map its errors" lives (specs, labels, tasks).
+
+    Parameters
+    ----------
+    text : str
+        The TOML text.
+    where : str
+        The file as shown in messages (``path`` or ``path:line``).
+    error : type
+        Exception class (a :class:`tli_verify.errors.TliError`) to raise.
+    nested : callable, optional
+        Makes the whole message for nesting beyond the parser's recursion limit (a reader
+        that can find the line and knows its own limit says so); default: the file and
+        "arrays or tables nested too deeply".
+
+    Returns
+    -------
+    dict
+        The parsed document.
+    """
+    import tomllib
+
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib reads nested arrays recursively
+        message = nested() if nested is not None else f"{where}: arrays or tables nested too deeply"
+        raise error(message) from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise error(f"{where}: invalid TOML: {exc}") from None
+
+
 def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     """Read a UTF-8 text input file, turning every failure into ``error`` naming the file.
 
@@ -356,9 +415,21 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     str
         The text, without a leading byte-order mark.
     """
+    raw = read_bytes(path, what=what, error=error)
+    return _decode(raw, Path(path), what=what, error=error)
+
+
+def read_bytes(path: PathLike, *, what: str, error: type[TliError]) -> bytes:
+    """Read an input file's bytes (:func:`read_text`'s rules, no decoding): inside a snapshot
+    (:mod:`tli_verify.snapshot`) the bytes the session keeps for it -- the ones its hash and
+    its parse saw -- read once."""
     if isinstance(path, str) and path == "":
         raise error(f"empty path given for the {what} file")
     p = check_path_arg(path, what=f"{what} file", error=error)
+    snap = _snapshot()
+    kept = snap.kept(p) if snap is not None else None
+    if kept is not None:  # read once in this session: the same bytes again
+        return kept.data
     try:
         st = p.stat()
     except FileNotFoundError as exc:
@@ -381,6 +452,13 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     if len(raw) > MAX_INPUT_BYTES:  # the file grew, or its size is not what stat said
         raise error(f"{p}: {what} file is larger than the limit of {MAX_INPUT_BYTES} bytes "
                     "(MAX_INPUT_BYTES)")
+    if snap is not None:
+        snap.keep(p, raw)
+    return raw
+
+
+def _decode(raw: bytes, p: Path, *, what: str, error: type[TliError]) -> str:
+    """The text of an input file's bytes (:func:`read_text`'s checks after the read)."""
     if b"\x00" in raw:
         raise error(f"{p}: not a text file (contains NUL bytes)")
     try:
@@ -391,10 +469,10 @@ def read_text(path: PathLike, *, what: str, error: type[TliError]) -> str:
     check_nesting(text, where=str(p), error=error)
     return text
 
-
 # --------------------------------------------------------------------------------------------
 # Bundled files
 # --------------------------------------------------------------------------------------------
+
 
 BUNDLED_FOLDERS = ("tasks", "specs", "demos", "models", "certificates", "sim")
 """The top-level folders of the bundled project (``sim`` holds ``franka/`` and
@@ -426,6 +504,14 @@ def _shown_path(p: Path) -> Path:
         return p.relative_to(Path.cwd().resolve())
     except (ValueError, OSError):
         return p
+
+
+def package_file(*parts: str) -> Path:
+    """A file shipped inside the package (``package_file("deploy", "c", "tli_policy.c")``),
+    found through :func:`importlib.resources.files`, so it is found in a checkout and in an
+    installed wheel alike; the one place besides :func:`bundled_root` that locates package
+    files."""
+    return Path(str(resources.files("tli_verify").joinpath(*parts)))
 
 
 def bundled_root() -> Path:
@@ -486,10 +572,10 @@ def bundled_dir(name: str) -> Path:
                        "project under tli_verify/data/, a checkout has it at its top)")
     return _shown_path(found)
 
-
 # --------------------------------------------------------------------------------------------
 # JSON inputs: one reader, one schema validator (models, certificates, evidence, tasks)
 # --------------------------------------------------------------------------------------------
+
 
 def field_path(parts: Sequence[str | int]) -> str:
     """Format a JSON location like ``modes.a.components[2].cov`` (odd keys in ``["..."]``)."""

@@ -43,6 +43,7 @@ __all__ = [
     "MAX_PUSHES",
     "MAX_SEED",
     "MAX_STATE_DIM",
+    "MAX_WORKERS",
     "PRIOR_SUM_TOL",
 ]
 
@@ -130,7 +131,7 @@ PRIOR_SUM_TOL = 1.0e-6
 
 MAX_CAMPAIGN_STEPS = 100_000
 """Largest perturbation window, perturbation step and sensor lag of a campaign or a case, in
-control steps (1,000 s at the scoop world's 10 ms): the run's step budget follows from them."""
+control steps (1,000 s at the scoop task's 10 ms): the run's step budget follows from them."""
 
 MAX_PUSHES = 100
 """Most perturbations in one case (paper Asm. 2: finitely many)."""
@@ -140,6 +141,10 @@ MAX_EXAMPLES = 10_000_000
 
 MAX_BATCH_SIZE = 10_000
 """Most runs in one batch of a campaign (each chunk of draws is ``batch_size + 10`` cases)."""
+
+MAX_WORKERS = 256
+"""Most worker processes of a campaign or a study (``--workers`` of ``tli verify``, ``tli
+evidence``, ``tli sim franka`` and ``tli experiment``; an evidence's ``campaign.workers``)."""
 
 MAX_SEED = 2**32 - 1
 """Largest seed of a campaign, an episode or a study (numpy and hypothesis take 32 bits)."""

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from tli_verify.io import atomic_write_bytes
+
 __all__ = ["draw_mode_graph", "save_figure"]
 
 
@@ -27,8 +29,6 @@ def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int) -> None:
     import io
 
     import matplotlib.pyplot as plt
-
-    from tli_verify.io import atomic_write_bytes
 
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi)
@@ -57,7 +57,6 @@ def draw_mode_graph(automaton: Any, path: str | os.PathLike[str], *, title: str 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, FancyArrowPatch
-
 
     modes = [m for m in automaton.modes
              if any(s.mode == m for s in automaton.states)] or sorted(

@@ -33,6 +33,8 @@ from types import MappingProxyType
 from typing import Any
 
 from tli_verify.errors import DemoError, ModelError
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import label_holds, load_spec
 from tli_verify.model.serialize import relocate_model
 from tli_verify.model.types import Model, ModeModel
 
@@ -98,9 +100,6 @@ def rebind_model(learned: Model, spec_path: str | os.PathLike[str],
         A mode the automaton runs has no demonstrated DS, or a transition out of it has none
         and there is no plain DS (paper Asm. 3).
     """
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import label_holds, load_spec
-
     if learned.spec is not None:
         raise ModelError(f"{learned.path}: learned with a spec ({learned.spec}); rebinding "
                          "needs a model learned without --spec (modes named by readings)")

@@ -43,7 +43,7 @@ def test_each_episode_gets_its_own_cut_set_on_the_shared_ds() -> None:
     from tli_verify.runtime.events import InvarianceFailure
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import run_episode, run_episodes
-    from tli_verify.runtime.worlds import WorldSensors
+    from tli_verify.runtime.task_sensors import TaskSensors
 
     setup = scoop_setup()
     learned = run_variant(setup, "LTL-DS", NOMINAL_START, {957: np.array([6.09, 6.01])},
@@ -55,9 +55,9 @@ def test_each_episode_gets_its_own_cut_set_on_the_shared_ds() -> None:
         return [LTLDSPolicy(setup.automaton, m, setup.certificate)
                 for m in (learned.model, setup.model)]
 
-    batch = run_episodes(policies(), [WorldSensors(setup.task) for _ in range(2)],
+    batch = run_episodes(policies(), [TaskSensors(setup.task) for _ in range(2)],
                          np.array([x0, x0]), steps=40)
-    singles = [run_episode(p, WorldSensors(setup.task), x0, steps=40) for p in policies()]
+    singles = [run_episode(p, TaskSensors(setup.task), x0, steps=40) for p in policies()]
     assert batch[0].modes[:10] != batch[1].modes[:10]  # the cut matters here
     for got, one in zip(batch, singles, strict=True):
         assert got.modes == one.modes

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.cli import interactive_signals
+
 REPO = Path(__file__).resolve().parents[2]
 SPEC = REPO / "specs" / "scoop.toml"
 TASK = REPO / "tasks" / "scoop.toml"
@@ -229,21 +231,12 @@ sys.exit(cli.main(sys.argv[2:]))
 """
 
 
-def _interactive_signals() -> None:
-    """In the child before ``exec``: SIGINT and SIGTERM as an interactive shell leaves them
-    (default), whatever this process inherited: a test run in the background (``make test &``,
-    ``nohup``, some CI runners) has SIGINT ignored, and Python then installs no
-    KeyboardInterrupt handler in its children (the former cause of 'not interrupted')."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 @pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
 def test_a_signal_is_exit_130_and_one_line(name: str, tmp_path: Path) -> None:
     """SIGINT is a guard (already so); SIGTERM used to kill tli on the spot."""
     done = subprocess.run([sys.executable, "-c", _SIGNAL, name, "spec", "check", str(SPEC)],
                           cwd=tmp_path, env=_env(), capture_output=True, timeout=TIMEOUT,
-                          check=False, preexec_fn=_interactive_signals)
+                          check=False, preexec_fn=interactive_signals)
     assert _one_error_line(done.stderr).startswith("error: interrupted")
     assert (done.returncode, done.stdout) == (130, b"")
 
@@ -259,7 +252,7 @@ def test_ctrl_c_before_any_run_finished_is_one_line(tmp_path: Path) -> None:
                                  "--out", str(tmp_path / "OUT")],
                                 cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL,
                                 stderr=err, stdin=subprocess.DEVNULL,
-                                preexec_fn=_interactive_signals)
+                                preexec_fn=interactive_signals)
         try:
             _wait_for(lambda: b"note: drawing" in log.read_bytes(), proc, "the campaign")
             time.sleep(0.5)  # the worker starts; its first batch of 100 takes seconds

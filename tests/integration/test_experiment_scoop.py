@@ -13,7 +13,7 @@ from tli_verify.cli import main
 from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import random_perturbations, run_variant
 from tli_verify.runtime.setup import VARIANTS, SequencePolicy, make_policy
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 
 
 def test_quick_experiment_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -91,7 +91,7 @@ def test_world_sensors_match_the_world_scan() -> None:
         X = np.clip(np.vstack([demo, walk, demo]), -8, 8)
         ref = task.sensors(X)
         for memo in (True, False):
-            sen = WorldSensors(task, region_cache=memo)
+            sen = TaskSensors(task, region_cache=memo)
             sen.reset(X[0])
             readings = [sen.read(x) for x in X]  # once per step, in order
             got = np.array([[r[n] for n in task.sensor_names] for r in readings])

@@ -35,7 +35,6 @@ def project(tmp_path: Path) -> Path:
     return tmp_path
 
 
-
 def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
         project: Path, capsys: pytest.CaptureFixture[str]) -> None:
     certs = project / "certificates"

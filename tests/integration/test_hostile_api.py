@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 
 import tli_verify as tli
+from tests.support.cli import interactive_signals
 from tli_verify.errors import InputError, OutputError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -145,7 +146,7 @@ def test_an_interrupted_tli_evidence_exits_130_and_keeps_the_evidence(
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
            "MKL_NUM_THREADS": "1"}
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, env=env)
+                            start_new_session=True, env=env, preexec_fn=interactive_signals)
     deadline = time.monotonic() + 120
     while _threads(proc.pid) < 2 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.1)  # the campaign's drawing thread has started: the campaign runs
@@ -177,7 +178,7 @@ def test_the_library_never_replaces_evidence_with_a_partial_campaign(project: Pa
                              "sha256": hashlib.sha256(
                                  (project / FILES["task"]).read_bytes()).hexdigest()}}
     with pytest.raises(OutputError, match="partial"):
-        write_campaign_evidence(config, result, project / FILES["evidence"])
+        write_campaign_evidence(config, result, path=project / FILES["evidence"])
     assert _digest(project) == before
 
 

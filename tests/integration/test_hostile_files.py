@@ -69,7 +69,7 @@ def test_a_huge_number_in_a_task_file_is_refused_naming_the_field(
     text = SCOOP.replace(old, template.format(v=value), 1)
     path = tmp_path_factory.mktemp("num") / "t.toml"
     path.write_text(text)
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     with pytest.raises(TaskError) as info:
         load_task(path)
@@ -100,7 +100,7 @@ def test_every_command_that_reads_a_task_refuses_a_huge_integer(
 
 
 def test_a_start_region_outside_the_workspace_is_refused_at_load(tmp_path: Path) -> None:
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     text = SCOOP.replace("[starts]\n", "[regions.far]\nbox = { lower = [20.0, 20.0], upper = "
                          "[30.0, 30.0] }\n\n[starts]\nregion = \"far\"\n", 1)
@@ -127,7 +127,7 @@ def test_a_task_formula_loads_and_evaluates_or_is_refused_at_load(
     text = SCOOP.replace('r = "yellow & !delivered"', f'r = "{formula}"', 1)
     path = tmp_path_factory.mktemp("f") / "t.toml"
     path.write_text(text)
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     try:
         task = load_task(path)
@@ -278,7 +278,7 @@ def plugins(tmp_path_factory: pytest.TempPathFactory) -> Path:
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hostile31\nVersion: 1.0\n")
     lines = ["[tli_verify.tasks]"]
-    for mode in AT_LOAD + AT_READ:
+    for mode in [*AT_LOAD, *AT_READ, "good"]:
         mod = "h31_" + mode.replace("-", "_")
         (site / f"{mod}.py").write_text(PLUGIN.format(mode=mode))
         lines.append(f"h31-{mode} = {mod}:sensors")
@@ -319,7 +319,7 @@ def test_a_plugin_failing_at_load_is_one_line_naming_it(
 @pytest.mark.parametrize("mode", AT_READ)
 def test_a_plugin_failing_when_read_is_a_task_error_naming_it(
         on_path: Path, tmp_path: Path, mode: str) -> None:
-    from tli_verify.tasks.task import load_task
+    from tli_verify.tasks.taskfile import load_task
 
     task = load_task(_plugin_task(tmp_path, mode))
     with pytest.raises(TaskError) as info:
@@ -561,3 +561,139 @@ def test_the_gates_rerun_never_starts_where_the_evidence_says(tmp_path: Path) ->
     assert ok, message
     assert "its own starts (2 from starts drawn in the task's start region, 2 from its 1 " \
         "nominal start(s)" in message
+
+
+@pytest.mark.parametrize("mode", AT_READ)
+def test_task_check_reads_a_plugin_once_and_names_it(
+        on_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], mode: str) -> None:
+    """``tli task check`` calls the plug-in's ``read()`` once on a sample state: a reading of
+    the wrong shape or type, an exception, ``SystemExit(0)`` or ``SystemExit(3)`` is exit 2 and
+    one line naming the plug-in and the task file (before: ``task check`` passed, and the
+    failure came later, in ``tli run``, ``tli verify`` or the gate)."""
+    task = _plugin_task(tmp_path, mode)
+    code, out, err = run(capsys, "task", "check", str(task))
+    assert code == 2, (mode, code, out, err)
+    line = _one_error_line(err)
+    assert f"h31-{mode}" in line and str(task) in line, line
+    assert out == ""
+
+
+def test_task_check_passes_a_plugin_that_reads_well(
+        on_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    task = _plugin_task(tmp_path, "good")
+    code, out, err = run(capsys, "task", "check", str(task))
+    assert code == 0 and err == "" and "sensors r, s, t" in out, (code, out, err)
+
+
+@HYP
+@given(lo=st.tuples(st.floats(-9e4, 9e4), st.floats(-9e4, 9e4)),
+       side=st.tuples(st.floats(1.0, 1e4), st.floats(1.0, 1e4)),
+       scales=st.lists(st.sampled_from([1e-12, 1e-10, 1e-6, 1.0, 1e3, 1e5]), min_size=4,
+                       max_size=4),
+       empty=st.booleans())
+def test_a_polytope_is_called_empty_only_when_it_is(
+        tmp_path_factory: pytest.TempPathFactory, lo: tuple[float, float],
+        side: tuple[float, float], scales: list[float], empty: bool) -> None:
+    """A box written as ``A x <= b`` with each row scaled (tiny or large coefficients, the
+    same set): non-empty polytopes load, empty ones (upper below lower) are "empty" (before:
+    rows of 1e-10 with b beyond the LP's tolerance were called empty)."""
+    from tli_verify.tasks.taskfile import load_task
+
+    hi = (lo[0] + side[0], lo[1] + side[1])
+    if empty:
+        lo, hi = (hi[0], lo[1]), (lo[0], hi[1])  # x0 >= hi0 > lo0 >= x0: nothing
+    rows = [([1.0, 0.0], hi[0]), ([-1.0, 0.0], -lo[0]), ([0.0, 1.0], hi[1]),
+            ([0.0, -1.0], -lo[1])]
+    A = [[s * a for a in row] for s, (row, _) in zip(scales, rows, strict=True)]
+    b = [s * v for s, (_, v) in zip(scales, rows, strict=True)]
+    path = tmp_path_factory.mktemp("poly") / "t.toml"
+    path.write_text('name = "poly"\n[state]\nlower = [-1e5, -1e5]\nupper = [1e5, 1e5]\n'
+                    f"[regions.p]\npolytope = {{ A = {A!r}, b = {b!r} }}\n"
+                    '[sensors]\np = "p"\n')
+    if not empty:
+        task = load_task(path)
+        assert task.partition is not None
+        return
+    with pytest.raises(TaskError) as info:
+        load_task(path)
+    assert "empty polytope" in str(info.value) or "cannot decide" in str(info.value), \
+        str(info.value)
+
+
+def test_spec_import_error_lines_are_bounded_and_name_the_input(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 3 MB identifier quoted by the importer: one line of at most MAX_MESSAGE_CHARS (+
+    ``error: ``) that starts with the input file and says why at its end (before: a 3 MB
+    line; with the translation refused, a 12 MB line naming the output file)."""
+    from tli_verify.errors import MAX_MESSAGE_CHARS
+
+    src = tmp_path / "long.spectra"
+    src.write_text("module M\nenv boolean a;\nsys boolean b;\ngar G " + "q" * 3_000_000
+                   + ";\n")
+    out = tmp_path / "out.toml"
+    code, _, err = run(capsys, "spec", "import", str(src), "-o", str(out))
+    assert code == 2
+    line = _one_error_line(err)
+    assert len(line) <= MAX_MESSAGE_CHARS + len("error: \n"), len(line)
+    assert line.startswith(f"error: {src}:4: unknown identifier")
+    assert "characters cut" in line and str(out) not in line
+    assert not out.exists()
+
+
+@HYP
+@given(head=st.text(min_size=1, max_size=60), middle=st.text(max_size=5000),
+       tail=st.text(min_size=1, max_size=60))
+def test_every_error_message_is_one_bounded_line(head: str, middle: str, tail: str) -> None:
+    """Any TliError: one line, at most MAX_MESSAGE_CHARS, its start (the file) and end (the
+    reason) kept when its middle is cut."""
+    from tli_verify.errors import MAX_MESSAGE_CHARS, SpecError
+
+    h, t = " ".join(head.split()), " ".join(tail.split())
+    msg = str(SpecError(f"HEAD{h} {middle} {t}TAIL"))
+    assert "\n" not in msg and len(msg) <= MAX_MESSAGE_CHARS
+    assert msg.startswith("HEAD" + h[:20]) and msg.endswith(t[-20:] + "TAIL")
+
+
+@HYP
+@given(field=st.sampled_from(["backend", "workers"]),
+       value=st.one_of(st.sampled_from(["threads", "mpi", "", "PROCESS", 0, 257, 100_000,
+                                        True, 2.5]),
+                       st.text(min_size=1, max_size=32).filter(
+                           lambda t: t not in ("process", "dask", "serial"))))
+def test_how_a_campaign_ran_is_validated_with_the_cli_choices(
+        tmp_path_factory: pytest.TempPathFactory, field: str, value: Any) -> None:
+    """``campaign.backend`` and ``campaign.workers`` (beyond the kinematic settings): only
+    what ``--backend`` and ``--workers`` take; the digest is recomputed, so the evidence is
+    otherwise consistent (before: any short string, up to 100,000 workers)."""
+    from tli_verify.verify.evidence import check_evidence, evidence_digest
+
+    root = tmp_path_factory.mktemp("ev")
+    for rel in ("tasks/scoop.toml", "specs/scoop.toml", "models/scoop.model.json",
+                "certificates/scoop.cert.json", "certificates/scoop.campaign.json"):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(REPO / rel, root / rel)
+    path = root / "certificates" / "scoop.campaign.json"
+    doc = json.loads(path.read_text())
+    doc["campaign"][field] = value
+    doc["digest"] = evidence_digest(doc)
+    path.write_text(json.dumps(doc))
+    check = check_evidence(path)
+    assert not check.ok
+    assert any(f"campaign.{field}" in p or "malformed" in p for p in check.problems), \
+        check.problems
+
+
+@HYP
+@given(pushes=st.integers(0, 64), tilts=st.integers(0, 64))
+def test_a_physical_campaign_records_what_tli_sim_records(pushes: int, tilts: int) -> None:
+    """``physics.pushes`` / ``physics.tilts``: the CLI records 1 and 1 per perturbed trial;
+    the schema admits 0..64, the gate only 1 and 1 (before: anything from 1 to 64, which its
+    re-run then ran)."""
+    from tli_verify.sim.physics_checks import check_physics_block
+
+    doc = json.loads((REPO / "sim" / "franka" / "certificates" /
+                      "franka-scoop.campaign.json").read_text())
+    doc["physics"].update(pushes=pushes, tilts=tilts)
+    problems = check_physics_block(doc, "e.json", [])
+    bad = [p for p in problems if "push(es)" in p]
+    assert bool(bad) == ((pushes, tilts) != (1, 1)), (pushes, tilts, problems)

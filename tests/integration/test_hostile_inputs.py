@@ -556,7 +556,7 @@ def test_learn_control_dt_is_bounded_and_run_never_overwrites_its_certificate(
         shutil.copytree(repo / sub, tmp_path / sub)
     cert = tmp_path / "certificates" / "scoop.cert.json"
     before = cert.read_bytes()
-    code, _, err = run(capsys, "run", "--world", "scoop", "--model",
+    code, _, err = run(capsys, "run", "--task", "scoop", "--model",
                        str(tmp_path / "models" / "scoop.model.json"), "--certificate", str(cert),
                        "--spec", str(tmp_path / "specs" / "scoop.toml"), "--seed", "1", "-o",
                        str(tmp_path / "certificates" / "scoop.model.json"))
@@ -570,11 +570,11 @@ def test_run_refuses_a_spec_other_than_the_certified_one(
     other.write_text((repo / "specs" / "scoop.toml").read_text() + "\n# another spec\n")
     # a spec given alone selects the model of its project (models/<spec stem>.model.json):
     # here there is none
-    code, _, err = run(capsys, "run", "--world", "scoop", "--spec", str(other), "--steps", "5")
+    code, _, err = run(capsys, "run", "--task", "scoop", "--spec", str(other), "--steps", "5")
     assert_bad_input(code, err, str(tmp_path / "models" / "other.model.json"),
                      "no such model file")
     # a model with a spec other than the one it names (and its certificate binds) is refused
-    code, _, err = run(capsys, "run", "--world", "scoop", "--model",
+    code, _, err = run(capsys, "run", "--task", "scoop", "--model",
                        str(repo / "models" / "scoop.model.json"), "--spec", str(other),
                        "--steps", "5")
     assert_bad_input(code, err, "not the spec the model names")

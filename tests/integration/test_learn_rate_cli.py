@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from tests.support.cli import run
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.lyapunov import decay_rate, sampled_growth
 from tli_verify.logic.spec import load_spec
 from tli_verify.tasks.registry import find_task
@@ -38,11 +39,12 @@ def test_default_contracts_and_rate_zero_is_the_old_learner(
     assert load_spec(taskless).task is None and load_spec(spec).task == "scoop"
     unnamed = tmp_path / "unnamed.model.json"
     assert run(capsys, "learn", *demos, "--spec", str(taskless), "-o", str(unnamed))[0] == 0
-    # --control-dt defaults to the control period of the spec's task (scoop: 0.01), else 1 ms
+    # --control-dt defaults to the control period of the spec's task (scoop: 0.01), else the
+    # one default (tli_verify.project.control_period)
     task_dt = find_task("scoop").dt
     assert task_dt == 0.01
     plain = _rates(old)
-    for path, control_dt in ((new, task_dt), (unnamed, 1e-3)):
+    for path, control_dt in ((new, task_dt), (unnamed, DEFAULT_DT_FLOAT)):
         for key, (rate, growth, fit_rate) in _rates(path).items():
             assert fit_rate is not None and rate >= fit_rate * (1 - 1e-4) > 0.05, key
             assert growth < 0, key

@@ -18,7 +18,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 
 
 def test_json_fields_and_success(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = _run(["run", "--world", "scoop", "--seed", "2", "--random-start",
+    code, out, err = _run(["run", "--task", "scoop", "--seed", "2", "--random-start",
                            "--perturb", "random:3",
                            "--out", str(tmp_path), "--json"], capsys)
     rec = json.loads(out)
@@ -40,7 +40,7 @@ def test_animation_on_request(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     """``--animate N``: run.gif with N frames, the last one after the cut was learned."""
     from PIL import Image
 
-    code, out, _ = _run(["run", "--world", "scoop", "--start=-5.0,4.0", "--perturb",
+    code, out, _ = _run(["run", "--task", "scoop", "--start=-5.0,4.0", "--perturb",
                          "957:6.09,6.01", "--animate", "6", "--out", str(tmp_path), "--json"],
                         capsys)
     rec = json.loads(out)
@@ -57,10 +57,10 @@ def test_animation_on_request(tmp_path: Path, capsys: pytest.CaptureFixture[str]
 def test_no_modulation_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # seed 19: the perturbations leave the spoon where the unmodulated system loops a -> b
     # -> a ... (Fig. 7); LTL-DS cuts the b -> a failure once and reaches d
-    code1, out1, _ = _run(["run", "--world", "scoop", "--seed", "19", "--random-start",
+    code1, out1, _ = _run(["run", "--task", "scoop", "--seed", "19", "--random-start",
                            "--perturb", "random:3",
                            "--out", str(tmp_path / "a"), "--json"], capsys)
-    code2, out2, _ = _run(["run", "--world", "scoop", "--seed", "19", "--random-start",
+    code2, out2, _ = _run(["run", "--task", "scoop", "--seed", "19", "--random-start",
                            "--perturb", "random:3",
                            "--no-modulation", "--out", str(tmp_path / "b"), "--json"], capsys)
     a, b = json.loads(out1), json.loads(out2)
@@ -73,7 +73,7 @@ def test_no_modulation_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 def test_explicit_perturbation_is_applied(tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = _run(["run", "--world", "scoop", "--start=-5,4", "--perturb", "50:0,-9",
+    code, out, _ = _run(["run", "--task", "scoop", "--start=-5,4", "--perturb", "50:0,-9",
                          "--out", str(tmp_path), "--json"], capsys)
     rec = json.loads(out)
     assert rec["start"] == [-5.0, 4.0]
@@ -84,16 +84,16 @@ def test_explicit_perturbation_is_applied(tmp_path: Path,
 
 
 @pytest.mark.parametrize("args", [
-    ["--world", "nope"],
-    ["--world", "cooking", "--spec", "specs/scoop.toml"],  # not the model's spec
-    ["--world", "scoop", "--perturb", "3:x"],
-    ["--world", "scoop", "--perturb", "0:1,1"],
-    ["--world", "scoop", "--perturb", "random:-1"],
-    ["--world", "scoop", "--perturb", "5:1,1", "--perturb", "5:2,2"],
-    ["--world", "scoop", "--perturb", "5:1,nan"],
-    ["--world", "scoop", "--start", "20,0"],
-    ["--world", "scoop", "--animate", "1"],
-    ["--world", "scoop", "--animate", "nan"],
+    ["--task", "nope"],
+    ["--task", "cooking", "--spec", "specs/scoop.toml"],  # not the model's spec
+    ["--task", "scoop", "--perturb", "3:x"],
+    ["--task", "scoop", "--perturb", "0:1,1"],
+    ["--task", "scoop", "--perturb", "random:-1"],
+    ["--task", "scoop", "--perturb", "5:1,1", "--perturb", "5:2,2"],
+    ["--task", "scoop", "--perturb", "5:1,nan"],
+    ["--task", "scoop", "--start", "20,0"],
+    ["--task", "scoop", "--animate", "1"],
+    ["--task", "scoop", "--animate", "nan"],
 ])
 def test_bad_arguments_exit_2_with_one_error_line(args: list[str], tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
@@ -112,7 +112,7 @@ def test_tampered_model_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture
     doc = json.loads((root / "models" / "scoop.model.json").read_text())
     doc["modes"]["b"]["attractor"][0] += 0.5  # a forged DS the certificate does not cover
     (tmp_path / "models" / "scoop.model.json").write_text(json.dumps(doc))
-    code, out, err = _run(["run", "--world", "scoop",
+    code, out, err = _run(["run", "--task", "scoop",
                            "--model", str(tmp_path / "models" / "scoop.model.json"),
                            "--certificate", str(tmp_path / "certificates" / "scoop.cert.json"),
                            "--out", str(tmp_path / "o")], capsys)
@@ -128,7 +128,7 @@ def test_uncertified_pair_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
     shutil.copy(root / "models" / "scoop.model.json", tmp_path / "models" / "m.model.json")
     # the bundled certificate (covers models/scoop.model.json, not the copy); a --model alone
     # now takes the certificate of its project layout (certificates/m.cert.json), so pass it
-    code, _, err = _run(["run", "--world", "scoop", "--model",
+    code, _, err = _run(["run", "--task", "scoop", "--model",
                          str(tmp_path / "models" / "m.model.json"),
                          "--certificate", str(root / "certificates" / "scoop.cert.json"),
                          "--out", str(tmp_path / "o")], capsys)
@@ -143,7 +143,7 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
     from tli_verify.model.serialize import load_model
 
     saved = tmp_path / "m" / "learned.model.json"
-    args = ["run", "--world", "scoop", "--seed", "19", "--random-start",
+    args = ["run", "--task", "scoop", "--seed", "19", "--random-start",
             "--perturb", "random:3", "--json"]
     code, out, err = _run([*args, "--out", str(tmp_path / "a"), "-o", str(saved)], capsys)
     first = json.loads(out)
@@ -159,3 +159,21 @@ def test_learned_cuts_saved_certified_and_reused(tmp_path: Path,
     assert second["cuts_added"] == 0
     fails = [e for e in second["events"] if e["event"] == "InvarianceFailure"]
     assert len(fails) < sum(e["event"] == "InvarianceFailure" for e in first["events"])
+
+
+def test_world_is_the_former_name_of_task(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """One word for a task: ``--world`` is not in ``--help`` any more, still accepted with a
+    note, and the same run as ``--task``."""
+    code, shown, _ = _run(["run", "--help"], capsys)
+    assert code == 0 and "--task" in shown and "--world" not in shown
+    args = ["--start=-5.0,4.0", "--json"]
+    code_old, out_old, err_old = _run(["run", "--world", "scoop", *args,
+                                       "--out", str(tmp_path / "old")], capsys)
+    code_new, out_new, err_new = _run(["run", "--task", "scoop", *args,
+                                       "--out", str(tmp_path / "new")], capsys)
+    assert (code_old, code_new) == (0, 0), err_old
+    assert "note: --world is the former name of --task" in err_old
+    assert "--world" not in err_new
+    old, new = json.loads(out_old), json.loads(out_new)
+    assert old["mode_trace"] == new["mode_trace"] and old["steps"] == new["steps"]

@@ -16,7 +16,6 @@ from tli_verify.cli import main
 pytestmark = pytest.mark.sim
 
 
-
 def _project(tmp: Path) -> Path:
     """A copy of the Franka scoop spec, model and certificate; its certificates dir."""
     copy_franka_project(tmp)
@@ -74,7 +73,7 @@ def test_a_retrained_model_is_refused(tmp_path: Path,
 
 def test_the_untampered_copy_is_accepted(tmp_path: Path) -> None:
     """The control for the tamper test: a byte-identical copy passes the check."""
-    from tli_verify.sim.loop import load_policy
+    from tli_verify.sim.franka_project import load_policy
 
     certs = _project(tmp_path)
     policy = load_policy("LTL-DS", certificates=certs)

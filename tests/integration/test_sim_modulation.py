@@ -45,7 +45,7 @@ def test_without_modulation_the_pour_repeats_its_invariance_failure(
     assert run.checks[0].repeats == () and all(c.cut is not None for c in run.checks)
     # and the physics oracle fails it: no failure was answered with a cut (its invariance
     # check, as the 2-D oracle's), though it delivered and ended in the goal mode
-    from tli_verify.sim.loop import load_policy
+    from tli_verify.sim.franka_project import load_policy
 
     policy = load_policy("no-modulation")
     verdict = check_trial(run.result, policy.automaton, goal_modes=policy.goal_modes)
@@ -84,7 +84,7 @@ def test_ltl_ds_cuts_the_pour_and_stays_inside_after_the_cuts(
         worst = max(float(np.asarray(cut.normal) @ (x - np.asarray(cut.point))) for x in inside)
         assert worst <= 0.05, worst  # dm/rad: on the mode's side (a control period's slack)
     # and the trial passes the physics oracle, reaching the spec's goal mode
-    from tli_verify.sim.loop import load_policy
+    from tli_verify.sim.franka_project import load_policy
 
     policy = load_policy("LTL-DS")
     verdict = check_trial(ltl.result, policy.automaton, goal_modes=policy.goal_modes)
@@ -105,7 +105,7 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
     beyond, across the rim, and the pour left its mode on the loop's account)."""
     from dataclasses import replace
 
-    from tli_verify.sim.loop import MARGIN, workspace
+    from tli_verify.sim.target import MARGIN, workspace
 
     m0, m1, m2, m3 = (float(m) for m in MARGIN)
     run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=(m0, m1, m2, m3)))

@@ -18,7 +18,7 @@ pytest.importorskip("mujoco")
 
 import mujoco
 
-from tli_verify.sim import render, scene
+from tli_verify.sim import demos, render, scene
 from tli_verify.sim.demos import PandaRig
 
 pytestmark = pytest.mark.sim
@@ -61,7 +61,7 @@ def test_a_rig_with_the_stand_is_bit_identical_to_one_without(
         rig: PandaRig, monkeypatch: pytest.MonkeyPatch) -> None:
     """The rig's construction moves the arm for 1 s and settles the beads for 0.6 s: every
     contact of the scene is made on the way."""
-    monkeypatch.setattr(scene, "add_stand", lambda spec: None)
+    monkeypatch.setattr(demos, "add_stand", lambda spec: None)  # where the rig calls it
     bare = PandaRig(0)
     assert bare.model.ngeom == rig.model.ngeom - len(STAND)
     for field in ("qpos", "qvel", "qacc", "act", "qfrc_applied", "xfrc_applied"):

@@ -20,7 +20,7 @@ def test_a_campaign_as_junit_xml(tmp_path: Path, capsys: pytest.CaptureFixture[s
     the failures are the violating runs, the counterexample's run names its ``tli replay``
     command; undecided runs without a violation are skipped."""
     out, junit = tmp_path / "out", tmp_path / "ci" / "campaign.xml"
-    code, text, err = run(capsys, "verify", "--world", "scoop", "--examples", "25", "--seed",
+    code, text, err = run(capsys, "verify", "--task", "scoop", "--examples", "25", "--seed",
                           "0", "--no-modulation", "--no-shrink", "--backend", "serial",
                           "--out", str(out), "--junit", str(junit))
     assert code == 1, err
@@ -57,7 +57,7 @@ def test_a_junit_file_that_cannot_be_written_is_refused_before_work(
     model = REPO / "models" / "scoop.model.json"
     path = junit.format(out=tmp_path / "out", model=model, tmp=tmp_path)
     before = model.read_bytes()
-    code, text, err = run(capsys, "verify", "--world", "scoop", "--examples", "5",
+    code, text, err = run(capsys, "verify", "--task", "scoop", "--examples", "5",
                           "--backend", "serial", "--out", str(tmp_path / "out"),
                           "--junit", path)
     assert code == 2 and text == ""

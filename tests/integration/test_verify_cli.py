@@ -31,7 +31,7 @@ def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 def found(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, dict, Path]:  # type: ignore[type-arg]
     """A short campaign without modulation (serial backend): it finds a counterexample."""
     out = tmp_path_factory.mktemp("found")
-    code = main(["verify", "--world", "scoop", "--examples", "25", "--seed", "0",
+    code = main(["verify", "--task", "scoop", "--examples", "25", "--seed", "0",
                  "--no-modulation", "--backend", "serial", "--json", "--out", str(out)])
     return code, json.loads((out / "campaign.json").read_text()), out
 
@@ -90,7 +90,7 @@ def test_replay_round_trip(found: tuple[int, dict, Path],  # type: ignore[type-a
 
 def test_campaign_with_modulation_finds_nothing(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    code, text, _ = _run(["verify", "--world", "scoop", "--examples", "25", "--seed", "0",
+    code, text, _ = _run(["verify", "--task", "scoop", "--examples", "25", "--seed", "0",
                           "--backend", "serial", "--json", "--out", str(tmp_path)], capsys)
     rec = json.loads(text)
     assert code == 0, rec["violations"]
@@ -104,7 +104,7 @@ def test_process_backend_matches_serial(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     recs = []
     for backend, extra in (("serial", []), ("process", ["--workers", "2"])):
-        code, text, _ = _run(["verify", "--world", "scoop", "--examples", "30", "--seed", "5",
+        code, text, _ = _run(["verify", "--task", "scoop", "--examples", "30", "--seed", "5",
                               "--no-modulation", "--no-shrink", "--batch-size", "7",
                               "--backend", backend, *extra, "--json",
                               "--out", str(tmp_path / backend)], capsys)
@@ -117,18 +117,18 @@ def test_process_backend_matches_serial(tmp_path: Path,
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
-    (["verify", "--world", "nowhere"], "unknown task"),
-    (["verify", "--world", "scoop", "--examples", "0"], "--examples"),
-    (["verify", "--world", "scoop", "--scheduler", "tcp://x:1"], "--scheduler"),
-    (["verify", "--world", "scoop", "--model", "/nonexistent/m.json"], "no such model"),
-    (["verify", "--world", "scoop", "--backend", "threads"], "--backend"),
+    (["verify", "--task", "nowhere"], "unknown task"),
+    (["verify", "--task", "scoop", "--examples", "0"], "--examples"),
+    (["verify", "--task", "scoop", "--scheduler", "tcp://x:1"], "--scheduler"),
+    (["verify", "--task", "scoop", "--model", "/nonexistent/m.json"], "no such model"),
+    (["verify", "--task", "scoop", "--backend", "threads"], "--backend"),
     (["replay", "/nonexistent/case.json"], "no such case file"),
     # checked before the campaign runs (one line: no campaign note before it)
-    (["verify", "--world", "scoop", "--examples", "5", "--evidence",
+    (["verify", "--task", "scoop", "--examples", "5", "--evidence",
       str(Path(__file__).resolve().parents[2] / "models" / "scoop.model.json")],
      "would overwrite the input file"),
     # an empty PATH is refused, not taken as the default path (the bundled evidence)
-    (["verify", "--world", "scoop", "--examples", "5", "--evidence", ""], "empty path"),
+    (["verify", "--task", "scoop", "--examples", "5", "--evidence", ""], "empty path"),
 ])
 def test_bad_arguments_exit_2_with_one_line(argv: list[str], needle: str, tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
@@ -189,7 +189,7 @@ def test_replay_refuses_hostile_numbers(edit: dict, needle: str,  # type: ignore
 def test_ctrl_c_writes_a_partial_report(tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "tli_verify.cli", "verify", "--world", "scoop", "--examples",
+        [sys.executable, "-m", "tli_verify.cli", "verify", "--task", "scoop", "--examples",
          "600", "--no-shrink", "--workers", "1", "--batch-size", "10", "--out",
          str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
         # SIGINT as an interactive shell leaves it, even when this run inherited it ignored
@@ -271,7 +271,7 @@ def broken(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 def test_looping_model_is_found_and_shrunk_to_no_perturbation(
         broken: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     model, cert = broken
-    code, text, _ = _run(["verify", "--world", "scoop", "--model", str(model),
+    code, text, _ = _run(["verify", "--task", "scoop", "--model", str(model),
                           "--certificate", str(cert), "--examples", "12", "--no-modulation",
                           "--backend", "serial", "--json", "--out", str(tmp_path)], capsys)
     rec = json.loads(text)

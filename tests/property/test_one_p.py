@@ -63,18 +63,23 @@ def _model_doc(seed: int, n: int, K: int, n_cuts: int, identity_p: bool) -> dict
                             "components": comps, "cuts": cuts}}}
 
 
+DT = Fraction(1, 1000)
+"""The period certify and repair both prove (these random systems are fast: some have no
+common P at the slower default)."""
+
+
 def _deploy(doc: dict[str, Any], root: Path) -> tuple[np.ndarray, Path]:
     """certify (repairing when needed) -> the P read back from the certificate, the model."""
     model = root / "m.model.json"
     model.write_text(json.dumps(doc), encoding="utf-8")
     cert = root / "m.cert.json"
     try:
-        cdoc = issue_certificate(model, cert_path=cert)
+        cdoc = issue_certificate(model, cert_path=cert, dt=DT)
     except CertificateError:
         repaired = root / "m.repaired.model.json"
-        save_model(repair_model(model, repaired, dt=Fraction(1, 1000)).model, repaired)
+        save_model(repair_model(model, repaired, dt=DT).model, repaired)
         model = repaired
-        cdoc = issue_certificate(model, cert_path=cert)
+        cdoc = issue_certificate(model, cert_path=cert, dt=DT)
     write_certificate(cdoc, cert)
     assert check_certificate(cert).ok
     P = np.array(json.loads(cert.read_text(encoding="utf-8"))["modes"]["m"]["P"])

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 pytest.importorskip("mujoco")
 
 from tli_verify.errors import TliError
-from tli_verify.sim.loop import Perturbation, draw_perturbations
+from tli_verify.sim.loop import draw_perturbations
 from tli_verify.sim.perturbations import (
     MAX_ELEVATION,
     PUSH_DISTANCE,
@@ -27,6 +27,7 @@ from tli_verify.sim.perturbations import (
     TILT_DELAY,
     TILT_DURATION,
     TILT_PEAK_SPEED,
+    Perturbation,
     min_push_duration,
     trial_perturbations,
 )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 from typing import Any
 
 import pytest
@@ -31,3 +32,12 @@ def json_records(out: str) -> list[dict[str, Any]]:
         obj, i = dec.raw_decode(out, i)
         recs.append(obj)
     return recs
+
+
+def interactive_signals() -> None:
+    """``preexec_fn`` of a child process: SIGINT and SIGTERM as an interactive shell leaves
+    them (default), whatever this process inherited. A test run in the background
+    (``make test &``, ``nohup``, some CI runners) has SIGINT ignored; Python then installs no
+    KeyboardInterrupt handler in its children, and a test that interrupts one waits forever."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)

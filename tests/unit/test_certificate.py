@@ -21,6 +21,7 @@ from tli_verify.certification.certificate import (
 )
 from tli_verify.certification.repair import repair_model
 from tli_verify.commands import exit_code
+from tli_verify.defaults import DEFAULT_DT
 from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import CertificateError
 from tli_verify.io import canonical_json, sha256_file
@@ -99,7 +100,7 @@ def test_one_p_certify_refuses_a_failing_p_and_repair_writes_a_new_model(
     with pytest.raises(CertificateError, match="mode 'reach': the model's P does not certify"):
         issue_certificate(path, cert_path=tmp_path / "c.json")
     new = tmp_path / "repaired.json"
-    result = repair_model(path, new, dt=Fraction(1, 1000))
+    result = repair_model(path, new, dt=DEFAULT_DT)  # the period certify then proves
     assert result.repaired == ("reach",)
     save_model(result.model, new)
     cert = tmp_path / "c.json"

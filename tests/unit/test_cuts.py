@@ -420,8 +420,6 @@ def test_answer_always_rechecks(data: st.DataObject, n: int, k: int) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-
-
 def _solve(inst, method: str):
     x_star, x0, xl, xf, prev = inst
     try:

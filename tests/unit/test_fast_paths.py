@@ -1,7 +1,7 @@
 """Single-state fast paths of the closed loop agree with the general (batched) paths.
 
 The fast paths (``GMM.posterior_one``, ``LPVDS.velocity`` on one state, ``Task.region_one``,
-the automaton's reading lookup cache, ``WorldSensors`` on the scalar region test) compute the
+the automaton's reading lookup cache, ``TaskSensors`` on the scalar region test) compute the
 same math in plain Python; only float summation order may differ, so floats are compared to
 1e-12 relative and integers/modes exactly.
 """
@@ -23,7 +23,7 @@ from tli_verify.errors import ModelError
 from tli_verify.logic.automaton import AssumptionViolation, TaskAutomaton
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 
@@ -112,7 +112,7 @@ def test_world_sensors_scalar_regions_match_uncached_reads(lag: int) -> None:
     world = find_task("scoop").with_lag(lag)
     assert world.lag == lag
     rng = np.random.default_rng(2 + lag)
-    fast, slow = WorldSensors(world), WorldSensors(world, region_cache=False)
+    fast, slow = TaskSensors(world), TaskSensors(world, region_cache=False)
     x = np.array([-5.0, 4.0])
     fast.reset(x)
     slow.reset(x)
@@ -127,10 +127,10 @@ def test_world_sensors_scalar_regions_match_uncached_reads(lag: int) -> None:
 
 
 class _PlainSensors:
-    """A sensor model that is not a WorldSensors: run_episodes takes the general path."""
+    """A sensor model that is not a TaskSensors: run_episodes takes the general path."""
 
     def __init__(self, world: Task) -> None:
-        self.inner = WorldSensors(world, region_cache=False)
+        self.inner = TaskSensors(world, region_cache=False)
 
     def reset(self, x0: np.ndarray) -> None:
         self.inner.reset(x0)
@@ -158,7 +158,7 @@ def test_batched_fast_path_matches_general_path() -> None:
         d = pushes.get((i, t))
         return None if d is None else np.clip(x + d, -8.0, 8.0)
 
-    fast = run_episodes([base.fork() for _ in range(n)], [WorldSensors(world) for _ in range(n)],
+    fast = run_episodes([base.fork() for _ in range(n)], [TaskSensors(world) for _ in range(n)],
                         starts, steps=600, perturb=perturb)
     slow = run_episodes([base.fork() for _ in range(n)], [_PlainSensors(world) for _ in range(n)],
                         starts, steps=600, perturb=perturb)
@@ -194,5 +194,5 @@ def test_batched_loop_calls_an_overridden_decide() -> None:
             setattr(p, name, getattr(fork, name))
         pols.append(p)
     starts = np.array([[-5.0, 4.0], [-2.0, -6.0], [7.0, 0.0]])
-    res = run_episodes(pols, [WorldSensors(setup.task) for _ in starts], starts, steps=300)
+    res = run_episodes(pols, [TaskSensors(setup.task) for _ in starts], starts, steps=300)
     assert Counting.calls == sum(r.steps for r in res) > 0

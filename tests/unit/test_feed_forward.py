@@ -1,4 +1,4 @@
-"""The Franka loop's velocity feed-forward at the workspace's bounds (tli_verify.sim.loop)."""
+"""The Franka loop's velocity feed-forward at the workspace's bounds (tli_verify.sim.target)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tli_verify.sim.loop import feed_forward
+from tli_verify.sim.target import feed_forward
 
 LO = np.array([4.3, -3.35, -0.39, -1.0])
 HI = np.array([5.7, 2.63, 2.62, 1.8])

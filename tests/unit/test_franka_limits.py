@@ -1,6 +1,6 @@
 """The Franka's limits in the torque loop (:mod:`tli_verify.sim.franka_limits`), the external
 wrench estimate the robot computes (:attr:`ImpedanceController.external_wrench`) and the
-``perturbed`` detector built on it (:class:`tli_verify.sim.loop.ContactDetector`)."""
+``perturbed`` detector built on it (:class:`tli_verify.sim.contact.ContactDetector`)."""
 
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def test_an_impedance_outside_the_robots_range_is_refused(kwargs: dict[str, floa
 
 
 def test_the_contact_detector_holds_and_releases() -> None:
-    from tli_verify.sim.loop import ContactDetector
+    from tli_verify.sim.contact import ContactDetector
 
     det = ContactDetector(force=25.0, torque=2.5, hold=0.1)
     quiet, push = np.zeros(6), np.array([30.0, 0, 0, 0, 0, 0])

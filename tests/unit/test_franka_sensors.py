@@ -323,7 +323,8 @@ def test_the_period_is_the_loops() -> None:
 def test_a_nominal_panda_trial_succeeds_with_franka_sensors(
         monkeypatch: pytest.MonkeyPatch) -> None:
     import tli_verify.sim.demos as demos
-    from tli_verify.sim.loop import load_policy, run_trial
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import run_trial
 
     monkeypatch.setattr(demos, "ScoopSensors",
                         lambda model, ids: FrankaSensors(model, ids, seed=0))

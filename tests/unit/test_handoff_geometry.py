@@ -44,7 +44,7 @@ def test_polytope_ball_ellipsoid_normals_are_outward_and_on_the_boundary() -> No
 
 
 def test_plane_beyond_the_attractor_is_not_a_cut() -> None:
-    from tli_verify.tasks.task import parse_task
+    from tli_verify.tasks.taskfile import parse_task
 
     task = parse_task("""
 name = "t"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.lpvds import LPVDS, learn_lpvds
 from tli_verify.errors import ModelError
 
@@ -97,16 +98,18 @@ def test_bad_learning_arguments() -> None:
         learn_lpvds(X, V[:-1], np.zeros(2))
 
 
-def test_default_learning_certifies_a_decay_rate_and_one_millisecond_steps() -> None:
+def test_default_learning_certifies_a_decay_rate_and_steps_at_the_default_period_and_shorter(
+        ) -> None:
     from tli_verify.ds.lyapunov import RATE_FACTOR, data_rate, decay_rate, sampled_growth
 
     X, V = arc_data()
     ds, info = learn_lpvds(X, V, np.zeros(2), seed=3)
     assert info.rate == pytest.approx(RATE_FACTOR * data_rate(X, V, np.zeros(2)))
     assert info.rate > 0.1
-    assert info.control_dt == 1e-3
+    assert info.control_dt == DEFAULT_DT_FLOAT
     assert decay_rate(ds.P, ds.A) >= info.rate * (1 - 1e-4)
-    assert sampled_growth(ds.P, ds.A, 1e-3) < -0.5e-3 * info.rate
+    for dt in (DEFAULT_DT_FLOAT, 1e-3):  # the default period, and a shorter one it covers
+        assert sampled_growth(ds.P, ds.A, dt) < -0.5 * dt * info.rate
     rmse = np.sqrt(np.mean(np.sum((ds.velocity(X) - V) ** 2, axis=1)))
     assert rmse < 0.25 * np.sqrt(np.mean(np.sum(V**2, axis=1)))
 

@@ -18,7 +18,8 @@ pytest.importorskip("mujoco")
 from tli_verify.io import bundled_dir
 from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
-from tli_verify.sim.loop import Perturbation, TrialResult
+from tli_verify.sim.loop import TrialResult
+from tli_verify.sim.perturbations import Perturbation
 from tli_verify.sim.trial_oracle import check_trial
 
 SPEC = bundled_dir("sim") / "franka" / "specs" / "franka-scoop.toml"

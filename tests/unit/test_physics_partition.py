@@ -19,7 +19,7 @@ from tests.support.cli import run
 from tli_verify.errors import CampaignError
 from tli_verify.io import bundled_dir
 from tli_verify.sim import campaign as campaign_module
-from tli_verify.sim import loop
+from tli_verify.sim import franka_project
 from tli_verify.sim.campaign import PhysicsResult, run_physics_campaign
 from tli_verify.sim.loop import TrialResult
 from tli_verify.sim.physics_checks import check_physics_block
@@ -56,8 +56,9 @@ def fake_trial(policy: Executive, seed: int, **_: Any) -> TrialResult:
 def stated(monkeypatch: pytest.MonkeyPatch) -> None:
     """Trials stated, not simulated; a fresh executive per ``load_policy``."""
     Executive.made = 0
-    monkeypatch.setattr(loop, "load_policy", lambda *a, **k: Executive())
-    monkeypatch.setattr(loop, "run_trial", fake_trial)
+    for where in (campaign_module, franka_project):  # the campaign's and tli sim's
+        monkeypatch.setattr(where, "load_policy", lambda *a, **k: Executive())
+    monkeypatch.setattr(campaign_module, "run_trial", fake_trial)
     monkeypatch.setattr(campaign_module, "check_trial",
                         lambda res, automaton, goal_modes: TrialVerdict(seed=res.seed))
 
@@ -153,7 +154,7 @@ def test_ctrl_c_in_a_later_chunk_writes_no_evidence(monkeypatch: pytest.MonkeyPa
             raise KeyboardInterrupt
         return fake_trial(policy, seed, **kw)
 
-    monkeypatch.setattr(loop, "run_trial", interrupted)
+    monkeypatch.setattr(campaign_module, "run_trial", interrupted)
     code, out, err = run(capsys, "sim", "franka", "--certificates",
                          str(tmp_path / "certificates"), "--trials", "4", "--workers", "2",
                          "--evidence")

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from tli_verify.certification.exact import certified_decay_rate, check_lyapunov
+from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.lpvds import learn_lpvds
 from tli_verify.ds.lyapunov import (
     RATE_BUDGET,
@@ -230,7 +231,7 @@ def test_bad_budgets_and_margins_are_refused(small: tuple[np.ndarray, ...]) -> N
 def test_a_forced_rate_wins_over_the_budget(small: tuple[np.ndarray, ...]) -> None:
     X, V, _, xs, _ = small
     ds, info = learn_lpvds(X, V, xs, seed=0, rate=0.05, rate_budget=0.03)
-    assert info.rate == 0.05 and info.control_dt == 1e-3
+    assert info.rate == 0.05 and info.control_dt == DEFAULT_DT_FLOAT
     assert info.rate_budget is info.reference_rmse is info.rate_rmse is info.data_rate is None
     assert info.rate_within_budget is None
     assert decay_rate(ds.P, ds.A) >= 0.05

@@ -205,6 +205,7 @@ def test_a_mode_passed_through_and_ending_gets_a_hand_over_key_and_a_plain_key()
     assert [(s.demo, s.start) for s in hand_over.segments] == [(0, 2)]
     assert [(s.demo, s.start) for s in stay.segments] == [(0, 7), (1, 2)]
     # with shared labels (cooking-cb's d1/d2 on the pot): both pot modes get both keys
+
     def label(reading: Mapping[str, bool]) -> tuple[str, ...]:
         return ("d1", "d2") if reading["r"] else ("w1", "w2")
 

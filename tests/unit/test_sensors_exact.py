@@ -70,7 +70,8 @@ def _plain_read(sensors: Any, data: Any) -> tuple[bool, bool, bool, np.ndarray, 
 def test_readings_equal_the_plain_formulation_over_a_trial() -> None:
     require_panda()
     from tli_verify.sim import sensors as sensors_module
-    from tli_verify.sim.loop import load_policy, run_trial
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import run_trial
 
     seen: dict[str, int] = {"periods": 0, "on_ladle": 0, "t": 0, "contacts": 0}
 

@@ -13,13 +13,11 @@ from tli_verify.experiments.single_mode import (
     POLICIES,
     SingleModeConfig,
     learn_cuts,
-    markdown,
     rollout,
     run,
     sample_starts,
-    summarize,
-    write_outputs,
 )
+from tli_verify.experiments.single_mode_report import markdown, summarize, write_outputs
 from tli_verify.tasks.generate import ConvexMode
 
 SQUARE = ConvexMode.from_vertices([[0, 0], [10, 0], [10, 10], [0, 10]])

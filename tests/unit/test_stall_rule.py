@@ -20,7 +20,7 @@ DT = 0.02
 
 @pytest.fixture
 def policy() -> Any:
-    from tli_verify.sim.loop import load_policy
+    from tli_verify.sim.franka_project import load_policy
 
     p = load_policy("LTL-DS")
     p.stall_rule = StallRule(radius=0.3, dwell=0.2)

@@ -20,7 +20,7 @@ from tli_verify.errors import TaskError
 from tli_verify.io import validate_schema
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.registry import bundled_tasks, find_task, task_names
-from tli_verify.tasks.task import load_task, parse_task
+from tli_verify.tasks.taskfile import load_task, parse_task
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -240,7 +240,7 @@ def test_entry_point_sensor_model_and_task(tmp_path: Path, monkeypatch: pytest.M
     pkg.mkdir()
     (pkg / "myplugin.py").write_text(
         "import numpy as np\n"
-        "from tli_verify.tasks.task import parse_task\n"
+        "from tli_verify.tasks.taskfile import parse_task\n"
         "class Far:\n"
         "    sensor_names = ('far',)\n"
         "    latent_names = ()\n"

@@ -29,7 +29,8 @@ from tli_verify.logic.spec import load_spec
 from tli_verify.segmentation import spec_labeler
 from tli_verify.tasks.demonstrator import write_demos
 from tli_verify.tasks.registry import bundled_tasks, find_task
-from tli_verify.tasks.task import Task, load_task
+from tli_verify.tasks.task import Task
+from tli_verify.tasks.taskfile import load_task
 
 SPECS = Path(__file__).resolve().parents[2] / "specs"
 TASKS = ("scoop", "cooking", "color-tracing", "inspection")

@@ -322,7 +322,8 @@ def test_plot_episodes_3d(tmp_path: Path) -> None:
                                ("LTL-DS", episode(3, cut=diagonal_cut(3)))],
                         tmp_path / "ep3.png", nominal=episode(3), zoom_first=True,
                         goal_label="the open drawer", samples=1000)
-    assert pic.panels == 2 * 3 + 1 and pic.pairs == vr.pairs_for(3)
+    # per episode 3 pairs and a mode strip, and the zoom panel
+    assert pic.panels == 2 * (3 + 1) + 1 and pic.pairs == vr.pairs_for(3)
     assert "speck (too small to draw)" in pic.legend
     px = rgb(pic.path)
     assert distinct(px) > 20

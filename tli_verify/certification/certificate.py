@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify._version import __version__
 from tli_verify.certification.exact import (
     LyapunovCheck,
     certified_decay_rate,
@@ -47,7 +48,17 @@ from tli_verify.certification.exact import (
 )
 from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError, ModelError, bad_input, missing
-from tli_verify.io import atomic_write_text, canonical_json, sha256_file
+from tli_verify.io import (
+    atomic_write_text,
+    canonical_json,
+    read_json,
+    same_file,
+    sha256_file,
+    validate_schema,
+)
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
+from tli_verify.model.types import numeric_limits
 
 __all__ = [
     "CERT_KIND",
@@ -169,7 +180,8 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     cert_path : path-like
         Where the certificate will be written (paths inside are relative to its directory).
     dt : Fraction or str, optional
-        Control period of the sampled-data conditions (default 1/1000 s).
+        Control period of the sampled-data conditions (default
+        :data:`~tli_verify.defaults.DEFAULT_DT`).
 
     Returns
     -------
@@ -183,10 +195,6 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     CertificateError
         A DS is not certifiable with the model's P, naming the mode and the condition (exit 1).
     """
-    from tli_verify._version import __version__
-    from tli_verify.model.serialize import load_model
-    from tli_verify.model.types import numeric_limits
-
     try:
         dt_q = parse_rational(dt, what="dt")
     except ValueError as exc:
@@ -200,7 +208,6 @@ def issue_certificate(model_path: str | os.PathLike[str], *,
     if model.spec_path is not None:
         if not model.spec_path.is_file():
             raise ModelError(f"{mpath}: spec: file {model.spec_path} not found")
-        from tli_verify.logic.spec import load_spec
 
         load_spec(model.spec_path)  # a certificate never binds a spec that does not load
         spec = {"path": _relpath(model.spec_path, base), "sha256": sha256_file(model.spec_path)}
@@ -281,9 +288,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     CertificateError
         Only when the certificate file cannot be read at all (exit 2).
     """
-    from tli_verify.io import read_json, validate_schema
-    from tli_verify.model.serialize import load_model
-
     cpath = Path(cert_path)
     if cpath.is_dir():
         raise bad_input(CertificateError,
@@ -322,7 +326,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     except ModelError as exc:
         problems.append(f"model does not load: {exc}")
         return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed))
-    from tli_verify.model.types import numeric_limits
 
     if doc["well_posed"]["limits"] != numeric_limits():
         problems.append(f"{cpath}: well_posed.limits differ from this tool's declared ranges "
@@ -352,13 +355,6 @@ def check_certificate(cert_path: str | os.PathLike[str], *,
     return CertCheck(str(cpath), str(mpath), tuple(problems), tuple(passed), dt_text)
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.resolve() == b.resolve() or os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
 def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any, mpath: Path,
                         passed: list[str]) -> list[str]:
     """The certificate's spec must be the very file the model names, unchanged."""
@@ -371,7 +367,7 @@ def _check_spec_binding(spec: Mapping[str, Any] | None, cpath: Path, model: Any,
     named = Path(os.path.realpath(cpath.parent / spec["path"]))
     if not spec_path.is_file():
         return [f"spec file {spec_path} not found"]
-    if not _same_file(named, spec_path):
+    if not same_file(named, spec_path):
         return [f"{cpath}: spec.path {spec['path']!r} ({named}) is not the spec the model "
                 f"names ({spec_path}): the certificate binds another spec"]
     if sha256_file(spec_path) != spec["sha256"]:

@@ -17,12 +17,17 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 from tli_verify.certification.exact import check_lyapunov
+from tli_verify.ds.lpvds import LPVDS
+from tli_verify.ds.lyapunov import find_p
 from tli_verify.errors import CertificateError, SolverError
+from tli_verify.model.serialize import load_model, relocate_model
+from tli_verify.model.types import ModeModel
 
 if TYPE_CHECKING:
     from tli_verify.model.types import Model
 
 __all__ = ["RepairResult", "repair_model"]
+
 
 @dataclass(frozen=True, slots=True)
 class RepairResult:
@@ -67,11 +72,6 @@ def repair_model(model_path: str | os.PathLike[str], out_path: str | os.PathLike
         A DS has no common quadratic Lyapunov function, or the SDP's ``P`` fails the exact check
         (exit 1, naming the mode).
     """
-    from tli_verify.ds.lpvds import LPVDS
-    from tli_verify.ds.lyapunov import find_p
-    from tli_verify.model.serialize import load_model, relocate_model
-    from tli_verify.model.types import ModeModel
-
     model = load_model(model_path)
     modes = dict(model.modes)
     repaired, kept = [], []

@@ -11,9 +11,11 @@ overwrite an input, are refused with exit 2 before any work. Output arguments us
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
 
+from tli_verify.arguments import float_range as float_range  # the one set of validators
+from tli_verify.arguments import int_range as int_range
+from tli_verify.arguments import positive_float as positive_float
 from tli_verify.errors import CheckFailed, TliError
 from tli_verify.io import check_plan as check_plan  # the library's read/write rule
 
@@ -40,72 +42,6 @@ DEFAULT_PATH = _DefaultPath()
 def chosen_path(value: object) -> Path | None:
     """The path the user chose for an ``nargs="?"`` output, or None for :data:`DEFAULT_PATH`."""
     return None if value is DEFAULT_PATH or value is None else Path(str(value))
-
-
-def int_range(lo: int, hi: int | None = None) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in ``[lo, hi]`` (``hi`` None: no upper bound).
-
-    A bad value is an ``ArgumentTypeError``, which the CLI turns into one ``error:`` line
-    naming the option, exit 2.
-    """
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if hi is not None and not lo <= value <= hi:
-            raise argparse.ArgumentTypeError(f"must be between {lo} and {hi}, got {value}")
-        if value < lo:
-            raise argparse.ArgumentTypeError(f"must be >= {lo}, got {value}")
-        return value
-
-    return parse
-
-
-def positive_float(text: str) -> float:
-    """An argparse ``type``: a finite number > 0 (``inf``, ``nan`` and 0 refused, naming why)."""
-    import math
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
-
-
-def float_range(lo: float, hi: float, unit: str = "", *, zero: bool = False
-                ) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number in ``[lo, hi]`` (``zero``: exactly 0 too), its
-    unit named in the message. Every float option has such physical bounds
-    (:doc:`/reference/limits`), so a subnormal period or an overflowing margin is refused
-    before any work.
-    """
-    import math
-
-    units = f" {unit}" if unit else ""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-        if zero and value == 0:
-            return 0.0
-        if not lo <= value <= hi:
-            either = "0 or " if zero else ""
-            raise argparse.ArgumentTypeError(f"must be {either}between {lo:g} and {hi:g}"
-                                             f"{units}, got {text!r}")
-        return value
-
-    parse.bounds = (lo, hi, zero)  # type: ignore[attr-defined]
-    return parse
 
 
 PROJECT_FOLDERS = ("tasks", "specs", "models", "certificates")

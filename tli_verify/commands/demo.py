@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import output_path
+from tli_verify.errors import OutputError
 
 DEMO_STAGES: tuple[str, ...] = (
     "tli_verify.commands.spec",
@@ -27,7 +28,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from tli_verify.errors import OutputError
 
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
     try:

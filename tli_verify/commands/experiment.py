@@ -17,8 +17,10 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from tli_verify.commands import float_range, int_range, output_path
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED
+from tli_verify.commands import check_plan, float_range, int_range, output_path
+from tli_verify.errors import TliError
+from tli_verify.io import canonical_json
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_SEED, MAX_WORKERS
 
 QUICK_TRIALS = 3
 QUICK_BC_EPOCHS = 300
@@ -45,7 +47,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     s.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     s.add_argument("--out", type=output_path, default=Path("out/single-mode"),
                    help="output directory (default out/single-mode)")
-    s.add_argument("--workers", type=int_range(1, 256), default=None,
+    s.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     s.add_argument("--max-cuts", type=int_range(0, 10_000), default=20,
                    help="cap on cuts per policy and noise")
@@ -79,7 +81,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="sensor lag of the task (default 0)")
     c.add_argument("--steps", type=int_range(1, MAX_CAMPAIGN_STEPS), default=None,
                    help="step budget per episode at dt = 1/100 (default 3000; 2000 with --quick)")
-    c.add_argument("--workers", type=int_range(1, 256), default=None,
+    c.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: min(2, CPUs)); results do not depend on it")
     c.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     c.add_argument("--out", type=output_path, default=Path("out/scoop"),
@@ -122,7 +124,6 @@ class _Progress:
 
 
 def _config(args: argparse.Namespace) -> Any:
-    from tli_verify.errors import TliError
     from tli_verify.experiments.single_mode import SingleModeConfig
 
     trials = args.trials if args.trials is not None else (QUICK_TRIALS if args.quick else 50)
@@ -142,9 +143,8 @@ def _config(args: argparse.Namespace) -> Any:
 
 
 def _single_mode(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
-    from tli_verify.experiments.single_mode import run, summarize, write_outputs
-    from tli_verify.io import canonical_json
+    from tli_verify.experiments.single_mode import run
+    from tli_verify.experiments.single_mode_report import summarize, write_outputs
 
     cfg = _config(args)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
@@ -176,7 +176,6 @@ def _table(summary: dict[str, Any]) -> str:
 
 
 def _scoop_config(args: argparse.Namespace) -> Any:
-    from tli_verify.errors import TliError
     from tli_verify.experiments.scoop import ExperimentConfig
 
     q = args.quick
@@ -193,15 +192,12 @@ def _scoop_config(args: argparse.Namespace) -> Any:
 
 
 def _scoop(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
-    from tli_verify.io import canonical_json
 
     cfg = _scoop_config(args)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise TliError(f"--workers must be >= 1, got {workers}")
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
-    from tli_verify.commands import check_plan
     from tli_verify.tasks.project import resolve
 
     bundled = resolve(task="scoop", lag=cfg.lag)  # the scoop study's files are its inputs
@@ -255,7 +251,8 @@ def _scoop_table(summary: dict[str, Any]) -> str:
 
 def demo_stage(out: Path) -> list[str]:
     """Run a quick single-mode study for ``make demo``; return one summary line per result."""
-    from tli_verify.experiments.single_mode import SingleModeConfig, run, summarize, write_outputs
+    from tli_verify.experiments.single_mode import SingleModeConfig, run
+    from tli_verify.experiments.single_mode_report import summarize, write_outputs
 
     cfg = SingleModeConfig(trials=2, bc_max_epochs=QUICK_BC_EPOCHS)
     t0 = time.perf_counter()

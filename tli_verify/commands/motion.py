@@ -14,8 +14,30 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import float_range, int_range, output_path, positive_float
-from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
+from tli_verify.commands import check_plan, float_range, int_range, output_path, positive_float
+from tli_verify.demos import load_demo, load_pose_demo
+from tli_verify.ds.lyapunov import RATE_BUDGET
+from tli_verify.ds.quaternion import (
+    ORIENTATION_MODEL_KIND,
+    learn_quaternion_ds,
+    write_orientation_model,
+)
+from tli_verify.errors import (
+    CertificateError,
+    DemoError,
+    GateError,
+    ModelError,
+    TliError,
+    bad_input,
+)
+from tli_verify.io import bundled_dir, check_output_file, read_json
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import load_model, save_model
+from tli_verify.plotting import save_figure
+from tli_verify.project import control_period
+from tli_verify.runtime.handoff import context_for_spec, handoff_status, learn_handoffs
+from tli_verify.tasks.project import model_files, spec_task
 
 __all__ = ["demo_stage", "register"]
 
@@ -49,14 +71,8 @@ def _rational(text: str) -> Fraction:
     return value
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0 or value >= 2**32:
-        raise argparse.ArgumentTypeError(f"must be in [0, 2^32), got {text!r}")
-    return value
+_seed = int_range(0, 2**32 - 1)
+"""A seed: 0 to 2^32 - 1."""
 
 
 def _rerun_examples(text: str) -> int:
@@ -103,7 +119,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                       "0.03; 0 or 1e-6 to 100; recorded in the model's fit)")
     p.add_argument("--control-dt", type=_control_period, default=None, metavar="DT",
                    help="with a rate: V also decreases per explicit step of this period "
-                   "(default: the control period of the spec's task, else 0.001 s; 1e-6 to "
+                   "(default: the control period of the spec's task, else 0.01 s; 1e-6 to "
                    "1 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
@@ -131,7 +147,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--dt", type=_rational, default=None, metavar="SECONDS",
                    help="control period of the sampled-data conditions, exact (e.g. 0.001 or "
                    "1/200; default: the control period of the task the model's spec names, "
-                   "else 0.001); the certificate also covers shorter periods")
+                   "else 1/100); the certificate also covers shorter periods")
     p.add_argument("--repair", type=output_path, default=None, metavar="NEW.model.json",
                    help="replace each P that does not certify by one found by an SDP (checked "
                    "exactly), write the new model there, and certify it")
@@ -150,6 +166,23 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.set_defaults(handler=_check_cert)
 
     p = sub.add_parser(
+        "learn-orientation", help="learn a certified orientation DS from pose demonstrations",
+        description="Reads pose demonstration CSVs (time, x0.., q0..q3 with a '# quaternion: "
+        "scalar-first|scalar-last' line), fixes hemisphere flips and normalises non-unit "
+        "quaternions (reported), and learns an LPV-DS in the tangent space at the attractor "
+        "q* (the mean last orientation), with its own Lyapunov matrix, the rate choice and "
+        "the sampled-data constraint at --control-dt. Writes the orientation model JSON; "
+        "certify it with tli certify.")
+    p.add_argument("demos", nargs="+", type=Path, metavar="POSE.csv")
+    p.add_argument("-o", "--output", type=output_path, required=True, metavar="OUT.json")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the mixture (default 0)")
+    p.add_argument("--control-dt", type=_control_period, default=None, metavar="SECONDS",
+                   help="control period of the sampled-data constraint (default 0.01 s, the "
+                   "one default; 1e-6 to 1 s)")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.set_defaults(handler=_learn_orientation)
+
+    p = sub.add_parser(
         "gate", help="deployment gate: every certificate, model and spec re-checks",
         description="Exit 0 only when every certificate under DIR/certificates re-checks "
         "exactly, every model under DIR/models has a valid certificate and campaign evidence "
@@ -164,6 +197,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "from the evidence's digest and the model's SHA-256 (not the evidence's "
                    "seed), with the evidence's recorded task and settings; a violation "
                    "blocks; N is 1 to 100000 (the gate always re-runs)")
+    p.add_argument("--artifact", type=Path, action="append", default=None,
+                   metavar="POLICY.tli.json",
+                   help="an exported policy to be deployed (tli export; repeatable): it must "
+                   "re-check (its hash, its text form), be the policy of a model the gate "
+                   "passes, with the same spec, certificate and task, and be tested by the "
+                   "current evidence (exported with it, or run by its trials in the C "
+                   "evaluator)")
     p.set_defaults(handler=_gate)
 
 
@@ -171,25 +211,12 @@ def _task_file(spec: Path | None) -> Path | None:
     """The task file a spec names (an input the outputs must not overwrite), or None."""
     if spec is None:
         return None
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
 
     try:
         task = spec_task(load_spec(spec), spec)
     except TliError:
         return None
     return None if task is None or task.source.path is None else Path(task.source.path)
-
-
-def _task_dt(spec: Path | None) -> Fraction | None:
-    """The control period of the task a spec names (None: no spec, or it names no task)."""
-    if spec is None:
-        return None
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
-
-    task = spec_task(load_spec(spec), spec)
-    return None if task is None else Fraction(repr(task.dt))
 
 
 def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
@@ -199,10 +226,6 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
     demonstration loader."""
     if spec is None:
         return
-    from tli_verify.demos import load_demo
-    from tli_verify.errors import DemoError
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.tasks.project import spec_task
 
     task = spec_task(load_spec(spec), spec)
     if task is None:
@@ -217,19 +240,11 @@ def _check_demos_fit_task(demos: list[Path], spec: Path | None) -> None:
 
 
 def _learn(args: argparse.Namespace) -> int:
-    from tli_verify.commands import check_plan
-    from tli_verify.defaults import DEFAULT_DT_FLOAT
-    from tli_verify.ds.lyapunov import RATE_BUDGET
-    from tli_verify.model.learn import learn_model
-    from tli_verify.model.serialize import save_model
 
     task_file = _task_file(args.spec)
     check_plan(inputs=[*args.demos, args.spec, task_file], outputs=[(args.output, "model")])
     _check_demos_fit_task(args.demos, args.spec)
-    control_dt = args.control_dt
-    if control_dt is None:
-        task_dt = _task_dt(args.spec)
-        control_dt = DEFAULT_DT_FLOAT if task_dt is None else float(task_dt)
+    control_dt = float(control_period(args.control_dt, args.spec))
     model = learn_model(args.demos, out_path=args.output, spec_path=args.spec, seed=args.seed,
                         eps=args.eps, rate=args.rate, control_dt=control_dt,
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
@@ -237,7 +252,6 @@ def _learn(args: argparse.Namespace) -> int:
                         lyapunov="identity" if args.baseline else "p-qlf")
     handoff = None
     if not args.no_handoff and args.spec is not None:
-        from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 
         ctx = context_for_spec(args.spec)
         if ctx is not None:
@@ -296,20 +310,106 @@ def default_certificate_path(model: Path) -> Path:
     (:func:`tli_verify.tasks.project.model_files`): ``ROOT/certificates/<name>.cert.json`` for
     ``ROOT/models/<name>.model.json``; ``<name>.cert.json`` next to a model outside any
     ``models/`` folder."""
-    from tli_verify.tasks.project import model_files
-
     return model_files(model).certificate
+
+
+def _kind(path: Path, error: type[TliError]) -> str | None:
+    """The ``kind`` field of a JSON file (None when it has none); unreadable: ``error``."""
+    if path.is_dir():
+        raise bad_input(error, f"{path}: is a directory, expected a JSON file")
+    doc = read_json(path, what="JSON file", error=error)
+    kind = doc.get("kind") if isinstance(doc, dict) else None
+    return kind if isinstance(kind, str) else None
+
+
+def _learn_orientation(args: argparse.Namespace) -> int:
+
+    check_output_file(args.output, inputs=args.demos, what="orientation model")
+    demos = [load_pose_demo(p) for p in args.demos]
+    for d in demos:
+        for note in d.notes:
+            if args.json:
+                _emit({"note": note})
+            else:
+                sys.stdout.write(f"note: {note}\n")
+    ds, info = learn_quaternion_ds([d.t for d in demos], [d.q for d in demos], seed=args.seed,
+                                   control_dt=float(control_period(args.control_dt, None)))
+    write_orientation_model(ds, args.output, fit=info)
+    record = {"model": str(args.output), "attractor": ds.attractor.tolist(),
+              "components": info.n_components, "decay_rate": info.rate,
+              "control_dt": info.control_dt, "seconds": round(info.seconds, 3)}
+    if args.json:
+        _emit(record)
+    else:
+        q = ", ".join(f"{v:.4f}" for v in ds.attractor)
+        sys.stdout.write(f"wrote {args.output}: orientation DS, q* = ({q}) (w, x, y, z), "
+                         f"K = {info.n_components}, decay rate {info.rate:.3g}/s, learned in "
+                         f"{info.seconds:.2f} s; certify it with: tli certify {args.output} "
+                         "-o CERT.json\n")
+    return 0
+
+
+def _certify_orientation(args: argparse.Namespace) -> int:
+    from tli_verify.certification.orientation import (
+        issue_orientation_certificate,
+        write_orientation_certificate,
+    )
+
+    if args.repair is not None:
+        raise bad_input(ModelError, f"{args.model}: --repair is not available for orientation "
+                        "models")
+    out: Path = args.output or default_certificate_path(args.model)
+    check_output_file(out, inputs=[args.model], what="certificate")
+    dt = control_period(args.dt, None)
+    doc = issue_orientation_certificate(args.model, out, dt=dt)
+    write_orientation_certificate(doc, out)
+    ex = doc["exact"]
+    record = {"certificate": str(out), "model": str(args.model), "kind": "orientation",
+              "dt": doc["dt"], "decay_rate": ex["decay_rate"],
+              "region_V_below": ex["region_V_below"], "exact": True}
+    if args.json:
+        _emit(record)
+    else:
+        angle = float(Fraction(ex["region_angle_squared_below"])) ** 0.5
+        sys.stdout.write(f"orientation: P > 0, {len(ex['continuous'])} components with "
+                         f"A_k^T P + P A_k < 0, decrease per step at dt = {doc['dt']}, decay "
+                         f"rate {float(Fraction(ex['decay_rate'])):.4g}/s, chart region "
+                         f"V < {float(Fraction(ex['region_V_below'])):.4g} (every start within "
+                         f"{angle * 57.29577951308232:.1f} degrees of q*); exact: yes\n"
+                         f"wrote {out}\n")
+    return 0
+
+
+def _check_orientation_cert(args: argparse.Namespace) -> int:
+    from tli_verify.certification.orientation import check_orientation_certificate
+
+    if args.model is not None:
+        raise bad_input(CertificateError, f"{args.certificate}: --model is not available for "
+                        "orientation certificates (they bind their model file)")
+    check = check_orientation_certificate(args.certificate)
+    for item in check.failures:
+        if args.json:
+            _emit({"certificate": str(args.certificate), "ok": False, "message": item})
+        else:
+            sys.stdout.write(f"FAIL  {item}\n")
+    if args.json:
+        _emit({"certificate": str(args.certificate), "kind": "orientation", "valid": check.ok})
+    if not check.ok:
+        raise CertificateError(f"{args.certificate}: orientation certificate does not re-check "
+                               f"({len(check.failures)} problem(s)): {check.failures[0]}")
+    if not args.json:
+        sys.stdout.write(f"{args.certificate}: valid (orientation DS re-checked exactly)\n")
+    return 0
 
 
 def _certify(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.defaults import DEFAULT_DT
-    from tli_verify.io import check_output_file
-    from tli_verify.model.serialize import load_model
 
+    if _kind(args.model, ModelError) == ORIENTATION_MODEL_KIND:
+        return _certify_orientation(args)
     model_path: Path = args.model
     spec_path = load_model(args.model).spec_path
-    dt = args.dt if args.dt is not None else (_task_dt(spec_path) or DEFAULT_DT)
+    dt = control_period(args.dt, spec_path)
     task_file = _task_file(spec_path)
     inputs = [args.model, *([spec_path] if spec_path else []), *([task_file] if task_file else [])]
     out: Path = args.output or default_certificate_path(args.repair or args.model)
@@ -319,7 +419,6 @@ def _certify(args: argparse.Namespace) -> int:
     check_output_file(out, inputs=inputs, what="certificate")
     if args.repair is not None:
         from tli_verify.certification.repair import repair_model
-        from tli_verify.model.serialize import save_model
 
         result = repair_model(args.model, args.repair, dt=dt)
         save_model(result.model, args.repair)
@@ -354,11 +453,15 @@ def _certify(args: argparse.Namespace) -> int:
 
 def _check_cert(args: argparse.Namespace) -> int:
     from tli_verify.certification.certificate import check_certificate
+    from tli_verify.certification.orientation import ORIENTATION_CERT_KIND
 
     for path, what, error in ((args.certificate, "certificate", CertificateError),
                               (args.model, "model", ModelError)):
         if path is not None and path.is_dir():  # not "no such file": say what it is
             raise bad_input(error, f"{path}: is a directory, expected a {what} file")
+    if args.certificate.is_file() and \
+            _kind(args.certificate, CertificateError) == ORIENTATION_CERT_KIND:
+        return _check_orientation_cert(args)
     check = check_certificate(args.certificate, model_path=args.model)
     if args.json:
         for item in check.passed:
@@ -373,8 +476,6 @@ def _check_cert(args: argparse.Namespace) -> int:
             sys.stdout.write(f"FAIL  {item}\n")
     handoff_ok = True
     if check.ok and check.model_path:
-        from tli_verify.model.serialize import load_model
-        from tli_verify.runtime.handoff import handoff_status
 
         model = load_model(check.model_path)
         if model.spec_path is not None and model.spec_path.is_file():
@@ -398,7 +499,7 @@ def _check_cert(args: argparse.Namespace) -> int:
 def _gate(args: argparse.Namespace) -> int:
     from tli_verify.deploy.gate import run_gate
 
-    report = run_gate(args.directory, rerun=args.rerun)
+    report = run_gate(args.directory, rerun=args.rerun, artifacts=args.artifact or ())
     for item in report.items:
         if args.json:
             _emit(item.to_dict())
@@ -429,9 +530,6 @@ def demo_stage(out: Path) -> list[str]:
         issue_certificate,
         write_certificate,
     )
-    from tli_verify.io import bundled_dir
-    from tli_verify.model.learn import learn_model
-    from tli_verify.model.serialize import save_model
 
     demos = sorted(bundled_dir("demos").glob("scoop_*.csv"))
     spec = bundled_dir("specs") / "scoop.toml"
@@ -463,9 +561,6 @@ def _plot_model(model: Any, demo_paths: list[Path], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-
-    from tli_verify.demos import load_demo
-    from tli_verify.plotting import save_figure
 
     demos = [load_demo(p) for p in demo_paths]
     pts = np.concatenate([d.x for d in demos])

@@ -1,6 +1,6 @@
 """``tli run``: one closed-loop LTL-DS episode on a task (paper eq. 6, Fig. 7).
 
-The task (``--task NAME|FILE``; ``--world`` is an alias), its spec, model and certificate are
+The task (``--task NAME|FILE``), its spec, model and certificate are
 found by the project rules (:func:`tli_verify.tasks.project.resolve`): a bundled task runs its
 shipped spec, certified model and certificate; ``--spec`` picks another spec of the task (its
 model by the project layout), ``--model`` another model (the spec it names, the certificate by
@@ -26,22 +26,39 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import check_plan, int_range, output_path
+from tli_verify.commands.experiment import scoop_study
 from tli_verify.defaults import Stream, rng
+from tli_verify.errors import CertificateError, TliError
+from tli_verify.io import atomic_write_text, bundled_root, canonical_json, read_json
 from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
 
-__all__ = ["add_task_arguments", "demo_stage", "parse_floats", "parse_perturb", "register",
-           "resolve_args"]
+__all__ = ["add_task_arguments", "demo_stage", "open_args", "parse_floats", "parse_perturb",
+           "register"]
 
 MAX_RUN_STEPS = MAX_CAMPAIGN_STEPS
 """Largest ``--steps`` of ``tli run`` (100,000 control steps: 1,000 s at 10 ms)."""
 
 
+class _FormerTaskOption(argparse.Action):
+    """``--world``: stores the task as ``--task`` does, with a note that it is the old name."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        print("note: --world is the former name of --task", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
 def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None:
-    """``--task`` (alias ``--world``), ``--spec``, ``--model``, ``--certificate``, ``--lag``:
-    the files of a closed-loop command, resolved by the project rules."""
-    p.add_argument("--task", "--world", dest="task", default=None, metavar="TASK",
+    """``--task``, ``--spec``, ``--model``, ``--certificate``, ``--lag``: the files of a
+    closed-loop command, resolved by the project rules. ``--world``, the option's former name,
+    is still accepted (not listed in ``--help``) and says so on stderr."""
+    p.add_argument("--task", dest="task", default=None, metavar="TASK",
                    help="task name (bundled: scoop, cooking, color-tracing, inspection; or a "
                    "project's tasks/NAME.toml) or task file; default: the task the spec names")
+    p.add_argument("--world", dest="task", default=None, action=_FormerTaskOption,
+                   help=argparse.SUPPRESS)
     p.add_argument("--spec", type=Path, default=None,
                    help="spec file (default: the model's, else the task's default spec)")
     p.add_argument("--model", type=Path, default=None,
@@ -53,13 +70,14 @@ def add_task_arguments(p: argparse.ArgumentParser, *, what: str = "run") -> None
                    help="sensor lag in control steps (default: the task's)")
 
 
-def resolve_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
-    """:func:`tli_verify.tasks.project.resolve` of the command's task options (``use_spec``
-    False: ``--spec`` is not the model's spec, e.g. the spec ``--learn-transitions`` grows)."""
-    from tli_verify.tasks.project import resolve
+def open_args(args: argparse.Namespace, *, use_spec: bool = True) -> Any:
+    """The project session (:func:`tli_verify.project.open_project`) of the command's task
+    options (``use_spec`` False: ``--spec`` is not the model's spec, e.g. the spec
+    ``--learn-transitions`` grows)."""
+    from tli_verify.project import open_project
 
-    return resolve(task=args.task, spec=args.spec if use_spec else None, model=args.model,
-                   certificate=args.certificate, lag=args.lag)
+    return open_project(task=args.task, spec=args.spec if use_spec else None,
+                        model=args.model, certificate=args.certificate, lag=args.lag)
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -120,8 +138,6 @@ def parse_floats(text: str, n: int, what: str) -> list[float]:
     """
     import math
 
-    from tli_verify.errors import TliError
-
     parts = text.split(",")
     try:
         vals = [float(v) for v in parts]
@@ -145,7 +161,6 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
     """
     import numpy as np
 
-    from tli_verify.errors import TliError
     from tli_verify.runtime.episodes import random_perturbations
 
     out: dict[int, Any] = {}
@@ -184,22 +199,20 @@ def parse_perturb(items: list[str], *, seed: int, task: Any, steps: int | None =
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.runtime.episodes import (
         episode_json,
         mode_string,
         random_start,
         run_variant,
     )
-    from tli_verify.runtime.setup import load_setup, make_policy
     from tli_verify.tasks.project import model_files
 
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
     if args.grown_spec is not None and not args.learn_transitions:
         raise TliError("--grown-spec needs --learn-transitions")
-    resolved = resolve_args(args, use_spec=not args.learn_transitions)
+    session = open_args(args, use_spec=not args.learn_transitions)
+    resolved = session.files
     out: Path = args.out
     saved_cert = model_files(args.output).certificate if args.output is not None else None
     check_plan(inputs=[*resolved.inputs, args.spec],
@@ -207,15 +220,15 @@ def _run(args: argparse.Namespace) -> int:
                         (out / "run.gif" if args.animate is not None else None, "animation"),
                         (args.output, "model"), (saved_cert, "certificate"),
                         (args.grown_spec, "grown spec")])
-    setup = load_setup(resolved)
+    setup = session.setup
     task = setup.task
     start_spec = _growth_start(setup, args.spec) if args.learn_transitions else None
+    grown = None
     if start_spec is not None:
         from dataclasses import replace
 
-        from tli_verify.logic.check import synthesize
-
-        setup = replace(setup, automaton=synthesize(start_spec))
+        grown = synthesize(start_spec)
+        setup = replace(setup, automaton=grown)
     perturbations = parse_perturb(args.perturb, seed=args.seed, task=task, steps=args.steps)
     if args.start is not None:
         x0 = np.array(parse_floats(args.start, task.dim, f"--start {args.start!r}"))
@@ -230,13 +243,17 @@ def _run(args: argparse.Namespace) -> int:
     variant = ("no-modulation" if args.no_modulation else
                "no-replan" if args.no_replan else "LTL-DS")
     # refuses a model its certificate does not cover
-    policy = (make_policy(setup, variant) if start_spec is None
-              else make_policy(setup, variant, spec=start_spec, learn_transitions=True))
+    if start_spec is None:
+        policy = session.policy(variant)
+    else:
+        from tli_verify.runtime.setup import make_policy
+
+        policy = make_policy(setup, variant, spec=start_spec, learn_transitions=True)
     t0 = time.perf_counter()
     res = run_variant(setup, variant, x0, perturbations, steps=args.steps, policy=policy)
     seconds = time.perf_counter() - t0
     nominal = run_variant(setup, variant, x0, {}, steps=args.steps,
-                          policy=make_policy(setup, variant))
+                          policy=session.policy(variant, automaton=grown))
     record = episode_json(res, task=task.name, variant=variant, seconds=seconds, x0=x0,
                           perturbations=perturbations, dt=policy.dt)
     record["files"] = {"task": task.where, "spec": str(resolved.spec),
@@ -304,9 +321,6 @@ def _run(args: argparse.Namespace) -> int:
 def _certified_dt(policy: Any) -> str:
     """The control period the policy's certificate proves (a saved model is re-certified at
     it)."""
-    from tli_verify.errors import CertificateError
-    from tli_verify.io import read_json
-
     doc = read_json(policy.certificate, what="certificate", error=CertificateError)
     return str(doc["control_period"]["dt"])
 
@@ -314,7 +328,6 @@ def _certified_dt(policy: Any) -> str:
 def _picture(task: Any, res: Any, nominal: Any, path: Path, variant: str, seed: int,
              notes: list[str]) -> Path | None:
     """The Fig. 7-style picture of the episode, or None (with a note) if it cannot be drawn."""
-    from tli_verify.errors import TliError
     from tli_verify.viz.episodes import plot_episodes
 
     try:
@@ -335,9 +348,6 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
     TliError
         (exit 2) A spec that does not load or labels the modes otherwise.
     """
-    from tli_verify.errors import TliError
-    from tli_verify.logic.spec import load_spec
-
     named_path = Path(setup.spec)
     named = load_spec(named_path)
     if spec is None:
@@ -352,8 +362,6 @@ def _growth_start(setup: Any, spec: Path | None) -> Any:
 
 def _write_grown(policy: Any, start: Any, path: Path) -> None:
     """Write the policy's current spec as TOML (atomically), with a provenance header."""
-    from tli_verify.io import atomic_write_text
-
     learned = " ".join(f"{a}->{b}" for a, b in policy.learned) or "none"
     header = (f"# Grown online by `tli run --learn-transitions` from {start.path}.\n"
               f"# Transitions learned in this run: {learned}.\n")
@@ -379,11 +387,9 @@ def demo_stage(out: Path) -> list[str]:
     modulation (``out/run/``), and the quick scoop experiment (``out/scoop/``)."""
     import os
 
-    from tli_verify.commands.experiment import scoop_study
     from tli_verify.deploy.gate import run_gate
     from tli_verify.experiments.scoop import ExperimentConfig
     from tli_verify.experiments.scoop_task import scoop_setup
-    from tli_verify.io import atomic_write_text, bundled_root, canonical_json
     from tli_verify.runtime.episodes import episode_json, mode_string, random_start, run_variant
     from tli_verify.viz.episodes import plot_episodes
 

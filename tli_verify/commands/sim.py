@@ -21,8 +21,21 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import DEFAULT_PATH, chosen_path, float_range, int_range, output_path
+from tli_verify.commands import (
+    DEFAULT_PATH,
+    check_plan,
+    chosen_path,
+    float_range,
+    int_range,
+    output_path,
+)
+from tli_verify.errors import TliError
+from tli_verify.io import canonical_json
+from tli_verify.limits import MAX_WORKERS
 from tli_verify.sim import TRIAL_DURATION
+from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.render import Recorder, select_backend
+from tli_verify.verify.evidence import EVIDENCE_SUFFIX
 
 __all__ = ["register"]
 
@@ -75,7 +88,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g; 0.5 "
                    "to 600)")
-    f.add_argument("--workers", type=int_range(1, 256), default=1,
+    f.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=1,
                    help="split the seeds into N contiguous chunks, one executive each (its "
                    "cuts carry over between the trials of its chunk only); default 1: one "
                    "executive for every trial. The same seed, trials and workers give the "
@@ -92,6 +105,13 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     f.add_argument("--fig9", type=output_path, default=None, metavar="OUT.png",
                    help="after the trials, plot each mode's modulated DS flow in (y, z, "
                    "pitch) with the cuts learned in them (paper Fig. 11 style)")
+    f.add_argument("--c-evaluator", type=Path, default=None, metavar="POLICY.tli.json",
+                   help="drive the robot with this exported artifact (tli export) in the C "
+                   "evaluator, built with the system compiler; the Python executive runs "
+                   "alongside as its supervisor (same automaton, cuts solved in Python and "
+                   "handed to the evaluator); the artifact must have been exported from the "
+                   "model being run; with --evidence the evidence records its hash (serial "
+                   "backend, one worker)")
     f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
@@ -111,7 +131,6 @@ def robot_name(text: str) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
 
     if args.no_modulation and args.no_replan:
         raise TliError("--no-modulation and --no-replan: choose one ablation")
@@ -120,7 +139,6 @@ def _run(args: argparse.Namespace) -> int:
     if args.certificates is not None and not args.certificates.is_dir():
         raise TliError(f"--certificates {args.certificates}: not a directory")
     if args.video is not None:  # MuJoCo fixes its OpenGL backend on import (next lines)
-        from tli_verify.sim.render import select_backend
 
         select_backend()  # MUJOCO_GL: the user's, else egl, else osmesa; none: exit 2
     if args.evidence is not None and (args.no_perturb or args.no_modulation or args.no_replan):
@@ -134,6 +152,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.fig9 is not None and args.workers > 1:
         raise TliError(f"--fig9 plots the cuts one executive learned: not with --workers "
                        f"{args.workers} (one executive per chunk)")
+    if args.c_evaluator is not None and (args.backend != "serial" or args.workers > 1
+                                         or args.no_modulation or args.no_replan):
+        raise TliError("--c-evaluator: one executive in this process (--backend serial, "
+                       "--workers 1), the deployed variant (no --no-modulation, --no-replan)")
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
@@ -149,9 +171,7 @@ def _run(args: argparse.Namespace) -> int:
 
         raise TliError(f"MuJoCo refused to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}: "
                        f"{' '.join(str(exc).split())[:120]}") from None
-    from tli_verify.commands import check_plan
-    from tli_verify.sim.loop import project_dir
-    from tli_verify.verify.evidence import EVIDENCE_SUFFIX
+    from tli_verify.sim.franka_project import project_dir
 
     # the project's files (task, spec, model, certificate, demonstrations) are inputs: never
     # written; its evidence may be replaced by new evidence only
@@ -162,7 +182,6 @@ def _run(args: argparse.Namespace) -> int:
         inputs += [f for f in sorted(args.certificates.rglob("*")) if f.is_file()]
     evidence = None
     if args.evidence is not None:  # before any work: never over an input or another output
-        from tli_verify.sim.franka_files import MODEL_NAME
 
         cert_dir = args.certificates if args.certificates is not None else \
             base / "certificates"
@@ -171,9 +190,9 @@ def _run(args: argparse.Namespace) -> int:
                outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot"),
                         (evidence, "campaign evidence")])
     check_plan(inputs=inputs, outputs=[(args.video, "video"), (args.fig9, "Fig. 11 plot")])
-    from tli_verify.io import canonical_json
     from tli_verify.sim.campaign import run_physics_campaign
-    from tli_verify.sim.loop import TrialResult, default_controller, load_policy
+    from tli_verify.sim.franka_project import load_policy
+    from tli_verify.sim.loop import TrialResult, default_controller
     from tli_verify.sim.physics_config import PhysicsConfig
     from tli_verify.sim.physics_evidence import write_physics_evidence
     from tli_verify.sim.trial_oracle import TrialVerdict
@@ -182,11 +201,20 @@ def _run(args: argparse.Namespace) -> int:
                "no-replan" if args.no_replan else "LTL-DS")
     # exit 1 if the certificate does not cover the model (on the other backends the campaign
     # checks it before any worker starts, and each chunk loads its own executive)
-    policy = load_policy(variant, certificates=args.certificates) \
+    policy: Any = load_policy(variant, certificates=args.certificates) \
         if args.backend == "serial" else None
+    evaluator = None
+    if args.c_evaluator is not None:
+        import tempfile
+
+        from tli_verify.deploy.cloop import in_the_loop
+
+        with tempfile.TemporaryDirectory(prefix="tli-c-") as build_dir:  # loaded: removable
+            policy = evaluator = in_the_loop(policy, args.c_evaluator, build_dir)
+        sys.stderr.write(f"note: the C evaluator drives the robot: artifact "
+                         f"{evaluator.sha256}\n")
     recorder = None
     if args.video is not None:
-        from tli_verify.sim.render import Recorder
 
         recorder = Recorder()
     config = PhysicsConfig(root=str(base), seed=args.seed, trials=args.trials,
@@ -230,14 +258,20 @@ def _run(args: argparse.Namespace) -> int:
         "wall_time": round(sum(r.wall_time for r in results), 2),
         "workers": args.workers, "backend": args.backend,
         "chunks": [list(c) for c in campaign.chunks]}
+    record: dict[str, Any] | None = None
+    if evaluator is not None:
+        record = {"kind": "c", "artifact_sha256": evaluator.sha256, "steps": evaluator.steps,
+                  "max_rel_diff": evaluator.max_rel_diff}
+        summary["evaluator"] = record
     if evidence is not None:
-        target, _ = write_physics_evidence(campaign, evidence)
+        target, _ = write_physics_evidence(campaign, evidence, evaluator=record)
         summary["evidence"] = str(target)
     if recorder is not None:
         recorder.save(args.video)
         summary["video"] = str(args.video)
     if args.fig9 is not None and policy is not None:  # serial and one executive (above)
-        from tli_verify.sim.loop import bundled_demos, plot_flow
+        from tli_verify.sim.flow_plot import plot_flow
+        from tli_verify.sim.franka_project import bundled_demos
 
         demos = bundled_demos()
         plot_flow(policy.model, args.fig9, demos=demos,
@@ -249,6 +283,9 @@ def _run(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(f"{variant}: {ok}/{len(results)} trials delivered soup, {passed} "
                          "passed the oracle"
+                         + (f"; C evaluator {evaluator.sha256[:12]}: {evaluator.steps} steps, "
+                            f"velocities within {evaluator.max_rel_diff:.1e} of the runtime's"
+                            if evaluator is not None else "")
                          + (f"; video {args.video}" if args.video is not None else "")
                          + (f"; evidence {summary['evidence']}" if evidence is not None
                             else "") + "\n")

@@ -12,6 +12,11 @@ from typing import Any
 
 from tli_verify.commands import exit_code, output_path
 from tli_verify.errors import OutputError, TliError
+from tli_verify.io import atomic_write_text, bundled_dir, canonical_json
+from tli_verify.logic.check import check_spec, check_spec_file, synthesize
+from tli_verify.logic.foreign import import_spec_file
+from tli_verify.logic.infer import infer_spec_text, load_labels
+from tli_verify.logic.spec import load_spec, parse_spec
 
 
 def register(sub: argparse._SubParsersAction[Any]) -> None:
@@ -112,7 +117,6 @@ def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
     """The spec's task against its assumptions (:mod:`tli_verify.tasks.fit`): a sensor change
     the task can produce under a push that the spec rules out, at most 3 named, and the count;
     nothing for a spec that names no task or a task whose sensors a plug-in computes."""
-    from tli_verify.logic.check import synthesize
     from tli_verify.tasks.fit import task_spec_mismatches
     from tli_verify.tasks.project import spec_task
 
@@ -132,7 +136,6 @@ def _task_fit_warnings(spec: Any, path: Path) -> list[str]:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from tli_verify.logic.check import check_spec_file
 
     worst = 0
     for path in args.files:
@@ -179,8 +182,6 @@ def _check(args: argparse.Namespace) -> int:
 
 def write_automaton(automaton: Any, out: Path) -> None:
     """Write ``automaton`` as JSON or DOT (by ``out``'s extension), atomically."""
-    from tli_verify.io import atomic_write_text, canonical_json
-
     if out.suffix == ".dot":
         atomic_write_text(out, automaton.to_dot())
     elif out.suffix == ".json":
@@ -190,9 +191,6 @@ def write_automaton(automaton: Any, out: Path) -> None:
 
 
 def _automaton(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
 
     automaton = synthesize(load_spec(args.file))
     if args.output is not None:
@@ -217,16 +215,13 @@ def _automaton(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from tli_verify.io import atomic_write_text
-    from tli_verify.logic.foreign import import_spec_file
-    from tli_verify.logic.spec import parse_spec
 
     if args.output is not None and args.output.suffix != ".toml":
         raise OutputError(f"{args.output}: output must end in .toml")
     text = import_spec_file(args.file,
                             semantics=None if args.semantics == "tli" else args.semantics)
-    where = str(args.output) if args.output is not None else f"{args.file} (imported)"
-    spec = parse_spec(text, path=where, default_name=args.file.stem)  # the result must load
+    # the result must load; a problem in it is the input's (nothing is written yet)
+    spec = parse_spec(text, path=f"{args.file} (translated)", default_name=args.file.stem)
     if args.output is None:
         sys.stdout.write(text)
         return 0
@@ -238,10 +233,6 @@ def _import(args: argparse.Namespace) -> int:
 
 def _infer(args: argparse.Namespace) -> int:
     from tli_verify.demos import load_demos
-    from tli_verify.io import atomic_write_text
-    from tli_verify.logic.check import check_spec, synthesize
-    from tli_verify.logic.infer import infer_spec_text, load_labels
-    from tli_verify.logic.spec import parse_spec
 
     demos = load_demos(args.demos)
     labels = load_labels(args.modes, demos[0].sensor_names)
@@ -266,9 +257,6 @@ def _infer(args: argparse.Namespace) -> int:
 
 def demo_stage(out: Path) -> list[str]:
     """Check every spec in ``specs/``; write each automaton as JSON and DOT under ``out``."""
-    from tli_verify.io import bundled_dir  # the package's specs/, not ./specs
-    from tli_verify.logic.check import check_spec_file, synthesize
-
     specs = sorted(bundled_dir("specs").glob("*.toml"))
     lines = [f"[spec] checking {len(specs)} specs in specs/"]
     adir = out / "automata"

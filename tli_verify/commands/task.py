@@ -22,6 +22,15 @@ from typing import Any
 
 from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
+from tli_verify.commands.verify import keep_stronger
+from tli_verify.errors import CheckFailed, OutputError, TaskError, TliError
+from tli_verify.io import atomic_write_text, canonical_json
+from tli_verify.limits import MAX_WORKERS
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
+from tli_verify.tasks.scaffold import scaffold
+from tli_verify.verify.evidence import write_campaign_evidence
 
 __all__ = ["register"]
 
@@ -97,7 +106,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--examples", type=int_range(1, 10_000_000), default=DEFAULT_EXAMPLES,
                     help=f"examples per model (default {DEFAULT_EXAMPLES})")
     ev.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
-    ev.add_argument("--workers", type=int_range(1, 256), default=None,
+    ev.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                     help="bisimulation campaigns: worker processes (default: the CPU count); "
                     "physical campaigns: contiguous chunks of seeds, one executive each "
                     "(default 1: one executive for every trial)")
@@ -156,13 +165,13 @@ def _summary(task: Any) -> dict[str, Any]:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
     from tli_verify.tasks.registry import find_task
 
     loaded = [find_task(t) for t in args.tasks]
+    for task in loaded:  # the sensors read once: a plug-in's failure is an error line here
+        _read_once(task)
     spec = None
     if args.spec is not None:  # a spec that does not load is one error line before any output
-        from tli_verify.logic.spec import load_spec
 
         spec = load_spec(args.spec)
     if args.picture is not None:
@@ -192,12 +201,27 @@ def _check(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read_once(task: Any) -> None:
+    """Read the task's sensors once, at its first nominal start (else the workspace's
+    centre), two steps there (not a physics scene's sensors): a sensor plug-in's ``read()``
+    runs, and its reading's shape is checked against the sensor names
+    (:class:`~tli_verify.tasks.plugins.PluginSensors`): a reading of the wrong shape or type,
+    an exception or an exit is one error line naming the plug-in and the task file, not a
+    crash later in ``tli run``, ``tli verify`` or the gate."""
+    import numpy as np
+
+    if getattr(task.sensor_model, "physics", False):  # read by a simulated scene, not a state
+        return
+    if task.starts.nominal:
+        x = np.asarray(task.starts.nominal[0], dtype=float)
+    else:
+        x = (np.asarray(task.lo, dtype=float) + np.asarray(task.hi, dtype=float)) / 2
+    task.sensors(np.stack([x, x]))
+
+
 def _check_fit(tasks: list[Any], spec: Any, spec_path: Path, *, as_json: bool) -> int:
     """``tli task check --spec``: inputs and sensors agree, and every sensor change the task
     can produce is one the spec's assumptions allow (:mod:`tli_verify.tasks.fit`)."""
-    from tli_verify.errors import CheckFailed, TaskError
-    from tli_verify.io import canonical_json
-    from tli_verify.logic.check import synthesize
     from tli_verify.tasks.fit import task_spec_mismatches
 
     bad = 0
@@ -243,7 +267,6 @@ def _list(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------ demos
 def _demos(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TaskError
     from tli_verify.tasks.demonstrator import write_demos
     from tli_verify.tasks.project import project_root
     from tli_verify.tasks.registry import find_task
@@ -277,10 +300,7 @@ def _demos(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------ init
 def _init(args: argparse.Namespace) -> int:
-    from tli_verify.errors import OutputError, TaskError
-    from tli_verify.io import atomic_write_text
     from tli_verify.tasks.formula import is_name
-    from tli_verify.tasks.scaffold import scaffold
 
     name = args.name
     if not is_name(name.replace("-", "_")) or len(name) > 64:
@@ -307,7 +327,6 @@ def _init(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------ evidence
 def _evidence(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
     from tli_verify.tasks.project import model_files, model_stem, resolve
 
     root: Path = args.directory
@@ -327,7 +346,6 @@ def _evidence(args: argparse.Namespace) -> int:
         physical = bool(getattr(resolved.task.sensor_model, "physics", False))
         plan.append((model, resolved, physical))
         if not physical:  # nor replaces stronger evidence (unless --force)
-            from tli_verify.commands.verify import keep_stronger
             from tli_verify.verify.config import resolve_config
 
             keep_stronger(model_files(model).evidence,
@@ -358,13 +376,12 @@ def _config(args: argparse.Namespace, resolved: Any) -> Any:
 
 def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     from tli_verify.verify.campaign import run_campaign
-    from tli_verify.verify.evidence import write_campaign_evidence
 
     config = _config(args, resolved)
     result = run_campaign(config, progress=sys.stderr.isatty())
     if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
         raise KeyboardInterrupt
-    path, doc = write_campaign_evidence(result.config, result, resolved.evidence)
+    path, doc = write_campaign_evidence(result.config, result, path=resolved.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
             f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
@@ -373,7 +390,6 @@ def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
 
 
 def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-    from tli_verify.errors import TliError
 
     try:
         from tli_verify.sim.campaign import run_physics_campaign
@@ -382,7 +398,6 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     except ImportError as exc:  # pragma: no cover - the sim extra is missing
         raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
                        f"install 'tli-verify[sim]'): {exc}") from None
-    from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:

@@ -12,13 +12,23 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tli_verify.commands import DEFAULT_PATH, chosen_path, int_range, output_path
+from tli_verify.commands import DEFAULT_PATH, check_plan, chosen_path, int_range, output_path
+from tli_verify.commands.run import add_task_arguments
+from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_text, canonical_json
 from tli_verify.limits import (
     MAX_BATCH_SIZE,
     MAX_CAMPAIGN_STEPS,
     MAX_EXAMPLES,
     MAX_PUSHES,
     MAX_SEED,
+    MAX_WORKERS,
+)
+from tli_verify.testing.junit import write_junit
+from tli_verify.verify.evidence import (
+    evidence_path_for,
+    weaker_than_recorded,
+    write_campaign_evidence,
 )
 
 __all__ = ["register", "write_report"]
@@ -33,7 +43,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "reachability deadline, automaton run, no looping), shrink the first counterexample "
         "and write a report (campaign.json, campaign.md, campaign.png, counterexample.json). "
         "Exit 0: no violation; 1: a violation.")
-    from tli_verify.commands.run import add_task_arguments
 
     add_task_arguments(p, what="campaign")
     p.add_argument("--examples", type=int_range(1, MAX_EXAMPLES), default=200,
@@ -41,7 +50,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     p.add_argument("--seed", type=int_range(0, MAX_SEED), default=0, help="seed (default 0)")
     p.add_argument("--no-modulation", action="store_true",
                    help="the ablation without cuts (replanning only)")
-    p.add_argument("--workers", type=int_range(1, 256), default=None,
+    p.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                    help="worker processes (default: CPU count)")
     p.add_argument("--backend", choices=("process", "dask", "serial"), default="process")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
@@ -90,8 +99,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
 
@@ -106,9 +113,7 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
-    from tli_verify.commands import check_plan
     from tli_verify.verify.config import resolve_config
-    from tli_verify.verify.evidence import evidence_path_for
 
     resolved, filled = resolve_config(cfg)  # before any work: the files, the task, their fit
     out: Path = args.out
@@ -139,12 +144,10 @@ def _verify(args: argparse.Namespace) -> int:
     files = write_report(result, report_dir)
     record["report"] = [str(f) for f in files]
     if args.evidence is not None and not result.partial:
-        from tli_verify.verify.evidence import write_campaign_evidence
 
-        target, _ = write_campaign_evidence(result.config, result, evidence)
+        target, _ = write_campaign_evidence(result.config, result, path=evidence)
         record["evidence"] = str(target)
     if args.junit is not None and not result.partial:
-        from tli_verify.testing.junit import write_junit
 
         ce_path = report_dir / "counterexample.json"
         record["junit"] = str(write_junit(
@@ -208,8 +211,6 @@ def write_report(result: Any, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from tli_verify.errors import TliError
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.plotting import save_figure
     from tli_verify.verify.oracle import PRIORITY
 
@@ -323,7 +324,6 @@ def write_report(result: Any, out: Path) -> list[Path]:
 def _cuts_table(result: Any) -> list[str]:
     """campaign.md's "Cuts per mode": the model's cuts (offline, with its hand-off claim) and
     the cuts the runs learned online."""
-    from tli_verify.errors import TliError
     from tli_verify.model.serialize import load_model
 
     online = result.cuts_by_mode()
@@ -374,7 +374,7 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
         (_, fixed), = simulate(replace(spec, modulation=True), [case])
         panels.append(("same case, LTL-DS", fixed))
     (_, nominal), = simulate(spec, [replace(case, pushes=())])
-    plot_episodes(ld.world, panels, png, nominal=nominal,
+    plot_episodes(ld.task, panels, png, nominal=nominal,
                   title=f"counterexample ({case_path.name}): "
                         f"{'LTL-DS' if spec.modulation else 'no modulation'}"
                         + (" (left) vs LTL-DS (right)" if len(panels) > 1 else ""))
@@ -382,7 +382,6 @@ def _plot_case(result: Any, case_path: Path, png: Path) -> Path:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from tli_verify.io import canonical_json
     from tli_verify.verify.cases import replay_case
 
     mod = None if args.modulation == "case" else args.modulation == "on"
@@ -411,7 +410,6 @@ def _replay(args: argparse.Namespace) -> int:
     return 1 if reproduced else 0
 
 
-
 def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     """Refuse (exit 2, before any work) to replace the evidence of a stronger campaign, unless
     ``force``; with ``force``, say on stderr what is being replaced.
@@ -421,9 +419,6 @@ def keep_stronger(path: Path, config: Any, *, force: bool) -> None:
     TliError
         The evidence at ``path`` records a stronger campaign than ``config``'s.
     """
-    from tli_verify.errors import TliError
-    from tli_verify.verify.evidence import weaker_than_recorded
-
     why = weaker_than_recorded(path, config)
     if why is None:
         return

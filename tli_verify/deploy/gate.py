@@ -8,7 +8,9 @@ re-checked, never trusted"). Under a project directory ``DIR`` it checks:
 2. every certificate under ``DIR/certificates/`` re-checks exactly
    (:func:`tli_verify.certification.certificate.check_certificate`): digest, model and spec hashes,
    the spec it names is the model's, ``P`` is the model's (the runtime's) ``P``, the cuts, the
-   continuous-time, sampled-data and decay-rate conditions;
+   continuous-time, sampled-data and decay-rate conditions; an orientation certificate
+   (:mod:`tli_verify.certification.orientation`, recognised by its ``kind``) likewise, with its
+   chart region;
 3. every model under ``DIR/models/`` -- a *deployed* model -- is bound to its spec and covered:
 
    * ``certificate``: a valid certificate covers its exact bytes (SHA-256), cuts included;
@@ -38,15 +40,41 @@ A directory with no model to deploy fails closed ("nothing to gate"). Any failur
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from tli_verify.arguments import check_int, check_path
 from tli_verify.certification.certificate import CertCheck, check_certificate
-from tli_verify.errors import GateError, TliError, bad_input
+from tli_verify.certification.orientation import (
+    ORIENTATION_CERT_KIND,
+    check_orientation_certificate,
+)
+from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
+from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
+from tli_verify.io import read_bytes, read_json, same_file, sha256_file
 from tli_verify.limits import MAX_EXAMPLES
+from tli_verify.logic.check import check_spec_file, synthesize
+from tli_verify.model.serialize import load_model
+from tli_verify.runtime.handoff import handoff_status
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+from tli_verify.tasks.project import check_goal, goal_of, resolve, spec_task
+from tli_verify.verify.evidence import (
+    EVIDENCE_SUFFIX,
+    check_evidence,
+    evidence_path_for,
+    settings_for_config,
+    settings_problems,
+)
+from tli_verify.verify.evidence.rules import (
+    DEFAULT_RERUN_EXAMPLES,
+    DEFAULT_RERUN_TRIALS,
+    HANDOFF_RETEST,
+)
+
+if TYPE_CHECKING:
+    from tli_verify.logic.check import SpecCheck
 
 __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "GateItem",
            "GateReport", "rerun_campaign", "rerun_physics", "rerun_seed", "rerun_starts",
@@ -54,14 +82,6 @@ __all__ = ["DEFAULT_RERUN_EXAMPLES", "DEFAULT_RERUN_TRIALS", "CampaignRunner", "
 
 CampaignRunner = Callable[[Any, Path, int], tuple[bool, str]]
 """``(evidence check, model path, examples) -> (ok, one-line message)``: a re-run."""
-
-DEFAULT_RERUN_EXAMPLES = 50
-"""Examples the gate re-runs by default per deployed model with kinematic evidence (~4 s
-per model on one core): a hash proves the evidence's integrity, not its honesty, so the gate
-runs a sample of the campaign itself, on seeds it derives (:func:`rerun_seed`)."""
-DEFAULT_RERUN_TRIALS = 1
-"""Physical trials the gate re-runs by default per model with physical evidence (10-40 s each
-on one core)."""
 
 
 def rerun_seed(check: Any, model: Path, count: int) -> int:
@@ -77,8 +97,6 @@ def rerun_seed(check: Any, model: Path, count: int) -> int:
         Examples or trials re-run (seeds ``s .. s + count - 1`` stay below ``2**32``).
     """
     import hashlib
-
-    from tli_verify.io import sha256_file
 
     text = f"tli-verify gate re-run:{check.digest}:{sha256_file(model)}"
     value = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16)
@@ -169,8 +187,7 @@ def _irregular(path: Path, kind: str, shown: str) -> GateItem | None:
                     "load")
 
 
-def _default_spec_checker() -> Callable[[Path], Any]:
-    from tli_verify.logic.check import check_spec_file
+def _default_spec_checker() -> Callable[[Path], SpecCheck]:
 
     return check_spec_file
 
@@ -178,7 +195,7 @@ def _default_spec_checker() -> Callable[[Path], Any]:
 class _Specs:
     """Spec checks, each file checked once (keyed by resolved path)."""
 
-    def __init__(self, checker: Callable[[Path], Any] | None) -> None:
+    def __init__(self, checker: Callable[[Path], SpecCheck] | None) -> None:
         self._checker = checker
         self._done: dict[Path, Any] = {}
 
@@ -213,6 +230,28 @@ def _spec_item(result: Any, shown: str) -> GateItem:
                     "vacuously (declare expect = \"not-well-separated\" if intended)")
 
 
+def _orientation_item(cert: Path, shown: str) -> GateItem | None:
+    """The re-check of an orientation certificate (:mod:`tli_verify.certification.orientation`),
+    or None when ``cert`` is not one. Orientation models are not deployed by the gate yet (no
+    pose task or campaign); their certificates re-check exactly all the same, and a failing one
+    blocks."""
+    try:
+        doc = read_json(cert, what="certificate", error=CertificateError)
+    except (TliError, RecursionError):
+        return None  # check_certificate reports it
+    if not (isinstance(doc, dict) and doc.get("kind") == ORIENTATION_CERT_KIND):
+        return None
+    try:
+        check = check_orientation_certificate(cert)
+    except TliError as exc:
+        return GateItem("certificate", shown, False, f"unreadable: {exc}")
+    if check.ok:
+        return GateItem("certificate", shown, True, "orientation DS re-checked exactly (P, "
+                        "continuous, sampled, decay rate, chart region); covers "
+                        f"{doc['model']['path']}")
+    return GateItem("certificate", shown, False, "; ".join(check.failures))
+
+
 def _certificate_line(check: CertCheck) -> str:
     rate = f", sampled-data at dt = {check.dt}" if check.dt else ""
     return (f"re-checked exactly ({len(check.passed)} checks: digest, model and spec SHA-256, "
@@ -223,8 +262,6 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
                   certified: dict[Path, list[tuple[Path, CertCheck]]],
                   specs: _Specs) -> list[GateItem]:
     """The per-model binding checks (certificate, spec, modes, dimension)."""
-    from tli_verify.model.serialize import load_model
-
     name = shown(model_path)
     try:
         model = load_model(model_path)
@@ -275,20 +312,15 @@ def _model_checks(model_path: Path, shown: Callable[[Path], str],
     return items
 
 
-HANDOFF_RETEST = 100
-"""Fresh states per DS the gate draws (twice: drawn, then from the hand-offs) to re-test a
-*sampled* hand-off claim on its own seed (from the model file's SHA-256)."""
-
-
 def _handoff_item(model: Any, name: str, spec_path: Path) -> GateItem:
     """Which hand-off guarantees are proved (re-decided here) and which are tested (re-tested
     on the gate's own draw) (:func:`tli_verify.runtime.handoff.handoff_status`)."""
     import hashlib
 
-    from tli_verify.runtime.handoff import handoff_status
-
-    seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + Path(str(model.path)).read_bytes()
-                                         ).digest()[:4], "big") if model.path else 0
+    # the model's bytes as the session read them (the ones its certificate check hashed)
+    data = read_bytes(str(model.path), what="model", error=ModelError) if model.path else b""
+    seed = int.from_bytes(hashlib.sha256(b"tli-gate-handoff:" + data).digest()[:4], "big") \
+        if model.path else 0
     try:
         ok, lines = handoff_status(model, spec_path, retest=HANDOFF_RETEST, seed=seed)
     except TliError as exc:
@@ -303,18 +335,13 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
     goal), its goal is reachable, and the model's certificate covers its control period."""
     from fractions import Fraction
 
-    from tli_verify.logic.check import synthesize
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import spec_task
-    from tli_verify.tasks.task import Goal
-
     try:
         task = spec_task(spec, spec_path)
     except TliError as exc:
         return GateItem("model", name, False, f"its spec's task does not load: {exc}", "task")
     if task is None:
         return GateItem("model", name, False, f"its spec {shown(spec_path)} names no task "
-                        "(task = \"NAME\"): nothing says which world the policy runs in",
+                        "(task = \"NAME\"): nothing says which task the policy runs in",
                         "task")
     problems = []
     if task.dim != model.dim:
@@ -322,8 +349,7 @@ def _task_item(model: Any, name: str, spec: Any, spec_path: Path,
     if set(task.sensor_names) != set(spec.inputs):
         problems.append(f"task {task.name!r} has sensors {', '.join(task.sensor_names)}, the "
                         f"spec's inputs are {', '.join(spec.inputs)}")
-    goal = (Goal(spec.goal_modes, spec.goal_sensors)
-            if spec.goal_modes is not None or spec.goal_sensors else task.goal)
+    goal = goal_of(spec, task)
     try:
         modes = check_goal(synthesize(spec), goal, where=shown(spec_path))
     except TliError as exc:
@@ -361,8 +387,6 @@ def _dimension_item(model: Any, name: str) -> GateItem:
 
 def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
     """DS coverage of the task automaton, and no mode the spec lacks."""
-    from tli_verify.logic.check import synthesize
-
     try:
         automaton = synthesize(spec)
     except TliError as exc:
@@ -406,8 +430,9 @@ def _modes_item(model: Any, name: str, spec: Any, spec_shown: str) -> GateItem:
 
 
 def run_gate(root: str | os.PathLike[str] = ".", *,
-             spec_checker: Callable[[Path], Any] | None = None, rerun: int | None = None,
-             campaign_runner: CampaignRunner | None = None) -> GateReport:
+             spec_checker: Callable[[Path], SpecCheck] | None = None, rerun: int | None = None,
+             campaign_runner: CampaignRunner | None = None,
+             artifacts: Sequence[str | os.PathLike[str]] = ()) -> GateReport:
     """Run the deployment gate on a project directory.
 
     Parameters
@@ -427,6 +452,9 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     campaign_runner : callable, optional
         ``(evidence check, model path, examples) -> (ok, message)`` for ``rerun`` (default:
         :func:`rerun_campaign`, which calls :func:`tli_verify.verify.campaign.run_campaign`).
+    artifacts : sequence of path-like, optional
+        Exported policies to be deployed (``tli gate --artifact``): each is checked
+        (:func:`artifact_item`) against the project and the campaign that tested it.
 
     Returns
     -------
@@ -438,8 +466,6 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
     GateError
         ``root`` is not a directory (exit 2).
     """
-    from tli_verify.arguments import check_int, check_path
-
     base = check_path(root, "root", error=GateError)
     if rerun is not None:
         rerun = check_int(rerun, "rerun", 0, MAX_EXAMPLES, error=GateError)
@@ -467,6 +493,10 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         if bad is not None:
             items.append(bad)
             continue
+        orientation = _orientation_item(cert, shown(cert))
+        if orientation is not None:
+            items.append(orientation)
+            continue
         try:
             check = check_certificate(cert)
         except TliError as exc:
@@ -491,25 +521,117 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         items += [bad] if bad is not None else _model_checks(model, shown, certified, specs)
     items += _campaign_items(base, models, shown, certified, rerun=rerun,
                              runner=campaign_runner)
+    items += [artifact_item(Path(a), base, items, shown) for a in artifacts]
     if not models:
         items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
                               f"{shown(base / 'models')}/ to deploy (the gate fails closed)",
                               "contents"))
     return GateReport(root=str(base), items=tuple(items))
 
+# --------------------------------------------------------------------------------------------
+# Deployed artifacts
+# --------------------------------------------------------------------------------------------
 
+
+def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
+                  shown: Callable[[Path], str]) -> GateItem:
+    """Check an exported policy (``tli export``) against what the gate passed.
+
+    It binds "the artifact that will be deployed" to "the campaign that tested it": the
+    artifact re-checks (schema, its own content hash, its text form -- what the C evaluator
+    loads -- the exact rendering of its JSON); its model is one of the project's models, and
+    the gate passed every check of it; its spec, certificate and task are the files the model
+    resolves to, byte for byte; and its campaign is the current evidence: either the artifact
+    was exported with this evidence, or this evidence's trials ran this very artifact in the C
+    evaluator (``physics.evaluator``).
+
+    Returns
+    -------
+    GateItem
+        Kind ``artifact``; blocking on the first mismatch, naming it.
+    """
+    name = shown(path)
+
+    def block(why: str, check: str) -> GateItem:
+        return GateItem("artifact", name, False, why, check)
+
+    bad = _irregular(path, "artifact", name)
+    if bad is not None:
+        return bad
+    try:
+        art = check_artifact(path)
+    except TliError as exc:
+        return block(f"refused: {exc}", "re-check")
+    text = text_path_for(path)
+    want = render_text({k: v for k, v in art.items() if k != "content_sha256"}) + \
+        f"sha256 {art['content_sha256']}\n"
+    try:
+        have = text.read_text(encoding="utf-8") if text.is_file() else None
+    except (OSError, UnicodeDecodeError) as exc:
+        return block(f"its text form {shown(text)} is unreadable: {exc}", "re-check")
+    if have is None:
+        return block(f"no text form {shown(text)} next to it (the file the C evaluator "
+                     "loads)", "re-check")
+    if have != want:
+        return block(f"its text form {shown(text)} is not the rendering of the JSON "
+                     "artifact: the file the C evaluator loads was edited", "re-check")
+    src = art["sources"]
+    model_sha = (src.get("model") or {}).get("sha256")
+    models = [m for m in _files(base / "models", "*.json")
+              if _irregular(m, "model", shown(m)) is None and sha256_file(m) == model_sha]
+    if not models:
+        return block(f"its model (SHA-256 {str(model_sha)[:12]}...) is none of the project's "
+                     f"models under {shown(base / 'models')}/: not a policy this gate checked",
+                     "binding")
+    model = models[0]
+    blocked = [i for i in items if not i.ok and i.path == shown(model)]
+    if blocked:
+        return block(f"its model {shown(model)} is blocked: {blocked[0].message}", "binding")
+    try:
+        files = resolve(model=model)
+    except TliError as exc:
+        return block(f"its model {shown(model)} does not resolve: {exc}", "binding")
+    task_file = Path(files.task.source.path) if files.task.source.path else None
+    for what, file in (("spec", files.spec), ("certificate", files.certificate),
+                       ("task", task_file)):
+        recorded = (src.get(what) or {}).get("sha256")
+        actual = sha256_file(file) if file is not None and file.is_file() else None
+        if recorded != actual:
+            return block(f"its {what} (SHA-256 {str(recorded)[:12]}...) is not the {what} "
+                         f"{shown(file) if file else '(none)'} the model resolves to now "
+                         f"({str(actual)[:12]}...)", "binding")
+    evidence = files.evidence
+    if not evidence.is_file():
+        return block(f"no campaign evidence {shown(evidence)} for its model", "campaign")
+    recorded = (src.get("evidence") or {}).get("sha256")
+    if recorded == sha256_file(evidence):
+        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
+                        f"the policy of {shown(model)} as gated, exported with the current "
+                        f"evidence {shown(evidence)}", "binding")
+    try:
+        doc = read_json(evidence, what="campaign evidence", error=GateError)
+    except TliError as exc:
+        return block(f"its evidence does not load: {exc}", "campaign")
+    ran = ((doc.get("physics") or {}).get("evaluator") or {}).get("artifact_sha256") \
+        if isinstance(doc, dict) else None
+    if ran == art["content_sha256"] and same_file(evidence, files.evidence):
+        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
+                        f"the campaign {shown(evidence)} ran this artifact in the C evaluator",
+                        "binding")
+    return block(f"no campaign tested it: it was exported with other evidence than "
+                 f"{shown(evidence)}, whose trials did not run it (re-export it, or run the "
+                 f"campaign with it: tli sim franka --c-evaluator {name} --evidence)", "campaign")
 
 # --------------------------------------------------------------------------------------------
 # Campaign evidence
 # --------------------------------------------------------------------------------------------
+
 
 def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str],
                     certified: dict[Path, list[tuple[Path, CertCheck]]], *,
                     rerun: int | None, runner: CampaignRunner | None) -> list[GateItem]:
     """One ``campaign`` line per deployed model (and a ``rerun`` line with ``rerun``), then
     one blocking ``evidence`` line per evidence file that binds no deployed model."""
-    from tli_verify.verify.evidence import EVIDENCE_SUFFIX, check_evidence, evidence_path_for
-
     items: list[GateItem] = []
     claimed: set[Path] = set()
     for model in models:
@@ -540,7 +662,8 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
                 f"{check.examples} perturbed trials from seed {check.seed}"
                 f"{_partition(phys)} ({phys['pushes']} "
                 f"push(es) and {phys['tilts']} tilt(s) each), all delivered soup, 0 "
-                "violations; binds its task, spec, model and certificate (SHA-256)", "campaign"))
+                "violations; binds its task, spec, model and certificate (SHA-256)"
+                + _evaluator_note(phys), "campaign"))
         else:
             forged = _settings_problems(check, model)
             if forged:
@@ -566,6 +689,16 @@ def _campaign_items(base: Path, models: list[Path], shown: Callable[[Path], str]
     return items
 
 
+def _evaluator_note(phys: dict[str, Any]) -> str:
+    """``; the trials ran artifact <sha> in the C evaluator`` when the evidence says so."""
+    ev = phys.get("evaluator")
+    if not isinstance(ev, dict):
+        return ""
+    return (f"; the trials ran the exported artifact {ev.get('artifact_sha256')} in the C "
+            f"evaluator ({ev.get('steps')} steps, velocities within "
+            f"{float(ev.get('max_rel_diff', 0.0)):.1e} of the runtime's)")
+
+
 def _unprefixed(problem: str, path: str) -> str:
     """A problem without the evidence path it starts with (the gate's line names it once)."""
     return problem[len(path) + 2:] if problem.startswith(path + ": ") else problem
@@ -574,9 +707,6 @@ def _unprefixed(problem: str, path: str) -> str:
 def _settings_problems(check: Any, model: Path) -> list[str]:
     """Recorded campaign settings no CLI command could have produced on the model's task
     (:func:`tli_verify.verify.evidence.settings_problems`)."""
-    from tli_verify.tasks.project import resolve
-    from tli_verify.verify.evidence import settings_problems
-
     try:
         task = resolve(model=model).task
     except TliError as exc:
@@ -619,7 +749,6 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         from tli_verify.verify.config import CampaignConfig
     except ImportError as exc:
         return False, f"cannot re-run the campaign: {exc}"
-    from tli_verify.verify.evidence import settings_for_config
 
     settings = settings_for_config(dict(check.settings), CampaignConfig)
     # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool

@@ -17,7 +17,8 @@ Two ways to fit the mixture are provided:
   prior whose similarity couples position distance and velocity-direction (cosine) similarity, so
   a cluster is a region where the demonstrations move the same way, which is what one linear
   system ``A_k`` can fit. We keep both ingredients but use a truncated *variational* Dirichlet-
-  process GMM (scikit-learn's ``BayesianGaussianMixture``) on the augmented feature
+  process GMM (scikit-learn's ``BayesianGaussianMixture`` algorithm, vectorised over the
+  components in :func:`_dp_responsibilities`) on the augmented feature
   ``[x / s_x, beta * xdot / s_v]`` (positions standardised by their scalar RMS spread ``s_x``,
   velocities by their RMS speed ``s_v``, weighted by ``beta``): the DP prior chooses the number
   of components from the data, the velocity part makes the clusters physically consistent.
@@ -142,6 +143,23 @@ class GMM:
         """State dimension n."""
         return int(self.means.shape[1])
 
+    def quadratic_form(self) -> tuple[tuple[float, ...], tuple[tuple[tuple[float, ...], float],
+                                                                 ...]]:
+        """The polynomial :meth:`posterior_one` evaluates, for an evaluator in another language.
+
+        ``log pi_k N(x | mu_k, Sigma_k) = c_k + sum_l phi_l(u) a_kl`` with ``u = x - center``
+        and ``phi(u) = [u_i u_j for i <= j (row-major upper triangle), u_1 .. u_n]``; summed
+        from ``c_k`` left to right, exactly as :meth:`posterior_one` does.
+
+        Returns
+        -------
+        center : tuple of float, length n
+        rows : tuple of (tuple of float, float), length K
+            Per component the coefficients ``a_k`` (length n(n+1)/2 + n) and ``c_k``.
+        """
+        center, _, rows = self._one
+        return center, rows
+
     def log_joint(self, X: npt.ArrayLike) -> FloatArray:
         """``log pi_k + log N(x_i | mu_k, Sigma_k)``.
 
@@ -183,7 +201,6 @@ class GMM:
         p = np.exp(logp, out=logp)
         p /= p.sum(axis=1, keepdims=True)
         return p
-
 
     def posterior_one(self, x: Sequence[float]) -> list[float]:
         """:meth:`posterior` of one state, in plain Python (no array overhead).
@@ -245,6 +262,135 @@ def _check_data(X: npt.ArrayLike, min_points: int) -> FloatArray:
     return Xa
 
 
+def _dp_responsibilities(
+    features: FloatArray,
+    n_components: int,
+    *,
+    seed: int,
+    concentration: float,
+    max_iter: int = 300,
+    tol: float = 1e-4,
+    reg_covar: float = 1e-6,
+) -> FloatArray:
+    """Responsibilities of a truncated variational Dirichlet-process GMM (full covariances).
+
+    The same algorithm, priors and stopping rule as scikit-learn's ``BayesianGaussianMixture``
+    (``covariance_type="full"``, ``weight_concentration_prior_type="dirichlet_process"``,
+    ``init_params="kmeans"``, ``n_init=1``, default mean/precision/covariance priors; Bishop,
+    PRML Sec. 10.2, with the stick-breaking weights of Blei & Jordan 2006), and its
+    ``predict_proba`` after ``fit``: k-means labels (scikit-learn's ``KMeans``, same
+    ``random_state``) initialise the variational posterior, then E and M steps alternate until
+    the lower bound changes by less than ``tol`` or ``max_iter`` steps. Only the per-component
+    Python loops of scikit-learn are replaced by stacked array operations (batched Cholesky,
+    one ``matmul`` for all K Mahalanobis distances), which made the mixture 3-4x faster at
+    LASA size (N = 1400, d = 4, K = 12); the responsibilities agree with scikit-learn's to float
+    rounding (``tests/unit/test_gmm_dp.py``).
+
+    Parameters
+    ----------
+    features : ndarray, shape (N, d)
+    n_components : int
+        Truncation level K of the Dirichlet process (``2 <= K <= N``).
+    seed : int
+        ``random_state`` of the k-means initialisation.
+    concentration : float
+        Dirichlet-process concentration (``weight_concentration_prior``).
+    max_iter, tol, reg_covar
+        As scikit-learn's.
+
+    Returns
+    -------
+    ndarray, shape (N, K)
+        Rows summing to 1.
+    """
+    from scipy.special import betaln, digamma, gammaln
+    from sklearn.cluster import KMeans  # imported by the caller before its thread limit
+
+    n, d = features.shape
+    k = n_components
+    mean_prior = features.mean(axis=0)
+    X = features - mean_prior  # centred: the mean prior is 0 below
+    cov_prior = np.atleast_2d(np.cov(X.T))
+    dof_prior = float(d)
+    beta_prior = 1.0
+    eye = np.eye(d)
+    dims = np.arange(d)[:, None]
+    labels = KMeans(n_clusters=k, n_init=1,
+                    random_state=np.random.RandomState(seed)).fit(features).labels_
+    resp = np.zeros((n, k))
+    resp[np.arange(n), labels] = 1.0
+    # phi(x) = [x_i x_j (all i, j), x, 1]: weighted moments and all K Mahalanobis distances
+    # are one matrix product each
+    phi = np.hstack([(X[:, :, None] * X[:, None, :]).reshape(n, d * d), X, np.ones((n, 1))])
+
+    def m_step(resp: FloatArray) -> tuple[FloatArray, ...]:
+        nk = resp.sum(axis=0) + 10 * np.finfo(np.float64).eps
+        moments = resp.T @ phi[:, :d * d + d]  # (K, d^2 + d)
+        xk = moments[:, d * d:] / nk[:, None]
+        sk = (moments[:, :d * d].reshape(k, d, d) / nk[:, None, None]
+              - xk[:, :, None] * xk[:, None, :])
+        sk[:, dims[:, 0], dims[:, 0]] += reg_covar
+        alpha = 1.0 + nk
+        beta = concentration + np.hstack((np.cumsum(nk[::-1])[-2::-1], 0))
+        mean_prec = beta_prior + nk
+        means = nk[:, None] * xk / mean_prec[:, None]
+        dof = dof_prior + nk
+        covs = (cov_prior + nk[:, None, None] * sk
+                + (nk * beta_prior / mean_prec)[:, None, None] * xk[:, :, None] * xk[:, None, :])
+        covs /= dof[:, None, None]
+        try:
+            chol = np.linalg.cholesky(covs)
+        except np.linalg.LinAlgError:
+            raise ModelError("mixture fit failed: a component's covariance is singular") from None
+        prec_chol = np.transpose(np.linalg.solve(chol, np.broadcast_to(eye, covs.shape)),
+                                 (0, 2, 1))
+        return alpha, beta, mean_prec, means, dof, prec_chol
+
+    def log_resp(params: tuple[FloatArray, ...]) -> tuple[float, FloatArray]:
+        alpha, beta, mean_prec, means, dof, prec_chol = params
+        log_det = np.log(np.diagonal(prec_chol, axis1=1, axis2=2)).sum(axis=1)
+        prec = np.matmul(prec_chol, np.transpose(prec_chol, (0, 2, 1)))  # (K, d, d)
+        pm = np.einsum("kij,kj->ki", prec, means)
+        design = np.hstack([prec.reshape(k, d * d), -2.0 * pm,
+                            np.einsum("ki,ki->k", means, pm)[:, None]])
+        maha = phi @ design.T  # (N, K): (x - m_k)^T Lambda_k (x - m_k)
+        log_gauss = (-0.5 * (d * math.log(2 * math.pi) + maha) + log_det
+                     - 0.5 * d * np.log(dof))
+        log_lambda = d * np.log(2.0) + np.sum(digamma(0.5 * (dof - dims)), 0)
+        log_prob = log_gauss + 0.5 * (log_lambda - d / mean_prec)
+        dsum = digamma(alpha + beta)
+        log_w = (digamma(alpha) - dsum
+                 + np.hstack((0, np.cumsum(digamma(beta) - dsum)[:-1])))
+        weighted = log_prob + log_w
+        top = weighted.max(axis=1)
+        norm = top + np.log(np.exp(weighted - top[:, None]).sum(axis=1))  # log-sum-exp
+        with np.errstate(under="ignore"):
+            lr = weighted - norm[:, None]
+        return float(np.mean(norm)), lr
+
+    def lower_bound(params: tuple[FloatArray, ...], lr: FloatArray, r: FloatArray) -> float:
+        alpha, beta, mean_prec, _, dof, prec_chol = params
+        log_det = (np.log(np.diagonal(prec_chol, axis1=1, axis2=2)).sum(axis=1)
+                   - 0.5 * d * np.log(dof))
+        log_wishart = np.sum(-(dof * log_det + dof * d * 0.5 * math.log(2.0)
+                               + np.sum(gammaln(0.5 * (dof - dims)), 0)))
+        log_norm_weight = -np.sum(betaln(alpha, beta))
+        return float(-np.sum(r * lr) - log_wishart - log_norm_weight
+                     - 0.5 * d * np.sum(np.log(mean_prec)))
+
+    params = m_step(resp)
+    bound = -np.inf
+    for _ in range(max_iter):
+        previous = bound
+        _, lr = log_resp(params)
+        r = np.exp(lr)
+        params = m_step(r)
+        bound = lower_bound(params, lr, r)
+        if abs(bound - previous) < tol:
+            break
+    return np.exp(log_resp(params)[1])
+
+
 def fit_pcgmm(
     X: npt.ArrayLike,
     dX: npt.ArrayLike,
@@ -282,8 +428,7 @@ def fit_pcgmm(
     GMM
         Position-space mixture with K chosen by the DP (``1 <= K <= max_components``).
     """
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.mixture import BayesianGaussianMixture
+    import sklearn.cluster  # noqa: F401  (loads its OpenMP runtime before the thread limit)
     from threadpoolctl import threadpool_limits
 
     Xa = _check_data(X, 2)
@@ -299,21 +444,9 @@ def fit_pcgmm(
     if k_max == 1:
         resp = np.ones((n_points, 1))
     else:
-        dp = BayesianGaussianMixture(
-            n_components=k_max,
-            covariance_type="full",
-            weight_concentration_prior_type="dirichlet_process",
-            weight_concentration_prior=concentration,
-            init_params="kmeans",
-            max_iter=300,
-            tol=1e-4,
-            reg_covar=1e-6,
-            random_state=seed,
-        )
-        with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            dp.fit(features)
-            resp = dp.predict_proba(features)
+        with threadpool_limits(limits=1):
+            resp = _dp_responsibilities(features, k_max, seed=seed,
+                                        concentration=concentration)
         keep = resp.sum(axis=0) >= max(min_weight * n_points, n + 1.0)
         if not np.any(keep):
             keep[int(np.argmax(resp.sum(axis=0)))] = True
@@ -363,7 +496,7 @@ def fit_em_bic(
     n_points, n = Xa.shape
     Z, _, scale = _standardise(Xa)
     best: tuple[float, FloatArray] | None = None
-    with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):
+    with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.simplefilter("ignore", ConvergenceWarning)
         for k in range(1, max(1, min(max_components, n_points // (n + 2))) + 1):
             em = GaussianMixture(n_components=k, covariance_type="full", reg_covar=reg,

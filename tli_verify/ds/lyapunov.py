@@ -108,7 +108,6 @@ guarantees it whatever ``eps`` (the ``eps I`` margin alone covers it only for
 ``~1e-9`` constraint tolerance."""
 
 
-
 def data_rate(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike) -> float:
     """The demonstrations' own time scale: ``mean_i |xdot_i| / mean_i |x_i - x*|`` (1/time).
 
@@ -387,8 +386,6 @@ def fit_a(
     A : ndarray, shape (K, n, n)
     info : SolveInfo
     """
-    import cvxpy as cp
-
     Xa, dXa, xs = _as_data(X, dX, attractor)
     Ga = np.asarray(gamma, dtype=np.float64)
     Pa = np.asarray(P, dtype=np.float64)
@@ -406,8 +403,6 @@ def fit_a(
     H[np.diag_indices_from(H)] += lam
     L = np.linalg.cholesky(H)
     rhs = np.linalg.solve(L, g)
-    A = [cp.Variable((n, n)) for _ in range(K)]
-    theta = cp.hstack([cp.vec(a, order="F") for a in A])
     if not (eps >= 0.0 and rate >= 0.0 and eps + rate > 0.0):
         raise SolverError(f"A-fit needs eps >= 0 and rate >= 0, not both 0 (got eps={eps}, "
                           f"rate={rate})")
@@ -420,14 +415,13 @@ def fit_a(
     # move, whose objective was otherwise scaled by up to 1e24 (Clarabel: 'infeasible')
     floor = 1e-3 * (eps + rate) * float(np.sqrt(np.trace(H) / H.shape[0]))
     scale = max(float(np.linalg.norm(rhs)), floor, 1e-12)
-    objective = cp.Minimize(cp.sum_squares((L.T @ theta - rhs) / scale))
-    continuous = []
-    for a in A:
-        M = Ps @ a
-        continuous.append(M + M.T << -margin)
-    info = _solve(cp.Problem(objective, continuous), "A-fit", inaccurate_ok=True)
-    values = np.stack([np.asarray(a.value, dtype=np.float64) for a in A])
-    if info.status != cp.OPTIMAL:
+    # |L^T theta - rhs|^2 / scale^2 with L L^T = H and L rhs = g
+    objective = (2.0 * H / scale**2, -2.0 * g / scale**2, float(rhs @ rhs) / scale**2)
+    # continuous LMI of every k: -(P A_k + A_k^T P) - margin >= 0
+    basis = _unit_matrices(n)  # (n^2, n, n), index c n + r: E_rc (vec_F order of theta)
+    lin = -(np.matmul(Ps, basis) + np.matmul(np.transpose(basis, (0, 2, 1)), Ps))
+    values, info = _lmi_least_squares(objective, -margin, lin, K, "A-fit")
+    if info.status != "optimal":
         _check_margin(Ps, values, margin, None, info)
     if dt is None:
         return values, info
@@ -436,18 +430,114 @@ def fit_a(
     if sampled_growth(Ps, values, dt) <= -0.5 * target:
         return values, info  # the continuous optimum already steps down at dt: keep it
     root = np.linalg.cholesky(Ps)  # P = root root^T
-    sampled = []
-    for a in A:
-        M = Ps @ a
-        # A^T P + P A + margin + dt A^T P A <= 0, as a Schur complement with unit scale
-        C = np.sqrt(dt) * (root.T @ a)
-        Z = cp.bmat([[-(M + M.T) - margin, C.T], [C, np.eye(n)]])
-        sampled.append(0.5 * (Z + Z.T) >> 0)  # symmetric by construction
-    info = _solve(cp.Problem(objective, sampled), "A-fit (sampled)", inaccurate_ok=True)
-    values = np.stack([np.asarray(a.value, dtype=np.float64) for a in A])
-    if info.status != cp.OPTIMAL:
+    # A^T P + P A + margin + dt A^T P A <= 0, as the Schur complement with unit scale
+    # [[-(P A + A^T P) - margin, C^T], [C, I]] >= 0,  C = sqrt(dt) R^T A
+    const = np.block([[-margin, np.zeros((n, n))], [np.zeros((n, n)), np.eye(n)]])
+    C = np.sqrt(dt) * np.matmul(root.T, basis)
+    lin2 = np.zeros((n * n, 2 * n, 2 * n))
+    lin2[:, :n, :n] = lin
+    lin2[:, n:, :n] = C
+    lin2[:, :n, n:] = np.transpose(C, (0, 2, 1))
+    values, info = _lmi_least_squares(objective, const, lin2, K, "A-fit (sampled)")
+    if info.status != "optimal":
         _check_margin(Ps, values, margin, dt, info)
     return values, info
+
+
+def _unit_matrices(n: int) -> FloatArray:
+    """``E_rc`` (1 at (r, c)), stacked in column-major order: index ``c n + r``; shape
+    (n^2, n, n)."""
+    out = np.zeros((n * n, n, n))
+    for c in range(n):
+        for r in range(n):
+            out[c * n + r, r, c] = 1.0
+    return out
+
+
+def _svec_rows(m: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp], FloatArray]:
+    """Clarabel's ``PSDTriangleConeT`` vectorisation of an (m, m) symmetric matrix: the upper
+    triangle column by column, off-diagonal entries scaled by sqrt(2)."""
+    rows = [(i, j) for j in range(m) for i in range(j + 1)]
+    i = np.array([r[0] for r in rows], dtype=np.intp)
+    j = np.array([r[1] for r in rows], dtype=np.intp)
+    return i, j, np.where(i == j, 1.0, np.sqrt(2.0))
+
+
+def _lmi_least_squares(
+    objective: tuple[FloatArray, FloatArray, float],
+    const: FloatArray,
+    lin: FloatArray,
+    K: int,
+    what: str,
+) -> tuple[FloatArray, SolveInfo]:
+    """``min 0.5 theta^T Q theta + q^T theta + c0`` s.t. ``const + sum_m theta_(k, m) lin_m >= 0``
+    (semidefinite, one block per k), solved by Clarabel directly.
+
+    The program :func:`fit_a` used to state through cvxpy, built here without cvxpy's
+    compilation (70 ms per A-fit at LASA size, 5 A-fits per DS with the rate choice, against
+    ~10 ms for the solve). Same solver, same (default) settings; the optimum agrees with the
+    cvxpy formulation to the solver's tolerance.
+
+    Parameters
+    ----------
+    objective : (Q, q, c0)
+        ``Q`` shape (K m, K m) symmetric PSD, ``q`` shape (K m,), constant ``c0``;
+        ``m = n^2`` entries of each ``A_k`` in column-major order.
+    const : ndarray, shape (s, s)
+        Constant part of every block's matrix.
+    lin : ndarray, shape (n^2, s, s)
+        Coefficient matrix of each entry of ``A_k`` (the same for every k).
+    K : int
+        Number of blocks.
+    what : str
+        Program name for :class:`SolveInfo` and errors.
+
+    Returns
+    -------
+    A : ndarray, shape (K, n, n)
+    info : SolveInfo
+        Status ``"optimal"`` (Clarabel ``Solved``) or ``"optimal_inaccurate"``
+        (``AlmostSolved``: the caller re-checks the LMIs, :func:`_check_margin`).
+
+    Raises
+    ------
+    SolverError
+        Any other solver status.
+    """
+    import clarabel
+    import scipy.sparse as sp
+
+    start = time.perf_counter()
+    Q, q, c0 = objective
+    m = lin.shape[0]
+    n = round(np.sqrt(m))
+    i, j, w = _svec_rows(const.shape[0])
+    block = -(lin[:, i, j] * w).T  # (svec, n^2): s = b - A theta
+    A_mat = sp.block_diag([sp.csc_matrix(block)] * K, format="csc")
+    b = np.tile(const[i, j] * w, K)
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    try:
+        solver = clarabel.DefaultSolver(sp.triu(sp.csc_matrix(Q), format="csc"), q, A_mat, b,
+                                        [clarabel.PSDTriangleConeT(const.shape[0])] * K,
+                                        settings)
+        solution = solver.solve()
+    except Exception as exc:  # Clarabel's own errors (bad data): no model
+        raise SolverError(f"{what}: solver {SOLVER} failed: {exc}") from None
+    if solution.status == clarabel.SolverStatus.Solved:
+        status = "optimal"
+    elif solution.status == clarabel.SolverStatus.AlmostSolved:
+        status = "optimal_inaccurate"
+    else:
+        raise SolverError(f"{what}: solver {SOLVER} returned status {str(solution.status)!r}, "
+                          "not 'optimal'; no model or certificate is produced")
+    theta = np.asarray(solution.x, dtype=np.float64)
+    if not np.all(np.isfinite(theta)):
+        raise SolverError(f"{what}: solver {SOLVER} returned a non-finite solution")
+    values = np.stack([theta[k * m:(k + 1) * m].reshape(n, n, order="F") for k in range(K)])
+    return values, SolveInfo(problem=what, solver=SOLVER, status=status,
+                             objective=float(solution.obj_val) + c0,
+                             seconds=time.perf_counter() - start)
 
 
 def _check_margin(P: FloatArray, A: FloatArray, margin: FloatArray, dt: float | None,

@@ -33,7 +33,7 @@ from tli_verify.runtime.episodes import (
     run_variant,
     run_variant_batch,
 )
-from tli_verify.runtime.events import CutAdded, InvarianceFailure
+from tli_verify.runtime.events import CutAdded, InvarianceFailure, event_to_json
 from tli_verify.runtime.loop import EpisodeResult
 from tli_verify.runtime.setup import Setup
 from tli_verify.tasks.task import Task
@@ -84,9 +84,9 @@ def is_fig7_rescue(res: EpisodeResult) -> bool:
             and len(cuts) == 1 and cuts[0].mode == "b")
 
 
-def _rounded_perturbations(rng: np.random.Generator, count: int, world: Task, *,
+def _rounded_perturbations(rng: np.random.Generator, count: int, task: Task, *,
                            last: int) -> dict[int, FloatArray]:
-    table = random_perturbations(rng, count, world, last=last)
+    table = random_perturbations(rng, count, task, last=last)
     return {t: np.array([float(f"{v:.2f}") for v in d]) for t, d in table.items()}
 
 
@@ -200,8 +200,6 @@ def fig7_record(search: Mapping[str, Any]) -> dict[str, Any]:
     (mode sequence and run-length trace, ``b -> a`` failures, budget exhausted) and LTL-DS's
     (trace, its invariance failure and the cut it added).
     """
-    from tli_verify.runtime.events import event_to_json
-
     out: dict[str, Any] = {"text": search["text"], "lag": search["lag"],
                            "found": search["found"] is not None, "seed": search["seed"],
                            "tries": search["tries"], "stage": search["stage"]}

@@ -22,6 +22,7 @@ from tli_verify.experiments.fig7 import b_to_a_failures
 from tli_verify.experiments.scoop_task import scoop_setup
 from tli_verify.runtime.episodes import run_variant
 from tli_verify.tasks.task import Task
+from tli_verify.viz.episodes import plot_episodes
 
 __all__ = [
     "plot_fig7",
@@ -42,8 +43,6 @@ def plot_fig7(task: Task, search: Mapping[str, Any],
     TliError
         The search found no case.
     """
-    from tli_verify.viz.episodes import plot_episodes
-
     f = search["found"]
     if f is None:
         raise TliError("no Fig. 7 case to draw (the search found none)")

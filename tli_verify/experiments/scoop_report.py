@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.experiments.fig7 import FIG7_MIN_ROUNDS
+from tli_verify.io import atomic_write_text, canonical_json
+from tli_verify.plotting import save_figure
 from tli_verify.runtime.setup import VARIANTS
 
 __all__ = [
@@ -31,9 +33,6 @@ def write_report(summary: Mapping[str, Any], out: Path, *, fig7: Mapping[str, An
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.io import atomic_write_text, canonical_json
-    from tli_verify.plotting import save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     cfg = summary["config"]

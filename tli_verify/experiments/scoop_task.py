@@ -19,7 +19,17 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from tli_verify.runtime.setup import Setup, load_setup
+from tli_verify.demos import load_demo
+from tli_verify.ds.bc import train_bc
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.learn import learn_model
+from tli_verify.model.serialize import load_model, save_model
+from tli_verify.project import open_project
+from tli_verify.runtime.setup import Setup
+from tli_verify.segmentation import segment_demos, spec_labeler
+from tli_verify.tasks.demonstrator import write_demos
+from tli_verify.tasks.registry import find_task
 
 __all__ = [
     "learn_setup",
@@ -28,11 +38,9 @@ __all__ = [
 
 
 def scoop_setup(*, lag: int = 0) -> Setup:
-    """The bundled scoop task, spec, model and certificate
-    (:func:`~tli_verify.tasks.project.resolve` of task ``scoop``)."""
-    from tli_verify.tasks.project import resolve
-
-    return load_setup(resolve(task="scoop", lag=lag))
+    """The bundled scoop task, spec, model and certificate (the project session of task
+    ``scoop``: :func:`~tli_verify.project.open_project`)."""
+    return open_project(task="scoop", lag=lag).setup
 
 
 def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
@@ -44,12 +52,6 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
     one BC net per DS key on the raw (unshifted) segments of its mode.
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.learn import learn_model
-    from tli_verify.model.serialize import load_model, save_model
-    from tli_verify.tasks.demonstrator import write_demos
-    from tli_verify.tasks.registry import find_task
 
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -66,9 +68,6 @@ def learn_setup(seed: int, n_demos: int, directory: str | os.PathLike[str], *,
     spec = load_spec(spec_path)
     bc: dict[str, Any] = {}
     if bc_epochs > 0:
-        from tli_verify.demos import load_demo
-        from tli_verify.ds.bc import train_bc
-        from tli_verify.segmentation import segment_demos, spec_labeler
 
         labeler, modes, labels = spec_labeler(spec)
         seg = segment_demos([load_demo(p) for p in demos], labeler=labeler, modes=modes,

@@ -355,7 +355,7 @@ class TaskAutomaton:
             out.append(PlannedStep(state=s.id, mode=m, next_mode=nxt, key=key, moves=moves))
         return tuple(out)
 
-    def planned_mode(self, state: int, ds: DSKeys, goal_modes: Sequence[str] | None = None
+    def planned_mode(self, state: int, ds: DSKeys, *, goal_modes: Sequence[str] | None = None
                      ) -> PlannedStep:
         """:meth:`planned_keys` of one state."""
         if not 0 <= state < len(self.states):

@@ -12,9 +12,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tli_verify.arguments import check_path
 from tli_verify.errors import SpecError, UnrealizableError, bad_type
 from tli_verify.logic.automaton import TaskAutomaton, extract_automaton
 from tli_verify.logic.diagnose import Diagnosis, diagnose
+from tli_verify.logic.foreign import FORMATS, import_spec_file
 from tli_verify.logic.gr1 import build_game, solve
 from tli_verify.logic.sanity import (
     Core,
@@ -107,10 +109,8 @@ def _spec_arg(spec: Any) -> GR1Spec:
     if isinstance(spec, GR1Spec):
         return spec
     if isinstance(spec, str | os.PathLike) and not isinstance(spec, bool):
-        from tli_verify.arguments import check_path
 
         path = check_path(spec, "spec", error=SpecError)
-        from tli_verify.logic.foreign import FORMATS, import_spec_file
 
         if path.suffix in FORMATS:
             return parse_spec(import_spec_file(path), path=f"{path} (imported)",
@@ -164,8 +164,6 @@ def check_spec_file(path: str | os.PathLike[str], *, core: bool = False, hints: 
     A ``.spectra``, ``.structuredslugs`` or ``.slugsin`` file is read through
     :func:`~tli_verify.logic.foreign.import_spec_file` (in the tool's own, textbook reading
     of safety at time 0), as ``tli spec import`` would translate it."""
-    from tli_verify.logic.foreign import FORMATS, import_spec_file
-
     if Path(path).suffix in FORMATS:
         spec = parse_spec(import_spec_file(Path(path)), path=f"{path} (imported)",
                           default_name=Path(path).stem)

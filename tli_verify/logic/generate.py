@@ -109,7 +109,7 @@ def chain_spec_text(n_modes: int) -> str:
     """A scalable, realizable task spec: a chain of ``n_modes`` modes (like color tracing).
 
     Sensor ``ti`` says the robot is in region ``i`` (one-hot); mode ``mi`` runs there. The
-    world moves from region ``i`` to ``i+1`` (progress) or back to region 0 (a perturbation);
+    environment moves from region ``i`` to ``i+1`` (progress) or back to region 0 (a perturbation);
     the last region holds. ``p`` marks perturbations and the goal is ``GF(last | p)``.
     ``2 * n_modes + 1`` variables.
     """

@@ -47,7 +47,7 @@ from typing import Any
 from tli_verify.logic.ltl import Slot, gr1_body
 from tli_verify.logic.spec import GR1Spec, SpecFormula
 
-__all__ = ["Game", "Solution", "build_game", "solve"]
+__all__ = ["Game", "Solution", "build_game", "formula_bdd", "solve"]
 
 PRIME = "'"
 
@@ -341,11 +341,11 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         """Transition constraint of a conjunction of ``G(phi)``."""
         trans = bdd.true
         for g in _conjuncts(f.ltl):
-            trans &= _to_bdd(gr1_body(g, Slot.SAFETY), bdd, primed=False, memo=memo)
+            trans &= formula_bdd(gr1_body(g, Slot.SAFETY), bdd, primed=False, memo=memo)
         return trans
 
-    init_e = [(f, _to_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.assume.init]
-    init_s = [(f, _to_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.guarantee.init]
+    init_e = [(f, formula_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.assume.init]
+    init_s = [(f, formula_bdd(f.ltl, bdd, primed=False, memo=memo)) for f in spec.guarantee.init]
     safety_e = [(f, safety(f)) for f in spec.assume.safety]
     safety_s = [(f, safety(f)) for f in spec.guarantee.safety]
 
@@ -353,7 +353,7 @@ def build_game(spec: GR1Spec, *, manager: Any = None, semantics: str | None = No
         out = []
         for f in side:
             for g in _conjuncts(f.ltl):
-                out.append(Goal(formula=f, bdd=_to_bdd(gr1_body(g, Slot.LIVENESS), bdd,
+                out.append(Goal(formula=f, bdd=formula_bdd(gr1_body(g, Slot.LIVENESS), bdd,
                                                        primed=False, memo=memo)))
         return tuple(out)
 
@@ -590,7 +590,7 @@ def _aps(f: Any) -> set[str]:
     return {str(a.ap_name()) for a in spot.atomic_prop_collect(f)}
 
 
-def _to_bdd(f: Any, bdd: Any, *, primed: bool,
+def formula_bdd(f: Any, bdd: Any, *, primed: bool,
             memo: dict[tuple[int, bool], tuple[Any, Any]] | None = None) -> Any:
     """BDD of a propositional formula with ``X`` at depth <= 1 (``X v`` -> ``v'``).
 

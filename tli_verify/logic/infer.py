@@ -27,9 +27,9 @@ environment part is made sound; these choices follow the sound ``specs/scoop.tom
   could jump to any labelled reading (``specs/scoop-unrealizable.toml``).
 * ``phi_g^e`` (environment fairness): for each mode ``m`` that is not a goal,
   ``GF(!m | P)`` with ``P`` the reading classes of ``m``'s *progress* successors (those closer to
-  the goal in the demonstrated mode graph): while in ``m`` the world eventually shows a reading
-  that lets the task progress, unless something else ends ``m`` first -- scoop's
-  ``GF(!a | r)``. Without it nothing forces the world ever to change.
+  the goal in the demonstrated mode graph): while in ``m`` the environment eventually shows a
+  reading that lets the task progress, unless something else ends ``m`` first -- scoop's
+  ``GF(!a | r)``. Without it nothing forces the environment ever to change.
 * ``phi_g^s`` (goal): ``GF(g1 | ... | p)`` with ``g1, ...`` the modes the demonstrations end in.
 
 The auxiliary output ``p`` (named ``p``, or the first of ``p_``, ``p0``, ``p1``, ... that names
@@ -40,7 +40,7 @@ every transition added online by :func:`add_transition` (by default; these are t
 perturbation caused, paper appendix F) and every demonstrated change into a mode no closer to a
 goal. Paper Asm. 2 (finitely many perturbations) makes ``FG !p -> GF goals`` hold, which is not
 GR(1); ``GF(goals | p)`` is its GR(1) form. Without the marker the first recovery edge
-(``b -> a``) would make the grown spec unrealizable: the world could then loop ``a, b, a, b``
+(``b -> a``) would make the grown spec unrealizable: the environment could then loop ``a, b, a, b``
 forever, meeting every fairness assumption, and ``GF d`` would be lost. With it, the scoop
 demonstrations grow to exactly the automaton of ``specs/scoop.toml`` (paper Fig. 3(a)).
 
@@ -65,15 +65,19 @@ from __future__ import annotations
 
 import itertools
 import os
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.errors import DemoError, SpecError, UnrealizableError
+from tli_verify.io import parse_toml, read_text
 from tli_verify.logic.automaton import AssumptionViolation, AutomatonState, TaskAutomaton
+from tli_verify.logic.check import check_spec, synthesize
+from tli_verify.logic.gr1 import build_game, formula_bdd, new_manager
+from tli_verify.logic.labels import runs as _runs
+from tli_verify.logic.labels import spec_labeler
 from tli_verify.logic.ltl import atomic_propositions, is_ap_name, parse_formula
-from tli_verify.logic.spec import GR1Spec, SpecFormula, _LineFinder, _modes, parse_spec
+from tli_verify.logic.spec import GR1Spec, SpecFormula, SpecSide, _LineFinder, _modes, parse_spec
 
 __all__ = [
     "Regrowth",
@@ -116,16 +120,9 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         Unreadable file, invalid TOML, no ``[modes]`` table, a mode name that is not an AP
         name or names a sensor, a label that is not propositional or uses an unknown sensor.
     """
-    from tli_verify.io import read_text
-
     where = str(path)
     text = read_text(path, what="labels", error=SpecError)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
-    except RecursionError:
-        raise SpecError(f"{where}: arrays or tables nested too deeply") from None
+    data = parse_toml(text, where=where, error=SpecError)
     raw = data.get("modes")
     lines = _LineFinder(text)
     if not isinstance(raw, dict) or not raw:
@@ -151,7 +148,6 @@ def load_labels(path: str | os.PathLike[str], sensors: Sequence[str]) -> dict[st
         raise SpecError(f"{where}: no [modes] table")
     return table
 
-
 # --------------------------------------------------------------------------------------------
 # Inference
 
@@ -171,9 +167,6 @@ def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[
     """Label every sample (:func:`~tli_verify.segmentation.spec_labeler`) and collect the
     runs of equal label groups. Unlike :func:`~tli_verify.segmentation.segment_demos` this
     needs no DS training data: a group seen for one sample is a valid observation."""
-    from tli_verify.logic.labels import runs as _runs
-    from tli_verify.logic.labels import spec_labeler
-
     # A minimal spec carrying the labels, for spec_labeler (label evaluation and messages).
     holder = GR1Spec(name="labels", inputs=tuple(sensors), outputs=tuple(labels),
                      modes=dict(labels), assume=_empty_side(), guarantee=_empty_side())
@@ -219,7 +212,6 @@ def _observe(demos: Sequence[Any], labels: Mapping[str, str], sensors: Sequence[
 
 
 def _empty_side() -> Any:
-    from tli_verify.logic.spec import SpecSide
 
     return SpecSide()
 
@@ -241,11 +233,10 @@ def _distances(obs: _Observed) -> dict[tuple[str, ...], int]:
 
 
 def _label_bdds(labels: Mapping[str, str], sensors: Sequence[str]) -> tuple[Any, dict[str, Any]]:
-    from tli_verify.logic.gr1 import _to_bdd, new_manager
 
     bdd = new_manager()
     bdd.declare(*sensors)
-    return bdd, {m: _to_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
+    return bdd, {m: formula_bdd(parse_formula(lab, where=f"modes.{m}"), bdd, primed=False)
                  for m, lab in labels.items()}
 
 
@@ -395,7 +386,6 @@ def infer_spec(demos: Sequence[Any], labels: Mapping[str, str], *, name: str = "
     return parse_spec(infer_spec_text(demos, labels, name=name, sources=sources),
                       default_name=name)
 
-
 # --------------------------------------------------------------------------------------------
 # Writing specs
 
@@ -446,7 +436,6 @@ def spec_to_toml(spec: GR1Spec) -> str:
         for key, formulas in (("init", s.init), ("safety", s.safety), ("liveness", s.liveness)):
             lines += side(title, formulas, key)
     return "\n".join(lines) + "\n"
-
 
 # --------------------------------------------------------------------------------------------
 # Online re-synthesis
@@ -521,8 +510,6 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
     UnrealizableError
         The grown spec is unrealizable or not well-separated (the old spec is kept).
     """
-    from tli_verify.logic.check import check_spec
-    from tli_verify.logic.gr1 import _to_bdd
     from tli_verify.logic.spot_import import spot
 
     where = spec.path or spec.name
@@ -563,7 +550,7 @@ def add_transition(spec: GR1Spec, from_mode: str, to_mode: str, *,
         lhs = body[0]
         if atomic_propositions(lhs) - set(spec.inputs) or not lhs.is_boolean():
             continue
-        if (_to_bdd(lhs, bdd, primed=False) & labs["from"]) != bdd.false:
+        if (formula_bdd(lhs, bdd, primed=False) & labs["from"]) != bdd.false:
             changed[(f.section, f.index)] = f"G(({lhs!s}) -> {_or_next(body[1], l_to)})"
     grown = _replace(spec, changed)
     _check_change_allowed(grown, from_mode, to_mode)
@@ -597,8 +584,6 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     """``spec`` with some file formulas' texts replaced, re-parsed (the checks run again)."""
     from dataclasses import replace as dc_replace
 
-    from tli_verify.logic.spec import SpecSide
-
     def side(s: SpecSide) -> SpecSide:
         def fix(fs: tuple[SpecFormula, ...]) -> tuple[SpecFormula, ...]:
             return tuple(dc_replace(f, text=changed[(f.section, f.index)])
@@ -613,13 +598,11 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
 def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
     """Whether the game already has a move from ``from_mode`` (under its label) to
     ``to_mode`` (under its label) that both players' safety formulas allow."""
-    from tli_verify.logic.gr1 import _to_bdd, build_game
-
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
-    lf = _to_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
-    lt = _to_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
+    lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
+    lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
     move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
     return bool(move != bdd.false)
 
@@ -627,13 +610,11 @@ def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
     """The grown assumptions let the sensors move from ``from_mode``'s label to
     ``to_mode``'s while the system runs ``from_mode``."""
-    from tli_verify.logic.gr1 import _to_bdd, build_game
-
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
-    lf = _to_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
-    lt = _to_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
+    lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
+    lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
     if (game.rho_e & lf & bdd.var(from_mode) & lt) == bdd.false:
         raise SpecError(f"{spec.name}: the environment assumptions still rule out the sensor "
                         f"change {spec.modes[from_mode]!r} -> {spec.modes[to_mode]!r} of the "
@@ -711,8 +692,6 @@ def regrow(spec: GR1Spec, from_mode: str, to_mode: str, old: AutomatonState,
            ) -> Regrowth:
     """:func:`add_transition`, re-synthesis and :func:`resume_state` in one call (for the
     executive's ``--learn-transitions``)."""
-    from tli_verify.logic.check import synthesize
-
     grown = add_transition(spec, from_mode, to_mode, perturbation=perturbation)
     automaton = synthesize(grown)
     return Regrowth(spec=grown, automaton=automaton,

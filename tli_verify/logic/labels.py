@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 from tli_verify.errors import SpecError
+from tli_verify.logic.spec import label_holds
 
 __all__ = ["Labeler", "runs", "spec_labeler"]
 
@@ -42,8 +43,6 @@ def spec_labeler(spec: object) -> tuple[Labeler, tuple[str, ...], Mapping[str, s
     SpecError
         If the spec has no ``[modes]`` table.
     """
-    from tli_verify.logic.spec import label_holds
-
     table = getattr(spec, "modes", None)
     path = getattr(spec, "path", None) or "<spec>"
     if not table:

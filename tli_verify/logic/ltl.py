@@ -45,7 +45,6 @@ operators: ``G``, ``F``, ``X``, ``U``, ``W``, ``R``, ``M``)."""
 RESERVED = frozenset({"true", "false", "xor", "implies", "equiv"})
 
 
-
 _FORMULA_CHARS = frozenset(
     "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_ \t\r\n!&|-<>=^~()/\\"
 )

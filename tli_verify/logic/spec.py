@@ -43,15 +43,15 @@ initial state (their current-state consequence). ``tli spec import`` writes ``"t
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import os
-import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tli_verify.errors import SpecError
-from tli_verify.io import read_text
+from tli_verify.io import check_numbers, parse_toml, read_text
 from tli_verify.logic.ltl import (
     MAX_FORMULA_DEPTH,
     Slot,
@@ -60,6 +60,7 @@ from tli_verify.logic.ltl import (
     is_ap_name,
     parse_formula,
 )
+from tli_verify.snapshot import current
 
 __all__ = [
     "GR1Spec",
@@ -225,7 +226,12 @@ def load_spec(path: str | os.PathLike[str]) -> GR1Spec:
         Naming the file, line and field of the first problem.
     """
     text = read_text(path, what="spec", error=SpecError)
-    return parse_spec(text, path=str(path), default_name=Path(path).stem)
+    snap = current()
+    if snap is None:
+        return parse_spec(text, path=str(path), default_name=Path(path).stem)
+    spec = snap.parse("spec", path,
+                      lambda: parse_spec(text, path=str(path), default_name=Path(path).stem))
+    return spec if spec.path == str(path) else dataclasses.replace(spec, path=str(path))
 
 
 def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec") -> GR1Spec:
@@ -233,20 +239,13 @@ def parse_spec(text: str, *, path: str | None = None, default_name: str = "spec"
     where = path or "<spec>"
     if not text.strip():
         raise SpecError(f"{where}: empty spec file")
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
-    except RecursionError:  # tomllib reads nested arrays recursively
-        raise SpecError(f"{where}:{_deep_line(text)}: arrays or tables nested deeper than "
-                        f"the limit of {MAX_TOML_DEPTH} levels") from None
-    except ValueError as exc:  # an integer of more than 4300 digits
-        raise SpecError(f"{where}: invalid TOML: {exc}") from None
+    data = parse_toml(text, where=where, error=SpecError,
+                      nested=lambda: (f"{where}:{_deep_line(text)}: arrays or tables nested "
+                                      f"deeper than the limit of {MAX_TOML_DEPTH} levels"))
     deep = _too_deep(data)
     if deep is not None:
         raise SpecError(f"{where}: '{deep}': arrays or tables nested deeper than the limit of "
                         f"{MAX_TOML_DEPTH} levels")
-    from tli_verify.io import check_numbers
 
     check_numbers(data, where=where, error=SpecError)
     unknown = sorted(set(data) - _TOP_KEYS)

@@ -13,11 +13,16 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from tli_verify._version import __version__
 from tli_verify.defaults import DEFAULT_DT_FLOAT
-from tli_verify.ds.lpvds import Clustering, LyapunovKind
+from tli_verify.demos import load_demos
+from tli_verify.ds.lpvds import Clustering, LyapunovKind, learn_lpvds
 from tli_verify.errors import TliError
+from tli_verify.io import sha256_file
+from tli_verify.logic.spec import load_spec
 from tli_verify.model.serialize import relative_to_file
 from tli_verify.model.types import Model, ModeModel
+from tli_verify.segmentation import segment_demos, spec_labeler
 
 __all__ = [
     "learn_model",
@@ -79,7 +84,8 @@ def learn_model(
         (``RATE_FACTOR``), the default before the choice.
     control_dt : float, optional
         Control period at which the learned DS must also decrease ``V`` per explicit step
-        (default 1 ms); None for continuous time only. Ignored when ``rate`` is 0.
+        (default :data:`~tli_verify.defaults.DEFAULT_DT`, 1/100 s); None for continuous time
+        only. Ignored when ``rate`` is 0.
     clustering, lyapunov : str, optional
         See :func:`tli_verify.ds.lpvds.learn_lpvds`.
 
@@ -93,15 +99,8 @@ def learn_model(
     DemoError, SpecError, SolverError
         Bad demonstrations, a spec without modes, a solver status other than optimal.
     """
-    from tli_verify._version import __version__
-    from tli_verify.demos import load_demos
-    from tli_verify.ds.lpvds import learn_lpvds
-    from tli_verify.io import sha256_file
-    from tli_verify.segmentation import segment_demos, spec_labeler
-
     out_dir = Path(out_path).parent
     if spec_path is not None:
-        from tli_verify.logic.spec import load_spec
 
         spec = load_spec(spec_path)
         labeler, modes, labels = spec_labeler(spec)

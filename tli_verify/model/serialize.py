@@ -6,6 +6,7 @@ bit-for-bit -- which the certificate's exact check relies on. Format: :mod:`tli_
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Mapping
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from tli_verify.boundary.cuts import Cut
+from tli_verify.boundary.modulation import Modulator
 from tli_verify.ds.lpvds import LPVDS
 from tli_verify.errors import ModelError
 from tli_verify.io import (
@@ -38,6 +40,7 @@ from tli_verify.model.types import (
     check_range,
     check_symmetric,
 )
+from tli_verify.snapshot import current
 
 __all__ = [
     "IN_MEMORY",
@@ -119,7 +122,6 @@ def model_from_dict(data: Any, *, where: str = "model", path: str | None = None)
         except ModelError as exc:
             raise ModelError(f"{where}: {loc}: {exc}") from None
         if cuts:
-            from tli_verify.boundary.modulation import Modulator
 
             try:
                 Modulator.build(cuts, attractor, lyapunov=P)
@@ -152,6 +154,14 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         Naming the file and the JSON field, e.g.
         ``models/x.json: modes.a.components[2].cov: not symmetric positive definite``.
     """
+    snap = current()
+    if snap is None:
+        return _load_model(path)
+    model = snap.parse("model", path, lambda: _load_model(path))
+    return model if model.path == str(path) else dataclasses.replace(model, path=str(path))
+
+
+def _load_model(path: str | os.PathLike[str]) -> Model:
     data = read_json(path, what="model", error=ModelError)
     return model_from_dict(data, where=str(path), path=str(path))
 

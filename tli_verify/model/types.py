@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut
+from tli_verify.boundary.modulation import Modulator, check_control_period
 from tli_verify.ds.lpvds import LPVDS
 from tli_verify.errors import ModelError
 from tli_verify.io import (
@@ -153,8 +154,6 @@ class ModeModel:
         ModelError
             A cut of the wrong dimension, or one that leaves ``x*`` outside.
         """
-        from tli_verify.boundary.modulation import Modulator
-
         object.__setattr__(self, "cuts", tuple(self.cuts))
         if self.fit is not None and not isinstance(self.fit, MappingProxyType):
             object.__setattr__(self, "fit", MappingProxyType(dict(self.fit)))
@@ -187,8 +186,6 @@ class ModeModel:
         -------
         ndarray, same shape as ``X``
         """
-        from tli_verify.boundary.modulation import check_control_period
-
         check_control_period(dt)
         return self.modulate(X, self.ds.velocity(X), dt=dt)
 
@@ -285,7 +282,7 @@ class Model:
                 if options else f"; known keys: {', '.join(sorted(self.modes))}")
         raise ModelError(f"{self.path or 'model'}: no DS for {what!r}{hint}")
 
-    def velocity(self, X: npt.ArrayLike, mode: str, next_mode: str | None = None, *,
+    def velocity(self, X: npt.ArrayLike, mode: str, *, next_mode: str | None = None,
                  dt: float | None = None) -> FloatArray:
         """Velocity of the mode's policy: ``M(x) f(x)`` with the mode's cuts (paper eq. 7).
 
@@ -307,7 +304,7 @@ class Model:
         """
         return self.modes[self.key(mode, next_mode)].velocity(X, dt=dt)
 
-    def nominal_velocity(self, X: npt.ArrayLike, mode: str,
+    def nominal_velocity(self, X: npt.ArrayLike, mode: str, *,
                          next_mode: str | None = None) -> FloatArray:
         """``f(x)`` of the mode's LPV-DS without modulation (paper eq. 4)."""
         return self.modes[self.key(mode, next_mode)].ds.velocity(X)

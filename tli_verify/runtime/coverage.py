@@ -12,14 +12,15 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from fractions import Fraction
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from tli_verify.defaults import DEFAULT_DT
 from tli_verify.errors import CertificateError, ModelError
+from tli_verify.io import same_file
 from tli_verify.logic.automaton import PlannedStep, TaskAutomaton
+from tli_verify.model.serialize import load_model
 from tli_verify.model.types import Model
 
 __all__ = [
@@ -54,13 +55,6 @@ def plan_states(automaton: TaskAutomaton, model: Model, goal_modes: Sequence[str
     return {st.state: st for st in steps}
 
 
-def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
-    try:
-        return Path(a).resolve() == Path(b).resolve() or os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
 def _same_ds(a: Any, b: Any) -> bool:
     return all(np.array_equal(getattr(a, f), getattr(b, f))
                for f in ("attractor", "priors", "means", "covs", "A", "P"))
@@ -88,14 +82,13 @@ def check_coverage(model: Model, certificate: str | os.PathLike[str]) -> Fractio
         (exit 2) the certificate file cannot be read.
     """
     from tli_verify.certification.certificate import check_certificate
-    from tli_verify.model.serialize import load_model
 
     check = check_certificate(certificate)
     if not check.ok:
         raise CertificateError(f"{certificate}: refused: the certificate does not re-check: "
                                f"{check.problems[0]}")
     if model.path is None or check.model_path is None or \
-            not _same_file(model.path, check.model_path):
+            not same_file(model.path, check.model_path):
         raise CertificateError(f"{certificate}: refused: it covers {check.model_path}, not the "
                                f"model {model.path or '(not loaded from a file)'}")
     certified = load_model(model.path)

@@ -11,8 +11,9 @@
   :func:`~tli_verify.runtime.loop.run_episodes`;
 * :func:`mode_runs`, :func:`mode_string`, :func:`episode_json` -- what an episode did.
 
-The policy only sees what the task's sensors read (:class:`~tli_verify.runtime.worlds.WorldSensors`)
-and is told when a perturbation happened (as a robot's controller notices a push).
+The policy only sees what the task's sensors read
+(:class:`~tli_verify.runtime.task_sensors.TaskSensors`) and is told when a perturbation happened
+(as a robot's controller notices a push).
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.boundary.modulation import modulated
 from tli_verify.errors import TaskError, TliError
-from tli_verify.runtime.events import mode_sequence
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.runtime.events import event_to_json, mode_sequence
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.loop import EpisodeResult, batch_results, run_episode, run_episodes
 from tli_verify.runtime.setup import Setup, make_policy
-from tli_verify.runtime.worlds import WorldSensors
+from tli_verify.runtime.task_sensors import TaskSensors
 from tli_verify.tasks.task import Task
 
 __all__ = [
@@ -59,8 +62,6 @@ def random_start(task: Task, automaton: Any, rng: np.random.Generator, *,
     TaskError
         (exit 2) No such state in ``tries`` draws.
     """
-    from tli_verify.logic.automaton import AssumptionViolation
-
     lo, hi = np.array(task.lo), np.array(task.hi)
     region = task.starts.region
     if region is not None:
@@ -150,7 +151,7 @@ def run_variant(setup: Setup, variant: str, x0: npt.ArrayLike,
         return run_variant_batch(setup, variant, np.atleast_2d(np.asarray(x0, float)),
                                  [dict(perturbations or {})], steps=steps, policy=policy)[0]
     pol = policy if policy is not None else make_policy(setup, variant)
-    return run_episode(pol, WorldSensors(setup.task), x0, steps=steps,
+    return run_episode(pol, TaskSensors(setup.task), x0, steps=steps,
                        perturb=pusher(setup.task, perturbations or {}))
 
 
@@ -167,7 +168,7 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
     base = policy if policy is not None else make_policy(setup, variant)
     policies = [base.fork() for _ in range(len(X))]
     memo: dict[Any, Any] = {}
-    sensors = [WorldSensors(setup.task, cache=memo) for _ in range(len(X))]
+    sensors = [TaskSensors(setup.task, cache=memo) for _ in range(len(X))]
     pushers = [pusher(setup.task, p) for p in perturbations]
 
     def perturb(i: int, t: int, x: FloatArray) -> FloatArray | None:
@@ -178,14 +179,12 @@ def run_variant_batch(setup: Setup, variant: str, starts: npt.ArrayLike,
     return _run_bc(setup, policies, sensors, X, steps=steps, perturb=perturb)
 
 
-def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[WorldSensors],
+def _run_bc(setup: Setup, policies: Sequence[LTLDSPolicy], sensors: Sequence[TaskSensors],
             X: FloatArray, *, steps: int,
             perturb: Callable[[int, int, FloatArray], FloatArray | None]
             ) -> list[EpisodeResult]:
     """:func:`run_episodes` with the BC nets moving the state (modulated by the cuts the
     executive learns for the mode's region, :func:`tli_verify.boundary.modulation.modulated`)."""
-    from tli_verify.boundary.modulation import modulated
-
     if not setup.bc:
         raise TliError("the BC variant needs BC nets (Setup.bc)")
     X = X.copy()
@@ -257,8 +256,6 @@ def episode_json(res: EpisodeResult, *, task: str, variant: str, seconds: float,
                  x0: FloatArray, perturbations: Mapping[int, npt.ArrayLike],
                  dt: float) -> dict[str, Any]:
     """The ``tli run --json`` record of one episode."""
-    from tli_verify.runtime.events import event_to_json
-
     return {
         "task": task,
         "variant": variant,

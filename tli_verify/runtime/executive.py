@@ -68,6 +68,8 @@ from tli_verify.logic.automaton import (
     TaskAutomaton,
     plan_progress,
 )
+from tli_verify.logic.infer import spec_to_toml
+from tli_verify.logic.spec import parse_spec
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import check_coverage, plan_states
 from tli_verify.runtime.events import (
@@ -84,6 +86,7 @@ from tli_verify.runtime.events import (
     TransitionLearned,
     TransitionRefused,
 )
+from tli_verify.runtime.growth import Refusal, learn_transition
 from tli_verify.runtime.online import online_cut
 from tli_verify.runtime.stall import StallRule, lyapunov_level, lyapunov_value
 
@@ -251,7 +254,6 @@ class LTLDSPolicy:
         self.learn_transitions = bool(learn_transitions)
         self._spec_text: str | None = None
         if spec is not None:
-            from tli_verify.logic.infer import spec_to_toml
 
             if tuple(spec.inputs) != tuple(automaton.inputs) or \
                     tuple(spec.mode_names) != tuple(automaton.modes):
@@ -362,8 +364,6 @@ class LTLDSPolicy:
     @property
     def spec(self) -> GR1Spec | None:
         """The current spec, parsed from :attr:`spec_toml` (None when built without one)."""
-        from tli_verify.logic.spec import parse_spec
-
         return None if self._spec_text is None else parse_spec(self._spec_text)
 
     # ---------------------------------------------------------------- planning
@@ -667,9 +667,6 @@ class LTLDSPolicy:
         """Learn the transition a reading the assumptions rule out shows
         (:func:`~tli_verify.runtime.growth.learn_transition`); the state of the grown automaton
         to carry on from, or None (refused, or nothing to learn: the caller resynchronizes)."""
-        from tli_verify.logic.infer import spec_to_toml
-        from tli_verify.runtime.growth import Refusal, learn_transition
-
         spec = self.spec
         if spec is None or self._state is None:  # pragma: no cover - checked in __init__
             return None
@@ -720,5 +717,4 @@ class LTLDSPolicy:
         self.events.append(CutAdded(t, mode, self.model.keys_of(mode), out.attempt.cut,
                                     len(self.model.region_cuts(mode)), out.attempt.fallback,
                                     out.attempt.shift))
-
 

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 from tli_verify.errors import TliError
 from tli_verify.logic.automaton import PlannedStep, TaskAutomaton
-from tli_verify.logic.spec import GR1Spec
+from tli_verify.logic.infer import regrow
+from tli_verify.logic.spec import GR1Spec, label_holds
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import plan_states
 
@@ -91,9 +92,6 @@ def learn_transition(spec: GR1Spec, automaton: TaskAutomaton, state: int, from_m
     -------
     Growth or Refusal
     """
-    from tli_verify.logic.infer import regrow
-    from tli_verify.logic.spec import label_holds
-
     values = {i: i in reading for i in spec.inputs}
     holds = [m for m in spec.mode_names if label_holds(spec, m, values)]
     if len(holds) != 1:

@@ -38,15 +38,18 @@ is ever learned online: looping is impossible by construction.
    mode's own convex shape keeps the whole shape inside (E1 for every entry), a plane of a
    forbidden convex shape keeps all of it out. Otherwise the cut QCQP of appendix E.3 (the
    online rule) is solved with the drawn entry states kept inside;
-3. rounds repeat on fresh draws until a round finds no exit; a final round on an independent
-   draw of ``samples`` states gives the claim's figures;
+3. rounds repeat on fresh draws until two rounds in a row find no exit; a final round on an
+   independent draw of ``samples`` states then checks the model as it stands. Exits it finds
+   are cut and learning resumes, at most :data:`FINAL_CHECKS` checks; the last check gives the
+   claim's figures;
 4. a claim is **proved** (exact) when the mode's region is one box or polytope cell that no
    earlier-listed cell overlaps and no layer touches, every facet that keeps ``x*`` strictly
    inside is a cut (E1 holds for every state), and every other facet, within the cuts, lies in
    a box or polytope cell of an allowed mode (E2), decided with linear programs; it is
    **sampled** otherwise (``N`` states, 0 exits: an exit probability below ``3/N`` at 95%
-   confidence, the rule of three), and **online only** for tasks whose sensors only physics
-   computes.
+   confidence, the rule of three, after one check; after ``c`` checks, each on a fresh draw,
+   below ``ln(20 c)/N``, since a model that fails a check is not the one claimed), and
+   **online only** for tasks whose sensors only physics computes.
 
 The cuts go into the model (they are the mode's cuts, the ones the runtime modulates with and
 the certificate covers); the claims go into its ``source.handoff`` record (bound by the model's
@@ -65,12 +68,15 @@ import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut, InvarianceFailure
 from tli_verify.errors import ModelError, TliError
-from tli_verify.logic.automaton import TaskAutomaton, plan_progress
+from tli_verify.logic.automaton import AssumptionViolation, TaskAutomaton, plan_progress
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
 from tli_verify.model.types import Model
 from tli_verify.runtime.coverage import plan_states
 from tli_verify.runtime.online import online_cut
+from tli_verify.tasks.project import check_goal, spec_task
 from tli_verify.tasks.regions import Ball, Box, Ellipsoid, Polytope, Primitive
-from tli_verify.tasks.task import Task
+from tli_verify.tasks.task import FormulaSensors, Goal, Task
 
 __all__ = [
     "HANDOFF_VERSION",
@@ -90,6 +96,9 @@ HANDOFF_VERSION = 1
 PROVED = "proved"
 SAMPLED = "sampled"
 ONLINE = "online"
+FINAL_CHECKS = 3
+"""Final checks at most (module docstring, step 3): a check that finds exits cuts them and
+learning resumes; the claim's 95% bound after ``c`` checks is ``ln(20 c) / N``."""
 
 _MAX_LATCHES = 8
 _INWARD = 1e-10
@@ -461,8 +470,6 @@ def _assumed(automaton: TaskAutomaton, mode: str, old: frozenset[str], new: froz
     """Whether the spec's assumptions allow the sensor change ``old -> new`` from a state of
     ``mode`` read ``old`` (else the exit is the task's, not the policy's: a task/spec
     mismatch the executive reports as an assumption violation and never cuts)."""
-    from tli_verify.logic.automaton import AssumptionViolation
-
     for s in automaton.states:
         if s.mode == mode and frozenset(s.inputs) == old:
             try:
@@ -600,75 +607,93 @@ def learn_handoffs(task: Task, automaton: TaskAutomaton, model: Model, *, dt: fl
         model, added = _facet_cuts(task, model, k)
         face_cuts[k.mode] = face_cuts.get(k.mode, 0) + added
     r = 0
-    while r < rounds:
-        r += 1
-        found = False
-        handed: list[tuple[str, FloatArray, BoolArray]] = []
+    checks = 0
+    while True:
+        while r < rounds:
+            r += 1
+            found = False
+            handed: list[tuple[str, FloatArray, BoolArray]] = []
+            for k in keys:
+                X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
+                if len(X) == 0:
+                    continue
+                out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
+                                steps=_horizon(model, k.key, dt), automaton=automaton)
+                handed += out.handed
+                out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
+                if not out.exits:
+                    continue
+                found = True
+                rounds_used[k.key] = r
+                model, added, faces, why = _cut_round(task, model, k, out.exits, X, margin)
+                face_cuts[k.mode] = face_cuts.get(k.mode, 0) + faces
+                history.append((k.key, added))
+                if added == 0:
+                    stuck[k.key] = why
+                else:
+                    stuck.pop(k.key, None)
+            for mode, x, la in handed:
+                lst = entries.setdefault(mode, [])
+                if len(lst) < 4 * samples:
+                    lst.append((x, la))
+            if not found:
+                clean += 1
+                if clean >= 2:  # two rounds in a row without an exit
+                    break
+            else:
+                clean = 0
+                if all(k.key in stuck for k in keys if rounds_used[k.key] == r):
+                    break
+        # the final round: an independent draw on the model as it stands. Exits it finds are
+        # cut and learning resumes, at most FINAL_CHECKS times; the claim's bound accounts for
+        # the number of checks made (module docstring)
+        checks += 1
+        claims: list[HandoffClaim] = []
+        final_exits: list[Exit] = []
+        failed: list[tuple[_Key, list[Exit], FloatArray]] = []
         for k in keys:
             X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
-            if len(X) == 0:
-                continue
             out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
                             steps=_horizon(model, k.key, dt), automaton=automaton)
-            handed += out.handed
+            if out.exits and checks < FINAL_CHECKS:
+                failed.append((k, [e for e in out.exits if e.kind != "assumption"], X))
+            mismatch = [e for e in out.exits if e.kind == "assumption"]
             out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
-            if not out.exits:
-                continue
-            found = True
-            rounds_used[k.key] = r
-            model, added, faces, why = _cut_round(task, model, k, out.exits, X, margin)
+            final_exits += out.exits + mismatch[:3]
+            final_exits += [Exit(k.key, k.mode, "(rest)", tuple(x.tolist()), tuple(x.tolist()),
+                                 tuple(x.tolist()), "", "reachability")
+                            for x in ([] if out.rests == 0 else [X[0]])]
+            proved, why_not = _prove(task, model, k, by_reading)
+            n = len(X)
+            exits = len(out.exits)
+            established = PROVED if proved and exits == 0 else SAMPLED
+            note = why_not if established != PROVED else ""
+            if exits:
+                note = out.exits[0].describe()
+            elif mismatch:
+                note = (f"{len(mismatch)} drawn states leave by a sensor change the spec's "
+                        f"assumptions rule out (task/spec mismatch), e.g. {mismatch[0].describe()}")
+            elif k.key in stuck:
+                note = stuck[k.key]
+            claims.append(HandoffClaim(
+                key=k.key, mode=k.mode,
+                hands_to=tuple([*([k.next_mode] if k.next_mode else []),
+                                *sorted(k.allowed - {k.next_mode})]),
+                region=k.region, cuts=len(model.region_cuts(k.mode)),
+                cuts_offline=len(model.region_cuts(k.mode)) - start_cuts[k.mode],
+                face_cuts=face_cuts.get(k.mode, 0), established=established, samples=n,
+                exits=exits, rests=out.rests,
+                bound=(math.log(20.0 * checks) / n if n and exits == 0 else 1.0),
+                rounds=rounds_used[k.key], note=note))
+        failed = [f for f in failed if f[1]]
+        if not failed:
+            break
+        for k, exits_k, X in failed:
+            model, added, faces, why = _cut_round(task, model, k, exits_k, X, margin)
             face_cuts[k.mode] = face_cuts.get(k.mode, 0) + faces
             history.append((k.key, added))
-            if added == 0:
-                stuck[k.key] = why
-            else:
-                stuck.pop(k.key, None)
-        for mode, x, la in handed:
-            lst = entries.setdefault(mode, [])
-            if len(lst) < 4 * samples:
-                lst.append((x, la))
-        if not found:
-            clean += 1
-            if clean >= 2:  # two rounds in a row without an exit
-                break
-        else:
-            clean = 0
-            if all(k.key in stuck for k in keys if rounds_used[k.key] == r):
-                break
-    # the final, independent round
-    claims: list[HandoffClaim] = []
-    final_exits: list[Exit] = []
-    for k in keys:
-        X, lat, is_entry = _starts(task, k, samples, rng, entries.get(k.mode, []))
-        out = _simulate(task, model, k, X, lat, is_entry, by_reading, dt=dt,
-                        steps=_horizon(model, k.key, dt), automaton=automaton)
-        mismatch = [e for e in out.exits if e.kind == "assumption"]
-        out.exits[:] = [e for e in out.exits if e.kind != "assumption"]
-        final_exits += out.exits + mismatch[:3]
-        final_exits += [Exit(k.key, k.mode, "(rest)", tuple(x.tolist()), tuple(x.tolist()),
-                             tuple(x.tolist()), "", "reachability")
-                        for x in ([] if out.rests == 0 else [X[0]])]
-        proved, why_not = _prove(task, model, k, by_reading)
-        n = len(X)
-        exits = len(out.exits)
-        established = PROVED if proved and exits == 0 else SAMPLED
-        note = why_not if established != PROVED else ""
-        if exits:
-            note = out.exits[0].describe()
-        elif mismatch:
-            note = (f"{len(mismatch)} drawn states leave by a sensor change the spec's "
-                    f"assumptions rule out (task/spec mismatch), e.g. {mismatch[0].describe()}")
-        elif k.key in stuck:
-            note = stuck[k.key]
-        claims.append(HandoffClaim(
-            key=k.key, mode=k.mode,
-            hands_to=tuple([*([k.next_mode] if k.next_mode else []),
-                            *sorted(k.allowed - {k.next_mode})]),
-            region=k.region, cuts=len(model.region_cuts(k.mode)),
-            cuts_offline=len(model.region_cuts(k.mode)) - start_cuts[k.mode],
-            face_cuts=face_cuts.get(k.mode, 0), established=established, samples=n,
-            exits=exits, rests=out.rests, bound=(3.0 / n if n and exits == 0 else 1.0),
-            rounds=rounds_used[k.key], note=note))
+            rounds_used[k.key] = r
+        clean = 0  # learning resumes: two clean rounds again before the next check
     report = HandoffReport(model=model, claims=tuple(claims), exits=tuple(final_exits),
                            seed=int(seed), samples=int(samples), history=tuple(history))
     source = dict(model.source or {})
@@ -861,8 +886,6 @@ def _prove(task: Task, model: Model, k: _Key,
            by_reading: Mapping[frozenset[str], frozenset[str]]) -> tuple[bool, str]:
     """(E1)-(E2) decided exactly for a mode that is one box or polytope cell (module
     docstring, step 4); returns (proved, why not)."""
-    from tli_verify.tasks.task import FormulaSensors
-
     if task.partition.layers or not isinstance(task.sensor_model, FormulaSensors):
         return False, "the task has layers or a sensor plug-in (not decided exactly)"
     cells = task.partition.cells
@@ -1113,12 +1136,6 @@ def context_for_spec(spec_path: str | Any) -> HandoffContext | None:
     """The task the spec names (None: it names none, or its sensors are computed by physics:
     boundaries are learned online there), its automaton and its goal (the spec's, else the
     task's, else the sink modes; checked reachable)."""
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import spec_task
-    from tli_verify.tasks.task import Goal
-
     spec = load_spec(spec_path)
     task = spec_task(spec, spec_path)
     if task is None or bool(getattr(task.sensor_model, "physics", False)):

@@ -4,7 +4,7 @@
   period, a speed cap, scheduled perturbations, and the stop predicate (the goal, or a
   caller's, e.g. the campaigns' looping watchdog);
 * :func:`run_episodes` -- many at once, the DS evaluated batched (same results per start);
-* :class:`EpisodeResult` -- what an episode did; :class:`SensorModel` -- what a world provides.
+* :class:`EpisodeResult` -- what an episode did; :class:`SensorModel` -- what a task provides.
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ from tli_verify.runtime.events import (
     mode_sequence,
 )
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.rollout import cap_speed
+from tli_verify.runtime.task_sensors import TaskSensors
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -41,7 +43,7 @@ __all__ = [
 
 
 class SensorModel(Protocol):
-    """What a world provides to the closed loop (worlds implement it, paper Sec. 3).
+    """What a task provides to the closed loop (tasks implement it, paper Sec. 3).
 
     ``reset(x0)`` starts an episode (a sensor may keep a history, e.g. a lag); ``read(x)``
     is called once per control step, in order, and returns the reading at ``x``.
@@ -230,7 +232,6 @@ def run_episodes(
     if not (len(policies) == len(sensors) == N):
         raise TliError(f"need one policy and one sensor model per start: {len(policies)}, "
                        f"{len(sensors)}, {N}")
-    from tli_verify.runtime.worlds import WorldSensors
 
     for i, (pol, sen) in enumerate(zip(policies, sensors, strict=True)):
         sen.reset(X[i].copy())
@@ -242,11 +243,11 @@ def run_episodes(
     live = list(range(N))  # the active episodes
     taken = [0] * N
     # Fast path per episode (same results): a state checked for the whole batch at once and a
-    # reading as the set of true sensors (a WorldSensors whose names the automaton reads) for
+    # reading as the set of true sensors (a TaskSensors whose names the automaton reads) for
     # an executive whose decide() is LTLDSPolicy's own (a subclass may override it, e.g. the
     # no-replan ablation); anything else goes through decide(), which checks and raises as
     # run_episode does.
-    lean = [isinstance(sen, WorldSensors) and set(sen.names) <= pol._inputs
+    lean = [isinstance(sen, TaskSensors) and set(sen.names) <= pol._inputs
             and type(pol).decide is LTLDSPolicy.decide
             and X.ndim == 2 and X.shape[1] == pol.model.dim
             for pol, sen in zip(policies, sensors, strict=True)]
@@ -295,7 +296,6 @@ def run_episodes(
         for mm, rows in mms:
             V[rows] = mm.modulate(X[rows], F[rows], dt=policies[rows[0]].dt)
         if np.isfinite(speed_cap):
-            from tli_verify.runtime.rollout import cap_speed
 
             cap_speed(V, speed_cap)
         X += dts * V  # held and finished episodes have V = 0

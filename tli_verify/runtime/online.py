@@ -24,7 +24,8 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.boundary.cuts import Cut, InvarianceFailure, inside_cuts, solve_cut
-from tli_verify.errors import SolverError, TliError
+from tli_verify.boundary.modulation import modulated
+from tli_verify.errors import ModelError, SolverError, TliError
 from tli_verify.runtime.rollout import EulerProtocol, Policy, Region, Rollouts, rollout_protocol
 
 __all__ = ["SHIFTS", "CutAttempt", "CutLearning", "OnlineCut", "cut_for_failure", "learn_cuts",
@@ -188,8 +189,6 @@ def learn_cuts(
     -------
     CutLearning
     """
-    from tli_verify.boundary.modulation import modulated
-
     if cut_constraints not in ("entries", "paper"):
         raise TliError(f"cut constraints must be 'entries' or 'paper', got {cut_constraints!r}")
     cuts: list[Cut] = []
@@ -277,8 +276,6 @@ def online_cut(model: Any, key: str, mode: str, failure: InvarianceFailure,
     -------
     OnlineCut
     """
-    from tli_verify.errors import ModelError
-
     mm = model.modes[key]
     x_star = mm.ds.attractor
     last = np.asarray(failure.last_inside, dtype=np.float64)

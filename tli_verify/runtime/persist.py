@@ -11,6 +11,9 @@ import os
 from fractions import Fraction
 from pathlib import Path
 
+from tli_verify.defaults import DEFAULT_DT
+from tli_verify.io import atomic_write_bytes
+from tli_verify.model.serialize import relocate_model, save_model
 from tli_verify.model.types import Model
 
 __all__ = ["save_certified"]
@@ -18,7 +21,7 @@ __all__ = ["save_certified"]
 
 def save_certified(model: Model, model_path: str | os.PathLike[str],
                    cert_path: str | os.PathLike[str], *,
-                   dt: Fraction | str = "1/1000") -> Model:
+                   dt: Fraction | str = DEFAULT_DT) -> Model:
     """Write ``model`` (with its cuts) to ``model_path`` and a re-issued certificate.
 
     Both files are written atomically; the model file is written only after its certificate
@@ -47,8 +50,6 @@ def save_certified(model: Model, model_path: str | os.PathLike[str],
         The model does not validate (nothing is written).
     """
     from tli_verify.certification.certificate import issue_certificate, write_certificate
-    from tli_verify.io import atomic_write_bytes
-    from tli_verify.model.serialize import relocate_model, save_model
 
     out = Path(model_path)
     cert = Path(cert_path)

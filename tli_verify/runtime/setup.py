@@ -1,7 +1,7 @@
 """What a closed-loop run needs, loaded once: the task, its automaton, the certified model.
 
 :func:`load_setup` turns the files the project resolver found
-(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task (the world), the
+(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task, the
 automaton synthesized from the spec, the model, its certificate and the goal. It refuses a goal
 the automaton cannot reach. :func:`make_policy` builds the executive of one of the policies
 compared in the paper (:data:`VARIANTS`):
@@ -27,10 +27,14 @@ from typing import Any
 
 import numpy.typing as npt
 
-from tli_verify.errors import TaskError, TliError, bad_input
+from tli_verify.errors import TliError, bad_input
 from tli_verify.logic.automaton import TaskAutomaton
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
 from tli_verify.model.types import Model
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.tasks.project import check_goal
 from tli_verify.tasks.task import Goal, Task
 
 __all__ = ["VARIANTS", "SequencePolicy", "Setup", "check_goal", "load_setup", "make_policy"]
@@ -45,7 +49,7 @@ class Setup:
     Attributes
     ----------
     task : Task
-        The world: sensors, true regions, workspace (its ``lag`` is the run's).
+        The task: sensors, true regions, workspace (its ``lag`` is the run's).
     automaton : TaskAutomaton
     model : Model
     certificate : str
@@ -65,47 +69,9 @@ class Setup:
     spec: str = ""
     bc: Mapping[str, Any] = field(default_factory=dict)
 
-    @property
-    def world(self) -> Task:
-        """The task (the name the episode runners use)."""
-        return self.task
-
     def with_lag(self, lag: int) -> Setup:
         """The same setup with another sensor lag."""
         return replace(self, task=self.task.with_lag(lag))
-
-
-def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str, ...]:
-    """The goal modes, checked: every mode the automaton can run reaches one of them.
-
-    Returns
-    -------
-    tuple of str
-        The goal modes (the sink modes when the goal names none).
-
-    Raises
-    ------
-    TaskError
-        (exit 2) A goal mode the automaton never runs, a goal with no mode (no sink and none
-        named), or a mode from which the mode graph cannot reach the goal.
-    """
-    run = sorted({s.mode for s in automaton.states})
-    modes = tuple(automaton.sink_modes()) if goal.modes is None else tuple(goal.modes)
-    if not modes:
-        raise TaskError(f"{where}: the automaton {automaton.name!r} has no sink mode, so an "
-                        "episode never ends: name the goal ([goal] modes = [...] in the spec "
-                        "or the task)")
-    absent = [m for m in modes if m not in run]
-    if absent:
-        raise TaskError(f"{where}: goal mode {absent[0]!r} is never run by the automaton "
-                        f"{automaton.name!r} (it runs {', '.join(run)})")
-    dist = automaton.mode_distances(list(modes))
-    stuck = [m for m in run if m not in dist]
-    if stuck:
-        raise TaskError(f"{where}: the automaton {automaton.name!r} cannot reach the goal "
-                        f"({', '.join(modes)}) from mode {stuck[0]!r}: no path in its mode "
-                        "graph, so no episode from there can succeed")
-    return modes
 
 
 def load_setup(resolved: Any) -> Setup:
@@ -116,10 +82,6 @@ def load_setup(resolved: Any) -> Setup:
     SpecError, ModelError, TaskError
         (exit 2) Unreadable files; an unreachable goal.
     """
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
-
     automaton = synthesize(load_spec(resolved.spec))
     check_goal(automaton, resolved.goal, where=str(resolved.spec))
     return Setup(task=resolved.task, automaton=automaton, model=load_model(resolved.model),

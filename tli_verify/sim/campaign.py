@@ -1,6 +1,6 @@
 """Physical perturbation campaigns of the Franka soup-scooping policy: run and judge the trials.
 
-The 2-D worlds are verified by bisimulation campaigns (:mod:`tli_verify.verify.campaign`); the
+The 2-D tasks are verified by bisimulation campaigns (:mod:`tli_verify.verify.campaign`); the
 Franka policy runs in MuJoCo, where a trial costs seconds, so its campaign is a few dozen
 perturbed physical trials (the paper's 30). :func:`run_physics_campaign` runs the seeded trials
 ``seed, seed + 1, ...`` of a :class:`~tli_verify.sim.physics_config.PhysicsConfig`, as ``tli sim
@@ -37,10 +37,12 @@ from typing import Any
 from tli_verify.errors import CampaignError
 from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import hash_files
-from tli_verify.sim.loop import TrialResult
+from tli_verify.sim.franka_project import load_policy
+from tli_verify.sim.loop import TrialResult, run_trial
 from tli_verify.sim.perturbations import draw
 from tli_verify.sim.physics_config import PhysicsConfig
 from tli_verify.sim.trial_oracle import VIOLATION_KINDS, TrialVerdict, check_trial
+from tli_verify.verify.backends import make_backend
 
 __all__ = [
     "PhysicsResult",
@@ -117,8 +119,6 @@ def _run_chunk(chunk: _Chunk, *, policy: Any = None,
                frame: Callable[[Any], None] | None = None) -> Trials:
     """Run one chunk's trials with one executive (``policy``, default a fresh one behind the
     certificate); ``on_trial`` gets the campaign-wide trial index."""
-    from tli_verify.sim.loop import load_policy, run_trial
-
     config = chunk.config
     if policy is None:
         policy = load_policy(config.variant, root=config.root, certificates=config.cert_dir)
@@ -160,8 +160,8 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     config : PhysicsConfig
     policy : LTLDSPolicy, optional
         The executive of the first chunk, already loaded behind the certificate (default:
-        :func:`tli_verify.sim.loop.load_policy` of ``config.variant`` for ``config.root``, as
-        for every other chunk); serial backend only.
+        :func:`tli_verify.sim.franka_project.load_policy` of ``config.variant`` for
+        ``config.root``, as for every other chunk); serial backend only.
     on_trial : callable, optional
         ``(k, result, verdict)`` with ``k`` the trial's index in the campaign: after each trial
         on the serial backend; on the others, for each trial of a chunk when the chunk
@@ -182,7 +182,7 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     ------
     CertificateError
         (exit 1) The certificate is missing, does not re-check, or does not cover the model
-        (:func:`tli_verify.sim.loop.load_policy`): nothing moves.
+        (:func:`tli_verify.sim.franka_project.load_policy`): nothing moves.
     CampaignError
         (exit 2) ``policy`` or ``frame`` on a backend other than serial; an unusable backend
         (:func:`tli_verify.verify.backends.make_backend`).
@@ -191,9 +191,6 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     KeyboardInterrupt
         Ctrl-C: the pending chunks are cancelled and nothing is returned.
     """
-    from tli_verify.sim.loop import load_policy
-    from tli_verify.verify.backends import make_backend
-
     if config.backend != "serial" and (policy is not None or frame is not None):
         raise CampaignError(f"backend {config.backend!r}: an executive or video frames in "
                             "this process need the serial backend")

@@ -138,6 +138,7 @@ def _cap3(x: float, y: float, z: float, limit: float) -> tuple[float, float, flo
         return x * s, y * s, z * s
     return x, y, z
 
+
 #: Nominal orientation at pitch 0: tool z down, tool x along world +y, tool y along world +x.
 R0_DOWN: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 #: The pitch axis, in the world frame: world x.

@@ -33,8 +33,10 @@ from tli_verify.defaults import rng as default_rng
 from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text
-from tli_verify.sim.controller import Gains
+from tli_verify.sim.controller import Gains, ImpedanceController
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
+from tli_verify.sim.franka_sensors import make_sensors
+from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
 from tli_verify.sim.scene import (
     DEFAULT_PHYSICS,
     N_BEADS,
@@ -43,10 +45,14 @@ from tli_verify.sim.scene import (
     TRAY_HALF_THICKNESS,
     TRAY_RADIUS,
     PhysicsOptions,
+    add_ladle,
+    add_scene,
+    add_stand,
     build_mocap_scene,
     ladle_quat,
     reset_beads,
     scene_ids,
+    set_contact_options,
     soup_floor,
 )
 from tli_verify.sim.sensors import SENSOR_NAMES, Debounce, Reading, ScoopSensors
@@ -187,7 +193,6 @@ def _sensors(kind: str, model: mujoco.MjModel, ids: Any, seed: int) -> Any:
     """The rig's r, s, t sensors (:func:`tli_verify.sim.franka_sensors.make_sensors`)."""
     if kind == "ideal":
         return ScoopSensors(model, ids)
-    from tli_verify.sim.franka_sensors import make_sensors
 
     return make_sensors(kind, model, ids, seed=seed)
 
@@ -478,7 +483,7 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     back), in a bowl already scooped from (``recovery_beads``), and show the whole task from
     there: a DS learned only from the nominal start
     turned the tray's front down too slowly and reached the soup tipped back, scooping
-    nothing (the color-tracing world's recovery demonstrations do the same for its dark
+    nothing (the color-tracing task's recovery demonstrations do the same for its dark
     modes). A take whose soup never reaches the target (the readings do not end at ``t``), or
     whose readings go back a mode on the way (soup lost), is discarded and the next seed is
     tried, as a teacher would redo it.
@@ -594,9 +599,6 @@ class PandaRig:
                  limits: FrankaLimits | None = None, sensors: str = "ideal",
                  physics: PhysicsOptions = DEFAULT_PHYSICS, controller: str = "tracking",
                  passive_gains: Any = None) -> None:
-        from tli_verify.sim.controller import ImpedanceController
-        from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
-        from tli_verify.sim.scene import add_ladle, add_scene, add_stand, set_contact_options
 
         if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
             raise TliError(f"timestep {timestep:g} s: one of "

@@ -3,7 +3,9 @@
 :func:`project_files` finds them (the spec is the one the model names; the certificate is
 ``<certificates>/franka-scoop.cert.json``, stem :data:`MODEL_NAME`) and :func:`hash_files` hashes
 them when a physical campaign starts, so that the evidence binds the files the trials ran on
-(:mod:`tli_verify.sim.physics_evidence` refuses a file changed in between).
+(:mod:`tli_verify.sim.physics_evidence` refuses a file changed in between). Light on purpose:
+``tli sim`` reads :data:`MODEL_NAME` before it may import MuJoCo (the policy they make:
+:mod:`tli_verify.sim.franka_project`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import os
 from pathlib import Path
 
 from tli_verify.errors import TliError
+from tli_verify.io import sha256_file
 
 __all__ = [
     "MODEL_NAME",
@@ -52,7 +55,5 @@ def hash_files(root: str | os.PathLike[str],
                ) -> tuple[tuple[str, str, str], ...]:
     """``(name, path, SHA-256)`` of the project's spec, model and certificate (the certificate
     may be missing: then the policy refuses to load)."""
-    from tli_verify.io import sha256_file
-
     return tuple((k, str(p), sha256_file(p) if p.is_file() else "")
                  for k, p in project_files(root, certificates).items())

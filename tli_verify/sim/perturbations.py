@@ -764,3 +764,49 @@ def draw(seed: int, *, pushes: int = 1, tilts: int = 1) -> list[Perturbation]:
             by_start.setdefault(p.start, p)
         out.extend(by_start[s] for s in sorted(by_start))
     return out
+
+
+# --- the perturbing hands, every physics step (kept apart from the control loop) ----------
+
+
+def step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand | None],
+                     applied: list[float]) -> None:
+    """``substeps`` physics steps from time ``t``, the active hands' wrench recomputed at each.
+
+    A hand reads the carrier's centre of mass (``xipos``, where ``xfrc_applied`` acts), its
+    orientation (``ximat``) and its velocity there (``mj_objectVelocity``, world frame) -- the
+    state of the last ``mj_forward``, i.e. one physics step (2 ms) old after an ``mj_step`` --
+    and the sum of the active hands' wrenches goes in ``rig.push``. ``applied[i]`` gets the time
+    hand ``i`` first acted. Without an active hand this is ``rig.step(substeps)``.
+    """
+    live = [(i, h) for i, h in enumerate(hands)
+            if h is not None and h.start < t + substeps * float(rig.model.opt.timestep)
+            and h.end > t]
+    if not live:
+        rig.push[:] = 0.0
+        rig.step(substeps)
+        return
+    import mujoco
+
+    model, data = rig.model, rig.data
+    dt = float(model.opt.timestep)
+    body, kind = rig.carrier, mujoco.mjtObj.mjOBJ_BODY
+    vel6 = np.zeros(6)
+    omega, vel = vel6[:3], vel6[3:]  # views: mj_objectVelocity writes (rotation, translation)
+    # views of the carrier's rows (MjData never reallocates; the hand copies what it keeps)
+    pos, orientation = data.xipos[body], data.ximat[body]
+    push, object_velocity = rig.push, mujoco.mj_objectVelocity
+
+    def before(j: int) -> None:
+        tj = t + j * dt
+        total = np.zeros(6)
+        for i, hand in live:
+            if hand.active(tj):
+                object_velocity(model, data, kind, body, vel6, 0)
+                total += hand.wrench(tj, pos, orientation, vel, omega)
+                if math.isnan(applied[i]):
+                    applied[i] = tj
+        push[:] = total
+
+    rig.step(substeps, before=before)
+    rig.push[:] = 0.0

@@ -20,7 +20,8 @@ from typing import Any
 from tli_verify.errors import CampaignError, TliError
 from tli_verify.sim import TRIAL_DURATION
 from tli_verify.sim.franka_files import MODEL_NAME
-from tli_verify.sim.loop import ROBOTS, SENSOR_KINDS, VARIANTS
+from tli_verify.sim.franka_project import VARIANTS
+from tli_verify.sim.loop import ROBOTS, SENSOR_KINDS
 
 __all__ = [
     "BACKENDS",
@@ -34,8 +35,6 @@ BACKENDS = ("serial", "process", "dask")
 
 MAX_WORKERS = 256
 """Most chunks (workers) of a physical campaign, as for the 2-D campaigns."""
-
-
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,10 +19,17 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from tli_verify.io import check_output_file
 from tli_verify.sim.campaign import PhysicsResult
 from tli_verify.sim.chunks import chunk_seeds
+from tli_verify.sim.contact import ContactDetector
+from tli_verify.sim.demos import PANDA_IMPEDANCE
 from tli_verify.sim.franka_files import MODEL_NAME
+from tli_verify.sim.franka_limits import FrankaLimits
 from tli_verify.sim.physics_checks import WORLD
+from tli_verify.sim.physics_options import DEFAULT_PHYSICS
+from tli_verify.sim.target import LEASH
+from tli_verify.verify.evidence import EVIDENCE_SUFFIX, deployed_task_block, write_evidence
 
 __all__ = [
     "settings_from",
@@ -51,7 +58,8 @@ def _counterexample(result: PhysicsResult) -> dict[str, Any] | None:
 
 
 def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] | None = None,
-                           *, inputs: Sequence[str | os.PathLike[str]] = ()
+                           *, inputs: Sequence[str | os.PathLike[str]] = (),
+                           evaluator: dict[str, Any] | None = None
                            ) -> tuple[Path, dict[str, Any]]:
     """Write the campaign evidence of a physical campaign (atomically, canonical JSON).
 
@@ -62,6 +70,9 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         Default ``<cert_dir>/franka-scoop.campaign.json`` (``<root>/certificates``).
     inputs : sequence of path-like, optional
         Other files the evidence must not overwrite (the demonstrations, a plot, ...).
+    evaluator : dict, optional
+        The trials ran an exported artifact in the C evaluator (``physics.evaluator``:
+        ``kind``, ``artifact_sha256``, ``steps``, ``max_rel_diff``).
 
     Returns
     -------
@@ -77,14 +88,6 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
         (exit 2) The path cannot be written or is one of the inputs.
     """
     import mujoco
-
-    from tli_verify.io import check_output_file
-    from tli_verify.sim.physics_options import DEFAULT_PHYSICS
-    from tli_verify.verify.evidence import (
-        EVIDENCE_SUFFIX,
-        deployed_task_block,
-        write_evidence,
-    )
 
     c = result.config
     target = Path(path) if path is not None else \
@@ -114,6 +117,8 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
                       "limit_ratios": dict(r.limit_ratios)}
                      for r, v in zip(result.results, result.verdicts, strict=True)],
     })
+    if evaluator is not None:
+        physics["evaluator"] = dict(evaluator)
     doc = write_evidence(
         target, world=WORLD, task=deployed_task_block(files["model"], target.parent),
         spec=files["spec"], model=files["model"],
@@ -138,9 +143,6 @@ def controller_record(robot: str, controller: str = "tracking") -> dict[str, Any
     ``physics.controller``): for the Panda the control law (passive-DS with its gains, or
     the target-tracking impedance), the limits, the torque-loop period and the perturbation
     detector; for the free tool its impedance law."""
-    from tli_verify.sim.demos import PANDA_IMPEDANCE
-    from tli_verify.sim.franka_limits import FrankaLimits
-    from tli_verify.sim.loop import LEASH, ContactDetector
     from tli_verify.sim.passive import PassiveGains
 
     common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_bytes
 
 __all__ = [
     "BACKENDS",
@@ -410,8 +411,6 @@ class Recorder:
         OutputError
             (exit 2) ``path`` cannot be written (nothing is left behind).
         """
-        from tli_verify.io import atomic_write_bytes
-
         try:
             if self._writer is None or self._tmp is None or not self.count:
                 raise TliError(f"--video {path}: no frames were rendered")

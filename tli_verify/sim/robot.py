@@ -278,7 +278,6 @@ class Panda:
         mujoco.mj_kinematics(self.model, d)
         return self.site_pose(d, site)
 
-
     def ik(self, pos: FloatArray, quat: FloatArray, site: int | None = None,
            q_init: FloatArray | None = None, *, tol: float = 1e-7, max_iter: int = 200,
            posture_weight: float = 1e-3) -> tuple[FloatArray, float]:

@@ -3,7 +3,7 @@
 The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of the bundled Franka
 policy, bead seed 0, no perturbation, no stall retry, in a cell that gives the arm room beyond
 the target bowl (the target may leave the demonstrations' box by 1.5 dm in ``y`` instead of the
-default 0.5 dm, :data:`~tli_verify.sim.loop.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
+default 0.5 dm, :data:`~tli_verify.sim.target.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
 the target bowl with soup to deliver) enters ``t`` on the near side of the bowl, and the
 certified pour DS, integrated from there, sweeps the tray about 7 cm past the bowl's rim before
 it turns back to its attractor over the bowl's centre: ``t`` turns off with soup still on the
@@ -48,10 +48,12 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
+from tli_verify.io import atomic_write_bytes
 from tli_verify.runtime.events import Replan
 from tli_verify.runtime.repeats import FailureCheck, check_repeats
 from tli_verify.sim.demos import POSITION_SCALE
-from tli_verify.sim.loop import TraceStep, TrialResult, load_policy, run_trial
+from tli_verify.sim.franka_project import load_policy
+from tli_verify.sim.loop import TraceStep, TrialResult, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
 
 __all__ = ["PASSIVE_POUR_SCENARIO", "POUR_SCENARIO", "Failure", "Scenario", "ScenarioRun",
@@ -82,7 +84,7 @@ class Scenario:
     margin : tuple of float, length 4
         How far the target (tracking) or the robot (passive: the velocity leaving it is
         dropped) may leave the demonstrations' box (dm, dm, dm, rad:
-        :func:`~tli_verify.sim.loop.workspace`).
+        :func:`~tli_verify.sim.target.workspace`).
     controller : str
         ``"tracking"`` (default: the loop the scenario was found in) or ``"passive"``
         (:func:`~tli_verify.sim.loop.run_trial`).
@@ -191,10 +193,11 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
     ----------
     variant : str
         ``"LTL-DS"``, ``"no-modulation"`` or ``"no-replan"``
-        (:data:`~tli_verify.sim.loop.VARIANTS`).
+        (:data:`~tli_verify.sim.franka_project.VARIANTS`).
     scenario : Scenario, optional
     root : path-like, optional
-        A Franka project (default: the bundled one), as :func:`~tli_verify.sim.loop.load_policy`.
+        A Franka project (default: the bundled one), as
+        :func:`~tli_verify.sim.franka_project.load_policy`.
 
     Returns
     -------
@@ -292,8 +295,6 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.io import atomic_write_bytes
 
     if not runs:
         raise TliError("plot_scenario: no runs to plot")

@@ -1,6 +1,6 @@
 """A task's scripted demonstrator: seeded minimum-jerk paths through jittered waypoints.
 
-The bundled worlds and a user's own task generate their demonstrations the same way
+The bundled tasks and a user's own task generate their demonstrations the same way
 (``tli demos TASK``): each demonstration follows a *script* -- a start point and waypoints,
 each moved by seeded noise -- as a smooth path timed with a minimum-jerk profile (at rest at
 both ends, like a human reaching motion), sampled every ``dt`` seconds and read by the task's
@@ -54,6 +54,7 @@ class Task(Protocol):
 
     def sensors(self, X: npt.ArrayLike, latent: npt.ArrayLike | None = None
                 ) -> npt.NDArray[np.bool_]: ...
+
 
 __all__ = ["Demonstrator", "Script", "min_jerk_path", "write_demos"]
 

@@ -21,8 +21,9 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import ModelError
+from tli_verify.tasks import formula
 from tli_verify.tasks.regions import Polytope
-from tli_verify.tasks.task import Task
+from tli_verify.tasks.task import FormulaSensors, NamedRegion, Partition, Task
 
 __all__ = ["ConvexMode", "Demo", "SingleModeTask", "make_task", "polygon_task",
            "random_convex_mode"]
@@ -118,9 +119,6 @@ class Demo:
 def polygon_task(mode: ConvexMode, workspace: float, *, name: str = "single-mode") -> Task:
     """The task of one convex mode: the polygon is region ``mode`` of the square workspace
     ``[0, workspace]^2`` (the rest is ``outside``), read by the one sensor ``inside``."""
-    from tli_verify.tasks import formula
-    from tli_verify.tasks.task import FormulaSensors, NamedRegion, Partition
-
     partition = Partition((NamedRegion("mode", mode, "#9ed99b"),), "outside", "#ffffff")
     sensors = FormulaSensors(partition, (("inside", formula.parse(
         "mode", names={"mode", "outside"}, where=f"{name}: sensors.inside")),))

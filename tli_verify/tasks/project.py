@@ -34,11 +34,17 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from tli_verify.errors import TaskError
+from tli_verify.errors import TaskError, TliError
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Goal, Task
+
+if TYPE_CHECKING:
+    from tli_verify.logic.automaton import TaskAutomaton
+    from tli_verify.logic.spec import GR1Spec
 
 __all__ = [
     "CERTIFICATE_SUFFIX",
@@ -47,6 +53,8 @@ __all__ = [
     "ModelFiles",
     "Resolved",
     "check_fit",
+    "check_goal",
+    "goal_of",
     "model_files",
     "model_stem",
     "project_root",
@@ -197,8 +205,6 @@ def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     """
     if spec is None:
         return []
-    from tli_verify.errors import TliError
-    from tli_verify.logic.spec import load_spec
 
     found = [Path(spec)]
     try:
@@ -225,15 +231,12 @@ def model_inputs(model: str | os.PathLike[str] | None, spec: Any = None) -> list
     -------
     list of Path
     """
-    from tli_verify.errors import TliError
-
     found: list[Path] = []
     if model is not None:
         found.append(Path(model))
         files = model_files(model)
         found += [files.certificate, files.evidence]
         if spec is None and Path(model).is_file():
-            from tli_verify.model.serialize import load_model
 
             try:
                 spec = load_model(model).spec_path
@@ -269,9 +272,6 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
         start from; a spec that is not the one the model names; a missing file; a model whose
         dimension, or a spec whose inputs, differ from the task's (:func:`check_fit`).
     """
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
-
     loaded: Task | None = None
     if isinstance(task, Task):
         loaded = task
@@ -326,12 +326,52 @@ def resolve(*, task: str | os.PathLike[str] | Task | None = None,
                         + ("" if certificate is not None else
                            f" (the certificate of {model_path} by the project layout; run "
                            f"tli certify {model_path}, or pass --certificate)"))
-    goal = (Goal(spec_doc.goal_modes, spec_doc.goal_sensors)
-            if spec_doc.goal_modes is not None or spec_doc.goal_sensors else loaded.goal)
+    goal = goal_of(spec_doc, loaded)
     resolved = Resolved(task=loaded, spec=spec_path, model=model_path, certificate=cert_path,
                         evidence=files.evidence, goal=goal, spec_task=named_task)
     check_fit(resolved, spec_doc, model_doc if model_doc is not None else load_model(model_path))
     return resolved
+
+
+def check_goal(automaton: TaskAutomaton, goal: Goal, *, where: str) -> tuple[str, ...]:
+    """The goal modes, checked: every mode the automaton can run reaches one of them.
+
+    Returns
+    -------
+    tuple of str
+        The goal modes (the sink modes when the goal names none).
+
+    Raises
+    ------
+    TaskError
+        (exit 2) A goal mode the automaton never runs, a goal with no mode (no sink and none
+        named), or a mode from which the mode graph cannot reach the goal.
+    """
+    run = sorted({s.mode for s in automaton.states})
+    modes = tuple(automaton.sink_modes()) if goal.modes is None else tuple(goal.modes)
+    if not modes:
+        raise TaskError(f"{where}: the automaton {automaton.name!r} has no sink mode, so an "
+                        "episode never ends: name the goal ([goal] modes = [...] in the spec "
+                        "or the task)")
+    absent = [m for m in modes if m not in run]
+    if absent:
+        raise TaskError(f"{where}: goal mode {absent[0]!r} is never run by the automaton "
+                        f"{automaton.name!r} (it runs {', '.join(run)})")
+    dist = automaton.mode_distances(list(modes))
+    stuck = [m for m in run if m not in dist]
+    if stuck:
+        raise TaskError(f"{where}: the automaton {automaton.name!r} cannot reach the goal "
+                        f"({', '.join(modes)}) from mode {stuck[0]!r}: no path in its mode "
+                        "graph, so no episode from there can succeed")
+    return modes
+
+
+def goal_of(spec: GR1Spec, task: Task) -> Goal:
+    """The goal rule: the spec's ``[goal]``, else the task's ``[goal]`` (else, later, the
+    automaton's sink modes: :func:`check_goal`)."""
+    if spec.goal_modes is not None or spec.goal_sensors:
+        return Goal(spec.goal_modes, spec.goal_sensors)
+    return task.goal
 
 
 def check_fit(resolved: Resolved, spec: Any, model: Any) -> None:

@@ -4,7 +4,7 @@
 
 1. ``REF`` names a file (it exists, or ends in ``.toml``): that task file;
 2. else ``REF`` is a name: ``tasks/REF.toml`` of the project given (the folder a spec or
-   model lives in), then the bundled ``tasks/REF.toml`` (the paper's worlds), then the entry
+   model lives in), then the bundled ``tasks/REF.toml`` (the paper's tasks), then the entry
    point ``REF`` of group ``tli_verify.tasks`` (a Python package's task);
 3. else an error listing the names known.
 
@@ -27,22 +27,24 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
+from tli_verify.arguments import check_path
 from tli_verify.errors import TaskError, TliError
+from tli_verify.io import bundled_dir
+from tli_verify.tasks.formula import is_name
 from tli_verify.tasks.plugins import (
     ENTRY_POINT_GROUP,
     _entry_points,
     entry_point,
     entry_point_source,
 )
-from tli_verify.tasks.task import Task, load_task
+from tli_verify.tasks.task import Task, TaskSource
+from tli_verify.tasks.taskfile import load_task
 
 __all__ = ["ENTRY_POINT_GROUP", "bundled_tasks", "entry_point", "entry_point_source",
            "find_task", "task_names"]
 
 
-
 def _bundled_dir() -> Path | None:
-    from tli_verify.io import bundled_dir
 
     try:
         return bundled_dir("tasks")
@@ -100,8 +102,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         (exit 2) An unknown name (the message lists the known ones), a file that does not
         load, an entry point that is not a task.
     """
-    from tli_verify.arguments import check_path
-
     check_path(ref, "task", error=TaskError)
     text = os.fspath(ref)
     p = Path(text)
@@ -109,7 +109,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
         if not p.is_file():
             raise TaskError(f"{p}: no such task file")
         return _from_file(p)
-    from tli_verify.tasks.formula import is_name
 
     if not is_name(text.replace("-", "_")):
         raise TaskError(f"--task {text!r}: neither a task file nor a task name")
@@ -139,8 +138,6 @@ def find_task(ref: str | os.PathLike[str], *, project: str | os.PathLike[str] | 
             raise TaskError(f"entry point {text!r} is not a task (it may be a sensor model: "
                             "name it from a task file's sensor_model)")
         from dataclasses import replace
-
-        from tli_verify.tasks.task import TaskSource
 
         if task.source.kind == "code":
             task = replace(task, source=TaskSource("entry-point", entry_point=text,

@@ -20,8 +20,8 @@ def task_text(name: str, dim: int) -> str:
     rest = [0.0] * (dim - 1)
     lo_rest, hi_rest = [-0.3] * (dim - 1), [0.3] * (dim - 1)
     names = ", ".join(f'"x{i}"' for i in range(dim))
-    return f'''# Task "{name}": what the world is (../specs/{name}.toml says what to do).
-# Reference: tli_verify.tasks.task (format), tli_verify.tasks.formula (sensor formulas).
+    return f'''# Task "{name}": what the environment is (../specs/{name}.toml says what to do).
+# Reference: tli_verify.tasks.taskfile (format), tli_verify.tasks.formula (sensor formulas).
 name = "{name}"
 description = "A reaching task: approach the zone, cross it to the goal, stay done."
 lag = 0                      # sensor lag in control steps
@@ -95,7 +95,7 @@ a = "!z & !g"                # approach the zone
 b = "z & !g"                 # cross the zone to the goal
 c = "g"                      # done
 
-[assume]                     # what the world can do
+[assume]                     # what the environment can do
 init = "!z & !g"
 safety = [
   "G((!z & !g) -> X !g)",    # the goal is entered from the zone only (the latch's set)

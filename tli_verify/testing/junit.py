@@ -21,6 +21,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from tli_verify.io import atomic_write_text
+
 __all__ = ["junit_xml", "write_junit"]
 
 _BAD_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
@@ -125,8 +127,6 @@ def write_junit(result: Any, path: str | os.PathLike[str], *,
                 counterexample: str | os.PathLike[str] | None = None) -> Path:
     """Write :func:`junit_xml` to ``path`` atomically (:func:`tli_verify.io.atomic_write_text`;
     missing folders created)."""
-    from tli_verify.io import atomic_write_text
-
     p = Path(path)
     atomic_write_text(p, junit_xml(result, counterexample=counterexample))
     return p

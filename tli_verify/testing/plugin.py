@@ -41,8 +41,9 @@ Options
 
 from __future__ import annotations
 
+import argparse
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -62,6 +63,7 @@ class _State:
     examples: int | None = None
     seed: int | None = None
     cases: list[Path] = field(default_factory=list)
+    irregular: list[Path] = field(default_factory=list)  # FIFOs, devices, dangling links
     saved: tuple[Path | None, Path | None] = (None, None)
     touched: bool = False
 
@@ -70,24 +72,23 @@ _KEY = pytest.StashKey[_State]()
 
 
 # ------------------------------------------------------------------------------ options
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise pytest.UsageError(f"--tli-examples: expected an integer, got {text!r}") from None
-    if value < 1:
-        raise pytest.UsageError(f"--tli-examples: must be >= 1, got {value}")
-    return value
+def _usage(option: str, lo: int) -> Callable[[str], int]:
+    """``int_range(lo)`` of :mod:`tli_verify.arguments` (imported on use: the plugin stays
+    inert for a run that does not use it), its error a pytest usage error naming the option."""
+
+    def parse(text: str) -> int:
+        from tli_verify.arguments import int_range
+
+        try:
+            return int_range(lo)(text)
+        except argparse.ArgumentTypeError as exc:
+            raise pytest.UsageError(f"{option}: {exc}") from None
+
+    return parse
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise pytest.UsageError(f"--tli-seed: expected an integer, got {text!r}") from None
-    if value < 0:
-        raise pytest.UsageError(f"--tli-seed: must be >= 0, got {value}")
-    return value
+_count = _usage("--tli-examples", 1)
+_seed = _usage("--tli-seed", 0)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -172,9 +173,7 @@ def pytest_configure(config: pytest.Config) -> None:
         for d in st.cases:
             for f in sorted(d.glob("*.json")):
                 if not f.is_file():  # a FIFO, a device, a dangling link: never an argument
-                    config.issue_config_time_warning(pytest.PytestConfigWarning(
-                        f"{f}: not a regular file, so not a case file: skipped (a FIFO or "
-                        "/dev/zero would never end)"), stacklevel=2)
+                    st.irregular.append(f)  # (pytest would abort on it): a failing item
                     continue
                 if not any(f == r or f.is_relative_to(r) for r in roots if r.is_dir()
                            or r == f):
@@ -249,12 +248,23 @@ def _ours(item: pytest.Item) -> bool:
                                            for s in given.values())
 
 
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Settings of the hypothesis tests of a closed loop (:func:`_ours`): no deadline unless
+def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,
+                                   items: list[pytest.Item]) -> None:
+    """A ``*.json`` in a ``--tli-cases`` folder that is not a regular file (a FIFO, a link to
+    ``/dev/zero``, a dangling link) is a case item that fails in one line naming it (pytest
+    itself would abort the session on it, or never finish reading it).
+
+    Settings of the hypothesis tests of a closed loop (:func:`_ours`): no deadline unless
     the test set one (a run simulates thousands of control steps: hypothesis's 200 ms
     default would fail it at random), ``--tli-examples`` (max_examples) and ``--tli-seed``
     (the seed, and no example database: the run is the seed's). Other tests are untouched."""
     import sys
+
+    st0 = config.stash.get(_KEY, None)
+    if st0 is not None and st0.irregular:
+        for f in st0.irregular:
+            items.extend(CaseFile.from_parent(session, path=f).collect())
+        st0.irregular.clear()
 
     if "hypothesis" not in sys.modules:  # no hypothesis test was collected
         return

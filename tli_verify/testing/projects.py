@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import os
 import sys
-import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tli_verify.errors import TaskError
+from tli_verify.project import locate
+from tli_verify.tasks.project import project_root
 
 if TYPE_CHECKING:  # pragma: no cover - types only (the imports below are lazy)
     from tli_verify.tasks.project import Resolved
@@ -26,8 +26,6 @@ if TYPE_CHECKING:  # pragma: no cover - types only (the imports below are lazy)
 __all__ = ["DEFAULTS", "Defaults", "Project", "default_project", "default_root", "project"]
 
 PathLike = str | os.PathLike[str]
-_MARKERS = ("models", "specs", "tasks")
-"""Folders that make a directory a project (``tli init`` writes them)."""
 
 
 @dataclass(slots=True)
@@ -103,7 +101,7 @@ class Project:
 
     @property
     def loaded(self) -> Loaded:
-        """The loaded setup (world, automaton, model, policy, oracle; cached per process)."""
+        """The loaded setup (task, automaton, model, policy, oracle; cached per process)."""
         from tli_verify.verify.simulate import load
 
         return load(self.sim)
@@ -194,7 +192,8 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     root: Path | None = None
     if path is not None or not any(files.values()):
         where = Path(os.path.abspath(path if path is not None else default_root()))
-        kind, found, root = _locate(where, files)
+        kind, found, root = locate(where, given_spec_or_model=bool(files.get("model")
+                                                                    or files.get("spec")))
         if kind is not None and files.get(kind) is None:
             files[kind] = str(found)
     cfg = CampaignConfig(task=files["task"], spec=files["spec"], model=files["model"],
@@ -203,7 +202,6 @@ def project(path: PathLike | None = None, *, task: PathLike | None = None,
     resolved, filled = resolve_config(cfg)
     sim = _absolute(sim_spec(filled))
     if root is None:
-        from tli_verify.tasks.project import project_root
 
         root = Path(os.path.abspath(project_root(sim.model)))
     out = Project(root=root, resolved=resolved, config=filled, sim=sim,
@@ -270,49 +268,6 @@ def _rel(path: str, root: Path) -> str:
         return str(Path(path).relative_to(root))
     except ValueError:
         return str(path)
-
-
-def _locate(where: Path, given: dict[str, str | None]) -> tuple[str | None, Path, Path | None]:
-    """What ``path`` names: ``(kind, file, project root)``, kind one of ``"model"``,
-    ``"spec"``, ``"task"`` or None (a project folder whose other files are given)."""
-    from tli_verify.tasks.project import project_root
-
-    if where.is_file() and where.suffix == ".json":
-        return "model", where, Path(os.path.abspath(project_root(where)))
-    if where.is_file() and where.suffix == ".toml":
-        return _toml_kind(where), where, Path(os.path.abspath(project_root(where)))
-    if not where.exists():
-        raise TaskError(f"{where}: no such project folder or file")
-    start = where if where.is_dir() else where.parent
-    root = next((d for d in (start, *start.parents)
-                 if any((d / m).is_dir() for m in _MARKERS)), None)
-    if root is None:
-        raise TaskError(f"{where}: not in a project (no models/, specs/ or tasks/ folder here "
-                        "or above it): pass a model, spec or task")
-    if given.get("model") or given.get("spec"):
-        return None, root, root
-    models = sorted((root / "models").glob("*.model.json"))
-    if len(models) == 1:
-        return "model", models[0], root
-    if len(models) > 1:
-        raise TaskError(f"{root}: {len(models)} models in models/ "
-                        f"({', '.join(m.name for m in models[:6])}"
-                        f"{', ...' if len(models) > 6 else ''}): pass model=")
-    specs = sorted((root / "specs").glob("*.toml"))
-    if len(specs) == 1:
-        return "spec", specs[0], root
-    raise TaskError(f"{root}: no model in models/ and {len(specs)} specs in specs/: pass "
-                    "model= or spec= (learn and certify a model first: tli learn, tli certify)")
-
-
-def _toml_kind(path: Path) -> str:
-    """``"task"`` for a task file (a ``[state]`` table), else ``"spec"``."""
-    try:
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
-    except (OSError, tomllib.TOMLDecodeError):
-        return "spec"  # the spec reader says what is wrong
-    return "task" if "state" in doc else "spec"
 
 
 def _absolute(sim: SimSpec) -> SimSpec:

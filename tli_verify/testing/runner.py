@@ -22,6 +22,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.errors import CampaignError
+from tli_verify.io import atomic_write_text, canonical_json
+from tli_verify.limits import MAX_CAMPAIGN_STEPS
+
 if TYPE_CHECKING:  # pragma: no cover - types only
     from tli_verify.testing.projects import Project
     from tli_verify.verify.oracle import Verdict
@@ -41,8 +45,6 @@ def _budget(proj: Project, cases: Sequence[Case], budget: int | None) -> int:
     """The step budget of a batch: the certified one (the last perturbation's step plus the
     worst-case deadline), unless given."""
     if budget is not None:
-        from tli_verify.errors import CampaignError
-        from tli_verify.limits import MAX_CAMPAIGN_STEPS
 
         top = max(MAX_CAMPAIGN_STEPS, int(proj.loaded.budget))
         if not isinstance(budget, int) or isinstance(budget, bool) or not 1 <= budget <= top:
@@ -93,7 +95,6 @@ def check_many(project: Project, cases: Sequence[Case], *, budget: int | None = 
     list of Verdict
         In the order of ``cases``.
     """
-    from tli_verify.errors import CampaignError
     from tli_verify.verify.simulate import simulate
 
     if not isinstance(batch_size, int) or isinstance(batch_size, bool) or batch_size < 1:
@@ -287,7 +288,6 @@ def save_case(project: Project, case: Case, verdict: Verdict, *,
     ValueError
         The verdict violates nothing.
     """
-    from tli_verify.io import atomic_write_text, canonical_json
     from tli_verify.verify.cases import case_document
 
     doc = case_document(project.sim, case, verdict, seed=seed, shrunk=_in_hypothesis())

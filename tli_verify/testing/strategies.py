@@ -14,12 +14,17 @@ import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from tli_verify.errors import CampaignError
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.tasks.registry import find_task
+from tli_verify.testing.projects import Project, default_project
+from tli_verify.verify.simulate import start_regions
 from tli_verify.verify.strategies import LEVELS
+from tli_verify.verify.strategies import cases as _cases
 
 if TYPE_CHECKING:  # pragma: no cover - types only
     from hypothesis.strategies import SearchStrategy
 
-    from tli_verify.testing.projects import Project
     from tli_verify.verify.strategies import Case
 
 __all__ = ["MARK", "cases", "is_tli_strategy"]
@@ -97,8 +102,6 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
     if project_or_task is None:
         from hypothesis import strategies as st
 
-        from tli_verify.testing.projects import default_project
-
         out: SearchStrategy[Case] = st.deferred(lambda: _build(default_project(), options))
     else:
         out = _build(project_or_task, options)
@@ -109,16 +112,10 @@ def cases(project_or_task: Project | Any | str | os.PathLike[str] | None = None,
 def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
     import numpy as np
 
-    from tli_verify.errors import CampaignError
-    from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
-    from tli_verify.testing.projects import Project
-    from tli_verify.verify.strategies import cases as _cases
-
     proj = source if isinstance(source, Project) else None
     if proj is not None:
         task = proj.task
     elif isinstance(source, str | os.PathLike):
-        from tli_verify.tasks.registry import find_task
 
         task = find_task(source)
     elif hasattr(source, "perturbations") and hasattr(source, "starts"):
@@ -149,7 +146,6 @@ def _build(source: Any, o: dict[str, Any]) -> SearchStrategy[Case]:
     regions: tuple[str, ...] | None = None
     if random_starts:
         if proj is not None:
-            from tli_verify.verify.simulate import start_regions
 
             regions = start_regions(task, proj.loaded.automaton)
         if task.starts.region is not None:

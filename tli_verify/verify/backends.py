@@ -18,6 +18,7 @@ keeps the results it got and writes a partial report.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, Protocol, TypeVar
@@ -76,6 +77,49 @@ def _init_worker() -> None:
         pass
 
 
+@contextlib.contextmanager
+def _ctrl_c_deferred() -> Iterator[None]:
+    """Hold SIGINT pending (blocked) in the main thread for the duration: a Ctrl-C that arrives
+    meanwhile is delivered, once, when the block ends. Starting a worker from the fork server
+    connects to the server and then writes the worker's preparation data: a KeyboardInterrupt
+    between the two left a half-born worker that printed an ``EOFError`` traceback from
+    ``spawn._main`` on the user's terminal (issue 32, part 5). A no-op outside the main
+    thread (signals are delivered to the main thread only)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+def _start_forkserver_without_ctrl_c() -> None:
+    """Start multiprocessing's fork server with SIGINT ignored, so that every worker forked
+    from it starts with SIGINT ignored (a worker restores the server's own SIGINT disposition
+    at birth: with Python's default, a Ctrl-C in the instant before :func:`_init_worker` ran
+    printed a KeyboardInterrupt traceback from the worker). SIGINT is blocked meanwhile in the
+    driver, so a Ctrl-C in that instant stays pending and is handled afterwards (Linux keeps a
+    blocked signal pending even while its action is to ignore it). A no-op outside the main
+    thread or when the server already runs."""
+    import signal
+    import threading
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    with _ctrl_c_deferred():
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+
 class ProcessBackend:
     """Batches on local worker processes (:class:`~concurrent.futures.ProcessPoolExecutor`).
 
@@ -110,6 +154,8 @@ class ProcessBackend:
                 "(or use backend=\"serial\")")
 
         ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
+        if os.name != "nt":
+            _start_forkserver_without_ctrl_c()
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
                                    initializer=_init_worker)
 
@@ -133,7 +179,8 @@ class ProcessBackend:
             while pending:
                 if self._pool is None:
                     self._pool = self._new_pool()
-                futures = {self._pool.submit(fn, items[i]): i for i in sorted(pending)}
+                with _ctrl_c_deferred():  # submit starts the workers: none is left half-born
+                    futures = {self._pool.submit(fn, items[i]): i for i in sorted(pending)}
                 broken = False
                 while futures:
                     done, _ = wait(futures, return_when=FIRST_COMPLETED)

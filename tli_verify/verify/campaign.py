@@ -26,7 +26,7 @@ deadline (:meth:`~tli_verify.verify.oracle.Oracle.budget`); a run also ends at a
 a looping watchdog ends it once it has changed mode so often that the oracle's loop bound is
 exceeded (:class:`~.simulate.LoopWatchdog`).
 
-A counterexample is saved as a JSON case (:func:`case_document`): world, the files and their
+A counterexample is saved as a JSON case (:func:`case_document`): task, the files and their
 SHA-256, start, perturbation sequence, seed, expected violation; :func:`replay_case` replays it
 deterministically (``tli replay``).
 """
@@ -43,6 +43,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from tli_verify.arguments import check_type
+from tli_verify.errors import CampaignError
+from tli_verify.verify.backends import make_backend
 from tli_verify.verify.cases import bound_files, case_document
 from tli_verify.verify.config import CampaignConfig, resolve_config, sim_spec
 from tli_verify.verify.draws import chunk_seed, config_strategy, draw_chunks
@@ -176,7 +179,6 @@ class CampaignResult:
             "events": list(self.events),
         }
 
-
 # ------------------------------------------------------------------------------ setup
 
 
@@ -239,10 +241,6 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     WorkerLost
         A batch's worker died more than twice.
     """
-    from tli_verify.arguments import check_type
-    from tli_verify.errors import CampaignError
-    from tli_verify.verify.backends import make_backend
-
     check_type(config, "config", CampaignConfig, "a CampaignConfig", error=CampaignError)
     t0 = time.perf_counter()
     events: list[str] = []
@@ -366,4 +364,4 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
         partial=partial, outcomes=ordered, seconds=time.perf_counter() - t0,
         inconclusive=sum(1 for o in ordered if not o.verdict.conclusive),
         shrink_steps=shrink_steps, events=tuple(events),
-        files=bound_files(spec), task_name=ld.world.name)
+        files=bound_files(spec), task_name=ld.task.name)

@@ -17,7 +17,10 @@ from typing import Any
 import numpy as np
 
 from tli_verify.errors import CampaignError, TaskError, TliError
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.io import bundled_root, read_json, validate_schema
+from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_INPUT_BYTES, MAX_PUSHES
+from tli_verify.tasks.project import resolve
+from tli_verify.tasks.registry import find_task
 from tli_verify.verify.config import SimSpec, task_ref
 from tli_verify.verify.oracle import (
     Verdict,
@@ -48,8 +51,6 @@ CASE_VERSION = 2
 
 def _shown_path(path: str) -> str:
     """A file's path relative to the repository root when under it, else absolute."""
-    from tli_verify.io import bundled_root
-
     try:
         root = Path(os.path.realpath(bundled_root()))
     except TliError:
@@ -117,7 +118,6 @@ def _located(case_path: Path, fp: Path) -> Path:
     repository root (the bundled files' parent)."""
     if fp.is_absolute():
         return fp
-    from tli_verify.io import bundled_root
 
     candidates = [case_path.parent / fp]
     with contextlib.suppress(TliError):
@@ -179,8 +179,6 @@ def _hash_input(fp: Path, p: Path, field_: str) -> str:
     """
     import hashlib
 
-    from tli_verify.limits import MAX_INPUT_BYTES
-
     try:
         with open(fp, "rb") as handle:
             data = handle.read(MAX_INPUT_BYTES + 1)
@@ -201,8 +199,6 @@ def _case_task(doc: dict[str, Any], p: Path) -> tuple[Any, str]:
     CampaignError
         (exit 2) A missing task file, an unknown task or one that does not load.
     """
-    from tli_verify.tasks.registry import find_task
-
     if doc["version"] == 1:  # a bundled world by name
         field_, ref = "world", doc["world"]
     else:
@@ -237,9 +233,6 @@ def read_case(path: str | os.PathLike[str]) -> tuple[dict[str, Any], SimSpec, Ca
         (exit 2) Unreadable, malformed, or naming missing files or files that do not fit; one
         line naming the case file and the field.
     """
-    from tli_verify.io import read_json, validate_schema
-    from tli_verify.tasks.project import resolve
-
     p = Path(path)
     if not p.is_file():
         raise CampaignError(f"{p}: no such case file")

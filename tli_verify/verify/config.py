@@ -15,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from tli_verify.errors import CampaignError
-from tli_verify.limits import MAX_CAMPAIGN_STEPS, MAX_PUSHES
+from tli_verify.io import sha256_file
+from tli_verify.limits import MAX_BATCH_SIZE, MAX_CAMPAIGN_STEPS, MAX_EXAMPLES, MAX_PUSHES, MAX_SEED
+from tli_verify.tasks.project import resolve
 from tli_verify.verify.strategies import (
     LEVELS,
 )
@@ -104,7 +106,6 @@ class CampaignConfig:
         CampaignError
             (exit 2) Naming the field.
         """
-        from tli_verify.limits import MAX_BATCH_SIZE, MAX_EXAMPLES, MAX_SEED
 
         def whole(name: str, lo: int, hi: int, *, optional: bool = False) -> None:
             v = getattr(self, name)
@@ -195,8 +196,6 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
         (exit 2) Missing files, a model or spec that does not fit the task, a start outside
         the workspace or of the wrong dimension.
     """
-    from tli_verify.tasks.project import resolve
-
     resolved = resolve(task=cfg.task, spec=cfg.spec, model=cfg.model,
                        certificate=cfg.certificate, lag=cfg.lag)
     task = resolved.task
@@ -232,8 +231,6 @@ def sim_spec(cfg: CampaignConfig) -> SimSpec:
     CampaignError, TaskError
         (exit 2) Unknown task, missing files, files that do not fit.
     """
-    from tli_verify.io import sha256_file
-
     resolved, filled = resolve_config(cfg)
     ref, sha = task_ref(resolved.task)
     assert filled.window is not None

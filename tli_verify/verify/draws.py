@@ -34,7 +34,7 @@ __all__ = [
 def config_strategy(cfg: CampaignConfig, ld: Loaded) -> Any:
     """The cases of a filled-in config (:func:`resolve_config`): its start or random starts,
     the task's perturbation bound."""
-    task = ld.world
+    task = ld.task
     assert cfg.max_pushes is not None
     assert cfg.window is not None
     regions = None

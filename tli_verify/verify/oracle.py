@@ -5,7 +5,7 @@ The oracle is independent of the policy code (:mod:`tli_verify.runtime.executive
 * the **trace**: the states, the state each sensor reading was taken at, the modes the policy
   ran, the steps that were perturbed, and the cuts the policy reported (data, re-checked
   geometrically);
-* the **world's true regions and sensor model** (:meth:`~tli_verify.worlds.base.WorldBase.sensors`,
+* the **task's true regions and sensor model** (:meth:`~tli_verify.tasks.task.Task.sensors`,
   the vectorised whole-history scan, not the runtime's incremental reader);
 * the **task automaton** (:mod:`tli_verify.logic.automaton`), run by the oracle itself on the
   recomputed readings;
@@ -78,7 +78,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.errors import TliError
+from tli_verify.certification.reach import max_v_on_box
+from tli_verify.errors import CertificateError, TliError
+from tli_verify.io import read_json
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.runtime.events import mode_sequence
+from tli_verify.tasks.task import Task
 
 __all__ = [
     "PRIORITY",
@@ -292,13 +297,13 @@ class _ModeParams:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Oracle:
-    """The four checks (module docstring) for one world, automaton, model and certificate.
+    """The four checks (module docstring) for one task, automaton, model and certificate.
 
     Build it with :meth:`build`. Attributes are the precomputed data; :meth:`check` is pure.
 
     Attributes
     ----------
-    world : World
+    task : Task
     automaton : TaskAutomaton
     dt : float
         The loop's control period.
@@ -323,7 +328,7 @@ class Oracle:
         Distance under which a cut face counts as touched.
     """
 
-    world: Any
+    task: Task
     automaton: Any
     dt: float
     goals: frozenset[str]
@@ -340,7 +345,7 @@ class Oracle:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def build(cls, world: Any, automaton: Any, model: Any,
+    def build(cls, task: Task, automaton: Any, model: Any,
               certificate: str | os.PathLike[str] | Mapping[str, Any], *, dt: float,
               max_cycles: int | None = None, max_cuts: int | None = None,
               factor: float = 1.5, slack: int = 50,
@@ -350,7 +355,7 @@ class Oracle:
 
         Parameters
         ----------
-        world : World
+        task : Task
         automaton : TaskAutomaton
         model : Model
             The certified model (attractors, ``A_k``; ``next_mode`` of each DS).
@@ -373,12 +378,9 @@ class Oracle:
         TliError
             (exit 2) The certificate lacks a DS the plan runs, or cannot be read.
         """
-        from tli_verify.errors import CertificateError
-
         if isinstance(certificate, Mapping):
             doc: Mapping[str, Any] = certificate
         else:
-            from tli_verify.io import read_json
 
             doc = read_json(certificate, what="certificate", error=CertificateError)
         run_modes = sorted({s.mode for s in automaton.states})
@@ -426,14 +428,14 @@ class Oracle:
             eig = np.linalg.eigvalsh(P)
             params[m] = _ModeParams(P=P, attractor=np.asarray(ds.attractor, dtype=np.float64),
                                     rate=rate, rho=rho,
-                                    radius=max(float(world.clearance(ds.attractor)), 1e-9),
+                                    radius=max(float(task.clearance(ds.attractor)), 1e-9),
                                     lam_min=float(eig.min()), lam_max=float(eig.max()))
-        return cls(world=world, automaton=automaton, dt=float(dt), goals=goals,
+        return cls(task=task, automaton=automaton, dt=float(dt), goals=goals,
                    planned=planned, path=path, params=params,
                    max_cycles=len(automaton.modes) if max_cycles is None else int(max_cycles),
                    max_cuts=(3 * len(automaton.modes) if max_cuts is None else int(max_cuts)),
                    factor=float(factor), slack=int(slack), touch_tol=float(touch_tol),
-                   goal_inputs=frozenset(goal_inputs), _names=tuple(world.sensor_names))
+                   goal_inputs=frozenset(goal_inputs), _names=tuple(task.sensor_names))
 
     # ------------------------------------------------------------------ deadlines
     def deadline_steps(self, mode: str, x: npt.ArrayLike | None = None) -> int:
@@ -446,20 +448,18 @@ class Oracle:
             0 in a goal mode (of a goal without sensors; a goal with sensors, e.g. a cyclic
             task's release, counts its own DS too: the sensors read true where it converges).
         """
-        from tli_verify.certification.reach import max_v_on_box
-
         seq = self.path.get(mode, (mode,))
         total = 0.0
         v = 0.0
         prev: _ModeParams | None = None
-        lag = int(getattr(self.world, "lag", 0))
+        lag = int(getattr(self.task, "lag", 0))
         for m in seq:
             if m in self.goals and (not self.goal_inputs or m not in self.params):
                 break
             p = self.params[m]
             if prev is None:
                 if x is None:
-                    v = max_v_on_box(p.P, p.attractor, self.world.lo, self.world.hi)
+                    v = max_v_on_box(p.P, p.attractor, self.task.lo, self.task.hi)
                 else:
                     e = np.asarray(x, dtype=np.float64) - p.attractor
                     v = float(e @ p.P @ e)
@@ -486,7 +486,7 @@ class Oracle:
 
     # ------------------------------------------------------------------ checks
     def readings(self, traces: Sequence[Trace]) -> list[list[frozenset[str]]]:
-        """The world's readings along each trace's read states (batched over traces: the runs
+        """The task's readings along each trace's read states (batched over traces: the runs
         are padded to one length with their last state, which leaves earlier readings
         unchanged since the sensor model is causal)."""
         if not traces:
@@ -498,7 +498,7 @@ class Oracle:
             k = len(tr.read_states)
             X[i, :k] = tr.read_states
             X[i, k:] = tr.read_states[-1]
-        R = self.world.sensors(X)  # (B, T, m)
+        R = self.task.sensors(X)  # (B, T, m)
         weights = 1 << np.arange(R.shape[2], dtype=np.int64)
         codes = (R.astype(np.int64) * weights).sum(axis=2)
         table = {c: frozenset(nm for j, nm in enumerate(self._names) if (c >> j) & 1)
@@ -516,7 +516,6 @@ class Oracle:
         return self.check_many([trace])[0]
 
     def _check(self, tr: Trace, readings: list[frozenset[str]]) -> Verdict:
-        from tli_verify.logic.automaton import AssumptionViolation
 
         aut = self.automaton
         viol: list[Violation] = []
@@ -543,7 +542,7 @@ class Oracle:
                                       f"automaton picks {modes[t]!r} for reading "
                                       f"{sorted(readings[t])}"))
                 break
-        lag = int(getattr(self.world, "lag", 0))
+        lag = int(getattr(self.task, "lag", 0))
         pushes = sorted(tr.pushes)
         push_set = set(pushes)
         last_push = pushes[-1] if pushes else 0
@@ -639,7 +638,7 @@ class Oracle:
                                           f"at step {ref})"))
                     slack_frac = (deadline - T) / max(n, 1)
         # margins and coverage
-        size = float(np.max(np.asarray(self.world.hi) - np.asarray(self.world.lo)))
+        size = float(np.max(np.asarray(self.task.hi) - np.asarray(self.task.lo)))
         cut_margin = math.inf
         touched = 0
         idx = np.arange(len(modes))
@@ -683,7 +682,7 @@ class Oracle:
                        beyond_workspace=self._beyond(tr.states))
 
     def _beyond(self, X: FloatArray) -> int:
-        inside = getattr(self.world, "in_workspace", None)
+        inside = getattr(self.task, "in_workspace", None)
         if inside is None:
             return 0
         return int(np.count_nonzero(~np.asarray(inside(X), dtype=bool)))
@@ -701,12 +700,12 @@ class Oracle:
         region it leaves through is the true region of the states before and after the exit.
         """
         X = tr.read_states
-        names = tuple(getattr(self.world, "region_names", ()))
+        names = tuple(getattr(self.task, "region_names", ()))
 
         def region(t: int) -> str:
             if not names:
                 return "?"
-            return str(names[int(self.world.region_index(X[t:t + 1])[0])])
+            return str(names[int(self.task.region_index(X[t:t + 1])[0])])
 
         def at(t: int) -> str:
             return "[" + ", ".join(f"{v:.3g}" for v in X[t].tolist()) + "]"
@@ -720,7 +719,7 @@ class Oracle:
                     f"spec's assumptions rule out from mode {prev} (a task/spec mismatch: "
                     "tli task check --spec finds such pairs)")
         pushes = set(tr.pushes)
-        lag = int(getattr(self.world, "lag", 0))
+        lag = int(getattr(self.task, "lag", 0))
         exits: dict[tuple[str, str], list[int]] = {}
         for t in range(max(t0, 1), end + 1):
             a, b = modes[t - 1], modes[t]
@@ -761,7 +760,6 @@ class Oracle:
 
 
 def _runs(modes: Sequence[str]) -> str:
-    from tli_verify.runtime.events import mode_sequence
 
     return mode_sequence(modes)
 

@@ -20,8 +20,19 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import CampaignError, TliError
+from tli_verify.io import sha256_file
+from tli_verify.logic.automaton import AssumptionViolation
+from tli_verify.logic.check import synthesize
+from tli_verify.logic.spec import load_spec
+from tli_verify.model.serialize import load_model
+from tli_verify.runtime.episodes import mode_string
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
+from tli_verify.runtime.loop import run_episodes
+from tli_verify.runtime.task_sensors import TaskSensors
+from tli_verify.tasks.project import check_goal, resolve
+from tli_verify.tasks.registry import find_task
+from tli_verify.tasks.task import Task
 from tli_verify.verify.config import SimSpec, task_ref
 from tli_verify.verify.oracle import (
     CutRecord,
@@ -122,9 +133,9 @@ class LoopWatchdog:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Loaded:
-    """A loaded setup: world, automaton, certified model, base policy, oracle."""
+    """A loaded setup: task, automaton, certified model, base policy, oracle."""
 
-    world: Any
+    task: Task
     automaton: Any
     model: Any
     certificate: str
@@ -142,8 +153,6 @@ def load_task(spec: SimSpec) -> Any:
     CampaignError
         (exit 2) The task changed since the campaign resolved it.
     """
-    from tli_verify.tasks.registry import find_task
-
     task = find_task(spec.task)
     _, sha = task_ref(task)
     if sha != spec.task_sha256:
@@ -162,19 +171,12 @@ def load(spec: SimSpec) -> Loaded:
         (exit 2) A file's SHA-256 differs from the driver's (the files changed under the
         campaign).
     """
-    from tli_verify.io import sha256_file
-    from tli_verify.runtime.setup import check_goal
-    from tli_verify.tasks.project import resolve
-
     for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
         if sha256_file(path) != want:
             raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
     task = load_task(spec)
     resolved = resolve(task=task, spec=spec.spec, model=spec.model,
                        certificate=spec.certificate)
-    from tli_verify.logic.check import synthesize
-    from tli_verify.logic.spec import load_spec
-    from tli_verify.model.serialize import load_model
 
     automaton = synthesize(load_spec(spec.spec))
     model = load_model(spec.model)
@@ -189,24 +191,22 @@ def load(spec: SimSpec) -> Loaded:
                           max_cycles=spec.max_cycles, goal_modes=goal_modes,
                           goal_inputs=goal_inputs)
     limit = 5 * (oracle.max_cycles + len(automaton.modes) + 1)
-    return Loaded(world=task, automaton=automaton, model=model,
+    return Loaded(task=task, automaton=automaton, model=model,
                   certificate=spec.certificate, policy=base, oracle=oracle,
                   budget=oracle.budget(spec.window), limit=limit)
 
 
-def start_regions(world: Any, automaton: Any) -> tuple[str, ...]:
+def start_regions(task: Task, automaton: Any) -> tuple[str, ...]:
     """The true regions whose first reading (from the initial latent state) is one the spec's
     initial assumption allows."""
-    from tli_verify.logic.automaton import AssumptionViolation
-
     out = []
-    for name in world.region_names:
+    for name in task.region_names:
         try:
-            x = world.sample_region(name, 1, np.random.default_rng(0))
+            x = task.sample_region(name, 1, np.random.default_rng(0))
         except TliError:
             continue
-        reading = world.sensors(x)[0]
-        true = [n for n, v in zip(world.sensor_names, reading.tolist(), strict=True) if v]
+        reading = task.sensors(x)[0]
+        true = [n for n, v in zip(task.sensor_names, reading.tolist(), strict=True) if v]
         try:
             automaton.initial_state(true)
         except AssumptionViolation:
@@ -230,9 +230,6 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
     -------
     list of (Trace, EpisodeResult)
     """
-    from tli_verify.runtime.loop import run_episodes
-    from tli_verify.runtime.worlds import WorldSensors
-
     ld = load(spec)
     if not cases_:
         return []
@@ -241,20 +238,20 @@ def simulate(spec: SimSpec, cases_: Sequence[Case], *, budget: int | None = None
         raise CampaignError(f"case start: expected {ld.model.dim} coordinates")
     tables = [c.table() for c in cases_]
     pushed: list[dict[int, FloatArray]] = [{} for _ in cases_]
-    world = ld.world
+    task = ld.task
 
     def perturb(i: int, t: int, x: FloatArray) -> FloatArray | None:
         p = tables[i].get(t)
         if p is None:
             return None
-        new = apply_push(world, x, p)
+        new = apply_push(task, x, p)
         pushed[i][t] = new
         return new
 
     policies = [ld.policy.fork() for _ in cases_]
     watchdog = LoopWatchdog([c.last_step for c in cases_], ld.limit, ld.oracle.max_cuts)
     memo: dict[Any, Any] = {}
-    sensors = [WorldSensors(world, cache=memo) for _ in cases_]
+    sensors = [TaskSensors(task, cache=memo) for _ in cases_]
     results = run_episodes(policies, sensors, X, steps=ld.budget if budget is None else budget,
                            perturb=perturb, stop=watchdog)
     out = []
@@ -288,15 +285,11 @@ def simulate_batch(job: tuple[SimSpec, Sequence[tuple[int, Case]]]) -> list[RunO
     """
     import threadpoolctl
 
-    from tli_verify.runtime.episodes import mode_string
-
     spec, items = job
     with threadpoolctl.threadpool_limits(1):
         sims = simulate(spec, [c for _, c in items])
         verdicts = load(spec).oracle.check_many([tr for tr, _ in sims])
     from collections import Counter
-
-    from tli_verify.runtime.events import CutAdded
 
     return [RunOutcome(index=i, verdict=v, steps=res.steps, cuts_added=res.cuts_added,
                        modes=mode_string(res),

@@ -15,7 +15,7 @@ strategies are public and composable, so users can write their own properties::
         assert verdict.ok
 
 Levels of a perturbation (applied at run time by :func:`apply_push`, on the state the push
-meets, using the world's *true regions*):
+meets, using the task's *true regions*):
 
 * ``"free"`` -- ``x + d`` clipped to the workspace (the paper's experiments: any direction,
   any magnitude up to the workspace size);
@@ -57,6 +57,7 @@ import numpy.typing as npt
 from hypothesis import strategies as st
 
 from tli_verify.errors import TliError
+from tli_verify.tasks.task import Task
 
 __all__ = [
     "LEVELS",
@@ -131,10 +132,10 @@ class Case:
         return {p.step: p for p in self.pushes}
 
 
-def workspace_size(world: Any) -> float:
-    """``D``: the largest side of the world's workspace box (16 for scoop)."""
-    return float(np.max(np.asarray(world.hi, dtype=np.float64)
-                        - np.asarray(world.lo, dtype=np.float64)))
+def workspace_size(task: Task) -> float:
+    """``D``: the largest side of the task's workspace box (16 for scoop)."""
+    return float(np.max(np.asarray(task.hi, dtype=np.float64)
+                        - np.asarray(task.lo, dtype=np.float64)))
 
 
 # ------------------------------------------------------------------------------ strategies
@@ -187,14 +188,14 @@ def displacements(dim: int, max_magnitude: float, *, min_magnitude: float = 0.0
         lambda md: tuple(md[0] * c for c in md[1]))
 
 
-def push_sequences(world: Any, *, max_pushes: int = 3, window: int = 700,
+def push_sequences(task: Task, *, max_pushes: int = 3, window: int = 700,
                    levels: Sequence[str] = LEVELS, max_magnitude: float | None = None,
                    min_pushes: int = 0) -> st.SearchStrategy[tuple[Push, ...]]:
     """Finite perturbation sequences over steps ``1..window`` (sorted, distinct steps).
 
     Parameters
     ----------
-    world : World
+    task : Task
         Its dimension, workspace box (magnitudes up to its size) and region names (targets
         of task-level pushes).
     max_pushes : int, optional
@@ -219,9 +220,9 @@ def push_sequences(world: Any, *, max_pushes: int = 3, window: int = 700,
     if bad or not levels:
         raise TliError(f"push_sequences: levels must be a non-empty subset of {LEVELS}, got "
                        f"{list(levels)}")
-    dim = len(world.lo)
-    size = workspace_size(world) if max_magnitude is None else float(max_magnitude)
-    regions = tuple(world.region_names)
+    dim = len(task.lo)
+    size = workspace_size(task) if max_magnitude is None else float(max_magnitude)
+    regions = tuple(task.region_names)
     ordered = tuple(lv for lv in LEVELS if lv in levels)
 
     early_s = st.integers(0, window - 1)
@@ -249,13 +250,13 @@ def push_sequences(world: Any, *, max_pushes: int = 3, window: int = 700,
         lambda seq: len(seq) >= min_pushes)
 
 
-def starts(world: Any, *, regions: Sequence[str] | None = None
+def starts(task: Task, *, regions: Sequence[str] | None = None
            ) -> st.SearchStrategy[tuple[float, ...]]:
     """Start states in the workspace box, in the given true regions.
 
     Parameters
     ----------
-    world : World
+    task : Task
     regions : sequence of str, optional
         Default: every region. A campaign passes the regions whose first reading the spec's
         initial assumption allows (:func:`tli_verify.verify.simulate.start_regions`; scoop:
@@ -265,9 +266,9 @@ def starts(world: Any, *, regions: Sequence[str] | None = None
     -------
     SearchStrategy of tuple of float
     """
-    lo = np.asarray(world.lo, dtype=np.float64)
-    hi = np.asarray(world.hi, dtype=np.float64)
-    names = tuple(world.region_names)
+    lo = np.asarray(task.lo, dtype=np.float64)
+    hi = np.asarray(task.hi, dtype=np.float64)
+    names = tuple(task.region_names)
     if regions is None:
         regions = names
     allowed = {names.index(r) for r in regions}
@@ -276,10 +277,10 @@ def starts(world: Any, *, regions: Sequence[str] | None = None
         return tuple(float(v) for v in lo + np.asarray(u) * (hi - lo))
 
     return (st.lists(st.floats(0.0, 1.0), min_size=lo.size, max_size=lo.size).map(point)
-            .filter(lambda x: int(world.region_index(np.asarray(x)[None])[0]) in allowed))
+            .filter(lambda x: int(task.region_index(np.asarray(x)[None])[0]) in allowed))
 
 
-def cases(world: Any, *, start: Sequence[float] | None = None, max_pushes: int = 3,
+def cases(task: Task, *, start: Sequence[float] | None = None, max_pushes: int = 3,
           window: int = 700, levels: Sequence[str] = LEVELS,
           max_magnitude: float | None = None, min_pushes: int = 0,
           start_regions: Sequence[str] | None = None) -> st.SearchStrategy[Case]:
@@ -287,7 +288,7 @@ def cases(world: Any, *, start: Sequence[float] | None = None, max_pushes: int =
 
     Parameters
     ----------
-    world : World
+    task : Task
     start : sequence of float, optional
         A fixed start; default: drawn in ``start_regions``.
     max_pushes, window, levels, max_magnitude, min_pushes
@@ -299,12 +300,12 @@ def cases(world: Any, *, start: Sequence[float] | None = None, max_pushes: int =
     -------
     SearchStrategy of Case
     """
-    seqs = push_sequences(world, max_pushes=max_pushes, window=window, levels=levels,
+    seqs = push_sequences(task, max_pushes=max_pushes, window=window, levels=levels,
                           max_magnitude=max_magnitude, min_pushes=min_pushes)
     if start is not None:
         x0 = tuple(float(v) for v in start)
         return seqs.map(lambda s: Case(x0, s))
-    return st.builds(Case, starts(world, regions=start_regions), seqs)
+    return st.builds(Case, starts(task, regions=start_regions), seqs)
 
 
 def target_robustness(robustness: float, *, label: str = "negated robustness") -> None:
@@ -318,16 +319,16 @@ def target_robustness(robustness: float, *, label: str = "negated robustness") -
 
 
 # ------------------------------------------------------------------------------ applying
-def region_anchor(world: Any, region: str) -> FloatArray:
+def region_anchor(task: Task, region: str) -> FloatArray:
     """A reference point inside a true region (deterministic): the sampled state of the region
     nearest the mean of 400 uniform samples (seed 0), shape (n,)."""
-    src = getattr(world, "source", None)
-    key = (str(getattr(world, "name", type(world).__name__)),
-           str(getattr(src, "sha256", None) or getattr(src, "source_sha256", None) or id(world)),
+    src = getattr(task, "source", None)
+    key = (str(getattr(task, "name", type(task).__name__)),
+           str(getattr(src, "sha256", None) or getattr(src, "source_sha256", None) or id(task)),
            region)
     hit = _ANCHORS.get(key)
     if hit is None:
-        pts = world.sample_region(region, 400, np.random.default_rng(0))
+        pts = task.sample_region(region, 400, np.random.default_rng(0))
         mean = pts.mean(axis=0)
         hit = pts[int(np.argmin(np.linalg.norm(pts - mean, axis=1)))].copy()
         _ANCHORS[key] = hit
@@ -342,18 +343,18 @@ _SEGMENT_SAMPLES = 256
 non-convex region."""
 
 
-def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> FloatArray:
+def _bisect_inside(task: Task, a: FloatArray, b: FloatArray, region: int) -> FloatArray:
     """``b`` if it lies in ``region``; else ``a + s/2 (b - a)`` with ``s`` a fraction in
     [0, 1] (bisection) keeping the segment's point in ``region`` (``a`` lies in it): half
     way to the region's boundary, so a push never lands on a mode boundary.
 
     The bisection assumes one crossing of the boundary along the segment. In a non-convex
-    region (the scoop world's white region wraps around the others) the segment can leave and
+    region (the scoop task's white region wraps around the others) the segment can leave and
     re-enter it, and the half-way point of the bisection's fraction can lie outside; then the
     first exit is found on :data:`_SEGMENT_SAMPLES` points of the segment and refined by
     bisection, and the result is halved towards ``a`` until it lies in ``region``.
     """
-    inside = world.region_index
+    inside = task.region_index
     if int(inside(b[None])[0]) == region:
         return b
     lo_s, hi_s = 0.0, 1.0
@@ -385,12 +386,12 @@ def _bisect_inside(world: Any, a: FloatArray, b: FloatArray, region: int) -> Flo
     return np.asarray(a, dtype=np.float64).copy()
 
 
-def apply_push(world: Any, x: npt.ArrayLike, push: Push) -> FloatArray:
+def apply_push(task: Task, x: npt.ArrayLike, push: Push) -> FloatArray:
     """The state after a perturbation at ``x`` (module docstring), inside the workspace box.
 
     Parameters
     ----------
-    world : World
+    task : Task
     x : array_like, shape (n,)
     push : Push
 
@@ -398,22 +399,22 @@ def apply_push(world: Any, x: npt.ArrayLike, push: Push) -> FloatArray:
     -------
     ndarray, shape (n,)
     """
-    lo = np.asarray(world.lo, dtype=np.float64)
-    hi = np.asarray(world.hi, dtype=np.float64)
+    lo = np.asarray(task.lo, dtype=np.float64)
+    hi = np.asarray(task.hi, dtype=np.float64)
     xa = np.asarray(x, dtype=np.float64).reshape(-1)
     d = np.asarray(push.displacement, dtype=np.float64)
     free = np.clip(xa + d, lo, hi)
     if push.level == "free":
         return np.asarray(free, dtype=np.float64)
     if push.level == "motion":
-        here = int(world.region_index(xa[None])[0])
-        return _bisect_inside(world, xa, free, here)
+        here = int(task.region_index(xa[None])[0])
+        return _bisect_inside(task, xa, free, here)
     if push.level == "task":
-        if push.target is None or push.target not in world.region_names:
+        if push.target is None or push.target not in task.region_names:
             raise TliError(f"task-level push at step {push.step}: unknown target region "
                            f"{push.target!r}")
-        region = list(world.region_names).index(push.target)
-        return _bisect_inside(world, region_anchor(world, push.target), free, region)
+        region = list(task.region_names).index(push.target)
+        return _bisect_inside(task, region_anchor(task, push.target), free, region)
     raise TliError(f"push at step {push.step}: unknown level {push.level!r} (one of "
                    f"{', '.join(LEVELS)})")
 

@@ -13,12 +13,13 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from tli_verify.viz.episodes import animate_episode, plot_episodes
+    from tli_verify.viz.episodes import animate_episode, mode_colors, plot_episodes
     from tli_verify.viz.regions import (
         Picture,
         TaskLike,
         as_task,
         check_task,
+        cut_face_shadow,
         cut_trace,
         legend_labels,
         pairs_for,
@@ -32,15 +33,17 @@ __all__ = [
     "animate_episode",
     "as_task",
     "check_task",
+    "cut_face_shadow",
     "cut_trace",
     "legend_labels",
+    "mode_colors",
     "pairs_for",
     "plot_episodes",
     "plot_task",
     "region_shadows",
 ]
 
-_HOME = {"animate_episode": "episodes", "plot_episodes": "episodes"}
+_HOME = {"animate_episode": "episodes", "mode_colors": "episodes", "plot_episodes": "episodes"}
 
 
 def __getattr__(name: str) -> Any:

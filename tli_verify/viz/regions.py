@@ -14,7 +14,7 @@
   be sampled is listed in the legend as ``"<name> (too small to draw)"``
   (:func:`legend_labels`), never dropped silently.
 
-Nothing here names a bundled world: axis labels are the task's ``state_names``. Matplotlib is
+Nothing here names a bundled task: axis labels are the task's ``state_names``. Matplotlib is
 imported lazily (the CLI stays fast to import); PNGs are written atomically by
 :func:`tli_verify.plotting.save_figure`. A picture that cannot be drawn raises
 :class:`~tli_verify.errors.TliError` with a one-line reason and writes nothing.
@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
+from tli_verify.plotting import save_figure
 
 __all__ = [
     "DEFAULT_SAMPLES",
@@ -46,6 +47,7 @@ __all__ = [
     "TaskLike",
     "as_task",
     "check_task",
+    "cut_face_shadow",
     "cut_trace",
     "exact_shadow",
     "legend_labels",
@@ -218,7 +220,7 @@ def as_task(obj: Any, *, state_names: Sequence[str] | None = None) -> TaskLike:
     """``obj`` as a :class:`TaskLike`, adding ``dim`` and ``state_names`` when it lacks them.
 
     For objects with ``lo``, ``hi``, ``region_names``, ``region_colors``, ``region_index`` and
-    ``sample_region`` but no ``dim`` / ``state_names`` (e.g. the 2-D worlds): ``dim`` is
+    ``sample_region`` but no ``dim`` / ``state_names`` (e.g. the 2-D tasks): ``dim`` is
     ``len(lo)`` and the state names are ``state_names`` or ``x1 .. xn``.
 
     Parameters
@@ -510,6 +512,100 @@ def cut_trace(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
     return np.array([origin + s0 * d, origin + s1 * d], dtype=np.float64)
 
 
+def cut_face_shadow(normal: npt.ArrayLike, point: npt.ArrayLike, i: int, j: int,
+                    lo: npt.ArrayLike, hi: npt.ArrayLike,
+                    others: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]] = (),
+                    *, max_lps: int = 64) -> FloatArray | None:
+    """The shadow of a cut's *face* on the ``(x_i, x_j)`` plane: the projection of the part of
+    its plane that bounds the mode's region, ``F = {x in [lo, hi] : w . (x - p) = 0,
+    w_k . (x - p_k) <= 0 for the mode's other cuts}`` (n >= 3 pictures; exact, no sampling).
+
+    ``F`` is a polytope; its projection is the convex polygon found by support LPs: the four
+    axis directions, then the outward normal of every edge found so far until no LP moves an
+    edge (each LP confirms an edge or adds a vertex), as for the polytope regions
+    (:func:`exact_shadow`).
+
+    Parameters
+    ----------
+    normal, point : array_like, shape (n,)
+        The cut ``w``, ``p`` (the mode on the side ``w . (x - p) <= 0``).
+    i, j : int
+        The plane's coordinates.
+    lo, hi : array_like, shape (n,)
+        The workspace box.
+    others : sequence of (normal, point)
+        The mode's other cuts.
+    max_lps : int, optional
+        Most LPs; past them the polygon found so far is returned (inside the true one).
+
+    Returns
+    -------
+    ndarray, shape (2, 2) or (m, 2) with m >= 3, or None
+        A segment (the face projects to a line: its normal lies in the plane), the polygon in
+        counter-clockwise order, or None: the face is empty (another cut removes it), a point,
+        covers the whole panel, or an LP fails.
+    """
+    from scipy.optimize import linprog
+
+    w = np.asarray(normal, dtype=np.float64)
+    p = np.asarray(point, dtype=np.float64)
+    lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    rows = [np.asarray(a, dtype=np.float64) for a, _ in others]
+    A_ub = np.array(rows) if rows else None
+    b_ub = (np.array([float(np.asarray(a, dtype=np.float64) @ np.asarray(q, dtype=np.float64))
+                      for a, q in others]) if rows else None)
+    bounds = list(zip(lo_a.tolist(), hi_a.tolist(), strict=True))
+    span = float(max(hi_a[i] - lo_a[i], hi_a[j] - lo_a[j]))
+    tol = 1e-9 * span
+    used = 0
+
+    def support(d: FloatArray) -> FloatArray | None:
+        nonlocal used
+        used += 1
+        cost = np.zeros(w.size)
+        cost[i], cost[j] = -d[0], -d[1]
+        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=w[None, :], b_eq=[float(w @ p)],
+                      bounds=bounds, method="highs")
+        return None if res.status != 0 else np.array([res.x[i], res.x[j]])
+
+    hull: list[FloatArray] = []
+    for d in ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)):
+        y = support(np.array(d))
+        if y is None:
+            return None
+        if not any(float(np.max(np.abs(y - h))) <= tol for h in hull):
+            hull.append(y)
+    if len(hull) == 1:
+        return None
+    k = 0
+    while k < len(hull) and used < max_lps:  # edge hull[k] -> hull[k + 1]
+        P, Q = hull[k], hull[(k + 1) % len(hull)]
+        e = Q - P
+        out = np.array([e[1], -e[0]])  # outward for a counter-clockwise hull
+        norm = float(np.hypot(*out))
+        if norm <= tol:
+            k += 1
+            continue
+        y = support(out / norm)
+        if y is None:
+            return None
+        if float(out @ (y - P)) / norm > tol:
+            hull.insert(k + 1, y)
+        else:
+            k += 1
+    poly = np.array(hull, dtype=np.float64)
+    area = 0.5 * abs(float(np.dot(poly[:, 0], np.roll(poly[:, 1], -1))
+                           - np.dot(poly[:, 1], np.roll(poly[:, 0], -1))))
+    panel = float((hi_a[i] - lo_a[i]) * (hi_a[j] - lo_a[j]))
+    if area >= panel * (1.0 - 1e-9):
+        return None
+    if area <= 1e-9 * panel:  # a segment: its two farthest points
+        far = max(itertools.combinations(range(len(poly)), 2),
+                  key=lambda ab: float(np.linalg.norm(poly[ab[0]] - poly[ab[1]])))
+        return np.asarray(poly[list(far)], dtype=np.float64)
+    return poly
+
+
 # ----------------------------------------------------------------------------- exact shadows
 _PRIMITIVES = ("Box", "Ball", "Ellipsoid", "Polytope")
 _ELLIPSE_POINTS = 181
@@ -525,7 +621,7 @@ def exact_shapes(task: TaskLike, *, seed: int = 0, samples: int = 4000) -> tuple
     region holding it). The cell equals the shape when no such region overlaps it: checked on
     ``samples`` seeded uniform states of the shape (of its bounding box, kept where the shape
     holds them) -- every one must lie in the region's cell. Tasks without a ``partition``
-    (duck-typed worlds) have no shapes.
+    (duck-typed tasks) have no shapes.
     """
     partition = getattr(task, "partition", None)
     cells = getattr(partition, "cells", None)
@@ -775,7 +871,7 @@ def plot_task(task: TaskLike, path: str | os.PathLike[str], *, demos: Sequence[A
     """Draw a task's true regions (and demonstrations) to a PNG, in any dimension.
 
     ``n = 1``: the strip of regions along ``x1``, demonstrations as ``x(t)`` with time
-    (normalised) upwards. ``n = 2``: the exact partition as an image (as ``plot_world``).
+    (normalised) upwards. ``n = 2``: the exact partition as an image.
     ``n >= 3``: one panel per coordinate pair, each region drawn as its shadow (projection)
     from ``samples`` seeded uniform samples; a region that cannot be sampled appears in the
     legend as ``"<name> (too small to draw)"``.
@@ -811,8 +907,6 @@ def plot_task(task: TaskLike, path: str | os.PathLike[str], *, demos: Sequence[A
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from tli_verify.plotting import save_figure
 
     check_task(task)
     chosen = pairs_for(task.dim, pairs)

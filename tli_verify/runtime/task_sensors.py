@@ -4,7 +4,7 @@ Imports go one way: the runtime consumes tasks; tasks never import the runtime.
 
 A task's sensor model is batched and stateful (:meth:`tli_verify.tasks.task.Task.read`:
 ``(x_prev, x, latent) -> (reading, latent)``, with a lag of ``L`` steps: the reading at step
-``k`` is computed from the state at step ``max(k - L, 0)``). :class:`WorldSensors` keeps one
+``k`` is computed from the state at step ``max(k - L, 0)``). :class:`TaskSensors` keeps one
 episode's history and latent state and answers ``read(x)`` once per control step, exactly as
 :meth:`~tli_verify.tasks.task.Task.sensors` scans a whole history.
 """
@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from tli_verify.tasks.task import Task
 
-__all__ = ["WorldSensors"]
+__all__ = ["TaskSensors"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -29,23 +29,23 @@ Hit = tuple[dict[str, bool], tuple[bool, ...], frozenset[str]]
 """A memoized reading: name -> value, the latent state after it, the set of true sensors."""
 
 
-class WorldSensors:
+class TaskSensors:
     """One episode's sensor model of a task (the runtime's ``SensorModel`` protocol).
 
     Parameters
     ----------
-    world : Task
+    task : Task
         Its ``lag`` is honoured.
     cache : dict, optional
         Reading memo shared between episodes of one task (see Notes); default: its own.
     region_cache : bool, optional
-        Memoize ``world.read`` on ``(cells and layers of x_prev, of x, latent)`` (default:
+        Memoize ``task.read`` on ``(cells and layers of x_prev, of x, latent)`` (default:
         when the task's sensor model is ``cell_based``).
 
     Notes
     -----
     ``read(x)`` must be called once per control step, in order (the lag counts calls). The
-    latent state (scooping: soup on the spoon) starts at ``world.initial_latent`` on
+    latent state (scooping: soup on the spoon) starts at ``task.initial_latent`` on
     :meth:`reset`.
 
     A task file's sensors (formulas over regions and latches) depend on the states only through
@@ -57,26 +57,26 @@ class WorldSensors:
     """
 
     __slots__ = ("_cache", "_hist", "_latent", "_one", "_prev", "names", "region_cache",
-                 "world")
+                 "task")
 
-    def __init__(self, world: Task, *, cache: dict[Key, Hit] | None = None,
+    def __init__(self, task: Task, *, cache: dict[Key, Hit] | None = None,
                  region_cache: bool | None = None) -> None:
-        self.world = world
-        self.names = tuple(world.sensor_names)
+        self.task = task
+        self.names = tuple(task.sensor_names)
         if region_cache is None:
-            region_cache = bool(getattr(world.sensor_model, "cell_based", False))
+            region_cache = bool(getattr(task.sensor_model, "cell_based", False))
         self.region_cache = bool(region_cache)
         self._cache = {} if cache is None else cache
-        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=world.lag + 1)  # (x (n,), region)
-        self._latent: tuple[bool, ...] = tuple(world.initial_latent(1)[0].tolist())
+        self._hist: deque[tuple[FloatArray, int]] = deque(maxlen=task.lag + 1)  # (x (n,), region)
+        self._latent: tuple[bool, ...] = tuple(task.initial_latent(1)[0].tolist())
         self._prev: tuple[FloatArray, int] | None = None
-        self._one: Callable[[list[float]], int] | None = getattr(world, "reading_key_one",
+        self._one: Callable[[list[float]], int] | None = getattr(task, "reading_key_one",
                                                                  None)
 
     def reset(self, x0: FloatArray) -> None:
         """Start an episode at ``x0`` (history and latent state cleared)."""
         self._hist.clear()
-        self._latent = tuple(self.world.initial_latent(1)[0].tolist())
+        self._latent = tuple(self.task.initial_latent(1)[0].tolist())
         self._prev = None
 
     def read(self, x: FloatArray) -> dict[str, bool]:
@@ -108,7 +108,7 @@ class WorldSensors:
         elif self._one is not None and point is not None:
             region = self._one(point)  # the task's scalar cell-and-layers key
         else:
-            region = self.world.reading_key_one(xa.tolist())
+            region = self.task.reading_key_one(xa.tolist())
         self._hist.append((xa, region))
         lagged = self._hist[0]  # maxlen = lag + 1: the state lag steps back (or the first)
         prev = lagged if self._prev is None else self._prev
@@ -116,7 +116,7 @@ class WorldSensors:
         key = (prev[1], lagged[1], self._latent)
         hit = self._cache.get(key) if self.region_cache else None
         if hit is None:
-            reading, latent = self.world.read(prev[0][None, :], lagged[0][None, :],
+            reading, latent = self.task.read(prev[0][None, :], lagged[0][None, :],
                                               np.array([self._latent], dtype=bool))
             values = {n: bool(v) for n, v in zip(self.names, reading[0].tolist(), strict=True)}
             hit = (values, tuple(bool(v) for v in latent[0].tolist()),
@@ -128,5 +128,5 @@ class WorldSensors:
 
     @property
     def latent(self) -> dict[str, bool]:
-        """The latent world state after the last reading (name -> value)."""
-        return dict(zip(self.world.latent_names, self._latent, strict=True))
+        """The latent state after the last reading (name -> value)."""
+        return dict(zip(self.task.latent_names, self._latent, strict=True))

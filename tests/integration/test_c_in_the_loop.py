@@ -1,0 +1,62 @@
+"""``tli sim franka --c-evaluator``: the exported artifact drives the Panda in MuJoCo through
+the C evaluator (the Python executive supervises: same automaton, cuts), and the campaign
+evidence records the artifact's hash, which the gate reports."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("mujoco")
+
+from tests.support.cli import json_records, run
+from tests.support.cpolicy import compiler
+from tli_verify.deploy.export import export_policy
+from tli_verify.deploy.gate import _evaluator_note
+from tli_verify.io import bundled_dir
+from tli_verify.sim.physics_checks import FRANKA_PHYSICS
+from tli_verify.verify.evidence import check_evidence
+
+pytestmark = [pytest.mark.sim,
+              pytest.mark.skipif(compiler() is None, reason="no system C compiler")]
+
+
+def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.support.sim import require_panda
+
+    require_panda()
+    franka = bundled_dir("sim") / "franka"
+    ex = export_policy(franka / "models" / "franka-scoop.model.json",
+                       tmp_path / "franka.tli.json", rerun=0)
+    evidence = tmp_path / "run.campaign.json"
+    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "0",
+                         "--duration", "14", "--json", "--c-evaluator", str(ex.json_path),
+                         "--evidence", str(evidence))
+    trial, summary = json_records(out)
+    assert f"artifact {ex.content_sha256}" in err
+    assert code == 0 and trial["success"] and not trial["violations"]
+    rec = summary["evaluator"]
+    assert rec["artifact_sha256"] == ex.content_sha256 and rec["kind"] == "c"
+    assert rec["steps"] > 100 and rec["max_rel_diff"] <= 1e-12
+    phys = json.loads(evidence.read_text())["physics"]
+    assert phys["evaluator"] == rec
+    # the evidence checks (schema, digest, bindings) and the gate's line names the artifact
+    check = check_evidence(evidence, model_path=franka / "models" / "franka-scoop.model.json",
+                           valid_certificates=[franka / "certificates" / "franka-scoop.cert.json"],
+                           physical=(FRANKA_PHYSICS,))
+    # one trial: only the campaign's size blocks (the gate wants 30)
+    assert len(check.problems) == 1 and "fewer than the minimum 30" in check.problems[0]
+    assert ex.content_sha256 in _evaluator_note(dict(check.physics))
+
+
+def test_an_artifact_of_another_model_is_refused(tmp_path: Path, repo: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    ex = export_policy(repo / "models" / "scoop.model.json", tmp_path / "scoop.tli.json",
+                       rerun=0)
+    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--duration", "1",
+                         "--c-evaluator", str(ex.json_path))
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "not exported from the model being run" in err
