@@ -80,7 +80,7 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="franka (default): s from a wrist F/T load, r and t from the noisy "
                    "kinematic pose, with latency (tli_verify.sim.franka_sensors); ideal: "
                    "noise-free sensors from the physics")
-    f.add_argument("--controller", choices=("passive", "tracking"), default=None,
+    f.add_argument("--controller", choices=("passive", "tracking", "measured"), default=None,
                    help="passive (the Panda's default): the DS at the measured pose every "
                    "period, tracked by the passive-DS law (tli_verify.sim.passive); tracking: "
                    "the DS integrated to a target the Cartesian impedance law tracks (the free "

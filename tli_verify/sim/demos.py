@@ -541,7 +541,7 @@ PANDA_POSTURE_GAINS = Gains(kn=25.0, dn=10.0)
 """Null-space posture gains of the Panda rig (per unit joint mass); its task-space gains are
 :data:`PANDA_IMPEDANCE`."""
 
-CONTROLLERS = ("passive", "tracking")
+CONTROLLERS = ("passive", "tracking", "measured")
 """The Panda's control laws: passive-DS (the DS at the measured pose, :mod:`.passive`) and
 target tracking (Cartesian impedance on a target integrated from the DS)."""
 
@@ -653,7 +653,8 @@ class PandaRig:
         self.guard.reset_ratios()
         if controller not in CONTROLLERS:
             raise TliError(f"controller {controller!r}: one of {', '.join(CONTROLLERS)}")
-        self.control_kind = controller
+        self.control_kind = controller  # 'measured': the tracking law on a target the loop
+        # integrates from the DS at the measured pose
         self.passive: Any = None
         if controller == "passive":
             from tli_verify.sim.passive import PassiveDSController

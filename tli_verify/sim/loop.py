@@ -310,6 +310,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
     rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics, controller=control)
     passive = control == "passive"
+    measured = control == "measured"  # the DS at the measured pose, integrated to a target
     cut_gap = CutGap()
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     debounce = Debounce()
@@ -356,7 +357,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             ref = np.array(clip_floats(ref.tolist(),
                                  [a - b for a, b in zip(zl, leash, strict=True)],
                                  [a + b for a, b in zip(zl, leash, strict=True)]))
-        v = policy.step(ref, reading.to_dict(), perturbed=perturbed)
+        v = policy.step(z if measured else ref, reading.to_dict(), perturbed=perturbed)
         cut_gap.update(policy.model.region_cuts(policy.mode), z)
         if trace is not None:
             trace.append(TraceStep(t, policy.mode, ref.copy(), z, perturbed))

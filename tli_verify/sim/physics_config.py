@@ -103,8 +103,8 @@ class PhysicsConfig:
                            + (" ('hand' is now 'free-tool')" if self.robot == "hand" else ""))
         if self.sensors not in SENSOR_KINDS:
             raise TliError(f"sensors {self.sensors!r}: one of {', '.join(SENSOR_KINDS)}")
-        if self.controller not in ("passive", "tracking"):
-            raise TliError(f"controller {self.controller!r}: one of passive, tracking")
+        if self.controller not in ("passive", "tracking", "measured"):
+            raise TliError(f"controller {self.controller!r}: one of passive, tracking, measured")
         if self.variant not in VARIANTS:
             raise TliError(f"variant {self.variant!r}: one of {', '.join(VARIANTS)}")
         if self.seed < 0 or self.trials < 1:
