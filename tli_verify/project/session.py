@@ -46,7 +46,7 @@ from tli_verify.runtime.episodes import pusher, random_start
 from tli_verify.runtime.loop import run_episode
 from tli_verify.runtime.setup import Setup, make_policy
 from tli_verify.runtime.task_sensors import TaskSensors
-from tli_verify.snapshot import Snapshot
+from tli_verify.snapshot import Snapshot, current
 from tli_verify.tasks.project import check_goal, project_root, resolve
 
 if TYPE_CHECKING:
@@ -56,6 +56,7 @@ if TYPE_CHECKING:
     from tli_verify.model.types import Model
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
+    from tli_verify.sim.campaign import PhysicsResult
     from tli_verify.tasks.project import Resolved
     from tli_verify.tasks.task import Goal, Task
     from tli_verify.verify.campaign import CampaignResult
@@ -175,6 +176,44 @@ class Session:
         with self.snapshot.use():
             return run_campaign(cfg)
 
+    @property
+    def root(self) -> Path:
+        """The project folder (the model's ``models/`` parent)."""
+        return Path(self.files.model).resolve().parent.parent
+
+    def physics_campaign(self, *, seed: int, trials: int,
+                         recorded: Mapping[str, object] | None = None) -> PhysicsResult:
+        """Seeded physical trials of this project's policy in MuJoCo, judged by the physics
+        oracle (``tli sim franka --evidence``'s campaign; :mod:`tli_verify.sim.campaign`), one
+        executive in this process.
+
+        Parameters
+        ----------
+        seed : int
+            The first trial's seed.
+        trials : int
+        recorded : mapping, optional
+            An evidence file's ``physics`` block: the trials run with its settings (robot,
+            variant, duration, pushes, tilts, stall handling, sensors).
+
+        Raises
+        ------
+        TliError
+            MuJoCo is not installed, or the project is not a physical one.
+        """
+        try:
+            from tli_verify.sim.campaign import run_physics_campaign
+            from tli_verify.sim.physics_config import PhysicsConfig
+            from tli_verify.sim.physics_evidence import settings_from
+        except ImportError as exc:
+            raise TliError(f"physical trials need MuJoCo (pip install 'tli-verify[sim]'): "
+                           f"{exc}") from None
+        config = PhysicsConfig(root=str(self.root), seed=int(seed), trials=int(trials),
+                               workers=1, backend="serial",
+                               **settings_from(dict(recorded or {})))
+        with self.snapshot.use():
+            return run_physics_campaign(config)
+
 
 def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None = None,
                perturbations: Mapping[int, npt.ArrayLike] | None = None, steps: int = 3000,
@@ -255,7 +294,7 @@ def open_project(path: PathLike | None = None, *, task: PathLike | Task | None =
         :func:`tli_verify.runtime.setup.load_setup`: a missing file, a model that does not fit
         the task, an unreachable goal.
     """
-    snap = Snapshot()
+    snap = current() or Snapshot()  # inside a command's snapshot: the same bytes (they nest)
     with snap.use():
         if path is not None:
             kind, p, _ = locate(Path(os.path.abspath(path)),
