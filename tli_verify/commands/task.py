@@ -18,7 +18,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
@@ -31,6 +31,12 @@ from tli_verify.logic.spec import load_spec
 from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 from tli_verify.tasks.scaffold import scaffold
 from tli_verify.verify.evidence import write_campaign_evidence
+
+if TYPE_CHECKING:
+    from tli_verify.project import Session
+    from tli_verify.sim.loop import TrialResult
+    from tli_verify.sim.trial_oracle import TrialVerdict
+    from tli_verify.verify.config import CampaignConfig
 
 __all__ = ["register"]
 
@@ -323,7 +329,7 @@ def _init(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------ evidence
 def _evidence(args: argparse.Namespace) -> int:
-    from tli_verify.tasks.project import model_files, model_stem, resolve
+    from tli_verify.tasks.project import model_files, model_stem
 
     root: Path = args.directory
     if not root.is_dir():
@@ -337,75 +343,60 @@ def _evidence(args: argparse.Namespace) -> int:
     if not models:
         raise TliError(f"{root / 'models'}: no *.model.json to make evidence for")
     plan = []
-    for model in models:  # every model resolves, and no evidence overwrites an input, first
-        resolved = resolve(model=model)
-        physical = bool(getattr(resolved.task.sensor_model, "physics", False))
-        plan.append((model, resolved, physical))
-        if not physical:  # nor replaces stronger evidence (unless --force)
-            from tli_verify.verify.config import resolve_config
+    from tli_verify.project import open_project
 
+    for model in models:  # every model opens, and no evidence overwrites an input, first
+        session = open_project(model=model)
+        physical = bool(getattr(session.task.sensor_model, "physics", False))
+        plan.append((model, session, physical))
+        if not physical:  # nor replaces stronger evidence (unless --force)
             keep_stronger(model_files(model).evidence,
-                          resolve_config(_config(args, resolved))[1], force=args.force)
-    check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
+                          session.campaign_config(_config(args)), force=args.force)
+    check_plan(inputs=[p for _, s, _ in plan for p in s.files.inputs],
                outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
     status = 0
-    for _, resolved, physical in plan:
+    for _, session, physical in plan:
         t0 = time.perf_counter()
         if physical:
-            ok, line = _physical(args, resolved)
+            ok, line = _physical(args, session)
         else:
-            ok, line = _kinematic(args, resolved)
+            ok, line = _kinematic(args, session)
         sys.stdout.write(f"{line} ({time.perf_counter() - t0:.1f} s)\n")
         status |= 0 if ok else 1
     return status
 
 
-def _config(args: argparse.Namespace, resolved: Any) -> Any:
-    """The bisimulation campaign ``tli evidence`` runs for one model."""
+def _config(args: argparse.Namespace) -> CampaignConfig:
+    """The bisimulation campaign ``tli evidence`` runs for one model (on the model's session
+    files: :meth:`~tli_verify.project.Session.campaign_config`)."""
     from tli_verify.verify.config import CampaignConfig
 
-    return CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
-                          certificate=str(resolved.certificate), examples=args.examples,
-                          seed=args.seed, modulation=True, workers=args.workers,
-                          backend=args.backend or "process", random_starts=args.random_starts)
+    return CampaignConfig(examples=args.examples, seed=args.seed, modulation=True,
+                          workers=args.workers, backend=args.backend or "process",
+                          random_starts=args.random_starts)
 
 
-def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-    from tli_verify.verify.campaign import run_campaign
-
-    config = _config(args, resolved)
-    result = run_campaign(config, progress=sys.stderr.isatty())
+def _kinematic(args: argparse.Namespace, session: Session) -> tuple[bool, str]:
+    result = session.campaign(_config(args), progress=sys.stderr.isatty())
     if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
         raise KeyboardInterrupt
-    path, doc = write_campaign_evidence(result.config, result, path=resolved.evidence)
+    files = session.files
+    path, doc = write_campaign_evidence(result.config, result, path=files.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
-            f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
+            f"{path}: task {files.task.name!r}, seed {args.seed}, {args.examples} examples, "
             f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
 
 
-def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-
-    try:
-        from tli_verify.sim.campaign import run_physics_campaign
-        from tli_verify.sim.physics_config import PhysicsConfig
-        from tli_verify.sim.physics_evidence import write_physics_evidence
-    except ImportError as exc:  # pragma: no cover - the sim extra is missing
-        raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
-                       f"install 'tli-verify[sim]'): {exc}") from None
-
+def _physical(args: argparse.Namespace, session: Session) -> tuple[bool, str]:
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:
         raise TliError("--seed + --trials: every trial's seed must be below 2^32")
-    root = Path(resolved.model).parent.parent
-    config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
-                           duration=args.duration, retry=not args.no_retry,
-                           sensors=args.sensors,
-                           workers=1 if args.workers is None else args.workers,
-                           backend=args.backend or "serial")
+    workers = 1 if args.workers is None else args.workers
+    backend = args.backend or "serial"
 
-    def progress(k: int, res: Any, verdict: Any) -> None:
+    def progress(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         judged = "ok" if verdict.ok else ", ".join(verdict.violations)
         sys.stderr.write(f"  trial {k + 1}/{trials} (seed {res.seed}): {judged}; "
                          f"{res.delivered} bead(s); modes {res.mode_sequence()}\n")
@@ -413,10 +404,19 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     def event(text: str) -> None:
         sys.stderr.write(f"note: {text}\n")
 
-    result = run_physics_campaign(config, on_trial=progress, on_event=event)
+    result = session.physics_campaign(seed=args.seed, trials=trials, workers=workers,
+                                      backend=backend, on_trial=progress, on_event=event,
+                                      robot=args.robot, duration=args.duration,
+                                      retry=not args.no_retry, sensors=args.sensors)
+    try:
+        from tli_verify.sim.physics_evidence import write_physics_evidence
+    except ImportError as exc:  # pragma: no cover - the sim extra is missing
+        raise TliError(f"{session.files.model}: a physical campaign needs the simulator (pip "
+                       f"install 'tli-verify[sim]'): {exc}") from None
+    resolved = session.files
     path, _ = write_physics_evidence(result, resolved.evidence)
     return result.ok, (f"{path}: physical campaign of task {resolved.task.name!r}, seed "
                        f"{args.seed}, {trials} trial(s) (robot {args.robot}, "
                        f"{args.duration:g} s, {len(result.chunks)} chunk(s) on "
-                       f"{config.backend}), {result.successes} delivered, "
+                       f"{backend}), {result.successes} delivered, "
                        f"{sum(not v.ok for v in result.verdicts)} failed the oracle")

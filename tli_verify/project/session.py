@@ -23,12 +23,12 @@ the gate's re-run::
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -57,6 +57,8 @@ if TYPE_CHECKING:
     from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.runtime.loop import EpisodeResult
     from tli_verify.sim.campaign import PhysicsResult
+    from tli_verify.sim.loop import TrialResult
+    from tli_verify.sim.trial_oracle import TrialVerdict
     from tli_verify.tasks.project import Resolved
     from tli_verify.tasks.task import Goal, Task
     from tli_verify.verify.campaign import CampaignResult
@@ -165,16 +167,43 @@ class Session:
             return run_policy(policy, self.task, start=start, perturbations=perturbations,
                               steps=steps, seed=seed)
 
-    def campaign(self, config: CampaignConfig) -> CampaignResult:
-        """A falsification campaign (Sec. 4.4) on this session's files; ``config``'s own
-        ``task``, ``spec``, ``model`` and ``certificate`` are replaced by the session's."""
-        from tli_verify.verify.campaign import run_campaign
+    def campaign_config(self, config: CampaignConfig) -> CampaignConfig:
+        """``config`` on this session's files (its own ``task``, ``spec``, ``model`` and
+        ``certificate`` replaced by the session's), the task's defaults filled in
+        (:func:`~tli_verify.verify.config.fill_config`): what :meth:`campaign` records as run.
+
+        Raises
+        ------
+        CampaignError
+            (exit 2) A start outside the workspace or of the wrong dimension.
+        """
+        from tli_verify.verify.config import fill_config
 
         files = self.files
         cfg = replace(config, task=files.task.where, spec=str(files.spec),
-                      model=str(files.model), certificate=str(files.certificate))
+                      model=str(files.model), certificate=str(files.certificate),
+                      lag=files.task.lag)
+        return fill_config(cfg, files.task)
+
+    def campaign(self, config: CampaignConfig, *, progress: bool = False,
+                 on_event: Callable[[str], None] | None = None) -> CampaignResult:
+        """A falsification campaign (Sec. 4.4) on this session's files
+        (:meth:`campaign_config`), its workers re-checking every file's SHA-256 against the
+        bytes the session read.
+
+        Parameters
+        ----------
+        config : CampaignConfig
+        progress : bool, optional
+            A progress bar on stderr.
+        on_event : callable, optional
+            Called with each event line (a lost worker, a restarted batch).
+        """
+        from tli_verify.verify.campaign import run_campaign
+
+        cfg = self.campaign_config(config)
         with self.snapshot.use():
-            return run_campaign(cfg)
+            return run_campaign(cfg, progress=progress, on_event=on_event)
 
     @property
     def root(self) -> Path:
@@ -182,10 +211,13 @@ class Session:
         return Path(self.files.model).resolve().parent.parent
 
     def physics_campaign(self, *, seed: int, trials: int,
-                         recorded: Mapping[str, object] | None = None) -> PhysicsResult:
+                         recorded: Mapping[str, object] | None = None,
+                         workers: int = 1, backend: str = "serial",
+                         on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
+                         on_event: Callable[[str], None] | None = None,
+                         **settings: object) -> PhysicsResult:
         """Seeded physical trials of this project's policy in MuJoCo, judged by the physics
-        oracle (``tli sim franka --evidence``'s campaign; :mod:`tli_verify.sim.campaign`), one
-        executive in this process.
+        oracle (``tli sim franka --evidence``'s campaign; :mod:`tli_verify.sim.campaign`).
 
         Parameters
         ----------
@@ -195,6 +227,15 @@ class Session:
         recorded : mapping, optional
             An evidence file's ``physics`` block: the trials run with its settings (robot,
             variant, duration, pushes, tilts, stall handling, sensors).
+        workers : int, optional
+            Executives (contiguous chunks of seeds); 1 by default.
+        backend : str, optional
+            ``"serial"`` (default), ``"process"`` or ``"dask"``.
+        on_trial, on_event : callable, optional
+            Called after each judged trial and with each event line.
+        **settings
+            :class:`~tli_verify.sim.physics_config.PhysicsConfig` fields (``robot``,
+            ``duration``, ``retry``, ``sensors``, ...), over ``recorded``'s.
 
         Raises
         ------
@@ -208,11 +249,11 @@ class Session:
         except ImportError as exc:
             raise TliError(f"physical trials need MuJoCo (pip install 'tli-verify[sim]'): "
                            f"{exc}") from None
+        chosen: dict[str, Any] = {**settings_from(dict(recorded or {})), **settings}
         config = PhysicsConfig(root=str(self.root), seed=int(seed), trials=int(trials),
-                               workers=1, backend="serial",
-                               **settings_from(dict(recorded or {})))
+                               workers=int(workers), backend=backend, **chosen)
         with self.snapshot.use():
-            return run_physics_campaign(config)
+            return run_physics_campaign(config, on_trial=on_trial, on_event=on_event)
 
 
 def run_policy(policy: LTLDSPolicy, task: Task, *, start: npt.ArrayLike | None = None,
