@@ -40,48 +40,13 @@ import numpy.typing as npt
 from tli_verify.boundary.cuts import Cut, InvarianceFailure, solve_cut
 from tli_verify.boundary.modulation import ModulatedPolicy, check_control_period, modulated
 from tli_verify.ds.lpvds import LPVDS
-from tli_verify.ds.quaternion import QuaternionDS, quat_exp, quat_log
+from tli_verify.ds.quaternion import QuaternionDS
 from tli_verify.errors import ModelError
+from tli_verify.rotations import quat_exp, quat_log, tilt
 
 __all__ = ["PoseDS", "cone_cut", "tilt"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def _rotate(q: FloatArray, v: FloatArray) -> FloatArray:
-    """``R(q) v`` for unit scalar-first quaternions ``q`` (shape (N, 4)) and a vector ``v``."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    R = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
-    ], axis=1)
-    return np.asarray(R @ v, dtype=np.float64)
-
-
-def tilt(Q: npt.ArrayLike, tool_axis: npt.ArrayLike, world_axis: npt.ArrayLike) -> FloatArray:
-    """The angle (rad) between the tool's axis ``R(q) a`` and a world axis ``u``.
-
-    Parameters
-    ----------
-    Q : array_like, shape (N, 4) or (4,)
-        Unit quaternions, scalar-first.
-    tool_axis, world_axis : array_like, shape (3,)
-        Unit vectors (normalised here).
-
-    Returns
-    -------
-    ndarray, shape (N,) or ()
-    """
-    q = np.asarray(Q, dtype=np.float64)
-    single = q.ndim == 1
-    q = q.reshape(-1, 4)
-    a = np.asarray(tool_axis, dtype=np.float64)
-    u = np.asarray(world_axis, dtype=np.float64)
-    a, u = a / np.linalg.norm(a), u / np.linalg.norm(u)
-    c = np.clip(_rotate(q, a) @ u, -1.0, 1.0)
-    out = np.arccos(c)
-    return out[0] if single else out
 
 
 def cone_cut(q_boundary: npt.ArrayLike, q_star: npt.ArrayLike, tool_axis: npt.ArrayLike,

@@ -20,6 +20,7 @@ from tli_verify.demos import Demonstration
 from tli_verify.errors import TaskError, bad_type
 from tli_verify.tasks.demonstrator import Demonstrator
 from tli_verify.tasks.fields import number, vector
+from tli_verify.tasks.orientation import OrientationChart
 from tli_verify.tasks.regions import Primitive
 from tli_verify.tasks.sensing import (
     FormulaSensors,
@@ -102,6 +103,9 @@ class Task:
     source : TaskSource
     spec : str or None
         The default spec (a path; relative paths are relative to the task file).
+    orientation : OrientationChart or None
+        A pose task's orientation coordinates and their chart
+        (:mod:`tli_verify.tasks.orientation`); None for a task on positions only.
     """
 
     name: str
@@ -119,6 +123,7 @@ class Task:
     demonstrator: Demonstrator | None = None
     source: TaskSource = field(default_factory=lambda: TaskSource("code"))
     spec: str | None = None
+    orientation: OrientationChart | None = None
 
     # ------------------------------------------------------------------ shape
     @property
