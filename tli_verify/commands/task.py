@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from tli_verify.project import Session
     from tli_verify.sim.loop import TrialResult
     from tli_verify.sim.trial_oracle import TrialVerdict
+    from tli_verify.tasks.task import Task
     from tli_verify.verify.config import CampaignConfig
 
 __all__ = ["register"]
@@ -86,6 +87,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                        "name)")
     demos.add_argument("--picture", type=output_path, default=None, metavar="OUT.png",
                        help="also draw the regions with the demonstrations")
+    demos.add_argument("--from-pose", type=Path, nargs="+", default=None, metavar="POSE.csv",
+                       help="instead of scripting demonstrations: convert these recorded pose "
+                       "demonstrations (position and a quaternion per sample; '# quaternion: "
+                       "scalar-first' or 'scalar-last' before the header) into demonstrations "
+                       "of this pose task, read by its sensors: OUT/<name>.csv each")
     demos.set_defaults(handler=_demos)
 
     init = sub.add_parser(
@@ -274,6 +280,8 @@ def _demos(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
 
     task = find_task(args.task)
+    if args.from_pose is not None:
+        return _demos_from_pose(args, task)
     if task.demonstrator is None:
         raise TaskError(f"{task.where}: no [demonstrator] table: the task cannot write "
                         "demonstrations (record your own as CSV files)")
@@ -296,6 +304,45 @@ def _demos(args: argparse.Namespace) -> int:
         from tli_verify.viz.regions import plot_task
 
         plot_task(task, args.picture, demos=[load_demo(p) for p in paths])
+        sys.stdout.write(f"wrote {args.picture}\n")
+    return 0
+
+
+def _demos_from_pose(args: argparse.Namespace, task: Task) -> int:
+    """``tli demos TASK --from-pose FILE...``: recorded pose demonstrations as the task's."""
+    from tli_verify.demos import demo_to_csv, load_pose_demo
+    from tli_verify.tasks.project import project_root
+
+    if task.orientation is None:
+        raise TaskError(f"{task.where}: --from-pose needs a pose task ([state] orientation = "
+                        "{ start = K, reference = [w, x, y, z] })")
+    if args.count is not None or args.prefix is not None:
+        raise TaskError("--from-pose converts the files given: --count and --prefix do not "
+                        "apply")
+    out = args.out
+    if out is None:
+        out = (project_root(task.source.path) / "demos" if task.source.path is not None
+               else Path("demos"))
+    files = [out / f"{Path(f).stem}.csv" for f in args.from_pose]
+    if len(set(files)) != len(files):
+        raise TaskError("--from-pose: two files have the same name; their demonstrations "
+                        "would overwrite each other")
+    check_plan(inputs=[task.source.path, *args.from_pose],
+               outputs=[*((f, "demonstration") for f in files), (args.picture, "picture")])
+    demos = []
+    for src in args.from_pose:  # every file read and converted before anything is written
+        pose = load_pose_demo(src)
+        for note in pose.notes:
+            sys.stderr.write(f"note: {src}: {note}\n")
+        demos.append(task.pose_demonstration(pose))
+    for src, demo, path in zip(args.from_pose, demos, files, strict=True):
+        atomic_write_text(path, f"# {task.name} demonstration from {Path(src).name} (tli demos "
+                          "--from-pose)\n" + demo_to_csv(demo))
+        sys.stdout.write(f"wrote {path}\n")
+    if args.picture is not None:
+        from tli_verify.viz.regions import plot_task
+
+        plot_task(task, args.picture, demos=demos)
         sys.stdout.write(f"wrote {args.picture}\n")
     return 0
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import functools
 import io
-import itertools
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -53,6 +52,7 @@ from tli_verify.viz.regions import (
     cut_face_shadow,
     cut_trace,
     pairs_for,
+    pose_pairs,
 )
 
 if TYPE_CHECKING:
@@ -335,17 +335,6 @@ def _draw_episode(ax: Any, bg: _Background, res: EpisodeResult, S: FloatArray,
 
 GLYPHS = 12
 """Orientation glyphs along a pose task's path, per panel of two position coordinates."""
-
-
-def pose_pairs(task: TaskLike) -> tuple[Pair, ...] | None:
-    """A pose task's panels: the pairs of its (first three) position coordinates, then the
-    pairs of its orientation coordinates; None for a task without orientation."""
-    chart = getattr(task, "orientation", None)
-    if chart is None:
-        return None
-    cols = range(chart.start, chart.start + 3)
-    pos = [i for i in range(task.dim) if i not in cols][:3]
-    return (*itertools.combinations(pos, 2), *itertools.combinations(cols, 2))
 
 
 def tool_axis(task: TaskLike) -> FloatArray:
