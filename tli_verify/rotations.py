@@ -104,7 +104,8 @@ def quat_log(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
     s = np.linalg.norm(e[:, 1:], axis=1)
     theta = 2.0 * np.arctan2(s, e[:, 0])
     # theta / s -> 2 / w as s -> 0 (w -> 1): the series keeps full precision near q*
-    ratio = np.where(s > 1e-8, theta / np.where(s > 1e-8, s, 1.0), 2.0 / e[:, 0])
+    far = s > 1e-8
+    ratio = np.where(far, theta / np.where(far, s, 1.0), 2.0 / np.where(far, 1.0, e[:, 0]))
     xi = e[:, 1:] * ratio[:, None]
     return xi[0] if single else xi
 

@@ -79,3 +79,20 @@ def test_the_cli_refuses_a_bad_pose_task_in_one_line(tmp_path: Path,
     assert code == 2 and out == ""
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: ") and "cone" in lines[0], err
+
+
+def test_a_half_turn_from_the_reference_is_refused_without_a_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A recorded orientation at pi from the reference (w = 0: the chart's edge) is outside the
+    workspace: one error naming the line, and no numpy warning on the way (warnings are
+    errors in the suite)."""
+    task = _write(tmp_path, _pose())
+    pose = tmp_path / "half.csv"
+    pose.write_text("# quaternion: scalar-first\ntime,x0,x1,x2,q0,q1,q2,q3\n"
+                    + "".join(f"{t},0,0,0.5,0,1,0,0\n" for t in (0.0, 0.1, 0.2)),
+                    encoding="utf-8")
+    code, out, err = tli_run(capsys, "demos", str(task), "--from-pose", str(pose), "--out",
+                             str(tmp_path / "demos"))
+    assert code == 2 and out == ""
+    assert err.startswith(f"error: {pose}: line 3: the pose is outside the workspace"), err
+    assert not (tmp_path / "demos").exists()
