@@ -96,3 +96,75 @@ def test_a_half_turn_from_the_reference_is_refused_without_a_warning(
     assert code == 2 and out == ""
     assert err.startswith(f"error: {pose}: line 3: the pose is outside the workspace"), err
     assert not (tmp_path / "demos").exists()
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    (_pose(region='cone = { axis = [1e308, 1e308, 0], toward = [0, 0, 1], within = 20 }'),
+     "regions.up.cone.axis: expected three numbers of size at most"),
+    (_pose(state_extra='orientation = { start = 3, reference = [1e308, 1e308, 0, 0] }'),
+     "state.orientation.reference: expected four numbers"),
+    (_pose(region='cone = { axis = [0, 0, 1], toward = [0, 0, 1], within = 1e-7 }'),
+     "regions.up.cone.within: expected degrees from 0.01 to 179.99"),
+])
+def test_hostile_numbers_in_a_pose_task_are_refused(tmp_path: Path, text: str,
+                                                   message: str) -> None:
+    path = _write(tmp_path, text)
+    with pytest.raises(TaskError) as err:
+        load_task(path)
+    assert message in str(err.value), str(err.value)
+
+
+def test_a_cone_reads_non_finite_states_as_outside_and_keeps_its_arrays(tmp_path: Path) -> None:
+    task = load_task(_write(tmp_path, _pose()))
+    cone = task.partition.cells[0].region
+    X = np.array([[0, 0, 0.5, np.inf, 0, 0], [0, 0, 0.5, np.nan, 0, 0], [0, 0, 0.5, 0, 0, 0]])
+    assert cone.contains(X).tolist() == [False, False, True]  # warnings are errors here
+    assert [cone.contains_one(x.tolist()) for x in X] == [False, False, True]
+    with pytest.raises(ValueError, match="read-only"):
+        cone.axis[:] = [1.0, 0.0, 0.0]
+
+
+def test_pictures_of_a_pose_task_show_every_coordinate() -> None:
+    from dataclasses import dataclass
+
+    from tli_verify.tasks.orientation import OrientationChart
+    from tli_verify.viz.regions import pose_pairs
+
+    @dataclass
+    class Shape:
+        dim: int
+        orientation: OrientationChart
+
+    one = pose_pairs(Shape(4, OrientationChart(1, (1.0, 0.0, 0.0, 0.0))))
+    assert one is not None and one[:3] == ((0, 1), (0, 2), (0, 3))
+    eight = pose_pairs(Shape(8, OrientationChart(2, (1.0, 0.0, 0.0, 0.0))))
+    assert eight is not None
+    assert {i for pair in eight for i in pair} == set(range(8))
+
+
+def test_from_pose_refuses_the_demonstrator_options_and_two_conventions(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    task = _write(tmp_path, _pose())
+    pose = tmp_path / "p.csv"
+    rows = "".join(f"{t},0,0,0.5,1,0,0,0\n" for t in (0.0, 0.1, 0.2))
+    pose.write_text("# quaternion: scalar-first\ntime,x0,x1,x2,q0,q1,q2,q3\n" + rows,
+                    encoding="utf-8")
+    code, out, err = tli_run(capsys, "demos", str(task), "--from-pose", str(pose), "--seed",
+                             "3", "--out", str(tmp_path / "d"))
+    assert code == 2 and out == "" and "--seed" in err, err
+    pose.write_text("# quaternion: scalar-last\n# quaternion: scalar-first\n"
+                    "time,x0,x1,x2,q0,q1,q2,q3\n" + rows, encoding="utf-8")
+    code, out, err = tli_run(capsys, "demos", str(task), "--from-pose", str(pose), "--out",
+                             str(tmp_path / "d"))
+    assert code == 2 and out == ""
+    assert "line 2: a second quaternion convention (scalar-first) after scalar-last" in err
+    # time steps far too small for the states: the finite differences are refused by line,
+    # as tli learn refuses them, with no numpy warning on the way
+    tiny = "".join(f"{t!r},0,0,{0.5 + 0.1 * k},1,0,0,0\n"
+                   for k, t in enumerate((0.0, 1e-300, 2e-300)))
+    pose.write_text("# quaternion: scalar-first\ntime,x0,x1,x2,q0,q1,q2,q3\n" + tiny,
+                    encoding="utf-8")
+    code, out, err = tli_run(capsys, "demos", str(task), "--from-pose", str(pose), "--out",
+                             str(tmp_path / "d"))
+    assert code == 2 and out == "" and "finite difference" in err, err
+    assert not (tmp_path / "d").exists()

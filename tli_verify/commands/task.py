@@ -80,7 +80,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     demos.add_argument("task", metavar="TASK", help="task file or name")
     demos.add_argument("--out", type=output_path, default=None,
                        help="directory (default: demos/ of the task's project)")
-    demos.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
+    demos.add_argument("--seed", type=int_range(0, 2**32 - 1), default=None,
+                       help="the demonstrator's seed (default 0)")
     demos.add_argument("--count", type=int_range(1, 1000), default=None,
                        help="demonstrations (default: the demonstrator's count)")
     demos.add_argument("--prefix", default=None, help="file name prefix (default: the task's "
@@ -296,7 +297,7 @@ def _demos(args: argparse.Namespace) -> int:
     files = [out / f"{prefix}_{i}.csv" for i in range(1, count + 1)]
     check_plan(inputs=[task.source.path],
                outputs=[*((f, "demonstration") for f in files), (args.picture, "picture")])
-    paths = write_demos(task, out, seed=args.seed, n_demos=count, prefix=prefix)
+    paths = write_demos(task, out, seed=args.seed or 0, n_demos=count, prefix=prefix)
     for p in paths:
         sys.stdout.write(f"wrote {p}\n")
     if args.picture is not None:
@@ -316,9 +317,9 @@ def _demos_from_pose(args: argparse.Namespace, task: Task) -> int:
     if task.orientation is None:
         raise TaskError(f"{task.where}: --from-pose needs a pose task ([state] orientation = "
                         "{ start = K, reference = [w, x, y, z] })")
-    if args.count is not None or args.prefix is not None:
-        raise TaskError("--from-pose converts the files given: --count and --prefix do not "
-                        "apply")
+    if args.count is not None or args.prefix is not None or args.seed is not None:
+        raise TaskError("--from-pose converts the files given: --count, --prefix and --seed "
+                        "do not apply")
     out = args.out
     if out is None:
         out = (project_root(task.source.path) / "demos" if task.source.path is not None
@@ -333,7 +334,7 @@ def _demos_from_pose(args: argparse.Namespace, task: Task) -> int:
     for src in args.from_pose:  # every file read and converted before anything is written
         pose = load_pose_demo(src)
         for note in pose.notes:
-            sys.stderr.write(f"note: {src}: {note}\n")
+            sys.stderr.write(f"note: {note}\n")  # each note names its file
         demos.append(task.pose_demonstration(pose))
     for src, demo, path in zip(args.from_pose, demos, files, strict=True):
         atomic_write_text(path, f"# {task.name} demonstration from {Path(src).name} (tli demos "

@@ -63,16 +63,23 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TaskError
+from tli_verify.limits import MAX_ABS_VALUE
 from tli_verify.rotations import quat_exp, quat_log, rotate
 from tli_verify.tasks.regions import Primitive
 
-__all__ = ["UNIT_TOLERANCE", "Cone", "OrientationChart", "parse_cone", "parse_orientation"]
+__all__ = ["MIN_WITHIN", "UNIT_TOLERANCE", "Cone", "OrientationChart", "parse_cone",
+           "parse_orientation"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 UNIT_TOLERANCE = 1e-6
 """How far the norm of a declared reference quaternion may be from 1 (it is normalised)."""
+
+MIN_WITHIN = 0.01
+"""Narrowest cone, degrees (and ``180 - MIN_WITHIN`` the widest): far above the resolution of
+``arccos`` near 1 and -1 (about 1e-6 degrees), so the computed tilt is on the right side of
+``within`` wherever it is more than that resolution away from it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,9 +171,9 @@ def parse_orientation(raw: object, lo: FloatArray, hi: FloatArray, where: str
     ref_raw = raw.get("reference", [1.0, 0.0, 0.0, 0.0])
     if (not isinstance(ref_raw, list) or len(ref_raw) != 4
             or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       and math.isfinite(float(v)) for v in ref_raw)):
-        raise TaskError(f"{where}.reference: expected four finite numbers [w, x, y, z] (a unit "
-                        "quaternion, scalar first)")
+                       and abs(float(v)) <= MAX_ABS_VALUE for v in ref_raw)):
+        raise TaskError(f"{where}.reference: expected four numbers [w, x, y, z] of size at "
+                        f"most {MAX_ABS_VALUE:g} (a unit quaternion, scalar first)")
     ref = np.array([float(v) for v in ref_raw])
     norm = float(np.linalg.norm(ref))
     if abs(norm - 1.0) > UNIT_TOLERANCE:
@@ -211,8 +218,12 @@ class Cone(Primitive):
     reference's frame, so that ``cos tilt = (R(Exp v) a) . w'``."""
 
     def __post_init__(self) -> None:
+        for name in ("axis", "toward"):  # read-only copies, as every region's arrays
+            v = np.array(getattr(self, name), dtype=np.float64)
+            v.setflags(write=False)
+            object.__setattr__(self, name, v)
         w = tilt_direction(np.array(self.chart.reference), self.toward)
-        a = np.asarray(self.axis, dtype=np.float64)
+        a = self.axis
         object.__setattr__(self, "_frame", (a, w, np.cross(a, w), float(a @ w)))
 
     def cos_tilt(self, V: FloatArray) -> FloatArray:
@@ -220,13 +231,14 @@ class Cone(Primitive):
         formula ``R(Exp v) a = a cos t + (k x a) sin t + k (k . a)(1 - cos t)``, ``v = t k``,
         without forming quaternions (the closed loop reads the cone every control step)."""
         a, w, u, aw = self._frame
-        t2 = np.einsum("ij,ij->i", V, V)
-        t = np.sqrt(t2)
-        small = t < 1e-4
-        ts = np.where(small, 1.0, t)
-        sinc = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)  # sin t / t
-        versc = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / (ts * ts))  # (1-cos t)/t^2
-        c = np.cos(t) * aw + sinc * (V @ u) + versc * (V @ a) * (V @ w)
+        with np.errstate(invalid="ignore", over="ignore"):  # a non-finite state: NaN, outside
+            t2 = np.einsum("ij,ij->i", V, V)
+            t = np.sqrt(t2)
+            small = t < 1e-4
+            ts = np.where(small, 1.0, t)
+            sinc = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)  # sin t / t
+            versc = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / (ts * ts))
+            c = np.cos(t) * aw + sinc * (V @ u) + versc * (V @ a) * (V @ w)
         return np.asarray(np.clip(c, -1.0, 1.0))
 
     def tilt(self, X: npt.ArrayLike) -> FloatArray:
@@ -238,7 +250,7 @@ class Cone(Primitive):
 
     def contains(self, X: npt.ArrayLike) -> BoolArray:
         """Membership of each state, shape (N,)."""
-        return np.asarray(self.tilt(X) <= self.within)
+        return np.asarray(self.tilt(X) <= self.within)  # NaN (a non-finite state): outside
 
     def contains_one(self, x: Sequence[float]) -> bool:
         """Membership of one state, in plain Python (Rodrigues' formula, as
@@ -247,6 +259,8 @@ class Cone(Primitive):
         v0, v1, v2 = float(x[s]), float(x[s + 1]), float(x[s + 2])
         a, w, u, aw = self._frame
         t2 = v0 * v0 + v1 * v1 + v2 * v2
+        if not math.isfinite(t2):  # no orientation: outside, as contains says
+            return False
         t = math.sqrt(t2)
         if t < 1e-4:
             sinc, versc = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
@@ -287,13 +301,16 @@ def tilt_direction(reference: FloatArray, toward: FloatArray) -> FloatArray:
 def _unit3(raw: object, where: str) -> FloatArray:
     if (not isinstance(raw, list) or len(raw) != 3
             or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       and math.isfinite(float(v)) for v in raw)):
-        raise TaskError(f"{where}: expected three finite numbers (a direction)")
+                       and abs(float(v)) <= MAX_ABS_VALUE for v in raw)):
+        raise TaskError(f"{where}: expected three numbers of size at most {MAX_ABS_VALUE:g} "
+                        "(a direction)")
     v = np.array([float(t) for t in raw])
     norm = float(np.linalg.norm(v))
     if norm < 1e-9:
         raise TaskError(f"{where}: the zero vector is no direction")
-    return v / norm
+    out = v / norm
+    out.setflags(write=False)
+    return out
 
 
 def parse_cone(raw: object, *, dim: int, chart: OrientationChart | None, where: str) -> Cone:
@@ -319,8 +336,9 @@ def parse_cone(raw: object, *, dim: int, chart: OrientationChart | None, where: 
             raise TaskError(f"{where}.{key}: missing")
     within = raw["within"]
     if (isinstance(within, bool) or not isinstance(within, int | float)
-            or not 0.0 < float(within) < 180.0):
-        raise TaskError(f"{where}.within: expected degrees in (0, 180), got {within!r}")
+            or not MIN_WITHIN <= float(within) <= 180.0 - MIN_WITHIN):
+        raise TaskError(f"{where}.within: expected degrees from {MIN_WITHIN:g} to "
+                        f"{180.0 - MIN_WITHIN:g}, got {within!r}")
     return Cone(dim=dim, chart=chart, axis=_unit3(raw["axis"], f"{where}.axis"),
                 toward=_unit3(raw["toward"], f"{where}.toward"),
                 within=math.radians(float(within)))

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
-from tli_verify.demos import Demonstration, PoseDemonstration
+from tli_verify.demos import Demonstration, PoseDemonstration, finite_difference_velocities
 from tli_verify.errors import TaskError, bad_type
 from tli_verify.tasks.demonstrator import Demonstrator
 from tli_verify.tasks.fields import number, vector
@@ -408,7 +408,7 @@ class Task:
             raise TaskError(f"{demo.path}: line {int(demo.lines[i])}: the pose is outside the "
                             f"workspace of task {self.name!r} (state "
                             f"{[round(v, 4) for v in x[i].tolist()]})")
-        dx = np.asarray(np.gradient(x, demo.t, axis=0, edge_order=2), dtype=np.float64)
+        dx = finite_difference_velocities(demo.t, x, where=demo.path, lines=demo.lines)
         return Demonstration(path=demo.path, t=demo.t, x=x, dx=dx,
                              sensor_names=self.sensor_names, sensors=self.sensors(x),
                              lines=demo.lines)

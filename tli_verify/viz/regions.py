@@ -297,14 +297,20 @@ def _region_index(task: TaskLike, X: FloatArray) -> IntArray:
 
 
 def pose_pairs(task: TaskLike) -> tuple[Pair, ...] | None:
-    """A pose task's panels: the pairs of its (first three) position coordinates, then the
-    pairs of its orientation coordinates; None for a task without orientation."""
+    """A pose task's panels: every coordinate shown, position first (the first three position
+    coordinates pairwise, each further one against the first; a lone position coordinate
+    against each orientation coordinate), then the orientation pairs; at most
+    :data:`MAX_PAIRS`. None for a task without orientation."""
     chart = getattr(task, "orientation", None)
     if chart is None:
         return None
-    cols = range(chart.start, chart.start + 3)
-    pos = [i for i in range(task.dim) if i not in cols][:3]
-    return (*itertools.combinations(pos, 2), *itertools.combinations(cols, 2))
+    cols = list(range(chart.start, chart.start + 3))
+    pos = [i for i in range(task.dim) if i not in cols]
+    if len(pos) == 1:
+        first: list[Pair] = [(pos[0], c) for c in cols]
+    else:
+        first = [*itertools.combinations(pos[:3], 2), *((pos[0], p) for p in pos[3:])]
+    return tuple([*first, *itertools.combinations(cols, 2)][:MAX_PAIRS])
 
 
 def pairs_for(dim: int, pairs: Sequence[Sequence[int]] | None = None) -> tuple[Pair, ...]:
