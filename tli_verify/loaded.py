@@ -61,16 +61,8 @@ PathLike = str | os.PathLike[str]
 
 @dataclass(frozen=True, eq=False)
 class LoadedProject:
-    """A project's files, loaded once and settled (:func:`load_project`).
-
-    Attributes
-    ----------
-    files : Resolved
-        The paths the resolver found (task, spec, model, certificate, evidence, goal).
-    spec : GR1Spec
-    model : Model
-    snapshot : Snapshot
-        The bytes every file was read as; every method of the session reads through it.
+    """A project's files, loaded once and settled (:func:`load_project`); its attributes are
+    documented on the public subclass, :class:`tli_verify.project.Session`.
     """
 
     files: Resolved
@@ -240,29 +232,13 @@ def load_project(path: PathLike | None = None, *, task: PathLike | Task | None =
                  spec: PathLike | None = None, model: PathLike | None = None,
                  certificate: PathLike | None = None, lag: int | None = None
                  ) -> LoadedProject:
-    """Open a project from one file (or a project folder) and any files named explicitly.
-
-    Parameters
-    ----------
-    path : path-like, optional
-        A model file (``*.json``), a spec or task file (``*.toml``: a task file has a
-        ``[state]`` table), or a project folder (or a folder in one): its one model, else its
-        one spec (:func:`locate`).
-    task, spec, model, certificate : optional
-        As ``--task``, ``--spec``, ``--model``, ``--certificate``.
-    lag : int, optional
-        Override the task's sensor lag (control steps).
+    """Load a project: the rule, the parameters and the errors of
+    :func:`tli_verify.project.open_project` (the public entry, documented there), without the
+    campaigns.
 
     Returns
     -------
     LoadedProject
-
-    Raises
-    ------
-    TaskError, SpecError, ModelError
-        (exit 2) As :func:`tli_verify.tasks.project.resolve`, the spec and model readers and
-        :func:`tli_verify.tasks.project.check_goal`: a missing file, a model that does not fit
-        the task, an unreachable goal.
     """
     return LoadedProject.open(path, task=task, spec=spec, model=model,
                               certificate=certificate, lag=lag)

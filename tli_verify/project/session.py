@@ -49,9 +49,18 @@ PathLike = str | os.PathLike[str]
 @dataclass(frozen=True, eq=False)
 class Session(LoadedProject):
     """A project's files, loaded once and settled (:func:`open_project`), with its campaigns:
-    the core of :class:`~tli_verify.loaded.LoadedProject` (``files``, ``spec``, ``model``,
-    ``snapshot``; ``automaton``, ``policy``, ``run``, ``check_certificate``) and the
-    falsification and physical campaigns on the same bytes.
+    the loading of :class:`~tli_verify.loaded.LoadedProject` (``automaton``, ``policy``,
+    ``run``, ``check_certificate``) and the falsification and physical campaigns on the same
+    bytes.
+
+    Attributes
+    ----------
+    files : Resolved
+        The paths the resolver found (task, spec, model, certificate, evidence, goal).
+    spec : GR1Spec
+    model : Model
+    snapshot : Snapshot
+        The bytes every file was read as; every method of the session reads through it.
     """
 
     def campaign_config(self, config: CampaignConfig) -> CampaignConfig:
@@ -146,13 +155,29 @@ class Session(LoadedProject):
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,
                  spec: PathLike | None = None, model: PathLike | None = None,
                  certificate: PathLike | None = None, lag: int | None = None) -> Session:
-    """Open a project from one file (or a project folder) and any files named explicitly,
-    with its campaigns: :func:`tli_verify.loaded.load_project`'s rule, parameters and errors,
-    returning a :class:`Session`.
+    """Open a project from one file (or a project folder) and any files named explicitly.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        A model file (``*.json``), a spec or task file (``*.toml``: a task file has a
+        ``[state]`` table), or a project folder (or a folder in one): its one model, else its
+        one spec (:func:`~tli_verify.loaded.locate`).
+    task, spec, model, certificate : optional
+        As ``--task``, ``--spec``, ``--model``, ``--certificate``.
+    lag : int, optional
+        Override the task's sensor lag (control steps).
 
     Returns
     -------
     Session
+
+    Raises
+    ------
+    TaskError, SpecError, ModelError
+        (exit 2) As :func:`tli_verify.tasks.project.resolve`, the spec and model readers and
+        :func:`tli_verify.tasks.project.check_goal`: a missing file, a model that does not fit
+        the task, an unreachable goal.
     """
     return Session.open(path, task=task, spec=spec, model=model, certificate=certificate,
                         lag=lag)
