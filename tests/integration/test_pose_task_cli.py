@@ -234,3 +234,30 @@ def test_the_python_api_runs_the_pose_task(project: Path) -> None:
     assert task.orientation is not None
     upright = next(r for r in task.partition.layers if r.name == "upright").region
     assert not upright.contains(last[None])[0]  # poured: tipped past the cone, over the bowl
+
+
+def test_tli_init_pose_starts_a_pose_project_that_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``tli init --pose``: the template's zone counts only with the tool upright, its nominal
+    start is tilted; demonstrations, learning, certification and a perturbed run work."""
+    root = tmp_path / "turn"
+    code, _, err = tli_run(capsys, "init", str(root), "--name", "turn", "--pose")
+    assert code == 0, err
+    task = tli.load_task(root / "tasks" / "turn.toml")
+    assert task.dim == 6 and task.orientation is not None and task.orientation.start == 3
+    zone = next(r for r in task.partition.cells if r.name == "zone").region
+    x = np.array([[0.4, 0.0, 0.0, 0.0, 0.0, 0.0], [0.4, 0.0, 0.0, 0.5, 0.0, 0.0]])
+    assert zone.contains(x).tolist() == [True, False]  # upright counts, tilted does not
+    code, _, err = tli_run(capsys, "demos", str(root / "tasks" / "turn.toml"))
+    assert code == 0, err
+    model = root / "models" / "turn.model.json"
+    code, _, err = tli_run(capsys, "learn", *sorted(str(p) for p in (root / "demos").glob("*.csv")),
+                           "--spec", str(root / "specs" / "turn.toml"), "-o", str(model),
+                           "--no-handoff")
+    assert code == 0, err
+    code, _, err = tli_run(capsys, "certify", str(model))
+    assert code == 0, err
+    code, out, err = tli_run(capsys, "run", "--spec", str(root / "specs" / "turn.toml"),
+                             "--perturb", "random:2", "--out", str(root / "out"))
+    assert code == 0, err
+    assert "reached the goal" in out

@@ -30,6 +30,7 @@ from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
 from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 from tli_verify.tasks.scaffold import scaffold
+from tli_verify.tasks.values import MAX_TASK_DIM
 from tli_verify.verify.evidence import write_campaign_evidence
 
 if TYPE_CHECKING:
@@ -104,8 +105,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "overwrite existing files.")
     init.add_argument("directory", type=output_path, metavar="DIR")
     init.add_argument("--name", default="mytask", help="task name (default mytask)")
-    init.add_argument("--dim", type=int_range(1, 32), default=2,
-                      help="state dimension of the template (default 2)")
+    init.add_argument("--dim", type=int_range(1, 32), default=None,
+                      help="state dimension of the template (default 2); with --pose, the "
+                      "position coordinates (default 3; 1 to 29)")
+    init.add_argument("--pose", action="store_true",
+                      help="a pose task: the tool's orientation in the state after the "
+                      "position, the zone counting only with the tool upright (a cone)")
     init.set_defaults(handler=_init)
 
     ev = sub.add_parser(
@@ -358,7 +363,11 @@ def _init(args: argparse.Namespace) -> int:
     root: Path = args.directory
     if root.exists() and not root.is_dir():
         raise OutputError(f"{root}: exists and is not a directory")
-    files = scaffold(name, args.dim)
+    if args.pose and args.dim is not None and args.dim > MAX_TASK_DIM - 3:
+        raise TaskError(f"--dim {args.dim} with --pose: at most {MAX_TASK_DIM - 3} position "
+                        f"coordinates (the orientation takes 3 of {MAX_TASK_DIM})")
+    dim = args.dim if args.dim is not None else (3 if args.pose else 2)
+    files = scaffold(name, dim, pose=args.pose)
     targets = [(root / rel, what) for rel, (what, _) in files.items()]
     existing = [str(p) for p, _ in targets if p.exists()]
     if existing:
