@@ -30,7 +30,6 @@ from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import load_spec
 from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 from tli_verify.tasks.scaffold import scaffold
-from tli_verify.tasks.values import MAX_TASK_DIM
 from tli_verify.verify.evidence import write_campaign_evidence
 
 if TYPE_CHECKING:
@@ -363,6 +362,8 @@ def _init(args: argparse.Namespace) -> int:
     root: Path = args.directory
     if root.exists() and not root.is_dir():
         raise OutputError(f"{root}: exists and is not a directory")
+    from tli_verify.tasks.values import MAX_TASK_DIM
+
     if args.pose and args.dim is not None and args.dim > MAX_TASK_DIM - 3:
         raise TaskError(f"--dim {args.dim} with --pose: at most {MAX_TASK_DIM - 3} position "
                         f"coordinates (the orientation takes 3 of {MAX_TASK_DIM})")
