@@ -9,7 +9,7 @@ A task's state may hold the tool's orientation next to its position. The task de
     orientation = { start = 3, reference = [1, 0, 0, 0] }   # scalar-first unit quaternion
 
 Coordinates ``start .. start + 2`` are then the rotation vector ``v`` (radians) of the
-orientation in the chart at the reference ``q_ref`` (:mod:`tli_verify.rotations`):
+orientation in the chart at the reference ``q_ref`` (:mod:`tli_verify.rotations`)::
 
     q(v) = q_ref (x) (cos(|v|/2), sin(|v|/2) v/|v|),    v = log_{q_ref}(q),
 
