@@ -11,6 +11,19 @@ from __future__ import annotations
 __all__ = ["scaffold"]
 
 
+_SENSING = """# Latches remember history: value = set | (prev(value) & !reset).
+[latches.done]               # the goal counts only when entered from the zone; then it stays
+set = "goal & prev(zone)"
+reset = "false"
+
+# Sensors: the spec's inputs, boolean formulas over regions (now, or prev(...)) and latches.
+[sensors]
+z = "zone & !done"
+g = "done"
+"""
+"""The latch and the sensors both templates share (the spec reads ``z`` and ``g``)."""
+
+
 def _vec(values: list[float]) -> str:
     return "[" + ", ".join(f"{v:g}" if v != int(v) else f"{v:.1f}" for v in values) + "]"
 
@@ -47,16 +60,7 @@ color = "#9ed99b"
 box = {{ lower = {_vec([0.2, *lo_rest])}, upper = {_vec([0.6, *hi_rest])} }}
 color = "#f7e27a"
 
-# Latches remember history: value = set | (prev(value) & !reset).
-[latches.done]               # the goal counts only when entered from the zone; then it stays
-set = "goal & prev(zone)"
-reset = "false"
-
-# Sensors: the spec's inputs, boolean formulas over regions (now, or prev(...)) and latches.
-[sensors]
-z = "zone & !done"
-g = "done"
-
+{_SENSING}
 [goal]                       # what completes an episode ("sinks": the automaton's sink modes)
 modes = "sinks"
 
@@ -128,14 +132,7 @@ intersection = [
 ]
 color = "#f7e27a"
 
-[latches.done]               # the goal counts only when entered from the zone; then it stays
-set = "goal & prev(zone)"
-reset = "false"
-
-[sensors]
-z = "zone & !done"
-g = "done"
-
+{_SENSING}
 [goal]
 modes = "sinks"
 
