@@ -138,13 +138,13 @@ def check(world: str, episodes: int, perturbations: int) -> None:
     import numpy as np
 
     from tli_verify.commands.run import parse_perturb
+    from tli_verify.loaded import load_project
     from tli_verify.runtime.episodes import random_start, run_variant
     from tli_verify.runtime.events import AssumptionViolationEvent
-    from tli_verify.runtime.setup import load_setup, make_policy
-    from tli_verify.tasks.project import resolve
+    from tli_verify.runtime.setup import make_policy
 
     for spec in (*SHARED.get(world, ()), *([WITH_SPEC[world]] if world in WITH_SPEC else [])):
-        setup = load_setup(resolve(spec=ROOT / "specs" / f"{spec}.toml"))
+        setup = load_project(spec=ROOT / "specs" / f"{spec}.toml").setup
         ok = violated = cuts = 0
         for seed in range(episodes):
             pert = parse_perturb([f"random:{perturbations}"], seed=seed, task=setup.task)

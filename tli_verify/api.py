@@ -66,20 +66,18 @@ from tli_verify.errors import (
 )
 from tli_verify.io import atomic_write_text, canonical_json, check_plan
 from tli_verify.limits import MAX_SEED
+from tli_verify.loaded import LoadedProject, run_policy
 from tli_verify.logic.automaton import TaskAutomaton
-from tli_verify.logic.check import synthesize
 from tli_verify.logic.spec import GR1Spec, load_spec
 from tli_verify.model.learn import learn_model
 from tli_verify.model.serialize import IN_MEMORY, load_model, model_to_dict, relocate_model
 from tli_verify.model.serialize import save_model as _save
 from tli_verify.model.types import Model
 from tli_verify.project import control_period
-from tli_verify.project.session import run_policy
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
-from tli_verify.runtime.setup import VARIANTS, Setup, check_goal
-from tli_verify.runtime.setup import make_policy as _make
-from tli_verify.snapshot import active
+from tli_verify.runtime.setup import VARIANTS, check_goal
+from tli_verify.snapshot import active, current
 from tli_verify.tasks.project import model_files, resolve, spec_inputs, spec_task
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
@@ -465,16 +463,16 @@ def make_policy(spec: PathLike | GR1Spec | TaskAutomaton, model: Model | PathLik
     spec_file = model.spec_path
     if spec_file is None:
         raise bad_input(ModelError, "the model names no spec: learn it with spec=...")
-    resolved = resolve(task=task, spec=spec_file, model=model.path, certificate=cpath)
-    if isinstance(spec, TaskAutomaton):
-        automaton = spec
-    else:
-
-        automaton = synthesize(spec if isinstance(spec, GR1Spec) else load_spec(spec_file))
-    check_goal(automaton, resolved.goal, where=str(spec_file))
-    setup = Setup(task=resolved.task, automaton=automaton, model=model,
-                  certificate=str(cpath), goal=resolved.goal, spec=str(spec_file))
-    return _make(setup, variant)
+    snap = current()
+    assert snap is not None  # @_in_snapshot
+    project = LoadedProject(
+        files=resolve(task=task, spec=spec_file, model=model.path, certificate=cpath),
+        spec=spec if isinstance(spec, GR1Spec) else load_spec(spec_file), model=model,
+        snapshot=snap)
+    if not isinstance(spec, TaskAutomaton):
+        return project.policy(variant)  # synthesized, its goal checked reachable
+    check_goal(spec, project.goal, where=str(spec_file))
+    return project.policy(variant, automaton=spec)
 
 
 @_in_snapshot

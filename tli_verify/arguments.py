@@ -193,8 +193,9 @@ def int_range(lo: int, hi: int | None = None) -> Callable[[str], int]:
     return parse
 
 
-def positive_float(text: str) -> float:
-    """An argparse ``type``: a finite number > 0 (``inf``, ``nan`` and 0 refused, naming why)."""
+def _finite_number(text: str) -> float:
+    """A command-line number: finite (``inf`` and ``nan`` refused), else an argparse error
+    naming why."""
     import math
 
     try:
@@ -203,6 +204,12 @@ def positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """An argparse ``type``: a finite number > 0 (``inf``, ``nan`` and 0 refused, naming why)."""
+    value = _finite_number(text)
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
     return value
@@ -215,17 +222,10 @@ def float_range(lo: float, hi: float, unit: str = "", *, zero: bool = False
     (:doc:`/reference/limits`), so a subnormal period or an overflowing margin is refused
     before any work.
     """
-    import math
-
     units = f" {unit}" if unit else ""
 
     def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+        value = _finite_number(text)
         if zero and value == 0:
             return 0.0
         if not lo <= value <= hi:

@@ -44,6 +44,7 @@ __all__ = [
     "Demonstration",
     "PoseDemonstration",
     "demo_to_csv",
+    "finite_difference_velocities",
     "load_demo",
     "load_demos",
     "load_pose_demo",
@@ -278,21 +279,50 @@ def load_demo(path: str | os.PathLike[str], *,
     x = values[:, 1:1 + n].copy()
     if dx_cols:
         dx = values[:, 1 + n:1 + 2 * n].copy()
-    else:
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
-        bad = np.argwhere(~(np.abs(dx) <= MAX_ABS_VALUE))
-        if bad.size:
-            r, j = (int(v) for v in bad[0])
-            raise DemoError(f"{where}: line {rows[r][0]}: column 'dx{j}' (finite difference): "
-                            f"{float(dx[r, j]):.6g} is outside the range |v| <= "
-                            f"{MAX_ABS_VALUE:g} (MAX_ABS_VALUE): time steps too small for the "
-                            "state values")
     lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
+    if not dx_cols:
+        dx = finite_difference_velocities(t, x, where=where, lines=lines)
     for arr in (t, x, dx, sensors, lines):
         arr.setflags(write=False)
     return Demonstration(path=where, t=t, x=x, dx=dx, sensor_names=tuple(s_names),
                          sensors=sensors, velocities_from_file=bool(dx_cols), lines=lines)
+
+
+def finite_difference_velocities(t: FloatArray, x: FloatArray, *, where: str,
+                                 lines: npt.NDArray[np.int64]) -> FloatArray:
+    """Velocities of a demonstration without ``dx`` columns: ``numpy.gradient(x, t,
+    edge_order=2)`` (second-order central differences, one-sided at both ends).
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Strictly increasing times.
+    x : ndarray, shape (T, n)
+    where : str
+        The file, for messages.
+    lines : ndarray of int, shape (T,)
+        Each sample's file line.
+
+    Returns
+    -------
+    ndarray, shape (T, n)
+
+    Raises
+    ------
+    DemoError
+        A velocity beyond :data:`~tli_verify.limits.MAX_ABS_VALUE` (time steps too small for
+        the state values), naming the line and column.
+    """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        dx = np.asarray(np.gradient(x, t, axis=0, edge_order=2), dtype=np.float64)
+    bad = np.argwhere(~(np.abs(dx) <= MAX_ABS_VALUE))
+    if bad.size:
+        r, j = (int(v) for v in bad[0])
+        raise DemoError(f"{where}: line {int(lines[r])}: column 'dx{j}' (finite difference): "
+                        f"{float(dx[r, j]):.6g} is outside the range |v| <= "
+                        f"{MAX_ABS_VALUE:g} (MAX_ABS_VALUE): time steps too small for the "
+                        "state values")
+    return dx
 
 
 def load_demos(paths: Iterable[str | os.PathLike[str]], *,
@@ -461,7 +491,11 @@ def load_pose_demo(path: str | os.PathLike[str]) -> PoseDemonstration:
                 if name not in QUATERNION_CONVENTIONS:
                     raise DemoError(f"{where}: line {lineno}: unknown quaternion convention "
                                     f"{m.group(1)!r} (scalar-first, scalar-last, wxyz or xyzw)")
-                convention = {"wxyz": "scalar-first", "xyzw": "scalar-last"}.get(name, name)
+                declared = {"wxyz": "scalar-first", "xyzw": "scalar-last"}.get(name, name)
+                if convention is not None and declared != convention:
+                    raise DemoError(f"{where}: line {lineno}: a second quaternion convention "
+                                    f"({declared}) after {convention}: declare one")
+                convention = declared
             continue
         try:
             fields = next(csv.reader([stripped]))

@@ -141,13 +141,13 @@ def test_closed_loop_parity_written_task(lib: Any, nd_artifacts: dict[int, Any],
 
 
 def _bundled(project_root: Path, name: str, tmp: Path) -> tuple[Any, Any]:
-    from tli_verify.runtime.setup import check_goal, load_setup
-    from tli_verify.tasks.project import resolve
+    from tli_verify.loaded import load_project
+    from tli_verify.runtime.setup import check_goal
 
-    resolved = resolve(model=project_root / "models" / f"{name}.model.json")
-    setup = load_setup(resolved)
-    goal = check_goal(setup.automaton, resolved.goal, where=name)
-    art = build_artifact(setup, goal_modes=goal, goal_inputs=resolved.goal.sensors,
+    project = load_project(model=project_root / "models" / f"{name}.model.json")
+    setup = project.setup
+    goal = check_goal(setup.automaton, project.goal, where=name)
+    art = build_artifact(setup, goal_modes=goal, goal_inputs=project.goal.sensors,
                          sources=NO_SOURCES, max_online_cuts=60)
     return setup, write_artifact(art, tmp / f"{name}.tli.json")
 

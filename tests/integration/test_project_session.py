@@ -178,3 +178,27 @@ def test_the_session_runs_a_project_the_test_writes(tmp_path: Path) -> None:
         s.run(start=np.full(task.dim, 1e6))
     with pytest.raises(tli.TaskError, match="no such project folder or file"):
         open_project(tmp_path / "nowhere")
+
+
+def test_tli_verify_reads_every_file_once_and_parses_it_once_in_the_driver(
+        capsys: pytest.CaptureFixture[str], counting: Counter[str], tmp_path: Path) -> None:
+    """``tli verify`` opens its project session once: the model, the spec and the
+    certificate are opened once each (the serial backend runs the campaign in this process,
+    so the count covers the runs too), and parsed once each."""
+    model = ROOT / "models" / "scoop.model.json"
+    spec = ROOT / "specs" / "scoop.toml"
+    cert = ROOT / "certificates" / "scoop.cert.json"
+    _WATCH[:] = [os.path.realpath(p) for p in (model, spec, cert)]
+    _OPENS.clear()
+    try:
+        code, out, err = tli_run(capsys, "verify", "--model", str(model), "--examples", "3",
+                                 "--workers", "1", "--backend", "serial", "--out",
+                                 str(tmp_path))
+    finally:
+        watched = dict(_OPENS)
+        _WATCH.clear()
+    assert code == 0, err
+    assert "3 runs" in out and "no violation found" in out, out
+    assert watched == {os.path.realpath(model): 1, os.path.realpath(spec): 1,
+                       os.path.realpath(cert): 1}, watched
+    assert counting == {"model": 1, "spec": 1}, counting

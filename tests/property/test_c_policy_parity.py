@@ -90,14 +90,14 @@ def test_same_perturbations_scoop(setups: dict[str, Any], repo: Path,
                                   tmp_path_factory: pytest.TempPathFactory,
                                   seq: list[tuple[int, float, int]],
                                   x0: tuple[float, float]) -> None:
-    from tli_verify.runtime.setup import check_goal, load_setup, make_policy
+    from tli_verify.loaded import load_project
+    from tli_verify.runtime.setup import check_goal, make_policy
     from tli_verify.runtime.task_sensors import TaskSensors
-    from tli_verify.tasks.project import resolve
 
     if "scoop" not in setups:
-        resolved = resolve(model=repo / "models" / "scoop.model.json")
-        setup = load_setup(resolved)
-        art = build_artifact(setup, goal_modes=check_goal(setup.automaton, resolved.goal,
+        project = load_project(model=repo / "models" / "scoop.model.json")
+        setup = project.setup
+        art = build_artifact(setup, goal_modes=check_goal(setup.automaton, project.goal,
                                                           where="scoop"),
                              goal_inputs=(), sources=NO_SOURCES, max_online_cuts=60)
         setups["scoop"] = (setup, write_artifact(art, tmp_path_factory.mktemp("scoop")

@@ -32,6 +32,10 @@ PLANTS = {
                   "The demonstration side never imports the spec side"),
     "cycle": ("tasks/fields.py", "import tli_verify.tasks.taskfile",
               "No import cycles"),
+    "gate": ("deploy/gate.py", "import tli_verify.sim.campaign",
+             "The gate reaches campaigns and physics only through the project session"),
+    "physics below the session": ("sim/loop.py", "import tli_verify.project.session",
+                                  "Layers follow the data flow"),
 }
 
 

@@ -198,10 +198,10 @@ def _scoop(args: argparse.Namespace) -> int:
     if workers < 1:
         raise TliError(f"--workers must be >= 1, got {workers}")
     out: Path = args.out  # checked by tli_verify.cli.check_paths before this handler
-    from tli_verify.tasks.project import resolve
+    from tli_verify.project import open_project
 
-    bundled = resolve(task="scoop", lag=cfg.lag)  # the scoop study's files are its inputs
-    check_plan(inputs=bundled.inputs,
+    bundled = open_project(task="scoop", lag=cfg.lag)  # the scoop study's files: its inputs
+    check_plan(inputs=bundled.files.inputs,
                outputs=[(out / n, n) for n in ("scoop.md", "scoop.json", "scoop_success.png",
                                                "fig7.png")])
     summary, files = scoop_study(cfg, out, workers=workers, fig7_tries=20 if args.quick else 200)

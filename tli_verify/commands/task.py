@@ -18,7 +18,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tli_verify.commands import check_plan, float_range, int_range, output_path
 from tli_verify.commands.sim import robot_name
@@ -31,6 +31,13 @@ from tli_verify.logic.spec import load_spec
 from tli_verify.sim.physics_checks import MIN_PHYSICS_TRIALS
 from tli_verify.tasks.scaffold import scaffold
 from tli_verify.verify.evidence import write_campaign_evidence
+
+if TYPE_CHECKING:
+    from tli_verify.project import Session
+    from tli_verify.sim.loop import TrialResult
+    from tli_verify.sim.trial_oracle import TrialVerdict
+    from tli_verify.tasks.task import Task
+    from tli_verify.verify.config import CampaignConfig
 
 __all__ = ["register"]
 
@@ -73,13 +80,19 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     demos.add_argument("task", metavar="TASK", help="task file or name")
     demos.add_argument("--out", type=output_path, default=None,
                        help="directory (default: demos/ of the task's project)")
-    demos.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0)
+    demos.add_argument("--seed", type=int_range(0, 2**32 - 1), default=None,
+                       help="the demonstrator's seed (default 0)")
     demos.add_argument("--count", type=int_range(1, 1000), default=None,
                        help="demonstrations (default: the demonstrator's count)")
     demos.add_argument("--prefix", default=None, help="file name prefix (default: the task's "
                        "name)")
     demos.add_argument("--picture", type=output_path, default=None, metavar="OUT.png",
                        help="also draw the regions with the demonstrations")
+    demos.add_argument("--from-pose", type=Path, nargs="+", default=None, metavar="POSE.csv",
+                       help="instead of scripting demonstrations: convert these recorded pose "
+                       "demonstrations (position and a quaternion per sample; '# quaternion: "
+                       "scalar-first' or 'scalar-last' before the header) into demonstrations "
+                       "of this pose task, read by its sensors: OUT/<name>.csv each")
     demos.set_defaults(handler=_demos)
 
     init = sub.add_parser(
@@ -91,8 +104,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
         "overwrite existing files.")
     init.add_argument("directory", type=output_path, metavar="DIR")
     init.add_argument("--name", default="mytask", help="task name (default mytask)")
-    init.add_argument("--dim", type=int_range(1, 32), default=2,
-                      help="state dimension of the template (default 2)")
+    init.add_argument("--dim", type=int_range(1, 32), default=None,
+                      help="state dimension of the template (default 2); with --pose, the "
+                      "position coordinates (default 3; 1 to 29)")
+    init.add_argument("--pose", action="store_true",
+                      help="a pose task: the tool's orientation in the state after the "
+                      "position, the zone counting only with the tool upright (a cone)")
     init.set_defaults(handler=_init)
 
     ev = sub.add_parser(
@@ -272,6 +289,8 @@ def _demos(args: argparse.Namespace) -> int:
     from tli_verify.tasks.registry import find_task
 
     task = find_task(args.task)
+    if args.from_pose is not None:
+        return _demos_from_pose(args, task)
     if task.demonstrator is None:
         raise TaskError(f"{task.where}: no [demonstrator] table: the task cannot write "
                         "demonstrations (record your own as CSV files)")
@@ -286,7 +305,7 @@ def _demos(args: argparse.Namespace) -> int:
     files = [out / f"{prefix}_{i}.csv" for i in range(1, count + 1)]
     check_plan(inputs=[task.source.path],
                outputs=[*((f, "demonstration") for f in files), (args.picture, "picture")])
-    paths = write_demos(task, out, seed=args.seed, n_demos=count, prefix=prefix)
+    paths = write_demos(task, out, seed=args.seed or 0, n_demos=count, prefix=prefix)
     for p in paths:
         sys.stdout.write(f"wrote {p}\n")
     if args.picture is not None:
@@ -294,6 +313,45 @@ def _demos(args: argparse.Namespace) -> int:
         from tli_verify.viz.regions import plot_task
 
         plot_task(task, args.picture, demos=[load_demo(p) for p in paths])
+        sys.stdout.write(f"wrote {args.picture}\n")
+    return 0
+
+
+def _demos_from_pose(args: argparse.Namespace, task: Task) -> int:
+    """``tli demos TASK --from-pose FILE...``: recorded pose demonstrations as the task's."""
+    from tli_verify.demos import demo_to_csv, load_pose_demo
+    from tli_verify.tasks.project import project_root
+
+    if task.orientation is None:
+        raise TaskError(f"{task.where}: --from-pose needs a pose task ([state] orientation = "
+                        "{ start = K, reference = [w, x, y, z] })")
+    if args.count is not None or args.prefix is not None or args.seed is not None:
+        raise TaskError("--from-pose converts the files given: --count, --prefix and --seed "
+                        "do not apply")
+    out = args.out
+    if out is None:
+        out = (project_root(task.source.path) / "demos" if task.source.path is not None
+               else Path("demos"))
+    files = [out / f"{Path(f).stem}.csv" for f in args.from_pose]
+    if len(set(files)) != len(files):
+        raise TaskError("--from-pose: two files have the same name; their demonstrations "
+                        "would overwrite each other")
+    check_plan(inputs=[task.source.path, *args.from_pose],
+               outputs=[*((f, "demonstration") for f in files), (args.picture, "picture")])
+    demos = []
+    for src in args.from_pose:  # every file read and converted before anything is written
+        pose = load_pose_demo(src)
+        for note in pose.notes:
+            sys.stderr.write(f"note: {note}\n")  # each note names its file
+        demos.append(task.pose_demonstration(pose))
+    for src, demo, path in zip(args.from_pose, demos, files, strict=True):
+        atomic_write_text(path, f"# {task.name} demonstration from {Path(src).name} (tli demos "
+                          "--from-pose)\n" + demo_to_csv(demo))
+        sys.stdout.write(f"wrote {path}\n")
+    if args.picture is not None:
+        from tli_verify.viz.regions import plot_task
+
+        plot_task(task, args.picture, demos=demos)
         sys.stdout.write(f"wrote {args.picture}\n")
     return 0
 
@@ -308,7 +366,13 @@ def _init(args: argparse.Namespace) -> int:
     root: Path = args.directory
     if root.exists() and not root.is_dir():
         raise OutputError(f"{root}: exists and is not a directory")
-    files = scaffold(name, args.dim)
+    from tli_verify.tasks.values import MAX_TASK_DIM
+
+    if args.pose and args.dim is not None and args.dim > MAX_TASK_DIM - 3:
+        raise TaskError(f"--dim {args.dim} with --pose: at most {MAX_TASK_DIM - 3} position "
+                        f"coordinates (the orientation takes 3 of {MAX_TASK_DIM})")
+    dim = args.dim if args.dim is not None else (3 if args.pose else 2)
+    files = scaffold(name, dim, pose=args.pose)
     targets = [(root / rel, what) for rel, (what, _) in files.items()]
     existing = [str(p) for p, _ in targets if p.exists()]
     if existing:
@@ -327,7 +391,7 @@ def _init(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------ evidence
 def _evidence(args: argparse.Namespace) -> int:
-    from tli_verify.tasks.project import model_files, model_stem, resolve
+    from tli_verify.tasks.project import model_files, model_stem
 
     root: Path = args.directory
     if not root.is_dir():
@@ -341,77 +405,60 @@ def _evidence(args: argparse.Namespace) -> int:
     if not models:
         raise TliError(f"{root / 'models'}: no *.model.json to make evidence for")
     plan = []
-    for model in models:  # every model resolves, and no evidence overwrites an input, first
-        resolved = resolve(model=model)
-        physical = bool(getattr(resolved.task.sensor_model, "physics", False))
-        plan.append((model, resolved, physical))
-        if not physical:  # nor replaces stronger evidence (unless --force)
-            from tli_verify.verify.config import resolve_config
+    from tli_verify.project import open_project
 
+    for model in models:  # every model opens, and no evidence overwrites an input, first
+        session = open_project(model=model)
+        physical = bool(getattr(session.task.sensor_model, "physics", False))
+        plan.append((model, session, physical))
+        if not physical:  # nor replaces stronger evidence (unless --force)
             keep_stronger(model_files(model).evidence,
-                          resolve_config(_config(args, resolved))[1], force=args.force)
-    check_plan(inputs=[p for _, r, _ in plan for p in r.inputs],
+                          session.campaign_config(_config(args)), force=args.force)
+    check_plan(inputs=[p for _, s, _ in plan for p in s.files.inputs],
                outputs=[(model_files(m).evidence, "campaign evidence") for m, _, _ in plan])
     status = 0
-    for _, resolved, physical in plan:
+    for _, session, physical in plan:
         t0 = time.perf_counter()
         if physical:
-            ok, line = _physical(args, resolved)
+            ok, line = _physical(args, session)
         else:
-            ok, line = _kinematic(args, resolved)
+            ok, line = _kinematic(args, session)
         sys.stdout.write(f"{line} ({time.perf_counter() - t0:.1f} s)\n")
         status |= 0 if ok else 1
     return status
 
 
-def _config(args: argparse.Namespace, resolved: Any) -> Any:
-    """The bisimulation campaign ``tli evidence`` runs for one model."""
+def _config(args: argparse.Namespace) -> CampaignConfig:
+    """The bisimulation campaign ``tli evidence`` runs for one model (on the model's session
+    files: :meth:`~tli_verify.project.Session.campaign_config`)."""
     from tli_verify.verify.config import CampaignConfig
 
-    return CampaignConfig(spec=str(resolved.spec), model=str(resolved.model),
-                          certificate=str(resolved.certificate), examples=args.examples,
-                          seed=args.seed, modulation=True, workers=args.workers,
-                          backend=args.backend or "process", random_starts=args.random_starts)
+    return CampaignConfig(examples=args.examples, seed=args.seed, modulation=True,
+                          workers=args.workers, backend=args.backend or "process",
+                          random_starts=args.random_starts)
 
 
-def _kinematic(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-    from tli_verify.verify.campaign import run_campaign
-
-    config = _config(args, resolved)
-    result = run_campaign(config, progress=sys.stderr.isatty())
+def _kinematic(args: argparse.Namespace, session: Session) -> tuple[bool, str]:
+    result = session.campaign(_config(args), progress=sys.stderr.isatty())
     if result.partial:  # Ctrl-C or SIGTERM: exit 130, and the evidence there stays as it was
         raise KeyboardInterrupt
-    path, doc = write_campaign_evidence(result.config, result, path=resolved.evidence)
+    files = session.files
+    path, doc = write_campaign_evidence(result.config, result, path=files.evidence)
     total = doc["violations"]["total"]
     return (not total and not result.partial,
-            f"{path}: task {resolved.task.name!r}, seed {args.seed}, {args.examples} examples, "
+            f"{path}: task {files.task.name!r}, seed {args.seed}, {args.examples} examples, "
             f"{'random starts' if result.config.random_starts else 'nominal start'}, "
             f"{result.runs} runs, {total} violation(s)")
 
 
-def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
-
-    try:
-        from tli_verify.sim.campaign import run_physics_campaign
-        from tli_verify.sim.physics_config import PhysicsConfig
-        from tli_verify.sim.physics_evidence import write_physics_evidence
-    except ImportError as exc:  # pragma: no cover - the sim extra is missing
-        raise TliError(f"{resolved.model}: a physical campaign needs the simulator (pip "
-                       f"install 'tli-verify[sim]'): {exc}") from None
-
+def _physical(args: argparse.Namespace, session: Session) -> tuple[bool, str]:
     trials = MIN_PHYSICS_TRIALS if args.trials is None else args.trials
     if args.seed + trials > 2**32:
         raise TliError("--seed + --trials: every trial's seed must be below 2^32")
-    root = Path(resolved.model).parent.parent
-    config = PhysicsConfig(root=str(root), seed=args.seed, trials=trials, robot=args.robot,
-                           duration=args.duration, retry=not args.no_retry,
-                           sensors=args.sensors,
-                           controller=args.controller or
-                           ("passive" if args.robot == "panda" else "tracking"),
-                           workers=1 if args.workers is None else args.workers,
-                           backend=args.backend or "serial")
+    workers = 1 if args.workers is None else args.workers
+    backend = args.backend or "serial"
 
-    def progress(k: int, res: Any, verdict: Any) -> None:
+    def progress(k: int, res: TrialResult, verdict: TrialVerdict) -> None:
         judged = "ok" if verdict.ok else ", ".join(verdict.violations)
         sys.stderr.write(f"  trial {k + 1}/{trials} (seed {res.seed}): {judged}; "
                          f"{res.delivered} bead(s); modes {res.mode_sequence()}\n")
@@ -419,10 +466,21 @@ def _physical(args: argparse.Namespace, resolved: Any) -> tuple[bool, str]:
     def event(text: str) -> None:
         sys.stderr.write(f"note: {text}\n")
 
-    result = run_physics_campaign(config, on_trial=progress, on_event=event)
+    result = session.physics_campaign(seed=args.seed, trials=trials, workers=workers,
+                                      backend=backend, on_trial=progress, on_event=event,
+                                      robot=args.robot, duration=args.duration,
+                                      retry=not args.no_retry, sensors=args.sensors,
+                                      controller=args.controller or
+                                      ("passive" if args.robot == "panda" else "tracking"))
+    try:
+        from tli_verify.sim.physics_evidence import write_physics_evidence
+    except ImportError as exc:  # pragma: no cover - the sim extra is missing
+        raise TliError(f"{session.files.model}: a physical campaign needs the simulator (pip "
+                       f"install 'tli-verify[sim]'): {exc}") from None
+    resolved = session.files
     path, _ = write_physics_evidence(result, resolved.evidence)
     return result.ok, (f"{path}: physical campaign of task {resolved.task.name!r}, seed "
                        f"{args.seed}, {trials} trial(s) (robot {args.robot}, "
                        f"{args.duration:g} s, {len(result.chunks)} chunk(s) on "
-                       f"{config.backend}), {result.successes} delivered, "
+                       f"{backend}), {result.successes} delivered, "
                        f"{sum(not v.ok for v in result.verdicts)} failed the oracle")

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.commands import DEFAULT_PATH, check_plan, chosen_path, int_range, output_path
-from tli_verify.commands.run import add_task_arguments
+from tli_verify.commands.run import add_task_arguments, open_args
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_text, canonical_json
 from tli_verify.limits import (
@@ -99,7 +99,6 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from tli_verify.verify.campaign import run_campaign
     from tli_verify.verify.config import CampaignConfig
 
     if args.scheduler is not None and args.backend != "dask":
@@ -113,15 +112,14 @@ def _verify(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, max_pushes=args.max_pushes, window=args.window,
         random_starts=args.random_starts, lag=args.lag, shrink=not args.no_shrink,
         target_examples=args.target)
-    from tli_verify.verify.config import resolve_config
-
-    resolved, filled = resolve_config(cfg)  # before any work: the files, the task, their fit
+    session = open_args(args)  # before any work: the files, the task, their fit, read once
+    filled = session.campaign_config(cfg)
     out: Path = args.out
     evidence = None
     if args.evidence is not None:
-        evidence = chosen_path(args.evidence) or evidence_path_for(resolved.model)
+        evidence = chosen_path(args.evidence) or evidence_path_for(session.files.model)
         keep_stronger(evidence, filled, force=args.force)
-    check_plan(inputs=resolved.inputs,
+    check_plan(inputs=session.files.inputs,
                outputs=[(out / "campaign.json", "campaign record"),
                         (out / "campaign.md", "campaign report"),
                         (out / "campaign.png", "campaign picture"),
@@ -135,7 +133,7 @@ def _verify(args: argparse.Namespace) -> int:
         if not args.json:
             sys.stderr.write(f"note: {text}\n")
 
-    result = run_campaign(cfg, progress=progress, on_event=note)
+    result = session.campaign(cfg, progress=progress, on_event=note)
     # a partial result never replaces a complete one: an interrupted campaign's report goes
     # to OUT/partial/, and it writes no evidence
     report_dir = out / "partial" if result.partial else out

@@ -112,7 +112,7 @@ def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequen
     Parameters
     ----------
     setup : tli_verify.runtime.setup.Setup
-        Task, automaton, model and certificate (:func:`~tli_verify.runtime.setup.load_setup`).
+        Task, automaton, model and certificate (:attr:`tli_verify.loaded.LoadedProject.setup`).
     goal_modes, goal_inputs : sequence of str
         The goal the executive runs to.
     sources : dict

@@ -57,9 +57,11 @@ from tli_verify.io import read_bytes, read_json, same_file, sha256_file
 from tli_verify.limits import MAX_EXAMPLES
 from tli_verify.logic.check import check_spec_file, synthesize
 from tli_verify.model.serialize import load_model
+from tli_verify.project.session import open_project
 from tli_verify.runtime.handoff import handoff_status
 from tli_verify.sim.physics_checks import FRANKA_PHYSICS
 from tli_verify.tasks.project import check_goal, goal_of, resolve, spec_task
+from tli_verify.verify.config import CampaignConfig
 from tli_verify.verify.evidence import (
     EVIDENCE_SUFFIX,
     check_evidence,
@@ -744,11 +746,6 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     """
     if check.physics:
         return rerun_physics(check, model, examples)
-    try:
-        from tli_verify.verify.campaign import run_campaign
-        from tli_verify.verify.config import CampaignConfig
-    except ImportError as exc:
-        return False, f"cannot re-run the campaign: {exc}"
 
     settings = settings_for_config(dict(check.settings), CampaignConfig)
     # a verdict, not a counterexample: no shrinking; one batch runs in this process (a pool
@@ -760,10 +757,10 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
     settings.pop("start", None)
     settings.pop("random_starts", None)
     seed = rerun_seed(check, model, examples)
-    try:
-        from tli_verify.tasks.project import resolve
-
-        nominal = resolve(model=model).task.starts.nominal
+    try:  # the project's files through its session: read once, the bytes the checks hashed
+        session = open_project(model=model, spec=check.spec_path,
+                               certificate=check.certificate_path)
+        nominal = session.task.starts.nominal
         plan = rerun_starts(nominal, examples, seed)
         batch = settings.get("batch_size", 100)
         runs = inconclusive = 0
@@ -772,12 +769,10 @@ def rerun_campaign(check: Any, model: Path, examples: int) -> tuple[bool, str]:
         first_bad = None
         for start, count, part_seed in plan:
             single = isinstance(batch, int) and count <= batch
-            config = CampaignConfig(spec=str(check.spec_path), model=str(model),
-                                    certificate=str(check.certificate_path), examples=count,
-                                    seed=part_seed, modulation=True,
+            config = CampaignConfig(examples=count, seed=part_seed, modulation=True,
                                     backend="serial" if single else "process",
                                     start=start, random_starts=start is None, **settings)
-            result = run_campaign(config)
+            result = session.campaign(config)
             runs += int(result.runs)
             inconclusive += int(result.inconclusive)
             partial = partial or bool(getattr(result, "partial", False))
@@ -869,21 +864,17 @@ def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:
     -------
     (bool, str)
     """
-    try:
-        from tli_verify.sim.campaign import run_physics_campaign
-        from tli_verify.sim.physics_config import PhysicsConfig
-        from tli_verify.sim.physics_evidence import settings_from
-    except ImportError as exc:
-        return False, f"cannot re-run the physical trials (pip install 'tli-verify[sim]'): {exc}"
-    root = model.parent.parent
-    try:
-        config = PhysicsConfig(root=str(root), seed=rerun_seed(check, model, trials),
-                               trials=int(trials), workers=1, backend="serial",
-                               **settings_from(dict(check.physics)))
-        result = run_physics_campaign(config)
+    seed = rerun_seed(check, model, trials)
+    try:  # the project's session runs the trials (the gate imports no physics itself)
+        session = open_project(model=model, spec=check.spec_path,
+                               certificate=check.certificate_path)
+        root = session.root
+        result = session.physics_campaign(seed=seed, trials=int(trials),
+                                          recorded=dict(check.physics))
     except TliError as exc:
         return False, f"the re-run physical trials failed: {exc}"
-    what = (f"re-ran {trials} physical trial(s) from seed {config.seed} (robot {config.robot}, "
+    config = result.config
+    what = (f"re-ran {trials} physical trial(s) from seed {seed} (robot {config.robot}, "
             f"{config.variant}, {config.duration:g} s): {result.successes}/{trials} delivered "
             "soup")
     found = {k: v for k, v in result.violations.items() if v}

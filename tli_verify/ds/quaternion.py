@@ -58,6 +58,13 @@ from tli_verify.ds.lpvds import LPVDS, FitInfo, learn_lpvds
 from tli_verify.ds.lyapunov import RATE_BUDGET
 from tli_verify.errors import ModelError
 from tli_verify.io import atomic_write_text, canonical_json, read_json
+from tli_verify.rotations import (
+    canonical_hemisphere,
+    quat_exp,
+    quat_log,
+    quat_multiply,
+    rotation_angle,
+)
 
 __all__ = [
     "ORIENTATION_MODEL_KIND",
@@ -76,121 +83,6 @@ FloatArray = npt.NDArray[np.float64]
 
 ORIENTATION_MODEL_KIND = "tli-verify/orientation-ds"
 """``kind`` of an orientation model file (:func:`write_orientation_model`)."""
-
-
-def quat_multiply(p: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
-    """Hamilton product ``p (x) q`` (scalar-first), broadcast over leading axes.
-
-    Parameters
-    ----------
-    p, q : array_like, shape (..., 4)
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-    """
-    a = np.asarray(p, dtype=np.float64)
-    b = np.asarray(q, dtype=np.float64)
-    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
-    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
-
-
-def _conjugate(q: FloatArray) -> FloatArray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def canonical_hemisphere(Q: npt.ArrayLike, reference: npt.ArrayLike) -> FloatArray:
-    """Each quaternion with the sign that puts it in the hemisphere of ``reference``
-    (``<q, reference> >= 0``): the same rotations, one representative each.
-
-    Parameters
-    ----------
-    Q : array_like, shape (N, 4) or (4,)
-    reference : array_like, shape (4,)
-
-    Returns
-    -------
-    ndarray, same shape as ``Q``
-    """
-    Qa = np.asarray(Q, dtype=np.float64)
-    ref = np.asarray(reference, dtype=np.float64)
-    sign = np.where(Qa @ ref < 0.0, -1.0, 1.0)
-    return np.asarray(Qa * (sign[..., None] if Qa.ndim > 1 else sign), dtype=np.float64)
-
-
-def quat_log(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
-    """Tangent coordinates ``xi = log_{q*}(q)``: the rotation vector of ``q*^{-1} (x) q``.
-
-    Parameters
-    ----------
-    Q : array_like, shape (N, 4) or (4,)
-        Unit quaternions (scalar-first); either sign of each gives the same ``xi``.
-    attractor : array_like, shape (4,)
-        ``q*``, unit.
-
-    Returns
-    -------
-    ndarray, shape (N, 3) or (3,)
-        ``|xi| = theta in [0, pi]``, the rotation angle from ``q*``.
-    """
-    Qa = np.asarray(Q, dtype=np.float64)
-    single = Qa.ndim == 1
-    Qa = np.atleast_2d(Qa)
-    e = quat_multiply(_conjugate(np.asarray(attractor, dtype=np.float64)), Qa)
-    e = e * np.where(e[:, :1] < 0.0, -1.0, 1.0)  # hemisphere of q*: w >= 0
-    s = np.linalg.norm(e[:, 1:], axis=1)
-    theta = 2.0 * np.arctan2(s, e[:, 0])
-    # theta / s -> 2 / w as s -> 0 (w -> 1): the series keeps full precision near q*
-    ratio = np.where(s > 1e-8, theta / np.where(s > 1e-8, s, 1.0), 2.0 / e[:, 0])
-    xi = e[:, 1:] * ratio[:, None]
-    return xi[0] if single else xi
-
-
-def quat_exp(Xi: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
-    """The inverse of :func:`quat_log`: ``q = q* (x) (cos(|xi|/2), sin(|xi|/2) xi/|xi|)``.
-
-    Parameters
-    ----------
-    Xi : array_like, shape (N, 3) or (3,)
-    attractor : array_like, shape (4,)
-
-    Returns
-    -------
-    ndarray, shape (N, 4) or (4,)
-        Unit quaternions in the hemisphere of ``q*`` for ``|xi| < pi``.
-    """
-    Xa = np.asarray(Xi, dtype=np.float64)
-    single = Xa.ndim == 1
-    Xa = np.atleast_2d(Xa)
-    theta = np.linalg.norm(Xa, axis=1)
-    half = 0.5 * theta
-    # sin(theta/2)/theta -> 1/2 - theta^2/48 near 0
-    sinc = np.where(theta > 1e-8, np.sin(half) / np.where(theta > 1e-8, theta, 1.0),
-                    0.5 - theta**2 / 48.0)
-    e = np.column_stack([np.cos(half), Xa * sinc[:, None]])
-    q = quat_multiply(np.asarray(attractor, dtype=np.float64), e)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q[0] if single else q
-
-
-def rotation_angle(Q: npt.ArrayLike, attractor: npt.ArrayLike) -> FloatArray:
-    """Rotation angle (radians, in ``[0, pi]``) between each ``q`` and ``q*``.
-
-    Parameters
-    ----------
-    Q : array_like, shape (N, 4) or (4,)
-    attractor : array_like, shape (4,)
-
-    Returns
-    -------
-    ndarray, shape (N,) or ()
-    """
-    xi = quat_log(Q, attractor)
-    return np.asarray(np.linalg.norm(xi, axis=-1))
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -73,7 +73,7 @@ from tli_verify.errors import DemoError, SpecError, UnrealizableError
 from tli_verify.io import parse_toml, read_text
 from tli_verify.logic.automaton import AssumptionViolation, AutomatonState, TaskAutomaton
 from tli_verify.logic.check import check_spec, synthesize
-from tli_verify.logic.gr1 import build_game, formula_bdd, new_manager
+from tli_verify.logic.gr1 import Game, build_game, formula_bdd, new_manager
 from tli_verify.logic.labels import runs as _runs
 from tli_verify.logic.labels import spec_labeler
 from tli_verify.logic.ltl import atomic_propositions, is_ap_name, parse_formula
@@ -595,27 +595,32 @@ def _replace(spec: GR1Spec, changed: Mapping[tuple[str, int], str]) -> GR1Spec:
     return parse_spec(spec_to_toml(draft), default_name=spec.name)
 
 
-def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
-    """Whether the game already has a move from ``from_mode`` (under its label) to
-    ``to_mode`` (under its label) that both players' safety formulas allow."""
+def _transition_bdds(spec: GR1Spec, from_mode: str, to_mode: str) -> tuple[Game, Any]:
+    """``(game, step)``: the game, and the system running ``from_mode``
+    under its label while the next reading is ``to_mode``'s label and the next mode is
+    ``to_mode`` (``move`` without the environment's and the system's safety)."""
     game = build_game(spec)
     bdd = game.manager
     assert spec.modes is not None
     lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
     lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
-    move = game.rho_e & game.rho_s & lf & bdd.var(from_mode) & lt & bdd.var(to_mode + "'")
-    return bool(move != bdd.false)
+    return game, lf & bdd.var(from_mode) & lt
+
+
+def _allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> bool:
+    """Whether the game already has a move from ``from_mode`` (under its label) to
+    ``to_mode`` (under its label) that both players' safety formulas allow."""
+    game, step = _transition_bdds(spec, from_mode, to_mode)
+    move = game.rho_e & game.rho_s & step & game.manager.var(to_mode + "'")
+    return bool(move != game.manager.false)
 
 
 def _check_change_allowed(spec: GR1Spec, from_mode: str, to_mode: str) -> None:
     """The grown assumptions let the sensors move from ``from_mode``'s label to
     ``to_mode``'s while the system runs ``from_mode``."""
-    game = build_game(spec)
-    bdd = game.manager
-    assert spec.modes is not None
-    lf = formula_bdd(parse_formula(spec.modes[from_mode], where="modes"), bdd, primed=False)
-    lt = formula_bdd(parse_formula(spec.modes[to_mode], where="modes"), bdd, primed=True)
-    if (game.rho_e & lf & bdd.var(from_mode) & lt) == bdd.false:
+    game, step = _transition_bdds(spec, from_mode, to_mode)
+    if (game.rho_e & step) == game.manager.false:
+        assert spec.modes is not None
         raise SpecError(f"{spec.name}: the environment assumptions still rule out the sensor "
                         f"change {spec.modes[from_mode]!r} -> {spec.modes[to_mode]!r} of the "
                         f"transition {from_mode} -> {to_mode}: no assumption of the form "

@@ -308,7 +308,7 @@ def _support(prim: Primitive, y: FloatArray) -> tuple[FloatArray, FloatArray] | 
         if gn == 0.0 or q <= 0.0:
             return None
         return g / gn, prim.center + off / math.sqrt(q)
-    return None  # pragma: no cover - every Primitive is one of the four
+    return None  # another primitive (a pose task's cone): no supporting plane, no face cut
 
 
 def _crossing(prim: Primitive, a: FloatArray, b: FloatArray) -> FloatArray:

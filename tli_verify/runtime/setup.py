@@ -1,10 +1,9 @@
 """What a closed-loop run needs, loaded once: the task, its automaton, the certified model.
 
-:func:`load_setup` turns the files the project resolver found
-(:func:`tli_verify.tasks.project.resolve`) into a :class:`Setup`: the task, the
-automaton synthesized from the spec, the model, its certificate and the goal. It refuses a goal
-the automaton cannot reach. :func:`make_policy` builds the executive of one of the policies
-compared in the paper (:data:`VARIANTS`):
+A :class:`Setup` holds the task, the automaton synthesized from the spec, the model, its
+certificate and the goal (the project loader makes it once:
+:attr:`tli_verify.loaded.LoadedProject.setup`). :func:`make_policy` builds the executive of one
+of the policies compared in the paper (:data:`VARIANTS`):
 
 - ``LTL-DS``: the executive (:class:`~tli_verify.runtime.executive.LTLDSPolicy`): replanning
   and cuts learned online;
@@ -29,15 +28,12 @@ import numpy.typing as npt
 
 from tli_verify.errors import TliError, bad_input
 from tli_verify.logic.automaton import TaskAutomaton
-from tli_verify.logic.check import synthesize
-from tli_verify.logic.spec import load_spec
-from tli_verify.model.serialize import load_model
 from tli_verify.model.types import Model
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.tasks.project import check_goal
 from tli_verify.tasks.task import Goal, Task
 
-__all__ = ["VARIANTS", "SequencePolicy", "Setup", "check_goal", "load_setup", "make_policy"]
+__all__ = ["VARIANTS", "SequencePolicy", "Setup", "check_goal", "make_policy"]
 
 VARIANTS: tuple[str, ...] = ("LTL-DS", "no-modulation", "no-replan", "BC")
 
@@ -72,21 +68,6 @@ class Setup:
     def with_lag(self, lag: int) -> Setup:
         """The same setup with another sensor lag."""
         return replace(self, task=self.task.with_lag(lag))
-
-
-def load_setup(resolved: Any) -> Setup:
-    """Load what :func:`tli_verify.tasks.project.resolve` found.
-
-    Raises
-    ------
-    SpecError, ModelError, TaskError
-        (exit 2) Unreadable files; an unreachable goal.
-    """
-    automaton = synthesize(load_spec(resolved.spec))
-    check_goal(automaton, resolved.goal, where=str(resolved.spec))
-    return Setup(task=resolved.task, automaton=automaton, model=load_model(resolved.model),
-                 certificate=str(resolved.certificate), goal=resolved.goal,
-                 spec=str(resolved.spec))
 
 
 class SequencePolicy(LTLDSPolicy):

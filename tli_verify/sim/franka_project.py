@@ -11,12 +11,11 @@ from pathlib import Path
 from tli_verify.demos import Demonstration, load_demos
 from tli_verify.errors import CertificateError, TliError
 from tli_verify.io import bundled_dir
+from tli_verify.loaded import load_project
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.setup import VARIANTS as RUNTIME_VARIANTS
-from tli_verify.runtime.setup import load_setup, make_policy
 from tli_verify.sim.demos import CONTROL_DT
 from tli_verify.sim.franka_files import MODEL_NAME
-from tli_verify.tasks.project import resolve
 
 __all__ = ["VARIANTS", "bundled_demos", "load_policy", "project_dir"]
 
@@ -73,13 +72,13 @@ def load_policy(variant: str, *, root: str | os.PathLike[str] | None = None,
         raise CertificateError(f"{cert}: refused: no certificate for models/"
                                f"{MODEL_NAME}.model.json (certify it with tli certify)")
     try:
-        resolved = resolve(model=model, certificate=cert)
+        project = load_project(model=model, certificate=cert)
     except TliError as exc:
         if "certificate" in str(exc):
             raise CertificateError(f"refused: {exc}") from None
         raise
-    setup = load_setup(resolved)
-    if abs(setup.task.dt - CONTROL_DT) > 1e-12:
-        raise TliError(f"{setup.task.where}: dt {setup.task.dt:g} s, but the Franka loop "
-                       f"controls at {CONTROL_DT:g} s")
-    return make_policy(setup, variant)
+    task = project.task
+    if abs(task.dt - CONTROL_DT) > 1e-12:
+        raise TliError(f"{task.where}: dt {task.dt:g} s, but the Franka loop controls at "
+                       f"{CONTROL_DT:g} s")
+    return project.policy(variant)

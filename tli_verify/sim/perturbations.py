@@ -693,30 +693,36 @@ def trial_perturbations(*, max_pushes: int = 1, max_tilts: int = 1, min_pushes: 
 
 # --- the uniform sampler of the trials ----------------------------------------------------
 
-def _uniform_direction(g: Any, z_max: float) -> tuple[float, float, float]:
+def _uniform_direction(g: np.random.Generator, z_max: float) -> tuple[float, float, float]:
     z = float(g.uniform(-z_max, z_max))
     return zone_direction(z, float(g.uniform(0.0, 2.0 * math.pi)))
 
 
-def _sample_push(g: Any) -> Perturbation:
-    lo_ms, hi_ms = _ms(PUSH_DURATION)
-    w_lo, w_hi = _ms(PUSH_WINDOW)
+def _sample_motion(g: np.random.Generator, window: tuple[float, float],
+                   size: tuple[float, float], duration: tuple[float, float],
+                   peak_speed: float) -> tuple[float, float, tuple[float, float, float]]:
+    """``(start, length, vector)`` of one push or tilt: the start on the millisecond grid of
+    ``window``, the size uniform in ``size``, the length on the grid from the minimum-jerk
+    floor to ``duration[1]``, the direction uniform on the zone (draws in this order)."""
+    lo_ms, hi_ms = _ms(duration)
+    w_lo, w_hi = _ms(window)
     start = int(g.integers(w_lo, w_hi + 1)) / _MS
-    size = float(g.uniform(*PUSH_DISTANCE))
-    length = int(g.integers(_min_push_ms(size, PUSH_PEAK_SPEED, lo_ms), hi_ms + 1)) / _MS
+    a = float(g.uniform(*size))
+    length = int(g.integers(_min_push_ms(a, peak_speed, lo_ms), hi_ms + 1)) / _MS
     u = _uniform_direction(g, math.sin(math.radians(MAX_ELEVATION)))
-    return Perturbation("push", start, length,
-                        displacement=(size * u[0], size * u[1], size * u[2]))
+    return start, length, (a * u[0], a * u[1], a * u[2])
 
 
-def _sample_tilt(g: Any) -> Perturbation:
-    lo_ms, hi_ms = _ms(TILT_DURATION)
-    d_lo, d_hi = _ms(TILT_DELAY)
-    start = int(g.integers(d_lo, d_hi + 1)) / _MS
-    a = float(g.uniform(*TILT_ANGLE))
-    length = int(g.integers(_min_push_ms(a, TILT_PEAK_SPEED, lo_ms), hi_ms + 1)) / _MS
-    u = _uniform_direction(g, math.sin(math.radians(MAX_ELEVATION)))
-    return Perturbation("tilt", start, length, rotation=(a * u[0], a * u[1], a * u[2]))
+def _sample_push(g: np.random.Generator) -> Perturbation:
+    start, length, v = _sample_motion(g, PUSH_WINDOW, PUSH_DISTANCE, PUSH_DURATION,
+                                      PUSH_PEAK_SPEED)
+    return Perturbation("push", start, length, displacement=v)
+
+
+def _sample_tilt(g: np.random.Generator) -> Perturbation:
+    start, length, v = _sample_motion(g, TILT_DELAY, TILT_ANGLE, TILT_DURATION,
+                                      TILT_PEAK_SPEED)
+    return Perturbation("tilt", start, length, rotation=v)
 
 
 _MAX_DRAWN = 100

@@ -428,7 +428,8 @@ def _table(raw: Any, keys: Sequence[str], where: str) -> Mapping[str, Any]:
 
 
 def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
-                 named: Callable[[str, str], Region], depth: int = 0) -> Region:
+                 named: Callable[[str, str], Region], depth: int = 0,
+                 shapes: Mapping[str, Callable[[Any, str], Region]] | None = None) -> Region:
     """Build a region from its shape table (module docstring).
 
     Parameters
@@ -444,6 +445,9 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
         raises :class:`TaskError` for an unknown name or a cycle.
     depth : int, optional
         Nesting depth of inline shapes (limit :data:`MAX_REGION_DEPTH`).
+    shapes : mapping of str to callable, optional
+        More shape keys and their readers ``(table, where) -> Region``, e.g. a pose task's
+        ``cone`` (:func:`tli_verify.tasks.orientation.parse_cone`).
 
     Raises
     ------
@@ -454,13 +458,17 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
     """
     if depth > MAX_REGION_DEPTH:
         raise TaskError(f"{where}: shapes nested deeper than {MAX_REGION_DEPTH} levels")
-    shapes = [k for k in SHAPES if k in raw]
-    if len(shapes) != 1:
-        raise TaskError(f"{where}: needs exactly one shape key of {', '.join(SHAPES)}"
-                        + (f", got {', '.join(shapes)}" if shapes else ""))
-    kind = shapes[0]
+    extra = dict(shapes or {})
+    keys = (*SHAPES, *extra)
+    given = [k for k in keys if k in raw]
+    if len(given) != 1:
+        raise TaskError(f"{where}: needs exactly one shape key of {', '.join(keys)}"
+                        + (f", got {', '.join(given)}" if given else ""))
+    kind = given[0]
     spec = raw[kind]
     here = f"{where}.{kind}"
+    if kind in extra:
+        return extra[kind](spec, here)
     if kind == "box":
         t = _table(spec, ("lower", "upper"), here)
         lo = _vector(t["lower"], dim, f"{here}.lower", allow_inf=True)
@@ -523,7 +531,8 @@ def parse_region(raw: Mapping[str, Any], *, dim: int, where: str,
             parts.append(named(item, at))
             names.append(item)
         elif isinstance(item, dict):
-            parts.append(parse_region(item, dim=dim, where=at, named=named, depth=depth + 1))
+            parts.append(parse_region(item, dim=dim, where=at, named=named, depth=depth + 1,
+                                      shapes=extra))
             names.append(None)
         else:
             raise TaskError(f"{at}: expected a region name or a shape table")

@@ -11,12 +11,28 @@ from __future__ import annotations
 __all__ = ["scaffold"]
 
 
+_SENSING = """# Latches remember history: value = set | (prev(value) & !reset).
+[latches.done]               # the goal counts only when entered from the zone; then it stays
+set = "goal & prev(zone)"
+reset = "false"
+
+# Sensors: the spec's inputs, boolean formulas over regions (now, or prev(...)) and latches.
+[sensors]
+z = "zone & !done"
+g = "done"
+"""
+"""The latch and the sensors both templates share (the spec reads ``z`` and ``g``)."""
+
+
 def _vec(values: list[float]) -> str:
     return "[" + ", ".join(f"{v:g}" if v != int(v) else f"{v:.1f}" for v in values) + "]"
 
 
-def task_text(name: str, dim: int) -> str:
-    """The commented task file of the template."""
+def task_text(name: str, dim: int, *, pose: bool = False) -> str:
+    """The commented task file of the template (``pose``: ``dim`` position coordinates and
+    the tool's orientation, :mod:`tli_verify.tasks.orientation`)."""
+    if pose:
+        return _pose_task_text(name, dim)
     rest = [0.0] * (dim - 1)
     lo_rest, hi_rest = [-0.3] * (dim - 1), [0.3] * (dim - 1)
     names = ", ".join(f'"x{i}"' for i in range(dim))
@@ -44,16 +60,7 @@ color = "#9ed99b"
 box = {{ lower = {_vec([0.2, *lo_rest])}, upper = {_vec([0.6, *hi_rest])} }}
 color = "#f7e27a"
 
-# Latches remember history: value = set | (prev(value) & !reset).
-[latches.done]               # the goal counts only when entered from the zone; then it stays
-set = "goal & prev(zone)"
-reset = "false"
-
-# Sensors: the spec's inputs, boolean formulas over regions (now, or prev(...)) and latches.
-[sensors]
-z = "zone & !done"
-g = "done"
-
+{_SENSING}
 [goal]                       # what completes an episode ("sinks": the automaton's sink modes)
 modes = "sinks"
 
@@ -77,6 +84,82 @@ label = "approach, cross, done"
 start = {_vec([-0.6, *rest])}
 start_jitter = 0.1
 waypoints = [{_vec([0.0, *rest])}, {_vec([0.4, *rest])}, {_vec([0.8, *rest])}]
+jitter = [1.0, 0.5, 0.0]
+'''
+
+
+def _pose_task_text(name: str, dim: int) -> str:
+    """The pose template: the reach template with the tool's orientation in the state; the
+    zone counts only with the tool upright (a cone)."""
+    rest = [0.0] * (dim - 1)
+    lo_rest, hi_rest = [-0.3] * (dim - 1), [0.3] * (dim - 1)
+    inf3 = ", ".join(["-inf"] * 3)
+    pinf3 = ", ".join(["inf"] * 3)
+    names = ", ".join([*(f'"x{i}"' for i in range(dim)), '"rx"', '"ry"', '"rz"'])
+
+    def box(lo: float, hi: float) -> str:
+        return (f"{{ lower = {_vec([lo, *lo_rest])[:-1]}, {inf3}], upper = "
+                f"{_vec([hi, *hi_rest])[:-1]}, {pinf3}] }}")
+
+    def pose_vec(x: float, r: list[float]) -> str:
+        return _vec([x, *rest, *r])
+
+    return f'''# Task "{name}": what the environment is (../specs/{name}.toml says what to do).
+# Reference: tli_verify.tasks.taskfile (format), tli_verify.tasks.orientation (pose tasks).
+name = "{name}"
+description = "A reaching task with the tool's orientation: cross the zone upright to the goal."
+lag = 0                      # sensor lag in control steps
+dt = 0.01                    # control period (s): certify the model at this period
+background = "free"          # the region of every state no listed region holds
+spec = "../specs/{name}.toml"    # the default spec of `tli run --task tasks/{name}.toml`
+
+[state]                      # position (n = {dim}), then the tool's orientation: rotation vector
+names = [{names}]
+lower = {_vec([-1.0] * dim + [-1.2] * 3)}
+upper = {_vec([1.0] * dim + [1.2] * 3)}
+orientation = {{ start = {dim}, reference = [1, 0, 0, 0] }}   # unit quaternion (w, x, y, z)
+
+# Regions, in priority order. A cone is a region on the orientation: the tool axis `axis`
+# turned by the state's orientation within `within` degrees of the world direction `toward`.
+[regions.goal]
+box = {box(0.6, 1.0)}
+color = "#9ed99b"
+
+[regions.zone]               # the zone, with the tool upright
+intersection = [
+  {{ box = {box(0.2, 0.6)} }},
+  {{ cone = {{ axis = [0, 0, 1], toward = [0, 0, 1], within = 20 }} }},
+]
+color = "#f7e27a"
+
+{_SENSING}
+[goal]
+modes = "sinks"
+
+[starts]
+nominal = [{pose_vec(-0.6, [0.5, 0.0, 0.0])}]   # tilted: 0.5 rad about x
+region = "free"
+
+[perturbations]
+max_magnitude = 1.0
+window = 700
+max_pushes = 3
+
+[demonstrator]               # `tli demos tasks/{name}.toml` (or your own: --from-pose)
+count = 3
+duration = 8.0
+dt = 0.05
+sigma = 0.02
+
+[[demonstrator.scripts]]
+label = "approach turning upright, cross, done"
+start = {pose_vec(-0.6, [0.5, 0.0, 0.0])}
+start_jitter = 0.05
+waypoints = [
+  {pose_vec(0.0, [0.1, 0.0, 0.0])},
+  {pose_vec(0.4, [0.0, 0.0, 0.0])},
+  {pose_vec(0.8, [0.0, 0.0, 0.0])},
+]
 jitter = [1.0, 0.5, 0.0]
 '''
 
@@ -163,10 +246,11 @@ jobs:
 '''
 
 
-def scaffold(name: str, dim: int) -> dict[str, tuple[str, str]]:
-    """The files of a new project: relative path -> (what it is, text)."""
+def scaffold(name: str, dim: int, *, pose: bool = False) -> dict[str, tuple[str, str]]:
+    """The files of a new project: relative path -> (what it is, text); ``pose``: ``dim``
+    position coordinates and the tool's orientation."""
     return {
-        f"tasks/{name}.toml": ("task file", task_text(name, dim)),
+        f"tasks/{name}.toml": ("task file", task_text(name, dim, pose=pose)),
         f"specs/{name}.toml": ("spec", spec_text(name)),
         "README.md": ("project README", readme_text(name)),
         "ci/tli-gate.yml": ("CI snippet", ci_text()),

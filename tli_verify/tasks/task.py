@@ -16,10 +16,11 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
-from tli_verify.demos import Demonstration
+from tli_verify.demos import Demonstration, PoseDemonstration, finite_difference_velocities
 from tli_verify.errors import TaskError, bad_type
 from tli_verify.tasks.demonstrator import Demonstrator
 from tli_verify.tasks.fields import number, vector
+from tli_verify.tasks.orientation import OrientationChart
 from tli_verify.tasks.regions import Primitive
 from tli_verify.tasks.sensing import (
     FormulaSensors,
@@ -102,6 +103,9 @@ class Task:
     source : TaskSource
     spec : str or None
         The default spec (a path; relative paths are relative to the task file).
+    orientation : OrientationChart or None
+        A pose task's orientation coordinates and their chart
+        (:mod:`tli_verify.tasks.orientation`); None for a task on positions only.
     """
 
     name: str
@@ -119,6 +123,7 @@ class Task:
     demonstrator: Demonstrator | None = None
     source: TaskSource = field(default_factory=lambda: TaskSource("code"))
     spec: str | None = None
+    orientation: OrientationChart | None = None
 
     # ------------------------------------------------------------------ shape
     @property
@@ -363,6 +368,50 @@ class Task:
         if self.demonstrator is None:
             raise TaskError(f"{self.where}: no [demonstrator] table")
         return self.demonstrator.demonstrate(self, seed, n_demos)
+
+    def pose_demonstration(self, demo: PoseDemonstration) -> Demonstration:
+        """A recorded pose demonstration (position and unit quaternion per sample,
+        :func:`tli_verify.demos.load_pose_demo`) as a demonstration of this pose task: the
+        position fills the state's other coordinates in order, the orientation becomes the
+        task's orientation coordinates (:meth:`OrientationChart.coordinates`: either sign of a
+        quaternion gives the same state), the velocities are finite differences (as
+        :func:`tli_verify.demos.load_demo` takes them) and the task's sensors read the path.
+
+        Parameters
+        ----------
+        demo : PoseDemonstration
+
+        Returns
+        -------
+        Demonstration
+
+        Raises
+        ------
+        TaskError
+            The task has no orientation coordinates, the file's position has the wrong size,
+            or a sample lies outside the workspace (e.g. an orientation beyond the chart).
+        """
+        chart = self.orientation
+        if chart is None:
+            raise TaskError(f"{self.where}: not a pose task ([state] has no orientation): "
+                            f"{demo.path} records orientations")
+        others = [i for i in range(self.dim) if not chart.start <= i < chart.start + 3]
+        if demo.x.shape[1] != len(others):
+            raise TaskError(f"{demo.path}: {demo.x.shape[1]} position coordinate(s), but task "
+                            f"{self.name!r} has {len(others)} besides its orientation")
+        x = np.empty((demo.n_samples, self.dim))
+        x[:, others] = demo.x
+        x[:, chart.columns] = chart.coordinates(demo.q)
+        outside = np.flatnonzero(~self.in_workspace(x))
+        if outside.size:
+            i = int(outside[0])
+            raise TaskError(f"{demo.path}: line {int(demo.lines[i])}: the pose is outside the "
+                            f"workspace of task {self.name!r} (state "
+                            f"{[round(v, 4) for v in x[i].tolist()]})")
+        dx = finite_difference_velocities(demo.t, x, where=demo.path, lines=demo.lines)
+        return Demonstration(path=demo.path, t=demo.t, x=x, dx=dx,
+                             sensor_names=self.sensor_names, sensors=self.sensors(x),
+                             lines=demo.lines)
 
     def _states(self, X: npt.ArrayLike, name: str = "states", *, finite: bool = False
                 ) -> FloatArray:

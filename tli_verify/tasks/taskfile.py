@@ -93,6 +93,7 @@ from tli_verify.logic.ltl import is_ap_name
 from tli_verify.tasks import formula as fml
 from tli_verify.tasks.demonstrator import parse_demonstrator
 from tli_verify.tasks.fields import number, vector
+from tli_verify.tasks.orientation import OrientationChart, parse_cone, parse_orientation
 from tli_verify.tasks.plugins import entry_point, entry_point_source
 from tli_verify.tasks.regions import Region, parse_region
 from tli_verify.tasks.sensing import (
@@ -202,7 +203,7 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
     if "state" not in data:
         raise TaskError(f"{where}: missing the [state] table (the workspace box: lower, upper; "
                         "optional names)")
-    st = _keys(data["state"], ("names", "lower", "upper"), f"{where}: [state]")
+    st = _keys(data["state"], ("names", "lower", "upper", "orientation"), f"{where}: [state]")
     for k in ("lower", "upper"):
         if k not in st:
             raise TaskError(f"{where}: state.{k}: missing (the workspace box)")
@@ -222,13 +223,16 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
                         for i, v in enumerate(names_raw))
     if len(set(state_names)) != dim:
         raise TaskError(f"{where}: state.names: names must be distinct")
+    chart = (parse_orientation(st["orientation"], lo, hi, f"{where}: state.orientation")
+             if "orientation" in st else None)
     lag = number(data.get("lag", 0), f"{where}: lag", lo=0, hi=MAX_LAG, integer=True)
     dt = number(data.get("dt", DEFAULT_DT_FLOAT), f"{where}: dt", lo=1e-6, hi=10.0)
     if dt <= 0:
         raise TaskError(f"{where}: dt: must be > 0")
     background = _name(data.get("background", "outside"), f"{where}: background")
     bg_color = _color(data.get("background_color", "#ffffff"), f"{where}: background_color")
-    partition = _partition(data.get("regions", {}), dim, background, bg_color, where)
+    partition = _partition(data.get("regions", {}), dim, background, bg_color, where,
+                           chart=chart)
     region_names = set(partition.names) | {la.name for la in partition.layers}
     model: SensorModel
     source = TaskSource("file" if path is not None else "code", path=path,
@@ -256,7 +260,8 @@ def _build(data: Mapping[str, Any], where: str, text: str, path: str | None,
     return Task(name=name, description=description, state_names=state_names,
                 lo=tuple(lo.tolist()), hi=tuple(hi.tolist()), partition=partition,
                 sensor_model=model, lag=int(lag), dt=dt, goal=goal, starts=starts,
-                perturbations=pert, demonstrator=demo, source=source, spec=spec)
+                perturbations=pert, demonstrator=demo, source=source, spec=spec,
+                orientation=chart)
 
 
 def _color(raw: Any, where: str) -> str:
@@ -267,13 +272,17 @@ def _color(raw: Any, where: str) -> str:
     return raw
 
 
-def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -> Partition:
+def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str, *,
+               chart: OrientationChart | None = None) -> Partition:
     if not isinstance(raw, dict):
         raise TaskError(f"{where}: [regions]: expected a table of regions")
     if len(raw) > MAX_REGIONS:
         raise TaskError(f"{where}: more than {MAX_REGIONS} regions")
     built: dict[str, Region] = {}
     busy: list[str] = []
+
+    def cone(table: Any, at: str) -> Region:
+        return parse_cone(table, dim=dim, chart=chart, where=at)
 
     def named(ref: str, at: str) -> Region:
         if ref in built:
@@ -293,7 +302,7 @@ def _partition(raw: Any, dim: int, background: str, bg_color: str, where: str) -
         if not isinstance(table, dict):
             raise TaskError(f"{at}: expected a table with a shape key")
         shape = {k: v for k, v in table.items() if k not in ("color", "layer")}
-        region = parse_region(shape, dim=dim, where=at, named=named)
+        region = parse_region(shape, dim=dim, where=at, named=named, shapes={"cone": cone})
         busy.pop()
         built[rname] = region
         return region

@@ -79,23 +79,49 @@ def _init_worker() -> None:
 
 @contextlib.contextmanager
 def _ctrl_c_deferred() -> Iterator[None]:
-    """Hold SIGINT pending (blocked) in the main thread for the duration: a Ctrl-C that arrives
-    meanwhile is delivered, once, when the block ends. Starting a worker from the fork server
-    connects to the server and then writes the worker's preparation data: a KeyboardInterrupt
-    between the two left a half-born worker that printed an ``EOFError`` traceback from
-    ``spawn._main`` on the user's terminal (issue 32, part 5). A no-op outside the main
-    thread (signals are delivered to the main thread only)."""
+    """Hold SIGINT and SIGTERM for the duration: one that arrives meanwhile takes effect, once,
+    when the block ends. Starting a worker from the fork server connects to the server and then
+    writes the worker's preparation data: an interrupt between the two left a half-born worker
+    that printed an ``EOFError`` traceback from ``spawn._main`` on the user's terminal (issue 32,
+    part 5). Two layers, because masking the main thread is not enough: the kernel may deliver a
+    process-directed signal to any thread that does not block it (the campaign's drawing
+    thread), and Python then runs the handler in the main thread regardless of its mask. So
+    the signals are blocked in the main thread (threads started meanwhile inherit the mask) and
+    their Python handlers are replaced by a recorder, the recorded signal handed to the former
+    handler afterwards. A no-op outside the main thread (Python handles signals there only)."""
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    kinds = (signal.SIGINT, signal.SIGTERM)
+    seen: list[signal.Signals] = []
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, set(kinds))
+    former = {k: signal.getsignal(k) for k in kinds}
+    for k in kinds:
+        if callable(former[k]):
+            signal.signal(k, lambda signum, _frame: seen.append(signal.Signals(signum)))
     try:
         yield
     finally:
+        for k in kinds:
+            if callable(former[k]):
+                signal.signal(k, former[k])
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        if seen:
+            handler = former[seen[0]]
+            if callable(handler):
+                handler(seen[0], None)
+
+
+def block_signals_in_this_thread() -> None:
+    """Let only the main thread take SIGINT and SIGTERM: a helper thread (the campaign's
+    drawing thread) calls this first, so the kernel never delivers them to it (see
+    :func:`_ctrl_c_deferred`)."""
+    import signal
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
 def _start_forkserver_without_ctrl_c() -> None:

@@ -45,7 +45,7 @@ import numpy.typing as npt
 
 from tli_verify.arguments import check_type
 from tli_verify.errors import CampaignError
-from tli_verify.verify.backends import make_backend
+from tli_verify.verify.backends import block_signals_in_this_thread, make_backend
 from tli_verify.verify.cases import bound_files, case_document
 from tli_verify.verify.config import CampaignConfig, resolve_config, sim_spec
 from tli_verify.verify.draws import chunk_seed, config_strategy, draw_chunks
@@ -266,6 +266,7 @@ def run_campaign(config: CampaignConfig, *, progress: bool = False,
     stop = threading.Event()
 
     def produce() -> None:  # hypothesis draws here while the workers simulate
+        block_signals_in_this_thread()  # Ctrl-C and SIGTERM are the main thread's
         try:
             for j, chunk in enumerate(draw_chunks(strategy, config.examples, config.seed,
                                                   config.batch_size)):

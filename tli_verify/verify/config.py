@@ -1,7 +1,8 @@
 """A campaign's configuration and the files it binds (paper Sec. 4.4).
 
 * :class:`CampaignConfig` -- what ``tli verify`` runs (validated on construction);
-* :func:`resolve_config` -- its files by the project rules, the task's defaults filled in;
+* :func:`resolve_config` -- its files by the project rules, the task's defaults filled in
+  (:func:`fill_config`);
 * :class:`SimSpec` and :func:`sim_spec` -- what a worker needs to find and re-check them: the
   files' paths and SHA-256, and how to find the task again (:func:`task_ref`).
 """
@@ -18,6 +19,7 @@ from tli_verify.errors import CampaignError
 from tli_verify.io import sha256_file
 from tli_verify.limits import MAX_BATCH_SIZE, MAX_CAMPAIGN_STEPS, MAX_EXAMPLES, MAX_PUSHES, MAX_SEED
 from tli_verify.tasks.project import resolve
+from tli_verify.tasks.task import Task
 from tli_verify.verify.strategies import (
     LEVELS,
 )
@@ -25,6 +27,7 @@ from tli_verify.verify.strategies import (
 __all__ = [
     "CampaignConfig",
     "SimSpec",
+    "fill_config",
     "resolve_config",
     "sim_spec",
     "task_ref",
@@ -188,7 +191,7 @@ def task_ref(task: Any) -> tuple[str, str]:
 
 def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
     """The config's files by the project rules, and the config with the task's defaults
-    filled in (window, max_pushes, lag, start or random starts).
+    filled in (:func:`fill_config`).
 
     Raises
     ------
@@ -198,7 +201,24 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
     """
     resolved = resolve(task=cfg.task, spec=cfg.spec, model=cfg.model,
                        certificate=cfg.certificate, lag=cfg.lag)
-    task = resolved.task
+    return resolved, fill_config(cfg, resolved.task)
+
+
+def fill_config(cfg: CampaignConfig, task: Task) -> CampaignConfig:
+    """The config with its task's defaults filled in: window, max_pushes, lag, and the start
+    or random starts (a task without a nominal start draws random starts).
+
+    Parameters
+    ----------
+    cfg : CampaignConfig
+    task : Task
+        The task the config's files resolved to (its lag already overridden by ``cfg.lag``).
+
+    Raises
+    ------
+    CampaignError
+        (exit 2) A start outside the workspace or of the wrong dimension, or no start at all.
+    """
     start = cfg.start
     random_starts = cfg.random_starts
     if random_starts is None:
@@ -215,12 +235,11 @@ def resolve_config(cfg: CampaignConfig) -> tuple[Any, CampaignConfig]:
         if not bool(task.in_workspace(np.asarray(start, dtype=np.float64)[None])[0]):
             raise CampaignError(f"start {list(start)}: outside the workspace of task "
                                 f"{task.name!r}")
-    filled = replace(cfg, window=task.perturbations.window if cfg.window is None else cfg.window,
-                     max_pushes=(task.perturbations.max_pushes if cfg.max_pushes is None
-                                 else cfg.max_pushes),
-                     lag=task.lag, random_starts=bool(random_starts),
-                     start=None if random_starts else tuple(float(v) for v in start or ()))
-    return resolved, filled
+    return replace(cfg, window=task.perturbations.window if cfg.window is None else cfg.window,
+                   max_pushes=(task.perturbations.max_pushes if cfg.max_pushes is None
+                               else cfg.max_pushes),
+                   lag=task.lag, random_starts=bool(random_starts),
+                   start=None if random_starts else tuple(float(v) for v in start or ()))
 
 
 def sim_spec(cfg: CampaignConfig) -> SimSpec:

@@ -21,16 +21,15 @@ import numpy.typing as npt
 
 from tli_verify.errors import CampaignError, TliError
 from tli_verify.io import sha256_file
+from tli_verify.loaded import load_project
 from tli_verify.logic.automaton import AssumptionViolation
-from tli_verify.logic.check import synthesize
-from tli_verify.logic.spec import load_spec
-from tli_verify.model.serialize import load_model
 from tli_verify.runtime.episodes import mode_string
 from tli_verify.runtime.events import CutAdded
 from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.loop import run_episodes
 from tli_verify.runtime.task_sensors import TaskSensors
-from tli_verify.tasks.project import check_goal, resolve
+from tli_verify.snapshot import Snapshot, current
+from tli_verify.tasks.project import check_goal
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 from tli_verify.verify.config import SimSpec, task_ref
@@ -163,7 +162,9 @@ def load_task(spec: SimSpec) -> Any:
 
 @lru_cache(maxsize=4)
 def load(spec: SimSpec) -> Loaded:
-    """Load (once per process) what the runs of a :class:`SimSpec` need.
+    """Load (once per process) what the runs of a :class:`SimSpec` need, through the project
+    loader (:func:`tli_verify.loaded.load_project`) inside one snapshot: the SHA-256 checked
+    and the files parsed are the same bytes.
 
     Raises
     ------
@@ -171,27 +172,29 @@ def load(spec: SimSpec) -> Loaded:
         (exit 2) A file's SHA-256 differs from the driver's (the files changed under the
         campaign).
     """
-    for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes, strict=True):
-        if sha256_file(path) != want:
-            raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
-    task = load_task(spec)
-    resolved = resolve(task=task, spec=spec.spec, model=spec.model,
-                       certificate=spec.certificate)
-
-    automaton = synthesize(load_spec(spec.spec))
-    model = load_model(spec.model)
-    # one goal for the policy and the oracle: the spec's, else the task's, else the sinks
-    goal_modes = check_goal(automaton, resolved.goal, where=spec.spec)
-    goal_inputs = resolved.goal.sensors
-    base = LTLDSPolicy(automaton, model, spec.certificate, learn_cuts=spec.modulation,
-                         goal_modes=goal_modes, goal_inputs=goal_inputs, dt=task.dt)
-    if not spec.modulation:  # the ablation runs the nominal DS (make_policy's rule)
-        base.drop_cuts()
-    oracle = Oracle.build(task, automaton, model, spec.certificate, dt=base.dt,
-                          max_cycles=spec.max_cycles, goal_modes=goal_modes,
-                          goal_inputs=goal_inputs)
+    snap = current() or Snapshot()  # the driver's (serial backend), else this worker's
+    with snap.use():
+        for path, want in zip((spec.spec, spec.model, spec.certificate), spec.hashes,
+                              strict=True):
+            if sha256_file(path) != want:
+                raise CampaignError(f"{path}: changed during the campaign (SHA-256 differs)")
+        task = load_task(spec)
+        project = load_project(task=task, spec=spec.spec, model=spec.model,
+                               certificate=spec.certificate)
+        automaton = project.automaton  # synthesized once, its goal checked reachable
+        # one goal for the policy and the oracle: the spec's, else the task's, else the sinks
+        goal_modes = check_goal(automaton, project.goal, where=spec.spec)
+        goal_inputs = project.goal.sensors
+        base = LTLDSPolicy(automaton, project.model, spec.certificate,
+                           learn_cuts=spec.modulation, goal_modes=goal_modes,
+                           goal_inputs=goal_inputs, dt=task.dt)
+        if not spec.modulation:  # the ablation runs the nominal DS (make_policy's rule)
+            base.drop_cuts()
+        oracle = Oracle.build(task, automaton, project.model, spec.certificate, dt=base.dt,
+                              max_cycles=spec.max_cycles, goal_modes=goal_modes,
+                              goal_inputs=goal_inputs)
     limit = 5 * (oracle.max_cycles + len(automaton.modes) + 1)
-    return Loaded(task=task, automaton=automaton, model=model,
+    return Loaded(task=task, automaton=automaton, model=project.model,
                   certificate=spec.certificate, policy=base, oracle=oracle,
                   budget=oracle.budget(spec.window), limit=limit)
 

@@ -48,7 +48,7 @@ any magnitude), appendix "Multi-modal Experiments" (perturbation distribution).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -343,6 +343,19 @@ _SEGMENT_SAMPLES = 256
 non-convex region."""
 
 
+def _last_fraction_inside(inside: Callable[[FloatArray], npt.NDArray[np.int_]], a: FloatArray,
+                          b: FloatArray, region: int, lo_s: float, hi_s: float) -> float:
+    """Bisection (40 halvings) of the fraction ``s`` in ``[lo_s, hi_s]`` of the segment
+    ``a + s (b - a)``: the last fraction found in ``region`` (``lo_s`` is in it)."""
+    for _ in range(40):
+        mid = 0.5 * (lo_s + hi_s)
+        if int(inside((a + mid * (b - a))[None])[0]) == region:
+            lo_s = mid
+        else:
+            hi_s = mid
+    return lo_s
+
+
 def _bisect_inside(task: Task, a: FloatArray, b: FloatArray, region: int) -> FloatArray:
     """``b`` if it lies in ``region``; else ``a + s/2 (b - a)`` with ``s`` a fraction in
     [0, 1] (bisection) keeping the segment's point in ``region`` (``a`` lies in it): half
@@ -357,13 +370,7 @@ def _bisect_inside(task: Task, a: FloatArray, b: FloatArray, region: int) -> Flo
     inside = task.region_index
     if int(inside(b[None])[0]) == region:
         return b
-    lo_s, hi_s = 0.0, 1.0
-    for _ in range(40):
-        mid = 0.5 * (lo_s + hi_s)
-        if int(inside((a + mid * (b - a))[None])[0]) == region:
-            lo_s = mid
-        else:
-            hi_s = mid
+    lo_s = _last_fraction_inside(inside, a, b, region, 0.0, 1.0)
     y = np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
     if int(inside(y[None])[0]) == region:
         return y
@@ -371,13 +378,7 @@ def _bisect_inside(task: Task, a: FloatArray, b: FloatArray, region: int) -> Flo
     fr = np.linspace(0.0, 1.0, _SEGMENT_SAMPLES + 1)
     out = np.flatnonzero(inside(a[None, :] + fr[:, None] * (b - a)[None, :]) != region)
     k = int(out[0]) if out.size else _SEGMENT_SAMPLES
-    lo_s, hi_s = float(fr[max(k - 1, 0)]), float(fr[k])
-    for _ in range(40):
-        mid = 0.5 * (lo_s + hi_s)
-        if int(inside((a + mid * (b - a))[None])[0]) == region:
-            lo_s = mid
-        else:
-            hi_s = mid
+    lo_s = _last_fraction_inside(inside, a, b, region, float(fr[max(k - 1, 0)]), float(fr[k]))
     for _ in range(64):
         y = np.asarray(a + 0.5 * lo_s * (b - a), dtype=np.float64)
         if int(inside(y[None])[0]) == region:

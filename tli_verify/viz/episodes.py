@@ -38,6 +38,7 @@ import numpy.typing as npt
 from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_bytes
 from tli_verify.plotting import save_figure
+from tli_verify.rotations import rotate
 from tli_verify.runtime.events import CutAdded, InvarianceFailure, Perturbation, mode_sequence
 from tli_verify.viz.regions import (
     DEFAULT_SAMPLES,
@@ -51,6 +52,7 @@ from tli_verify.viz.regions import (
     cut_face_shadow,
     cut_trace,
     pairs_for,
+    pose_pairs,
 )
 
 if TYPE_CHECKING:
@@ -327,7 +329,43 @@ def _draw_episode(ax: Any, bg: _Background, res: EpisodeResult, S: FloatArray,
             ax.plot(*_pt(e.last_inside, pair, e.step - 1), "o", mfc="gold", mec="k", ms=6,
                     zorder=5)
             ax.plot(*_pt(e.outside, pair, e.step), "x", color="tab:red", ms=7, mew=2, zorder=5)
+    _orientation_glyphs(ax, bg, S, pair)
     _limits(ax, bg, pair, steps)
+
+
+GLYPHS = 12
+"""Orientation glyphs along a pose task's path, per panel of two position coordinates."""
+
+
+def tool_axis(task: TaskLike) -> FloatArray:
+    """The tool axis a pose task's glyphs draw: its first cone's ``axis``, else ``z``."""
+    partition = getattr(task, "partition", None)
+    named_regions = () if partition is None else (*partition.cells, *partition.layers)
+    for named in named_regions:
+        for leaf in named.region.leaves():
+            if hasattr(leaf, "toward") and hasattr(leaf, "axis"):
+                return np.asarray(leaf.axis, dtype=np.float64)
+    return np.array([0.0, 0.0, 1.0])
+
+
+def _orientation_glyphs(ax: Any, bg: _Background, S: FloatArray, pair: Pair | None) -> None:
+    """On a panel of two position coordinates of a pose task: the tool axis, turned by the
+    state's orientation (:meth:`~tli_verify.tasks.orientation.OrientationChart.quaternions`),
+    as short arrows at :data:`GLYPHS` states along the path (the k-th position coordinate of
+    the state is the world's k-th axis)."""
+    chart = getattr(bg.task, "orientation", None)
+    if chart is None or pair is None or len(S) < 2:
+        return
+    cols = range(chart.start, chart.start + 3)
+    pos = [i for i in range(bg.task.dim) if i not in cols][:3]
+    if pair[0] not in pos or pair[1] not in pos:
+        return
+    idx = np.unique(np.linspace(0, len(S) - 1, GLYPHS).round().astype(int))
+    d = rotate(chart.quaternions(S[idx]), tool_axis(bg.task))  # (k, 3), world frame
+    i, j = pair
+    span = 0.07 * float(min(bg.hi[i] - bg.lo[i], bg.hi[j] - bg.lo[j]))
+    ax.quiver(S[idx, i], S[idx, j], span * d[:, pos.index(i)], span * d[:, pos.index(j)],
+              angles="xy", scale_units="xy", scale=1.0, width=0.006, color="0.25", zorder=4)
 
 
 def _mode_runs(modes: Sequence[str]) -> list[tuple[str, int, int]]:
@@ -498,7 +536,7 @@ def plot_episodes(task: TaskLike, panels: Sequence[tuple[str, EpisodeResult]],
     check_task(task)
     if not panels:
         raise TliError(f"{task.name}: no episode to draw")
-    chosen = pairs_for(task.dim, pairs)
+    chosen = pairs_for(task.dim, pairs if pairs is not None else pose_pairs(task))
     states = [_check_episode(task, r, label) for label, r in panels]
     if nominal is not None:
         _check_episode(task, nominal, "nominal")

@@ -53,6 +53,7 @@ __all__ = [
     "legend_labels",
     "pairs_for",
     "plot_task",
+    "pose_pairs",
     "region_shadows",
     "shadow_mask",
 ]
@@ -293,6 +294,23 @@ def _region_index(task: TaskLike, X: FloatArray) -> IntArray:
         raise TliError(f"{task.name}: cannot draw: region_index returned values outside "
                        f"0..{len(task.region_names) - 1}")
     return idx.astype(np.int64)
+
+
+def pose_pairs(task: TaskLike) -> tuple[Pair, ...] | None:
+    """A pose task's panels: every coordinate shown, position first (the first three position
+    coordinates pairwise, each further one against the first; a lone position coordinate
+    against each orientation coordinate), then the orientation pairs; at most
+    :data:`MAX_PAIRS`. None for a task without orientation."""
+    chart = getattr(task, "orientation", None)
+    if chart is None:
+        return None
+    cols = list(range(chart.start, chart.start + 3))
+    pos = [i for i in range(task.dim) if i not in cols]
+    if len(pos) == 1:
+        first: list[Pair] = [(pos[0], c) for c in cols]
+    else:
+        first = [*itertools.combinations(pos[:3], 2), *((pos[0], p) for p in pos[3:])]
+    return tuple([*first, *itertools.combinations(cols, 2)][:MAX_PAIRS])
 
 
 def pairs_for(dim: int, pairs: Sequence[Sequence[int]] | None = None) -> tuple[Pair, ...]:
@@ -909,7 +927,7 @@ def plot_task(task: TaskLike, path: str | os.PathLike[str], *, demos: Sequence[A
     import matplotlib.pyplot as plt
 
     check_task(task)
-    chosen = pairs_for(task.dim, pairs)
+    chosen = pairs_for(task.dim, pairs if pairs is not None else pose_pairs(task))
     xs = _check_demos(task, demos)
     bg = _background(task, resolution=resolution, samples=samples, seed=seed)
     lo, hi = bg.lo, bg.hi
