@@ -94,6 +94,29 @@ def test_a_reading_during_the_reentry_returns_to_the_mode_first(policy: Any) -> 
     assert "automaton" not in verdict.violations, verdict.messages
 
 
+def test_a_perturbation_during_the_reentry_does_not_end_it(policy: Any) -> None:
+    """The re-entry runs a's DS through reported perturbations (on the Panda: its own press on
+    the bowl's slope) until a's DS converges; ending it there sent the tray back to where b
+    had stalled, again and again."""
+    modes, xb = _enter_b(policy)
+    for _ in range(round(0.2 / DT)):
+        policy.step(xb, {"r"})
+        modes.append(policy.mode)
+    assert policy.mode == "a"
+    for _ in range(10):  # pressed on the slope, read as a push, not converged
+        v = policy.step(xb + 0.05, {"r"}, perturbed=True)
+        modes.append(policy.mode)
+        assert policy.mode == "a"
+        np.testing.assert_allclose(v, policy.model.modes["a"].velocity(xb + 0.05, dt=DT))
+    assert not any(isinstance(e, Reentered) for e in policy.events)
+    policy.step(policy.model.modes["a"].ds.attractor, {"r"})
+    modes.append(policy.mode)
+    (back,) = [e for e in policy.events if isinstance(e, Reentered)]
+    assert back.converged and policy.mode == "b"
+    verdict = check_trial(_result(policy, modes), policy.automaton, policy.goal_modes)
+    assert "automaton" not in verdict.violations, verdict.messages
+
+
 def test_no_stall_away_from_the_attractor_or_without_the_rule(policy: Any) -> None:
     _modes, xb = _enter_b(policy)
     far = xb + np.array([0.0, 0.8, 0.5, 0.0])  # V far above the level

@@ -80,11 +80,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="franka (default): s from a wrist F/T load, r and t from the noisy "
                    "kinematic pose, with latency (tli_verify.sim.franka_sensors); ideal: "
                    "noise-free sensors from the physics")
-    f.add_argument("--controller", choices=("passive", "tracking", "measured"), default=None,
-                   help="passive (the Panda's default): the DS at the measured pose every "
-                   "period, tracked by the passive-DS law (tli_verify.sim.passive); tracking: "
-                   "the DS integrated to a target the Cartesian impedance law tracks (the free "
-                   "tool's only law)")
+    f.add_argument("--controller", choices=("measured", "passive", "tracking"), default=None,
+                   help="measured (default; the paper's robot): the DS at the measured pose "
+                   "every period, its velocity integrated to a target pose the Cartesian "
+                   "impedance law tracks; passive (the Panda only): the DS at the measured pose "
+                   "tracked by the passive-DS damping law (tli_verify.sim.passive); tracking: "
+                   "the DS run on its own integrated target (for comparison)")
     f.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=TRIAL_DURATION,
                    help="step budget per trial, simulated seconds (default %(default)g; 0.5 "
                    "to 600)")
@@ -161,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
                        "2^32")
     if args.controller == "passive" and args.robot == "free-tool":
         raise TliError("--controller passive runs on the Panda only; the free tool tracks a "
-                       "target (--controller tracking)")
+                       "target (--controller measured or tracking)")
     try:  # before anything imports MuJoCo indirectly (sim.loop does)
         import mujoco  # noqa: F401
     except ImportError:

@@ -149,9 +149,11 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
     ev.add_argument("--sensors", choices=("franka", "ideal"), default="franka",
                     help="physical campaigns: the sensor model (franka, default: the robot's "
                     "own; ideal: the simulator's)")
-    ev.add_argument("--controller", choices=("passive", "tracking"), default=None,
-                    help="physical campaigns: the Panda's control law (passive, default; "
-                    "tracking: the target-tracking impedance, for comparison)")
+    ev.add_argument("--controller", choices=("measured", "passive", "tracking"), default=None,
+                    help="physical campaigns: the control law (measured, default: the DS at "
+                    "the measured pose integrated to the impedance law's target, the paper's; "
+                    "passive: the passive-DS law; tracking: the DS on its own target -- the "
+                    "gate takes evidence of the project's law only)")
     ev.add_argument("--duration", type=float_range(0.5, 600.0, "s"), default=40.0,
                     help="physical campaigns: budget per trial (simulated seconds; default "
                     "40, 0.5 to 600)")
@@ -470,8 +472,8 @@ def _physical(args: argparse.Namespace, session: Session) -> tuple[bool, str]:
                                       backend=backend, on_trial=progress, on_event=event,
                                       robot=args.robot, duration=args.duration,
                                       retry=not args.no_retry, sensors=args.sensors,
-                                      controller=args.controller or
-                                      ("passive" if args.robot == "panda" else "tracking"))
+                                      **({} if args.controller is None else
+                                         {"controller": args.controller}))
     try:
         from tli_verify.sim.physics_evidence import write_physics_evidence
     except ImportError as exc:  # pragma: no cover - the sim extra is missing

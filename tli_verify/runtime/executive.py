@@ -503,10 +503,10 @@ class LTLDSPolicy:
             mode, via, via_key, reading0 = self._reentry
             converged = self._converged(via_key, xv)
             self._last = xv
-            if reading == reading0 and not perturbed and not converged:
-                return via_key
-            # back to the stalled mode (its automaton state was kept); a changed reading or
-            # a perturbation is the next period's step, from there
+            if reading == reading0 and not converged:
+                return via_key  # a perturbation does not end it: the DS of via rides it out
+            # back to the stalled mode (its automaton state was kept); a changed reading (or
+            # a perturbation reported in this period) is the next period's step, from there
             self._reentry = None
             self._pending = perturbed
             assert self._state is not None

@@ -1,4 +1,4 @@
-"""Scripted scooping in the simulator: the waypoints, a mocap-driven ladle, and demonstrations.
+"""Scripted scooping in the simulator: the waypoints and the rigs (a mocap-driven ladle, the Panda).
 
 The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch). The
 soup bowl's floor is a funnel whose flat pit lies at the far side (-y), so the beads gather
@@ -12,13 +12,14 @@ against the far wall, ahead of the ladle (:data:`~tli_verify.sim.scene.SOUP_PIT`
 4. carry to above the target bowl, lower, and pour (front down, 1.3 rad).
 
 Measured with the mocap-driven ladle (:class:`MocapRig`, seeds 0-3): 12-14 beads delivered
-(with the beads gathered in the bowl's middle instead, 2-4).
+(with the beads gathered in the bowl's middle instead, 2-4). The Franka project's
+demonstrations follow this script on the Panda by kinesthetic teaching
+(:mod:`tli_verify.sim.teacher`).
 """
 
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,11 +29,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.defaults import Stream
-from tli_verify.defaults import rng as default_rng
-from tli_verify.demos import Demonstration, demo_to_csv
 from tli_verify.errors import TliError
-from tli_verify.io import atomic_write_text
 from tli_verify.sim.controller import Gains, ImpedanceController
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
 from tli_verify.sim.franka_sensors import make_sensors
@@ -55,7 +52,7 @@ from tli_verify.sim.scene import (
     set_contact_options,
     soup_floor,
 )
-from tli_verify.sim.sensors import SENSOR_NAMES, Debounce, Reading, ScoopSensors
+from tli_verify.sim.sensors import Reading, ScoopSensors
 
 __all__ = [
     "CONTROL_DT",
@@ -64,10 +61,8 @@ __all__ = [
     "ScoopStep",
     "from_ds",
     "from_ds_velocity",
-    "record_demo",
     "scoop_waypoints",
     "to_ds",
-    "write_demos",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -86,19 +81,6 @@ def _tray_height(y: float, pitch: float) -> float:
     front = y - TRAY_RADIUS * math.cos(pitch)
     return float(soup_floor(front) + 0.001 + TRAY_RADIUS * math.sin(pitch)
                  + 2 * TRAY_HALF_THICKNESS * math.cos(pitch))
-
-
-RECOVERY_STARTS = (
-    (0.5, 0.10, 0.16, -0.7),
-    (0.5, -0.02, 0.19, -0.5),
-    (0.5, 0.16, 0.12, -0.25),
-)
-"""Start poses ``(x, y, z [m], pitch [rad])`` of the recovery demonstrations: where a spilling
-tilt leaves the ladle between the bowls, tipped back (:func:`write_demos`)."""
-RECOVERY_BEADS = (18, 15, 12)
-"""Beads left in the soup bowl for each recovery demonstration: a bowl already scooped from,
-whose pile has receded towards the far wall (so mode b's attractor, where the first bead gets
-on, lies deep enough to reach a depleted pile too)."""
 
 
 def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0,
@@ -145,23 +127,6 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
         w[1:7, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
     return w
-
-
-def _react(waypoints: FloatArray, now: float, cmd: FloatArray) -> FloatArray:
-    """The demonstrator sees soup on the spoon mid-sweep: it levels the tray and tips it back
-    while still low (the beads roll against the back rim), then goes on from the lift."""
-    lift = 7  # the row of scoop_waypoints that lifts out of the bowl
-    on = interpolate(waypoints, now + 0.3)  # sweep on a little: the beads get fully on
-    x, y, z, _ = on.tolist()
-    head = np.array([
-        (now, *cmd.tolist()),
-        (now + 0.3, *on.tolist()),
-        (now + 0.8, x, y, z + 0.016, CARRY_PITCH),  # tip back about the front edge
-        (now + 1.3, x, y + 0.005, z + 0.025, CARRY_PITCH),
-    ])
-    tail = waypoints[lift:].copy()
-    tail[:, 0] += now + 2.3 - tail[0, 0]
-    return np.vstack([head, tail])
 
 
 def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
@@ -412,122 +377,6 @@ def from_ds_velocity(v: npt.ArrayLike) -> FloatArray:
     return from_ds(v)
 
 
-def record_demo(seed: int, *, name: str = "", dt: float = CONTROL_DT,
-                start: npt.ArrayLike | None = None, in_bowl: int = N_BEADS) -> Demonstration:
-    """One scripted demonstration in the simulator (like kinesthetic teaching).
-
-    The rig follows :func:`scoop_waypoints` jittered by ``seed`` (beads placed with it too),
-    reacting as a teacher would: once soup is on the spoon mid-sweep it levels the tray and
-    tips it back before lifting (:func:`_react`); every control period the commanded pose
-    (the impedance law's target, which the closed loop integrates:
-    :mod:`tli_verify.sim.loop`) and the sensors from the physics are recorded. The commanded
-    pose, not the measured one: while scooping, the target presses the tray onto the bowl's
-    floor a few mm below where the floor holds it, and a DS learned from the measured heights
-    would hover over the beads.
-
-    Parameters
-    ----------
-    seed : int
-    name : str, optional
-        Shown in messages (``Demonstration.path``).
-    dt : float, optional
-        Sampling period (s), a multiple of the 2 ms physics step.
-    start : array_like, shape (4,), optional
-        Start pose (:func:`scoop_waypoints`); the ladle is placed there before the beads
-        settle.
-    in_bowl : int, optional
-        Beads in the soup bowl (the rest lie out of the task).
-
-    Returns
-    -------
-    Demonstration
-        ``x`` shape (T, 4): the DS state (:func:`to_ds`); sensors ``r, s, t``; velocities by finite
-        differences.
-    """
-    waypoints = scoop_waypoints(default_rng(seed, Stream.SIM_DEMOS), jitter=0.02, start=start)
-    rig = MocapRig(seed, start=waypoints[0, 1:], in_bowl=in_bowl)
-    every = round(dt / float(rig.model.opt.timestep))
-    debounce = Debounce()  # the readings the executive will see (sensors.Debounce)
-    steps = [ScoopStep(0.0, rig.pose(), debounce.update(rig.read()),
-                       interpolate(waypoints, 0.0))]
-    sweep = (float(waypoints[2, 0]), float(waypoints[4, 0]))
-    k = 0
-    reacted = False
-    while k * dt < float(waypoints[-1, 0]) - 1e-9:
-        cmd = interpolate(waypoints, k * dt)
-        if steps[-1].reading.s and not reacted and sweep[0] < k * dt < sweep[1]:
-            waypoints = _react(waypoints, k * dt, cmd)  # soup on the spoon: tip back, lift
-            reacted = True
-        for _ in range(every):
-            rig.command(cmd)
-            rig.physics_step()
-        k += 1
-        steps.append(ScoopStep(round(k * dt, 9), rig.pose(), debounce.update(rig.read()),
-                               cmd))
-    t = np.array([s.time for s in steps])
-    x = to_ds(np.array([s.command for s in steps]))
-    sensors = np.array([[s.reading.r, s.reading.s, s.reading.t] for s in steps], dtype=bool)
-    dx = np.gradient(x, t, axis=0, edge_order=2)
-    return Demonstration(path=name or f"franka demo seed {seed}", t=t, x=x, dx=dx,
-                         sensor_names=SENSOR_NAMES, sensors=sensors)
-
-
-def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
-                max_tries: int = 20,
-                recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS,
-                recovery_beads: tuple[int, ...] = RECOVERY_BEADS) -> list[Path]:
-    """Record ``count`` nominal and one recovery demonstration per ``recovery`` start, as
-    ``franka_<k>.csv`` (atomically).
-
-    The recovery takes start where a spilling tilt leaves the ladle (between the bowls, tipped
-    back), in a bowl already scooped from (``recovery_beads``), and show the whole task from
-    there: a DS learned only from the nominal start
-    turned the tray's front down too slowly and reached the soup tipped back, scooping
-    nothing (the color-tracing task's recovery demonstrations do the same for its dark
-    modes). A take whose soup never reaches the target (the readings do not end at ``t``), or
-    whose readings go back a mode on the way (soup lost), is discarded and the next seed is
-    tried, as a teacher would redo it.
-
-    Returns
-    -------
-    list of Path
-
-    Raises
-    ------
-    TliError
-        Fewer than ``count`` nominal takes, or no take from a recovery start, in
-        ``max_tries`` seeds.
-    """
-    out: list[Path] = []
-    if len(recovery_beads) != len(recovery):
-        raise TliError(f"franka demos: {len(recovery)} recovery starts but "
-                       f"{len(recovery_beads)} bead counts")
-    plan: list[tuple[tuple[float, float, float, float] | None, int]] = \
-        [(None, N_BEADS)] * count + list(zip(recovery, recovery_beads, strict=True))
-    seed = first_seed
-    for start, beads in plan:
-        for _ in range(max_tries):
-            path = Path(directory) / f"franka_{len(out) + 1}.csv"
-            demo = record_demo(seed, name=str(path), start=start, in_bowl=beads)
-            seed += 1
-            r, s_, t = demo.sensors.T
-            stage = np.where(t, 3, np.where(s_, 2, np.where(r, 1, 0)))  # modes a b c d
-            if t[-1] and not np.any(np.diff(stage) < 0):
-                break  # else: no soup delivered, or soup lost on the way
-        else:
-            raise TliError(f"franka demos: no scripted take {len(out) + 1} "
-                           f"({'nominal' if start is None else f'from {start}'}) delivered "
-                           f"soup in {max_tries} seeds")
-        what = "nominal" if start is None else \
-            f"recovery from {list(start)} with {beads} beads in the bowl"
-        head = (f"# franka scoop demonstration {len(out) + 1}, {what} (tli_verify.sim.demos, "
-                f"mocap rig, seed {seed - 1}, dt {CONTROL_DT} s); state = commanded tray pose "
-                "(x, y, z in dm, pitch in rad)\n")
-        atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
-        out.append(path)
-    return out
-
-
 PANDA_IMPEDANCE = CartesianImpedance(stiffness_pos=2000.0, stiffness_rot=50.0,
                                      damping_ratio=1.0)
 """The Panda rig's Cartesian impedance: 2,000 N/m and 50 Nm/rad (within the robot's range of
@@ -541,9 +390,13 @@ PANDA_POSTURE_GAINS = Gains(kn=25.0, dn=10.0)
 """Null-space posture gains of the Panda rig (per unit joint mass); its task-space gains are
 :data:`PANDA_IMPEDANCE`."""
 
-CONTROLLERS = ("passive", "tracking", "measured")
-"""The Panda's control laws: passive-DS (the DS at the measured pose, :mod:`.passive`) and
-target tracking (Cartesian impedance on a target integrated from the DS)."""
+CONTROLLERS = ("measured", "passive", "tracking")
+"""The loop's control laws (:func:`tli_verify.sim.loop.run_trial`): *measured* (the paper's:
+the DS at the measured pose, its velocity integrated to a target pose the Cartesian impedance
+law tracks), *passive* (passive-DS: the DS at the measured pose tracked by damping,
+:mod:`.passive`; the Panda only) and *tracking* (the DS run on its own integrated target, which
+the impedance law tracks). The rig itself runs two: the impedance law on a commanded pose
+(measured, tracking) or the passive-DS law."""
 
 PANDA_TIMESTEPS = (0.002, 0.001)
 """Physics (and torque-loop) periods the Panda rig offers: 500 Hz (default) and 1 kHz, the
@@ -653,8 +506,8 @@ class PandaRig:
         self.guard.reset_ratios()
         if controller not in CONTROLLERS:
             raise TliError(f"controller {controller!r}: one of {', '.join(CONTROLLERS)}")
-        self.control_kind = controller  # 'measured': the tracking law on a target the loop
-        # integrates from the DS at the measured pose
+        self.control_kind = controller  # measured and tracking: the impedance law on the
+        # pose the loop commands (where it evaluates the DS is the loop's business)
         self.passive: Any = None
         if controller == "passive":
             from tli_verify.sim.passive import PassiveDSController

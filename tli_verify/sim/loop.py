@@ -9,20 +9,29 @@ Per control period (``CONTROL_DT`` = 20 ms, the certified period):
    (:func:`~tli_verify.sim.demos.to_ds`), and ``perturbed`` from the robot's own estimate of
    the external wrench (:class:`~tli_verify.sim.contact.ContactDetector`: 25 N or 2.5 N m, held
    1.5 s) -- never from the simulator's list of perturbations;
-2. ``v = LTLDSPolicy.step(z, reading, perturbed)`` -- under the passive-DS law (the Panda's
-   default) at the *measured* state ``z``; under target tracking at the target ``z*``: the
+2. ``v = LTLDSPolicy.step(z, reading, perturbed)`` -- at the *measured* state ``z`` (the
+   default, ``controller="measured"``, and the passive-DS law); under target tracking at the
+   target ``z*``: the
    automaton picks the mode, the mode's certified, modulated DS gives the velocity (cuts are
    learned online on invariance failures); with the stall rule on (``retry``,
    :mod:`tli_verify.runtime.stall`) the executive's assumption monitor reports a converged or
    blocked DS without the next mode's reading and re-enters the mode from its predecessor;
-3. the velocity is capped per axis at ``SPEED_CAP``; *passive* (``controller="passive"``,
+3. the velocity is capped per axis at ``SPEED_CAP``; *measured* (``controller="measured"``,
+   the default; the paper's robot: "the target velocity predicted by the DS was integrated to
+   generate the target pose, which was then tracked by a Cartesian pose impedance
+   controller. The robot state was provided by the control interface", appendix, Robot
+   Experiment 1): it is integrated to a target pose ``z* <- z* + dt v``, the target kept on a
+   leash of the measured state (``LEASH``: held back by the pile or a hand, the arm presses with
+   at most stiffness x leash) and inside the workspace -- the DS and its cuts act on the
+   robot's own state, the target only carries the impedance law's force; *passive*
+   (``controller="passive"``,
    :mod:`tli_verify.sim.passive`): without the components leaving the workspace
    (:func:`~tli_verify.sim.target.workspace`) where the robot is at its bound, it is the
    velocity field the passive law tracks by damping until the next period (the orientation
    servo's pitch integrated on a leash of the measured pitch); *tracking*
-   (``controller="tracking"``, the free tool's only law): it is integrated to a target pose
-   ``z* <- z* + dt v``, kept on a leash of the measured state (``LEASH``) and inside the
-   workspace;
+   (``controller="tracking"``, for comparison): the DS runs on the target ``z*`` itself, which
+   is integrated and leashed as under *measured* (the arm lags it by 4-5 cm, so a cut bounds
+   the target, not the robot);
 4. the rig runs 10 physics steps of 2 ms, torques every step within the Franka's torque,
    torque-rate and joint-velocity limits (:mod:`tli_verify.sim.franka_limits`): the passive-DS
    law, or the Panda's Cartesian impedance controller (2,000 N/m, 50 Nm/rad, the target ramped
@@ -80,6 +89,7 @@ from tli_verify.sim.target import (
     SPEED_CAP,
     clip_floats,
     feed_forward_floats,
+    inside_cuts,
     workspace,
 )
 
@@ -296,10 +306,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         How far the target may leave the demonstrations' box
         (:func:`~tli_verify.sim.target.workspace`; default :data:`~tli_verify.sim.target.MARGIN`).
     controller : str, optional
-        ``"passive"`` (the Panda's default: the DS at the measured pose every period, tracked
-        by the passive-DS law, :mod:`tli_verify.sim.passive`) or ``"tracking"`` (the free
-        tool's only one, and the Panda's for comparison: the DS integrated to a target the
-        impedance law tracks).
+        ``"measured"`` (default: the DS at the measured pose, integrated to the impedance
+        law's target), ``"passive"`` (the Panda only: the DS at the measured pose tracked by
+        the passive-DS law, :mod:`tli_verify.sim.passive`) or ``"tracking"`` (the DS run on
+        its integrated target, for comparison).
 
     Returns
     -------
@@ -376,6 +386,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             refl = clip_floats([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
                          lo_l, hi_l)
             ref = np.array(refl)
+            if measured:  # the target, too, inside the running mode's cut set
+                ref = inside_cuts(ref, policy.model.region_cuts(policy.mode))
+                refl = ref.tolist()
             rig.command(from_ds(ref), from_ds_velocity(feed_forward_floats(refl, vl, lo_l, hi_l)))
         step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
@@ -424,9 +437,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
 
 
 def default_controller(robot: str) -> str:
-    """The control law a rig runs by default: ``"passive"`` on the Panda, ``"tracking"`` on
-    the free tool (which has no passive-DS law)."""
-    return "passive" if robot == "panda" else "tracking"
+    """The control law a rig runs by default: ``"measured"`` (the paper's: the DS at the
+    measured pose, integrated to the impedance law's target) on either rig."""
+    del robot  # the same on both: the free tool has every law but the passive one
+    return "measured"
 
 
 def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
@@ -451,9 +465,9 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
     control = default_controller(robot) if controller is None else controller
     if control not in CONTROLLERS:
         raise InputError(f"controller {control!r}: one of {', '.join(CONTROLLERS)}")
-    if robot == "free-tool" and control != "tracking":
+    if robot == "free-tool" and control == "passive":
         raise InputError("controller 'passive' runs on the Panda only; the free tool tracks a "
-                         "target (--controller tracking)")
+                         "target (--controller measured or tracking)")
     options = DEFAULT_PHYSICS if physics is None else physics
     return PandaRig(seed, sensors=sensors, physics=options, controller=control) \
         if robot == "panda" else MocapRig(seed, sensors=sensors, physics=options)

@@ -460,7 +460,8 @@ class PersonHand:
         return self._p0, _exp(s * self._motion) @ self._r0
 
     def wrench(self, t: float, pos: npt.ArrayLike, orientation: npt.ArrayLike,
-               vel: npt.ArrayLike, omega: npt.ArrayLike) -> FloatArray:
+               vel: npt.ArrayLike, omega: npt.ArrayLike, *, own_only: bool = False
+               ) -> FloatArray:
         """The hand's wrench on the carrier at time ``t``, world frame.
 
         Parameters
@@ -473,6 +474,11 @@ class PersonHand:
             The carrier's orientation: quaternion ``(w, x, y, z)`` or rotation matrix.
         vel, omega : array_like, shape (3,)
             Linear (m/s) and angular (rad/s) velocity, world frame.
+        own_only : bool, optional
+            Another hand holds the ladle too: this one applies only its own part (a push its
+            force, a tilt its torque) and does not hold the rest of the pose, which the other
+            hand moves (two hands each holding the other's part rigidly fought each other:
+            70 N between them).
 
         Returns
         -------
@@ -498,6 +504,11 @@ class PersonHand:
         wx, wy, wz = np.asarray(omega, dtype=np.float64).reshape(3).tolist()
         torque = _clip_norm(np.array((k_r * ax - c_r * wx, k_r * ay - c_r * wy,
                                       k_r * az - c_r * wz)), self.tau_max)
+        if own_only:
+            if self.perturbation.kind == "push":
+                torque = np.zeros(3)
+            else:
+                force = np.zeros(3)
         fade = min(1.0, max(0.0, (self.end - t) / HAND_RELEASE))
         force, torque = fade * force, fade * torque  # the person lets go over HAND_RELEASE
         self.max_force = max(self.max_force, _norm(force))
@@ -806,12 +817,13 @@ def step_with_hands(rig: Any, substeps: int, t: float, hands: list[PersonHand | 
     def before(j: int) -> None:
         tj = t + j * dt
         total = np.zeros(6)
-        for i, hand in live:
-            if hand.active(tj):
-                object_velocity(model, data, kind, body, vel6, 0)
-                total += hand.wrench(tj, pos, orientation, vel, omega)
-                if math.isnan(applied[i]):
-                    applied[i] = tj
+        acting = [(i, hand) for i, hand in live if hand.active(tj)]
+        both = len(acting) > 1
+        for i, hand in acting:
+            object_velocity(model, data, kind, body, vel6, 0)
+            total += hand.wrench(tj, pos, orientation, vel, omega, own_only=both)
+            if math.isnan(applied[i]):
+                applied[i] = tj
         push[:] = total
 
     rig.step(substeps, before=before)

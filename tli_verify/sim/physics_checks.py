@@ -18,16 +18,29 @@ from tli_verify.verify.evidence import PhysicalWorld
 from tli_verify.verify.evidence.rules import MIN_PHYSICS_TRIALS, REQUIRED_ROBOT
 
 __all__ = ["FRANKA_PHYSICS", "MIN_PHYSICS_TRIALS", "REQUIRED_CONTROLLER", "REQUIRED_ROBOT",
-           "REQUIRED_SENSORS", "WORLD", "check_physics_block"]
+           "REQUIRED_SENSORS", "WORLD", "check_physics_block", "controller_law"]
 
 
-REQUIRED_CONTROLLER = "passive"
-"""The control law the Franka project's evidence must be made with: the passive-DS law on the
-measured pose (:mod:`tli_verify.sim.passive`), the one the project deploys."""
+REQUIRED_CONTROLLER = "measured"
+"""The control law the Franka project's evidence must be made with, the one the project
+deploys: the DS at the measured pose, its velocity integrated to the target pose of the
+Cartesian impedance law (the paper's robot; :func:`tli_verify.sim.loop.run_trial`)."""
 
 REQUIRED_SENSORS = "franka"
 """The sensor model the Franka project's evidence must be made with: the robot's own
 (:mod:`tli_verify.sim.franka_sensors`), not the simulator's privileged ones."""
+
+
+def controller_law(record: Mapping[str, Any]) -> str:
+    """The control law an evidence's ``physics.controller`` record names: its ``law``
+    (``"measured"``, ``"passive"``, ``"tracking"``); records made before the field said only
+    their ``kind`` (``"passive-ds"``: passive; a Cartesian impedance: the tracking law, the
+    only impedance law then)."""
+    law = record.get("law")
+    if isinstance(law, str):
+        return law
+    return "passive" if record.get("kind") == "passive-ds" else "tracking"
+
 
 WORLD = "franka-physics"
 """The ``world`` of the Franka's physical campaign evidence."""
@@ -85,9 +98,11 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
         out.append(f"{shown}: the evidence does not say which controller and sensors its "
                    "trials ran with; make it again (tli evidence sim/franka)")
     else:
-        if kind != "passive-ds":
-            out.append(f"{shown}: the trials ran the {kind!r} controller, the project deploys "
-                       f"the passive-DS law ({REQUIRED_CONTROLLER!r}): not evidence for it")
+        law = controller_law(controller) if isinstance(controller, dict) else None
+        if law != REQUIRED_CONTROLLER:
+            out.append(f"{shown}: the trials ran the {law!r} control law ({kind}), the "
+                       f"project deploys {REQUIRED_CONTROLLER!r} (the DS at the measured pose "
+                       "integrated to the impedance law's target): not evidence for it")
         if phys["sensors"] != REQUIRED_SENSORS:
             out.append(f"{shown}: the trials ran with the {phys['sensors']!r} sensors, the "
                        f"project's robot reads its own ({REQUIRED_SENSORS!r}): not evidence "

@@ -64,8 +64,9 @@ class PhysicsConfig:
         ``"franka"`` (default: the robot's own) or ``"ideal"``
         (:mod:`tli_verify.sim.franka_sensors`).
     controller : str
-        ``"passive"`` (the Panda's default, :mod:`tli_verify.sim.passive`) or ``"tracking"``
-        (the free tool's only law).
+        ``"measured"`` (default: the paper's, the DS at the measured pose integrated to the
+        impedance law's target), ``"passive"`` (the Panda only, :mod:`tli_verify.sim.passive`)
+        or ``"tracking"`` (the DS on its own target) (:func:`tli_verify.sim.loop.run_trial`).
     certificates : str or None
         The directory of ``franka-scoop.cert.json`` (default ``<root>/certificates``: where the
         gate looks; ``tli sim franka --certificates DIR`` runs with ``root`` = DIR's parent).
@@ -93,18 +94,20 @@ class PhysicsConfig:
     sensors: str = "franka"
     workers: int = 1
     backend: str = "serial"
-    controller: str = "passive"
+    controller: str = "measured"
 
     def __post_init__(self) -> None:
-        if self.robot == "free-tool" and self.controller == "passive":
-            object.__setattr__(self, "controller", "tracking")  # its only law
         if self.robot not in ROBOTS:
             raise TliError(f"robot {self.robot!r}: one of {', '.join(ROBOTS)}"
                            + (" ('hand' is now 'free-tool')" if self.robot == "hand" else ""))
         if self.sensors not in SENSOR_KINDS:
             raise TliError(f"sensors {self.sensors!r}: one of {', '.join(SENSOR_KINDS)}")
-        if self.controller not in ("passive", "tracking", "measured"):
-            raise TliError(f"controller {self.controller!r}: one of passive, tracking, measured")
+        if self.controller not in ("measured", "passive", "tracking"):
+            raise TliError(f"controller {self.controller!r}: one of measured, passive, "
+                           "tracking")
+        if self.robot == "free-tool" and self.controller == "passive":
+            raise TliError("controller 'passive' runs on the Panda only (the free tool: "
+                           "measured or tracking)")
         if self.variant not in VARIANTS:
             raise TliError(f"variant {self.variant!r}: one of {', '.join(VARIANTS)}")
         if self.seed < 0 or self.trials < 1:

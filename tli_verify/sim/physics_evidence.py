@@ -26,7 +26,7 @@ from tli_verify.sim.contact import ContactDetector
 from tli_verify.sim.demos import PANDA_IMPEDANCE
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.franka_limits import FrankaLimits
-from tli_verify.sim.physics_checks import WORLD
+from tli_verify.sim.physics_checks import WORLD, controller_law
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.sim.target import LEASH
 from tli_verify.verify.evidence import EVIDENCE_SUFFIX, deployed_task_block, write_evidence
@@ -138,16 +138,20 @@ def _stall_rule() -> dict[str, float]:
     return StallRule().to_dict()
 
 
-def controller_record(robot: str, controller: str = "tracking") -> dict[str, Any]:
+def controller_record(robot: str, controller: str = "measured") -> dict[str, Any]:
     """The controller settings a physical campaign ran with (the evidence's
-    ``physics.controller``): for the Panda the control law (passive-DS with its gains, or
-    the target-tracking impedance), the limits, the torque-loop period and the perturbation
-    detector; for the free tool its impedance law."""
+    ``physics.controller``): the control law (``law``: measured, passive or tracking, and
+    where the DS is evaluated, ``ds_at``), for the Panda its torque law (passive-DS with its
+    gains, or the Cartesian impedance), the limits and the torque-loop period, and the
+    perturbation detector; for the free tool its impedance law."""
     from tli_verify.sim.passive import PassiveGains
 
-    common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH]}
+    common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH],
+              "law": controller,
+              "ds_at": "target" if controller == "tracking" else "measured pose"}
     if robot == "panda" and controller == "passive":
         return {"detector": ContactDetector().to_dict(), "kind": "passive-ds",
+                "law": controller, "ds_at": "measured pose",
                 "gains": PassiveGains().to_dict(), "limits": FrankaLimits().to_dict(),
                 "torque_period": 0.002, "ds_period": 0.02}
     if robot == "panda":
@@ -164,5 +168,5 @@ def settings_from(physics: Mapping[str, Any]) -> dict[str, Any]:
     out = {k: physics[k] for k in keys if k in physics}
     record = physics.get("controller")
     if isinstance(record, Mapping):  # the law is recorded with its gains
-        out["controller"] = "passive" if record.get("kind") == "passive-ds" else "tracking"
+        out["controller"] = controller_law(record)
     return out

@@ -10,6 +10,7 @@ components that push into a bound the target rests at (:func:`feed_forward`).
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -18,6 +19,7 @@ from tli_verify.errors import TliError
 from tli_verify.sim.franka_project import bundled_demos
 
 __all__ = ["LEASH", "MARGIN", "SPEED_CAP", "clip_floats", "feed_forward", "feed_forward_floats",
+           "inside_cuts",
            "workspace"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -100,6 +102,46 @@ def feed_forward_floats(target: list[float], v: list[float], lo: list[float],
     """:func:`feed_forward` on lists of floats (the loop's; the same comparisons)."""
     return [0.0 if (t >= h and a > 0.0) or (t <= low and a < 0.0) else a
             for t, a, low, h in zip(target, v, lo, hi, strict=True)]
+
+
+def inside_cuts(target: FloatArray, cuts: tuple[Any, ...], passes: int = 4) -> FloatArray:
+    """The target moved into the running mode's cut set (appendix E.3 half-spaces
+    ``n . (x - p) <= 0``), by projecting it onto each violated half-space in turn
+    (``passes`` rounds; alternating projections onto convex sets converge to a point of their
+    intersection, which holds the measured state).
+
+    Under the *measured* law the DS and its modulation act on the robot's measured state, but
+    the impedance law pulls the arm towards the integrated target, which leads it by up to the
+    leash: a target beyond a cut drags the robot out of the mode however the DS is modulated
+    (measured: the pour's exits crossed cuts learned from earlier exits, 12 times in a trial).
+    With the target kept inside too, the pull points into the cut set.
+
+    Parameters
+    ----------
+    target : ndarray, shape (n,)
+    cuts : tuple of Cut
+        With ``normal`` and ``point``, shape (n,) each.
+    passes : int, optional
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        ``target`` itself when no cut is violated.
+    """
+    if not cuts:
+        return target
+    x = target
+    for _ in range(passes):
+        moved = False
+        for c in cuts:
+            n = c.normal
+            g = float(n @ (x - c.point))
+            if g > 0.0:
+                x = x - (g / float(n @ n)) * n
+                moved = True
+        if not moved:
+            break
+    return x
 
 
 def clip_floats(x: list[float], lo: list[float], hi: list[float]) -> list[float]:
