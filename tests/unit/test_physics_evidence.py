@@ -40,7 +40,8 @@ def physics_block(trials: int = MIN_PHYSICS_TRIALS, *, seed: int = 0, failed: in
     block: dict[str, Any] = {
         "robot": "panda", "variant": "LTL-DS", "duration": 40.0, "pushes": 1, "tilts": 1,
         "retry": True, "sensors": "franka", "trials": trials, "successes": trials - failed,
-        "controller": {"kind": "passive-ds"},
+        "controller": {"kind": "cartesian-impedance", "law": "measured",
+                       "ds_at": "measured pose"},
         "delivered": 4 * (trials - failed),
         "cuts_added": 0, "mujoco": "3.17.0", "wall_time": 1.0,
         "scene": DEFAULT_PHYSICS.to_dict(),
@@ -122,9 +123,6 @@ def test_valid_physical_evidence_passes_the_gate(franka: Path,
 
 @pytest.mark.slow
 @pytest.mark.sim
-@pytest.mark.xfail(strict=True, reason="issue 34 not done: under the passive-DS law and the "
-                   "robot's sensors the current DS fails the gate's re-run trial (seed "
-                   "3076472780: stuck in mode b); relearn the DS for them")
 def test_the_gates_rerun_trial_passes(franka: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run(capsys, "gate", str(franka))
     assert code == 0 and out.rstrip().endswith("model(s), 1 spec(s))") and err == "", (out, err)
@@ -146,15 +144,19 @@ def test_evidence_made_on_the_free_tool_is_refused(franka: Path,
 
 
 @pytest.mark.parametrize(("field", "value", "says"), [
-    ("controller", {"kind": "cartesian-impedance"}, "'cartesian-impedance' controller"),
+    ("controller", {"kind": "cartesian-impedance"}, "'tracking' control law"),
+    ("controller", {"kind": "cartesian-impedance", "law": "tracking", "ds_at": "target"},
+     "'tracking' control law"),
+    ("controller", {"kind": "passive-ds", "law": "passive"}, "'passive' control law"),
     ("sensors", "ideal", "'ideal' sensors"),
     ("controller", None, "does not say which controller and sensors"),
 ])
 def test_evidence_of_another_controller_or_sensor_model_is_refused(
         franka: Path, capsys: pytest.CaptureFixture[str], field: str, value: Any,
         says: str) -> None:
-    """A forged record (digest recomputed, every file still bound) made with the target-tracking
-    controller or the simulator's ideal sensors is not evidence for the project's robot."""
+    """A forged record (digest recomputed, every file still bound) made with another control law
+    (the target-tracking one, recorded before the law was named or after; the passive-DS law) or
+    the simulator's ideal sensors is not evidence for the project's robot."""
     assert run_gate(franka, rerun=0).ok
 
     def edit(doc: dict[str, Any]) -> None:
