@@ -49,8 +49,9 @@ def test_sim_writes_evidence_of_what_it_ran_and_the_gate_judges_it(
     phys = doc["physics"]
     assert (phys["robot"], phys["variant"], phys["duration"]) == ("panda", "LTL-DS", 2.0)
     assert (phys["retry"], phys["sensors"]) == (True, "franka")
-    assert phys["controller"]["kind"] == "passive-ds"
-    assert phys["controller"]["gains"]["lambda1"] == 200.0
+    assert (phys["controller"]["kind"], phys["controller"]["law"]) == ("cartesian-impedance",
+                                                                      "measured")
+    assert phys["controller"]["impedance"]["stiffness_pos"] == 2000.0
     assert phys["stall_rule"] == {"radius": 0.3, "dwell": 1.0, "blocked_after": 1.5,
                                   "progress": 0.02}
     assert (phys["pushes"], phys["tilts"], phys["trials"]) == (1, 1, 1)

@@ -16,6 +16,9 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tli_verify.sim.scenario import POUR_SCENARIO, ScenarioRun, plot_scenario, run_scenario
+
+POUR_PROJECT = Path(__file__).resolve().parents[1] / "support" / "franka_pour"
+"""The policy the scenario was found with (tests/support/franka_pour/README.md)."""
 from tli_verify.sim.trial_oracle import check_trial
 
 pytestmark = pytest.mark.sim
@@ -23,7 +26,7 @@ pytestmark = pytest.mark.sim
 
 @pytest.fixture(scope="module")
 def runs() -> dict[str, ScenarioRun]:
-    return {v: run_scenario(v) for v in ("no-modulation", "LTL-DS")}
+    return {v: run_scenario(v, root=POUR_PROJECT) for v in ("no-modulation", "LTL-DS")}
 
 
 def test_without_modulation_the_pour_repeats_its_invariance_failure(
@@ -108,7 +111,8 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
     from tli_verify.sim.target import MARGIN, workspace
 
     m0, m1, m2, m3 = (float(m) for m in MARGIN)
-    run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=(m0, m1, m2, m3)))
+    run = run_scenario("LTL-DS", replace(POUR_SCENARIO, margin=(m0, m1, m2, m3)),
+                       root=POUR_PROJECT)
     hi_y = float(workspace()[1][1])
     assert run.exits == 0 and run.cuts == (), run.result.mode_sequence()
     reached = max(float(s.target[1]) for s in run.trace)
@@ -116,3 +120,14 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
     overshoot = max(float(s.measured[1]) for s in run.trace) - hi_y
     assert overshoot < 0.08, overshoot  # dm: the tray stays within tracking of the target
     assert run.result.success
+
+
+def test_the_deployed_policy_pours_without_leaving_the_pour_mode() -> None:
+    """The bundled policy (its DS relearned from kinesthetic takes on the Panda), under the
+    deployed loop (the measured law, the robot's sensors, the stall rule) in the same cell: the
+    pour never leaves d, so no cut is learned, and soup is delivered."""
+    scenario = replace(POUR_SCENARIO, controller="measured", sensors="franka", retry=True,
+                       duration=30.0)
+    run = run_scenario("LTL-DS", scenario)
+    assert run.exits == 0 and run.cuts == (), run.result.mode_sequence()
+    assert run.result.success and run.result.delivered >= 1

@@ -1,7 +1,9 @@
 """Modulation at work in physics: the pour that sweeps past the bowl (paper Fig. 9).
 
-The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of the bundled Franka
-policy, bead seed 0, no perturbation, no stall retry, in a cell that gives the arm room beyond
+The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of a Franka policy
+(the one it was found with: the DS learned from the mocap rig's commanded poses, kept as the
+test project ``tests/support/franka_pour``; the DS relearned from kinesthetic takes on the
+Panda does not sweep past the bowl), bead seed 0, no perturbation, no stall retry, in a cell that gives the arm room beyond
 the target bowl (the target may leave the demonstrations' box by 1.5 dm in ``y`` instead of the
 default 0.5 dm, :data:`~tli_verify.sim.target.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
 the target bowl with soup to deliver) enters ``t`` on the near side of the bowl, and the
@@ -56,7 +58,7 @@ from tli_verify.sim.franka_project import load_policy
 from tli_verify.sim.loop import TraceStep, TrialResult, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
 
-__all__ = ["PASSIVE_POUR_SCENARIO", "POUR_SCENARIO", "Failure", "Scenario", "ScenarioRun",
+__all__ = ["POUR_SCENARIO", "Failure", "Scenario", "ScenarioRun",
            "plot_scenario", "run_scenario"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -79,15 +81,14 @@ class Scenario:
         ``"panda"`` or ``"free-tool"``.
     retry : bool
         The executive's stall rule (:mod:`tli_verify.runtime.stall`; off: the automaton's
-        transitions only -- with the robot's sensors mode b ends by the rule, so
-        :data:`PASSIVE_POUR_SCENARIO` has it on).
+        transitions only).
     margin : tuple of float, length 4
         How far the target (tracking) or the robot (passive: the velocity leaving it is
         dropped) may leave the demonstrations' box (dm, dm, dm, rad:
         :func:`~tli_verify.sim.target.workspace`).
     controller : str
-        ``"tracking"`` (default: the loop the scenario was found in) or ``"passive"``
-        (:func:`~tli_verify.sim.loop.run_trial`).
+        ``"tracking"`` (default: the loop the scenario was found in), ``"measured"`` or
+        ``"passive"`` (:func:`~tli_verify.sim.loop.run_trial`).
     sensors : str
         ``"ideal"`` (default) or ``"franka"``.
     """
@@ -107,13 +108,6 @@ POUR_SCENARIO = Scenario(name="pour-sweeps-past-the-bowl", seed=0, mode="d",
                          margin=(0.5, 1.5, 0.5, 0.3))
 """The pour scenario as it was found: the target-tracking loop, the ideal sensors."""
 
-PASSIVE_POUR_SCENARIO = Scenario(name="pour-passive", seed=0, mode="d", duration=30.0,
-                                 retry=True, margin=(0.5, 1.5, 0.5, 0.3),
-                                 controller="passive", sensors="franka")
-"""The same cell and bead seed under the passive-DS law and the robot's sensors (issue 34):
-the DS on the measured pose. Measured: the pour does not leave ``d`` at all on bead seed 0
-(no cut needed, with or without modulation): the 7 cm sweep past the rim was the integrated
-target's, which the arm lagged (benchmarks/results/franka_passive.md)."""
 """The regression scenario of the module doc."""
 
 
