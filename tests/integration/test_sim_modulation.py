@@ -8,6 +8,7 @@ certified policy in the same physics: they are identical up to the first failure
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,10 +17,10 @@ import pytest
 pytest.importorskip("mujoco")
 
 from tli_verify.sim.scenario import POUR_SCENARIO, ScenarioRun, plot_scenario, run_scenario
+from tli_verify.sim.trial_oracle import check_trial
 
 POUR_PROJECT = Path(__file__).resolve().parents[1] / "support" / "franka_pour"
 """The policy the scenario was found with (tests/support/franka_pour/README.md)."""
-from tli_verify.sim.trial_oracle import check_trial
 
 pytestmark = pytest.mark.sim
 
@@ -106,8 +107,6 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
     """The same trial with the default workspace: the bound stops the target before the rim,
     and the arm is not fed the DS's velocity past a target at rest there (it once was: 1.7 cm
     beyond, across the rim, and the pour left its mode on the loop's account)."""
-    from dataclasses import replace
-
     from tli_verify.sim.target import MARGIN, workspace
 
     m0, m1, m2, m3 = (float(m) for m in MARGIN)
