@@ -387,7 +387,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
                          lo_l, hi_l)
             ref = np.array(refl)
             if measured:  # the target, too, inside the running mode's cut set
-                ref = inside_cuts(ref, policy.model.region_cuts(policy.mode))
+                ref = inside_cuts(ref, policy.model.region_cuts(policy.mode), z)
                 refl = ref.tolist()
             rig.command(from_ds(ref), from_ds_velocity(feed_forward_floats(refl, vl, lo_l, hi_l)))
         step_with_hands(rig, substeps, t, hands, applied)

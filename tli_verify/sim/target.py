@@ -104,11 +104,15 @@ def feed_forward_floats(target: list[float], v: list[float], lo: list[float],
             for t, a, low, h in zip(target, v, lo, hi, strict=True)]
 
 
-def inside_cuts(target: FloatArray, cuts: tuple[Any, ...], passes: int = 4) -> FloatArray:
+def inside_cuts(target: FloatArray, cuts: tuple[Any, ...], anchor: FloatArray | None = None,
+                passes: int = 4) -> FloatArray:
     """The target moved into the running mode's cut set (appendix E.3 half-spaces
-    ``n . (x - p) <= 0``), by projecting it onto each violated half-space in turn
-    (``passes`` rounds; alternating projections onto convex sets converge to a point of their
-    intersection, which holds the measured state).
+    ``n . (x - p) <= 0``): projected onto each violated half-space in turn (``passes``
+    rounds; alternating projections onto convex sets converge to a point of their
+    intersection, slowly where planes are nearly parallel), then, if some cut is still
+    violated and ``anchor`` (the measured state) satisfies them all, pulled along the segment
+    to ``anchor`` to the first point inside every cut (exact: each half-space holds an
+    interval of the segment that contains ``anchor``).
 
     Under the *measured* law the DS and its modulation act on the robot's measured state, but
     the impedance law pulls the arm towards the integrated target, which leads it by up to the
@@ -121,6 +125,8 @@ def inside_cuts(target: FloatArray, cuts: tuple[Any, ...], passes: int = 4) -> F
     target : ndarray, shape (n,)
     cuts : tuple of Cut
         With ``normal`` and ``point``, shape (n,) each.
+    anchor : ndarray, shape (n,), optional
+        A state inside the cut set, if known.
     passes : int, optional
 
     Returns
@@ -140,8 +146,16 @@ def inside_cuts(target: FloatArray, cuts: tuple[Any, ...], passes: int = 4) -> F
                 x = x - (g / float(n @ n)) * n
                 moved = True
         if not moved:
-            break
-    return x
+            return x
+    if anchor is None:
+        return x
+    gaps = [(float(c.normal @ (x - c.point)), float(c.normal @ (anchor - c.point)))
+            for c in cuts]
+    if max(g for g, _ in gaps) <= 0.0 or max(a for _, a in gaps) > 0.0:
+        return x
+    # g(s) = (1 - s) g_anchor + s g_x along anchor + s (x - anchor): <= 0 for s <= s_c
+    s = min(a / (a - g) for g, a in gaps if g > 0.0)
+    return anchor + s * (x - anchor)
 
 
 def clip_floats(x: list[float], lo: list[float], hi: list[float]) -> list[float]:

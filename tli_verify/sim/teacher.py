@@ -119,7 +119,8 @@ class TeacherHand:
 
 
 class _Guide:
-    """The teacher's wrench on the hand body of ``rig``, towards a scripted pose."""
+    """The teacher's wrench on the hand body of ``rig`` (above the wrist F/T), towards a
+    scripted pose."""
 
     def __init__(self, rig: PandaRig, hand: TeacherHand) -> None:
         self.rig, self.hand = rig, hand
@@ -146,7 +147,7 @@ class _Guide:
         mujoco.mju_quat2Vel(rotvec, self._e if self._e[0] >= 0 else -self._e, 1.0)
         w_d = np.array((float(velocity[3]), 0.0, 0.0))  # the pitch axis is world x
         torque = h.rot_stiffness * rotvec + h.rot_damping * (w_d - twist[3:])
-        # the force acts at the tray; the hand body takes it at its centre of mass
+        # the force acts at the tray; the body held takes it at its centre of mass
         torque += np.cross(p - d.xipos[self.body], force)
         d.xfrc_applied[self.body, :3] = force
         d.xfrc_applied[self.body, 3:] = torque
