@@ -23,11 +23,10 @@ import sys
 
 def main(argv: list[str] | None = None) -> int:
     from dataclasses import replace
+    from pathlib import Path
 
     from tli_verify.errors import TliError
     from tli_verify.io import check_output_file
-    from pathlib import Path
-
     from tli_verify.sim.scenario import POUR_SCENARIO, plot_scenario, run_scenario
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

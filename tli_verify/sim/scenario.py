@@ -1,17 +1,18 @@
 """Modulation at work in physics: the pour that sweeps past the bowl (paper Fig. 9).
 
-The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of a Franka policy
-(the one it was found with: the DS learned from the mocap rig's commanded poses, kept as the
-test project ``tests/support/franka_pour``; the DS relearned from kinesthetic takes on the
-Panda does not sweep past the bowl), bead seed 0, no perturbation, no stall retry, in a cell that gives the arm room beyond
-the target bowl (the target may leave the demonstrations' box by 1.5 dm in ``y`` instead of the
-default 0.5 dm, :data:`~tli_verify.sim.target.MARGIN`). Its pour (mode ``d``; ``t``: the tray over
-the target bowl with soup to deliver) enters ``t`` on the near side of the bowl, and the
-certified pour DS, integrated from there, sweeps the tray about 7 cm past the bowl's rim before
-it turns back to its attractor over the bowl's centre: ``t`` turns off with soup still on the
-spoon (``c``), the transport DS brings the tray back, ``t`` turns on, and the pour sweeps out
-again. (In the default workspace the bound on the target stops the sweep 2 cm inside the rim:
-the hand-set bound hides what the DS does.) No perturbation causes it, so each exit is an
+The regression scenario (:data:`POUR_SCENARIO`): one nominal Panda trial of a Franka policy (the
+one it was found with: the DS learned from the mocap rig's commanded poses, kept as the test
+project ``tests/support/franka_pour``; the DS relearned from kinesthetic takes on the Panda does
+not sweep past the bowl), bead seed 0, no perturbation, no stall retry, in a cell that gives the
+arm room beyond the target bowl (the target may leave the demonstrations' box by 1.5 dm in ``y``
+instead of the default 0.5 dm, :data:`~tli_verify.sim.target.MARGIN`). Its pour (mode ``d``;
+``t``: the tray over the target bowl with soup to deliver) enters ``t`` on the near side of the
+bowl, and the certified pour DS, integrated from there, sweeps the tray about 7 cm past the
+bowl's rim before it turns back to its attractor over the bowl's centre: ``t`` turns off with
+soup still on the spoon (``c``), the transport DS brings the tray back, ``t`` turns on, and the
+pour sweeps out again. (In the default workspace the bound on the target stops the sweep 2 cm
+inside the rim: the hand-set bound hides what the DS does.) No perturbation causes it, so each
+exit is an
 *invariance failure* of ``d`` (paper Sec. 5):
 
 * without modulation (``no-modulation``) the pour leaves ``d`` again and again (14 times on bead
