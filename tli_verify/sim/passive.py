@@ -1,7 +1,10 @@
 """Passive-DS control of the Panda: the DS evaluated at the measured pose, tracked by damping.
 
-Kronander and Billard's passive interaction control with dynamical systems (the paper's robot
-runs it, Sec. 7.2 and its appendix on the robot experiment): the DS ``f`` is evaluated at the
+Kronander and Billard's passive interaction control with dynamical systems. (Not the paper's
+robot's law: its appendix on Robot Experiment 1 integrates the DS velocity to a target pose that
+a Cartesian pose impedance controller tracks, with the robot state from the control interface --
+the loop's default *measured* law, :func:`tli_verify.sim.loop.run_trial`. This law is the
+alternative the loop offers, ``controller="passive"``.) The DS ``f`` is evaluated at the
 *measured* state once per control period (the loop, :mod:`tli_verify.sim.loop`, with the
 executive's modulation and mode switching), and the torque loop (every physics step, 500 Hz or
 1 kHz) applies::

@@ -1,8 +1,8 @@
-"""Summarise ``tli sim franka --json`` runs as the tables of benchmarks/results/franka_passive.md.
+"""Summarise ``tli sim franka --json`` runs as the tables of benchmarks/results/franka_loop.md.
 
 Usage::
 
-    .venv/bin/python scripts/franka_passive_table.py LABEL=RUN.jsonl [LABEL=RUN.jsonl ...]
+    .venv/bin/python scripts/franka_loop_table.py LABEL=RUN.jsonl [LABEL=RUN.jsonl ...]
 
 Each file is the standard output of one ``tli sim franka ... --json`` (one JSON object per
 trial, then the summary). Prints one Markdown row per file: trials, soup delivered, passed the
@@ -60,7 +60,7 @@ def row(label: str, rs: list[dict[str, Any]]) -> str:
 
 def main(argv: list[str]) -> int:
     if not argv or any("=" not in a for a in argv):
-        sys.stderr.write("error: usage: franka_passive_table.py LABEL=RUN.jsonl ...\n")
+        sys.stderr.write("error: usage: franka_loop_table.py LABEL=RUN.jsonl ...\n")
         return 2
     print("| run | seeds | trials | delivered soup | passed the oracle | stall rule fired "
           "(firings) | cuts | reflex stops | outside a cut (max, DS units) | largest limit "
