@@ -33,6 +33,7 @@ from tli_verify.errors import TliError
 from tli_verify.sim.controller import Gains, ImpedanceController
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
 from tli_verify.sim.franka_sensors import make_sensors
+from tli_verify.sim.passive import PassiveDSController
 from tli_verify.sim.robot import BODY_HAND, HOME_QPOS, TCP_OFFSET, Panda, panda_spec
 from tli_verify.sim.scene import (
     DEFAULT_PHYSICS,
@@ -510,8 +511,6 @@ class PandaRig:
         # pose the loop commands (where it evaluates the DS is the loop's business)
         self.passive: Any = None
         if controller == "passive":
-            from tli_verify.sim.passive import PassiveDSController
-
             self.passive = PassiveDSController(
                 self.panda, self.ids.tray_site, self.controller.map, gains=passive_gains,
                 posture=PANDA_POSTURE_GAINS, guard=self.guard)

@@ -20,12 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from tli_verify.io import check_output_file
+from tli_verify.runtime.stall import StallRule
 from tli_verify.sim.campaign import PhysicsResult
 from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.contact import ContactDetector
 from tli_verify.sim.demos import PANDA_IMPEDANCE
 from tli_verify.sim.franka_files import MODEL_NAME
 from tli_verify.sim.franka_limits import FrankaLimits
+from tli_verify.sim.passive import PassiveGains
 from tli_verify.sim.physics_checks import WORLD, controller_law
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS
 from tli_verify.sim.target import LEASH
@@ -133,8 +135,6 @@ def write_physics_evidence(result: PhysicsResult, path: str | os.PathLike[str] |
 
 def _stall_rule() -> dict[str, float]:
     """The stall rule's settings (:class:`~tli_verify.runtime.stall.StallRule`)."""
-    from tli_verify.runtime.stall import StallRule
-
     return StallRule().to_dict()
 
 
@@ -144,8 +144,6 @@ def controller_record(robot: str, controller: str = "measured") -> dict[str, Any
     where the DS is evaluated, ``ds_at``), for the Panda its torque law (passive-DS with its
     gains, or the Cartesian impedance), the limits and the torque-loop period, and the
     perturbation detector; for the free tool its impedance law."""
-    from tli_verify.sim.passive import PassiveGains
-
     common = {"detector": ContactDetector().to_dict(), "leash": [float(v) for v in LEASH],
               "law": controller,
               "ds_at": "target" if controller == "tracking" else "measured pose"}
