@@ -71,7 +71,8 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    help="panda (default): the ladle on the Panda hand under the Cartesian "
                    "impedance controller within the Franka's limits (needs the Menagerie "
                    "assets: python -m tli_verify.sim.assets fetch); free-tool: the ladle on a "
-                   "free body under an impedance law, no arm (the demonstrations' rig)")
+                   "free body under an impedance law, no arm (no limits: the gate does not "
+                   "take its evidence)")
     f.add_argument("--no-retry", "--no-stall-rule", dest="no_retry", action="store_true",
                    help="switch the stall rule off (the executive's documented answer to a "
                    "converged DS without the next mode's reading: re-enter the mode from its "

@@ -440,8 +440,9 @@ class PandaRig:
         Solver settings (default: the measured ones,
         :class:`~tli_verify.sim.scene.PhysicsOptions`).
     controller : str, optional
-        ``"tracking"`` (default here: the Cartesian impedance law tracks the commanded pose,
-        :meth:`command`) or ``"passive"``: after the setup move, the passive-DS law
+        ``"tracking"`` (default here) or ``"measured"``: the Cartesian impedance law tracks
+        the commanded pose (:meth:`command`; where the loop evaluates the DS is the loop's
+        business), or ``"passive"``: after the setup move, the passive-DS law
         (:class:`~tli_verify.sim.passive.PassiveDSController`) tracks the DS velocity given by
         :meth:`command_velocity` at the measured pose.
     passive_gains : PassiveGains, optional
