@@ -66,7 +66,7 @@ DURATION = 14.0
 
 
 @dataclass
-class _Probe:
+class Probe:
     """What the MuJoCo wrappers saw during one trial (construction excluded)."""
 
     record: bool
@@ -80,7 +80,7 @@ class _Probe:
 
 
 @contextlib.contextmanager
-def _probed(probe: _Probe) -> Iterator[None]:
+def probed(probe: Probe) -> Iterator[None]:
     """Wrap ``mujoco.mj_step`` / ``mj_step1`` / ``mj_step2`` and the rigs' constructors.
 
     The rigs call these through the ``mujoco`` module, so the wrappers see every physics step.
@@ -159,14 +159,14 @@ def _physics(name: str) -> Any:
     return PhysicsOptions(**PHYSICS_NAMES[name])  # type: ignore[arg-type]
 
 
-def _trial(robot: str, probe: _Probe, physics: Any = None) -> tuple[Any, float]:
+def _trial(robot: str, probe: Probe, physics: Any = None) -> tuple[Any, float]:
     """One nominal LTL-DS trial with a fresh executive; its result and CPU seconds (the
     rig's construction excluded)."""
     from tli_verify.sim.franka_project import load_policy
     from tli_verify.sim.loop import run_trial
 
     policy = load_policy("LTL-DS")  # fresh: cuts learned in an earlier run would change it
-    with _probed(probe):
+    with probed(probe):
         c0 = time.process_time()
         res = run_trial(policy, SEEDS[robot], perturbations=[], duration=DURATION, robot=robot,
                         physics=physics)
@@ -222,7 +222,7 @@ def _bare_rate(model: Any, states: list[tuple[Any, int]], data: Any = None) -> f
 
 def _measure(robot: str, repeats: int, physics: Any = None) -> dict[str, Any]:
     """The side-by-side numbers of one robot (module doc) under ``physics``."""
-    rec = _Probe(record=True, timing=False)
+    rec = Probe(record=True, timing=False)
     res0, _ = _trial(robot, rec, physics)
     if rec.states is None:  # pragma: no cover - a rig that never steps
         raise TliError(f"bench_franka_scene: no physics step recorded for {robot}")
@@ -235,13 +235,13 @@ def _measure(robot: str, repeats: int, physics: Any = None) -> dict[str, Any]:
     bares, cpus, builds, modes = [], [], [], set()
     for _ in range(repeats):  # bare and closed loop interleaved: both see the machine's load
         bares.append(_bare_rate(rec.model, rec.states))
-        probe = _Probe(record=False, timing=False)
+        probe = Probe(record=False, timing=False)
         res, cpu = _trial(robot, probe, physics)
         cpus.append(cpu)
         builds.append(probe.build_cpu)
         modes.add((res.mode_sequence(), round(res.sim_time / dt)))
     bare = float(np.median(bares))
-    timing = _Probe(record=False, timing=True)
+    timing = Probe(record=False, timing=True)
     res_t, cpu_t = _trial(robot, timing, physics)
     modes.add((res_t.mode_sequence(), round(res_t.sim_time / dt)))
     cpu = float(np.median(cpus))

@@ -13,13 +13,13 @@ mujoco = pytest.importorskip("mujoco")
 
 
 def test_probe_records_the_loop_and_the_replay_reproduces_it() -> None:
-    from benchmarks.bench_franka_scene import _Probe, _probed, _replay
+    from benchmarks.bench_franka_scene import Probe, _replay, probed
     from tli_verify.sim.demos import MocapRig
     from tli_verify.sim.scene import PhysicsOptions
 
     originals = (mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, MocapRig.__init__)
-    probe = _Probe(record=True, timing=True)
-    with _probed(probe):
+    probe = Probe(record=True, timing=True)
+    with probed(probe):
         # awake: replaying a sleeping scene is not its physics (mj_setState wakes every body)
         rig = MocapRig(3, physics=PhysicsOptions(sleep=False))  # settling is not recorded
         assert probe.states is None and probe.build_cpu > 0.0

@@ -368,7 +368,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
                                  [a - b for a, b in zip(zl, leash, strict=True)],
                                  [a + b for a, b in zip(zl, leash, strict=True)]))
         v = policy.step(z if measured else ref, reading.to_dict(), perturbed=perturbed)
-        cut_gap.update(policy.model.region_cuts(policy.mode), z)
+        cuts = policy.model.region_cuts(policy.mode)  # the running mode's, after its step
+        cut_gap.update(cuts, z)
         if trace is not None:
             trace.append(TraceStep(t, policy.mode, ref.copy(), z, perturbed))
         vl = np.asarray(v, dtype=np.float64).tolist()
@@ -386,8 +387,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             refl = clip_floats([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
                          lo_l, hi_l)
             ref = np.array(refl)
-            if measured:  # the target, too, inside the running mode's cut set
-                ref = inside_cuts(ref, policy.model.region_cuts(policy.mode), z)
+            if measured and cuts:  # the target, too, inside the running mode's cut set
+                ref = inside_cuts(ref, cuts, z)
                 refl = ref.tolist()
             rig.command(from_ds(ref), from_ds_velocity(feed_forward_floats(refl, vl, lo_l, hi_l)))
         step_with_hands(rig, substeps, t, hands, applied)
