@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 __all__ = [
     "canonical_hemisphere",
+    "left_jacobian",
     "quat_exp",
     "quat_log",
     "quat_multiply",
@@ -187,3 +188,33 @@ def tilt(Q: npt.ArrayLike, tool_axis: npt.ArrayLike, world_axis: npt.ArrayLike) 
     c = np.clip(rotate(q, a) @ u, -1.0, 1.0)
     out = np.arccos(c)
     return out[0] if single else out
+
+
+def left_jacobian(v: npt.ArrayLike) -> FloatArray:
+    """The left Jacobian of SO(3) at the rotation vector ``v``: ``omega = J_l(v) vdot``.
+
+    For ``R(t) = R_ref Exp(v(t))`` (the chart of :func:`quat_exp`) the angular velocity in the
+    reference's frame is ``J_l(v) vdot`` (in the world frame ``R_ref J_l(v) vdot``), with::
+
+        J_l(v) = I + (1 - cos t) / t^2 [v]x + (t - sin t) / t^3 [v]x^2,    t = |v|
+
+    (series ``1/2 - t^2/24`` and ``1/6 - t^2/120`` below ``t = 1e-4``). It is invertible for
+    ``|v| < 2 pi``, and ``J_l(0) = I``.
+
+    Parameters
+    ----------
+    v : array_like, shape (3,)
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    va = np.asarray(v, dtype=np.float64).reshape(3)
+    t2 = float(va @ va)
+    t = float(np.sqrt(t2))
+    if t < 1e-4:
+        a, b = 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0
+    else:
+        a, b = (1.0 - np.cos(t)) / t2, (t - np.sin(t)) / (t2 * t)
+    k = np.array([[0.0, -va[2], va[1]], [va[2], 0.0, -va[0]], [-va[1], va[0], 0.0]])
+    return np.asarray(np.eye(3) + a * k + b * (k @ k), dtype=np.float64)

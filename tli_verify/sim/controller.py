@@ -1,18 +1,20 @@
 """Cartesian impedance (operational-space) pose control of the Panda, with null-space posture
 control, tracking a target integrated from the LTL-DS velocity (paper Sec. 7.2).
 
-The DS state (paper Fig. 11 uses y, z, pitch)
-    ``z = (x, y, z, pitch)``, shape (4,): the world position (m) of the controlled site (the
-    ladle's site, or by default Franka's ``tcp`` frame) and the spoon pitch (rad).
-    The orientation is ``R(pitch) = RotX(pitch) @ R0``: *pitch is a rotation about the world
-    x axis* (the robot base's forward axis; the scooping motion runs in the world y-z plane),
-    applied to the nominal orientation ``R0`` (default :data:`R0_DOWN`: tool z axis pointing
-    down, tool x along world +y, tool y along world +x: the ``tcp`` frame at the Menagerie home
-    posture). Roll (about world y) and yaw (about world z) are held at those of ``R0``.
-    Positive pitch tilts the tool z axis from straight down towards world +y. The pitch of a
-    measured orientation ``R`` is the angle of ``R @ R0.T`` about x, ``atan2(M[2,1], M[1,1])``
-    (exact when roll and yaw are held; otherwise the projection of the error onto x).
-    :meth:`DSStateMap.ds_state` and :meth:`DSStateMap.target_pose_from_ds_state` implement it.
+The DS state (the paper's Fig. 11 uses y, z, pitch; here the full pose)
+    ``z = (x, y, z, rx, ry, rz)``, shape (6,): the world position (m) of the controlled site
+    (the ladle's tray, or by default Franka's ``tcp`` frame) and the rotation vector ``v``
+    (rad) of its orientation in the chart at the nominal orientation ``R0``::
+
+        R(v) = R0 Exp(v),        v = Log(R0^T R),        |v| < pi
+
+    the chart of pose tasks (:mod:`tli_verify.tasks.orientation`, ``q = q_ref (x) Exp(v)``:
+    ``v`` in the tool's own frame at ``R0``). ``R0`` defaults to :data:`R0_DOWN` (tool z axis
+    pointing down, tool x along world +y, tool y along world +x: the ``tcp`` frame at the
+    Menagerie home posture). The velocity map: ``omega = R0 J_l(v) vdot`` (world frame;
+    :func:`~tli_verify.rotations.left_jacobian`). :meth:`DSStateMap.ds_state`,
+    :meth:`DSStateMap.target_pose_from_ds_state` and :meth:`DSStateMap.twist_from_ds_velocity`
+    implement it.
 
 The control law (Khatib's operational-space formulation, Cartesian impedance)
     With the site Jacobian ``J`` (6 x 7: linear rows from ``mj_jacSite``, then angular), the 7x7
@@ -92,11 +94,11 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack
 
 from tli_verify.errors import ModelError, SolverError
+from tli_verify.rotations import left_jacobian
 from tli_verify.sim.franka_limits import CartesianImpedance, LimitGuard
 from tli_verify.sim.robot import HOME_QPOS, TORQUE_LIMITS, Panda
 
 __all__ = [
-    "PITCH_AXIS",
     "R0_DOWN",
     "DSStateMap",
     "Gains",
@@ -106,7 +108,6 @@ __all__ = [
     "closed_loop_spectral_radius",
     "integrate_ds_target",
     "quat_to_mat",
-    "rot_x",
     "sampled_data_spectral_radius",
 ]
 
@@ -141,14 +142,6 @@ def _cap3(x: float, y: float, z: float, limit: float) -> tuple[float, float, flo
 
 #: Nominal orientation at pitch 0: tool z down, tool x along world +y, tool y along world +x.
 R0_DOWN: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-#: The pitch axis, in the world frame: world x.
-PITCH_AXIS: FloatArray = np.array([1.0, 0.0, 0.0])
-
-
-def rot_x(angle: float) -> FloatArray:
-    """Rotation matrix about the x axis by ``angle`` (rad), shape (3, 3)."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def quat_to_mat(quat: FloatArray) -> FloatArray:
@@ -160,20 +153,21 @@ def quat_to_mat(quat: FloatArray) -> FloatArray:
 
 @dataclass(frozen=True, slots=True)
 class DSStateMap:
-    """The map between the robot and the 4-D DS state ``(x, y, z, pitch)`` (module docstring).
+    """The map between the robot and the 6-D DS state ``(x, y, z, rx, ry, rz)`` (module
+    docstring: position, and the rotation vector in the chart at ``r0``).
 
     Attributes
     ----------
     site : int
         Site id of the controlled point (its position is the DS position).
     r0 : ndarray, shape (3, 3)
-        Nominal orientation at pitch 0 (default :data:`R0_DOWN`).
+        The chart's reference orientation (default :data:`R0_DOWN`).
     """
 
     site: int
     r0: FloatArray = field(default_factory=lambda: R0_DOWN.copy())
     _q0: tuple[float, float, float, float] = field(init=False, repr=False, compare=False)
-    _r0_row1: tuple[float, float, float] = field(init=False, repr=False, compare=False)
+    _q0_conj: FloatArray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         r0 = np.asarray(self.r0, dtype=np.float64)
@@ -183,50 +177,62 @@ class DSStateMap:
         q0 = np.empty(4)
         mujoco.mju_mat2Quat(q0, r0.ravel())
         object.__setattr__(self, "_q0", tuple(float(v) for v in q0))
-        object.__setattr__(self, "_r0_row1", tuple(float(v) for v in r0[1]))
+        object.__setattr__(self, "_q0_conj", q0 * np.array([1.0, -1.0, -1.0, -1.0]))
+
+    @property
+    def reference(self) -> tuple[float, float, float, float]:
+        """The chart's reference as a unit quaternion ``(w, x, y, z)`` (a task's
+        ``[state] orientation.reference``)."""
+        return self._q0
 
     def ds_state(self, data: Any) -> FloatArray:
-        """The DS state ``(x, y, z, pitch)`` of the site, shape (4,), as of the last kinematics.
-
-        Pitch is the angle about world x of ``M = R @ r0.T``: ``atan2(M[2, 1], M[1, 1])`` (rad,
-        in (-pi, pi]), with ``M[i, 1] = R[i, :] . r0[1, :]``.
-        """
-        xm = data.site_xmat[self.site].tolist()
-        a, b, c = self._r0_row1
-        m11 = xm[3] * a + xm[4] * b + xm[5] * c
-        m21 = xm[6] * a + xm[7] * b + xm[8] * c
+        """The DS state ``(x, y, z, rx, ry, rz)`` of the site, shape (6,), as of the last
+        kinematics: ``v = Log(r0^T R)``, the rotation angle ``|v|`` in ``[0, pi]``."""
+        q, e, v = np.empty(4), np.empty(4), np.empty(3)
+        mujoco.mju_mat2Quat(q, data.site_xmat[self.site])
+        mujoco.mju_mulQuat(e, self._q0_conj, q)
+        mujoco.mju_quat2Vel(v, e, 1.0)  # the shorter way: angle in [0, pi]
         x, y, z = data.site_xpos[self.site].tolist()
-        return np.array((x, y, z, math.atan2(m21, m11)))
+        rx, ry, rz = v.tolist()
+        return np.array((x, y, z, rx, ry, rz))
 
     def target_pose_from_ds_state(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Target site pose for a DS state ``z`` (shape (4,)).
+        """Target site pose for a DS state ``z`` (shape (6,)).
 
         Returns
         -------
         pos : ndarray, shape (3,)
             ``z[:3]`` (m, world frame).
         quat : ndarray, shape (4,)
-            Unit quaternion ``(w, x, y, z)`` of ``RotX(z[3]) @ r0``: the product
-            ``(cos(pitch/2), sin(pitch/2), 0, 0) * q0``.
+            Unit quaternion ``(w, x, y, z)`` of ``r0 Exp(z[3:])``.
         """
-        x, y, zz, pitch = np.asarray(z, dtype=np.float64).tolist()
-        c, s = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
-        w0, x0, y0, z0 = self._q0
-        quat = np.array((c * w0 - s * x0, c * x0 + s * w0, c * y0 - s * z0, c * z0 + s * y0))
-        return np.array((x, y, zz)), quat
+        za = np.asarray(z, dtype=np.float64).reshape(6)
+        quat = np.empty(4)
+        self.target_quat_into(float(za[3]), float(za[4]), float(za[5]), quat)
+        return za[:3].copy(), quat
 
-    def target_quat_into(self, pitch: float, out: FloatArray) -> None:
-        """The quaternion of :meth:`target_pose_from_ds_state` at ``pitch`` (rad), written to
-        ``out`` (shape (4,)): the same floats, without the arrays."""
-        c, s = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    def target_quat_into(self, rx: float, ry: float, rz: float, out: FloatArray) -> None:
+        """The quaternion ``q0 (x) Exp(v)`` of :meth:`target_pose_from_ds_state` at the
+        rotation vector ``v = (rx, ry, rz)`` (rad), written to ``out`` (shape (4,)) on floats
+        (the torque loop calls it every physics step)."""
+        t = math.sqrt(rx * rx + ry * ry + rz * rz)
+        c = math.cos(0.5 * t)
+        k = math.sin(0.5 * t) / t if t > 1e-8 else 0.5 - t * t / 48.0
+        b, cc, d = rx * k, ry * k, rz * k
         w0, x0, y0, z0 = self._q0
-        out[:] = (c * w0 - s * x0, c * x0 + s * w0, c * y0 - s * z0, c * z0 + s * y0)
+        out[0] = w0 * c - x0 * b - y0 * cc - z0 * d
+        out[1] = w0 * b + x0 * c + y0 * d - z0 * cc
+        out[2] = w0 * cc - x0 * d + y0 * c + z0 * b
+        out[3] = w0 * d + x0 * cc - y0 * b + z0 * c
 
-    def twist_from_ds_velocity(self, zdot: FloatArray) -> FloatArray:
-        """Site twist ``(v, w)`` (m/s, rad/s; world frame), shape (6,), for a DS velocity
-        ``zdot`` (shape (4,)): ``v = zdot[:3]``, ``w = zdot[3] * x``."""
-        vx, vy, vz, wp = np.asarray(zdot, dtype=np.float64).tolist()
-        return np.array((vx, vy, vz, wp * PITCH_AXIS[0], wp * PITCH_AXIS[1], wp * PITCH_AXIS[2]))
+    def twist_from_ds_velocity(self, zdot: FloatArray, z: FloatArray) -> FloatArray:
+        """Site twist ``(v, omega)`` (m/s, rad/s; world frame), shape (6,), for a DS velocity
+        ``zdot`` (shape (6,)) at the DS state ``z`` (shape (6,)): ``v = zdot[:3]``,
+        ``omega = r0 J_l(z[3:]) zdot[3:]``."""
+        zd = np.asarray(zdot, dtype=np.float64).reshape(6)
+        za = np.asarray(z, dtype=np.float64).reshape(6)
+        omega = np.asarray(self.r0, dtype=np.float64) @ (left_jacobian(za[3:]) @ zd[3:])
+        return np.concatenate((zd[:3], omega))
 
 
 def integrate_ds_target(z_target: FloatArray, zdot: FloatArray, dt: float,
@@ -555,11 +561,11 @@ class ImpedanceController:
         self._ext_tau[:] = ext
 
     def ds_state(self, data: Any) -> FloatArray:
-        """The DS state ``(x, y, z, pitch)`` of the controlled site, shape (4,)."""
+        """The DS state ``(x, y, z, rx, ry, rz)`` of the controlled site, shape (6,)."""
         return self.map.ds_state(data)
 
     def target_pose_from_ds_state(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Target ``(pos (3,), quat (4,))`` for the DS state ``z`` (shape (4,))."""
+        """Target ``(pos (3,), quat (4,))`` for the DS state ``z`` (shape (6,))."""
         return self.map.target_pose_from_ds_state(z)
 
     def arm_mass(self, data: Any) -> FloatArray:

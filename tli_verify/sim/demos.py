@@ -1,6 +1,8 @@
 """Scripted scooping in the simulator: the waypoints and the rigs (a mocap-driven ladle, the Panda).
 
-The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + pitch). The
+The scoop (world frame of :mod:`tli_verify.sim.scene`; pose = tray position + orientation,
+``(x, y, z, rx, ry, rz)``: the rotation vector in the chart at
+:data:`~tli_verify.sim.scene.TRAY_REFERENCE`, where a pitch ``p`` is ``(0, p, 0)``). The
 soup bowl's floor is a funnel whose flat pit lies at the far side (-y), so the beads gather
 against the far wall, ahead of the ladle (:data:`~tli_verify.sim.scene.SOUP_PIT`):
 
@@ -19,6 +21,7 @@ demonstrations follow this script on the Panda by kinesthetic teaching
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
-from tli_verify.sim.controller import Gains, ImpedanceController
+from tli_verify.sim.controller import DSStateMap, Gains, ImpedanceController
 from tli_verify.sim.franka_limits import CartesianImpedance, FrankaLimits, LimitGuard
 from tli_verify.sim.franka_sensors import make_sensors
 from tli_verify.sim.passive import PassiveDSController
@@ -42,26 +45,30 @@ from tli_verify.sim.scene import (
     TARGET_CENTER,
     TRAY_HALF_THICKNESS,
     TRAY_RADIUS,
+    TRAY_REFERENCE,
     PhysicsOptions,
     add_ladle,
     add_scene,
     add_stand,
     build_mocap_scene,
-    ladle_quat,
     reset_beads,
     scene_ids,
     set_contact_options,
     soup_floor,
+    tray_quat,
 )
 from tli_verify.sim.sensors import Reading, ScoopSensors
 
 __all__ = [
     "CONTROL_DT",
+    "PITCH_POSE_COLUMNS",
     "POSITION_SCALE",
     "MocapRig",
     "ScoopStep",
     "from_ds",
     "from_ds_velocity",
+    "model_columns",
+    "pitch_column",
     "scoop_waypoints",
     "to_ds",
 ]
@@ -95,14 +102,16 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         much, when ``jitter > 0``.
     jitter : float, optional
         Uniform jitter half-width (m).
-    start : array_like, shape (4,), optional
-        The first waypoint's ``(x, y, z, pitch)`` instead of the nominal start (a recovery
-        demonstration; jittered like the nominal one).
+    start : array_like, shape (6,), optional
+        The first waypoint's pose ``(x, y, z, rx, ry, rz)`` instead of the nominal start (a
+        recovery demonstration; jittered like the nominal one). The script turns the tray from
+        there to its own orientations (roll and yaw 0) by the next waypoint.
 
     Returns
     -------
-    ndarray, shape (K, 5)
-        Rows ``(time s, x, y, z, pitch rad)``, times increasing from 0.
+    ndarray, shape (K, 7)
+        Rows ``(time s, x, y, z [m], rx, ry, rz [rad])``, times increasing from 0; the script
+        turns about the pitch axis only (``ry``), roll and yaw 0 but at a given start.
     """
     cx, cy = float(SOUP_CENTER[0]), float(SOUP_CENTER[1])
     tx, ty = float(TARGET_CENTER[0]), float(TARGET_CENTER[1])
@@ -121,8 +130,13 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         (7.2, tx, ty, 0.10, POUR_PITCH),                               # pour
         (8.0, tx, ty, 0.10, POUR_PITCH),
     ])
+    zeros = np.zeros(len(w))
+    w = np.column_stack((w[:, :4], zeros, w[:, 4], zeros))  # (t, x, y, z, rx, ry=pitch, rz)
     if start is not None:
-        w[0, 1:] = np.asarray(start, dtype=np.float64)
+        s0 = np.asarray(start, dtype=np.float64)
+        if s0.shape != (6,):
+            raise TliError(f"scoop start: expected a pose (x, y, z, rx, ry, rz), got {start!r}")
+        w[0, 1:] = s0
     if rng is not None and jitter > 0:
         for row in (0, 7, 8):
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
@@ -131,8 +145,10 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
 
 
 def interpolate(waypoints: FloatArray, t: float) -> FloatArray:
-    """The pose ``(x, y, z, pitch)`` at time ``t`` (piecewise linear), shape (4,)."""
-    return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j]) for j in range(1, 5)])
+    """The pose ``(x, y, z, rx, ry, rz)`` at time ``t`` (piecewise linear in the chart's
+    coordinates), shape (6,)."""
+    return np.array([np.interp(t, waypoints[:, 0], waypoints[:, j])
+                     for j in range(1, waypoints.shape[1])])
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -142,10 +158,10 @@ class ScoopStep:
     Attributes
     ----------
     time : float
-    pose : ndarray, shape (4,)
-        The tray's actual ``(x, y, z, pitch)``.
+    pose : ndarray, shape (6,)
+        The tray's actual ``(x, y, z, rx, ry, rz)``.
     reading : Reading
-    command : ndarray, shape (4,)
+    command : ndarray, shape (6,)
         The commanded pose (the impedance law's target) at that time.
     """
 
@@ -163,15 +179,48 @@ def _sensors(kind: str, model: mujoco.MjModel, ids: Any, seed: int) -> Any:
     return make_sensors(kind, model, ids, seed=seed)
 
 
-def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
-    """The tray frame's ``(x, y, z, pitch)`` (pitch: module doc of :mod:`.scene`), shape (4,).
+@functools.lru_cache(maxsize=8)
+def tray_map(site: int) -> DSStateMap:
+    """The pose map of the tray site ``site``: position, and the rotation vector in the chart
+    at :data:`~tli_verify.sim.scene.TRAY_REFERENCE`."""
+    r0 = np.empty(9)
+    mujoco.mju_quat2Mat(r0, np.array(TRAY_REFERENCE))
+    return DSStateMap(int(site), r0.reshape(3, 3))
 
-    The pitch is the angle of the tray's front (local +x) below the horizontal, signed: the
-    front points along ``(0, -cos p, -sin p)`` for a pure pitch ``p``.
+
+def tray_pose(data: mujoco.MjData, site: int) -> FloatArray:
+    """The tray frame's pose ``(x, y, z [m], rx, ry, rz [rad])``, shape (6,) (module doc;
+    :func:`tray_map`). For a pure pitch ``p`` (the front tipped down by ``p``, along
+    ``(0, -cos p, -sin p)``) it is ``(x, y, z, 0, p, 0)``."""
+    return tray_map(site).ds_state(data)
+
+
+PITCH_POSE_COLUMNS = (0, 1, 2, 4)
+"""The pose coordinates of a 4-D ``(x, y, z, pitch)`` DS (the paper's Fig. 11 state): the
+position and ``ry``; it holds roll and yaw at 0 (:func:`model_columns`)."""
+
+
+def model_columns(dim: int) -> tuple[int, ...]:
+    """The coordinates of the 6-D pose ``(x, y, z, rx, ry, rz)`` a DS of dimension ``dim``
+    runs on: all six, or :data:`PITCH_POSE_COLUMNS` for a 4-D DS (roll and yaw held at 0,
+    the paper's Fig. 11 state).
+
+    Raises
+    ------
+    TliError
+        Another dimension.
     """
-    xmat = data.site_xmat[site].tolist()  # row-major: the front (column 0) is 0, 3, 6
-    x, y, z = data.site_xpos[site].tolist()
-    return np.array((x, y, z, math.atan2(-xmat[6], -xmat[3])))
+    if dim == 6:
+        return (0, 1, 2, 3, 4, 5)
+    if dim == 4:
+        return PITCH_POSE_COLUMNS
+    raise TliError(f"franka scoop: a DS on the tray pose has 6 coordinates (x, y, z, rx, ry, "
+                   f"rz) or 4 (x, y, z, pitch), not {dim}")
+
+
+def pitch_column(dim: int) -> int:
+    """The column of the pitch (``ry``) in a DS state of dimension ``dim`` (4 or 6)."""
+    return model_columns(dim).index(4)
 
 
 class MocapRig:
@@ -189,8 +238,9 @@ class MocapRig:
     stiffness, rot_stiffness : float, optional
         ``K`` (N/m) and ``K_r`` (Nm/rad); dampings are critical for the carrier's mass and
         inertia.
-    start : array_like, shape (4,), optional
-        Initial ``(x, y, z, pitch)`` of the tray (default: the scene's start, pitch 0).
+    start : array_like, shape (6,), optional
+        Initial pose ``(x, y, z, rx, ry, rz)`` of the tray (default: the scene's start,
+        the reference orientation).
     in_bowl : int, optional
         Beads in the soup bowl (:func:`~tli_verify.sim.scene.reset_beads`).
     sensors : str, optional
@@ -240,7 +290,8 @@ class MocapRig:
         self._xmat = d.xmat[self._carrier].reshape(3, 3)
         self._mocap_pos = d.mocap_pos[0]
         self._mocap_quat = d.mocap_quat[0]
-        self.place([*self.data.mocap_pos[0].tolist(), 0.0] if start is None else start)
+        self.place([*self.data.mocap_pos[0].tolist(), 0.0, 0.0, 0.0] if start is None
+                   else start)
         reset_beads(self.model, self.data, self.ids, seed=seed, step=self.physics_step,
                     in_bowl=in_bowl)
 
@@ -250,25 +301,25 @@ class MocapRig:
         return self._carrier
 
     def command(self, pose: npt.ArrayLike, velocity: npt.ArrayLike | None = None) -> None:
-        """Move the target to ``(x, y, z, pitch)``; the impedance law pulls the ladle there.
+        """Move the target to ``(x, y, z, rx, ry, rz)``; the impedance law pulls the ladle there.
         ``velocity`` is accepted for the rigs' common interface and not used (the free tool's
         law has no feed-forward: the demonstrations were recorded without it)."""
         p = np.asarray(pose, dtype=np.float64)
         self.data.mocap_pos[0] = p[:3]
-        self.data.mocap_quat[0] = ladle_quat(float(p[3]))
+        self.data.mocap_quat[0] = tray_quat(p[3:6])
 
     def place(self, pose: npt.ArrayLike) -> None:
-        """Teleport the ladle and its target to ``(x, y, z, pitch)`` (at rest)."""
+        """Teleport the ladle and its target to ``(x, y, z, rx, ry, rz)`` (at rest)."""
         p = np.asarray(pose, dtype=np.float64)
         self.command(p)
         a, d = self._qadr, self._dadr
         self.data.qpos[a:a + 3] = p[:3]
-        self.data.qpos[a + 3:a + 7] = ladle_quat(float(p[3]))
+        self.data.qpos[a + 3:a + 7] = tray_quat(p[3:6])
         self.data.qvel[d:d + 6] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
     def pose(self) -> FloatArray:
-        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
+        """The tray's pose ``(x, y, z, rx, ry, rz)``, shape (6,)."""
         return tray_pose(self.data, self.ids.tray_site)
 
     def read(self) -> Reading:
@@ -359,7 +410,8 @@ radians; in metres the learner's SDPs were ill-conditioned: CLARABEL 'optimal_in
 
 
 def to_ds(pose: npt.ArrayLike) -> FloatArray:
-    """Tray pose ``(x, y, z [m], pitch [rad])`` -> DS state ``(x, y, z [dm], pitch)``."""
+    """Tray pose ``(x, y, z [m], rx, ry, rz [rad])`` -> DS state ``(x, y, z [dm], rx, ry,
+    rz)`` (the position scaled; any trailing coordinates unchanged)."""
     p = np.array(pose, dtype=np.float64)
     p[..., :3] *= POSITION_SCALE
     return p
@@ -414,7 +466,8 @@ class PandaRig:
     the controller (:class:`tli_verify.sim.controller.ImpedanceController` with
     :data:`PANDA_IMPEDANCE` and a :class:`~tli_verify.sim.franka_limits.LimitGuard`) controls
     the tray site ``ladle_tray`` directly, with the nominal orientation of the ladle frame at
-    pitch 0, so its DS state is this module's ``(x, y, z, pitch)`` of the tray. Torques are
+    pitch 0, so its DS state is this module's pose ``(x, y, z, rx, ry, rz)`` of the tray (the
+    chart at :data:`~tli_verify.sim.scene.TRAY_REFERENCE`). Torques are
     computed at every physics step (the torque loop); the target moves linearly within each
     control period from the last commanded pose to the new one, with the DS velocity as
     feed-forward (a passive-DS controller tracks the DS's velocity). Before the trial the arm
@@ -480,13 +533,12 @@ class PandaRig:
         self.panda = Panda.from_model(self.model)
         self.ids = scene_ids(self.model)
         self.sensors = _sensors(sensors, self.model, self.ids, seed)
-        r0 = np.empty(9)
-        mujoco.mju_quat2Mat(r0, ladle_quat(0.0))
         self.impedance = PANDA_IMPEDANCE if impedance is None else impedance
         self.limits = FrankaLimits() if limits is None else limits
         self.guard = LimitGuard(self.limits, float(timestep))
         self.controller = ImpedanceController(self.panda, site=self.ids.tray_site,
-                                              r0=r0.reshape(3, 3), gains=PANDA_POSTURE_GAINS,
+                                              r0=tray_map(self.ids.tray_site).r0,
+                                              gains=PANDA_POSTURE_GAINS,
                                               impedance=self.impedance, guard=self.guard)
         self.push = np.zeros(6)
         # a person grabs the ladle, not the hand: their wrench acts at the ladle's centre of
@@ -517,14 +569,15 @@ class PandaRig:
                 posture=PANDA_POSTURE_GAINS, guard=self.guard)
             self.passive.posture = self.controller.posture
 
-    def command_velocity(self, velocity: npt.ArrayLike, pitch: float | None = None) -> None:
-        """The DS velocity ``(dx, dy, dz [m/s], dpitch [rad/s])`` the passive-DS law tracks
-        from the next :meth:`step` on (``controller="passive"``), and the orientation servo's
-        pitch (rad; None: none about the pitch axis)."""
+    def command_velocity(self, velocity: npt.ArrayLike,
+                         orientation: npt.ArrayLike | None = None) -> None:
+        """The DS velocity ``(dx, dy, dz [m/s], drx, dry, drz [rad/s])`` the passive-DS law
+        tracks from the next :meth:`step` on (``controller="passive"``), and the orientation
+        servo's rotation vector ``(rx, ry, rz)`` (rad; None: no orientation spring)."""
         if self.passive is None:
             raise TliError("command_velocity needs the passive-DS controller "
                            "(PandaRig(controller='passive'))")
-        self.passive.set_velocity(velocity, pitch)
+        self.passive.set_velocity(velocity, orientation)
 
     @property
     def carrier(self) -> int:
@@ -532,13 +585,14 @@ class PandaRig:
         return self._carrier
 
     def command(self, pose: npt.ArrayLike, velocity: npt.ArrayLike | None = None) -> None:
-        """The tray pose ``(x, y, z, pitch)`` to reach by the end of the next :meth:`step`
-        call (the target ramps there from the last one), and the DS velocity
-        ``(dx, dy, dz, dpitch)`` (m/s, rad/s; optional) as feed-forward."""
+        """The tray pose ``(x, y, z, rx, ry, rz)`` to reach by the end of the next
+        :meth:`step` call (the target ramps there from the last one, linearly in the chart's
+        coordinates), and the pose velocity ``(dx, dy, dz, drx, dry, drz)`` (m/s, rad/s;
+        optional) as feed-forward (turned into the tray's twist at the new pose)."""
         self._from = self._goal
-        self._goal = np.asarray(pose, dtype=np.float64).copy()
+        self._goal = np.asarray(pose, dtype=np.float64).reshape(6).copy()
         self._twist = None if velocity is None else self.controller.map.twist_from_ds_velocity(
-            np.asarray(velocity, dtype=np.float64))
+            np.asarray(velocity, dtype=np.float64), self._goal)
 
     def physics_step(self) -> None:
         """One physics step at the commanded pose: torques plus :attr:`push` on the hand."""
@@ -567,8 +621,8 @@ class PandaRig:
                 passive.compute(data)
                 step2(model, data)
             return
-        x0, y0, z0, p0 = self._from.tolist()
-        dx, dy, dz, dp = (self._goal - self._from).tolist()
+        x0, y0, z0, a0, b0, c0 = self._from.tolist()
+        dx, dy, dz, da, db, dc = (self._goal - self._from).tolist()
         twist = None if self._twist is None else self._twist.tolist()
         quat, xfrc, set_quat = self._quat_d, self._xfrc, ctl.map.target_quat_into
         control = ctl.compute_fast
@@ -580,7 +634,7 @@ class PandaRig:
                 before(k - 1)
                 xfrc[:] = self.push
             r = k / n
-            set_quat(p0 + dp * r, quat)
+            set_quat(a0 + da * r, b0 + db * r, c0 + dc * r, quat)
             x, y, z = x0 + dx * r, y0 + dy * r, z0 + dz * r
             step1(model, data)
             out = control(data, x, y, z, quat, twist)
@@ -590,8 +644,8 @@ class PandaRig:
         self._from = self._goal
 
     def pose(self) -> FloatArray:
-        """The tray's ``(x, y, z, pitch)``, shape (4,)."""
-        return tray_pose(self.data, self.ids.tray_site)
+        """The tray's pose ``(x, y, z, rx, ry, rz)``, shape (6,)."""
+        return self.controller.map.ds_state(self.data)
 
     def external_wrench(self) -> FloatArray:
         """The controller's external wrench estimate at the tray (N, N m; world), shape (6,)

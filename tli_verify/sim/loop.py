@@ -76,6 +76,7 @@ from tli_verify.sim.demos import (
     PandaRig,
     from_ds,
     from_ds_velocity,
+    model_columns,
     to_ds,
 )
 from tli_verify.sim.franka_project import load_policy
@@ -302,8 +303,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     trace : list, optional
         Appended with one :class:`TraceStep` per control period (what the robot saw and
         commanded: the Fig. 9-style pictures of :mod:`tli_verify.sim.scenario`).
-    margin : array_like, shape (4,), optional
-        How far the target may leave the demonstrations' box
+    margin : array_like, shape (6,), optional
+        How far the target may leave the demonstrations' box, per pose coordinate
         (:func:`~tli_verify.sim.target.workspace`; default :data:`~tli_verify.sim.target.MARGIN`).
     controller : str, optional
         ``"measured"`` (default: the DS at the measured pose, integrated to the impedance
@@ -325,11 +326,15 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     substeps = round(CONTROL_DT / float(rig.model.opt.timestep))
     debounce = Debounce()
     reading = debounce.update(rig.read())
-    ref = to_ds(rig.pose())
+    # the DS's coordinates of the pose (x, y, z, rx, ry, rz): all six, or a 4-D DS's
+    # (x, y, z, pitch), roll and yaw held at 0 (demos.model_columns)
+    cols = list(model_columns(policy.model.dim))
+    lift = _lifter(cols)
+    ref = to_ds(rig.pose())[cols]
     lo, hi = workspace(margin)
-    lo_l, hi_l = lo.tolist(), hi.tolist()
-    pitch_ref = float(ref[3])  # the passive law's orientation servo (pitch)
-    leash, cap = LEASH.tolist(), SPEED_CAP.tolist()
+    lo_l, hi_l = lo[cols].tolist(), hi[cols].tolist()
+    servo = ref.copy()  # the passive law's orientation servo (its rotation columns)
+    leash, cap = LEASH[cols].tolist(), SPEED_CAP[cols].tolist()
     policy.reset(ref, reading.to_dict())
     policy.stall_rule = StallRule() if retry else None  # the stall rule (runtime.stall)
     detect = ContactDetector() if detector is None else detector
@@ -354,12 +359,12 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             if hands[i] is None and start < t + CONTROL_DT and t < start + p.duration:
                 hands[i] = PersonHand(p, start=start)  # it grabs in this control period
         # the robot's side: what it measures
-        z = to_ds(rig.pose())
+        z = to_ds(rig.pose())[cols]
         perturbed = detect.update(rig.external_wrench(), CONTROL_DT)
         perturbed_steps += perturbed
         # the target stays on a leash of the measured state: held back (a push, the pile),
         # the arm pulls with a bounded force, in every axis, towards where the DS leads
-        # (4-vectors on floats: numpy's elementwise roundings and clip rule, less overhead)
+        # (n-vectors on floats: numpy's elementwise roundings and clip rule, less overhead)
         zl = z.tolist()
         if passive:  # the DS at the measured state: no target
             ref = z
@@ -378,11 +383,13 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             vl = [a / speed for a in vl]
         if passive:  # no velocity out of the workspace where the robot is at or beyond it
             vl = feed_forward_floats(zl, vl, lo_l, hi_l)
-            # the orientation servo's pitch: integrated from the DS's pitch rate, on a leash
-            # of the measured pitch (the position has no target: passive-DS)
-            pitch_ref = min(max(pitch_ref + CONTROL_DT * vl[3], zl[3] - leash[3]),
-                            zl[3] + leash[3])
-            rig.command_velocity(from_ds_velocity(vl), pitch_ref)
+            # the orientation servo: integrated from the DS's rotation rates, on a leash of
+            # the measured orientation (the position has no target: passive-DS)
+            servo = np.array(clip_floats(
+                [r + CONTROL_DT * a for r, a in zip(servo.tolist(), vl, strict=True)],
+                [a - b for a, b in zip(zl, leash, strict=True)],
+                [a + b for a, b in zip(zl, leash, strict=True)]))
+            rig.command_velocity(from_ds_velocity(lift(vl)), lift(servo.tolist())[3:])
         else:
             refl = clip_floats([r + CONTROL_DT * a for r, a in zip(ref.tolist(), vl, strict=True)],
                          lo_l, hi_l)
@@ -390,7 +397,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             if measured and cuts:  # the target, too, inside the running mode's cut set
                 ref = inside_cuts(ref, cuts, z)
                 refl = ref.tolist()
-            rig.command(from_ds(ref), from_ds_velocity(feed_forward_floats(refl, vl, lo_l, hi_l)))
+            rig.command(from_ds(lift(refl)),
+                        from_ds_velocity(lift(feed_forward_floats(refl, vl, lo_l, hi_l))))
         step_with_hands(rig, substeps, t, hands, applied)
         t += CONTROL_DT
         if frame is not None:
@@ -412,7 +420,7 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             break
     rig.push[:] = 0.0
     if passive:
-        rig.command_velocity(np.zeros(4))  # the settle: the arm held by damping alone
+        rig.command_velocity(np.zeros(6))  # the settle: the arm held by damping alone
     if stopped is None:
         for _ in range(round(settle / CONTROL_DT)):
             rig.step(substeps)
@@ -435,6 +443,20 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         perturbed_steps=perturbed_steps, controller=control,
         sensors=sensors, cut_gap=cut_gap.to_dict(),
         tank_low=round(rig.passive.tank_low, 4) if passive else None)
+
+
+def _lifter(cols: list[int]) -> Callable[[list[float]], FloatArray]:
+    """The map from a DS's coordinates (the pose's columns ``cols``) to the 6-D pose: the
+    columns a 4-D DS does not have (roll and yaw) held at 0."""
+    if len(cols) == 6:
+        return lambda values: np.array(values)
+
+    def lift(values: list[float]) -> FloatArray:
+        out = np.zeros(6)
+        out[cols] = values
+        return out
+
+    return lift
 
 
 def default_controller(robot: str) -> str:

@@ -10,14 +10,14 @@ executive's modulation and mode switching), and the torque loop (every physics s
 1 kHz) applies::
 
     F_lin = -D (v - f_lin(x)),   D = Q diag(lambda1, lambda2, lambda2) Q^T,   Q e1 = f / |f|
-    tau_x = k_r e_x - d_pitch (w_x - f_pitch(x))        (the pitch axis, world x)
-    tau_yz = k_r e_yz - d_r w_yz                          (roll and yaw held)
+    tau_rot = k_r e - d_r (w - w_f(x)),     w_f = R0 J_l(v) f_rot(x)   (the DS's turn rate)
     tau = J^T (F_lin, tau) + (I - J^T Jbar^T) M [Kn (q_n - q) - Dn qdot] + C qdot + g
 
-with ``v, w`` the measured site twist ``J qdot`` (world frame), ``e`` the rotation vector from
-the tray's orientation to the nominal one at the servo's pitch
-(:class:`~tli_verify.sim.controller.DSStateMap`; without a servo pitch, the measured one and
-``e_x = 0``), the dynamically consistent null-space
+with ``v, w`` the measured site twist ``J qdot`` (world frame), ``f_rot`` the DS's rates of
+the rotation vector ``v`` of the pose (:class:`~tli_verify.sim.controller.DSStateMap`: ``w_f``
+is the angular velocity they make at the measured orientation), ``e`` the rotation vector from
+the tray's orientation to the orientation servo's (none without a servo: ``e = 0``), the
+dynamically consistent null-space
 projector of :mod:`tli_verify.sim.controller` and MuJoCo's bias (gravity and Coriolis
 compensation). There is no target pose: the DS's velocity field is the reference, so the robot
 goes where the DS at its *own* state sends it, and a cut learned on the measured state bounds
@@ -25,8 +25,8 @@ the robot, not an integrated target.
 
 Passivity (the energy tank)
     Since ``D f = lambda1 f``, the controller's power into the arm is
-    ``-v^T D v + lambda1 v^T f`` (plus the pitch term alike): a dissipative part and the DS
-    part ``p = lambda1 v^T f + d_pitch w_x f_pitch``, which is not sign-definite for a
+    ``-v^T D v + lambda1 v^T f`` (plus the rotation term alike): a dissipative part and the DS
+    part ``p = lambda1 v^T f + d_r w^T w_f``, which is not sign-definite for a
     non-conservative ``f`` (LPV-DS is one). A virtual tank ``s`` in ``[0, s_max]`` stores the
     energy the damping dissipates (``ds = alpha v^T D v dt`` while ``s < s_max``) and the
     energy the DS part takes back (``p < 0``); the DS part may inject energy (``p > 0``) only
@@ -34,8 +34,8 @@ Passivity (the energy tank)
     the law is pure damping. Arm plus tank then never gain energy other than through the
     external port (the person's hand, the beads) and the posture spring (a potential): the
     translational passive-DS law is passive (Kronander and Billard 2016, Sec. IV; Ferraguti
-    et al. 2013 for the tank). **Not covered**: the orientation servo's reference pitch moves
-    (it is integrated from the DS's pitch rate), so its spring is not a fixed potential and the
+    et al. 2013 for the tank). **Not covered**: the orientation servo's reference moves (it is
+    integrated from the DS's rotation rates), so its spring is not a fixed potential and the
     energy it injects is not drawn from the tank; it is bounded by the servo's leash (0.15 rad
     at 50 Nm/rad: 0.56 J of spring energy at most). Recorded per trial: the lowest tank level
     and the physics steps at which the DS part was withheld.
@@ -53,8 +53,8 @@ What carries over from the certificate, and what does not
     robot was -- not 4-5 cm ahead of it on an integrated target.
 
 Gains (:class:`PassiveGains`)
-    ``lambda1 = 200 Ns/m`` along the flow, ``lambda2 = 150 Ns/m`` across it, ``d_pitch =
-    6 Nms/rad``; roll/yaw ``k_r = 50 Nm/rad`` (the tracking rig's), ``d_r = 3 Nms/rad``; the
+    ``lambda1 = 200 Ns/m`` along the flow, ``lambda2 = 150 Ns/m`` across it, ``d_r =
+    6 Nms/rad`` about every axis; the servo's ``k_r = 50 Nm/rad`` (the tracking rig's); the
     tank holds up to 10 J, starts full and withholds the DS part below 0.05 J. The Franka
     documents Cartesian stiffness in 10-3,000 N/m and 1-300 Nm/rad and critically damps it; the
     damping it would apply at the top of the range on this arm's task-space inertia (about 2-4
@@ -62,10 +62,10 @@ Gains (:class:`PassiveGains`)
     0.03) ~ 6 Nms/rad``: :data:`DAMPING_RANGE` refuses more. The task wrench is capped at the
     tracking rig's 35 N / 6 N m and the joint torques pass the
     :class:`~tli_verify.sim.franka_limits.LimitGuard` (torque, torque rate, velocity, reflex).
-    An orientation servo (``k_r``) holds the tray at a pitch the loop integrates from the DS's
-    pitch rate on a 0.15 rad leash of the measured pitch (:meth:`PassiveDSController.set_velocity`
-    ``pitch``): without it the pile's contact torques turned the tray, which pure damping does
-    not resist.
+    An orientation servo (``k_r``) holds the tray at an orientation the loop integrates from the
+    DS's rotation rates on a 0.15 rad leash of the measured one
+    (:meth:`PassiveDSController.set_velocity` ``orientation``): without it the pile's contact
+    torques turned the tray, which pure damping does not resist.
 
 References
 ----------
@@ -117,21 +117,18 @@ class PassiveGains:
         Damping along the DS's velocity (Ns/m).
     lambda2 : float
         Damping across it (Ns/m).
-    d_pitch : float
-        Damping of the pitch rate about its DS value (Nms/rad).
     k_rot : float
-        Roll/yaw stiffness (Nm/rad), within the Franka's 1-300 Nm/rad.
+        The orientation servo's stiffness (Nm/rad), within the Franka's 1-300 Nm/rad.
     d_rot : float
-        Roll/yaw damping (Nms/rad).
+        Damping of the angular velocity about the DS's (Nms/rad), every axis.
     tank_max, tank_min, tank_start : float
         Energy tank bounds and initial level (J).
     """
 
     lambda1: float = 200.0
     lambda2: float = 150.0
-    d_pitch: float = 6.0
     k_rot: float = 50.0
-    d_rot: float = 3.0
+    d_rot: float = 6.0
     tank_max: float = 10.0
     tank_min: float = 0.05
     tank_start: float = 10.0
@@ -140,7 +137,6 @@ class PassiveGains:
         (tlo, thi), (rlo, rhi) = DAMPING_RANGE
         for name, value, lo, hi in (("lambda1", self.lambda1, tlo, thi),
                                     ("lambda2", self.lambda2, tlo, thi),
-                                    ("d_pitch", self.d_pitch, rlo, rhi),
                                     ("d_rot", self.d_rot, rlo, rhi),
                                     ("k_rot", self.k_rot, 1.0, 300.0)):
             if not (math.isfinite(value) and lo <= value <= hi):
@@ -152,7 +148,7 @@ class PassiveGains:
 
     def to_dict(self) -> dict[str, float]:
         """The evidence's record."""
-        return {"lambda1": self.lambda1, "lambda2": self.lambda2, "d_pitch": self.d_pitch,
+        return {"lambda1": self.lambda1, "lambda2": self.lambda2,
                 "k_rot": self.k_rot, "d_rot": self.d_rot, "tank_max": self.tank_max,
                 "tank_min": self.tank_min, "tank_start": self.tank_start}
 
@@ -166,7 +162,7 @@ class PassiveDSController:
     site : int
         The controlled site (the tray).
     dsmap : DSStateMap
-        Its DS state map (pitch about world x, nominal orientation).
+        Its DS state map (position and the rotation vector in its chart).
     gains : PassiveGains, optional
     posture : Gains, optional
         Null-space posture gains (``kn``, ``dn``; per unit joint mass).
@@ -200,8 +196,8 @@ class PassiveDSController:
         self._act = panda.act_ids
         self._idx_m = arm_mass_index(self.model, self._dof)
         self._jac6 = np.zeros((6, self.model.nv))
-        self._f = np.zeros(4)  # the DS velocity (m/s, rad/s) held over the control period
-        self._pitch: float | None = None  # the orientation servo's pitch (None: measured)
+        self._f = np.zeros(6)  # the DS velocity (m/s, rad/s) held over the control period
+        self._servo: tuple[float, float, float] | None = None  # the servo's rotation vector
         self._quat = np.zeros(4)
         self._qd = np.zeros(4)
         self._qerr = np.zeros(4)
@@ -218,15 +214,23 @@ class PassiveDSController:
         self.tank_low = self.tank
         self.withheld = 0
 
-    def set_velocity(self, f: npt.ArrayLike, pitch: float | None = None) -> None:
-        """The DS velocity ``(vx, vy, vz [m/s], pitch rate [rad/s])`` to track until the next
-        call (evaluated by the loop at the measured state), shape (4,), and the orientation
-        servo's pitch (rad; None: the measured pitch, no spring about x)."""
+    def set_velocity(self, f: npt.ArrayLike, orientation: npt.ArrayLike | None = None
+                     ) -> None:
+        """The DS velocity ``(vx, vy, vz [m/s], rates of rx, ry, rz [rad/s])`` to track until
+        the next call (evaluated by the loop at the measured state), shape (6,), and the
+        orientation servo's rotation vector (shape (3,), rad; None: no orientation spring)."""
         fa = np.asarray(f, dtype=np.float64).reshape(-1)
-        if fa.shape != (4,) or not np.all(np.isfinite(fa)):
-            raise SolverError(f"passive control: DS velocity must be 4 finite numbers, got {f!r}")
+        if fa.shape != (6,) or not np.all(np.isfinite(fa)):
+            raise SolverError(f"passive control: DS velocity must be 6 finite numbers, got {f!r}")
         self._f[:] = fa
-        self._pitch = None if pitch is None else float(pitch)
+        if orientation is None:
+            self._servo = None
+        else:
+            oa = np.asarray(orientation, dtype=np.float64).reshape(-1)
+            if oa.shape != (3,) or not np.all(np.isfinite(oa)):
+                raise SolverError("passive control: the servo's orientation must be 3 finite "
+                                  f"numbers, got {orientation!r}")
+            self._servo = (float(oa[0]), float(oa[1]), float(oa[2]))
 
     def compute(self, data: Any) -> list[float]:
         """Joint torques of the law at the current state (after ``mj_step1``), written to the
@@ -246,7 +250,9 @@ class PassiveDSController:
         lam_inv[np.diag_indices(6)] += 1e-6
         twist = jac @ qd
         v, w = twist[:3], twist[3:]
-        f_lin, f_p = self._f[:3], float(self._f[3])
+        f_lin = self._f[:3]
+        # the DS's turn rate at the measured orientation (world frame)
+        w_f = self.map.twist_from_ds_velocity(self._f, self.map.ds_state(data))[3:]
         dt = float(m.opt.timestep)
         # D = Q diag(l1, l2, l2) Q^T with Q e1 = f / |f|: l2 I + (l1 - l2) e1 e1^T; below
         # 1 mm/s the direction fades out (D -> l2 I ... l1 along f, continuous in f)
@@ -257,8 +263,8 @@ class PassiveDSController:
         damp_v = g.lambda2 * v + (g.lambda1 - g.lambda2) * blend * dv * e1  # D v
         lam_f = g.lambda1 * f_lin if blend >= 1.0 else \
             g.lambda2 * f_lin + (g.lambda1 - g.lambda2) * blend * (f_lin @ e1) * e1  # D f
-        p_ds = float(v @ lam_f) + g.d_pitch * float(w[0]) * f_p  # the DS part's power (W)
-        dissipated = float(v @ damp_v) + g.d_pitch * float(w[0]) ** 2
+        p_ds = float(v @ lam_f) + g.d_rot * float(w @ w_f)  # the DS part's power (W)
+        dissipated = float(v @ damp_v) + g.d_rot * float(w @ w)
         beta = 1.0
         if p_ds > 0.0 and self.tank <= g.tank_min:
             beta = 0.0
@@ -267,22 +273,19 @@ class PassiveDSController:
         self.tank = min(g.tank_max, self.tank + dt * gain)
         self.tank_low = min(self.tank_low, self.tank)
         force = -damp_v + beta * lam_f
-        # orientation: pitch rate about world x towards the DS's, roll and yaw held at the
-        # nominal orientation of the measured pitch
-        pitch = float(self.map.ds_state(data)[3]) if self._pitch is None else self._pitch
-        self.map.target_quat_into(pitch, self._qd)
-        mujoco.mju_mat2Quat(self._quat, data.site_xmat[self.site])
-        mujoco.mju_negQuat(self._quat, self._quat)
-        mujoco.mju_mulQuat(self._qerr, self._qd, self._quat)
-        ew, ea, eb, ec = self._qerr.tolist()
-        if ew < 0.0:
-            ea, eb, ec, ew = -ea, -eb, -ec, -ew
-        vn = math.sqrt(ea * ea + eb * eb + ec * ec)
-        k = 2.0 * math.atan2(vn, ew) / vn if vn > 1e-12 else 0.0
-        spring_x = 0.0 if self._pitch is None else g.k_rot * ea * k
-        torque = np.array((spring_x - g.d_pitch * (float(w[0]) - beta * f_p),
-                           g.k_rot * eb * k - g.d_rot * float(w[1]),
-                           g.k_rot * ec * k - g.d_rot * float(w[2])))
+        # orientation: the turn rate towards the DS's, and the servo's spring
+        torque = g.d_rot * (beta * w_f - w)
+        if self._servo is not None:
+            self.map.target_quat_into(*self._servo, self._qd)
+            mujoco.mju_mat2Quat(self._quat, data.site_xmat[self.site])
+            mujoco.mju_negQuat(self._quat, self._quat)
+            mujoco.mju_mulQuat(self._qerr, self._qd, self._quat)
+            ew, ea, eb, ec = self._qerr.tolist()
+            if ew < 0.0:
+                ea, eb, ec, ew = -ea, -eb, -ec, -ew
+            vn = math.sqrt(ea * ea + eb * eb + ec * ec)
+            k = 2.0 * math.atan2(vn, ew) / vn if vn > 1e-12 else 2.0
+            torque = torque + g.k_rot * k * np.array((ea, eb, ec))
         fn, tn = float(np.linalg.norm(force)), float(np.linalg.norm(torque))
         if fn > TASK_FORCE_LIMIT:
             force *= TASK_FORCE_LIMIT / fn

@@ -32,6 +32,7 @@ import numpy.typing as npt
 from tli_verify.defaults import Stream
 from tli_verify.defaults import rng as default_rng
 from tli_verify.errors import TliError
+from tli_verify.rotations import quat_exp
 from tli_verify.sim.physics_options import DEFAULT_PHYSICS, SOLVERS, PhysicsOptions
 
 __all__ = [
@@ -45,6 +46,7 @@ __all__ = [
     "SOLVERS",
     "SOUP_CENTER",
     "TARGET_CENTER",
+    "TRAY_REFERENCE",
     "Bowl",
     "PhysicsOptions",
     "SceneIds",
@@ -57,6 +59,7 @@ __all__ = [
     "reset_beads",
     "scene_ids",
     "set_contact_options",
+    "tray_quat",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -453,6 +456,22 @@ def ladle_quat(pitch: float) -> FloatArray:
     out = np.empty(4)
     mujoco.mju_mulQuat(out, qx, qz)
     return out
+
+
+TRAY_REFERENCE: tuple[float, float, float, float] = tuple(  # type: ignore[assignment]
+    float(v) for v in ladle_quat(0.0))
+"""The orientation chart's reference: the ladle frame at pitch 0, ``(w, x, y, z)``. A tray
+pose's rotation vector ``v`` turns it: ``q = TRAY_REFERENCE (x) Exp(v)`` (the chart of pose
+tasks, :mod:`tli_verify.tasks.orientation`). A pure pitch ``p`` is ``v = (0, p, 0)``: the
+world x axis is the ladle frame's y axis at pitch 0. ``rx`` turns the tray about its front
+axis (a roll, world -y at pitch 0), ``rz`` about its normal (a yaw)."""
+
+
+def tray_quat(rotvec: npt.ArrayLike) -> FloatArray:
+    """World orientation ``(w, x, y, z)`` of the tray at the rotation vector ``rotvec``
+    (shape (3,), rad) in the chart at :data:`TRAY_REFERENCE`."""
+    return np.asarray(quat_exp(np.asarray(rotvec, dtype=np.float64).reshape(3),
+                               TRAY_REFERENCE), dtype=np.float64)
 
 
 def build_mocap_scene(physics: PhysicsOptions = DEFAULT_PHYSICS) -> mujoco.MjModel:

@@ -24,18 +24,19 @@ __all__ = ["LEASH", "MARGIN", "SPEED_CAP", "clip_floats", "feed_forward", "feed_
 
 FloatArray = npt.NDArray[np.float64]
 
-LEASH = np.array([0.3, 0.3, 0.3, 0.15])
-"""Per-axis distance (dm, dm, dm, rad) the target may lead the measured DS state: held back,
+LEASH = np.array([0.3, 0.3, 0.3, 0.15, 0.15, 0.15])
+"""Per-axis distance (dm, dm, dm, rad x 3) the target may lead the measured pose (x, y, z,
+rx, ry, rz: :mod:`tli_verify.sim.demos`; a 4-D DS takes its columns): held back,
 the arm pulls with at most stiffness x leash (60 N and 7.5 N m on the Panda at 2,000 N/m and
 50 Nm/rad: within the wrist's 12 N m)."""
 
 
-SPEED_CAP = np.array([2.0, 2.0, 2.0, 2.0])
+SPEED_CAP = np.array([2.0, 2.0, 2.0, 2.0, 2.0, 2.0])
 """Per-axis speed limit of the DS velocity (dm/s, rad/s), direction kept."""
 
 
-MARGIN = np.array([0.5, 0.5, 0.5, 0.3])
-"""How far (dm, dm, dm, rad) the target may leave the demonstrations' bounding box: the
+MARGIN = np.array([0.5, 0.5, 0.5, 0.3, 0.3, 0.3])
+"""How far (dm, dm, dm, rad x 3) the target may leave the demonstrations' bounding box: the
 workspace limits of the hand (the DS extrapolates poorly far from its data: after a spilling
 tilt it turned the ladle over and drifted 1.5 dm sideways)."""
 
@@ -45,16 +46,17 @@ def workspace(margin: npt.ArrayLike = MARGIN) -> tuple[FloatArray, FloatArray]:
 
     Parameters
     ----------
-    margin : array_like, shape (4,), optional
-        Per axis (dm, dm, dm, rad), >= 0; default :data:`MARGIN`.
+    margin : array_like, shape (6,), optional
+        Per axis of the pose (dm, dm, dm, rad x 3), >= 0; default :data:`MARGIN`.
 
     Returns
     -------
-    lo, hi : ndarray, shape (4,)
+    lo, hi : ndarray, shape (6,)
     """
     m = np.asarray(margin, dtype=np.float64)
-    if m.shape != (4,) or not bool(np.all(np.isfinite(m) & (m >= 0))):
-        raise TliError(f"workspace margin must be 4 finite numbers >= 0, got {margin!r}")
+    if m.shape != (6,) or not bool(np.all(np.isfinite(m) & (m >= 0))):
+        raise TliError(f"workspace margin must be 6 finite numbers >= 0 (x, y, z, rx, ry, rz), "
+                       f"got {margin!r}")
     box_lo, box_hi = _demo_box()
     return box_lo - m, box_hi + m
 
@@ -80,16 +82,16 @@ def feed_forward(target: FloatArray, v: FloatArray, lo: FloatArray,
 
     Parameters
     ----------
-    target : ndarray, shape (4,)
+    target : ndarray, shape (n,)
         The new target, already clipped to ``[lo, hi]``.
-    v : ndarray, shape (4,)
+    v : ndarray, shape (n,)
         The DS velocity it was integrated with (dm/s, rad/s).
-    lo, hi : ndarray, shape (4,)
+    lo, hi : ndarray, shape (n,)
         The workspace (:func:`workspace`).
 
     Returns
     -------
-    ndarray, shape (4,)
+    ndarray, shape (n,)
     """
     return np.array(feed_forward_floats(np.asarray(target, dtype=np.float64).tolist(),
                                   np.asarray(v, dtype=np.float64).tolist(),

@@ -6,9 +6,9 @@ project's demonstrations the same way, in the scene the policy runs in:
 
 The arm
     In guiding mode: gravity and Coriolis compensated and damped, within the Franka's limits --
-    the passive-DS law of :mod:`tli_verify.sim.passive` with a zero velocity field (damping
-    ``lambda2`` in every direction, the pitch rate damped, roll and yaw held at the nominal
-    orientation by its ``k_rot`` spring, as a guided Franka with a locked tool axis).
+    the passive-DS law of :mod:`tli_verify.sim.passive` with a zero velocity field and no
+    orientation servo (damping ``lambda2`` in every direction and ``d_rot`` about every axis):
+    the teacher turns the tool about any axis, as on a guided Franka with no axis locked.
 
 The teacher
     A person's hand on the arm's grip *above* the wrist force/torque sensor (its wrench acts on
@@ -16,14 +16,16 @@ The teacher
     ladle itself would read as tens of newtons of load). The hand is a spring-damper
     (:class:`TeacherHand`) pulling the tray towards the scripted scoop
     (:func:`~tli_verify.sim.demos.scoop_waypoints`, jittered by the seed) with the script's
-    velocity as feed-forward, and the ladle's orientation towards the nominal one at the
-    scripted pitch. The teacher watches the spoon (its eyes are the physics' bead count; they
+    velocity as feed-forward, and the ladle's full orientation towards the script's (the
+    pitch it scripts, roll and yaw 0: a recovery take starting rolled or yawed is turned
+    back by the teacher). The teacher watches the spoon (its eyes are the physics' bead count; they
     are never recorded): once a bead is on the tray mid-sweep it tips the tray back about the
     front edge, lifts it clear of the pile and the far wall and holds it still
     (:func:`react`), then carries and pours.
 
 The record (every control period, :data:`~tli_verify.sim.demos.CONTROL_DT`)
-    The tray pose by the arm's forward kinematics -- *measured*, not the teacher's intent --
+    The tray's full pose ``(x, y, z, rx, ry, rz)`` (:mod:`tli_verify.sim.demos`) by the arm's
+    forward kinematics -- *measured*, not the teacher's intent --
     and the readings of the robot's own sensors (:mod:`tli_verify.sim.franka_sensors`),
     debounced as the executive sees them (:class:`~tli_verify.sim.sensors.Debounce`). The
     segmentation (appendix C) therefore puts each mode's attractor where the robot's own
@@ -71,13 +73,15 @@ __all__ = ["RECOVERY_BEADS", "RECOVERY_STARTS", "TeacherHand", "react", "record_
 FloatArray = npt.NDArray[np.float64]
 
 RECOVERY_STARTS = (
-    (0.5, 0.10, 0.16, -0.7),
-    (0.5, -0.02, 0.19, -0.5),
-    (0.5, 0.06, 0.12, -0.25),
+    (0.5, 0.10, 0.16, 0.35, -0.7, 0.0),
+    (0.5, -0.02, 0.19, 0.0, -0.5, -0.35),
+    (0.5, 0.06, 0.12, -0.35, -0.25, 0.3),
 )
-"""Start poses ``(x, y, z [m], pitch [rad])`` of the recovery demonstrations: where a spilling
-tilt leaves the ladle between the bowls, tipped back. None lies over the target bowl, where the
-robot's kinematic ``t`` reads (a take starting there would begin in the target's reading)."""
+"""Start poses ``(x, y, z [m], rx, ry, rz [rad])`` of the recovery demonstrations: where a
+spilling tilt leaves the ladle between the bowls, tipped back (``ry < 0``) and turned about
+its front axis (``rx``) or its normal (``rz``): a person's tilt turns it about any
+near-horizontal axis. None lies over the target bowl, where the robot's kinematic ``t`` reads
+(a take starting there would begin in the target's reading)."""
 
 RECOVERY_BEADS = (18, 15, 12)
 """Beads left in the soup bowl for each recovery demonstration: a bowl already scooped from,
@@ -132,20 +136,21 @@ class _Guide:
 
     def apply(self, pose: FloatArray, velocity: FloatArray) -> None:
         """Set the hand's wrench for the next physics step: pulling the tray towards ``pose``
-        ``(x, y, z, pitch)`` with ``velocity`` (m/s, rad/s) as feed-forward."""
+        ``(x, y, z, rx, ry, rz)`` with ``velocity`` (its rates: m/s, rad/s) as feed-forward."""
         rig, h = self.rig, self.hand
         d = rig.data
         p = d.site_xpos[self.site]
         mujoco.mj_jacSite(rig.model, d, self._jac[:3], self._jac[3:], self.site)
         twist = self._jac @ d.qvel
         force = h.stiffness * (pose[:3] - p) + h.damping * (velocity[:3] - twist[:3])
-        rig.controller.map.target_quat_into(float(pose[3]), self._qd)
+        dsmap = rig.controller.map
+        dsmap.target_quat_into(float(pose[3]), float(pose[4]), float(pose[5]), self._qd)
         mujoco.mju_mat2Quat(self._q, d.site_xmat[self.site])
         mujoco.mju_negQuat(self._q, self._q)
         mujoco.mju_mulQuat(self._e, self._qd, self._q)
         rotvec = np.zeros(3)
         mujoco.mju_quat2Vel(rotvec, self._e if self._e[0] >= 0 else -self._e, 1.0)
-        w_d = np.array((float(velocity[3]), 0.0, 0.0))  # the pitch axis is world x
+        w_d = dsmap.twist_from_ds_velocity(velocity, pose)[3:]
         torque = h.rot_stiffness * rotvec + h.rot_damping * (w_d - twist[3:])
         # the force acts at the tray; the body held takes it at its centre of mass
         torque += np.cross(p - d.xipos[self.body], force)
@@ -171,22 +176,22 @@ def react(waypoints: FloatArray, now: float, cmd: FloatArray, *, lift: float = 0
         The script (:func:`~tli_verify.sim.demos.scoop_waypoints`).
     now : float
         Script time (s).
-    cmd : ndarray, shape (4,)
+    cmd : ndarray, shape (6,)
         The script's pose at ``now``.
 
     Returns
     -------
-    ndarray, shape (K', 5)
+    ndarray, shape (K', 7)
     """
     lift_row = 7  # the row of scoop_waypoints that lifts out of the bowl
     on = interpolate(waypoints, now + 0.3)
-    x, y, z, _ = on.tolist()
+    x, y, z, rx, _, rz = on.tolist()
     head = np.array([
         (now, *cmd.tolist()),
         (now + 0.3, *on.tolist()),
-        (now + 0.8, x, y, z + 0.016, CARRY_PITCH),
-        (now + 1.4, x, y + back, z + lift, CARRY_PITCH),
-        (now + 1.4 + hold, x, y + back, z + lift, CARRY_PITCH),
+        (now + 0.8, x, y, z + 0.016, rx, CARRY_PITCH, rz),
+        (now + 1.4, x, y + back, z + lift, rx, CARRY_PITCH, rz),
+        (now + 1.4 + hold, x, y + back, z + lift, rx, CARRY_PITCH, rz),
     ])
     tail = waypoints[lift_row:].copy()
     tail[:, 0] += now + 2.4 + hold - tail[0, 0]
@@ -204,8 +209,8 @@ def record_demo(seed: int, *, name: str = "", start: npt.ArrayLike | None = None
         Beads, the script's jitter and the sensors' noise.
     name : str, optional
         Shown in messages (``Demonstration.path``).
-    start : array_like, shape (4,), optional
-        Start pose ``(x, y, z, pitch)`` (default: the script's nominal start).
+    start : array_like, shape (6,), optional
+        Start pose ``(x, y, z, rx, ry, rz)`` (default: the script's nominal start).
     in_bowl : int, optional
         Beads in the soup bowl (the rest lie out of the task).
     hand : TeacherHand, optional
@@ -215,17 +220,17 @@ def record_demo(seed: int, *, name: str = "", start: npt.ArrayLike | None = None
     Returns
     -------
     Demonstration
-        ``x`` shape (T, 4): the measured tray pose as DS state
+        ``x`` shape (T, 6): the measured tray pose as DS state
         (:func:`~tli_verify.sim.demos.to_ds`); sensors ``r, s, t``; velocities by finite
         differences.
     """
     waypoints = scoop_waypoints(default_rng(seed, Stream.SIM_DEMOS), jitter=0.02, start=start)
     rig = PandaRig(seed, controller="passive", sensors=sensors)
-    rig.command_velocity(np.zeros(4), None)  # guiding mode: compensated and damped
+    rig.command_velocity(np.zeros(6), None)  # guiding mode: compensated and damped
     guide = _Guide(rig, TeacherHand() if hand is None else hand)
     every = round(CONTROL_DT / float(rig.model.opt.timestep))
     here, first = rig.pose(), waypoints[0, 1:]
-    still = np.zeros(4)
+    still = np.zeros(6)
     periods = round(APPROACH / CONTROL_DT)
     for k in range(periods):
         goal = here + (first - here) * min(1.0, (k + 1) / (0.6 * periods))
@@ -279,7 +284,7 @@ def _delivered(demo: Demonstration) -> bool:
 
 def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed: int = 1,
                 max_tries: int = 20,
-                recovery: tuple[tuple[float, float, float, float], ...] = RECOVERY_STARTS,
+                recovery: tuple[tuple[float, ...], ...] = RECOVERY_STARTS,
                 recovery_beads: tuple[int, ...] = RECOVERY_BEADS) -> list[Path]:
     """Record ``count`` nominal takes and one recovery take per ``recovery`` start, as
     ``franka_<k>.csv`` (each written atomically).
@@ -301,7 +306,7 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
     if len(recovery_beads) != len(recovery):
         raise TliError(f"franka demos: {len(recovery)} recovery starts but "
                        f"{len(recovery_beads)} bead counts")
-    plan: list[tuple[tuple[float, float, float, float] | None, int]] = \
+    plan: list[tuple[tuple[float, ...] | None, int]] = \
         [(None, N_BEADS)] * count + list(zip(recovery, recovery_beads, strict=True))
     out: list[Path] = []
     seed = first_seed
@@ -320,7 +325,8 @@ def write_demos(directory: str | os.PathLike[str], count: int = 3, *, first_seed
             f"recovery from {list(start)} with {beads} beads in the bowl"
         head = (f"# franka scoop demonstration {len(out) + 1}, {what} (tli_verify.sim.teacher: "
                 f"kinesthetic teaching on the Panda, seed {seed - 1}, dt {CONTROL_DT} s); "
-                "state = measured tray pose (x, y, z in dm, pitch in rad); r, s, t = the "
+                "state = measured tray pose (x, y, z in dm; rx, ry, rz in rad: the rotation vector "
+                "in the chart at the ladle's pitch-0 orientation); r, s, t = the "
                 "robot's sensors (franka)\n")
         atomic_write_text(path, head + demo_to_csv(demo, velocities=False))
         out.append(path)
