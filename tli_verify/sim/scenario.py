@@ -54,7 +54,7 @@ from tli_verify.errors import TliError
 from tli_verify.io import atomic_write_bytes
 from tli_verify.runtime.events import Replan
 from tli_verify.runtime.repeats import FailureCheck, check_repeats
-from tli_verify.sim.demos import POSITION_SCALE
+from tli_verify.sim.demos import POSITION_SCALE, pitch_column
 from tli_verify.sim.franka_project import load_policy
 from tli_verify.sim.loop import TraceStep, TrialResult, run_trial
 from tli_verify.sim.scene import TARGET_BOWL
@@ -83,9 +83,9 @@ class Scenario:
     retry : bool
         The executive's stall rule (:mod:`tli_verify.runtime.stall`; off: the automaton's
         transitions only).
-    margin : tuple of float, length 4
+    margin : tuple of float, length 6
         How far the target (tracking) or the robot (passive: the velocity leaving it is
-        dropped) may leave the demonstrations' box (dm, dm, dm, rad:
+        dropped) may leave the demonstrations' box (dm, dm, dm, rad x 3, per pose coordinate:
         :func:`~tli_verify.sim.target.workspace`).
     controller : str
         ``"tracking"`` (default: the loop the scenario was found in), ``"measured"`` or
@@ -100,13 +100,13 @@ class Scenario:
     duration: float = 14.0
     robot: str = "panda"
     retry: bool = False
-    margin: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 0.3)
+    margin: tuple[float, float, float, float, float, float] = (0.5, 0.5, 0.5, 0.3, 0.3, 0.3)
     controller: str = "tracking"
     sensors: str = "ideal"
 
 
 POUR_SCENARIO = Scenario(name="pour-sweeps-past-the-bowl", seed=0, mode="d",
-                         margin=(0.5, 1.5, 0.5, 0.3))
+                         margin=(0.5, 1.5, 0.5, 0.3, 0.3, 0.3))
 """The pour scenario as it was found: the target-tracking loop, the ideal sensors."""
 
 """The regression scenario of the module doc."""
@@ -223,15 +223,19 @@ def run_scenario(variant: str, scenario: Scenario = POUR_SCENARIO, *,
                        checks)
 
 
-_AXES = (1, 2, 3)  # y, z, pitch of the DS state (x, y, z in dm, pitch in rad)
+def _axes(dim: int) -> list[int]:
+    """The columns drawn: y, z and the pitch (``ry``) of a DS state of dimension ``dim``."""
+    return [1, 2, pitch_column(dim)]
 
 
 def _plane(ax: Any, normal: FloatArray, point: FloatArray, lo: FloatArray, hi: FloatArray,
            **style: Any) -> None:
-    """Draw ``normal . (q - point) = 0`` restricted to ``(y, z, pitch)`` (x at the point's) in
-    the box ``[lo, hi]`` (shape (3,)): solved for the axis with the largest normal component."""
-    n = np.asarray(normal, dtype=np.float64)[list(_AXES)]
-    p = np.asarray(point, dtype=np.float64)[list(_AXES)]
+    """Draw ``normal . (q - point) = 0`` restricted to ``(y, z, pitch)`` (the other
+    coordinates at the point's) in the box ``[lo, hi]`` (shape (3,)): solved for the axis with
+    the largest normal component."""
+    axes = _axes(len(normal))
+    n = np.asarray(normal, dtype=np.float64)[axes]
+    p = np.asarray(point, dtype=np.float64)[axes]
     k = int(np.argmax(np.abs(n)))
     if abs(n[k]) < 1e-12:
         return
@@ -302,27 +306,29 @@ def plot_scenario(runs: list[ScenarioRun], path: str | os.PathLike[str]) -> None
         tgt = np.array([s.target for s in steps])
         meas = np.array([s.measured for s in steps])
         pts_all = np.vstack([tgt, meas, run.attractor[None, :]])
-        lo = pts_all.min(axis=0)[list(_AXES)] - 0.1
-        hi = pts_all.max(axis=0)[list(_AXES)] + 0.1
+        dim = pts_all.shape[1]
+        pc = pitch_column(dim)
+        lo = pts_all.min(axis=0)[_axes(dim)] - 0.1
+        hi = pts_all.max(axis=0)[_axes(dim)] + 0.1
         lo[0], hi[0] = min(lo[0], rim - 0.3), max(hi[0], rim + 0.2)
-        ax.plot(meas[:, 1], meas[:, 2], meas[:, 3], color="0.55", lw=0.8,
+        ax.plot(meas[:, 1], meas[:, 2], meas[:, pc], color="0.55", lw=0.8,
                 label="measured tray")
         in_mode = np.array([s.mode == run.scenario.mode for s in steps])
         for flag, color, label in ((True, "tab:green", f"target, mode {run.scenario.mode}"),
                                    (False, "tab:red", "target, other modes")):
             pts = np.where(in_mode == flag, 1.0, np.nan)[:, None] * tgt
-            ax.plot(pts[:, 1], pts[:, 2], pts[:, 3], color=color, lw=1.6, label=label)
-        _plane(ax, np.array([0.0, 1.0, 0.0, 0.0]), np.array([0.0, rim, 0.0, 0.0]), lo, hi,
+            ax.plot(pts[:, 1], pts[:, 2], pts[:, pc], color=color, lw=1.6, label=label)
+        _plane(ax, np.eye(dim)[1], np.eye(dim)[1] * rim, lo, hi,
                color="tab:orange", alpha=0.25)
         for cut in run.cuts:
             _plane(ax, np.asarray(cut.normal), np.asarray(cut.point), lo, hi,
                    color="tab:blue", alpha=0.18)
         if run.failures:
             f = np.array([x.measured for x in run.failures])
-            ax.scatter(f[:, 1], f[:, 2], f[:, 3], color="red", marker="x", s=70,
+            ax.scatter(f[:, 1], f[:, 2], f[:, pc], color="red", marker="x", s=70,
                        label=f"invariance failures ({len(run.failures)})")
         a = run.attractor
-        ax.scatter([a[1]], [a[2]], [a[3]], color="violet", marker="D", s=60,
+        ax.scatter([a[1]], [a[2]], [a[pc]], color="violet", marker="D", s=60,
                    edgecolor="k", label="attractor")
         ax.plot([], [], color="tab:orange", lw=6, alpha=0.4, label="rim of the target column")
         if run.cuts:
