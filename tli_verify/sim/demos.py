@@ -500,13 +500,15 @@ class PandaRig:
         :meth:`command_velocity` at the measured pose.
     passive_gains : PassiveGains, optional
         Gains of the passive-DS law.
+    start : array_like, shape (6,), optional
+        The tray pose the setup moves the arm to (default: the scripted scoop's start).
     """
 
     def __init__(self, seed: int = 0, *, assets: Path | None = None, timestep: float = 0.002,
                  impedance: CartesianImpedance | None = None,
                  limits: FrankaLimits | None = None, sensors: str = "ideal",
                  physics: PhysicsOptions = DEFAULT_PHYSICS, controller: str = "tracking",
-                 passive_gains: Any = None) -> None:
+                 passive_gains: Any = None, start: npt.ArrayLike | None = None) -> None:
 
         if not any(abs(timestep - t) < 1e-12 for t in PANDA_TIMESTEPS):
             raise TliError(f"timestep {timestep:g} s: one of "
@@ -551,7 +553,8 @@ class PandaRig:
         self._from = self.pose()
         self._goal = self._from.copy()
         self._twist: FloatArray | None = None
-        start = scoop_waypoints()[0, 1:]
+        start = scoop_waypoints()[0, 1:] if start is None else \
+            np.asarray(start, dtype=np.float64).reshape(6)
         here = self.pose()
         for k in range(1, 51):  # 1 s to the start, then hold while the beads settle
             self.command(here + (start - here) * k / 50)

@@ -182,6 +182,9 @@ class TrialResult:
     stalls : int
         Stalls the assumption monitor reported (the stall rule fired:
         :mod:`tli_verify.runtime.stall`).
+    start : tuple of float or None
+        The tray pose ``(x, y, z [m], rx, ry, rz [rad])`` the trial started from, when it was
+        not the demonstrations' start (``run_trial(start=...)``).
     """
 
     seed: int
@@ -206,6 +209,7 @@ class TrialResult:
     cut_gap: dict[str, float | None] = field(default_factory=dict)
     tank_low: float | None = None
     stalls: int = 0
+    start: tuple[float, ...] | None = None
 
     def mode_sequence(self) -> str:
         """The mode trace as runs: ``"a b c b c d"``."""
@@ -228,7 +232,7 @@ class TrialResult:
             "controller": self.controller, "sensors": self.sensors,
             "cut_gap": dict(self.cut_gap), "tank_low": self.tank_low, "stalls": self.stalls,
             "stall_fired": self.stalls > 0,
-        }
+        } | ({} if self.start is None else {"start": list(self.start)})
 
 
 @dataclass(frozen=True, slots=True)
@@ -263,7 +267,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
               detector: ContactDetector | None = None, sensors: str = "franka",
               physics: PhysicsOptions | None = None,
               trace: list[TraceStep] | None = None,
-              margin: npt.ArrayLike = MARGIN, controller: str | None = None) -> TrialResult:
+              margin: npt.ArrayLike = MARGIN, controller: str | None = None,
+              start: npt.ArrayLike | None = None) -> TrialResult:
     """One closed-loop trial (module doc).
 
     Parameters
@@ -311,6 +316,9 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         law's target), ``"passive"`` (the Panda only: the DS at the measured pose tracked by
         the passive-DS law, :mod:`tli_verify.sim.passive`) or ``"tracking"`` (the DS run on
         its integrated target, for comparison).
+    start : array_like, shape (6,), optional
+        The tray pose ``(x, y, z [m], rx, ry, rz [rad])`` to start from (default: the
+        demonstrations' start): before the trial the arm moves there while the beads settle.
 
     Returns
     -------
@@ -319,7 +327,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
     t0 = time.perf_counter()
     control = default_controller(robot) if controller is None else controller
     perts = draw_perturbations(seed) if perturbations is None else list(perturbations)
-    rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics, controller=control)
+    rig: Any = make_rig(robot, seed, sensors=sensors, physics=physics, controller=control,
+                        start=start)
     passive = control == "passive"
     measured = control == "measured"  # the DS at the measured pose, integrated to a target
     cut_gap = CutGap()
@@ -442,7 +451,8 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
         stopped=stopped, limit_ratios={k: round(v, 4) for k, v in ratios.items()},
         perturbed_steps=perturbed_steps, controller=control,
         sensors=sensors, cut_gap=cut_gap.to_dict(),
-        tank_low=round(rig.passive.tank_low, 4) if passive else None)
+        tank_low=round(rig.passive.tank_low, 4) if passive else None,
+        start=None if start is None else tuple(float(v) for v in np.ravel(start)))
 
 
 def _lifter(cols: list[int]) -> Callable[[list[float]], FloatArray]:
@@ -467,10 +477,12 @@ def default_controller(robot: str) -> str:
 
 
 def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
-             physics: PhysicsOptions | None = None, controller: str | None = None) -> Any:
+             physics: PhysicsOptions | None = None, controller: str | None = None,
+             start: npt.ArrayLike | None = None) -> Any:
     """The rig of ``robot`` (:data:`ROBOTS`) with the beads of ``seed``, ``sensors``, the
-    solver settings ``physics`` (default: the measured ones) and the control law
-    ``controller`` (:data:`CONTROLLERS`; default :func:`default_controller`).
+    solver settings ``physics`` (default: the measured ones), the control law
+    ``controller`` (:data:`CONTROLLERS`; default :func:`default_controller`) and the tray at
+    ``start`` (a pose ``(x, y, z, rx, ry, rz)``; default the demonstrations' start).
 
     Raises
     ------
@@ -492,8 +504,13 @@ def make_rig(robot: str, seed: int, *, sensors: str = "ideal",
         raise InputError("controller 'passive' runs on the Panda only; the free tool tracks a "
                          "target (--controller measured or tracking)")
     options = DEFAULT_PHYSICS if physics is None else physics
-    return PandaRig(seed, sensors=sensors, physics=options, controller=control) \
-        if robot == "panda" else MocapRig(seed, sensors=sensors, physics=options)
+    if start is not None:
+        pose = np.asarray(start, dtype=np.float64)
+        if pose.shape != (6,) or not bool(np.all(np.isfinite(pose))):
+            raise InputError(f"start: expected the tray pose (x, y, z [m], rx, ry, rz [rad]), "
+                             f"got {start!r}")
+    return PandaRig(seed, sensors=sensors, physics=options, controller=control, start=start) \
+        if robot == "panda" else MocapRig(seed, sensors=sensors, physics=options, start=start)
 
 
 class CutGap:
