@@ -74,14 +74,15 @@ def test_full_scripted_scoop_delivers_to_the_target() -> None:
 
 def test_r_and_t_truth_table_at_chosen_poses() -> None:
     rig = MocapRig(0)
-    far = np.array([0.5, 0.0, 0.30, 0.0])
+    far = np.array([0.5, 0.0, 0.30, 0.0, 0.0, 0.0])
     cases = [
         # pose of the tray, r, t (no soup on the spoon: beads left in the soup bowl)
-        (np.array([*SOUP_CENTER[:2], SOUP_BOWL.height + 0.01, 0.0]), True, False),
-        (np.array([*SOUP_CENTER[:2], SOUP_BOWL.height + 0.05, 0.0]), False, False),
-        (np.array([SOUP_CENTER[0] + SOUP_BOWL.radius + 0.03, SOUP_CENTER[1], 0.03, 0.0]),
+        (np.array([*SOUP_CENTER[:2], SOUP_BOWL.height + 0.01, 0.0, 0.0, 0.0]), True, False),
+        (np.array([*SOUP_CENTER[:2], SOUP_BOWL.height + 0.05, 0.0, 0.0, 0.0]), False, False),
+        (np.array([SOUP_CENTER[0] + SOUP_BOWL.radius + 0.03, SOUP_CENTER[1], 0.03, 0.0,
+                   0.0, 0.0]),
          False, False),
-        (np.array([*TARGET_CENTER[:2], 0.12, 0.0]), False, False),  # empty spoon: not done
+        (np.array([*TARGET_CENTER[:2], 0.12, 0.0, 0.0, 0.0]), False, False),  # empty spoon: not done
         (far, False, False),
     ]
     for pose, r, t in cases:
@@ -92,7 +93,7 @@ def test_r_and_t_truth_table_at_chosen_poses() -> None:
 
 def test_t_needs_soup_on_the_spoon_or_in_the_target() -> None:
     rig = MocapRig(0)
-    above = np.array([*TARGET_CENTER[:2], 0.12, 0.0])
+    above = np.array([*TARGET_CENTER[:2], 0.12, 0.0, 0.0, 0.0])
     rig.place(above)
     assert not rig.read().t
     _bead_at(rig, 0, rig.read().tray + np.array([0.0, 0.0, BEAD_RADIUS]))  # on the tray floor
@@ -105,13 +106,13 @@ def test_t_needs_soup_on_the_spoon_or_in_the_target() -> None:
     got = rig.read()
     assert got.t and not got.s and bool(got.in_target[0])
     # the spoon moved away: t off although the target holds a bead
-    rig.place(np.array([0.5, 0.0, 0.3, 0.0]))
+    rig.place(np.array([0.5, 0.0, 0.3, 0.0, 0.0, 0.0]))
     assert not rig.read().t
 
 
 def test_a_bead_in_the_tray_volume_but_not_touching_is_not_on_the_spoon() -> None:
     rig = MocapRig(0)
-    rig.place(np.array([0.5, 0.0, 0.12, 0.0]))
+    rig.place(np.array([0.5, 0.0, 0.12, 0.0, 0.0, 0.0]))
     _bead_at(rig, 1, rig.read().tray + np.array([0.0, 0.0, 3 * BEAD_RADIUS]))  # hovering
     import mujoco
 

@@ -61,13 +61,17 @@ def test_the_record_is_the_measured_pose_not_the_script(take: object) -> None:
 
 
 def test_write_demos_writes_measured_takes_that_learn(tmp_path: Path) -> None:
-    paths = write_demos(tmp_path, count=1, recovery=((0.5, 0.06, 0.12, -0.25),),
+    paths = write_demos(tmp_path, count=1, recovery=((0.5, 0.06, 0.12, -0.3, -0.25, 0.3),),
                         recovery_beads=(15,))
     assert [p.name for p in paths] == ["franka_1.csv", "franka_2.csv"]
     head = paths[0].read_text().splitlines()[0]
     assert "measured tray pose" in head and "kinesthetic" in head
     demo = load_demo(str(paths[1]))
-    assert _stages(demo)[-1] == 3 and demo.x.shape[1] == 4
+    assert _stages(demo)[-1] == 3 and demo.x.shape[1] == 6
+    # the full pose is recorded: the take starts rolled and yawed as asked, and the teacher
+    # turns the tray back (the script's roll and yaw are 0)
+    assert abs(demo.x[0, 3] + 0.3) < 0.05 and abs(demo.x[0, 5] - 0.3) < 0.05
+    assert np.all(np.abs(demo.x[-50:, [3, 5]]) < 0.15)
 
 
 def test_bad_teacher_settings_are_one_error() -> None:

@@ -23,7 +23,7 @@ def test_probe_records_the_loop_and_the_replay_reproduces_it() -> None:
         # awake: replaying a sleeping scene is not its physics (mj_setState wakes every body)
         rig = MocapRig(3, physics=PhysicsOptions(sleep=False))  # settling is not recorded
         assert probe.states is None and probe.build_cpu > 0.0
-        rig.command(rig.pose() + np.array([0.0, -0.02, -0.02, 0.2]))
+        rig.command(rig.pose() + np.array([0.0, -0.02, -0.02, 0.0, 0.2, 0.0]))
         rig.step(40)
         rig.push[:] = (5.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # an applied wrench is part of the state
         rig.step(20)

@@ -73,7 +73,7 @@ def test_fast_path_equals_the_textbook_law(scene: Any) -> None:
         mujoco.mj_forward(scene.model, data)
         # near targets, and every fourth one far away (those saturate)
         far = 10.0 if trial % 4 == 0 else 1.0
-        z = ctl.ds_state(data) + far * rng.normal(scale=[0.005, 0.005, 0.005, 0.02])
+        z = ctl.ds_state(data) + far * rng.normal(scale=[0.005, 0.005, 0.005, 0.02, 0.02, 0.02])
         pos, quat = ctl.target_pose_from_ds_state(z)
         twist = rng.normal(scale=0.2, size=6) if trial % 3 else None
         tau = ctl.compute(data, pos, quat, twist)

@@ -84,7 +84,8 @@ def test_ft_grows_by_each_bead_on_the_tray(n: int) -> None:
 
     # the awake scene: the beads are placed by hand (qpos written), which does not wake a bead
     # that fell asleep in the soup bowl -- in a trial the ladle's contact wakes it
-    rig = MocapRig(0, start=(*ABOVE_TARGET, 0.0), physics=PhysicsOptions(sleep=False))
+    rig = MocapRig(0, start=(*ABOVE_TARGET, 0.0, 0.0, 0.0),
+                   physics=PhysicsOptions(sleep=False))
     sensors = FrankaSensors(rig.model, rig.ids, QUIET)
     empty = sensors.wrench(rig.data)[0][2]
     first = sensors.read(rig.data)  # tares
@@ -329,7 +330,8 @@ def test_a_nominal_panda_trial_succeeds_with_franka_sensors(
     monkeypatch.setattr(demos, "ScoopSensors",
                         lambda model, ids: FrankaSensors(model, ids, seed=0))
     result = run_trial(load_policy("LTL-DS"), 0, perturbations=[], robot="panda")
-    # under the passive-DS law (the default) the wrist reads no soup while the tray rests in
-    # the pile: mode b ends by the stall rule's re-entry from a (b a b), which lifts it
-    assert result.success and result.mode_sequence() == "a b a b c d"
-    assert result.stalls == 1 and result.controller == "passive"
+    # under the measured law (the default: the DS at the measured pose integrated to the
+    # impedance law's target) the scoop runs through without the stall rule
+    assert result.success and result.mode_sequence() == "a b c d"
+    assert result.stalls == 0 and result.controller == "measured"
+    assert result.sensors == "franka"

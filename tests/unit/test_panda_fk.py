@@ -91,7 +91,8 @@ def test_set_torque_saturates_at_the_limits(panda: Any) -> None:
 
 def test_ik_reaches_workspace_poses(panda: Any) -> None:
     """IK (damped least squares) puts the TCP on 20 seeded poses of the scooping workspace
-    (the DS state box) within 1e-6, inside the joint limits; an unreachable pose reports it."""
+    (the DS state box: position and pitch ``ry``, with some roll and yaw) within 1e-6, inside
+    the joint limits; an unreachable pose reports it."""
     import mujoco
 
     from tli_verify.sim.controller import DSStateMap
@@ -100,7 +101,8 @@ def test_ik_reaches_workspace_poses(panda: Any) -> None:
     dmap = DSStateMap(panda.tcp_site)
     rng = np.random.default_rng(7)
     data = mujoco.MjData(panda.model)
-    for z in rng.uniform([0.35, -0.3, 0.05, -0.5], [0.6, 0.3, 0.4, 1.0], size=(20, 4)):
+    for z in rng.uniform([0.35, -0.3, 0.05, -0.3, -0.5, -0.3], [0.6, 0.3, 0.4, 0.3, 1.0, 0.3],
+                         size=(20, 6)):
         pos, quat = dmap.target_pose_from_ds_state(z)
         q, err = panda.ik(pos, quat)
         assert err < 1e-6
@@ -108,6 +110,6 @@ def test_ik_reaches_workspace_poses(panda: Any) -> None:
         got_pos, _ = panda.fk(q, panda.tcp_site, data)
         np.testing.assert_allclose(got_pos, pos, atol=1e-6)
         np.testing.assert_allclose(dmap.ds_state(data), z, atol=1e-6)
-    pos, quat = dmap.target_pose_from_ds_state(np.array([2.0, 0.0, 0.3, 0.0]))  # 2 m away
+    pos, quat = dmap.target_pose_from_ds_state(np.array([2.0, 0.0, 0.3, 0.0, 0.0, 0.0]))  # 2 m
     _, err = panda.ik(pos, quat, max_iter=50)
     assert err > 0.5

@@ -229,7 +229,7 @@ def test_the_torque_loop_equals_the_plain_law_bit_for_bit(scene: Any, impedance:
         data.qvel[scene.dof_adr] = qd
         mujoco.mj_forward(scene.model, data)
         far = 20.0 if i % 4 == 0 else 1.0
-        z = ctl.ds_state(data) + far * rng.normal(scale=[0.005, 0.005, 0.005, 0.02])
+        z = ctl.ds_state(data) + far * rng.normal(scale=[0.005, 0.005, 0.005, 0.02, 0.02, 0.02])
         pos, quat = ctl.target_pose_from_ds_state(z)
         twist = rng.normal(scale=0.2, size=6) if i % 3 else None
         tau = ctl.compute(data, pos, quat, twist)
@@ -274,7 +274,7 @@ def test_the_rig_torque_loop_equals_the_plain_control_period() -> None:
     logs: list[list[np.ndarray]] = [[], []]
     rng = np.random.default_rng(7)
     pushes = rng.normal(scale=[15.0, 15.0, 15.0, 1.0, 1.0, 1.0], size=(40, 6))
-    velocities = rng.normal(scale=[0.05, 0.05, 0.05, 0.2], size=(40, 4))
+    velocities = rng.normal(scale=[0.05, 0.05, 0.05, 0.2, 0.2, 0.2], size=(40, 6))
     for period in range(40):
         for r, (rig, log) in enumerate(zip(rigs, logs, strict=True)):
             def before(k: int, rig: Any = rig, log: list[np.ndarray] = log,

@@ -1,5 +1,6 @@
 """The Cartesian impedance controller of the Panda: step response, null-space
-posture, saturation, DS-target tracking, the 4-D DS state map, the sampled-data check."""
+posture, saturation, DS-target tracking, the 6-D DS state map (position and the rotation
+vector in the chart at ``r0``) and its velocity map, the sampled-data check."""
 
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ def test_step_response_5cm(panda: Any, substeps: int, every: int | None) -> None
     (torques computed every step, or once per 10 / 20 ms control period)."""
     data = panda.new_data()
     ctl = _controller(panda)
-    z_target = ctl.ds_state(data) + np.array([0.0, 0.05, 0.0, 0.0])
+    z_target = ctl.ds_state(data) + np.array([0.0, 0.05, 0.0, 0.0, 0.0, 0.0])
     pos, quat = ctl.target_pose_from_ds_state(z_target)
     errors = []
     for _ in range(round(1.5 / (DT * substeps))):
@@ -56,7 +57,7 @@ def test_control_every_step_equals_one_step_periods(panda: Any) -> None:
         data = panda.new_data()
         ctl = _controller(panda)
         pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data)
-                                                  + np.array([0.0, 0.03, 0.02, 0.2]))
+                                                  + np.array([0.0, 0.03, 0.02, 0.0, 0.2, 0.0]))
         for _ in range(periods):
             ctl.step(data, pos, quat, substeps=substeps, control_every=every)
         assert ctl.calls == (200 if every == 1 or substeps == 1 else 20)
@@ -101,7 +102,8 @@ def test_far_target_reports_saturation(panda: Any) -> None:
 
     data = panda.new_data()
     ctl = _controller(panda)
-    pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data) + np.array([0.0, 0.8, 0.0, 1.0]))
+    pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(data)
+                                              + np.array([0.0, 0.8, 0.0, 0.0, 1.0, 0.0]))
     tau = ctl.step(data, pos, quat)
     assert ctl.last_saturated > 0
     assert np.all(np.abs(tau) <= TORQUE_LIMITS)
@@ -118,13 +120,14 @@ def test_far_target_reports_saturation(panda: Any) -> None:
 @pytest.mark.parametrize("substeps", [1, 5])
 def test_ds_integrated_target_is_tracked(panda: Any, substeps: int) -> None:
     """The target integrated from a DS (speed <= 0.25 m/s, pitch rate <= 0.8 rad/s) is tracked
-    within the documented bound: 1 cm in position, 0.03 rad in pitch; the DS converges."""
+    within the documented bound: 1 cm in position, 0.03 rad in pitch (``ry``), and in roll and
+    yaw, which the DS holds; the DS converges."""
     from tli_verify.sim.controller import integrate_ds_target
 
     period = DT * substeps
     data = panda.new_data()
     ctl = _controller(panda)
-    z_star = ctl.ds_state(data) + np.array([0.0, 0.15, -0.10, 0.4])
+    z_star = ctl.ds_state(data) + np.array([0.0, 0.15, -0.10, 0.0, 0.4, 0.0])
 
     def ds(z: np.ndarray) -> np.ndarray:
         v = -2.0 * (z - z_star)
@@ -134,37 +137,51 @@ def test_ds_integrated_target_is_tracked(panda: Any, substeps: int) -> None:
         return v
 
     z_t = ctl.ds_state(data)
-    worst = np.zeros(4)
+    worst = np.zeros(6)
     for _ in range(round(3.0 / period)):
         zdot = ds(z_t)
         z_t = integrate_ds_target(z_t, zdot, period)
         pos, quat = ctl.target_pose_from_ds_state(z_t)
-        ctl.step(data, pos, quat, ctl.map.twist_from_ds_velocity(zdot), substeps=substeps)
+        ctl.step(data, pos, quat, ctl.map.twist_from_ds_velocity(zdot, z_t), substeps=substeps)
         worst = np.maximum(worst, np.abs(ctl.ds_state(data) - z_t))
-    assert np.linalg.norm(worst[:3]) < 0.01 and worst[3] < 0.03
-    assert worst[3] > 1e-4  # it did move in pitch
+    assert np.linalg.norm(worst[:3]) < 0.01 and worst[3:].max() < 0.03
+    assert worst[4] > 1e-4  # it did move in pitch
     z_end = ctl.ds_state(data)
-    assert np.linalg.norm(z_end[:3] - z_star[:3]) < 3e-3 and abs(z_end[3] - z_star[3]) < 0.01
+    assert np.linalg.norm(z_end[:3] - z_star[:3]) < 3e-3
+    assert np.abs(z_end[3:] - z_star[3:]).max() < 0.01
     assert ctl.stats().saturated_calls == 0
 
 
 def test_leash_keeps_the_target_near_the_robot() -> None:
     from tli_verify.sim.controller import integrate_ds_target
 
-    z = integrate_ds_target(np.zeros(4), np.array([1.0, 0.0, 0.0, 2.0]), 0.1,
-                            z_actual=np.zeros(4), leash=np.array([0.02, 0.02, 0.02, 0.05]))
-    np.testing.assert_allclose(z, [0.02, 0.0, 0.0, 0.05])
-    np.testing.assert_allclose(integrate_ds_target(np.zeros(4), np.ones(4), 0.1), 0.1 * np.ones(4))
+    z = integrate_ds_target(np.zeros(6), np.array([1.0, 0.0, 0.0, -3.0, 2.0, 0.1]), 0.1,
+                            z_actual=np.zeros(6),
+                            leash=np.array([0.02, 0.02, 0.02, 0.05, 0.05, 0.05]))
+    np.testing.assert_allclose(z, [0.02, 0.0, 0.0, -0.05, 0.05, 0.01])
+    np.testing.assert_allclose(integrate_ds_target(np.zeros(6), np.ones(6), 0.1), 0.1 * np.ones(6))
+
+
+def _rot_x(angle: float) -> np.ndarray:
+    """Rotation matrix about the x axis by ``angle`` (rad), shape (3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+_ANGLE = st.floats(-1.8, 1.8)
 
 
 @settings(max_examples=30, deadline=None)
-@given(z=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(0, 1),
-                   st.floats(-1.5, 1.5)))
-def test_ds_state_map_round_trip(z: tuple[float, float, float, float]) -> None:
-    """target_pose_from_ds_state then ds_state is the identity; pitch is about world x."""
-    import mujoco
+@given(z=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(0, 1), _ANGLE, _ANGLE, _ANGLE)
+       .filter(lambda z: float(np.linalg.norm(z[3:])) < 3.0),
+       pitch=st.floats(-1.5, 1.5))
+def test_ds_state_map_round_trip(z: tuple[float, ...], pitch: float) -> None:
+    """target_pose_from_ds_state then ds_state is the identity on the chart (any rotation
+    vector of angle below pi); the orientation is ``R0 Exp(v)`` (scipy's exponential); a pure
+    pitch ``(0, p, 0)`` is ``RotX(p) R0``: about world x."""
+    from scipy.spatial.transform import Rotation
 
-    from tli_verify.sim.controller import R0_DOWN, DSStateMap, quat_to_mat, rot_x
+    from tli_verify.sim.controller import R0_DOWN, DSStateMap, quat_to_mat
 
     class _Data:  # a site pose as MuJoCo stores it
         site_xpos = np.zeros((1, 3))
@@ -172,15 +189,55 @@ def test_ds_state_map_round_trip(z: tuple[float, float, float, float]) -> None:
 
     dmap = DSStateMap(site=0)
     pos, quat = dmap.target_pose_from_ds_state(np.array(z))
+    np.testing.assert_array_equal(pos, z[:3])
+    assert np.linalg.norm(quat) == pytest.approx(1.0, abs=1e-12)
     rot = quat_to_mat(quat)
-    np.testing.assert_allclose(rot, rot_x(z[3]) @ R0_DOWN, atol=1e-12)
-    np.testing.assert_allclose(rot @ np.array([0.0, 1.0, 0.0]),  # tool y = world x: the axis
-                               [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(rot, R0_DOWN @ Rotation.from_rotvec(z[3:]).as_matrix(),
+                               atol=1e-12)
     data = _Data()
     data.site_xpos[0] = pos
     data.site_xmat[0] = rot.ravel()
     np.testing.assert_allclose(dmap.ds_state(data), z, atol=1e-9)
-    assert mujoco.mju_mat2Quat is not None
+    # a pure pitch: about world x (tool y = world x: the axis)
+    _, qp = dmap.target_pose_from_ds_state(np.array([0.4, 0.0, 0.3, 0.0, pitch, 0.0]))
+    rp = quat_to_mat(qp)
+    np.testing.assert_allclose(rp, _rot_x(pitch) @ R0_DOWN, atol=1e-12)
+    np.testing.assert_allclose(rp @ np.array([0.0, 1.0, 0.0]), [1.0, 0.0, 0.0], atol=1e-12)
+    data.site_xmat[0] = (_rot_x(pitch) @ R0_DOWN).ravel()
+    np.testing.assert_allclose(dmap.ds_state(data)[3:], [0.0, pitch, 0.0], atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_twist_is_the_rate_of_the_target_pose(seed: int) -> None:
+    """``twist_from_ds_velocity(zdot, z)`` is the twist of the target pose moving along
+    ``z + t zdot``: ``v = zdot[:3]``, and ``omega = r0 J_l(v) vdot`` is the world angular
+    velocity ``2 (dq/dt) (x) conj(q)`` of the target quaternion, by central differences; for the
+    default chart and a random ``r0``."""
+    from scipy.spatial.transform import Rotation
+
+    from tli_verify.rotations import quat_multiply
+    from tli_verify.sim.controller import DSStateMap
+
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=3)
+    v *= rng.uniform(0.0, 2.8) / np.linalg.norm(v)  # any angle below pi
+    z = np.concatenate((rng.uniform(-0.5, 0.5, size=3), v))
+    zdot = rng.normal(size=6)
+    h = 1e-6
+    for dmap in (DSStateMap(site=0),
+                 DSStateMap(site=0, r0=Rotation.random(random_state=seed).as_matrix())):
+        twist = dmap.twist_from_ds_velocity(zdot, z)
+        assert twist.shape == (6,)
+        np.testing.assert_array_equal(twist[:3], zdot[:3])
+        q = dmap.target_pose_from_ds_state(z)[1]
+        qp = dmap.target_pose_from_ds_state(z + h * zdot)[1]
+        qm = dmap.target_pose_from_ds_state(z - h * zdot)[1]
+        qdot = (qp - qm) / (2.0 * h)
+        omega = 2.0 * quat_multiply(qdot, q * np.array([1.0, -1.0, -1.0, -1.0]))
+        assert abs(omega[0]) < 1e-7  # unit quaternion: q . qdot = 0
+        np.testing.assert_allclose(twist[3:], omega[1:], rtol=0, atol=1e-7)
+        assert np.linalg.norm(omega[1:]) > 1e-3  # it does turn
 
 
 def test_arm_mass_block_with_free_bodies(panda: Any) -> None:
@@ -210,7 +267,7 @@ def test_arm_mass_block_with_free_bodies(panda: Any) -> None:
     for robot, d in ((scene, data), (panda, alone)):
         ctl = ImpedanceController(robot)
         pos, quat = ctl.target_pose_from_ds_state(ctl.ds_state(d)
-                                                  + np.array([0.0, 0.02, 0.0, 0.1]))
+                                                  + np.array([0.0, 0.02, 0.0, 0.0, 0.1, 0.0]))
         traj = []
         for _ in range(300):
             ctl.step(d, pos, quat)
@@ -233,7 +290,7 @@ def test_sampled_data_check() -> None:
 def test_tool_site_with_its_own_nominal_orientation(panda: Any) -> None:
     """A tool mounted under the hand (the ladle's way: pi about the hand's y, 0.26 m below),
     controlled at its own site with r0 = Rz(-pi/2): IK places it, a pitch step of 0.3 rad and
-    a 4 cm move converge, and ds_state reads the pitch about world x."""
+    a 4 cm move converge, and ds_state reads the pitch about world x (``ry`` in this chart)."""
     import mujoco
 
     from tli_verify.sim.robot import Panda, panda_spec
@@ -246,7 +303,7 @@ def test_tool_site_with_its_own_nominal_orientation(panda: Any) -> None:
     site = mujoco.mj_name2id(robot.model, mujoco.mjtObj.mjOBJ_SITE, "tool_site")
     rz = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     ctl = _controller(robot, site=site, r0=rz)
-    z0 = np.array([0.5, 0.05, 0.2, 0.0])
+    z0 = np.array([0.5, 0.05, 0.2, 0.0, 0.0, 0.0])
     q, err = robot.ik(*ctl.target_pose_from_ds_state(z0), site=site)
     assert err < 1e-6
     ctl.posture[:] = q
@@ -254,12 +311,12 @@ def test_tool_site_with_its_own_nominal_orientation(panda: Any) -> None:
     np.testing.assert_allclose(ctl.ds_state(data), z0, atol=1e-6)
     # the tool's local +x (its "front") points along world -y at pitch 0
     np.testing.assert_allclose(data.site_xmat[site].reshape(3, 3)[:, 0], [0, -1, 0], atol=1e-6)
-    z1 = z0 + np.array([0.0, -0.04, 0.0, 0.3])
+    z1 = z0 + np.array([0.0, -0.04, 0.0, 0.0, 0.3, 0.0])
     pos, quat = ctl.target_pose_from_ds_state(z1)
     for _ in range(75):  # 1.5 s at 20 ms, torques every 2 ms
         ctl.step(data, pos, quat, substeps=10, control_every=1)
     z = ctl.ds_state(data)
-    assert np.linalg.norm(z[:3] - z1[:3]) < 2e-3 and abs(z[3] - z1[3]) < 5e-3
+    assert np.linalg.norm(z[:3] - z1[:3]) < 2e-3 and np.abs(z[3:] - z1[3:]).max() < 5e-3
     front = data.site_xmat[site].reshape(3, 3)[:, 0]  # tipped down by the positive pitch
     np.testing.assert_allclose(front, [0, -np.cos(0.3), -np.sin(0.3)], atol=5e-3)
 

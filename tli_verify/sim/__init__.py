@@ -7,7 +7,7 @@ and :mod:`~tli_verify.sim.controller`, so this package imports without the ``sim
 - :mod:`tli_verify.sim.robot`: the Panda with torque motors, gravity/Coriolis compensation,
   frames and forward kinematics.
 - :mod:`tli_verify.sim.controller`: Cartesian impedance (operational-space) pose control with
-  null-space posture control; the 4-D DS state map (position + spoon pitch).
+  null-space posture control; the DS state map of the full pose (position + rotation vector).
 """
 
 from __future__ import annotations

@@ -76,7 +76,7 @@ Tracking a DS (the loop)
     sampled-data system a certificate at period ``T`` covers; or at the measured state
     :meth:`ImpedanceController.ds_state`); ``z_t = integrate_ds_target(z_t,
     zdot, T[, z_actual, leash])``; ``pos, quat = target_pose_from_ds_state(z_t)``;
-    ``step(data, pos, quat, twist_from_ds_velocity(zdot), substeps)``. Measured bound
+    ``step(data, pos, quat, twist_from_ds_velocity(zdot, z_t), substeps)``. Measured bound
     (``tests/unit/test_sim_controller.py``): for a DS with speed <= 0.25 m/s and pitch rate <=
     0.8 rad/s, the site stays within 1 cm (measured 5-6 mm) and 0.03 rad of pitch (measured
     0.013-0.019 rad) of the integrated target, at ``T`` = 2 ms and 10 ms, without saturating.

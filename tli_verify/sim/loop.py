@@ -363,10 +363,10 @@ def run_trial(policy: LTLDSPolicy, seed: int, *, variant: str = "LTL-DS",
             soup_at = t  # the soup is carried out of the bowl: tilts count from here
         # the environment (the oracle's side): the person's wrench on the hand
         for i, p in enumerate(perts):
-            start = p.start if p.kind == "push" else (
+            grab = p.start if p.kind == "push" else (
                 p.start + soup_at if soup_at is not None else math.inf)
-            if hands[i] is None and start < t + CONTROL_DT and t < start + p.duration:
-                hands[i] = PersonHand(p, start=start)  # it grabs in this control period
+            if hands[i] is None and grab < t + CONTROL_DT and t < grab + p.duration:
+                hands[i] = PersonHand(p, start=grab)  # it grabs in this control period
         # the robot's side: what it measures
         z = to_ds(rig.pose())[cols]
         perturbed = detect.update(rig.external_wrench(), CONTROL_DT)
