@@ -82,7 +82,8 @@ def test_r_and_t_truth_table_at_chosen_poses() -> None:
         (np.array([SOUP_CENTER[0] + SOUP_BOWL.radius + 0.03, SOUP_CENTER[1], 0.03, 0.0,
                    0.0, 0.0]),
          False, False),
-        (np.array([*TARGET_CENTER[:2], 0.12, 0.0, 0.0, 0.0]), False, False),  # empty spoon: not done
+        # empty spoon: not done
+        (np.array([*TARGET_CENTER[:2], 0.12, 0.0, 0.0, 0.0]), False, False),
         (far, False, False),
     ]
     for pose, r, t in cases:
