@@ -119,7 +119,7 @@ def test_a_perturbation_during_the_reentry_does_not_end_it(policy: Any) -> None:
 
 def test_no_stall_away_from_the_attractor_or_without_the_rule(policy: Any) -> None:
     _modes, xb = _enter_b(policy)
-    far = xb + np.array([0.0, 0.8, 0.5, 0.0])  # V far above the level
+    far = xb + np.r_[0.0, 0.8, 0.5, np.zeros(xb.size - 3)]  # V far above the level
     path = [far + k * 0.02 * (xb - far) for k in range(40)]  # V falls along the way
     for x in path:
         policy.step(x, {"r"})
@@ -135,7 +135,7 @@ def test_a_blocked_ds_is_a_stall_unless_perturbed(policy: Any) -> None:
     stall, kind blocked (V far above the converged level); a reported perturbation restarts
     the count."""
     _modes, xb = _enter_b(policy)
-    far = xb + np.array([0.0, 0.8, 0.5, 0.0])
+    far = xb + np.r_[0.0, 0.8, 0.5, np.zeros(xb.size - 3)]
     window = round(1.5 / DT)
     for k in range(window + 10):
         policy.step(far, {"r"}, perturbed=k % 20 == 0)  # a push every 0.4 s
