@@ -78,7 +78,7 @@ from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 from tli_verify.runtime.setup import VARIANTS, check_goal
 from tli_verify.snapshot import active, current
-from tli_verify.tasks.project import model_files, resolve, spec_inputs, spec_task
+from tli_verify.tasks.project import model_files, pose_blocks, resolve, spec_inputs, spec_task
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 
@@ -130,7 +130,8 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
           seed: int = 0, out: PathLike | None = None, handoff: bool = True,
           handoff_samples: int = 1000, eps: float = 1e-3, rate: float | None = None,
           rate_budget: float | None = 0.03, control_dt: float | Fraction | None = None,
-          clustering: Clustering = "pc-gmm", lyapunov: LyapunovKind = "p-qlf") -> Model:
+          clustering: Clustering = "pc-gmm", lyapunov: LyapunovKind = "p-qlf",
+          blocks: Sequence[Sequence[int]] | None = None) -> Model:
     """Learn a certified-stable LPV-DS per mode from demonstrations (``tli learn``).
 
     Parameters
@@ -155,6 +156,12 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
     control_dt : float or Fraction, optional
         The period of the sampled-data constraint (default: the spec's task's, else
         :data:`~tli_verify.defaults.DEFAULT_DT`: :func:`tli_verify.project.control_period`).
+    blocks : sequence of sequence of int, optional
+        Groups of coordinates every ``A_k`` keeps decoupled (``tli learn --blocks``; see
+        :func:`tli_verify.ds.lpvds.learn_lpvds`); ``[]``: every entry free. Default (None):
+        for a pose task (the spec's task declares ``[state] orientation``) its orientation
+        coordinates, position and orientation decoupled
+        (:func:`tli_verify.tasks.project.pose_blocks` says why); else none.
 
     Returns
     -------
@@ -185,9 +192,11 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
                 paths.append(d)
         target = Path(out) if out is not None else Path(tmp) / "model.json"
         dt = float(control_period(control_dt, spec_path))
+        groups = (pose_blocks(spec_path) if spec_path is not None else ()) if blocks is None \
+            else _blocks(blocks)
         model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, eps=eps,
                             rate=rate, rate_budget=rate_budget, control_dt=dt,
-                            clustering=clustering, lyapunov=lyapunov)
+                            clustering=clustering, lyapunov=lyapunov, blocks=groups)
         if handoff and spec_path is not None:
 
             ctx = context_for_spec(spec_path)
@@ -200,6 +209,18 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
 
             return load_model(out)
         return _in_memory(model, paths, Path(tmp), spec_path)
+
+
+def _blocks(blocks: object) -> tuple[tuple[int, ...], ...]:
+    """``learn``'s ``blocks`` argument, checked for type (the dimension is checked by the
+    learner)."""
+    if isinstance(blocks, str | bytes) or not isinstance(blocks, Sequence) or not all(
+            isinstance(g, Sequence) and not isinstance(g, str | bytes)
+            and all(isinstance(c, int) and not isinstance(c, bool) for c in g)
+            for g in blocks):
+        raise bad_type(ModelError, "blocks: expected a sequence of groups of coordinate "
+                       f"indices, e.g. [[3, 5]], got {blocks!r}")
+    return tuple(tuple(int(c) for c in g) for g in blocks)
 
 
 def _in_memory(model: Model, paths: Sequence[Path], tmp: Path, spec_path: Path | None

@@ -50,11 +50,26 @@ def test_the_bundled_policy_is_a_pose_ds_in_the_tasks_chart() -> None:
     assert max(abs(float(d.x[0, 5])) for d in demos) > 0.3
 
 
+def test_roll_and_yaw_steer_no_other_coordinate_of_the_bundled_ds() -> None:
+    """The bundled DS is learned with roll and yaw apart (``tli learn --blocks 3,5``): in
+    every A_k of every mode, rx and rz drive only each other, and nothing else drives them;
+    pitch stays coupled to the position (the paper's Fig. 11 state). With every entry free,
+    the pour used the roll's near-constant offset as a velocity bias and left d 41-54 times in
+    the pour scenario's widened cell (test_sim_modulation; docs/howto/franka.md)."""
+    policy = load_policy("LTL-DS")
+    turn, rest = [3, 5], [0, 1, 2, 4]
+    for mm in policy.model.modes.values():
+        assert mm.fit["blocks"] == [[3, 5]]
+        A = np.asarray(mm.ds.A)
+        assert np.all(A[:, rest][:, :, turn] == 0.0) and np.all(A[:, turn][:, :, rest] == 0.0)
+        assert np.any(A[:, 4, :3] != 0.0)  # pitch still follows the position
+
+
 @pytest.mark.parametrize(("rx", "rz"), [(0.4, 0.0), (-0.4, 0.0), (0.0, 0.4), (0.0, -0.4)])
 def test_a_rolled_or_yawed_ladle_is_turned_back_by_the_policy(rx: float, rz: float) -> None:
     """From a start turned 0.4 rad about the tray's front axis or its normal, no push: the
-    trial delivers; within 1.5 s roll and yaw are back within 0.1 rad, and the target the
-    impedance law tracks turned back first (the DS's velocity, not a held orientation)."""
+    trial delivers; 1.5-2.5 s after the start roll and yaw are within 0.1 rad, and the target
+    the impedance law tracks turned back first (the DS's velocity, not a held orientation)."""
     policy = load_policy("LTL-DS")
     trace: list[TraceStep] = []
     res = run_trial(policy, 1, perturbations=[], trace=trace, start=_turned(rx, rz))
@@ -65,11 +80,11 @@ def test_a_rolled_or_yawed_ladle_is_turned_back_by_the_policy(rx: float, rz: flo
     k = 1 + round(1.5 / 0.02)
     late = np.array([s.measured for s in trace[k:k + 50]])
     assert np.all(np.abs(late[:, 3]) < 0.1) and np.all(np.abs(late[:, 5]) < 0.1)
-    # the target led the way back: within 0.3 s it is nearer the nominal roll/yaw than the
+    # the target led the way back: within 0.5 s it is nearer the nominal roll/yaw than the
     # measured tray (the DS's rates, integrated on the leash)
     axis = 3 if rx else 5
-    lead = [s for s in trace[1:16] if abs(s.target[axis]) < abs(s.measured[axis]) - 0.05]
-    assert lead, [(s.target[axis], s.measured[axis]) for s in trace[:16]]
+    lead = [s for s in trace[1:26] if abs(s.target[axis]) < abs(s.measured[axis]) - 0.02]
+    assert lead, [(s.target[axis], s.measured[axis]) for s in trace[:26]]
     # the DS's own velocity there turns it back: its roll/yaw rate has the opposite sign
     key = next(k for k in policy.model.modes if k.split("->")[0] == "a")
     v = policy.model.modes[key].velocity(z0, dt=0.02)

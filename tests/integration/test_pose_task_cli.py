@@ -163,6 +163,19 @@ def test_a_pose_task_goes_through_learn_certify_run_and_verify(
                              str(project / "specs" / "pour.toml"), "-o", str(model),
                              "--no-handoff")  # the offline step: the slow test below
     assert code == 0, err
+    # a pose task: position and orientation decoupled in every A_k, recorded in the fit
+    learned = tli.load_model(model)
+    for mm in learned.modes.values():
+        assert mm.fit["blocks"] == [[3, 4, 5]]
+        A = np.asarray(mm.ds.A)
+        assert np.all(A[:, :3, 3:] == 0.0) and np.all(A[:, 3:, :3] == 0.0)
+    coupled = project / "models" / "coupled.model.json"
+    code, out, err = tli_run(capsys, "learn", *map(str, demos), "--spec",
+                             str(project / "specs" / "pour.toml"), "-o", str(coupled),
+                             "--no-handoff", "--blocks", "none")
+    assert code == 0, err
+    assert all("blocks" not in (mm.fit or {}) for mm in tli.load_model(coupled).modes.values())
+    coupled.unlink()
     code, out, err = tli_run(capsys, "certify", str(model))
     assert code == 0, err
     cert = project / "certificates" / "pour.cert.json"

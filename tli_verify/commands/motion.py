@@ -37,7 +37,7 @@ from tli_verify.model.serialize import load_model, save_model
 from tli_verify.plotting import save_figure
 from tli_verify.project import control_period
 from tli_verify.runtime.handoff import context_for_spec, handoff_status, learn_handoffs
-from tli_verify.tasks.project import model_files, spec_task
+from tli_verify.tasks.project import model_files, pose_blocks, spec_task
 
 __all__ = ["demo_stage", "register"]
 
@@ -88,6 +88,22 @@ def _rerun_examples(text: str) -> int:
     return value
 
 
+def _blocks(text: str) -> tuple[tuple[int, ...], ...]:
+    """``--blocks``: ``none`` or groups of indices, ``;`` between groups, ``,`` within."""
+    if text.strip().lower() == "none":
+        return ()
+    try:
+        groups = tuple(tuple(int(c) for c in g.split(",")) for g in text.split(";"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'none' or groups of coordinate indices "
+                                         f"like '3,5' or '0,1,2;3,4,5', got {text!r}") from None
+    flat = [c for g in groups for c in g]
+    if any(c < 0 or c > 99 for c in flat) or len(set(flat)) != len(flat):
+        raise argparse.ArgumentTypeError(f"coordinates must be distinct indices 0 to 99, got "
+                                         f"{text!r}")
+    return groups
+
+
 def _emit(obj: dict[str, Any]) -> None:
     sys.stdout.write(json.dumps(obj, sort_keys=True) + "\n")
 
@@ -123,6 +139,12 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "1 s)")
     p.add_argument("--baseline", action="store_true",
                    help="EM GMM with K by BIC and P = I instead of PC-GMM + P-QLF")
+    p.add_argument("--blocks", type=_blocks, default=None, metavar="GROUPS",
+                   help="groups of coordinates every A_k keeps decoupled: 'none' (every entry "
+                   "free), or indices like '3,5' or '0,1,2;3,4,5' (entry (r, c) is 0 unless r "
+                   "and c share a group; the rest form one more group); default: a pose "
+                   "task's orientation coordinates (position and orientation decoupled), else "
+                   "none; recorded as the fit's blocks")
     p.add_argument("--no-handoff", action="store_true",
                    help="skip the offline step: by default, where the spec's task declares its "
                    "regions, every mode's exits are found and cut before deployment and the "
@@ -249,7 +271,9 @@ def _learn(args: argparse.Namespace) -> int:
                         eps=args.eps, rate=args.rate, control_dt=control_dt,
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
                         clustering="em-bic" if args.baseline else "pc-gmm",
-                        lyapunov="identity" if args.baseline else "p-qlf")
+                        lyapunov="identity" if args.baseline else "p-qlf",
+                        blocks=(pose_blocks(args.spec) if args.spec is not None else ())
+                        if args.blocks is None else args.blocks)
     handoff = None
     if not args.no_handoff and args.spec is not None:
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from operator import mul
 from typing import Literal
@@ -46,7 +47,15 @@ import numpy.typing as npt
 
 from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.ds.gmm import GMM, fit_em_bic, fit_pcgmm
-from tli_verify.ds.lyapunov import RATE_FACTOR, SOLVER, choose_rate, data_rate, estimate_p, fit_a
+from tli_verify.ds.lyapunov import (
+    RATE_FACTOR,
+    SOLVER,
+    block_structure,
+    choose_rate,
+    data_rate,
+    estimate_p,
+    fit_a,
+)
 from tli_verify.errors import ModelError
 
 __all__ = ["LPVDS", "Clustering", "FitInfo", "LyapunovKind", "learn_lpvds"]
@@ -243,6 +252,9 @@ class FitInfo:
     rate_within_budget : bool or None
         With a budget: False when even the grid's smallest rate costs more than the budget
         (that rate is kept; see :class:`~tli_verify.ds.lyapunov.RateChoice`).
+    blocks : tuple of tuple of int
+        Groups of coordinates the ``A_k`` keep decoupled (empty: every entry free;
+        :func:`~tli_verify.ds.lyapunov.block_structure`).
     """
 
     clustering: str
@@ -261,6 +273,7 @@ class FitInfo:
     rate_rmse: float | None = None
     data_rate: float | None = None
     rate_within_budget: bool | None = None
+    blocks: tuple[tuple[int, ...], ...] = ()
 
 
 def learn_lpvds(
@@ -276,6 +289,7 @@ def learn_lpvds(
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
     max_components: int = 12,
+    blocks: Sequence[Sequence[int]] = (),
 ) -> tuple[LPVDS, FitInfo]:
     """Learn a Lyapunov-stable LPV-DS from position/velocity samples (paper Sec. 4.3).
 
@@ -313,6 +327,12 @@ def learn_lpvds(
         Learn ``P`` (convex P-QLF) or fix ``P = I`` (baseline).
     max_components : int, optional
         Upper bound on K.
+    blocks : sequence of sequence of int, optional
+        Groups of coordinates whose dynamics the ``A_k`` keep decoupled: entry ``(r, c)`` is 0
+        unless ``r`` and ``c`` lie in the same group (the coordinates in no group form one
+        more); e.g. ``[[3, 4, 5]]`` for a pose state's orientation. The mixing weights still
+        see the whole state, and the certificate (each ``A_k`` with the one ``P``) is
+        unchanged. Default: every entry free.
 
     Returns
     -------
@@ -335,14 +355,15 @@ def learn_lpvds(
         ds, fit = _learn(X, dX, attractor, seed=seed, eps=eps, rate=rate,
                          rate_budget=rate_budget, control_dt=control_dt,
                          clustering=clustering, lyapunov=lyapunov,
-                         max_components=max_components)
+                         max_components=max_components, blocks=blocks)
     return ds, dataclasses.replace(fit, seconds=time.perf_counter() - start)
 
 
 def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, seed: int,
            eps: float, rate: float | None, rate_budget: float | None,
            control_dt: float | None, clustering: str, lyapunov: str,
-           max_components: int) -> tuple[LPVDS, FitInfo]:
+           max_components: int, blocks: Sequence[Sequence[int]] = ()
+           ) -> tuple[LPVDS, FitInfo]:
 
     start = time.perf_counter()
     Xa = np.asarray(X, dtype=np.float64)
@@ -351,6 +372,8 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
     if Xa.ndim != 2 or dXa.shape != Xa.shape or xs.shape != (Xa.shape[1],):
         raise ModelError(f"learning data shapes do not match: X {Xa.shape}, dX {dXa.shape}, "
                          f"attractor {xs.shape}")
+    groups = tuple(tuple(int(c) for c in g) for g in blocks)
+    structure = block_structure(Xa.shape[1], groups) if groups else None
     chooser = rate_budget if rate is None else None  # a given rate is forced
     if chooser is not None and not (np.isfinite(chooser) and chooser >= 0.0):
         raise ModelError(f"rate budget must be finite and >= 0, got {chooser}")
@@ -375,7 +398,8 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
     own: float | None = None
     within: bool | None = None
     if chooser is not None:
-        choice = choose_rate(Xa, dXa, gamma, xs, P, eps=eps, dt=control_dt, budget=chooser)
+        choice = choose_rate(Xa, dXa, gamma, xs, P, eps=eps, dt=control_dt, budget=chooser,
+                             structure=structure)
         lam, A, info = choice.rate, choice.A, choice.info
         dt = control_dt if lam > 0.0 else None  # rate 0 only when the data do not move
         budget, reference, error = choice.budget, choice.reference_rmse, choice.rmse
@@ -385,12 +409,12 @@ def _learn(X: npt.ArrayLike, dX: npt.ArrayLike, attractor: npt.ArrayLike, *, see
         if not (np.isfinite(lam) and lam >= 0.0):
             raise ModelError(f"decay rate must be finite and >= 0, got {lam}")
         dt = control_dt if lam > 0.0 else None
-        A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=lam, dt=dt)
+        A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=lam, dt=dt, structure=structure)
     ds = LPVDS(attractor=xs, priors=mix.priors, means=mix.means, covs=mix.covs, A=A, P=P)
     fit = FitInfo(clustering=clustering, lyapunov=lyapunov, n_components=mix.n_components,
                   eps=float(eps), rate=lam, control_dt=None if dt is None else float(dt),
                   seed=int(seed), solver=SOLVER, status=info.status,
                   seconds=time.perf_counter() - start, n_samples=int(Xa.shape[0]),
                   rate_budget=budget, reference_rmse=reference, rate_rmse=error, data_rate=own,
-                  rate_within_budget=within)
+                  rate_within_budget=within, blocks=groups)
     return ds, fit

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,6 +55,7 @@ __all__ = [
     "SOLVER",
     "RateChoice",
     "SolveInfo",
+    "block_structure",
     "choose_rate",
     "data_rate",
     "decay_rate",
@@ -66,6 +68,7 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
 
 SOLVER = "CLARABEL"
 """The only solver used for the Lyapunov SDPs (SCS misses the LMI margin)."""
@@ -325,6 +328,7 @@ def fit_a(
     rate: float = 0.0,
     dt: float | None = None,
     ridge: float = 1e-6,
+    structure: npt.ArrayLike | None = None,
 ) -> tuple[FloatArray, SolveInfo]:
     """Least-squares ``A_k`` under the Lyapunov LMIs for a fixed ``P`` (paper eq. 5).
 
@@ -380,6 +384,9 @@ def fit_a(
         Control period of the sampled-data constraint; None for the continuous-time LMI only.
     ridge : float, optional
         Tikhonov weight relative to the mean squared data scale.
+    structure : array_like of bool, shape (n, n), optional
+        The entries of every ``A_k`` the fit may use; the others are 0 (e.g. a pose DS's
+        blocks: position and orientation decoupled, :func:`block_structure`). Default: all.
 
     Returns
     -------
@@ -394,8 +401,10 @@ def fit_a(
         raise SolverError(f"gamma must have shape ({N}, K), got {Ga.shape}")
     K = Ga.shape[1]
     Z = Xa - xs
+    free = _free_entries(structure, n)  # the entries of vec_F(A_k) the fit uses
     # design matrix D[(i,a), (k,b,c)] = gamma_ik z_ib delta_ac; columns follow vec_F(A_k)
-    D = np.einsum("ik,ib,ac->iakbc", Ga, Z, np.eye(n)).reshape(N * n, K * n * n)
+    D = np.einsum("ik,ib,ac->iakbc", Ga, Z, np.eye(n)).reshape(N * n, K, n * n)
+    D = D[:, :, free].reshape(N * n, K * free.size)
     y = dXa.reshape(N * n)
     H = D.T @ D / N
     g = D.T @ y / N
@@ -420,7 +429,8 @@ def fit_a(
     # continuous LMI of every k: -(P A_k + A_k^T P) - margin >= 0
     basis = _unit_matrices(n)  # (n^2, n, n), index c n + r: E_rc (vec_F order of theta)
     lin = -(np.matmul(Ps, basis) + np.matmul(np.transpose(basis, (0, 2, 1)), Ps))
-    values, info = _lmi_least_squares(objective, -margin, lin, K, "A-fit")
+    values, info = _lmi_least_squares(objective, -margin, lin[free], K, "A-fit", free=free,
+                                      n=n)
     if info.status != "optimal":
         _check_margin(Ps, values, margin, None, info)
     if dt is None:
@@ -438,10 +448,48 @@ def fit_a(
     lin2[:, :n, :n] = lin
     lin2[:, n:, :n] = C
     lin2[:, :n, n:] = np.transpose(C, (0, 2, 1))
-    values, info = _lmi_least_squares(objective, const, lin2, K, "A-fit (sampled)")
+    values, info = _lmi_least_squares(objective, const, lin2[free], K, "A-fit (sampled)",
+                                      free=free, n=n)
     if info.status != "optimal":
         _check_margin(Ps, values, margin, dt, info)
     return values, info
+
+
+def block_structure(n: int, blocks: Sequence[Sequence[int]]) -> BoolArray:
+    """The ``structure`` of :func:`fit_a` that decouples groups of coordinates: entry
+    ``(r, c)`` of ``A_k`` is free iff ``r`` and ``c`` lie in the same group (coordinates in no
+    group form one more group).
+
+    Parameters
+    ----------
+    n : int
+        State dimension.
+    blocks : sequence of sequence of int
+        Disjoint groups of coordinates, e.g. ``[[3, 4, 5]]`` for a pose state's orientation.
+
+    Returns
+    -------
+    ndarray of bool, shape (n, n)
+    """
+    group = np.full(n, -1)
+    for g, cols in enumerate(blocks):
+        for c in cols:
+            if not 0 <= int(c) < n or group[int(c)] != -1:
+                raise SolverError(f"A-fit structure: coordinate {c} is outside 0..{n - 1} or "
+                                  "in two groups")
+            group[int(c)] = g
+    return np.asarray(group[:, None] == group[None, :], dtype=np.bool_)
+
+
+def _free_entries(structure: npt.ArrayLike | None, n: int) -> npt.NDArray[np.intp]:
+    """The indices (``vec_F`` order, ``c n + r``) of the entries of ``A_k`` the fit uses."""
+    if structure is None:
+        return np.arange(n * n)
+    mask = np.asarray(structure, dtype=bool)
+    if mask.shape != (n, n) or not bool(np.all(np.diag(mask))):
+        raise SolverError(f"A-fit structure must be an ({n}, {n}) boolean mask with a free "
+                          "diagonal")
+    return np.flatnonzero(mask.T.reshape(-1))
 
 
 def _unit_matrices(n: int) -> FloatArray:
@@ -469,6 +517,9 @@ def _lmi_least_squares(
     lin: FloatArray,
     K: int,
     what: str,
+    *,
+    free: npt.NDArray[np.intp] | None = None,
+    n: int | None = None,
 ) -> tuple[FloatArray, SolveInfo]:
     """``min 0.5 theta^T Q theta + q^T theta + c0`` s.t. ``const + sum_m theta_(k, m) lin_m >= 0``
     (semidefinite, one block per k), solved by Clarabel directly.
@@ -485,12 +536,15 @@ def _lmi_least_squares(
         ``m = n^2`` entries of each ``A_k`` in column-major order.
     const : ndarray, shape (s, s)
         Constant part of every block's matrix.
-    lin : ndarray, shape (n^2, s, s)
-        Coefficient matrix of each entry of ``A_k`` (the same for every k).
+    lin : ndarray, shape (m, s, s)
+        Coefficient matrix of each free entry of ``A_k`` (the same for every k).
     K : int
         Number of blocks.
     what : str
         Program name for :class:`SolveInfo` and errors.
+    free, n : optional
+        The free entries' indices in ``vec_F(A_k)`` and the dimension (default: all ``m =
+        n^2`` entries); the others are 0.
 
     Returns
     -------
@@ -510,7 +564,9 @@ def _lmi_least_squares(
     start = time.perf_counter()
     Q, q, c0 = objective
     m = lin.shape[0]
-    n = round(np.sqrt(m))
+    if n is None:
+        n = round(np.sqrt(m))
+    idx = np.arange(n * n) if free is None else free
     i, j, w = _svec_rows(const.shape[0])
     block = -(lin[:, i, j] * w).T  # (svec, n^2): s = b - A theta
     A_mat = sp.block_diag([sp.csc_matrix(block)] * K, format="csc")
@@ -534,7 +590,9 @@ def _lmi_least_squares(
     theta = np.asarray(solution.x, dtype=np.float64)
     if not np.all(np.isfinite(theta)):
         raise SolverError(f"{what}: solver {SOLVER} returned a non-finite solution")
-    values = np.stack([theta[k * m:(k + 1) * m].reshape(n, n, order="F") for k in range(K)])
+    full = np.zeros((K, n * n))
+    full[:, idx] = theta.reshape(K, m)
+    values = np.stack([full[k].reshape(n, n, order="F") for k in range(K)])
     return values, SolveInfo(problem=what, solver=SOLVER, status=status,
                              objective=float(solution.obj_val) + c0,
                              seconds=time.perf_counter() - start)
@@ -726,6 +784,7 @@ def choose_rate(
     dt: float | None = None,
     budget: float = RATE_BUDGET,
     grid: tuple[float, ...] = RATE_GRID,
+    structure: npt.ArrayLike | None = None,
 ) -> RateChoice:
     """The largest decay rate on a grid whose A-fit stays within an accuracy budget.
 
@@ -755,8 +814,8 @@ def choose_rate(
 
     Parameters
     ----------
-    X, dX, gamma, attractor, P, eps, dt
-        As for :func:`fit_a`.
+    X, dX, gamma, attractor, P, eps, dt, structure
+        As for :func:`fit_a` (every fit of the choice has the same structure).
     budget : float, optional
         Relative RMSE increase allowed over the rate-0 fit (default :data:`RATE_BUDGET`).
     grid : tuple of float, optional
@@ -782,7 +841,7 @@ def choose_rate(
                           f"fit, got eps={eps}")
     Xa, dXa, xs = _as_data(X, dX, attractor)
     r_data = data_rate(Xa, dXa, xs)
-    A_ref, info_ref = fit_a(Xa, dXa, gamma, xs, P, eps=eps)
+    A_ref, info_ref = fit_a(Xa, dXa, gamma, xs, P, eps=eps, structure=structure)
     e_ref = velocity_rmse(Xa, dXa, gamma, xs, A_ref)
     rms = float(np.sqrt(np.mean(np.sum(dXa**2, axis=1)))) if dXa.size else 0.0
     limit = (1.0 + budget) * e_ref + 1e-6 * rms
@@ -796,7 +855,7 @@ def choose_rate(
     def within(j: int) -> bool:
         try:
             A, info = fit_a(Xa, dXa, gamma, xs, P, eps=eps, rate=rates[j] * (1.0 + RATE_PAD),
-                            dt=dt)
+                            dt=dt, structure=structure)
         except SolverError as exc:
             errors[j] = exc
             tried.append((rates[j], math.inf))

@@ -17,7 +17,7 @@ from tli_verify._version import __version__
 from tli_verify.defaults import DEFAULT_DT_FLOAT
 from tli_verify.demos import load_demos
 from tli_verify.ds.lpvds import Clustering, LyapunovKind, learn_lpvds
-from tli_verify.errors import TliError
+from tli_verify.errors import ModelError, TliError
 from tli_verify.io import sha256_file
 from tli_verify.logic.spec import load_spec
 from tli_verify.model.serialize import relative_to_file
@@ -52,6 +52,7 @@ def learn_model(
     control_dt: float | None = DEFAULT_DT_FLOAT,
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
+    blocks: Sequence[Sequence[int]] = (),
 ) -> Model:
     """Demonstrations -> segments -> one certified-to-be LPV-DS per mode (paper Sec. 5.1).
 
@@ -88,6 +89,10 @@ def learn_model(
         only. Ignored when ``rate`` is 0.
     clustering, lyapunov : str, optional
         See :func:`tli_verify.ds.lpvds.learn_lpvds`.
+    blocks : sequence of sequence of int, optional
+        Groups of coordinates every ``A_k`` keeps decoupled (:func:`tli_verify.api.learn`
+        passes a pose task's orientation; see :func:`tli_verify.ds.lpvds.learn_lpvds`).
+        Recorded in each DS's ``fit`` as ``blocks``.
 
     Returns
     -------
@@ -110,12 +115,17 @@ def learn_model(
         demos = load_demos(demo_paths)
         seg = segment_demos(demos)
     names = tuple(f"x{i}" for i in range(demos[0].dim))
+    for group in blocks:
+        for c in group:
+            if not 0 <= int(c) < demos[0].dim:
+                raise ModelError(f"blocks: coordinate {c} is outside the state's "
+                                 f"0..{demos[0].dim - 1}")
     learned: dict[str, ModeModel] = {}
     for key, data in seg.data.items():
         try:
             ds, info = learn_lpvds(data.x, data.dx, data.attractor, seed=seed, eps=eps,
                                    rate=rate, rate_budget=rate_budget, control_dt=control_dt,
-                                   clustering=clustering, lyapunov=lyapunov)
+                                   clustering=clustering, lyapunov=lyapunov, blocks=blocks)
         except TliError as exc:  # e.g. an infeasible SDP: say which mode's data it was
             raise type(exc)(f"mode {key!r} ({len(data.x)} samples): {exc}") from None
         fit = {"clustering": info.clustering, "lyapunov": info.lyapunov,
@@ -125,6 +135,8 @@ def learn_model(
         if info.control_dt is not None:
             fit["control_dt"] = info.control_dt
         fit.update(_rate_choice_record(info))
+        if info.blocks:
+            fit["blocks"] = [list(g) for g in info.blocks]
         learned[key] = ModeModel(key=key, mode=data.mode, next_mode=data.next_mode, ds=ds,
                                  fit=MappingProxyType(fit))
     source = {"tool": f"tli-verify {__version__}",

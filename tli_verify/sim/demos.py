@@ -92,7 +92,7 @@ def _tray_height(y: float, pitch: float) -> float:
 
 
 def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0.0,
-                    start: npt.ArrayLike | None = None, tilt: float = 0.0) -> FloatArray:
+                    start: npt.ArrayLike | None = None) -> FloatArray:
     """Timed waypoints of the scripted scoop (module doc).
 
     Parameters
@@ -105,20 +105,13 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
     start : array_like, shape (6,), optional
         The first waypoint's pose ``(x, y, z, rx, ry, rz)`` instead of the nominal start (a
         recovery demonstration; jittered like the nominal one). The script turns the tray from
-        there to its own orientations by the next waypoint.
-    tilt : float, optional
-        Uniform jitter half-width (rad) of the roll ``rx`` and the yaw ``rz`` of the start,
-        the lift out of the bowl and the carry over the target (with ``rng``): a person does
-        not hold the tool level, and each take then shows the tray turned back to roll and yaw
-        0 in every mode after the scoop (the pour is level again). Drawn after the position
-        jitter.
+        there to its own orientations (roll and yaw 0) by the next waypoint.
 
     Returns
     -------
     ndarray, shape (K, 7)
         Rows ``(time s, x, y, z [m], rx, ry, rz [rad])``, times increasing from 0; the script
-        turns about the pitch axis (``ry``), roll and yaw 0 but where jittered or at a given
-        start.
+        turns about the pitch axis only (``ry``), roll and yaw 0 but at a given start.
     """
     cx, cy = float(SOUP_CENTER[0]), float(SOUP_CENTER[1])
     tx, ty = float(TARGET_CENTER[0]), float(TARGET_CENTER[1])
@@ -148,9 +141,6 @@ def scoop_waypoints(rng: np.random.Generator | None = None, *, jitter: float = 0
         for row in (0, 7, 8):
             w[row, 1:4] += rng.uniform(-jitter, jitter, size=3)
         w[1:7, 1] += rng.uniform(-jitter, jitter) / 2  # the whole scoop shifted along x
-    if rng is not None and tilt > 0:
-        for row in (0, 7, 8):
-            w[row, [4, 6]] += rng.uniform(-tilt, tilt, size=2)
     return w
 
 

@@ -88,13 +88,6 @@ RECOVERY_BEADS = (18, 15, 12)
 whose pile has receded towards the far wall (so mode b's attractor lies deep enough to reach a
 depleted pile too)."""
 
-TILT_JITTER = 0.15
-"""Roll and yaw (rad) by which the teacher's script may turn the tray at the start, the lift
-and the carry (:func:`~tli_verify.sim.demos.scoop_waypoints` ``tilt``), back to level for the
-pour: without it the takes held roll and yaw at 0 after the scoop, and the pour's DS, never
-shown a rolled tray, coupled roll into y so strongly (3.3 dm/s per rad) that a 0.1 rad roll
-at the pour's entry carried the tray 1.2 dm past the bowl."""
-
 APPROACH = 2.0
 """Seconds (unrecorded) in which the teacher brings the arm from where it stands to the take's
 start and holds it there."""
@@ -231,8 +224,7 @@ def record_demo(seed: int, *, name: str = "", start: npt.ArrayLike | None = None
         (:func:`~tli_verify.sim.demos.to_ds`); sensors ``r, s, t``; velocities by finite
         differences.
     """
-    waypoints = scoop_waypoints(default_rng(seed, Stream.SIM_DEMOS), jitter=0.02, start=start,
-                                tilt=TILT_JITTER)
+    waypoints = scoop_waypoints(default_rng(seed, Stream.SIM_DEMOS), jitter=0.02, start=start)
     rig = PandaRig(seed, controller="passive", sensors=sensors)
     rig.command_velocity(np.zeros(6), None)  # guiding mode: compensated and damped
     guide = _Guide(rig, TeacherHand() if hand is None else hand)

@@ -26,9 +26,12 @@ Why the learner, the certificate and the runtime carry over unchanged
     inside the workspace stays inside the chart. This is the anchor's tangent-space
     construction (SE(3) LPV-DS: orientation by an LPV-DS in the tangent space) with one chart
     per task, at the task's reference, instead of one per attractor: the modes' attractors
-    differ, the coordinates of the task do not. Position and orientation are learned together
-    as one DS on the whole state, with one ``P`` (the coupling is whatever the demonstrations
-    show; certified as one system).
+    differ, the coordinates of the task do not. Position and orientation are learned as one
+    DS on the whole state, with one ``P`` and mixing weights on the whole pose, and every
+    ``A_k`` block-diagonal: position and orientation decoupled (as the anchor's two systems),
+    unless ``tli learn --blocks`` says otherwise (:func:`tli_verify.tasks.project.pose_blocks`
+    says why);
+    certified as one system.
 
 A cone on the orientation
     ``cone = { axis = [0, 0, 1], toward = [0, 0, 1], within = 20 }``: the states whose tool axis

@@ -57,6 +57,7 @@ __all__ = [
     "goal_of",
     "model_files",
     "model_stem",
+    "pose_blocks",
     "project_root",
     "resolve",
     "spec_task",
@@ -186,6 +187,30 @@ def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
         return find_task(ref, project=project_root(spec_path))
     except TaskError as exc:
         raise TaskError(f"{spec_path}: task = {ref!r}: {exc}") from None
+
+
+def pose_blocks(spec_path: str | os.PathLike[str]) -> tuple[tuple[int, ...], ...]:
+    """The coupling the learner (:func:`tli_verify.api.learn`, ``tli learn``) keeps out of a
+    pose task's ``A_k``: the orientation
+    coordinates as one group (``((3, 4, 5),)`` for ``orientation.start = 3``), or none when
+    the spec names no task or its task has no orientation.
+
+    Why decoupled. An LPV-DS fits ``xdot = sum_k gamma_k(x) A_k (x - x*)`` by least squares.
+    Along a demonstration the orientation often barely moves within a mode while the position
+    sweeps: ``rx - rx*`` is then nearly a constant offset, and a free ``A_k`` uses it as a
+    bias for the position's velocity. On the Franka scoop's pour that made the position's
+    velocity depend on the roll by 3.3 dm/s per rad: a 0.1 rad roll at the pour's entry sent
+    the tray 1.2 dm past the target bowl, and in a widened workspace the pour left its mode 41
+    times. With the orientation apart in each ``A_k`` (the anchor's SE(3) LPV-DS learns
+    position and orientation as two systems) it left it never; the bundled Franka model takes
+    only roll and yaw apart (``tli learn --blocks 3,5``), keeping the scoop's pitch coupled to
+    the position (``docs/howto/franka.md``, "The pose DS", measures the three).
+    The mixing weights ``gamma_k`` still see the whole pose, ``P`` stays full, and the
+    certificate is the same statement: each ``A_k`` with the one ``P``.
+    """
+    task = spec_task(load_spec(spec_path), spec_path)
+    chart = None if task is None else task.orientation
+    return () if chart is None else (tuple(range(chart.start, chart.start + 3)),)
 
 
 def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
