@@ -122,9 +122,9 @@ def test_in_the_default_workspace_the_bound_holds_the_pour_inside() -> None:
 
 
 def test_the_deployed_policy_pours_without_leaving_the_pour_mode() -> None:
-    """The bundled policy (a 6-D pose DS relearned from kinesthetic takes on the Panda, roll
-    and yaw apart from the other coordinates in every A_k), under the deployed loop (the
-    measured law, the robot's sensors, the stall rule) in the same widened cell: the pour
+    """The bundled policy (a 6-D pose DS relearned from kinesthetic takes on the Panda,
+    position and orientation apart in every A_k: the pose default), under the deployed loop
+    (the measured law, the robot's sensors, the stall rule) in the same widened cell: the pour
     never leaves d, so no cut is learned, and soup is delivered. (Learned with every entry of
     A_k free, the same cell's pour left d 41 times: docs/howto/franka.md, "The pose DS".)"""
     scenario = replace(POUR_SCENARIO, controller="measured", sensors="franka", retry=True,
