@@ -12,11 +12,9 @@ from tests.support.cli import json_records, run
 pytestmark = [
     pytest.mark.sim,
     pytest.mark.slow,
-    # Known gap (docs/howto/franka.md): on the reworked Panda loop a person's tilt (at most
-    # 8 N m against the arm's 6 N m at the tray) no longer spills the soup, so no seed of the
-    # 30 evidence trials replans after a spill. Strict: the day a tilt spills again, these pass
-    # and the marker must go.
-    pytest.mark.xfail(strict=True, reason="person-like tilts do not spill on the Panda loop yet"),
+    # On the 4-D policy of issue 34 the arm held roll and yaw at a fixed orientation and a
+    # person's tilt no longer spilled; on the 6-D pose policy (issue 35) nothing holds them,
+    # and seed 2's tilt spills again (these tests were strict xfails until it did).
 ]
 
 SEED = "2"  # its tilt spills the whole scoop on the way to the target
