@@ -67,7 +67,7 @@ def test_a_roll_or_yaw_at_the_pours_entry_does_not_steer_its_position() -> None:
             continue
         worst = 0.0
         for demo in bundled_demos():
-            r, s, t = demo.sensors.T
+            t = demo.sensors[:, 2]
             z0 = demo.x[int(np.argmax(t))]  # the take's entry into the pour
 
             def path(z: np.ndarray, mm: object = mm) -> np.ndarray:
