@@ -32,9 +32,13 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     ex = export_policy(franka / "models" / "franka-scoop.model.json",
                        tmp_path / "franka.tli.json", rerun=0)
     evidence = tmp_path / "run.campaign.json"
-    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "0",
-                         "--duration", "14", "--json", "--c-evaluator", str(ex.json_path),
-                         "--evidence", str(evidence))
+    # the C executive has no stall rule: asked for it (the default), the run is refused
+    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "1",
+                         "--c-evaluator", str(ex.json_path))
+    assert code == 2 and "--no-stall-rule" in err and err.count("error:") == 1
+    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "1",
+                         "--duration", "25", "--json", "--c-evaluator", str(ex.json_path),
+                         "--no-stall-rule", "--evidence", str(evidence))
     trial, summary = json_records(out)
     assert f"artifact {ex.content_sha256}" in err
     assert code == 0 and trial["success"] and not trial["violations"]
@@ -57,6 +61,6 @@ def test_an_artifact_of_another_model_is_refused(tmp_path: Path, repo: Path,
     ex = export_policy(repo / "models" / "scoop.model.json", tmp_path / "scoop.tli.json",
                        rerun=0)
     code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--duration", "1",
-                         "--c-evaluator", str(ex.json_path))
+                         "--c-evaluator", str(ex.json_path), "--no-stall-rule")
     assert code == 2 and out == "" and err.count("\n") == 1
     assert "not exported from the model being run" in err

@@ -158,6 +158,10 @@ def _run(args: argparse.Namespace) -> int:
                                          or args.no_modulation or args.no_replan):
         raise TliError("--c-evaluator: one executive in this process (--backend serial, "
                        "--workers 1), the deployed variant (no --no-modulation, --no-replan)")
+    if args.c_evaluator is not None and not args.no_retry:
+        raise TliError("--c-evaluator: the exported C executive does not run the stall rule "
+                       "(tli_verify.runtime.stall), so the trials and their evidence would claim "
+                       "a rule the robot did not run; add --no-stall-rule")
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")

@@ -131,7 +131,8 @@ def check_physics_block(doc: Mapping[str, Any], shown: str, passed: list[str]) -
         split = "" if chunks is None or len(chunks) == 1 else \
             f" in {len(chunks)} chunks of seeds, one executive each"
         passed.append(f"{trials} perturbed physical trial(s){split} ({phys['pushes']} push(es), "
-                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, passive-DS law, "
+                      f"{phys['tilts']} tilt(s) each; robot {phys['robot']}, "
+                      f"{controller_law(controller)} law, "
                       f"{phys['sensors']} sensors, stall rule "
                       f"{'on' if phys.get('retry', True) else 'off'}, "
                       f"{phys['duration']:g} s budget), all delivered soup")
