@@ -246,20 +246,20 @@ def integrate_ds_target(z_target: FloatArray, zdot: FloatArray, dt: float,
 
     Parameters
     ----------
-    z_target : ndarray, shape (4,)
+    z_target : ndarray, shape (n,)
         Current target DS state.
-    zdot : ndarray, shape (4,)
+    zdot : ndarray, shape (n,)
         DS velocity (m/s, rad/s).
     dt : float
         Control period (s).
-    z_actual : ndarray, shape (4,), optional
+    z_actual : ndarray, shape (n,), optional
         Measured DS state.
-    leash : ndarray, shape (4,), optional
+    leash : ndarray, shape (n,), optional
         Largest target-actual gap per coordinate (m, rad).
 
     Returns
     -------
-    ndarray, shape (4,)
+    ndarray, shape (n,)
     """
     z_new = np.asarray(z_target, dtype=np.float64) + dt * np.asarray(zdot, dtype=np.float64)
     if z_actual is not None and leash is not None:

@@ -245,9 +245,9 @@ class TraceStep:
         Seconds since the trial's start, at the period's start.
     mode : str
         The mode the executive ran in this period (after its decision).
-    target : ndarray, shape (4,)
+    target : ndarray, shape (n,)
         The DS state ``z*`` the executive was given (the target pose, DS units: dm, rad).
-    measured : ndarray, shape (4,)
+    measured : ndarray, shape (n,)
         The measured DS state ``z`` (:func:`~tli_verify.sim.demos.to_ds` of the tray pose).
     perturbed : bool
         The robot's own estimate (:class:`~tli_verify.sim.contact.ContactDetector`).

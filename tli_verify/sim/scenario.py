@@ -122,7 +122,7 @@ class Failure:
         Control period (0-based index into :attr:`ScenarioRun.trace`).
     to_mode : str
         The mode the reading showed.
-    target, measured : ndarray, shape (4,)
+    target, measured : ndarray, shape (n,)
         The DS state the executive was given and the measured one at that period.
     """
 
@@ -146,7 +146,7 @@ class ScenarioRun:
         The invariance failures of ``scenario.mode``, in order.
     cuts : tuple
         The cuts of ``scenario.mode``'s region at the end (:class:`~tli_verify.model.types.Cut`).
-    attractor : ndarray, shape (4,)
+    attractor : ndarray, shape (n,)
         The mode's DS attractor.
     checks : tuple of FailureCheck
         Each failure against the cuts learned before it (for a variant that learns none: the
