@@ -138,12 +138,25 @@ def _start_forkserver_without_ctrl_c() -> None:
 
     if threading.current_thread() is not threading.main_thread():
         return
+    from multiprocessing import resource_tracker
+
     with _ctrl_c_deferred():
+        # CPython's resource tracker unblocks SIGINT when it has started, so start it first
+        # (a Ctrl-C meanwhile reaches the deferral's recorder) and block again: else SIGINT was
+        # unblocked and ignored while the fork server started, and a Ctrl-C then was discarded
+        # (seen under load: `tli verify` ran on to exit 0).
+        resource_tracker.ensure_running()
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        # Setting SIG_IGN discards a pending SIGINT (POSIX sigaction): look first, raise it
+        # again after (blocked still: pending until the deferral ends).
+        pending = signal.SIGINT in signal.sigpending()
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
             forkserver.ensure_running()
         finally:
             signal.signal(signal.SIGINT, previous)
+            if pending:
+                os.kill(os.getpid(), signal.SIGINT)
 
 
 class ProcessBackend:
