@@ -192,8 +192,7 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
                 paths.append(d)
         target = Path(out) if out is not None else Path(tmp) / "model.json"
         dt = float(control_period(control_dt, spec_path))
-        groups = (pose_blocks(spec_path) if spec_path is not None else ()) if blocks is None \
-            else _blocks(blocks)
+        groups = pose_blocks(spec_path) if blocks is None else _blocks(blocks)
         model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, eps=eps,
                             rate=rate, rate_budget=rate_budget, control_dt=dt,
                             clustering=clustering, lyapunov=lyapunov, blocks=groups)

@@ -32,7 +32,21 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     ex = export_policy(franka / "models" / "franka-scoop.model.json",
                        tmp_path / "franka.tli.json", rerun=0)
     evidence = tmp_path / "run.campaign.json"
-    # the C executive has no stall rule: asked for it (the default), the run is refused
+    # the C executive has no stall rule: the wrapper refuses one (not dropped on the floor) ...
+    import tempfile
+
+    from tli_verify.deploy.cloop import in_the_loop
+    from tli_verify.errors import ExportError
+    from tli_verify.runtime.stall import StallRule
+    from tli_verify.sim.franka_project import load_policy
+
+    with tempfile.TemporaryDirectory() as build:
+        loop = in_the_loop(load_policy("LTL-DS"), ex.json_path, build)
+        with pytest.raises(ExportError, match="stall rule"):
+            loop.stall_rule = StallRule()
+        loop.stall_rule = None
+        assert loop.stall_rule is None and loop.supervisor.stall_rule is None
+    # ... and the command, asked for it (the default), refuses the run before any work
     code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "1",
                          "--c-evaluator", str(ex.json_path))
     assert code == 2 and "--no-stall-rule" in err and err.count("error:") == 1

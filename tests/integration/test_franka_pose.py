@@ -113,6 +113,26 @@ def test_a_rolled_or_yawed_ladle_is_turned_back_by_the_policy(rx: float, rz: flo
     assert np.sign(v[axis]) == -np.sign(z0[axis])
 
 
+@pytest.mark.parametrize("draw", range(3))
+def test_a_ladle_turned_about_a_random_axis_anywhere_between_the_bowls_is_turned_back(
+        draw: int) -> None:
+    """Seeded random starts: the tray anywhere in the box between the bowls where a spilling
+    tilt leaves it (x 0.45-0.55 m, y -0.02-0.12 m, z 0.12-0.22 m), turned 0.4 rad about a
+    uniformly random axis (pitch included). The trial delivers, and the roll and yaw are
+    turned back below 0.1 rad within 2.5 s."""
+    rng = np.random.default_rng(np.random.SeedSequence([35, draw]))
+    start = np.empty(6)
+    start[:3] = rng.uniform([0.45, -0.02, 0.12], [0.55, 0.12, 0.22])
+    axis = rng.normal(size=3)
+    start[3:] = 0.4 * axis / np.linalg.norm(axis)
+    trace: list[TraceStep] = []
+    res = run_trial(load_policy("LTL-DS"), draw, perturbations=[], trace=trace, start=start)
+    assert res.success and res.stopped is None, (start, res.mode_sequence())
+    k = round(2.5 / 0.02)
+    assert max(abs(trace[k].measured[3]), abs(trace[k].measured[5])) < 0.1, \
+        (start, trace[k].measured)
+
+
 def test_a_4d_pitch_ds_still_runs_with_roll_and_yaw_held() -> None:
     """A DS on the paper's 4-D state (x, y, z, pitch) runs on the same rig: the loop maps it
     to the pose columns (x, y, z, ry) and holds roll and yaw at 0 (demos.model_columns): from

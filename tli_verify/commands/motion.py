@@ -272,8 +272,7 @@ def _learn(args: argparse.Namespace) -> int:
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf",
-                        blocks=(pose_blocks(args.spec) if args.spec is not None else ())
-                        if args.blocks is None else args.blocks)
+                        blocks=pose_blocks(args.spec) if args.blocks is None else args.blocks)
     handoff = None
     if not args.no_handoff and args.spec is not None:
 

@@ -199,6 +199,22 @@ class CInTheLoop:
         # equal to the evaluator's every step)
         return getattr(self.supervisor, name)
 
+    @property
+    def stall_rule(self) -> None:
+        """Always None: the exported C executive does not run the stall rule."""
+        return None
+
+    @stall_rule.setter
+    def stall_rule(self, rule: object) -> None:
+        """None only: a stall rule set here would run in the supervisor and not in the C
+        executive, whose modes then disagree (or, before this refusal, the rule was dropped on
+        this wrapper while the trial recorded it on)."""
+        if rule is not None:
+            raise ExportError("the exported C executive does not run the stall rule "
+                              "(tli_verify.runtime.stall): run without it (tli sim franka "
+                              "--no-stall-rule)")
+        self.supervisor.stall_rule = None
+
     def _mask(self, sensors: Any) -> int:
         if isinstance(sensors, dict):
             on = {k for k, v in sensors.items() if v}

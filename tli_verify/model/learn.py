@@ -115,11 +115,15 @@ def learn_model(
         demos = load_demos(demo_paths)
         seg = segment_demos(demos)
     names = tuple(f"x{i}" for i in range(demos[0].dim))
+    seen: set[int] = set()
     for group in blocks:
         for c in group:
             if not 0 <= int(c) < demos[0].dim:
                 raise ModelError(f"blocks: coordinate {c} is outside the state's "
                                  f"0..{demos[0].dim - 1}")
+            if int(c) in seen:
+                raise ModelError(f"blocks: coordinate {c} is in two groups")
+            seen.add(int(c))
     learned: dict[str, ModeModel] = {}
     for key, data in seg.data.items():
         try:

@@ -189,11 +189,11 @@ def spec_task(spec: Any, spec_path: str | os.PathLike[str]) -> Task | None:
         raise TaskError(f"{spec_path}: task = {ref!r}: {exc}") from None
 
 
-def pose_blocks(spec_path: str | os.PathLike[str]) -> tuple[tuple[int, ...], ...]:
+def pose_blocks(spec_path: str | os.PathLike[str] | None) -> tuple[tuple[int, ...], ...]:
     """The coupling the learner (:func:`tli_verify.api.learn`, ``tli learn``) keeps out of a
-    pose task's ``A_k``: the orientation
-    coordinates as one group (``((3, 4, 5),)`` for ``orientation.start = 3``), or none when
-    the spec names no task or its task has no orientation.
+    pose task's ``A_k``: the orientation coordinates as one group (``((3, 4, 5),)`` for
+    ``orientation.start = 3``), or none without a spec, when the spec names no task or when
+    its task has no orientation.
 
     Why decoupled. An LPV-DS fits ``xdot = sum_k gamma_k(x) A_k (x - x*)`` by least squares.
     Along a demonstration the orientation often barely moves within a mode while the position
@@ -208,6 +208,8 @@ def pose_blocks(spec_path: str | os.PathLike[str]) -> tuple[tuple[int, ...], ...
     The mixing weights ``gamma_k`` still see the whole pose, ``P`` stays full, and the
     certificate is the same statement: each ``A_k`` with the one ``P``.
     """
+    if spec_path is None:
+        return ()
     task = spec_task(load_spec(spec_path), spec_path)
     chart = None if task is None else task.orientation
     return () if chart is None else (tuple(range(chart.start, chart.start + 3)),)
