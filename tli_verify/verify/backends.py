@@ -156,7 +156,9 @@ def _start_forkserver_without_ctrl_c() -> None:
         finally:
             signal.signal(signal.SIGINT, previous)
             if pending:
-                os.kill(os.getpid(), signal.SIGINT)
+                # to this thread, which blocks it: pending until the deferral ends (a
+                # process-directed kill could be taken by another thread meanwhile)
+                signal.pthread_kill(threading.get_ident(), signal.SIGINT)
 
 
 class ProcessBackend:
