@@ -32,7 +32,7 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     ex = export_policy(franka / "models" / "franka-scoop.model.json",
                        tmp_path / "franka.tli.json", rerun=0)
     evidence = tmp_path / "run.campaign.json"
-    # the C executive has no stall rule: the wrapper refuses one (not dropped on the floor) ...
+    # the artifact carries the stall rule its evidence ran; the wrapper takes that rule only
     import tempfile
 
     from tli_verify.deploy.cloop import in_the_loop
@@ -40,22 +40,48 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     from tli_verify.runtime.stall import StallRule
     from tli_verify.sim.franka_project import load_policy
 
+    assert ex.artifact["stall"] is not None
+    # the gate passes it; the rule edited and re-hashed (a longer dwell, or no rule: the C
+    # loader would take either) is not what the model and its evidence export to
+    from tli_verify.deploy.export import write_artifact
+    from tli_verify.deploy.gate import run_gate
+
+    def artifact_line(path: Path) -> tuple[bool, str]:
+        report = run_gate(franka, rerun=0, artifacts=[path])
+        item = next(i for i in report.items if i.kind == "artifact")
+        return item.ok, item.message
+
+    assert artifact_line(ex.json_path)[0]
+    for edit, where in ((("dwell", 2.0), "stall.dwell"), ((None, None), "stall)")):
+        art = json.loads(ex.json_path.read_text())
+        if edit[0] is None:
+            art["stall"] = None
+        else:
+            art["stall"][edit[0]] = edit[1]
+        forged = write_artifact(art, tmp_path / "forged.tli.json")
+        ok, why = artifact_line(forged.json_path)
+        assert not ok and where in why, why
     with tempfile.TemporaryDirectory() as build:
         loop = in_the_loop(load_policy("LTL-DS"), ex.json_path, build)
-        with pytest.raises(ExportError, match="stall rule"):
-            loop.stall_rule = StallRule()
-        loop.stall_rule = None
-        assert loop.stall_rule is None and loop.supervisor.stall_rule is None
-    # ... and the command, asked for it (the default), refuses the run before any work
+        assert loop.stall_rule == StallRule()
+        with pytest.raises(ExportError, match="the artifact runs the stall rule"):
+            loop.stall_rule = None
+        with pytest.raises(ExportError, match=r"radius 0\.3"):
+            loop.stall_rule = StallRule(radius=0.2)
+        loop.stall_rule = StallRule()
+        assert loop.supervisor.stall_rule == StallRule()
+    # ... and the command, asked to run without it, refuses before any work
     code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "1",
-                         "--c-evaluator", str(ex.json_path))
-    assert code == 2 and "--no-stall-rule" in err and err.count("error:") == 1
-    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "1",
-                         "--duration", "25", "--json", "--c-evaluator", str(ex.json_path),
-                         "--no-stall-rule", "--evidence", str(evidence))
+                         "--c-evaluator", str(ex.json_path), "--no-stall-rule")
+    assert code == 2 and "drop --no-stall-rule" in err and err.count("error:") == 1
+    # seed 0 needs a re-entry (the scoop stalls): the C executive's stall rule fires
+    code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--seed", "0",
+                         "--json", "--c-evaluator", str(ex.json_path),
+                         "--evidence", str(evidence))
     trial, summary = json_records(out)
     assert f"artifact {ex.content_sha256}" in err
     assert code == 0 and trial["success"] and not trial["violations"]
+    assert trial["stalls"] >= 1 and any(e.startswith("Reentered") for e in trial["events"])
     rec = summary["evaluator"]
     assert rec["artifact_sha256"] == ex.content_sha256 and rec["kind"] == "c"
     assert rec["steps"] > 100 and rec["max_rel_diff"] <= 1e-12
@@ -75,6 +101,6 @@ def test_an_artifact_of_another_model_is_refused(tmp_path: Path, repo: Path,
     ex = export_policy(repo / "models" / "scoop.model.json", tmp_path / "scoop.tli.json",
                        rerun=0)
     code, out, err = run(capsys, "sim", "franka", "--trials", "1", "--duration", "1",
-                         "--c-evaluator", str(ex.json_path), "--no-stall-rule")
+                         "--c-evaluator", str(ex.json_path))
     assert code == 2 and out == "" and err.count("\n") == 1
     assert "not exported from the model being run" in err

@@ -229,7 +229,7 @@ def test_loader_refuses_tampered_artifacts(lib: Any, nd_artifacts: dict[int, Any
     err = _refused(lib, _rehash(body.replace(sizes.group(0), "sizes " + " ".join(big))))
     assert err.code == 5 and "dim" in err.message
     # another schema version
-    err = _refused(lib, _rehash(body.replace("tli-policy-text 1", "tli-policy-text 2", 1)))
+    err = _refused(lib, _rehash(body.replace("tli-policy-text 2", "tli-policy-text 1", 1)))
     assert err.code == 3 and "schema version" in err.message
     # an edge to a state that does not exist
     bad = re.sub(r"^edge (\d+) (\d+)", r"edge \1 999", body, count=1, flags=re.M)

@@ -23,6 +23,7 @@ import numpy as np
 MAX_DIM = 32
 F_MODE_CHANGE, F_REPLAN, F_FAILURE, F_ASSUMPTION, F_HOLDING, F_DONE, F_PERTURBED = (
     1, 2, 4, 8, 16, 32, 64)
+F_STALL, F_REENTERED = 128, 256
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic", "-Werror"]
 
 

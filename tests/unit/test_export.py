@@ -25,7 +25,7 @@ def test_export_writes_a_self_describing_artifact_bound_to_its_sources(project: 
     ex = export_policy(project / "models" / "scoop.model.json", out, rerun=0)
     art = check_artifact(out)  # schema + its own hash
     assert art == json.loads(out.read_text())
-    assert art["format"] == "tli-policy" and art["schema_version"] == 1
+    assert art["format"] == "tli-policy" and art["schema_version"] == 2
     assert art["content_sha256"] == ex.content_sha256
     # the text form: the same content, the same hash on its closing line
     text = text_path_for(out).read_text()
@@ -155,3 +155,19 @@ def test_the_gate_binds_a_deployed_artifact_to_what_it_checked(project: Path,
     ok, why = artifact_line(forged)
     assert not ok and "its certificate" in why
     assert doc  # the real certificate untouched
+    # the content edited and re-hashed, its sources left alone (hash, text form, bindings
+    # and campaign all check): a gain of the DS, then an edge of the automaton
+    art = json.loads(out.read_text())
+    art["ds"][1]["A"][0][0][0] *= 1.5
+    write_artifact(art, forged)
+    ok, why = artifact_line(forged)
+    assert not ok and "its content (ds[1])" in why and "re-export" in why
+    art = json.loads(out.read_text())
+    art["automaton"]["edges"][0]["to"] = art["automaton"]["edges"][1]["to"]
+    write_artifact(art, forged)
+    ok, why = artifact_line(forged)
+    assert not ok and "its content (automaton" in why
+    art = json.loads(out.read_text())  # an older exporter's name is no forgery
+    art["tool"]["version"] = "0.0.1"
+    write_artifact(art, forged)
+    assert artifact_line(forged)[0]

@@ -112,8 +112,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "evaluator, built with the system compiler; the Python executive runs "
                    "alongside as its supervisor (same automaton, cuts solved in Python and "
                    "handed to the evaluator); the artifact must have been exported from the "
-                   "model being run; with --evidence the evidence records its hash (serial "
-                   "backend, one worker)")
+                   "model being run, and its stall rule (the one its evidence ran) must be "
+                   "this run's (--no-stall-rule only for an artifact without one); with "
+                   "--evidence the evidence records its hash (serial backend, one worker)")
     f.add_argument("--evidence", nargs="?", type=output_path, const=DEFAULT_PATH, default=None,
                    metavar="PATH",
                    help="write the trials as campaign evidence for tli gate (default "
@@ -158,10 +159,6 @@ def _run(args: argparse.Namespace) -> int:
                                          or args.no_modulation or args.no_replan):
         raise TliError("--c-evaluator: one executive in this process (--backend serial, "
                        "--workers 1), the deployed variant (no --no-modulation, --no-replan)")
-    if args.c_evaluator is not None and not args.no_retry:
-        raise TliError("--c-evaluator: the exported C executive does not run the stall rule "
-                       "(tli_verify.runtime.stall), so the trials and their evidence would claim "
-                       "a rule the robot did not run; add --no-stall-rule")
     if args.evidence is not None and args.seed + args.trials > 2**32:
         raise TliError(f"--seed {args.seed}: with --evidence the trials' seeds must be below "
                        "2^32")
@@ -213,10 +210,18 @@ def _run(args: argparse.Namespace) -> int:
     if args.c_evaluator is not None:
         import tempfile
 
-        from tli_verify.deploy.cloop import in_the_loop
+        from tli_verify.deploy.cloop import describe_stall, in_the_loop
+        from tli_verify.runtime.stall import StallRule
 
         with tempfile.TemporaryDirectory(prefix="tli-c-") as build_dir:  # loaded: removable
             policy = evaluator = in_the_loop(policy, args.c_evaluator, build_dir)
+        asked = None if args.no_retry else StallRule()
+        if evaluator.stall_rule != asked:  # the trials record the rule: the robot's must be it
+            raise TliError(f"--c-evaluator {args.c_evaluator}: the artifact runs "
+                           f"{describe_stall(evaluator.stall_rule)}, this run "
+                           f"{describe_stall(asked)}: export it from evidence made with the "
+                           "same rule, or "
+                           f"{'drop' if args.no_retry else 'add'} --no-stall-rule")
         sys.stderr.write(f"note: the C evaluator drives the robot: artifact "
                          f"{evaluator.sha256}\n")
     recorder = None

@@ -16,16 +16,18 @@ from typing import Any
 
 import numpy as np
 
-from tli_verify.errors import ExportError, bad_input
+from tli_verify.errors import ExportError, TliError, bad_input
 from tli_verify.io import read_json, validate_schema
+from tli_verify.runtime.stall import STALL_PARAMETERS, StallRule
 
 __all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "check_artifact",
            "content_hash", "render_text", "text_path_for"]
 
 FORMAT = "tli-policy"
 """The artifact's ``format`` field."""
-SCHEMA_VERSION = 1
-"""The artifact's ``schema_version`` (the C loader refuses any other)."""
+SCHEMA_VERSION = 2
+"""The artifact's ``schema_version`` (the C loader refuses any other). 2: the stall rule
+(``stall``)."""
 TEXT_MAGIC = "tli-policy-text"
 """First token of the text form."""
 MAX_C_BITS = 64
@@ -77,15 +79,26 @@ def render_text(art: dict[str, Any]) -> str:
     total_k = sum(len(d["priors"]) for d in art["ds"])
     total_cuts = sum(len(d["cuts"]) for d in art["ds"])
     mod = art["modulation"]
+    stall = art["stall"]
+    dwell_steps = window = 0
+    if stall is not None:  # the executive's own step counts
+        rule = StallRule(**{k: float(stall[k]) for k in STALL_PARAMETERS})
+        dwell_steps, window = rule.periods(float(art["dt"]))
     lines = [
         f"{TEXT_MAGIC} {int(art['schema_version'])}",
         f"name {_hex(art['name'])}",
         f"sizes {n} {len(inputs)} {len(modes)} {len(aut['states'])} {len(aut['initial'])} "
-        f"{len(aut['edges'])} {len(keys)} {total_k} {total_cuts} {int(mod['max_online_cuts'])}",
+        f"{len(aut['edges'])} {len(keys)} {total_k} {total_cuts} {int(mod['max_online_cuts'])} "
+        f"{window}",
         f"dt {float(art['dt'])!r}",
         "modulation " + _nums([mod["barrier_rate"], mod["degenerate_tol"],
                                mod["boundary_tol"], mod["guard_tol"]]),
     ]
+    if stall is None:
+        lines.append("stall 0")
+    else:
+        lines.append(f"stall 1 {_nums([stall['radius'], stall['progress']])} {dwell_steps} "
+                     f"{window}")
     for what in ("spec", "model", "certificate", "task", "evidence"):
         src = art["sources"].get(what)
         lines.append(f"source {what} {src['sha256'] if src else '-'}")
@@ -121,6 +134,13 @@ def render_text(art: dict[str, Any]) -> str:
         lines.append(f"b {_nums(d['b'])}")
         for c in d["cuts"]:
             lines.append(f"cut {_nums([*c['normal'], *c['point']])}")
+    if stall is not None:
+        if len(stall["levels"]) != len(keys) or len(stall["reentry"]) != len(modes):
+            raise ValueError(f"stall: {len(stall['levels'])} levels for {len(keys)} DS and "
+                             f"{len(stall['reentry'])} re-entries for {len(modes)} modes")
+        lines.append(f"levels {_nums(stall['levels'])}")
+        lines.append("reentry " + " ".join(str(-1 if k is None else key_ix[k])
+                                           for k in stall["reentry"]))
     lines.append("end")
     return "\n".join(lines) + "\n"
 
@@ -149,7 +169,7 @@ def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
     body = {k: v for k, v in data.items() if k != "content_sha256"}
     try:
         digest = content_hash(body)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, TliError) as exc:
         raise bad_input(ExportError, f"{path}: inconsistent artifact: {exc}") from None
     if digest != data["content_sha256"]:
         raise bad_input(ExportError, f"{path}: content_sha256 {data['content_sha256']} is not "

@@ -8,8 +8,11 @@ robot gets is the C evaluator's**. Beside it the Python executive
 has outside its real-time thread: it sees the same states, readings and perturbations, and
 solves the cut QCQP (appendix E.3, not ported to C) on each invariance failure; the cut is
 handed to the evaluator's fixed storage (:c:func:`tli_policy_add_cut`) before the step's
-velocity. Each step checks that both agree on the automaton state, mode and DS; a disagreement
-(or a full cut storage) stops the run with a :class:`~tli_verify.errors.ExportError`.
+velocity. The stall rule (:mod:`tli_verify.runtime.stall`) runs in C when the artifact carries
+one (its ``stall`` section, from the evidence it was exported with), and the supervisor runs the
+same rule. Each step checks that both agree on the automaton state, mode and DS and that the
+rule fired (or its re-entry ended) in both or neither; a disagreement (or a full cut storage)
+stops the run with a :class:`~tli_verify.errors.ExportError`.
 """
 
 from __future__ import annotations
@@ -27,13 +30,16 @@ import numpy.typing as npt
 from tli_verify.deploy.export import check_artifact, text_path_for
 from tli_verify.errors import ExportError
 from tli_verify.io import package_file, sha256_file
-from tli_verify.runtime.events import CutAdded
+from tli_verify.runtime.events import CutAdded, Reentered, Stall
+from tli_verify.runtime.stall import STALL_PARAMETERS, StallRule
 
-__all__ = ["CEvaluator", "CInTheLoop", "compile_evaluator", "in_the_loop"]
+__all__ = ["CEvaluator", "CInTheLoop", "compile_evaluator", "describe_stall", "in_the_loop"]
 
 FloatArray = npt.NDArray[np.float64]
 _MAX_DIM = 32
 _F_FAILURE = 4
+_F_STALL = 128
+_F_REENTERED = 256
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared")
 
 
@@ -190,6 +196,9 @@ class CInTheLoop:
         self._inputs = list(aut["inputs"])
         self._modes = list(aut["modes"])
         self._keys = [d["key"] for d in artifact["ds"]]
+        stall = artifact.get("stall")
+        self._stall = None if stall is None else \
+            StallRule(**{k: float(stall[k]) for k in STALL_PARAMETERS})
         self.sha256 = evaluator.sha256
         self.max_rel_diff = 0.0
         self.steps = 0
@@ -200,20 +209,20 @@ class CInTheLoop:
         return getattr(self.supervisor, name)
 
     @property
-    def stall_rule(self) -> None:
-        """Always None: the exported C executive does not run the stall rule."""
-        return None
+    def stall_rule(self) -> StallRule | None:
+        """The stall rule the artifact runs (its ``stall`` section; None: none)."""
+        return self._stall
 
     @stall_rule.setter
-    def stall_rule(self, rule: object) -> None:
-        """None only: a stall rule set here would run in the supervisor and not in the C
-        executive, whose modes then disagree (or, before this refusal, the rule was dropped on
-        this wrapper while the trial recorded it on)."""
-        if rule is not None:
-            raise ExportError("the exported C executive does not run the stall rule "
-                              "(tli_verify.runtime.stall): run without it (tli sim franka "
-                              "--no-stall-rule)")
-        self.supervisor.stall_rule = None
+    def stall_rule(self, rule: StallRule | None) -> None:
+        """The artifact's own rule (or None when it has none) only: the C executive runs the
+        rule the artifact was exported with, and the supervisor must run the same one, else
+        their modes disagree and the trial would record a rule the robot did not run."""
+        if rule != self._stall:
+            raise ExportError(f"the artifact runs {describe_stall(self._stall)}; the run asks "
+                              f"for {describe_stall(rule)}: export from evidence made with the "
+                              "same rule (tli sim franka --no-stall-rule switches it off)")
+        self.supervisor.stall_rule = rule
 
     def _mask(self, sensors: Any) -> int:
         if isinstance(sensors, dict):
@@ -243,11 +252,16 @@ class CInTheLoop:
         supplies the cuts)."""
         sup = self.supervisor
         n_events = len(sup.events)
-        key = sup.decide(x, sensors, perturbed=perturbed)
+        key = sup.monitor(sup.decide(x, sensors, perturbed=perturbed))
         info = self.evaluator.decide(x, self._mask(sensors), perturbed)
         self.steps += 1
         self._check(info, self.steps)
-        for e in sup.events[n_events:]:
+        new = sup.events[n_events:]
+        for kind, flag in ((Stall, _F_STALL), (Reentered, _F_REENTERED)):
+            if any(isinstance(e, kind) for e in new) != bool(info.flags & flag):
+                raise ExportError(f"C evaluator and runtime disagree at step {self.steps}: "
+                                  f"{kind.__name__} in one only (the stall rule)")
+        for e in new:
             if isinstance(e, CutAdded):
                 self.evaluator.add_cut(self._modes.index(e.mode), e.cut.normal, e.cut.point)
         v = self.evaluator.velocity()
@@ -256,6 +270,13 @@ class CInTheLoop:
             diff = float(np.max(np.abs(v - ref))) / max(1.0, float(np.max(np.abs(ref))))
             self.max_rel_diff = max(self.max_rel_diff, diff)
         return v
+
+
+def describe_stall(rule: StallRule | None) -> str:
+    """``"the stall rule (radius 0.3, ...)"`` or ``"no stall rule"``, for messages."""
+    if rule is None:
+        return "no stall rule"
+    return "the stall rule (" + ", ".join(f"{k} {v:g}" for k, v in rule.to_dict().items()) + ")"
 
 
 def in_the_loop(supervisor: Any, artifact_json: str | os.PathLike[str],

@@ -6,8 +6,10 @@ automaton ``Omega_phi`` (states, initial states, edges as cubes over the sensor 
 choice per state), per DS the position GMM (priors, means, covariances and the precomputed
 quadratic form of ``log pi_k N(x | mu_k, Sigma_k)``), ``A_k``, ``b_k = -A_k x*``, ``x*``, ``P``,
 the cuts and the modulation constants (eq. 7 and the corner guard,
-:mod:`tli_verify.boundary.modulation`), the control period, and the SHA-256 of the spec, model,
-certificate, task and campaign evidence it was made from.
+:mod:`tli_verify.boundary.modulation`), the stall rule the campaign evidence ran
+(:mod:`tli_verify.runtime.stall`: its parameters, each DS's level and each mode's re-entry DS),
+the control period, and the SHA-256 of the spec, model, certificate, task and campaign evidence
+it was made from. The content is derived in :mod:`tli_verify.deploy.content`.
 
 Two renderings of the same content are written side by side:
 
@@ -34,20 +36,10 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from tli_verify._version import __version__
-from tli_verify.boundary.modulation import (
-    BOUNDARY_TOL,
-    DEFAULT_BARRIER_RATE,
-    DEGENERATE_TOL,
-    GUARD_TOL,
-)
 from tli_verify.deploy.artifact import (
     FORMAT,
     MAX_C_BITS,
@@ -58,22 +50,22 @@ from tli_verify.deploy.artifact import (
     render_text,
     text_path_for,
 )
+from tli_verify.deploy.content import (
+    DEFAULT_MAX_ONLINE_CUTS,
+    MAX_ONLINE_CUTS,
+    artifact_of,
+    build_artifact,
+    tested_stall_rule,
+)
 from tli_verify.errors import ExportError, GateError, TliError, bad_input
 from tli_verify.io import atomic_write_text, canonical_json, check_plan, sha256_file
-from tli_verify.logic.automaton import plan_progress
 from tli_verify.project import open_project
-from tli_verify.runtime.coverage import plan_states
-from tli_verify.tasks.project import check_goal, model_files
+from tli_verify.tasks.project import model_files
 
-__all__ = ["FORMAT", "MAX_C_BITS", "SCHEMA_VERSION", "TEXT_MAGIC", "Exported", "build_artifact",
-           "check_artifact", "content_hash", "export_policy", "render_text", "text_path_for",
+__all__ = ["DEFAULT_MAX_ONLINE_CUTS", "FORMAT", "MAX_C_BITS", "MAX_ONLINE_CUTS", "SCHEMA_VERSION",
+           "TEXT_MAGIC", "Exported", "artifact_of", "build_artifact", "check_artifact",
+           "content_hash", "export_policy", "render_text", "tested_stall_rule", "text_path_for",
            "write_artifact"]
-
-DEFAULT_MAX_ONLINE_CUTS = 16
-"""Cuts the C evaluator can add per DS at run time (fixed storage; one more is refused)."""
-MAX_ONLINE_CUTS = 63
-"""Most online cut slots per DS (the C evaluator holds at most 64 cuts per DS, offline ones
-included: ``TLI_MAX_CUTS``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,90 +90,6 @@ def _hash_or_none(path: Path | None) -> dict[str, str] | None:
     if path is None or not path.is_file():
         return None
     return {"file": path.name, "sha256": sha256_file(path)}
-
-
-def _floats(a: Any) -> list[Any]:
-    return np.asarray(a, dtype=np.float64).tolist()
-
-
-def build_artifact(setup: Any, *, goal_modes: Sequence[str], goal_inputs: Sequence[str],
-                   sources: dict[str, Any], max_online_cuts: int = DEFAULT_MAX_ONLINE_CUTS
-                   ) -> dict[str, Any]:
-    """The artifact's content (without ``content_sha256``) of a loaded run setup.
-
-    Parameters
-    ----------
-    setup : tli_verify.runtime.setup.Setup
-        Task, automaton, model and certificate (:attr:`tli_verify.loaded.LoadedProject.setup`).
-    goal_modes, goal_inputs : sequence of str
-        The goal the executive runs to.
-    sources : dict
-        ``{"spec"|"model"|"certificate"|"task"|"evidence": {"file", "sha256"} or None}``.
-    max_online_cuts : int, optional
-        Fixed storage per DS for cuts added at run time.
-
-    Returns
-    -------
-    dict
-        JSON-ready (schema ``policy.schema.json``).
-
-    Raises
-    ------
-    ExportError
-        More than :data:`MAX_C_BITS` sensors or modes (exit 2).
-    """
-    aut, model = setup.automaton, setup.model
-    plans = plan_states(aut, model, tuple(goal_modes), str(model.path))
-    progress = plan_progress(plans.values())
-    modes = list(dict.fromkeys([*aut.modes, *(s.mode for s in aut.states)]))
-    if len(aut.inputs) > MAX_C_BITS or len(modes) > MAX_C_BITS:
-        raise ExportError(f"{model.path}: {len(aut.inputs)} sensors and {len(modes)} modes; the "
-                          f"C evaluator takes at most {MAX_C_BITS} of each")
-    keys = list(model.modes)
-    ds = []
-    for k in keys:
-        mm = model.modes[k]
-        lp = mm.ds
-        center, rows = lp.mixture.quadratic_form()
-        ds.append({
-            "key": k, "mode": mm.mode, "next_mode": mm.next_mode,
-            "attractor": _floats(lp.attractor), "P": _floats(lp.P),
-            "priors": _floats(lp.priors), "means": _floats(lp.means), "covs": _floats(lp.covs),
-            "gmm": {"center": list(center), "quadratic": [list(r[: len(r) - lp.dim])
-                                                          for r, _ in rows],
-                    "linear": [list(r[len(r) - lp.dim:]) for r, _ in rows],
-                    "constant": [c for _, c in rows]},
-            "A": _floats(lp.A), "b": _floats(-np.einsum("kij,j->ki", lp.A, lp.attractor)),
-            "cuts": [{"normal": _floats(c.normal), "point": _floats(c.point)} for c in mm.cuts],
-        })
-    states = []
-    for s in aut.states:
-        st = plans[s.id]
-        states.append({"id": s.id, "mode": s.mode, "inputs": list(s.inputs), "goal": s.goal,
-                       "ds": st.key, "planned": st.next_mode})
-    return {
-        "format": FORMAT, "schema_version": SCHEMA_VERSION,
-        "name": Path(str(model.path)).name.removesuffix(".json").removesuffix(".model"),
-        "tool": {"name": "tli-verify", "version": __version__},
-        "state_names": list(model.state_names), "dim": model.dim,
-        "dt": float(setup.task.dt),
-        "readings": {"source": "inputs", "inputs": list(aut.inputs),
-                     "note": "one bit per sensor, in this order, computed by the robot's "
-                     "perception as the task file (sources.task) defines them"},
-        "automaton": {
-            "name": aut.name, "inputs": list(aut.inputs), "free_inputs": list(aut.free_inputs),
-            "modes": modes, "states": states, "initial": list(aut.initial),
-            "edges": [{"from": t.source, "to": t.target, "on": list(t.sensors),
-                       "off": list(t.off)} for t in aut.transitions],
-            "progress": {m: sorted(progress.get(m, ())) for m in modes},
-            "goal_modes": list(goal_modes), "goal_inputs": list(goal_inputs),
-        },
-        "ds": ds,
-        "modulation": {"barrier_rate": DEFAULT_BARRIER_RATE, "degenerate_tol": DEGENERATE_TOL,
-                       "boundary_tol": BOUNDARY_TOL, "guard_tol": GUARD_TOL,
-                       "max_online_cuts": int(max_online_cuts)},
-        "sources": sources,
-    }
 
 
 def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
@@ -235,8 +143,6 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                for i in report.items):
         raise bad_input(GateError, f"{resolved.model}: refused: not a model the gate checked "
                         f"under {root}/models/")
-    setup = session.setup
-    goal_modes = check_goal(setup.automaton, resolved.goal, where=str(resolved.spec))
     try:  # the executive's own checks: certificate coverage, control period, plan per state
         session.policy("LTL-DS")
     except TliError as exc:
@@ -247,9 +153,8 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                "certificate": _hash_or_none(Path(resolved.certificate)),
                "task": _hash_or_none(task_file),
                "evidence": _hash_or_none(Path(resolved.evidence))}
-    art = build_artifact(setup, goal_modes=goal_modes, goal_inputs=resolved.goal.sensors,
-                         sources=sources, max_online_cuts=max_online_cuts)
-    return write_artifact(art, out_json)
+    return write_artifact(artifact_of(session, sources=sources,
+                                      max_online_cuts=max_online_cuts), out_json)
 
 
 def write_artifact(art: dict[str, Any], out: str | os.PathLike[str]) -> Exported:

@@ -52,6 +52,7 @@ from tli_verify.certification.orientation import (
     check_orientation_certificate,
 )
 from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
+from tli_verify.deploy.content import artifact_of
 from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
 from tli_verify.io import read_bytes, read_json, same_file, sha256_file
 from tli_verify.limits import MAX_EXAMPLES
@@ -535,6 +536,32 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
 # --------------------------------------------------------------------------------------------
 
 
+def _content_differs(art: dict[str, Any], model: Path) -> str | None:
+    """What of a deployed artifact's content is not what its model exports to now
+    (:func:`~tli_verify.deploy.content.artifact_of`, with the artifact's own sources and cut
+    storage; the stall rule the current evidence ran), or None. A hash binds the file to its
+    content, not the content to the model: an artifact edited and re-hashed (a matrix, a
+    stall level, an edge) with its ``sources`` left alone is caught here."""
+    try:
+        want = artifact_of(open_project(model=model), sources=art["sources"],
+                           max_online_cuts=int(art["modulation"]["max_online_cuts"]))
+    except TliError as exc:
+        return f"its model does not export: {exc}"
+    for key, value in want.items():
+        have = art.get(key)
+        if key == "tool" or have == value:  # the exporting version may differ
+            continue
+        where = key
+        if isinstance(value, list) and isinstance(have, list) and len(value) == len(have):
+            first = next(i for i, (a, b) in enumerate(zip(value, have, strict=True)) if a != b)
+            where += f"[{first}]"
+        elif isinstance(value, dict) and isinstance(have, dict):
+            where += "".join(f".{k}" for k in value if have.get(k) != value[k])[:80]
+        return (f"its content ({where}) is not what its model exports to now: the artifact "
+                "was edited (and re-hashed) or made from other files; re-export it")
+    return None
+
+
 def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
                   shown: Callable[[Path], str]) -> GateItem:
     """Check an exported policy (``tli export``) against what the gate passed.
@@ -605,6 +632,9 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
     evidence = files.evidence
     if not evidence.is_file():
         return block(f"no campaign evidence {shown(evidence)} for its model", "campaign")
+    differs = _content_differs(art, model)
+    if differs is not None:
+        return block(differs, "content")
     recorded = (src.get("evidence") or {}).get("sha256")
     if recorded == sha256_file(evidence):
         return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "

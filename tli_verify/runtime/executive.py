@@ -88,7 +88,7 @@ from tli_verify.runtime.events import (
 )
 from tli_verify.runtime.growth import Refusal, learn_transition
 from tli_verify.runtime.online import online_cut
-from tli_verify.runtime.stall import StallRule, lyapunov_level, lyapunov_value
+from tli_verify.runtime.stall import StallRule, lyapunov_level, lyapunov_value, reentry_route
 
 if TYPE_CHECKING:
     from tli_verify.logic.spec import GR1Spec
@@ -587,12 +587,21 @@ class LTLDSPolicy:
         ndarray, shape (n,)
             ``M_i(x) f_i(x)`` of the mode's DS (zero while holding).
         """
-        key = self.decide(x, sensors, perturbed=perturbed)
+        key = self.monitor(self.decide(x, sensors, perturbed=perturbed))
         if not key or self._last is None:
             return np.zeros(self.model.dim)
-        if self.stall_rule is not None and self._reentry is None:
-            key = self._monitor_stall(key, self._last)
         return self.model.modes[key].velocity(self._last, dt=self.dt)
+
+    def monitor(self, key: str) -> str:
+        """The assumption monitor's stall test (:mod:`~.stall`) after :meth:`decide` returned
+        ``key``: the DS key to run (the re-entry's when the stall rule fires; ``key`` itself
+        without a rule, while holding or during a re-entry). :meth:`step` is ``decide``, this,
+        and the velocity; a supervisor beside another executive (the exported C evaluator,
+        :mod:`tli_verify.deploy.cloop`) calls the two in the same order."""
+        if not key or self._last is None or self.stall_rule is None or \
+                self._reentry is not None:
+            return key
+        return self._monitor_stall(key, self._last)
 
     # ---------------------------------------------------------------- the stall rule
     def _level(self, key: str) -> float:
@@ -609,15 +618,6 @@ class LTLDSPolicy:
         ds = self.model.modes[key].ds
         return lyapunov_value(ds.attractor, ds.P, x) < self._level(key)
 
-    def _predecessor(self, mode: str) -> tuple[str, str] | None:
-        """``(p, key)``: a mode ``p`` with ``p -> mode`` and ``mode -> p`` mode transitions of
-        the automaton and a DS ``key`` of ``p`` planned into ``mode`` (the first by key)."""
-        graph = {(a, b) for a, b in self.automaton.mode_transitions()}
-        keys = sorted(k for k, mm in self.model.modes.items()
-                      if mm.next_mode == mode and mm.mode != mode
-                      and (mm.mode, mode) in graph and (mode, mm.mode) in graph)
-        return (self.model.modes[keys[0]].mode, keys[0]) if keys else None
-
     def _monitor_stall(self, key: str, x: FloatArray) -> str:
         """The assumption monitor's stall test after a step (:mod:`~.stall`); the DS key to
         run (the predecessor's when the rule fires)."""
@@ -633,16 +633,16 @@ class LTLDSPolicy:
         value = lyapunov_value(ds.attractor, ds.P, x)
         trend = self._stall_trend
         trend.append(value)
-        window = max(2, round(rule.blocked_after / self.dt))
+        dwell, window = rule.periods(self.dt)
         if len(trend) > window:
             trend.popleft()
         blocked = len(trend) == window and value > (1.0 - rule.progress) * trend[0]
         self._stall_count = self._stall_count + 1 if value < self._level(key) else 0
-        if self._stall_count < max(1, round(rule.dwell / self.dt)) and not blocked:
+        if self._stall_count < dwell and not blocked:
             return key
         self._stall_count = 0
         trend.clear()
-        pred = self._predecessor(self._mode)
+        pred = reentry_route(self.automaton, self.model, self._mode)
         if pred is None:
             return key
         via, via_key = pred

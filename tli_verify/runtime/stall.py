@@ -38,15 +38,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from tli_verify.errors import TliError
 
-__all__ = ["StallRule", "lyapunov_level", "lyapunov_value"]
+if TYPE_CHECKING:
+    from tli_verify.logic.automaton import TaskAutomaton
+    from tli_verify.model.types import Model
+
+__all__ = ["STALL_PARAMETERS", "StallRule", "lyapunov_level", "lyapunov_value", "reentry_route"]
 
 FloatArray = npt.NDArray[np.float64]
+
+STALL_PARAMETERS = ("radius", "dwell", "blocked_after", "progress")
+"""The rule's fields, as the evidence and the exported artifact record them."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +90,13 @@ class StallRule:
             raise TliError(f"stall rule: need blocked_after > 0 and 0 <= progress < 1, got "
                            f"{self.blocked_after}, {self.progress}")
 
+    def periods(self, dt: float) -> tuple[int, int]:
+        """``(dwell_steps, window)`` at control period ``dt``: the control steps ``V`` must stay
+        below the level (at least 1) and the steps the blocked test looks back over (at least
+        2), as the executive counts them (Python's ``round``: half to even). The exported C
+        evaluator reads these integers, never recomputes them."""
+        return max(1, round(self.dwell / dt)), max(2, round(self.blocked_after / dt))
+
     def to_dict(self) -> dict[str, float]:
         """The evidence's record."""
         return {"radius": self.radius, "dwell": self.dwell,
@@ -97,3 +112,16 @@ def lyapunov_value(attractor: FloatArray, P: FloatArray, x: FloatArray) -> float
 def lyapunov_level(P: FloatArray, radius: float) -> float:
     """``lambda_min(P) r^2``: ``V`` below it puts the state within ``r`` of the attractor."""
     return float(np.linalg.eigvalsh(np.asarray(P, dtype=np.float64))[0]) * radius * radius
+
+
+def reentry_route(automaton: TaskAutomaton, model: Model, mode: str) -> tuple[str, str] | None:
+    """The stall rule's way back into ``mode``: ``(p, key)``, a mode ``p`` with ``p -> mode``
+    and ``mode -> p`` mode transitions of the automaton and a DS ``key`` of ``p`` planned into
+    ``mode`` (the first by key), or None (``mode`` has no such predecessor: the rule does not
+    fire there). The one definition the executive and the exported artifact
+    (:mod:`tli_verify.deploy.export`) share."""
+    graph = {(a, b) for a, b in automaton.mode_transitions()}
+    keys = sorted(k for k, mm in model.modes.items()
+                  if mm.next_mode == mode and mm.mode != mode
+                  and (mm.mode, mode) in graph and (mode, mm.mode) in graph)
+    return (model.modes[keys[0]].mode, keys[0]) if keys else None

@@ -107,10 +107,19 @@ struct tli_policy {
     uint64_t *e_on, *e_off;
     tli_ds *ds;
     char hex[65];
+    /* the stall rule (runtime.stall): off when window == 0 */
+    long window, dwell_steps;
+    double stall_radius, stall_progress;
+    double *levels;  /* per DS: lambda_min(P) r^2 */
+    int *reentry;    /* per mode: the re-entry DS, -1 none */
+    double *trend;   /* ring of the last `window` values of V */
     /* run state */
     int started, state, mode, planned, cur_ds, holding, pending;
     long steps;
     double entry[TLI_MAX_DIM], last[TLI_MAX_DIM];
+    int re_active, re_mode, stall_state, stall_ds;  /* re-entry under way; (state, DS) watched */
+    uint64_t re_reading;
+    long stall_count, trend_len, trend_head;
     /* the one allocation */
     unsigned char *block;
     size_t used, size;
@@ -319,14 +328,61 @@ static int prepare_cut(const tli_policy *p, tli_ds *d, int j) {
     return 1;
 }
 
+/* 1 when the automaton has an edge from a state of mode a to a state of mode b */
+static int mode_edge(const tli_policy *p, int a, int b) {
+    int s, e;
+    for (s = 0; s < p->n_states; s++) {
+        if (p->st_mode[s] != a) continue;
+        for (e = p->e_start[s]; e < p->e_start[s + 1]; e++)
+            if (p->st_mode[p->e_to[e]] == b) return 1;
+    }
+    return 0;
+}
+
+/* The stall rule's per-DS levels and per-mode re-entry DS, each checked: a level is at most
+ * lambda_min(P) r^2 (so V below it puts x within r of x*: P - (level / r^2)(1 - 1e-6) I must
+ * be positive definite), and a re-entry DS of mode m belongs to a mode p != m, is planned into
+ * m, and the automaton has mode transitions m -> p and p -> m (runtime.stall.reentry_route). */
+static int parse_stall(parser *ps) {
+    tli_policy *p = ps->p;
+    int n = p->n, d, m, i;
+    double r2 = p->stall_radius * p->stall_radius;
+    if (expect(ps, "levels") || read_doubles(ps, p->levels, p->n_ds, "levels")) return ps->code;
+    for (d = 0; d < p->n_ds; d++) {
+        double M[TLI_MAX_DIM * TLI_MAX_DIM], L[TLI_MAX_DIM * TLI_MAX_DIM];
+        double c = p->levels[d] / r2 * (1.0 - 1e-6);
+        if (!(p->levels[d] > 0))
+            return fail(ps, TLI_E_NUMBER, "ds %d: stall level not > 0", d);
+        memcpy(M, p->ds[d].Ps, sizeof(double) * (size_t)n * (size_t)n);
+        for (i = 0; i < n; i++) M[i * n + i] -= c;
+        if (!cholesky(M, L, n))
+            return fail(ps, TLI_E_NUMBER, "ds %d: stall level %.17g is above lambda_min(P) r^2 "
+                        "(V below it would not put x within r = %.17g of x*)", d,
+                        p->levels[d], p->stall_radius);
+    }
+    if (expect(ps, "reentry")) return ps->code;
+    for (m = 0; m < p->n_modes; m++) {
+        const tli_ds *v;
+        if (read_int(ps, -1, p->n_ds - 1, &p->reentry[m], "reentry")) return ps->code;
+        if (p->reentry[m] < 0) continue;
+        v = &p->ds[p->reentry[m]];
+        if (v->mode == m || v->next_mode != m || !mode_edge(p, m, v->mode) ||
+            !mode_edge(p, v->mode, m))
+            return fail(ps, TLI_E_FORMAT, "mode %d: re-entry DS %d is not a DS of a "
+                        "predecessor planned into it (mode %d -> %d, both ways in the "
+                        "automaton)", m, p->reentry[m], v->mode, m);
+    }
+    return TLI_OK;
+}
+
 static int parse(parser *ps) {
     tli_policy *p = ps->p;
     int i, j, n, version = 0, di;
-    long sizes[10], kseen = 0, cseen = 0, q;
-    const char *names[10] = {"dim", "inputs", "modes", "states", "initial", "edges", "ds",
-                             "components", "cuts", "max_online_cuts"};
-    long lims[10] = {TLI_MAX_DIM, TLI_MAX_BITS, TLI_MAX_BITS, 1000000, 1000000, 10000000,
-                     100000, 10000000, 10000000, TLI_MAX_CUTS};
+    long sizes[11], kseen = 0, cseen = 0, q;
+    const char *names[11] = {"dim", "inputs", "modes", "states", "initial", "edges", "ds",
+                             "components", "cuts", "max_online_cuts", "stall window"};
+    long lims[11] = {TLI_MAX_DIM, TLI_MAX_BITS, TLI_MAX_BITS, 1000000, 1000000, 10000000,
+                     100000, 10000000, 10000000, TLI_MAX_CUTS, TLI_MAX_STALL_WINDOW};
     double mod[4];
     if (expect(ps, "tli-policy-text")) return ps->code;
     if (read_int(ps, 0, INT_MAX, &version, "schema version")) return ps->code;
@@ -335,7 +391,7 @@ static int parse(parser *ps) {
                     TLI_POLICY_SCHEMA_VERSION);
     if (expect(ps, "name") || read_name(ps, "name")) return ps->code;
     if (expect(ps, "sizes")) return ps->code;
-    for (i = 0; i < 10; i++)
+    for (i = 0; i < 11; i++)
         if (read_long(ps, i == 0 || i == 3 || i == 4 || i == 6 || i == 7 ? 1 : 0, lims[i],
                       &sizes[i], names[i]))
             return ps->code;
@@ -349,7 +405,9 @@ static int parse(parser *ps) {
     p->total_k = sizes[7];
     p->total_cuts = sizes[8];
     p->max_online = (int)sizes[9];
+    p->window = sizes[10];
     if (n < 2) return fail(ps, TLI_E_SIZE, "dim = %d: at least 2", n);
+    if (p->window == 1) return fail(ps, TLI_E_SIZE, "stall window = 1: 0 (no stall rule) or >= 2");
     if (p->n_modes < 1) return fail(ps, TLI_E_SIZE, "modes = 0");
     p->input_mask = p->n_inputs == 64 ? ~(uint64_t)0 : (((uint64_t)1 << p->n_inputs) - 1u);
     /* the one block: every array, sized from the header */
@@ -362,6 +420,8 @@ static int parse(parser *ps) {
         size_t other = (size_t)p->n_modes * 9 + (size_t)p->n_states * (4 * 4 + 8 + 1 + 8) +
                        (size_t)p->n_initial * 4 + (size_t)(p->n_states + 1) * 4 +
                        (size_t)p->n_edges * (4 + 16) + (size_t)p->n_ds * sizeof(tli_ds) + 64 * 16;
+        dbl += (size_t)p->n_ds + (size_t)p->window;        /* stall levels, trend */
+        other += (size_t)p->n_modes * 4;                    /* re-entry DS per mode */
         p->size = dbl * 8 + other + ((size_t)p->n_ds + 16) * 256;
         if (((size_t)p->n_states + (size_t)p->n_edges + K + (size_t)p->total_cuts) * 2 > ps->len)
             return fail(ps, TLI_E_SIZE, "sizes beyond the file: the header declares more "
@@ -375,6 +435,33 @@ static int parse(parser *ps) {
     p->kappa = mod[0]; p->deg_tol = mod[1]; p->bnd_tol = mod[2]; p->guard_tol = mod[3];
     if (!(p->kappa > 0) || mod[1] < 0 || mod[2] < 0 || mod[3] < 0)
         return fail(ps, TLI_E_NUMBER, "modulation constants must be >= 0 (barrier rate > 0)");
+    {   /* "stall 0", or "stall 1 radius progress dwell_steps window" */
+        int on;
+        long win;
+        double sp[2];
+        if (expect(ps, "stall") || read_int(ps, 0, 1, &on, "stall")) return ps->code;
+        if (on != (p->window > 0))
+            return fail(ps, TLI_E_FORMAT, "stall %d but the header's stall window is %ld", on,
+                        p->window);
+        if (on) {
+            if (read_doubles(ps, sp, 2, "stall") ||
+                read_long(ps, 1, 1000000000L, &p->dwell_steps, "stall dwell steps") ||
+                read_long(ps, 2, TLI_MAX_STALL_WINDOW, &win, "stall window"))
+                return ps->code;
+            if (win != p->window)
+                return fail(ps, TLI_E_SIZE, "stall window %ld, the header says %ld", win,
+                            p->window);
+            if (!(sp[0] > 0) || !(sp[1] >= 0 && sp[1] < 1))
+                return fail(ps, TLI_E_NUMBER, "stall rule: need radius > 0 and 0 <= progress "
+                            "< 1");
+            p->stall_radius = sp[0];
+            p->stall_progress = sp[1];
+            p->levels = (double *)take(ps, (size_t)p->n_ds, 8);
+            p->reentry = (int *)take(ps, (size_t)p->n_modes, 4);
+            p->trend = (double *)take(ps, (size_t)p->window, 8);
+            if (ps->code) return ps->code;
+        }
+    }
     {
         const char *src[5] = {"spec", "model", "certificate", "task", "evidence"};
         for (i = 0; i < 5; i++) {
@@ -537,6 +624,7 @@ static int parse(parser *ps) {
     for (i = 0; i < p->n_states; i++)
         if (p->ds[p->st_ds[i]].mode != p->st_mode[i])
             return fail(ps, TLI_E_FORMAT, "state %d runs a DS of another mode", i);
+    if (p->window > 0 && parse_stall(ps)) return ps->code;
     if (expect(ps, "end")) return ps->code;
     return TLI_OK;
 }
@@ -1035,6 +1123,9 @@ int tli_policy_reset(tli_policy *p, const double *x0, uint64_t reading, tli_step
     p->steps = 0;
     p->pending = 0;
     p->holding = 0;
+    p->re_active = 0;
+    p->stall_count = p->trend_len = p->trend_head = 0;
+    p->stall_state = p->stall_ds = -1;
     for (i = 0; i < p->n_initial; i++)
         if (p->st_inputs[p->initial[i]] == (reading & ~p->free_mask)) { s = p->initial[i]; break; }
     if (s < 0) {
@@ -1060,6 +1151,63 @@ void tli_policy_notify_perturbation(tli_policy *p) {
 
 enum { CAUSE_FAILURE = 0, CAUSE_PERTURBATION = 1, CAUSE_ASSUMPTION = 2 };
 
+/* V = (x - x*)^T P (x - x*) of DS d */
+static double lyapunov(const tli_policy *p, const tli_ds *d, const double *x) {
+    double r[TLI_MAX_DIM], v = 0.0;
+    int i, j, n = p->n;
+    for (i = 0; i < n; i++) r[i] = x[i] - d->attractor[i];
+    for (j = 0; j < n; j++) {
+        double c = 0.0;
+        for (i = 0; i < n; i++) c += r[i] * d->P[i * n + j];
+        v += c * r[j];
+    }
+    return v;
+}
+
+/* The stall rule's test after the automaton step (runtime.stall; LTLDSPolicy.monitor): V of
+ * the DS run below its level for dwell_steps steps (converged), or not down by a fraction
+ * `progress` over the last `window` steps (blocked), with the automaton state and DS unchanged
+ * and no perturbation: the mode is re-entered from its predecessor's DS. */
+static void monitor(tli_policy *p, int perturbed, unsigned *flags) {
+    const tli_ds *d;
+    double value, oldest;
+    int m = p->mode, blocked;
+    if (p->holding || p->is_goal[m]) {
+        p->stall_count = 0;
+        return;
+    }
+    if (p->stall_state != p->state || p->stall_ds != p->cur_ds || perturbed) {
+        p->stall_state = p->state;
+        p->stall_ds = p->cur_ds;
+        p->stall_count = 0;
+        p->trend_len = p->trend_head = 0;
+    }
+    d = &p->ds[p->cur_ds];
+    value = lyapunov(p, d, p->last);
+    if (p->trend_len < p->window) {
+        p->trend[(p->trend_head + p->trend_len) % p->window] = value;
+        p->trend_len++;
+    } else {  /* full: the oldest gives way */
+        p->trend[p->trend_head] = value;
+        p->trend_head = (p->trend_head + 1) % p->window;
+    }
+    oldest = p->trend[p->trend_head];
+    blocked = p->trend_len == p->window && value > (1.0 - p->stall_progress) * oldest;
+    p->stall_count = value < p->levels[p->cur_ds] ? p->stall_count + 1 : 0;
+    if (p->stall_count < p->dwell_steps && !blocked) return;
+    p->stall_count = 0;
+    p->trend_len = p->trend_head = 0;
+    if (p->reentry[m] < 0) return;
+    p->re_active = 1;
+    p->re_mode = m;
+    p->re_reading = p->st_inputs[p->state];
+    p->cur_ds = p->reentry[m];
+    p->mode = p->ds[p->cur_ds].mode;
+    p->planned = m;
+    memcpy(p->entry, p->last, sizeof(double) * (size_t)p->n);
+    *flags |= TLI_F_STALL | TLI_F_MODE_CHANGE;
+}
+
 int tli_policy_decide(tli_policy *p, const double *x, uint64_t reading, int perturbed,
                       tli_step_info *info) {
     int cause, new_state, new_mode, old_mode, planned, n;
@@ -1072,6 +1220,22 @@ int tli_policy_decide(tli_policy *p, const double *x, uint64_t reading, int pert
     perturbed = perturbed || p->pending;
     p->pending = 0;
     if (perturbed) flags |= TLI_F_PERTURBED;
+    if (p->re_active) {  /* the stall rule's re-entry: until its DS converges or the reading changes */
+        int converged = lyapunov(p, &p->ds[p->cur_ds], x) < p->levels[p->cur_ds];
+        memcpy(p->last, x, sizeof(double) * (size_t)n);
+        if (reading == p->re_reading && !converged) {
+            fill(p, info, flags);  /* a perturbation does not end it */
+            return TLI_OK;
+        }
+        p->re_active = 0;
+        p->pending = perturbed;  /* a changed reading is the next period's automaton step */
+        enter(p, p->state);
+        memcpy(p->entry, x, sizeof(double) * (size_t)n);
+        flags |= TLI_F_REENTERED | TLI_F_MODE_CHANGE;
+        monitor(p, perturbed, &flags);
+        fill(p, info, flags);
+        return TLI_OK;
+    }
     cause = perturbed ? CAUSE_PERTURBATION : CAUSE_FAILURE;
     if (p->holding && !perturbed) cause = CAUSE_ASSUMPTION;
     new_state = next_state(p, p->state, reading);
@@ -1113,6 +1277,7 @@ int tli_policy_decide(tli_policy *p, const double *x, uint64_t reading, int pert
         if (perturbed) memcpy(p->entry, x, sizeof(double) * (size_t)n);
     }
     memcpy(p->last, x, sizeof(double) * (size_t)n);
+    if (p->window > 0) monitor(p, perturbed, &flags);
     fill(p, info, flags);
     return TLI_OK;
 }

@@ -4,8 +4,9 @@
  *
  * Loads the text form (NAME.tli.txt) that `tli export` writes next to NAME.tli.json,
  * validates it (magic and schema version, sizes against the header, finite numbers, SPD P,
- * unit cut normals with x* inside, its own SHA-256), then runs one call per control period:
- * sensor bits in -> automaton state, mode and modulated velocity out.
+ * unit cut normals with x* inside, stall levels and re-entry DS, its own SHA-256), then runs
+ * one call per control period: sensor bits in -> automaton state, mode and modulated velocity
+ * out, with the executive's stall rule when the artifact carries one (runtime.stall).
  *
  * Needs libc and libm only. All memory is allocated by tli_policy_load (one block);
  * reset/decide/velocity/step/add_cut never allocate. Not thread-safe per policy object:
@@ -25,11 +26,12 @@
 extern "C" {
 #endif
 
-#define TLI_POLICY_SCHEMA_VERSION 1
+#define TLI_POLICY_SCHEMA_VERSION 2
 #define TLI_MAX_DIM 32          /* largest state dimension n */
 #define TLI_MAX_BITS 64         /* most sensors, most modes (one 64-bit mask each) */
 #define TLI_MAX_CUTS 64         /* most cuts per DS: the model's plus the online storage */
 #define TLI_MAX_COMPONENTS 256  /* most GMM components per DS */
+#define TLI_MAX_STALL_WINDOW 10000000L /* most control steps the stall rule looks back over */
 
 /* status codes (0 = ok) */
 enum {
@@ -54,6 +56,9 @@ enum {
 #define TLI_F_HOLDING 16u      /* no automaton state matches: zero velocity */
 #define TLI_F_DONE 32u         /* a goal mode (with the goal sensors true) */
 #define TLI_F_PERTURBED 64u    /* the step was reported perturbed */
+#define TLI_F_STALL 128u       /* the stall rule fired: the mode's DS converged (or is blocked)
+                                  without the next reading; the predecessor's DS re-enters it */
+#define TLI_F_REENTERED 256u   /* the re-entry ended: back to the stalled mode */
 
 typedef struct tli_policy tli_policy;
 
