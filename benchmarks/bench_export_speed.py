@@ -1,6 +1,7 @@
 """One control step of the exported policy in C against the Python runtime (issue 36).
 
-The step a 1 kHz controller calls: the automaton update on the reading plus the modulated
+The step a 1 kHz controller calls: the automaton update on the reading, the stall rule's test
+(``tli_verify.runtime.stall``, as the Franka artifact carries it) and the modulated
 LPV-DS, at ``n = 7`` with ``K = 10`` components per DS and 3 cuts on the DS being run (the
 written task of ``tests/support/ndtask.py``, certified at dt = 1/100). The same 2,000 states
 (around the attractor of the DS run, most of them inside its cuts, so eq. 7 and the guard's
@@ -92,13 +93,15 @@ def measure(n: int = 7, K: int = 10, cuts: int = 3, states: int = 2000, seed: in
     from tests.support.cpolicy import build, library
     from tests.support.ndtask import write_nd
     from tli_verify.deploy.export import build_artifact, write_artifact
+    from tli_verify.runtime.stall import StallRule
 
     with tempfile.TemporaryDirectory() as d, threadpool_limits(1):
         tmp = Path(d)
         nd = write_nd(tmp, n, K=K, seed=seed, cuts=cuts)
         art = build_artifact(nd.setup, goal_modes=("d",), goal_inputs=(),
                              sources={k: None for k in ("spec", "model", "certificate",
-                                                        "task", "evidence")})
+                                                        "task", "evidence")},
+                             stall=StallRule())
         ex = write_artifact(art, tmp / "bench.tli.json")
         mm = nd.model.modes["a"]
         rng = np.random.default_rng(seed)
@@ -142,7 +145,10 @@ def _one_set(X: np.ndarray, tmp: Path, ex: Any, exe: Path, lib: Any, nd: Any, mm
     X.astype("<f8").tofile(tmp / "states.bin")
     # agreement first (ctypes), and how often the guard's projection runs
     c = CPolicy(lib, ex.text_path)
+    from tli_verify.runtime.stall import StallRule
+
     pol = LTLDSPolicy(nd.automaton, nd.model, nd.certificate, dt=0.01)
+    pol.stall_rule = StallRule()  # as deployed: its V test runs every step, on both sides
     pol.reset(X[0], {})
     c.reset(X[0], 0)
     worst, guard, inside = 0.0, 0, 0
@@ -180,7 +186,8 @@ def main(out_dir: Path) -> str:
     lines = [
         "## Exported policy: one control step, C evaluator vs Python runtime",
         "",
-        f"Automaton update + modulated LPV-DS, n = {r['n']}, K = {r['K']} components, "
+        f"Automaton update + the stall rule's test + modulated LPV-DS, n = {r['n']}, "
+        f"K = {r['K']} components, "
         f"{r['cuts']} cuts on the DS run (the written task of tests/support/ndtask.py); "
         f"the same {r['states']} states and reading for both: around the DS's attractor, and "
         "at corners (within 1e-4 of two cut planes, where the corner guard may project). C "

@@ -78,7 +78,14 @@ from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.runtime.handoff import context_for_spec, learn_handoffs
 from tli_verify.runtime.setup import VARIANTS, check_goal
 from tli_verify.snapshot import active, current
-from tli_verify.tasks.project import model_files, pose_blocks, resolve, spec_inputs, spec_task
+from tli_verify.tasks.project import (
+    model_files,
+    pose_blocks,
+    resolve,
+    spec_inputs,
+    spec_state_names,
+    spec_task,
+)
 from tli_verify.tasks.registry import find_task
 from tli_verify.tasks.task import Task
 
@@ -195,7 +202,8 @@ def learn(demos: Sequence[PathLike | Demonstration], *, spec: PathLike | GR1Spec
         groups = pose_blocks(spec_path) if blocks is None else _blocks(blocks)
         model = learn_model(paths, out_path=target, spec_path=spec_path, seed=seed, eps=eps,
                             rate=rate, rate_budget=rate_budget, control_dt=dt,
-                            clustering=clustering, lyapunov=lyapunov, blocks=groups)
+                            clustering=clustering, lyapunov=lyapunov, blocks=groups,
+                            state_names=spec_state_names(spec_path))
         if handoff and spec_path is not None:
 
             ctx = context_for_spec(spec_path)

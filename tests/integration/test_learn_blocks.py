@@ -3,6 +3,7 @@ the orientation at coordinates 2-4), so the default blocks follow the task's own
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -137,3 +138,18 @@ def test_bad_blocks_through_the_python_api_are_one_model_error(
     with pytest.raises(ModelError, match="blocks"):
         tli.learn(demos, spec=project / "specs" / "tilt5.toml", handoff=False,
                   blocks=blocks)  # type: ignore[arg-type]
+
+
+def test_a_model_names_its_coordinates_as_its_task_does(project: Path) -> None:
+    """Through the Python API: the learned model's ``state_names`` are the task's (the
+    artifact, pictures and the gate's messages read them), and demonstrations of another
+    dimension than the task's are one ModelError naming both."""
+    task = tli.load_task(project / "tasks" / "tilt5.toml")
+    spec = project / "specs" / "tilt5.toml"
+    model = tli.learn(task.demonstrate(seed=0, n_demos=1), spec=spec, handoff=False)
+    assert model.state_names == ("x", "y", "rx", "ry", "rz")
+    short = [dataclasses.replace(d, x=d.x[:, :4], dx=d.dx[:, :4])
+             for d in task.demonstrate(seed=0, n_demos=1)]
+    with pytest.raises(ModelError, match=r"task names 5 state coordinates \(x, y, rx, ry, rz\)"
+                                         r", the demonstrations have 4"):
+        tli.learn(short, spec=spec, handoff=False)

@@ -163,8 +163,10 @@ def test_a_pose_task_goes_through_learn_certify_run_and_verify(
                              str(project / "specs" / "pour.toml"), "-o", str(model),
                              "--no-handoff")  # the offline step: the slow test below
     assert code == 0, err
-    # a pose task: position and orientation decoupled in every A_k, recorded in the fit
+    # a pose task: position and orientation decoupled in every A_k, recorded in the fit; the
+    # model names its coordinates as the task does (not x0 .. x5)
     learned = tli.load_model(model)
+    assert learned.state_names == ("x", "y", "z", "rx", "ry", "rz")
     for mm in learned.modes.values():
         assert mm.fit["blocks"] == [[3, 4, 5]]
         A = np.asarray(mm.ds.A)

@@ -37,7 +37,7 @@ from tli_verify.model.serialize import load_model, save_model
 from tli_verify.plotting import save_figure
 from tli_verify.project import control_period
 from tli_verify.runtime.handoff import context_for_spec, handoff_status, learn_handoffs
-from tli_verify.tasks.project import model_files, pose_blocks, spec_task
+from tli_verify.tasks.project import model_files, pose_blocks, spec_state_names, spec_task
 
 __all__ = ["demo_stage", "register"]
 
@@ -272,7 +272,8 @@ def _learn(args: argparse.Namespace) -> int:
                         rate_budget=RATE_BUDGET if args.rate_budget is None else args.rate_budget,
                         clustering="em-bic" if args.baseline else "pc-gmm",
                         lyapunov="identity" if args.baseline else "p-qlf",
-                        blocks=pose_blocks(args.spec) if args.blocks is None else args.blocks)
+                        blocks=pose_blocks(args.spec) if args.blocks is None else args.blocks,
+                        state_names=spec_state_names(args.spec))
     handoff = None
     if not args.no_handoff and args.spec is not None:
 

@@ -53,6 +53,7 @@ def learn_model(
     clustering: Clustering = "pc-gmm",
     lyapunov: LyapunovKind = "p-qlf",
     blocks: Sequence[Sequence[int]] = (),
+    state_names: Sequence[str] | None = None,
 ) -> Model:
     """Demonstrations -> segments -> one certified-to-be LPV-DS per mode (paper Sec. 5.1).
 
@@ -93,6 +94,9 @@ def learn_model(
         Groups of coordinates every ``A_k`` keeps decoupled (:func:`tli_verify.api.learn`
         passes a pose task's orientation; see :func:`tli_verify.ds.lpvds.learn_lpvds`).
         Recorded in each DS's ``fit`` as ``blocks``.
+    state_names : sequence of str, optional
+        The coordinates' names (the spec's task's ``[state] names``: :func:`tli_verify.api.learn`
+        passes them); default ``x0 .. x{n-1}``.
 
     Returns
     -------
@@ -114,7 +118,14 @@ def learn_model(
     else:
         demos = load_demos(demo_paths)
         seg = segment_demos(demos)
-    names = tuple(f"x{i}" for i in range(demos[0].dim))
+    if state_names is None:
+        names = tuple(f"x{i}" for i in range(demos[0].dim))
+    else:
+        names = tuple(str(v) for v in state_names)
+        if len(names) != demos[0].dim:
+            raise ModelError(f"the task names {len(names)} state coordinates "
+                             f"({', '.join(names)[:200]}), the demonstrations have "
+                             f"{demos[0].dim}")
     seen: set[int] = set()
     for group in blocks:
         for c in group:

@@ -215,6 +215,16 @@ def pose_blocks(spec_path: str | os.PathLike[str] | None) -> tuple[tuple[int, ..
     return () if chart is None else (tuple(range(chart.start, chart.start + 3)),)
 
 
+def spec_state_names(spec_path: str | os.PathLike[str] | None) -> tuple[str, ...] | None:
+    """The state coordinates' names of the task a spec names (``[state] names``), or None
+    without a spec or when the spec names no task: what a model learned for that spec calls
+    its coordinates (:func:`tli_verify.model.learn.learn_model`)."""
+    if spec_path is None:
+        return None
+    task = spec_task(load_spec(spec_path), spec_path)
+    return None if task is None else tuple(task.state_names)
+
+
 def spec_inputs(spec: str | os.PathLike[str] | None) -> list[Path]:
     """The files a spec implies: the spec itself and the task file it names (when that task
     is a file). What every writer that reads the spec must not overwrite (the read/write rule,
