@@ -26,6 +26,13 @@ def test_export_writes_a_self_describing_artifact_bound_to_its_sources(project: 
     art = check_artifact(out)  # schema + its own hash
     assert art == json.loads(out.read_text())
     assert art["format"] == "tli-policy" and art["schema_version"] == 2
+    # an artifact of the earlier schema (no stall rule) is named as such, not as a bad file
+    old = dict(art, schema_version=1)
+    old.pop("stall")
+    v1 = tmp_path / "v1.tli.json"
+    v1.write_text(json.dumps(old))
+    with pytest.raises(ExportError, match="schema version 1; this tli-verify reads version 2"):
+        check_artifact(v1)
     assert art["content_sha256"] == ex.content_sha256
     # the text form: the same content, the same hash on its closing line
     text = text_path_for(out).read_text()

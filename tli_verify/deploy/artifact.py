@@ -165,6 +165,13 @@ def check_artifact(path: str | os.PathLike[str]) -> dict[str, Any]:
         (exit 2).
     """
     data = read_json(path, what="policy artifact", error=ExportError)
+    if isinstance(data, dict) and data.get("format") == FORMAT:
+        version = data.get("schema_version")
+        if isinstance(version, int) and not isinstance(version, bool) and \
+                version != SCHEMA_VERSION:
+            raise bad_input(ExportError, f"{path}: a policy artifact of schema version "
+                            f"{version}; this tli-verify reads version {SCHEMA_VERSION} "
+                            "(re-export it with tli export)")
     validate_schema(data, "policy.schema.json", where=str(path), error=ExportError)
     body = {k: v for k, v in data.items() if k != "content_sha256"}
     try:
