@@ -25,7 +25,7 @@ from tests.support.cpolicy import (
     library,
     mask,
 )
-from tests.support.ndtask import write_nd
+from tests.support.ndtask import SPEC, write_nd
 from tli_verify.deploy.export import build_artifact, write_artifact
 from tli_verify.runtime.events import Reentered, Stall
 from tli_verify.runtime.executive import LTLDSPolicy
@@ -44,8 +44,8 @@ def lib(tmp_path_factory: pytest.TempPathFactory) -> Any:
     return library(build(tmp_path_factory.mktemp("cbuild")))
 
 
-def _exported(root: Path, n: int, rule: StallRule | None = RULE) -> Any:
-    nd = write_nd(root, n, K=3, seed=n)
+def _exported(root: Path, n: int, rule: StallRule | None = RULE, spec_text: str = SPEC) -> Any:
+    nd = write_nd(root, n, K=3, seed=n, spec_text=spec_text)
     art = build_artifact(nd.setup, goal_modes=("d",), goal_inputs=(), sources=NO_SOURCES,
                          max_online_cuts=8, stall=rule)
     nd.exported = write_artifact(art, root / "nd.tli.json")
@@ -181,6 +181,12 @@ def test_the_loader_refuses_a_forged_stall_rule(lib: Any, tmp_path: Path) -> Non
     err = _refused(lib, _rehash(body.replace(reentry.group(0), "reentry " + " ".join(
         map(str, bad)))), tmp_path)
     assert err.code == 2 and "re-entry DS" in err.message
+    # no re-entry for b although a's DS could re-enter it (the rule silently off there)
+    bad = list(route)
+    bad[b] = -1
+    err = _refused(lib, _rehash(body.replace(reentry.group(0), "reentry " + " ".join(
+        map(str, bad)))), tmp_path)
+    assert err.code == 2 and "no re-entry DS" in err.message
     # a re-entry into a mode with no way back (d, the goal: d -> c is not a transition)
     bad = list(route)
     bad[modes.index("d")] = next(i for i, k in enumerate(keys)
@@ -197,3 +203,67 @@ def test_the_loader_refuses_a_forged_stall_rule(lib: Any, tmp_path: Path) -> Non
     # a rule switched off in the body but not in the header
     err = _refused(lib, _rehash(body.replace(stall.group(0), "stall 0")), tmp_path)
     assert err.code == 2 and "stall 0" in err.message
+
+
+def _side_by_side(lib: Any, nd: Any, rule: StallRule) -> tuple[LTLDSPolicy, CPolicy, Any]:
+    pol = LTLDSPolicy(nd.automaton, nd.model, nd.certificate, dt=0.01, learn_cuts=False)
+    pol.stall_rule = rule
+    return pol, CPolicy(lib, nd.exported.text_path), nd.exported.artifact["automaton"]
+
+
+def test_an_input_the_strategy_never_reads_does_not_end_a_reentry(lib: Any,
+                                                                   tmp_path: Path) -> None:
+    """A free input (declared, never read by the strategy, so no state records it) read true
+    is not a changed reading: the re-entry runs until its DS converges. It used to end every
+    re-entry on its first step (the raw reading against the state's recorded inputs)."""
+    nd = _exported(tmp_path, 2, spec_text=SPEC.replace('inputs  = ["r", "s", "t"]',
+                                                        'inputs  = ["r", "s", "t", "z"]'))
+    assert "z" in nd.automaton.free_inputs
+    pol, c, aut = _side_by_side(lib, nd, RULE)
+    kb = next(k for k, m in nd.model.modes.items() if m.mode == "b")
+    ka = next(k for k, m in nd.model.modes.items() if m.mode == "a")
+    xb = nd.model.modes[kb].ds.attractor.copy()
+    xa = nd.model.modes[ka].ds.attractor.copy()
+    pol.reset(xb, {"z"})
+    c.reset(xb, mask({"z"}, aut["inputs"]))
+    reading = frozenset({"r", "z"})
+    x = xb.copy()
+    for _ in range(400):  # converged in b: fires; a's DS then runs to a's attractor
+        v = pol.step(x, reading)
+        info = c.decide(x, mask(reading, aut["inputs"]), False)
+        assert np.array_equal(v, c.velocity())
+        assert (aut["modes"][info.mode], info.state) == (pol.mode, pol.state)
+        x = x + 0.01 * v
+        if any(isinstance(e, Reentered) for e in pol.events):
+            break
+    (back,) = [e for e in pol.events if isinstance(e, Reentered)]
+    assert back.converged  # ended by a's DS converging, not by the free input
+    assert np.linalg.norm(x - xa) < np.linalg.norm(xb - xa)
+
+
+def test_a_reentry_ended_by_a_new_reading_lets_the_automaton_take_it(lib: Any,
+                                                                      tmp_path: Path) -> None:
+    """With a one-step dwell (``dwell=0``), a re-entry ended by the next mode's reading used to
+    fire again in the same period, before the automaton saw the reading, and again each time
+    (the state held: forever). The period that ends a re-entry runs no stall test, so the
+    automaton takes the reading in the next one."""
+    nd = _exported(tmp_path, 2, rule=StallRule(radius=0.5, dwell=0.0, blocked_after=0.3,
+                                               progress=0.005))
+    pol, c, aut = _side_by_side(lib, nd, StallRule(radius=0.5, dwell=0.0, blocked_after=0.3,
+                                                   progress=0.005))
+    kb = next(k for k, m in nd.model.modes.items() if m.mode == "b")
+    xb = nd.model.modes[kb].ds.attractor.copy()
+    pol.reset(xb, frozenset())
+    c.reset(xb, 0)
+    for reading in ({"r"}, {"r"}):  # enter b at its attractor: the rule fires at once
+        pol.step(xb, reading)
+        c.decide(xb, mask(reading, aut["inputs"]), False)
+    assert pol.mode == "a" and any(isinstance(e, Stall) for e in pol.events)
+    modes = []
+    for _ in range(4):  # c's reading arrives; the state held where b had converged
+        pol.step(xb, {"s"})
+        info = c.decide(xb, mask({"s"}, aut["inputs"]), False)
+        assert aut["modes"][info.mode] == pol.mode
+        modes.append(pol.mode)
+    assert modes[:2] == ["b", "c"], modes  # back to b, then the automaton takes s
+    assert sum(isinstance(e, Stall) for e in pol.events) == 1

@@ -98,10 +98,12 @@ def _ds(rng: np.random.Generator, mode: str, nxt: str | None, att: np.ndarray, K
 
 
 def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0,
-             cuts: int = 0) -> SimpleNamespace:
+             cuts: int = 0, spec_text: str = SPEC) -> SimpleNamespace:
     """Write spec, model and certificate of the n-D task under ``root``; return the policy's
     pieces (``automaton``, ``model``, ``certificate``, ``spec``, ``setup`` for
-    :func:`tli_verify.deploy.export.build_artifact`); ``cuts`` offline cuts per DS."""
+    :func:`tli_verify.deploy.export.build_artifact`); ``cuts`` offline cuts per DS;
+    ``spec_text`` another spec over the same modes (e.g. with an input the strategy never
+    reads)."""
     from tli_verify.certification.certificate import issue_certificate, write_certificate
     from tli_verify.logic.check import synthesize
     from tli_verify.logic.spec import parse_spec
@@ -110,7 +112,7 @@ def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0
     rng = np.random.default_rng(seed)
     for d in ("specs", "models", "certificates"):
         (root / d).mkdir(parents=True, exist_ok=True)
-    (root / "specs" / "nd.toml").write_text(SPEC)
+    (root / "specs" / "nd.toml").write_text(spec_text)
     e0 = np.r_[1.0, np.zeros(n - 1)]
     modes = {m: _ds(rng, m, nxt, x0 * e0, K, spin, cuts)
              for m, nxt, x0 in (("a", "b", 1.5), ("b", "c", 2.5), ("c", "d", 3.5),
@@ -121,7 +123,7 @@ def write_nd(root: Path, n: int, *, K: int = 3, seed: int = 0, spin: float = 2.0
     save_model(model_from_dict(doc, path=str(mpath)), mpath)
     cpath = root / "certificates" / "nd.cert.json"
     write_certificate(issue_certificate(mpath, cert_path=cpath, dt="1/100"), cpath)
-    spec = parse_spec(SPEC)
+    spec = parse_spec(spec_text)
     automaton = synthesize(spec)
     model = load_model(mpath)
     setup = SimpleNamespace(automaton=automaton, model=model, task=SimpleNamespace(dt=DT))

@@ -536,30 +536,60 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
 # --------------------------------------------------------------------------------------------
 
 
+CONTENT_REL_TOL = 1e-9
+"""Relative tolerance of the gate's comparison of an artifact's numbers with the ones its model
+exports to now: they are re-derived (the GMM's quadratic form, the stall levels), and BLAS
+kernels sum in other orders on other CPUs, so the last bits differ between machines."""
+
+
+def _first_difference(want: object, have: object, where: str) -> str | None:
+    """The path of the first place ``have`` is not ``want`` (numbers within
+    :data:`CONTENT_REL_TOL` relative; everything else exactly), or None."""
+    if isinstance(want, dict):
+        if not isinstance(have, dict) or set(have) != set(want):
+            return where
+        for k, v in want.items():
+            found = _first_difference(v, have[k], f"{where}.{k}" if where else str(k))
+            if found is not None:
+                return found
+        return None
+    if isinstance(want, list):
+        if not isinstance(have, list) or len(have) != len(want):
+            return where
+        for i, (a, b) in enumerate(zip(want, have, strict=True)):
+            found = _first_difference(a, b, f"{where}[{i}]")
+            if found is not None:
+                return found
+        return None
+    if isinstance(want, float) and isinstance(have, float | int) and \
+            not isinstance(have, bool):
+        scale = max(1.0, abs(want), abs(float(have)))
+        return None if abs(want - float(have)) <= CONTENT_REL_TOL * scale else where
+    return None if (type(want) is type(have) and want == have) else where
+
+
 def _content_differs(art: dict[str, Any], model: Path) -> str | None:
     """What of a deployed artifact's content is not what its model exports to now
     (:func:`~tli_verify.deploy.content.artifact_of`, with the artifact's own sources and cut
     storage; the stall rule the current evidence ran), or None. A hash binds the file to its
     content, not the content to the model: an artifact edited and re-hashed (a matrix, a
-    stall level, an edge) with its ``sources`` left alone is caught here."""
+    stall level, an edge) with its ``sources`` left alone is caught here. Numbers compare
+    within :data:`CONTENT_REL_TOL`; the exporting ``tool`` version may differ."""
     try:
         want = artifact_of(open_project(model=model), sources=art["sources"],
                            max_online_cuts=int(art["modulation"]["max_online_cuts"]))
     except TliError as exc:
         return f"its model does not export: {exc}"
-    for key, value in want.items():
-        have = art.get(key)
-        if key == "tool" or have == value:  # the exporting version may differ
-            continue
-        where = key
-        if isinstance(value, list) and isinstance(have, list) and len(value) == len(have):
-            first = next(i for i, (a, b) in enumerate(zip(value, have, strict=True)) if a != b)
-            where += f"[{first}]"
-        elif isinstance(value, dict) and isinstance(have, dict):
-            where += "".join(f".{k}" for k in value if have.get(k) != value[k])[:80]
-        return (f"its content ({where}) is not what its model exports to now: the artifact "
-                "was edited (and re-hashed) or made from other files; re-export it")
-    return None
+    want.pop("tool", None)
+    have = {k: v for k, v in art.items() if k not in ("tool", "content_sha256")}
+    where = _first_difference(want, have, "")
+    if where is None:
+        return None
+    if where.startswith("stall"):
+        return (f"its stall rule ({where}) is not the one the current campaign evidence ran "
+                "(or its levels and re-entries are not the model's): re-export it")
+    return (f"its content ({where}) is not what its model exports to now: the artifact was "
+            "edited (and re-hashed) or made from other files; re-export it")
 
 
 def artifact_item(path: Path, base: Path, items: Sequence[GateItem],

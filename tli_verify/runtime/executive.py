@@ -205,6 +205,7 @@ class LTLDSPolicy:
         "_plan_cache",
         "_planned",
         "_progress",
+        "_reentered_at",
         "_reentry",
         "_refused",
         "_spec_text",
@@ -293,6 +294,7 @@ class LTLDSPolicy:
         self._stall_trend: deque[float] = deque()
         self._pending_seen = False
         self._reentry: tuple[str, str, str, frozenset[str]] | None = None
+        self._reentered_at = -1
 
     def drop_cuts(self) -> None:
         """Run the nominal DS of every mode from now on: the model's cuts -- the ones learned
@@ -414,6 +416,7 @@ class LTLDSPolicy:
         self._holding = False
         self._state = None
         self._reentry = None
+        self._reentered_at = -1
         self._stall_count = 0
         self._stall_at = (None, "")
         self._stall_trend = deque()
@@ -503,7 +506,8 @@ class LTLDSPolicy:
             mode, via, via_key, reading0 = self._reentry
             converged = self._converged(via_key, xv)
             self._last = xv
-            if reading == reading0 and not converged:
+            free = frozenset(self.automaton.free_inputs)  # never recorded in a state's inputs
+            if reading - free == reading0 and not converged:
                 return via_key  # a perturbation does not end it: the DS of via rides it out
             # back to the stalled mode (its automaton state was kept); a changed reading (or
             # a perturbation reported in this period) is the next period's step, from there
@@ -514,6 +518,7 @@ class LTLDSPolicy:
             self.events.append(Reentered(t, mode, via, converged))
             self.events.append(ModeChange(t, via, mode, self._state, True))
             self._entry = xv
+            self._reentered_at = t  # no stall test in this period (:meth:`monitor`)
             return self._key
         was_holding = self._holding
         if was_holding and not perturbed:
@@ -599,7 +604,10 @@ class LTLDSPolicy:
         and the velocity; a supervisor beside another executive (the exported C evaluator,
         :mod:`tli_verify.deploy.cloop`) calls the two in the same order."""
         if not key or self._last is None or self.stall_rule is None or \
-                self._reentry is not None:
+                self._reentry is not None or self._reentered_at == self._steps:
+            # a period that ended a re-entry is the return's: were the test run in it (with a
+            # dwell of one step), a re-entry ended by a new reading would fire again before
+            # the automaton saw that reading, and loop for as long as V stays low
             return key
         return self._monitor_stall(key, self._last)
 

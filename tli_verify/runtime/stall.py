@@ -104,9 +104,23 @@ class StallRule:
 
 
 def lyapunov_value(attractor: FloatArray, P: FloatArray, x: FloatArray) -> float:
-    """``V(x) = (x - x*)^T P (x - x*)``, the DS's certified Lyapunov function."""
+    """``V(x) = (x - x*)^T P (x - x*)``, the DS's certified Lyapunov function.
+
+    Summed in a fixed order, the exported C evaluator's (``tli_policy.c``, ``lyapunov``):
+    ``c_j = sum_i d_i P_ij`` over ``i`` in turn, then ``sum_j c_j d_j`` over ``j`` in turn,
+    each product and sum rounded once. ``d @ P @ d`` goes through BLAS, whose kernels sum in
+    other orders, so its last bit differed from the C loop's for a third to two thirds of
+    states, and at ``V`` within a rounding of a level the stall rule fired on one side only.
+    """
     d = np.asarray(x, dtype=np.float64) - attractor
-    return float(d @ P @ d)
+    Pm = np.asarray(P, dtype=np.float64)
+    c = d[0] * Pm[0]
+    for i in range(1, d.shape[0]):
+        c = c + d[i] * Pm[i]
+    v = 0.0
+    for cj, dj in zip(c.tolist(), d.tolist(), strict=True):
+        v += cj * dj
+    return v
 
 
 def lyapunov_level(P: FloatArray, radius: float) -> float:

@@ -364,7 +364,18 @@ static int parse_stall(parser *ps) {
     for (m = 0; m < p->n_modes; m++) {
         const tli_ds *v;
         if (read_int(ps, -1, p->n_ds - 1, &p->reentry[m], "reentry")) return ps->code;
-        if (p->reentry[m] < 0) continue;
+        if (p->reentry[m] < 0) {  /* none: only where no DS could re-enter m */
+            int d2;
+            for (d2 = 0; d2 < p->n_ds; d2++) {
+                const tli_ds *w = &p->ds[d2];
+                if (w->mode != m && w->next_mode == m && mode_edge(p, m, w->mode) &&
+                    mode_edge(p, w->mode, m))
+                    return fail(ps, TLI_E_FORMAT, "mode %d: no re-entry DS, but DS %d of a "
+                                "predecessor is planned into it (the rule would be off there)",
+                                m, d2);
+            }
+            continue;
+        }
         v = &p->ds[p->reentry[m]];
         if (v->mode == m || v->next_mode != m || !mode_edge(p, m, v->mode) ||
             !mode_edge(p, v->mode, m))
@@ -1223,7 +1234,7 @@ int tli_policy_decide(tli_policy *p, const double *x, uint64_t reading, int pert
     if (p->re_active) {  /* the stall rule's re-entry: until its DS converges or the reading changes */
         int converged = lyapunov(p, &p->ds[p->cur_ds], x) < p->levels[p->cur_ds];
         memcpy(p->last, x, sizeof(double) * (size_t)n);
-        if (reading == p->re_reading && !converged) {
+        if ((reading & ~p->free_mask) == p->re_reading && !converged) {
             fill(p, info, flags);  /* a perturbation does not end it */
             return TLI_OK;
         }
@@ -1232,8 +1243,7 @@ int tli_policy_decide(tli_policy *p, const double *x, uint64_t reading, int pert
         enter(p, p->state);
         memcpy(p->entry, x, sizeof(double) * (size_t)n);
         flags |= TLI_F_REENTERED | TLI_F_MODE_CHANGE;
-        monitor(p, perturbed, &flags);
-        fill(p, info, flags);
+        fill(p, info, flags);  /* no stall test in the return's period (as the executive) */
         return TLI_OK;
     }
     cause = perturbed ? CAUSE_PERTURBATION : CAUSE_FAILURE;

@@ -31,7 +31,7 @@ extern "C" {
 #define TLI_MAX_BITS 64         /* most sensors, most modes (one 64-bit mask each) */
 #define TLI_MAX_CUTS 64         /* most cuts per DS: the model's plus the online storage */
 #define TLI_MAX_COMPONENTS 256  /* most GMM components per DS */
-#define TLI_MAX_STALL_WINDOW 10000000L /* most control steps the stall rule looks back over */
+#define TLI_MAX_STALL_WINDOW 1000000L /* most control steps the stall rule looks back over */
 
 /* status codes (0 = ok) */
 enum {
@@ -80,7 +80,7 @@ typedef struct {
 /* Load and validate a text-form artifact. Returns TLI_OK and *out, or a code and a message
  * in err (always NUL-terminated when errlen > 0); *out is NULL on error. */
 int tli_policy_load(const char *path, tli_policy **out, char *err, size_t errlen);
-/* The same from a buffer (not NUL-terminated needed; copied). */
+/* The same from a buffer (need not be NUL-terminated; only read during the call). */
 int tli_policy_load_buffer(const char *data, size_t len, tli_policy **out, char *err,
                            size_t errlen);
 void tli_policy_free(tli_policy *p);
