@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 
 pytest.importorskip("mujoco")
@@ -94,6 +96,32 @@ def test_the_c_evaluator_drives_the_panda_and_the_evidence_names_it(
     # one trial: only the campaign's size blocks (the gate wants 30)
     assert len(check.problems) == 1 and "fewer than the minimum 30" in check.problems[0]
     assert ex.content_sha256 in _evaluator_note(dict(check.physics))
+
+
+def test_the_gate_reruns_the_deployed_artifact_in_the_c_evaluator(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``tli gate --artifact`` on a physical campaign: the artifact itself drives the Panda in
+    a re-run trial (C evaluator in the loop, its own derived seed). A broken evaluator that
+    the Python executive beside it cannot mask -- velocities all zero -- blocks the gate."""
+    from tests.support.sim import require_panda
+    from tli_verify.deploy.cloop import CEvaluator
+    from tli_verify.deploy.gate import run_gate
+
+    require_panda()
+    franka = bundled_dir("sim") / "franka"
+    ex = export_policy(franka / "models" / "franka-scoop.model.json",
+                       tmp_path / "franka.tli.json", rerun=0)
+
+    def artifact_item() -> Any:
+        report = run_gate(franka, rerun=1, artifacts=[ex.json_path])
+        return next(i for i in report.items if i.kind == "artifact")
+
+    item = artifact_item()
+    assert item.ok and item.check == "rerun", item.message
+    assert "in the C evaluator from seed" in item.message and "1/1 delivered" in item.message
+    monkeypatch.setattr(CEvaluator, "velocity", lambda self: np.zeros(self.dim))
+    item = artifact_item()
+    assert not item.ok and "0/1 delivered" in item.message and "--c-evaluator" in item.message
 
 
 def test_an_artifact_of_another_model_is_refused(tmp_path: Path, repo: Path,

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tli_verify.deploy.export import check_artifact, text_path_for
+from tli_verify.deploy.artifact import check_artifact, text_path_for
 from tli_verify.errors import ExportError
 from tli_verify.io import package_file, sha256_file
 from tli_verify.runtime.events import CutAdded, Reentered, Stall

@@ -52,6 +52,7 @@ from tli_verify.certification.orientation import (
     check_orientation_certificate,
 )
 from tli_verify.deploy.artifact import check_artifact, render_text, text_path_for
+from tli_verify.deploy.cloop import CInTheLoop, in_the_loop
 from tli_verify.deploy.content import artifact_of
 from tli_verify.errors import CertificateError, GateError, ModelError, TliError, bad_input
 from tli_verify.io import read_bytes, read_json, same_file, sha256_file
@@ -524,7 +525,7 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         items += [bad] if bad is not None else _model_checks(model, shown, certified, specs)
     items += _campaign_items(base, models, shown, certified, rerun=rerun,
                              runner=campaign_runner)
-    items += [artifact_item(Path(a), base, items, shown) for a in artifacts]
+    items += [artifact_item(Path(a), base, items, shown, rerun=rerun) for a in artifacts]
     if not models:
         items.append(GateItem("project", shown(base), False, "nothing to gate: no model under "
                               f"{shown(base / 'models')}/ to deploy (the gate fails closed)",
@@ -593,7 +594,7 @@ def _content_differs(art: dict[str, Any], model: Path) -> str | None:
 
 
 def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
-                  shown: Callable[[Path], str]) -> GateItem:
+                  shown: Callable[[Path], str], *, rerun: int | None = None) -> GateItem:
     """Check an exported policy (``tli export``) against what the gate passed.
 
     It binds "the artifact that will be deployed" to "the campaign that tested it": the
@@ -602,7 +603,11 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
     the gate passed every check of it; its spec, certificate and task are the files the model
     resolves to, byte for byte; and its campaign is the current evidence: either the artifact
     was exported with this evidence, or this evidence's trials ran this very artifact in the C
-    evaluator (``physics.evaluator``).
+    evaluator (``physics.evaluator``). When that evidence is a physical campaign, the artifact
+    itself then drives the robot: ``rerun`` perturbed MuJoCo trials (default
+    :data:`DEFAULT_RERUN_TRIALS`; 0 skips them, the Python API only) run through the C
+    evaluator, on a seed derived from the artifact's content and the model
+    (:func:`artifact_rerun`), and each must pass the physics oracle.
 
     Returns
     -------
@@ -665,21 +670,27 @@ def artifact_item(path: Path, base: Path, items: Sequence[GateItem],
     differs = _content_differs(art, model)
     if differs is not None:
         return block(differs, "content")
-    recorded = (src.get("evidence") or {}).get("sha256")
-    if recorded == sha256_file(evidence):
-        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
-                        f"the policy of {shown(model)} as gated, exported with the current "
-                        f"evidence {shown(evidence)}", "binding")
     try:
         doc = read_json(evidence, what="campaign evidence", error=GateError)
     except TliError as exc:
         return block(f"its evidence does not load: {exc}", "campaign")
-    ran = ((doc.get("physics") or {}).get("evaluator") or {}).get("artifact_sha256") \
-        if isinstance(doc, dict) else None
-    if ran == art["content_sha256"] and same_file(evidence, files.evidence):
-        return GateItem("artifact", name, True, f"content {art['content_sha256'][:12]}...: "
-                        f"the campaign {shown(evidence)} ran this artifact in the C evaluator",
-                        "binding")
+    physics = doc.get("physics") if isinstance(doc, dict) else None
+    recorded = (src.get("evidence") or {}).get("sha256")
+    ran = ((physics or {}).get("evaluator") or {}).get("artifact_sha256") \
+        if isinstance(physics, dict) else None
+    bound = None
+    if recorded == sha256_file(evidence):
+        bound = (f"the policy of {shown(model)} as gated, exported with the current evidence "
+                 f"{shown(evidence)}")
+    elif ran == art["content_sha256"] and same_file(evidence, files.evidence):
+        bound = f"the campaign {shown(evidence)} ran this artifact in the C evaluator"
+    if bound is not None:
+        head = f"content {art['content_sha256'][:12]}...: {bound}"
+        count = DEFAULT_RERUN_TRIALS if rerun is None else int(rerun)
+        if not isinstance(physics, dict) or count == 0:
+            return GateItem("artifact", name, True, head, "binding")
+        ok, what = artifact_rerun(path, model, physics, count)
+        return GateItem("artifact", name, ok, f"{head}; {what}", "rerun")
     return block(f"no campaign tested it: it was exported with other evidence than "
                  f"{shown(evidence)}, whose trials did not run it (re-export it, or run the "
                  f"campaign with it: tli sim franka --c-evaluator {name} --evidence)", "campaign")
@@ -897,6 +908,52 @@ def rerun_starts(nominal: Any, examples: int, seed: int
         if count:
             plan.append((start, count, (seed + 104_729 * (i + 1)) % (2**32 - count)))
     return [p for p in plan if p[1] > 0]
+
+
+def artifact_rerun(path: Path, model: Path, physics: dict[str, Any], trials: int
+                   ) -> tuple[bool, str]:
+    """The deployed artifact drives the robot: ``trials`` perturbed MuJoCo trials with the
+    evidence's recorded settings, the C evaluator in the loop
+    (:func:`tli_verify.deploy.cloop.in_the_loop`; the Python executive supervises and must
+    agree every step), on seeds derived from the artifact's content hash and the model's
+    SHA-256 (not the evidence's, not the model re-run's), each judged by the physics oracle.
+
+    Returns
+    -------
+    (bool, str)
+        Passed, and the line's text (the failure and how to reproduce it).
+    """
+    import hashlib
+    import tempfile
+
+    art = read_json(path, what="policy artifact", error=GateError)
+    text = f"tli-verify gate artifact re-run:{art['content_sha256']}:{sha256_file(model)}"
+    seed = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16) % (2**32 - trials)
+    held: list[CInTheLoop] = []
+    try:
+        session = open_project(model=model)
+        with tempfile.TemporaryDirectory(prefix="tli-gate-c-") as build:
+
+            def wrap(policy: Any) -> CInTheLoop:
+                held.append(in_the_loop(policy, path, build))
+                return held[-1]
+
+            result = session.physics_campaign(seed=seed, trials=int(trials),
+                                              recorded=dict(physics), wrap=wrap)
+    except TliError as exc:
+        return False, f"the C evaluator's re-run trials failed: {exc}"
+    what = (f"re-ran {trials} physical trial(s) in the C evaluator from seed {seed}: "
+            f"{result.successes}/{trials} delivered soup")
+    found = {k: v for k, v in result.violations.items() if v}
+    if found:
+        bad = next(v for v in result.verdicts if not v.ok)
+        return False, (f"{what}; violations: {', '.join(found)}; first: seed {bad.seed}: "
+                       f"{bad.messages[0]}; reproduce: tli sim franka --certificates "
+                       f"{session.root / 'certificates'} --seed {bad.seed} --trials 1 "
+                       f"--c-evaluator {path}")
+    loop = held[0]
+    return True, (f"{what}, 0 violations ({loop.steps} C steps, velocities within "
+                  f"{loop.max_rel_diff:.1e} of the runtime's)")
 
 
 def rerun_physics(check: Any, model: Path, trials: int) -> tuple[bool, str]:

@@ -111,6 +111,7 @@ class Session(LoadedProject):
                          workers: int = 1, backend: str = "serial",
                          on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
                          on_event: Callable[[str], None] | None = None,
+                         wrap: Callable[[Any], Any] | None = None,
                          **settings: object) -> PhysicsResult:
         """Seeded physical trials of this project's policy in MuJoCo, judged by the physics
         oracle (``tli sim franka --evidence``'s campaign; :mod:`tli_verify.sim.campaign`).
@@ -129,6 +130,9 @@ class Session(LoadedProject):
             ``"serial"`` (default), ``"process"`` or ``"dask"``.
         on_trial, on_event : callable, optional
             Called after each judged trial and with each event line.
+        wrap : callable, optional
+            Applied to the executive before the trials (serial, one worker): e.g. the exported C
+            evaluator in the loop (:func:`tli_verify.deploy.cloop.in_the_loop`).
         **settings
             :class:`~tli_verify.sim.physics_config.PhysicsConfig` fields (``robot``,
             ``duration``, ``retry``, ``sensors``, ...), over ``recorded``'s.
@@ -149,7 +153,7 @@ class Session(LoadedProject):
         config = PhysicsConfig(root=str(self.root), seed=int(seed), trials=int(trials),
                                workers=int(workers), backend=backend, **chosen)
         with self.snapshot.use():
-            return run_physics_campaign(config, on_trial=on_trial, on_event=on_event)
+            return run_physics_campaign(config, on_trial=on_trial, on_event=on_event, wrap=wrap)
 
 
 def open_project(path: PathLike | None = None, *, task: PathLike | Task | None = None,

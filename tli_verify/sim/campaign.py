@@ -147,7 +147,8 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
                          on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
                          frame: Callable[[Any], None] | None = None,
                          on_event: Callable[[str], None] | None = None,
-                         scheduler: str | None = None) -> PhysicsResult:
+                         scheduler: str | None = None,
+                         wrap: Callable[[Any], Any] | None = None) -> PhysicsResult:
     """Run ``config.trials`` seeded, perturbed trials and judge each, in ``config.workers``
     contiguous chunks on ``config.backend``.
 
@@ -173,6 +174,10 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
         One line per notable backend event (a worker died, a chunk re-run).
     scheduler : str, optional
         Dask scheduler address (``backend="dask"``; default a ``LocalCluster``).
+    wrap : callable, optional
+        Applied to the first chunk's executive before any trial (serial backend only): e.g.
+        the exported C evaluator put in the loop with it as the supervisor
+        (:func:`tli_verify.deploy.cloop.in_the_loop`, the gate's re-run of a deployed artifact).
 
     Returns
     -------
@@ -191,7 +196,8 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
     KeyboardInterrupt
         Ctrl-C: the pending chunks are cancelled and nothing is returned.
     """
-    if config.backend != "serial" and (policy is not None or frame is not None):
+    if config.backend != "serial" and (policy is not None or frame is not None
+                                       or wrap is not None):
         raise CampaignError(f"backend {config.backend!r}: an executive or video frames in "
                             "this process need the serial backend")
     files = hash_files(config.root, config.cert_dir)
@@ -200,6 +206,8 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
         checked = load_policy(config.variant, root=config.root, certificates=config.cert_dir)
         if config.backend == "serial":
             policy = checked  # the first chunk's executive; the workers load their own
+    if wrap is not None:
+        policy = wrap(policy)
     shipped = config if config.backend == "serial" else dataclasses.replace(
         config, root=os.path.abspath(config.root),  # workers may start elsewhere
         certificates=os.path.abspath(config.cert_dir))
