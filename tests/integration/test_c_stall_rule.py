@@ -267,3 +267,19 @@ def test_a_reentry_ended_by_a_new_reading_lets_the_automaton_take_it(lib: Any,
         modes.append(pol.mode)
     assert modes[:2] == ["b", "c"], modes  # back to b, then the automaton takes s
     assert sum(isinstance(e, Stall) for e in pol.events) == 1
+
+
+def test_export_loads_its_artifact_in_c_before_writing_it(tmp_path: Path) -> None:
+    """``tli export`` loads the text form in the C evaluator first: an artifact the loader
+    refuses (here a stall level above lambda_min(P) r^2, which no Python check of the JSON
+    schema or hash catches) is refused with the loader's own message, nothing written."""
+    from tli_verify.deploy.export import c_load_check
+    from tli_verify.errors import ExportError
+
+    nd = _exported(tmp_path, 3)
+    art = dict(nd.exported.artifact)
+    assert c_load_check(art, where="nd") is True
+    forged = dict(art, stall=dict(art["stall"], levels=[v * 1.01 for v in art["stall"]["levels"]]))
+    with pytest.raises(ExportError, match=r"nd: refused: the C evaluator would not load its "
+                                          r"artifact: .*above lambda_min\(P\) r\^2"):
+        c_load_check(forged, where="nd")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -26,6 +27,7 @@ def test_export_writes_a_self_describing_artifact_bound_to_its_sources(project: 
     art = check_artifact(out)  # schema + its own hash
     assert art == json.loads(out.read_text())
     assert art["format"] == "tli-policy" and art["schema_version"] == 2
+    assert ex.c_loaded == (shutil.which("cc") is not None or shutil.which("gcc") is not None)
     # an artifact of the earlier schema (no stall rule) is named as such, not as a bad file
     old = dict(art, schema_version=1)
     old.pop("stall")

@@ -73,6 +73,8 @@ def _export(args: argparse.Namespace) -> int:
     model = _model_of(args.source, args.model)
     out = export_policy(model, args.output, rerun=args.rerun,
                         max_online_cuts=args.max_online_cuts)
+    checked = "loaded by the C evaluator" if out.c_loaded else \
+        "not loaded in C here: no C compiler"
     sys.stdout.write(f"exported {model}: {out.json_path} and {out.text_path} "
-                     f"(content sha256 {out.content_sha256})\n")
+                     f"(content sha256 {out.content_sha256}; {checked})\n")
     return 0

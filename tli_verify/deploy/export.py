@@ -34,6 +34,7 @@ on the model's project and refuses on its first blocker.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 from dataclasses import dataclass
@@ -50,6 +51,7 @@ from tli_verify.deploy.artifact import (
     render_text,
     text_path_for,
 )
+from tli_verify.deploy.cloop import CEvaluator, compile_evaluator
 from tli_verify.deploy.content import (
     DEFAULT_MAX_ONLINE_CUTS,
     MAX_ONLINE_CUTS,
@@ -63,7 +65,8 @@ from tli_verify.project import open_project
 from tli_verify.tasks.project import model_files
 
 __all__ = ["DEFAULT_MAX_ONLINE_CUTS", "FORMAT", "MAX_C_BITS", "MAX_ONLINE_CUTS", "SCHEMA_VERSION",
-           "TEXT_MAGIC", "Exported", "artifact_of", "build_artifact", "check_artifact",
+           "TEXT_MAGIC", "Exported", "artifact_of", "build_artifact", "c_load_check",
+           "check_artifact",
            "content_hash", "export_policy", "render_text", "tested_stall_rule", "text_path_for",
            "write_artifact"]
 
@@ -77,12 +80,16 @@ class Exported:
     json_path, text_path : Path
     content_sha256 : str
     artifact : dict
+    c_loaded : bool
+        The C evaluator, built with the system compiler, loaded the text form before it was
+        written (False: no C compiler here, so not checked).
     """
 
     json_path: Path
     text_path: Path
     content_sha256: str
     artifact: dict[str, Any]
+    c_loaded: bool = False
 
 
 def _hash_or_none(path: Path | None) -> dict[str, str] | None:
@@ -153,8 +160,38 @@ def export_policy(model: str | os.PathLike[str], out: str | os.PathLike[str], *,
                "certificate": _hash_or_none(Path(resolved.certificate)),
                "task": _hash_or_none(task_file),
                "evidence": _hash_or_none(Path(resolved.evidence))}
-    return write_artifact(artifact_of(session, sources=sources,
-                                      max_online_cuts=max_online_cuts), out_json)
+    art = artifact_of(session, sources=sources, max_online_cuts=max_online_cuts)
+    loaded = c_load_check(art, where=str(resolved.model))
+    return dataclasses.replace(write_artifact(art, out_json), c_loaded=loaded)
+
+
+def c_load_check(art: dict[str, Any], *, where: str) -> bool:
+    """Load an artifact's text form in the C evaluator before it is written: what the robot's
+    controller will load must load (its own checks: sizes, SPD ``P``, cuts, stall levels and
+    re-entry DS). True when loaded; False when this machine has no C compiler (not checked).
+
+    Raises
+    ------
+    ExportError
+        The C loader refuses it (exit 2), with its message.
+    """
+    import tempfile
+
+    body = render_text({k: v for k, v in art.items() if k != "content_sha256"})
+    digest = hashlib.sha256(body.encode("utf-8")).hexdigest()
+    with tempfile.TemporaryDirectory(prefix="tli-export-c-") as tmp:
+        try:
+            lib = compile_evaluator(tmp)
+        except ExportError:
+            return False
+        text = Path(tmp) / "artifact.tli.txt"
+        text.write_text(body + f"sha256 {digest}\n", encoding="utf-8")
+        try:
+            CEvaluator(lib, text)
+        except ExportError as exc:
+            raise ExportError(f"{where}: refused: the C evaluator would not load its artifact: "
+                              f"{str(exc).split(': ', 1)[-1]}") from None
+    return True
 
 
 def write_artifact(art: dict[str, Any], out: str | os.PathLike[str]) -> Exported:
