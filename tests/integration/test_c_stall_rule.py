@@ -283,3 +283,16 @@ def test_export_loads_its_artifact_in_c_before_writing_it(tmp_path: Path) -> Non
     with pytest.raises(ExportError, match=r"nd: refused: the C evaluator would not load its "
                                           r"artifact: .*above lambda_min\(P\) r\^2"):
         c_load_check(forged, where="nd")
+
+
+def test_a_library_that_does_not_load_is_one_export_error(tmp_path: Path) -> None:
+    """A shared library the dynamic loader refuses (a foreign compiler's output, a noexec
+    directory) is an ExportError naming it -- one gate line or one error line -- not an
+    OSError traceback."""
+    from tli_verify.deploy.cloop import CEvaluator
+    from tli_verify.errors import ExportError
+
+    junk = tmp_path / "libtli_policy.so"
+    junk.write_bytes(b"\x7fELF not really")
+    with pytest.raises(ExportError, match="the C evaluator's library does not load"):
+        CEvaluator(junk, tmp_path / "unused.tli.txt")

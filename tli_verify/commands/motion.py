@@ -225,7 +225,9 @@ def register(sub: argparse._SubParsersAction[Any]) -> None:
                    "re-check (its hash, its text form), be the policy of a model the gate "
                    "passes, with the same spec, certificate and task, and be tested by the "
                    "current evidence (exported with it, or run by its trials in the C "
-                   "evaluator)")
+                   "evaluator), its numbers those its model exports to now; with physical "
+                   "evidence it then drives the robot itself: N re-run trials (--rerun) with "
+                   "the C evaluator in the loop, built with the system C compiler (needed)")
     p.set_defaults(handler=_gate)
 
 

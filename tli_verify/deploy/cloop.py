@@ -100,7 +100,11 @@ class CEvaluator:
 
     def __init__(self, library: str | os.PathLike[str], text_path: str | os.PathLike[str]
                  ) -> None:
-        lib = ctypes.CDLL(str(library))
+        try:
+            lib = ctypes.CDLL(str(library))
+        except OSError as exc:  # e.g. a noexec temporary directory, a foreign compiler
+            raise ExportError(f"{library}: the C evaluator's library does not load: "
+                              f"{exc}") from None
         vp, dp = ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)
         lib.tli_policy_load.argtypes = [ctypes.c_char_p, ctypes.POINTER(vp), ctypes.c_char_p,
                                         ctypes.c_size_t]

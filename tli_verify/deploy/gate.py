@@ -458,7 +458,8 @@ def run_gate(root: str | os.PathLike[str] = ".", *,
         :func:`rerun_campaign`, which calls :func:`tli_verify.verify.campaign.run_campaign`).
     artifacts : sequence of path-like, optional
         Exported policies to be deployed (``tli gate --artifact``): each is checked
-        (:func:`artifact_item`) against the project and the campaign that tested it.
+        (:func:`artifact_item`) against the project and the campaign that tested it, and with
+        physical evidence re-run ``rerun`` trials in the C evaluator (:func:`artifact_rerun`).
 
     Returns
     -------
@@ -926,11 +927,11 @@ def artifact_rerun(path: Path, model: Path, physics: dict[str, Any], trials: int
     import hashlib
     import tempfile
 
-    art = read_json(path, what="policy artifact", error=GateError)
-    text = f"tli-verify gate artifact re-run:{art['content_sha256']}:{sha256_file(model)}"
-    seed = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16) % (2**32 - trials)
     held: list[CInTheLoop] = []
     try:
+        art = read_json(path, what="policy artifact", error=GateError)
+        text = f"tli-verify gate artifact re-run:{art['content_sha256']}:{sha256_file(model)}"
+        seed = int(hashlib.sha256(text.encode("utf-8")).hexdigest()[:16], 16) % (2**32 - trials)
         session = open_project(model=model)
         with tempfile.TemporaryDirectory(prefix="tli-gate-c-") as build:
 
@@ -947,9 +948,12 @@ def artifact_rerun(path: Path, model: Path, physics: dict[str, Any], trials: int
     found = {k: v for k, v in result.violations.items() if v}
     if found:
         bad = next(v for v in result.verdicts if not v.ok)
+        config = result.config
+        flags = f" --robot {config.robot} --duration {config.duration:g}" + \
+            ("" if config.retry else " --no-stall-rule")
         return False, (f"{what}; violations: {', '.join(found)}; first: seed {bad.seed}: "
                        f"{bad.messages[0]}; reproduce: tli sim franka --certificates "
-                       f"{session.root / 'certificates'} --seed {bad.seed} --trials 1 "
+                       f"{session.root / 'certificates'} --seed {bad.seed} --trials 1{flags} "
                        f"--c-evaluator {path}")
     loop = held[0]
     return True, (f"{what}, 0 violations ({loop.steps} C steps, velocities within "

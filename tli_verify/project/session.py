@@ -34,6 +34,7 @@ from tli_verify.errors import TliError
 from tli_verify.loaded import LoadedProject, locate, run_policy
 
 if TYPE_CHECKING:
+    from tli_verify.runtime.executive import LTLDSPolicy
     from tli_verify.sim.campaign import PhysicsResult
     from tli_verify.sim.loop import TrialResult
     from tli_verify.sim.trial_oracle import TrialVerdict
@@ -111,7 +112,7 @@ class Session(LoadedProject):
                          workers: int = 1, backend: str = "serial",
                          on_trial: Callable[[int, TrialResult, TrialVerdict], None] | None = None,
                          on_event: Callable[[str], None] | None = None,
-                         wrap: Callable[[Any], Any] | None = None,
+                         wrap: Callable[[LTLDSPolicy], object] | None = None,
                          **settings: object) -> PhysicsResult:
         """Seeded physical trials of this project's policy in MuJoCo, judged by the physics
         oracle (``tli sim franka --evidence``'s campaign; :mod:`tli_verify.sim.campaign`).

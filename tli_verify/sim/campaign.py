@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from tli_verify.errors import CampaignError
+from tli_verify.runtime.executive import LTLDSPolicy
 from tli_verify.sim.chunks import chunk_seeds
 from tli_verify.sim.franka_files import hash_files
 from tli_verify.sim.franka_project import load_policy
@@ -148,7 +149,7 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
                          frame: Callable[[Any], None] | None = None,
                          on_event: Callable[[str], None] | None = None,
                          scheduler: str | None = None,
-                         wrap: Callable[[Any], Any] | None = None) -> PhysicsResult:
+                         wrap: Callable[[LTLDSPolicy], object] | None = None) -> PhysicsResult:
     """Run ``config.trials`` seeded, perturbed trials and judge each, in ``config.workers``
     contiguous chunks on ``config.backend``.
 
@@ -200,6 +201,9 @@ def run_physics_campaign(config: PhysicsConfig, *, policy: Any = None,
                                        or wrap is not None):
         raise CampaignError(f"backend {config.backend!r}: an executive or video frames in "
                             "this process need the serial backend")
+    if wrap is not None and config.workers != 1:
+        raise CampaignError(f"workers {config.workers}: a wrapped executive runs every trial, "
+                            "so one worker (the other chunks would load their own)")
     files = hash_files(config.root, config.cert_dir)
     chunks = chunk_seeds(config.seed, config.trials, config.workers)
     if policy is None:  # nothing moves if the certificate does not cover the model
