@@ -33,6 +33,7 @@ from tests.support.cpolicy import (
     library,
     mask,
     run_side_by_side,
+    step_both,
 )
 from tests.support.ndtask import NDSensors, write_nd
 from tli_verify.boundary.cuts import Cut
@@ -303,7 +304,6 @@ def test_automaton_parity_under_arbitrary_readings(lib: Any, nd_artifacts: dict[
     nd = nd_artifacts[n]
     inputs = nd.exported.artifact["automaton"]["inputs"]
     modes = nd.exported.artifact["automaton"]["modes"]
-    keys = [d["key"] for d in nd.exported.artifact["ds"]]
     rng = np.random.default_rng(n)
     seen = {"assumption": 0, "holding": 0, "failure": 0, "done": 0}
     for _ in range(5):
@@ -320,13 +320,8 @@ def test_automaton_parity_under_arbitrary_readings(lib: Any, nd_artifacts: dict[
                 reading = frozenset(v for v in inputs if rng.random() < 0.3)
             x = x + rng.normal(scale=0.05, size=n)
             perturbed = bool(rng.random() < 0.1)
-            n_events = len(pol.events)
-            v_py = pol.step(x, reading, perturbed=perturbed)
-            info = c.decide(x, mask(reading, inputs), perturbed)
-            v_c = c.velocity()
-            new = pol.events[n_events:]
-            assert (info.state, modes[info.mode]) == (pol.state, pol.mode)
-            assert (keys[info.ds] if info.ds >= 0 else "") == ("" if pol.holding else pol.key)
+            v_py, info, v_c, new = step_both(pol, c, x, reading, perturbed,
+                                             nd.exported.artifact)
             assert bool(info.flags & F_HOLDING) == pol.holding
             assert bool(info.flags & F_DONE) == pol.done
             assert bool(info.flags & F_FAILURE) == any(isinstance(e, InvarianceFailure)

@@ -24,6 +24,7 @@ from tests.support.cpolicy import (
     compiler,
     library,
     mask,
+    step_both,
 )
 from tests.support.ndtask import SPEC, write_nd
 from tli_verify.deploy.export import build_artifact, write_artifact
@@ -36,7 +37,8 @@ pytestmark = pytest.mark.skipif(compiler() is None, reason="no system C compiler
 NO_SOURCES: dict[str, Any] = {k: None for k in ("spec", "model", "certificate", "task",
                                                  "evidence")}
 RULE = StallRule(radius=0.5, dwell=0.05, blocked_after=0.3, progress=0.005)
-LABELS = (frozenset(), frozenset({"r"}), frozenset({"s"}), frozenset({"t"}))
+LABELS: tuple[frozenset[str], ...] = (frozenset(), frozenset({"r"}), frozenset({"s"}),
+                                     frozenset({"t"}))
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +89,7 @@ def test_stall_rule_parity_in_closed_loop(lib: Any, tmp_path: Path, n: int) -> N
     velocities (no cuts: ``learn_cuts=False``)."""
     nd = _exported(tmp_path, n)
     art = nd.exported.artifact
-    inputs, modes = art["automaton"]["inputs"], art["automaton"]["modes"]
+    inputs = art["automaton"]["inputs"]
     keys = [d["key"] for d in art["ds"]]
     rng = np.random.default_rng(100 + n)
     seen = {"converged": 0, "blocked": 0, "back converged": 0, "back by reading": 0,
@@ -107,14 +109,8 @@ def test_stall_rule_parity_in_closed_loop(lib: Any, tmp_path: Path, n: int) -> N
             perturbed = bool(rng.random() < 0.003)
             if perturbed:
                 x = x + rng.normal(scale=0.3, size=n)
-            n_events = len(pol.events)
             in_reentry = pol._reentry is not None
-            v_py = pol.step(x, reading, perturbed=perturbed)
-            info = c.decide(x, mask(reading, inputs), perturbed)
-            v_c = c.velocity()
-            new = pol.events[n_events:]
-            assert (info.state, modes[info.mode]) == (pol.state, pol.mode)
-            assert (keys[info.ds] if info.ds >= 0 else "") == ("" if pol.holding else pol.key)
+            v_py, info, v_c, new = step_both(pol, c, x, reading, perturbed, art)
             stalls = [e for e in new if isinstance(e, Stall)]
             backs = [e for e in new if isinstance(e, Reentered)]
             assert bool(info.flags & F_STALL) == bool(stalls)
@@ -125,8 +121,8 @@ def test_stall_rule_parity_in_closed_loop(lib: Any, tmp_path: Path, n: int) -> N
             for e in stalls:
                 level = lyapunov_level(nd.model.modes[e.key].ds.P, RULE.radius)
                 seen["converged" if e.value < level else "blocked"] += 1
-            for e in backs:
-                seen["back converged" if e.converged else "back by reading"] += 1
+            for back in backs:
+                seen["back converged" if back.converged else "back by reading"] += 1
             seen["pushed in re-entry"] += int(in_reentry and perturbed)
             if stuck:
                 stuck -= 1
@@ -229,10 +225,8 @@ def test_an_input_the_strategy_never_reads_does_not_end_a_reentry(lib: Any,
     reading = frozenset({"r", "z"})
     x = xb.copy()
     for _ in range(400):  # converged in b: fires; a's DS then runs to a's attractor
-        v = pol.step(x, reading)
-        info = c.decide(x, mask(reading, aut["inputs"]), False)
-        assert np.array_equal(v, c.velocity())
-        assert (aut["modes"][info.mode], info.state) == (pol.mode, pol.state)
+        v, _, v_c, _ = step_both(pol, c, x, reading, False, nd.exported.artifact)
+        assert np.array_equal(v, v_c)
         x = x + 0.01 * v
         if any(isinstance(e, Reentered) for e in pol.events):
             break

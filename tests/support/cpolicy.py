@@ -12,7 +12,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -182,9 +182,30 @@ class CPolicy:
             raise CError(code, err.value.decode())
 
 
-def mask(reading: Sequence[str] | frozenset[str], inputs: Sequence[str]) -> int:
+def mask(reading: Collection[str], inputs: Sequence[str]) -> int:
     """The reading's bit mask (bit i = ``inputs[i]``)."""
     return sum(1 << i for i, v in enumerate(inputs) if v in reading)
+
+
+def step_both(pol: Any, c: CPolicy, x: Any, reading: frozenset[str], perturbed: bool,
+              art: dict[str, Any]) -> tuple[np.ndarray, StepInfo, np.ndarray, list[Any]]:
+    """One control step of the Python executive ``pol`` and the C evaluator ``c`` on the same
+    state, reading and flag; asserts they are in the same automaton state, mode and DS.
+
+    Returns
+    -------
+    (v_py, info, v_c, events)
+        Both velocities, the C step's info and the events the Python step added.
+    """
+    aut = art["automaton"]
+    keys = [d["key"] for d in art["ds"]]
+    n_events = len(pol.events)
+    v_py = pol.step(x, reading, perturbed=perturbed)
+    info = c.decide(x, mask(reading, aut["inputs"]), perturbed)
+    v_c = c.velocity()
+    assert (info.state, aut["modes"][info.mode]) == (pol.state, pol.mode)
+    assert (keys[info.ds] if info.ds >= 0 else "") == ("" if pol.holding else pol.key)
+    return v_py, info, v_c, pol.events[n_events:]
 
 
 @dataclass

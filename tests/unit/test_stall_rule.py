@@ -173,5 +173,10 @@ def test_stall_rule_settings_are_checked() -> None:
         StallRule(dwell=-1.0)
     with pytest.raises(TliError):
         StallRule(progress=1.0)
+    for huge in (1e308, 1e20):  # its step count would overflow or be beyond any controller
+        with pytest.raises(TliError, match="at most 3600"):
+            StallRule(blocked_after=huge)
+        with pytest.raises(TliError, match="at most 3600"):
+            StallRule(dwell=huge)
     assert StallRule().to_dict() == {"radius": 0.3, "dwell": 1.0, "blocked_after": 1.5,
                                      "progress": 0.02}

@@ -49,12 +49,17 @@ if TYPE_CHECKING:
     from tli_verify.logic.automaton import TaskAutomaton
     from tli_verify.model.types import Model
 
-__all__ = ["STALL_PARAMETERS", "StallRule", "lyapunov_level", "lyapunov_value", "reentry_route"]
+__all__ = ["MAX_STALL_SECONDS", "STALL_PARAMETERS", "StallRule", "lyapunov_level",
+           "lyapunov_value", "reentry_route"]
 
 FloatArray = npt.NDArray[np.float64]
 
 STALL_PARAMETERS = ("radius", "dwell", "blocked_after", "progress")
 """The rule's fields, as the evidence and the exported artifact record them."""
+
+MAX_STALL_SECONDS = 3600.0
+"""Longest ``dwell`` or ``blocked_after`` (s): the step counts stay integers a controller can
+hold (1e308 s overflowed the count)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,6 +94,9 @@ class StallRule:
                 and 0.0 <= self.progress < 1.0):
             raise TliError(f"stall rule: need blocked_after > 0 and 0 <= progress < 1, got "
                            f"{self.blocked_after}, {self.progress}")
+        if max(self.dwell, self.blocked_after) > MAX_STALL_SECONDS:
+            raise TliError(f"stall rule: dwell and blocked_after at most {MAX_STALL_SECONDS:g} "
+                           f"s, got {self.dwell}, {self.blocked_after}")
 
     def periods(self, dt: float) -> tuple[int, int]:
         """``(dwell_steps, window)`` at control period ``dt``: the control steps ``V`` must stay
